@@ -1,0 +1,22 @@
+# The two commands of the README: `make run` (whole pipeline at paper scale) and `make test`.
+# Both set everything up first (scripts/setup.sh is idempotent).
+PY := .venv/bin/python
+RUN ?= runs/paper
+CONFIG ?= configs/paper.toml
+
+.PHONY: setup run test sim-bench clean
+
+setup:
+	bash scripts/setup.sh
+
+run: setup
+	$(PY) -m quadfdi.cli run --config $(CONFIG) --out $(RUN)
+
+test: setup
+	$(PY) -m pytest -q
+
+sim-bench: setup
+	$(PY) -m quadfdi.cli sim bench --config $(CONFIG)
+
+clean:
+	rm -rf runs/test-* .pytest_cache

@@ -1,0 +1,58 @@
+"""Atomic output: every artifact is written to a temp file in its folder, then renamed.
+
+A crash (or a raised error) in the middle of writing leaves no half-written file under the
+final name, so a later stage never trusts a truncated artifact.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import tempfile
+from pathlib import Path
+from typing import Iterator
+
+from quadfdi.errors import QuadfdiError
+
+
+def ensure_dir(path: str | os.PathLike) -> Path:
+    """Create ``path`` (and parents) or raise a one-line error saying why it cannot be."""
+    p = Path(path)
+    try:
+        p.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise QuadfdiError(f"cannot create output folder {p}: {exc.strerror}") from None
+    if not os.access(p, os.W_OK):
+        raise QuadfdiError(f"output folder {p} is not writable")
+    return p
+
+
+@contextlib.contextmanager
+def atomic_path(path: str | os.PathLike, mode: str = "wb") -> Iterator:
+    """Yield an open temp file beside ``path``; rename it onto ``path`` only on success."""
+    final = Path(path)
+    ensure_dir(final.parent)
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{final.name}.", suffix=".tmp", dir=final.parent)
+    except OSError as exc:
+        raise QuadfdiError(f"cannot write {final}: {exc.strerror}") from None
+    try:
+        with os.fdopen(fd, mode) as fh:
+            yield fh
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, final)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
+
+
+def write_bytes(path: str | os.PathLike, data: bytes) -> None:
+    with atomic_path(path, "wb") as fh:
+        fh.write(data)
+
+
+def write_text(path: str | os.PathLike, text: str) -> None:
+    with atomic_path(path, "w") as fh:
+        fh.write(text)

@@ -1,0 +1,61 @@
+"""``quadfdi``: one console script, a subcommand per stage.
+
+Each stage package has a thin ``cli`` module with ``add_parser(subparsers)``; it is imported
+lazily so that ``quadfdi sim`` never pays for importing torch. Any ``QuadfdiError`` (bad
+input) is printed as one line and exits with code 2; a usage error exits with code 2 too
+(argparse's convention).
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+from quadfdi.errors import QuadfdiError
+
+STAGES = {
+    "sim": "sim.cli",
+    "train": "train.cli",
+    "run": "quadfdi.pipeline",
+}
+
+
+def build_parser(argv: list[str]) -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog="quadfdi", description=__doc__.splitlines()[0])
+    sub = parser.add_subparsers(dest="stage", required=True, metavar="{" + ",".join(STAGES) + "}")
+    # Only import the stage that was asked for (``--help`` imports them all).
+    wanted = [a for a in argv[:1] if a in STAGES] or list(STAGES)
+    for name in STAGES:
+        if name in wanted:
+            module = importlib.import_module(STAGES[name])
+            module.add_parser(sub)
+        else:
+            sub.add_parser(name)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    parser = build_parser(argv)
+    args = parser.parse_args(argv)
+    try:
+        return int(args.func(args) or 0)
+    except QuadfdiError as exc:
+        print(f"quadfdi {args.stage}: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"quadfdi {args.stage}: interrupted", file=sys.stderr)
+        return 130
+
+
+def add_config_args(p: argparse.ArgumentParser, config: bool = True) -> None:
+    """The options every stage shares: ``--config`` and repeated ``--set section.key=value``."""
+    if config:
+        p.add_argument("--config", default="configs/paper.toml", help="TOML config (default: %(default)s)")
+    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="SECTION.KEY=VALUE",
+                   help="override one config value; repeatable")
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,284 @@
+"""One TOML config, one section per stage; defaults are the paper's Table 2.
+
+``load_config(path, overrides)`` reads ``configs/paper.toml`` (or any file of the same shape),
+applies ``--set section.key=value`` overrides, type-checks every value and validates ranges.
+An unknown section or key is an error that lists the valid ones (as nanoGPT's configurator
+does), so a typo never silently falls back to a default. The config used by a run is stored
+in the run folder (``config.toml``) and inside every artifact.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import tomllib
+from dataclasses import dataclass, field, fields
+from pathlib import Path
+from typing import Any, get_args, get_origin, get_type_hints
+
+from quadfdi.errors import QuadfdiError
+
+CLASS_NAMES = ("Healthy", "BatteryFault", "MotorFault", "OverheatFault")
+
+
+@dataclass(frozen=True)
+class SimConfig:
+    """Simulator and dataset settings (paper Table 2)."""
+
+    seed: int = 0
+    vehicle: str = "f450_3s"  # named vehicle class, see sim/params.py
+    n_traj: int = 240
+    duration_s: float = 16.0
+    sample_dt_s: float = 0.04  # 25 Hz telemetry
+    sim_dt_s: float = 0.005  # internal integration step (200 Hz), 8 per telemetry sample
+    fault_ratio: float = 0.75
+    onset_frac: tuple[float, float] = (0.14, 0.43)  # of the flight duration
+    ramp_frac: tuple[float, float] = (0.30, 0.62)  # of the flight duration
+    severity_max: tuple[float, float] = (0.5, 1.0)  # final severity s_max,k, uniform
+    severity_threshold: float = 0.2  # s_thr: labels windows, defines the detectable time
+    split: tuple[float, float, float] = (0.70, 0.15, 0.15)  # train / validation / test
+    window: int = 80
+    stride: int = 10
+    chunk: int = 240  # trajectories integrated together (vectorised batch)
+
+    def validate(self) -> None:
+        _positive(self, "n_traj", "duration_s", "sample_dt_s", "sim_dt_s", "window", "stride", "chunk")
+        if not 0.0 <= self.fault_ratio <= 1.0:
+            raise QuadfdiError(f"sim.fault_ratio must be in [0, 1], found {self.fault_ratio}")
+        for name in ("onset_frac", "ramp_frac", "severity_max"):
+            lo, hi = getattr(self, name)
+            if not 0.0 <= lo <= hi <= 1.0 or (name != "onset_frac" and lo <= 0.0):
+                raise QuadfdiError(f"sim.{name} must be [lo, hi] with 0 < lo <= hi <= 1, found {[lo, hi]}")
+        if not 0.0 < self.severity_threshold < self.severity_max[0]:
+            raise QuadfdiError(
+                f"sim.severity_threshold must be in (0, severity_max[0]={self.severity_max[0]}), "
+                f"found {self.severity_threshold}"
+            )
+        if abs(sum(self.split) - 1.0) > 1e-9 or min(self.split) < 0:
+            raise QuadfdiError(f"sim.split must be three non-negative shares summing to 1, found {list(self.split)}")
+        ratio = self.sample_dt_s / self.sim_dt_s
+        if abs(ratio - round(ratio)) > 1e-9:
+            raise QuadfdiError(
+                f"sim.sample_dt_s ({self.sample_dt_s}) must be a whole multiple of sim.sim_dt_s ({self.sim_dt_s})"
+            )
+        if self.n_samples < self.window:
+            raise QuadfdiError(
+                f"sim.duration_s={self.duration_s} gives {self.n_samples} samples, fewer than sim.window={self.window}"
+            )
+        # Every fault trajectory must become detectable at least one stride before the end:
+        # worst case is the latest onset, the longest ramp and the smallest final severity.
+        t_det_worst = self.duration_s * (self.onset_frac[1] + self.ramp_frac[1] * self.severity_threshold / self.severity_max[0])
+        last_end = (self.n_samples - 1) * self.sample_dt_s
+        if t_det_worst > last_end - self.stride * self.sample_dt_s + 1e-9:
+            raise QuadfdiError(
+                f"sim: a fault may become detectable at {t_det_worst:.2f} s, later than one stride before the "
+                f"last sample ({last_end:.2f} s); lower sim.severity_threshold or raise sim.severity_max"
+            )
+
+    @property
+    def n_samples(self) -> int:
+        return int(round(self.duration_s / self.sample_dt_s))
+
+    @property
+    def substeps(self) -> int:
+        return int(round(self.sample_dt_s / self.sim_dt_s))
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    """Model and training settings (paper Table 2 and Sections II-D to II-F)."""
+
+    seed: int = 0
+    model: str = "both"  # cnode | gru | both
+    epochs: int = 14
+    batch_size: int = 96
+    lr: float = 3e-3  # Adam
+    latent: int = 40  # CNODE latent dimension
+    hidden: int = 64  # CNODE vector-field hidden width
+    gru_hidden: int = 80
+    solver: str = "rk4"  # training solver of the CNODE: dopri5 | bosh3 | rk4 | euler | midpoint
+    steps: int = 8  # fixed-step solvers: N steps over [0, 1]
+    rtol: float = 1e-3  # adaptive solvers
+    atol: float = 1e-4
+    jump_t: bool = True  # adaptive solvers: tell torchdiffeq where the path's knots are
+    log_eps: float = 1e-8  # the epsilon of Eq. (12)
+    threads: int = 2
+    seeds: tuple[int, ...] = (0, 1, 2)  # the multi-seed study
+
+    def validate(self) -> None:
+        _positive(self, "epochs", "batch_size", "lr", "latent", "hidden", "gru_hidden", "steps", "rtol", "atol", "threads")
+        _choice(self, "model", ("cnode", "gru", "both"))
+        _choice(self, "solver", ("dopri5", "bosh3", "rk4", "euler", "midpoint"))
+
+
+@dataclass(frozen=True)
+class ExportConfig:
+    """Deployment graph settings (SPEC section 4)."""
+
+    steps: int = 8  # N of the unrolled classic RK4 graph
+    opset: int = 18
+    calib_windows: int = 512  # training windows used to calibrate int8 activation scales
+    reference_windows: int = 4  # test windows written to reference.bin
+
+    def validate(self) -> None:
+        _positive(self, "steps", "opset", "calib_windows", "reference_windows")
+        if self.opset < 17:
+            raise QuadfdiError(f"export.opset must be 17 or newer, found {self.opset}")
+
+
+@dataclass(frozen=True)
+class Config:
+    sim: SimConfig = field(default_factory=SimConfig)
+    train: TrainConfig = field(default_factory=TrainConfig)
+    export: ExportConfig = field(default_factory=ExportConfig)
+
+    def validate(self) -> None:
+        for f in fields(self):
+            getattr(self, f.name).validate()
+
+    def to_dict(self) -> dict[str, dict[str, Any]]:
+        return {f.name: _section_dict(getattr(self, f.name)) for f in fields(self)}
+
+
+def _section_dict(section: Any) -> dict[str, Any]:
+    return {f.name: (list(v) if isinstance(v := getattr(section, f.name), tuple) else v) for f in fields(section)}
+
+
+def _positive(section: Any, *names: str) -> None:
+    for name in names:
+        value = getattr(section, name)
+        if not value > 0:
+            raise QuadfdiError(f"{_section_name(section)}.{name} must be positive, found {value}")
+
+
+def _choice(section: Any, name: str, allowed: tuple[str, ...]) -> None:
+    value = getattr(section, name)
+    if value not in allowed:
+        raise QuadfdiError(f"{_section_name(section)}.{name} must be one of {', '.join(allowed)}; found {value!r}")
+
+
+def _section_name(section: Any) -> str:
+    for f in fields(Config):
+        if f.default_factory is type(section):  # type: ignore[misc]
+            return f.name
+    return type(section).__name__
+
+
+def _coerce(value: Any, typ: Any, where: str) -> Any:
+    """Check ``value`` (parsed from TOML) against the dataclass field type ``typ``."""
+    origin = get_origin(typ)
+    if origin is tuple:
+        args = get_args(typ)
+        if not isinstance(value, (list, tuple)):
+            raise QuadfdiError(f"{where} must be a list, found {value!r}")
+        if len(args) == 2 and args[1] is Ellipsis:
+            return tuple(_coerce(v, args[0], where) for v in value)
+        if len(value) != len(args):
+            raise QuadfdiError(f"{where} must be a list of {len(args)} values, found {list(value)!r}")
+        return tuple(_coerce(v, a, where) for v, a in zip(value, args))
+    if typ is bool:
+        if not isinstance(value, bool):
+            raise QuadfdiError(f"{where} must be true or false, found {value!r}")
+        return value
+    if typ is int:
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise QuadfdiError(f"{where} must be an integer, found {value!r}")
+        return value
+    if typ is float:
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+            raise QuadfdiError(f"{where} must be a finite number, found {value!r}")
+        return float(value)
+    if typ is str:
+        if not isinstance(value, str):
+            raise QuadfdiError(f"{where} must be a string, found {value!r}")
+        return value
+    raise TypeError(f"unsupported config type {typ} for {where}")
+
+
+def _parse_override(text: str) -> tuple[str, str, Any]:
+    if "=" not in text or "." not in text.split("=", 1)[0]:
+        raise QuadfdiError(f"--set expects section.key=value, found {text!r}")
+    dotted, raw = text.split("=", 1)
+    section, key = dotted.strip().split(".", 1)
+    try:
+        value = tomllib.loads(f"v = {raw.strip()}")["v"]
+    except tomllib.TOMLDecodeError:
+        value = raw.strip()  # a bare word such as cnode is a string
+    return section, key, value
+
+
+def build_config(data: dict[str, Any], overrides: list[str] | tuple[str, ...] = (), source: str = "config") -> Config:
+    """Config from a parsed TOML mapping plus ``section.key=value`` overrides, checked."""
+    merged: dict[str, dict[str, Any]] = {}
+    sections = {f.name: f.default_factory for f in fields(Config)}  # type: ignore[misc]
+    for name, body in data.items():
+        if name not in sections:
+            raise QuadfdiError(f"{source}: unknown section [{name}]; valid sections: {', '.join(sections)}")
+        if not isinstance(body, dict):
+            raise QuadfdiError(f"{source}: [{name}] must be a table")
+        merged[name] = dict(body)
+    for text in overrides:
+        section, key, value = _parse_override(text)
+        if section not in sections:
+            raise QuadfdiError(f"--set {text}: unknown section {section!r}; valid sections: {', '.join(sections)}")
+        merged.setdefault(section, {})[key] = value
+    built = {}
+    for name, cls in sections.items():
+        hints = get_type_hints(cls)
+        valid = [f.name for f in fields(cls)]
+        kwargs = {}
+        for key, value in merged.get(name, {}).items():
+            if key not in hints:
+                raise QuadfdiError(f"{source}: unknown key {name}.{key}; valid keys of [{name}]: {', '.join(valid)}")
+            kwargs[key] = _coerce(value, hints[key], f"{name}.{key}")
+        built[name] = cls(**kwargs)
+    cfg = Config(**built)
+    cfg.validate()
+    return cfg
+
+
+def load_config(path: str | Path | None, overrides: list[str] | tuple[str, ...] = ()) -> Config:
+    """Read a TOML config file (or the defaults when ``path`` is None) and apply overrides."""
+    data: dict[str, Any] = {}
+    source = "defaults"
+    if path is not None:
+        p = Path(path)
+        source = str(p)
+        try:
+            data = tomllib.loads(p.read_text())
+        except FileNotFoundError:
+            raise QuadfdiError(f"config file {p} does not exist") from None
+        except (OSError, UnicodeDecodeError) as exc:
+            raise QuadfdiError(f"cannot read config file {p}: {exc}") from None
+        except tomllib.TOMLDecodeError as exc:
+            raise QuadfdiError(f"config file {p} is not valid TOML: {exc}") from None
+    return build_config(data, overrides, source)
+
+
+def _toml_value(value: Any) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, (int, float)):
+        return repr(value)
+    if isinstance(value, str):
+        return '"' + value.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
+    raise TypeError(f"cannot write {value!r} as TOML")
+
+
+def dumps_toml(cfg: Config) -> str:
+    """The config as TOML text that ``load_config`` reads back to an equal Config."""
+    lines = []
+    for section, body in cfg.to_dict().items():
+        lines.append(f"[{section}]")
+        lines.extend(f"{k} = {_toml_value(v)}" for k, v in body.items())
+        lines.append("")
+    return "\n".join(lines)
+
+
+def replace_section(cfg: Config, section: str, **changes: Any) -> Config:
+    """A copy of ``cfg`` with some keys of one section changed (validated)."""
+    new = dataclasses.replace(cfg, **{section: dataclasses.replace(getattr(cfg, section), **changes)})
+    new.validate()
+    return new

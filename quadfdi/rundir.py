@@ -1,0 +1,65 @@
+"""The run folder: every stage reads its inputs from and writes its outputs to ``runs/<name>/``.
+
+File names live here once, so the stages and the docs agree on them.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+from quadfdi.atomic import ensure_dir, write_text
+from quadfdi.config import Config, dumps_toml, load_config
+from quadfdi.errors import QuadfdiError
+
+
+@dataclass(frozen=True)
+class RunDir:
+    root: Path
+
+    @property
+    def config(self) -> Path:
+        return self.root / "config.toml"
+
+    @property
+    def dataset(self) -> Path:
+        return self.root / "dataset.npz"
+
+    @property
+    def figures(self) -> Path:
+        return self.root / "figures"
+
+    def checkpoint(self, kind: str) -> Path:
+        return self.root / f"{kind}.pt"
+
+    def predictions(self, kind: str) -> Path:
+        return self.root / f"predictions_{kind}.npz"
+
+    @property
+    def metrics(self) -> Path:
+        return self.root / "metrics.json"
+
+    @property
+    def export(self) -> Path:
+        return self.root / "export"
+
+
+def create_run(out: str | Path, cfg: Config) -> RunDir:
+    """Make the run folder and store the config used (TOML, no paths or times)."""
+    run = RunDir(ensure_dir(out))
+    write_text(run.config, dumps_toml(cfg))
+    return run
+
+
+def open_run(path: str | Path, overrides: list[str] | tuple[str, ...] = (), need: tuple[str, ...] = ()) -> tuple[RunDir, Config]:
+    """An existing run folder and its stored config (with ``--set`` overrides applied)."""
+    run = RunDir(Path(path))
+    if not run.root.is_dir():
+        raise QuadfdiError(f"run folder {run.root} does not exist (run `quadfdi sim --out {run.root}` first)")
+    if not run.config.is_file():
+        raise QuadfdiError(f"{run.config} is missing: {run.root} is not a quadfdi run folder")
+    for attr in need:
+        p = getattr(run, attr)
+        if not p.exists():
+            raise QuadfdiError(f"{p} is missing: run the stage that writes it first")
+    return run, load_config(run.config, overrides)

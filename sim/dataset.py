@@ -1,0 +1,160 @@
+"""The dataset file (``dataset.npz``) and windowing over it: the contract the next stages read.
+
+The file is a plain ``.npz`` (one ``.npy`` per key, no pickle: it loads with
+``np.load(path, allow_pickle=False)``); docs/formats.md lists every key. It is written with
+fixed zip timestamps so that the same seed gives the same bytes, and atomically.
+
+Windowing (SPEC section 2): windows of ``window`` samples every ``stride`` samples; a window is
+labelled with its trajectory's fault class when the severity at its LAST sample is at or above
+``severity_threshold``, else Healthy (0). Its end time is ``time[start + window - 1]``.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from quadfdi.npzio import read_npz, write_npz  # noqa: F401  (re-exported: the dataset's own I/O)
+from quadfdi.config import Config, build_config
+from quadfdi.errors import QuadfdiError
+
+SPLITS = {"train": 0, "validation": 1, "test": 2}
+
+# key -> (dtype kind, number of dimensions); the contract of docs/formats.md.
+REQUIRED_KEYS: dict[str, tuple[str, int]] = {
+    "telemetry": ("f", 3),
+    "time": ("f", 1),
+    "channel_names": ("U", 1),
+    "channel_units": ("U", 1),
+    "states": ("f", 3),
+    "state_names": ("U", 1),
+    "state_units": ("U", 1),
+    "severity": ("f", 2),
+    "fault_class": ("i", 1),
+    "onset_s": ("f", 1),
+    "ramp_s": ("f", 1),
+    "severity_max": ("f", 1),
+    "fault_motor": ("i", 1),
+    "detectable_s": ("f", 1),
+    "split": ("i", 1),
+    "traj_index": ("i", 1),
+    "severity_threshold": ("f", 0),
+    "config": ("U", 0),
+}
+
+@dataclass(frozen=True)
+class Dataset:
+    """The loaded dataset; ``arrays`` holds every key of the file."""
+
+    path: Path
+    arrays: dict[str, np.ndarray]
+    config: Config
+
+    def __getitem__(self, key: str) -> np.ndarray:
+        return self.arrays[key]
+
+    @property
+    def n_channels(self) -> int:
+        return int(self.arrays["telemetry"].shape[2])
+
+    @property
+    def channel_names(self) -> list[str]:
+        return [str(c) for c in self.arrays["channel_names"]]
+
+    @property
+    def severity_threshold(self) -> float:
+        return float(self.arrays["severity_threshold"])
+
+
+def dataset_arrays(arrays: dict[str, np.ndarray], cfg: Config) -> dict[str, np.ndarray]:
+    """The simulator's arrays plus the config (JSON) that made them: what the file holds."""
+    out = dict(arrays)
+    out["config"] = np.array(json.dumps(cfg.to_dict(), sort_keys=True))
+    return out
+
+
+def validate_arrays(arrays: dict[str, Any], where: str) -> None:
+    """Check keys, dtypes and shapes against the contract; one-line error naming the field."""
+    for key, (kind, ndim) in REQUIRED_KEYS.items():
+        if key not in arrays:
+            raise QuadfdiError(f"{where}: missing field {key!r} (not a quadfdi dataset, or an older version)")
+        a = arrays[key]
+        if a.dtype.kind not in (kind, "u" if kind == "i" else kind) or a.ndim != ndim:
+            raise QuadfdiError(f"{where}: field {key!r} must be {ndim}-d of kind {kind!r}, found {a.ndim}-d {a.dtype}")
+    n, t, c = arrays["telemetry"].shape
+    expect = {
+        "time": (t,), "channel_names": (c,), "channel_units": (c,), "severity": (n, t),
+        "fault_class": (n,), "onset_s": (n,), "ramp_s": (n,), "severity_max": (n,), "fault_motor": (n,),
+        "detectable_s": (n,), "split": (n,), "traj_index": (n,),
+    }
+    for key, shape in expect.items():
+        if arrays[key].shape != shape:
+            raise QuadfdiError(f"{where}: field {key!r} must have shape {shape}, found {arrays[key].shape}")
+    if arrays["states"].shape[:2] != (n, t) or arrays["states"].shape[2] != arrays["state_names"].shape[0]:
+        raise QuadfdiError(f"{where}: field 'states' has shape {arrays['states'].shape}, inconsistent with telemetry {(n, t, c)}")
+    if not np.isfinite(arrays["telemetry"]).all():
+        bad = np.argwhere(~np.isfinite(arrays["telemetry"]))[0]
+        raise QuadfdiError(f"{where}: telemetry holds NaN or Inf (trajectory {bad[0]}, sample {bad[1]}, channel {bad[2]})")
+
+
+def load_dataset(path: str | Path) -> Dataset:
+    """Load and check ``dataset.npz`` (see docs/formats.md)."""
+    p = Path(path)
+    arrays = read_npz(p, "dataset")
+    validate_arrays(arrays, str(p))
+    try:
+        cfg = build_config(json.loads(str(arrays["config"])), source=f"{p}:config")
+    except json.JSONDecodeError as exc:
+        raise QuadfdiError(f"{p}: field 'config' is not JSON: {exc}") from None
+    return Dataset(p, arrays, cfg)
+
+
+@dataclass(frozen=True)
+class Windows:
+    """Windows over a dataset. ``x`` (n, window, channels) float32 raw telemetry."""
+
+    x: np.ndarray  # (n, W, C) float32
+    y: np.ndarray  # (n,) int64 class label
+    traj: np.ndarray  # (n,) int64 row of the trajectory in the dataset
+    start: np.ndarray  # (n,) int64 first sample index
+    t_end: np.ndarray  # (n,) float64 time of the last sample, time[start + W - 1]
+
+    def __len__(self) -> int:
+        return int(self.y.shape[0])
+
+
+def window_starts(n_samples: int, window: int, stride: int) -> np.ndarray:
+    """First-sample indices of every full window: 0, stride, ... (33 at paper scale)."""
+    if n_samples < window:
+        return np.zeros(0, dtype=np.int64)
+    return np.arange(0, n_samples - window + 1, stride, dtype=np.int64)
+
+
+def make_windows(ds: Dataset, split: str | None = None, window: int | None = None, stride: int | None = None) -> Windows:
+    """All windows of the trajectories in ``split`` ('train', 'validation', 'test' or None for all).
+
+    Label: the trajectory's fault class when ``severity[start + W - 1] >= severity_threshold``,
+    else 0 (Healthy) -- SPEC section 2. Order: trajectory by trajectory, windows in time order.
+    """
+    window = ds.config.sim.window if window is None else window
+    stride = ds.config.sim.stride if stride is None else stride
+    tel, sev, time = ds["telemetry"], ds["severity"], ds["time"]
+    rows = np.arange(tel.shape[0])
+    if split is not None:
+        if split not in SPLITS:
+            raise QuadfdiError(f"unknown split {split!r}; valid: {', '.join(SPLITS)}")
+        rows = rows[ds["split"] == SPLITS[split]]
+    starts = window_starts(tel.shape[1], window, stride)
+    traj = np.repeat(rows, len(starts))
+    start = np.tile(starts, len(rows))
+    last = start + window - 1
+    # (n_windows, W) gather via broadcasting: one fancy-index, no Python loop per window.
+    x = tel[traj[:, None], start[:, None] + np.arange(window)[None, :]]
+    fault = sev[traj, last] >= ds.severity_threshold
+    y = np.where(fault, ds["fault_class"][traj].astype(np.int64), 0)
+    return Windows(x=np.ascontiguousarray(x, dtype=np.float32), y=y.astype(np.int64), traj=traj.astype(np.int64),
+                   start=start, t_end=time[last].astype(np.float64))

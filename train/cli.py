@@ -1,0 +1,58 @@
+"""``quadfdi train``: train the CNODE, the GRU and the baseline on a run's dataset;
+``quadfdi train study``: the multi-seed results table."""
+
+from __future__ import annotations
+
+import argparse
+import shlex
+import sys
+from pathlib import Path
+
+from quadfdi.cli import add_config_args
+from quadfdi.errors import QuadfdiError
+from quadfdi.rundir import open_run
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("train", help="train the CNODE, the GRU and the baseline",
+                       description="Train on <run>/dataset.npz; write checkpoints, predictions, metrics, figures.")
+    p.add_argument("--run", default=None, help="run folder holding dataset.npz (e.g. runs/paper)")
+    p.add_argument("--model", choices=("cnode", "gru", "both"), default=None, help="which model (default: train.model)")
+    p.add_argument("--seed", type=int, default=None, help="training seed (default: train.seed)")
+    add_config_args(p, config=False)
+    p.set_defaults(func=run_train)
+    acts = p.add_subparsers(dest="action", metavar="{study}")
+    ps = acts.add_parser("study", help="train with several seeds: seeds.json and results.md (Tables 3-4)")
+    ps.add_argument("--run", required=True, help="run folder holding dataset.npz")
+    ps.add_argument("--seeds", default=None, help="comma-separated seeds (default: train.seeds)")
+    ps.add_argument("--readme", default=None, help="also copy the table into this README between the results markers")
+    add_config_args(ps, config=False)
+    ps.set_defaults(func=run_study_cmd)
+
+
+def run_train(args: argparse.Namespace) -> int:
+    from train.run import train_run
+
+    if args.run is None:
+        raise QuadfdiError("quadfdi train needs --run <run folder>")
+    run, cfg = open_run(args.run, args.overrides, need=("dataset",))
+    model = args.model or cfg.train.model
+    train_run(run, cfg, model, args.seed)
+    print(f"wrote checkpoints, predictions, metrics.json and figures into {run.root}")
+    return 0
+
+
+def run_study_cmd(args: argparse.Namespace) -> int:
+    from train.study import run_study, update_readme
+
+    run, cfg = open_run(args.run, args.overrides, need=("dataset",))
+    try:
+        seeds = [int(s) for s in args.seeds.split(",")] if args.seeds else list(cfg.train.seeds)
+    except ValueError:
+        raise QuadfdiError(f"--seeds expects comma-separated integers, found {args.seeds!r}") from None
+    command = "quadfdi " + " ".join(shlex.quote(a) for a in sys.argv[1:]) if sys.argv[1:] else "quadfdi train study"
+    out = run_study(run, cfg, seeds, command)
+    print(out["table"])
+    if args.readme and not update_readme(Path(args.readme), out["table"]):
+        raise QuadfdiError(f"{args.readme} has no results markers to replace")
+    return 0

@@ -1,0 +1,50 @@
+"""What training needs from the dataset: windows per split, normalisation, class weights, batches.
+
+Normalisation statistics come from the TRAINING split only (SPEC section 3), over every sample
+of its trajectories, so validation and test data never leak into the model.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from sim.dataset import Dataset, Windows, make_windows
+
+N_CLASSES = 4
+
+
+@dataclass(frozen=True)
+class Splits:
+    train: Windows
+    validation: Windows
+    test: Windows
+
+
+def split_windows(ds: Dataset) -> Splits:
+    return Splits(*(make_windows(ds, s) for s in ("train", "validation", "test")))
+
+
+def fit_normalisation(ds: Dataset) -> tuple[np.ndarray, np.ndarray]:
+    """Per-channel mean and std (C,) over every sample of the training trajectories."""
+    tel = ds["telemetry"][ds["split"] == 0].astype(np.float64)  # (n_train, T, C)
+    flat = tel.reshape(-1, tel.shape[-1])
+    return flat.mean(axis=0).astype(np.float32), flat.std(axis=0).astype(np.float32)
+
+
+def class_weights(y: np.ndarray, n_classes: int = N_CLASSES) -> np.ndarray:
+    """Inverse-frequency weights w_k = n / (K n_k) of Eq. (12); a class absent from y gets 0."""
+    counts = np.bincount(y, minlength=n_classes).astype(np.float64)
+    w = np.zeros(n_classes)
+    present = counts > 0
+    w[present] = len(y) / (present.sum() * counts[present])
+    return w.astype(np.float32)
+
+
+def batch_order(n: int, batch_size: int, seed: int, epoch: int) -> list[np.ndarray]:
+    """The mini-batches of one epoch: a permutation drawn from (seed, epoch) alone, so the
+    CNODE and the GRU see the same batches in the same order (SPEC section 3)."""
+    rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(0xBA7C, epoch)))
+    perm = rng.permutation(n)
+    return [perm[i:i + batch_size] for i in range(0, n, batch_size)]

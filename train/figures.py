@@ -1,0 +1,168 @@
+"""The paper's figures from a training result: Figs. 5-6 (curves), 8-9 (confusion), 10 (per-class
+F1), 11 (any-fault ROC) and 12-27 (one test trajectory per fault class: states, fault variables
+and the any-fault probability of each model)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+from sklearn.metrics import confusion_matrix, roc_curve
+
+from quadfdi.atomic import atomic_path
+from quadfdi.config import CLASS_NAMES
+
+SHORT = ("Healthy", "Battery", "Motor", "Overheat")
+LABEL = {"cnode": "Neural ODE", "gru": "GRU", "baseline": "LogReg baseline"}
+
+
+def _plt():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _save(fig, path: Path) -> None:
+    with atomic_path(path, "wb") as fh:
+        fig.savefig(fh, format="png", dpi=90)
+    _plt().close(fig)
+
+
+def draw_curves(history: dict, out: Path) -> None:
+    plt = _plt()
+    fig, (a, b) = plt.subplots(1, 2, figsize=(11, 4))
+    for kind, h in history.items():
+        ep = np.arange(1, len(h.loss) + 1)
+        a.plot(ep, h.loss, marker="o", label=LABEL.get(kind, kind))
+        b.plot(ep, h.val_macro_f1, marker="o", label=LABEL.get(kind, kind))
+    a.set(title="training loss (Eq. 12)", xlabel="epoch", ylabel="loss")
+    b.set(title="validation macro F1", xlabel="epoch", ylabel="macro F1")
+    for ax in (a, b):
+        ax.grid(alpha=0.3)
+        ax.legend()
+    fig.tight_layout()
+    _save(fig, out)
+
+
+def draw_confusion(y: np.ndarray, proba: np.ndarray, title: str, out: Path) -> None:
+    plt = _plt()
+    cm = confusion_matrix(y, proba.argmax(1), labels=[0, 1, 2, 3])
+    fig, ax = plt.subplots(figsize=(5, 4.3))
+    ax.imshow(cm, cmap="Blues")
+    for i in range(4):
+        for j in range(4):
+            ax.text(j, i, str(cm[i, j]), ha="center", va="center", color="white" if cm[i, j] > cm.max() / 2 else "black")
+    ax.set(xticks=range(4), yticks=range(4), xticklabels=SHORT, yticklabels=SHORT, xlabel="predicted", ylabel="true",
+           title=title)
+    fig.tight_layout()
+    _save(fig, out)
+
+
+def draw_per_class_f1(metrics: dict, out: Path) -> None:
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(7, 4))
+    kinds = list(metrics)
+    width = 0.8 / len(kinds)
+    for n, kind in enumerate(kinds):
+        vals = [metrics[kind]["per_class"][c]["f1"] for c in CLASS_NAMES]
+        ax.bar(np.arange(4) + n * width, vals, width, label=LABEL.get(kind, kind))
+    ax.set(xticks=np.arange(4) + width * (len(kinds) - 1) / 2, xticklabels=SHORT, ylabel="F1", ylim=(0, 1.05),
+           title="per-class F1 (test)")
+    ax.legend()
+    ax.grid(alpha=0.3, axis="y")
+    fig.tight_layout()
+    _save(fig, out)
+
+
+def draw_roc(y: np.ndarray, probas: dict, metrics: dict, out: Path) -> None:
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(5, 4.5))
+    for kind, p in probas.items():
+        fpr, tpr, _ = roc_curve(y != 0, 1.0 - p[:, 0])
+        auc = metrics[kind]["any_fault_roc_auc"]
+        auc_txt = "n/a" if auc is None or not np.isfinite(auc) else f"{auc:.4f}"
+        ax.plot(fpr, tpr, label=f"{LABEL.get(kind, kind)} (AUC {auc_txt})")
+    ax.plot([0, 1], [0, 1], "k:", lw=0.8)
+    ax.set(xlabel="false positive rate", ylabel="true positive rate", title="any-fault ROC (test windows)")
+    ax.legend()
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    _save(fig, out)
+
+
+def draw_trajectory_detection(ds, test, probas: dict, row: int, out: Path) -> None:
+    """Position, attitude, battery, temperature, effectiveness, severity and the any-fault
+    probability of each model at each window end, for dataset row ``row`` (Figs. 12-27)."""
+    from sim.plot import _series
+
+    plt = _plt()
+    t = ds["time"]
+    onset, det = float(ds["onset_s"][row]), float(ds["detectable_s"][row])
+    fig, axes = plt.subplots(4, 2, figsize=(13, 11), sharex=True)
+    axes = axes.ravel()
+    groups = [("position [m]", ["x", "y", "z"], 1.0), ("attitude [deg]", ["roll", "pitch", "yaw"], 180 / np.pi),
+              ("state of charge [-]", ["SoC"], 1.0), ("bus voltage [V] / current [A]", ["V_b", "I_b"], 1.0),
+              ("motor temperature [°C]", ["T1", "T2", "T3", "T4"], 1.0)]
+    for ax, (title, names, scale) in zip(axes, groups):
+        for name in names:
+            y = _series(ds, row, name)
+            if y is not None:
+                ax.plot(t, y * scale, lw=1, label=name)
+        ax.set_title(title, fontsize=10)
+        ax.legend(fontsize=7)
+    ax = axes[5]
+    if "effectiveness" in ds.arrays:
+        for m in range(4):
+            ax.plot(t, ds["effectiveness"][row, :, m], lw=1, label=f"motor {m + 1}")
+        ax.legend(fontsize=7)
+    ax.set_title("effectiveness c_i d_m [-]", fontsize=10)
+    ax = axes[6]
+    ax.plot(t, ds["severity"][row], "k", lw=1.2)
+    ax.axhline(ds.severity_threshold, color="r", ls=":", lw=1)
+    ax.set_title("severity s_k (red: s_thr)", fontsize=10)
+    ax = axes[7]
+    sel = test.traj == row
+    for kind, p in probas.items():
+        ax.plot(test.t_end[sel], 1.0 - p[sel, 0], marker=".", label=LABEL.get(kind, kind))
+    ax.axhline(0.5, color="r", ls=":", lw=1)
+    ax.set(title="any-fault probability 1 - p(Healthy) at window end", ylim=(-0.05, 1.05))
+    ax.legend(fontsize=7)
+    for ax in axes:
+        if np.isfinite(det):
+            ax.axvline(onset, color="gray", ls=":", lw=0.8)
+            ax.axvline(det, color="gray", ls="--", lw=0.8)
+        ax.grid(alpha=0.3)
+    axes[6].set_xlabel("time [s]")
+    axes[7].set_xlabel("time [s]")
+    cls = int(ds["fault_class"][row])
+    fig.suptitle(f"test trajectory {row}: {CLASS_NAMES[cls]} (dotted: onset {onset:.2f} s, dashed: detectable {det:.2f} s)")
+    fig.tight_layout()
+    _save(fig, out)
+
+
+def draw_all(run, ds, result: dict) -> list[Path]:
+    """Every training figure into ``run.figures``; returns the paths written."""
+    figs = run.figures
+    test = result["splits"].test
+    written = []
+    if result["history"]:
+        draw_curves(result["history"], figs / "train_curves.png")
+        written.append(figs / "train_curves.png")
+    for kind, p in result["proba"].items():
+        path = figs / f"confusion_{kind}.png"
+        draw_confusion(test.y, p, f"confusion: {LABEL.get(kind, kind)}", path)
+        written.append(path)
+    draw_per_class_f1(result["metrics"], figs / "per_class_f1.png")
+    draw_roc(test.y, result["proba"], result["metrics"], figs / "any_fault_roc.png")
+    written += [figs / "per_class_f1.png", figs / "any_fault_roc.png"]
+    neural = {k: v for k, v in result["proba"].items() if k != "baseline"}
+    for cls in (1, 2, 3):
+        rows = [r for r in np.unique(test.traj) if ds["fault_class"][r] == cls]
+        if rows:
+            path = figs / f"detection_{SHORT[cls].lower()}_traj{rows[0]}.png"
+            draw_trajectory_detection(ds, test, neural, int(rows[0]), path)
+            written.append(path)
+    return written

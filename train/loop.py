@@ -1,0 +1,94 @@
+"""The training loop, read top to bottom: weighted cross-entropy (Eq. 12), Adam, fixed batches.
+
+Both models go through the same function with the same batches (``train.data.batch_order``).
+The weights kept are those of the epoch with the best validation macro F1 (the validation
+split exists for that choice; the test split is never looked at here).
+"""
+
+from __future__ import annotations
+
+import copy
+import time
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+import torch
+from sklearn.metrics import f1_score
+
+from quadfdi.config import TrainConfig
+from sim.dataset import Windows
+from train.data import batch_order
+
+
+def weighted_cross_entropy(logits: torch.Tensor, y: torch.Tensor, weights: torch.Tensor, eps: float) -> torch.Tensor:
+    """Eq. (12): L = -(1/B) sum_b sum_k w_k y_bk log(p_bk + eps); logits (B, K), y (B,)."""
+    p = torch.softmax(logits, dim=1)
+    picked = p.gather(1, y[:, None]).squeeze(1)  # (B,) probability of the true class
+    return -(weights[y] * torch.log(picked + eps)).mean()
+
+
+@torch.no_grad()
+def predict_proba(model: torch.nn.Module, x: np.ndarray, batch_size: int = 512) -> np.ndarray:
+    """Class probabilities (n, 4) float64 for raw windows x (n, W, C)."""
+    model.eval()
+    out = []
+    for i in range(0, len(x), batch_size):
+        logits = model(torch.from_numpy(np.ascontiguousarray(x[i:i + batch_size])))
+        out.append(torch.softmax(logits.double(), dim=1).numpy())
+    return np.concatenate(out) if out else np.zeros((0, 4))
+
+
+@dataclass
+class History:
+    loss: list[float] = field(default_factory=list)  # mean training loss per epoch
+    val_macro_f1: list[float] = field(default_factory=list)
+    epoch_s: list[float] = field(default_factory=list)
+    nfe_per_forward: list[float] = field(default_factory=list)  # CNODE only
+    best_epoch: int = -1
+
+    def to_dict(self) -> dict:
+        return {"loss": self.loss, "val_macro_f1": self.val_macro_f1, "epoch_s": self.epoch_s,
+                "nfe_per_forward": self.nfe_per_forward, "best_epoch": self.best_epoch}
+
+
+def train_model(model: torch.nn.Module, train: Windows, val: Windows, cfg: TrainConfig, weights: np.ndarray,
+                log: Callable[[str], None] = print) -> History:
+    """Train ``model`` in place for ``cfg.epochs`` epochs; keep the best-validation weights."""
+    torch.manual_seed(cfg.seed)
+    opt = torch.optim.Adam(model.parameters(), lr=cfg.lr)
+    w = torch.as_tensor(weights, dtype=torch.float32)
+    x_all = torch.from_numpy(train.x)
+    y_all = torch.from_numpy(train.y)
+    hist = History()
+    best_f1, best_state = -1.0, None
+    for epoch in range(cfg.epochs):
+        model.train()
+        t0 = time.perf_counter()
+        losses, nfes = [], []
+        for idx in batch_order(len(train), cfg.batch_size, cfg.seed, epoch):
+            idx_t = torch.from_numpy(idx)
+            logits = model(x_all[idx_t])
+            if hasattr(model, "nfe"):
+                nfes.append(float(model.nfe))
+            loss = weighted_cross_entropy(logits, y_all[idx_t], w, cfg.log_eps)
+            opt.zero_grad(set_to_none=True)
+            loss.backward()
+            opt.step()
+            losses.append(loss.item() * len(idx))
+        hist.epoch_s.append(time.perf_counter() - t0)
+        hist.loss.append(float(sum(losses) / len(train)))
+        if nfes:
+            hist.nfe_per_forward.append(float(np.mean(nfes)))
+        val_pred = predict_proba(model, val.x).argmax(1)
+        f1 = float(f1_score(val.y, val_pred, labels=[0, 1, 2, 3], average="macro", zero_division=0))
+        hist.val_macro_f1.append(f1)
+        if f1 > best_f1:
+            best_f1, best_state, hist.best_epoch = f1, copy.deepcopy(model.state_dict()), epoch
+        nfe_txt = f", {hist.nfe_per_forward[-1]:.0f} NFE/forward" if nfes else ""
+        log(f"  epoch {epoch + 1:2d}/{cfg.epochs}: loss {hist.loss[-1]:.4f}, val macro F1 {f1:.4f}, "
+            f"{hist.epoch_s[-1]:.1f} s{nfe_txt}")
+    if best_state is not None:
+        model.load_state_dict(best_state)
+    model.eval()
+    return hist
