@@ -14,31 +14,9 @@ import torch
 
 from quadfdi.atomic import atomic_path
 from quadfdi.errors import QuadfdiError
+from train.models import model_from_signature, model_signature
 
 CHECKPOINT_VERSION = 1
-
-
-def architecture(model: torch.nn.Module) -> dict[str, Any]:
-    """The constructor arguments of ``model`` as plain values."""
-    from train.models import CNODE, GRUClassifier
-
-    if isinstance(model, CNODE):
-        return {"kind": "cnode", "n_channels": model.encoder.in_features, "window": int(model.window),
-                "latent": model.encoder.out_features, "hidden": model.field.lin1.out_features,
-                "n_classes": model.head.out_features}
-    if isinstance(model, GRUClassifier):
-        return {"kind": "gru", "n_channels": model.gru.input_size, "hidden": model.gru.hidden_size,
-                "n_classes": model.head.out_features}
-    raise TypeError(f"not a quadfdi model: {type(model).__name__}")
-
-
-def model_from_architecture(arch: dict[str, Any]) -> torch.nn.Module:
-    from train.models import CNODE, GRUClassifier
-
-    if arch["kind"] == "cnode":
-        return CNODE(arch["n_channels"], window=arch["window"], latent=arch["latent"], hidden=arch["hidden"],
-                     n_classes=arch["n_classes"])
-    return GRUClassifier(arch["n_channels"], hidden=arch["hidden"], n_classes=arch["n_classes"])
 
 
 def save_checkpoint(path: str | Path, model: torch.nn.Module, config: dict, channel_names: list[str],
@@ -46,7 +24,7 @@ def save_checkpoint(path: str | Path, model: torch.nn.Module, config: dict, chan
     """Write ``model`` (with its normalisation buffers) and its metadata atomically."""
     blob = {
         "version": CHECKPOINT_VERSION,
-        "architecture": architecture(model),
+        "architecture": model_signature(model),
         "state_dict": {k: v.detach().cpu().clone() for k, v in model.state_dict().items()},
         "config": config,
         "channel_names": list(channel_names),
@@ -73,7 +51,10 @@ def load_checkpoint(path: str | Path, kind: str | None = None) -> tuple[torch.nn
     arch = blob["architecture"]
     if kind is not None and arch.get("kind") != kind:
         raise QuadfdiError(f"checkpoint {p} holds a {arch.get('kind')!r} model, expected {kind!r}")
-    model = model_from_architecture(arch)
+    try:
+        model = model_from_signature(arch)
+    except (ValueError, TypeError, KeyError) as exc:
+        raise QuadfdiError(f"checkpoint {p} has an invalid architecture: {exc}") from None
     try:
         model.load_state_dict(blob["state_dict"])
     except RuntimeError as exc:

@@ -61,6 +61,10 @@ def interp_matrix(times: np.ndarray, window: int = 80) -> np.ndarray:
         bad = t[~np.isfinite(t) | (t < -1e-12) | (t > 1.0 + 1e-12)][0]
         raise ValueError(f"control times must lie in [0, 1], found {bad!r}")
     s = np.clip(t, 0.0, 1.0) * (w - 1)
+    # k/(W-1) * (W-1) is not always k in floating point: snap near-integers so that a time on a
+    # sample gives exactly weights (1, 0), not (1 - 2e-15, 2e-15)
+    snapped = np.round(s)
+    s = np.where(np.abs(s - snapped) <= 4 * np.spacing(float(w - 1)), snapped, s)
     i = np.minimum(np.floor(s).astype(np.int64), w - 2)
     frac = s - i
     m = np.zeros((t.size, w), dtype=np.float64)

@@ -47,7 +47,7 @@ def train_all(ds: Dataset, cfg: Config, kinds: list[str], log: Callable[[str], N
     out: dict = {"models": {}, "history": {}, "proba": {}, "metrics": {}, "splits": splits}
     for kind in kinds:
         torch.manual_seed(cfg.train.seed)  # same initial weights for the same seed
-        model = build_model(kind, ds.n_channels, cfg.train)
+        model = build_model(kind, ds.n_channels, cfg.train, window=cfg.sim.window)
         model.set_normalisation(mean, std)
         log(f"train {kind} (seed {cfg.train.seed}, {sum(p.numel() for p in model.parameters())} parameters):")
         t0 = time.perf_counter()

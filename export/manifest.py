@@ -1,0 +1,70 @@
+"""manifest.json: what the export folder holds and how it was checked (docs/formats.md).
+
+Top-level keys: ``schema_version``, ``producer``, ``channels`` (name, unit), ``window``,
+``sample_dt_s``, ``class_names``, ``normalisation`` (per model: mean, std), ``solver``
+(classic RK4, N, stage times), ``opset``, ``ir_version``, ``artifacts`` (cnode_fp32, cnode_int8,
+gru_fp32, gru_int8 -> file names relative to the export folder), ``files`` (name -> sha256,
+bytes), ``models`` (architecture, MACs), ``quantization`` (scheme, calibration, coverage),
+``verification``, ``metrics`` (test split, per artifact), ``config``.
+A reader must check ``schema_version`` first: ``load_manifest`` refuses any other version.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from pathlib import Path
+
+from quadfdi.atomic import write_text
+from quadfdi.errors import QuadfdiError
+from train.metrics import to_jsonable
+
+SCHEMA_VERSION = 1
+ARTIFACT_KEYS = ("cnode_fp32", "cnode_int8", "gru_fp32", "gru_int8")
+
+
+def artifact_names(steps: int) -> dict[str, str]:
+    """File names of the four deployed graphs, relative to the export folder."""
+    return {"cnode_fp32": f"cnode_rk4_{steps}.onnx", "cnode_int8": f"cnode_rk4_{steps}.int8.onnx",
+            "gru_fp32": "gru.onnx", "gru_int8": "gru.int8.onnx"}
+
+
+def file_entry(data: bytes) -> dict:
+    return {"sha256": hashlib.sha256(data).hexdigest(), "bytes": len(data)}
+
+
+def write_manifest(path: str | Path, manifest: dict) -> None:
+    write_text(path, json.dumps(to_jsonable(manifest), indent=2, allow_nan=False) + "\n")
+
+
+def load_manifest(path: str | Path) -> dict:
+    """Read manifest.json; one-line QuadfdiError if missing, not JSON, or of another schema version."""
+    p = Path(path)
+    try:
+        data = json.loads(p.read_text())
+    except FileNotFoundError:
+        raise QuadfdiError(f"manifest {p} does not exist (run `quadfdi export` first)") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise QuadfdiError(f"cannot read manifest {p}: {exc}") from None
+    except json.JSONDecodeError as exc:
+        raise QuadfdiError(f"manifest {p} is not valid JSON (truncated or foreign file?): {exc}") from None
+    if not isinstance(data, dict) or "schema_version" not in data:
+        raise QuadfdiError(f"manifest {p} has no schema_version: not a quadfdi export manifest")
+    if data["schema_version"] != SCHEMA_VERSION:
+        raise QuadfdiError(f"manifest {p} has schema version {data['schema_version']!r}, this quadfdi reads "
+                           f"schema version {SCHEMA_VERSION} (re-run `quadfdi export`)")
+    missing = [k for k in ARTIFACT_KEYS if k not in data.get("artifacts", {})]
+    if missing:
+        raise QuadfdiError(f"manifest {p} lacks artifacts {', '.join(missing)}")
+    return data
+
+
+def check_files(manifest: dict, folder: str | Path) -> None:
+    """Every file the manifest lists exists in ``folder`` with its sha256 (one-line error otherwise)."""
+    root = Path(folder)
+    for name, entry in manifest["files"].items():
+        f = root / name
+        if not f.is_file():
+            raise QuadfdiError(f"{f} is listed in the manifest but missing")
+        if hashlib.sha256(f.read_bytes()).hexdigest() != entry["sha256"]:
+            raise QuadfdiError(f"{f} does not match its sha256 in the manifest (changed after export?)")

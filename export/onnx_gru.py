@@ -1,0 +1,146 @@
+"""The GRU baseline as ONNX: an fp32 graph on the ONNX ``GRU`` operator, an int8 graph unrolled.
+
+fp32: x_norm -> Transpose to (W, B, C) -> GRU(linear_before_reset=1) -> last hidden -> head.
+PyTorch's GRU multiplies the reset gate AFTER the recurrent product,
+n = tanh(W_in x + b_in + r * (W_hn h + b_hn)), which is ONNX's ``linear_before_reset=1``; the
+default 0 computes W_hn (r * h) instead, a different function (an exporter once wrote it).
+ONNX orders the gates z, r, h where PyTorch orders them r, z, n: the rows are permuted here.
+
+int8: ONNX Runtime has no quantized GRU operator (a ``GRU`` node stays fp32 whatever a quantizer
+is told), so the int8 graph unrolls the W = 80 steps into operators that quantize:
+
+    GX = int8(x_norm) @ W_ih^T (one MatMulInteger for all steps) + b_ih        (B, W, 3H)
+    step t:  gh = int8(h) @ W_hh^T (MatMulInteger, W_hh stored once) + b_hh     (B, 1, 3H)
+             r = sigmoid(gx_r + gh_r),  z = sigmoid(gx_z + gh_z)
+             n = tanh(gx_n + r * gh_n),  h' = (h - n) * z + n     (PyTorch's GRU cell, in that order)
+
+h starts at 0 and is a convex combination of tanh outputs, so |h| < 1: its scale is the bound
+1/127, no calibration needed; only x_norm's scale is calibrated.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+from onnx import TensorProto
+
+from export.graph import BATCH, Built, Graph, class_outputs, telemetry_input
+from export.quantize import BOUND_SCALE, QWeight, act_scale, int8_linear, int8_matmul, int8_weight, quantize
+
+
+@dataclass(frozen=True)
+class GruParams:
+    """A GRUClassifier's float32 numbers in PyTorch's layouts (gate rows r, z, n)."""
+
+    mean: np.ndarray  # (C,)
+    std: np.ndarray  # (C,)
+    w_ih: np.ndarray  # (3H, C)
+    w_hh: np.ndarray  # (3H, H)
+    b_ih: np.ndarray  # (3H,)
+    b_hh: np.ndarray  # (3H,)
+    head_w: np.ndarray  # (K, H)
+    head_b: np.ndarray  # (K,)
+    window: int
+
+    @property
+    def n_channels(self) -> int:
+        return int(self.mean.shape[0])
+
+    @property
+    def hidden(self) -> int:
+        return int(self.w_hh.shape[1])
+
+    @property
+    def n_classes(self) -> int:
+        return int(self.head_b.shape[0])
+
+
+def gru_params(model: torch.nn.Module) -> GruParams:
+    """Read a train.models.GRUClassifier's state dict (one layer, unidirectional)."""
+    sd = {k: v.detach().cpu().numpy().astype(np.float32) for k, v in model.state_dict().items()}
+    return GruParams(mean=sd["mean"], std=sd["std"], w_ih=sd["gru.weight_ih_l0"], w_hh=sd["gru.weight_hh_l0"],
+                     b_ih=sd["gru.bias_ih_l0"], b_hh=sd["gru.bias_hh_l0"], head_w=sd["head.weight"],
+                     head_b=sd["head.bias"], window=int(model.window))
+
+
+@dataclass(frozen=True)
+class GruQuant:
+    """The int8 GRU: int8 weights (per output channel) and static activation scales."""
+
+    w_ih: QWeight
+    w_hh: QWeight
+    head: QWeight
+    s_x: np.ndarray  # () x_norm, per tensor (W_ih sums over channels), calibrated
+    s_h: np.ndarray  # () the hidden state, bound 1/127
+
+
+def quantize_gru(p: GruParams, ranges: dict[str, np.ndarray]) -> GruQuant:
+    return GruQuant(w_ih=QWeight.of(p.w_ih), w_hh=QWeight.of(p.w_hh), head=QWeight.of(p.head_w),
+                    s_x=act_scale(ranges["x_norm"]), s_h=np.asarray(BOUND_SCALE))
+
+
+CALIBRATION_PROBES = {"x_norm": "tensor"}
+
+
+def _onnx_gates(a: np.ndarray) -> np.ndarray:
+    """PyTorch gate blocks (r, z, n) along axis 0 -> ONNX order (z, r, h)."""
+    r, z, n = np.split(a, 3, axis=0)
+    return np.concatenate([z, r, n], axis=0)
+
+
+def _normalise(g: Graph, p: GruParams) -> str:
+    xn = g.op("Div", g.op("Sub", "telemetry", g.const("norm.mean", p.mean)), g.const("norm.std", p.std), name="x_norm")
+    g.probe("x_norm", xn, [BATCH, p.window, p.n_channels])
+    return xn
+
+
+def build_gru_fp32(p: GruParams, opset: int, linear_before_reset: int = 1) -> Built:
+    """fp32 graph on the ONNX GRU operator. ``linear_before_reset`` is a parameter only so that a
+    test can build the wrong graph and see the parity check fail; PyTorch's GRU is 1."""
+    W, C, H, K = p.window, p.n_channels, p.hidden, p.n_classes
+    g = Graph("gru")
+    xn = _normalise(g, p)
+    xs = g.op("Transpose", xn, perm=[1, 0, 2])  # (W, B, C): the GRU operator's default layout
+    wb = np.concatenate([_onnx_gates(p.b_ih), _onnx_gates(p.b_hh)])[None]  # (1, 6H): Wb then Rb
+    y, y_h = g.node("GRU", [xs, g.const("gru.W", _onnx_gates(p.w_ih)[None]), g.const("gru.R", _onnx_gates(p.w_hh)[None]),
+                            g.const("gru.B", wb)], out=["h_all", "h_last"], hidden_size=H,
+                    linear_before_reset=linear_before_reset)
+    g.probe("h_all", y, [W, 1, BATCH, H])  # (W, num_directions, B, H)
+    last = g.op("Squeeze", y_h, g.const("axis0", [0], np.int64))  # (B, H)
+    out = g.op("Add", g.op("MatMul", last, g.const("head.weight_t", p.head_w.T)), g.const("head.bias", p.head_b),
+               name="logits")
+    g.op("Softmax", out, name="proba", axis=-1)
+    doc = f"quadfdi GRU (hidden {H}), fp32, ONNX GRU linear_before_reset={linear_before_reset}; raw telemetry (batch, {W}, {C})"
+    return g.finish([telemetry_input(W, C)], class_outputs(K), opset, doc)
+
+
+def build_gru_int8(p: GruParams, q: GruQuant, opset: int) -> Built:
+    """int8 graph: the recurrence unrolled over the window, every product on MatMulInteger."""
+    W, C, H, K = p.window, p.n_channels, p.hidden, p.n_classes
+    g = Graph("gru_int8")
+    xn = _normalise(g, p)
+    gx = int8_linear(g, xn, g.const("act.x_norm.scale", q.s_x), "gru.ih", q.w_ih, g.const("gru.bias_ih", p.b_ih))
+    thirds = g.const("split.gates", [H, H, H], np.int64)
+    ones = g.const("split.steps", np.ones(W, np.int64), np.int64)
+    gx_r, gx_z, gx_n = g.node("Split", [gx, thirds], n_out=3, axis=2)  # (B, W, H) each
+    # Each gate's input part, one (B, 1, H) tensor per step: three Split nodes for the whole window.
+    xr, xz, xnn = (g.node("Split", [t, ones], n_out=W, axis=1) for t in (gx_r, gx_z, gx_n))
+    s_h = g.const("act.h.scale", q.s_h)
+    whh, s_whh = int8_weight(g, "gru.hh", q.w_hh)
+    b_hh = g.const("gru.bias_hh", p.b_hh)
+    h = g.const("gru.h0", np.zeros((1, 1, H), np.float32))  # broadcasts against (B, 1, H)
+    for t in range(W):
+        gh = int8_matmul(g, quantize(g, h, s_h), s_h, whh, s_whh, b_hh)
+        hr, hz, hn = g.node("Split", [gh, thirds], n_out=3, axis=2)
+        r = g.op("Sigmoid", g.op("Add", xr[t], hr))
+        z = g.op("Sigmoid", g.op("Add", xz[t], hz))
+        n = g.op("Tanh", g.op("Add", xnn[t], g.op("Mul", hn, r)))
+        h = g.op("Add", g.op("Mul", g.op("Sub", h, n), z), n, name=f"h{t}")
+        g.probe(f"h{t}", h, [BATCH, 1, H])
+    out = int8_linear(g, h, s_h, "head", q.head, g.const("head.bias", p.head_b))
+    g.op("Squeeze", out, g.const("axis1", [1], np.int64), name="logits")
+    g.op("Softmax", "logits", name="proba", axis=-1)
+    doc = f"quadfdi GRU (hidden {H}), int8 (MatMulInteger, static scales), unrolled over {W} steps; raw telemetry (batch, {W}, {C})"
+    return g.finish([telemetry_input(W, C)], class_outputs(K), opset, doc)

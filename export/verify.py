@@ -1,0 +1,71 @@
+"""Export checks itself: ONNX Runtime against PyTorch (fp32) and int8 against fp32.
+
+- fp32 parity: max |logit_ORT - logit_PyTorch| over the windows must be at most
+  ``FP32_REL_TOL * max(1, max |logit_PyTorch|)`` (the CNODE with the same classic RK4 N).
+  A failure stops the export: nothing is written.
+- int8 against fp32: argmax agreement, max |logit| difference, and the change of macro F1 in
+  points (100 x); target: a drop of at most ``F1_DROP_TARGET_POINTS``. Reported, not enforced
+  (a target, and meaningless for an untrained model).
+- batch independence: each of a few windows run alone gives the same logits as inside the full
+  batch (static scales; integer products are exact).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import onnxruntime as ort
+import torch
+from sklearn.metrics import f1_score
+
+FP32_REL_TOL = 1e-5
+F1_DROP_TARGET_POINTS = 0.5
+CHUNK = 512
+
+
+def session(model_bytes: bytes, threads: int | None = None) -> ort.InferenceSession:
+    opts = ort.SessionOptions()
+    opts.log_severity_level = 3
+    if threads:
+        opts.intra_op_num_threads = threads
+        opts.inter_op_num_threads = 1
+    return ort.InferenceSession(model_bytes, opts, providers=["CPUExecutionProvider"])
+
+
+def ort_outputs(sess: ort.InferenceSession, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(logits, proba) of windows ``x`` (n, W, C), in chunks."""
+    parts = [sess.run(["logits", "proba"], {"telemetry": x[i:i + CHUNK]}) for i in range(0, len(x), CHUNK)]
+    return np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
+
+
+@torch.no_grad()
+def torch_logits(model: torch.nn.Module, x: np.ndarray) -> np.ndarray:
+    return np.concatenate([model(torch.from_numpy(x[i:i + CHUNK])).numpy() for i in range(0, len(x), CHUNK)])
+
+
+def parity(logits: np.ndarray, reference: np.ndarray, rel: float = FP32_REL_TOL) -> dict:
+    """max abs logit difference against ``reference`` and whether it is within rel * max(1, max|ref|)."""
+    diff = float(np.abs(logits.astype(np.float64) - reference).max())
+    scale = max(1.0, float(np.abs(reference).max()))
+    return {"max_abs_logit_diff": diff, "max_abs_logit": float(np.abs(reference).max()),
+            "bound": rel * scale, "argmax_agreement": float(np.mean(logits.argmax(1) == reference.argmax(1))),
+            "windows": int(len(logits)), "passed": bool(diff <= rel * scale)}
+
+
+def int8_vs_fp32(int8_logits: np.ndarray, fp32_logits: np.ndarray, y: np.ndarray) -> dict:
+    """Argmax agreement, logit difference and macro-F1 change (points) of int8 against fp32."""
+    labels = [0, 1, 2, 3]
+    f1_fp32 = 100 * f1_score(y, fp32_logits.argmax(1), labels=labels, average="macro", zero_division=0)
+    f1_int8 = 100 * f1_score(y, int8_logits.argmax(1), labels=labels, average="macro", zero_division=0)
+    drop = f1_fp32 - f1_int8
+    return {"argmax_agreement": float(np.mean(int8_logits.argmax(1) == fp32_logits.argmax(1))),
+            "max_abs_logit_diff": float(np.abs(int8_logits - fp32_logits).max()),
+            "macro_f1_fp32_points": float(f1_fp32), "macro_f1_int8_points": float(f1_int8),
+            "macro_f1_drop_points": float(drop), "macro_f1_drop_target_points": F1_DROP_TARGET_POINTS,
+            "meets_target": bool(drop <= F1_DROP_TARGET_POINTS), "windows": int(len(y))}
+
+
+def batch_independence(sess: ort.InferenceSession, x: np.ndarray, batch_logits: np.ndarray, n: int = 4) -> dict:
+    """max |logits of window i alone - its logits in the batch| over the first ``n`` windows."""
+    diffs = [float(np.abs(sess.run(["logits"], {"telemetry": x[i:i + 1]})[0][0] - batch_logits[i]).max())
+             for i in range(min(n, len(x)))]
+    return {"windows_checked": len(diffs), "max_abs_logit_diff": max(diffs) if diffs else 0.0}
