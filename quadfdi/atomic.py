@@ -37,6 +37,7 @@ def atomic_path(path: str | os.PathLike, mode: str = "wb") -> Iterator:
     except OSError as exc:
         raise QuadfdiError(f"cannot write {final}: {exc.strerror}") from None
     try:
+        os.fchmod(fd, 0o644)  # mkstemp makes 0600; artifacts are meant to be shared
         with os.fdopen(fd, mode) as fh:
             yield fh
             fh.flush()

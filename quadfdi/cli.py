@@ -17,6 +17,7 @@ from quadfdi.errors import QuadfdiError
 STAGES = {
     "sim": "sim.cli",
     "train": "train.cli",
+    "export": "export.cli",
     "run": "quadfdi.pipeline",
 }
 

@@ -1,4 +1,4 @@
-"""``quadfdi run``: every stage that exists, in order, into one run folder."""
+"""``quadfdi run``: every stage, in order, into one run folder, with each stage's time."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ from quadfdi.rundir import create_run
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("run", help="run the whole pipeline (sim, plots, ...) into one run folder")
+    p = sub.add_parser("run", help="run the whole pipeline (sim, train, ...) into one run folder")
     add_config_args(p)
     p.add_argument("--out", default="runs/paper", help="run folder (default: %(default)s)")
     p.set_defaults(func=run_all)
@@ -21,13 +21,20 @@ def run_all(args: argparse.Namespace) -> int:
     from sim.cli import default_plot_rows, generate_into
     from sim.dataset import load_dataset
     from sim.plot import plot_trajectory
+    from train.run import train_run
 
     cfg = load_config(args.config, args.overrides)
     run = create_run(args.out, cfg)
+    timings = {}
     t0 = time.perf_counter()
     generate_into(run, cfg)
     ds = load_dataset(run.dataset)
     for row in default_plot_rows(ds):
         plot_trajectory(ds, row, run.figures / f"sim_traj{row}.png")
-    print(f"sim: {run.dataset} and plots in {time.perf_counter() - t0:.1f} s")
+    timings["sim"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    train_run(run, cfg, cfg.train.model)
+    timings["train"] = time.perf_counter() - t0
+    print("stage times: " + ", ".join(f"{k} {v:.1f} s" for k, v in timings.items()))
+    print(f"run folder: {run.root}")
     return 0

@@ -1,0 +1,115 @@
+"""`quadfdi export` end to end on a small simulated run with random-weight checkpoints."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import onnx
+import onnxruntime as ort
+import pytest
+import torch
+
+from export.manifest import ARTIFACT_KEYS, check_files, load_manifest
+from export.reference_bin import read_reference
+from export.weights_bin import read_weights
+from sim.dataset import load_dataset, make_windows
+from tests.conftest import ROOT, quadfdi
+from train.checkpoint import save_checkpoint
+from train.data import fit_normalisation
+from train.models import CNODE, GRUClassifier
+
+def quadfdi_export(*args: str) -> subprocess.CompletedProcess:
+    return quadfdi("export", *args)
+
+
+def make_run(small_run: Path, out: Path, kinds=("cnode", "gru")) -> Path:
+    """A copy of the simulated run with random-weight checkpoints (normalised on its training split)."""
+    out.mkdir(parents=True)
+    for name in ("config.toml", "dataset.npz"):
+        shutil.copy(small_run / name, out / name)
+    ds = load_dataset(out / "dataset.npz")
+    mean, std = fit_normalisation(ds)
+    torch.manual_seed(0)
+    for kind in kinds:
+        model = CNODE(ds.n_channels) if kind == "cnode" else GRUClassifier(ds.n_channels)
+        model.set_normalisation(mean, std)
+        save_checkpoint(out / f"{kind}.pt", model, {}, ds.channel_names)
+    return out
+
+
+@pytest.fixture(scope="module")
+def exported(small_run, tmp_path_factory) -> Path:
+    run = make_run(small_run, tmp_path_factory.mktemp("export") / "run")
+    res = quadfdi_export("--run", str(run), "--steps", "2")
+    assert res.returncode == 0, res.stderr
+    assert "verification passed" in res.stdout
+    return run
+
+
+def test_export_writes_every_file_and_a_passing_manifest(exported):
+    folder = exported / "export"
+    m = load_manifest(folder / "manifest.json")
+    assert m["artifacts"] == {"cnode_fp32": "cnode_rk4_2.onnx", "cnode_int8": "cnode_rk4_2.int8.onnx",
+                              "gru_fp32": "gru.onnx", "gru_int8": "gru.int8.onnx"}
+    expected = set(m["artifacts"].values()) | {"weights.bin", "reference.bin", "coverage.md", "manifest.json"}
+    assert {p.name for p in folder.iterdir()} == expected  # no side files: every ONNX is self-contained
+    check_files(m, folder)
+    assert m["solver"]["steps"] == 2 and m["solver"]["method"] == "rk4" and len(m["solver"]["stage_times"]) == 5
+    assert m["opset"] >= 17 and m["window"] == 80 and m["class_names"][0] == "Healthy"
+    assert len(m["channels"]) == 23 and m["channels"][12] == {"name": "V_b", "unit": "V"}
+    assert len(m["normalisation"]["cnode"]["mean"]) == 23
+    v = m["verification"]
+    assert v["passed"] and v["cnode_fp32_vs_pytorch"]["passed"] and v["gru_fp32_vs_pytorch"]["passed"]
+    assert v["test_windows"] == len(make_windows(load_dataset(exported / "dataset.npz"), "test"))
+    for key in ARTIFACT_KEYS:
+        assert 0.0 <= m["metrics"][key]["macro_f1"] <= 1.0
+        assert v["batch_independence"][key]["max_abs_logit_diff"] == 0.0
+        sess = ort.InferenceSession(str(folder / m["artifacts"][key]), providers=["CPUExecutionProvider"])
+        assert sess.run(["logits"], {"telemetry": np.zeros((2, 80, 23), np.float32)})[0].shape == (2, 4)
+    for model in ("cnode", "gru"):
+        s = m["quantization"]["coverage"][model]["summary"]
+        assert s["int8_mac_share"] >= 0.95 and s["initializer_bytes_ratio"] <= 0.35 and s["meets_targets"]
+    assert "| MatMulInteger | int8 |" in (folder / "coverage.md").read_text()
+    w = read_weights(folder / "weights.bin")
+    assert w.section("cnode", "int8").dims[5] == 2
+    ref = read_reference(folder / "reference.bin")
+    assert ref.section("none", "none")["telemetry"].shape == (4, 80, 23)
+    onnx.checker.check_model(str(folder / "cnode_rk4_2.int8.onnx"), full_check=True)
+
+
+def test_missing_checkpoint_is_a_one_line_error_and_writes_nothing(small_run, tmp_path):
+    run = make_run(small_run, tmp_path / "run", kinds=("cnode",))
+    res = quadfdi_export("--run", str(run))
+    assert res.returncode == 2
+    lines = res.stderr.strip().splitlines()
+    assert len(lines) == 1 and "gru.pt does not exist" in lines[0], res.stderr
+    assert not (run / "export").exists()
+
+
+def test_bad_steps_is_a_one_line_error(small_run, tmp_path):
+    run = make_run(small_run, tmp_path / "run")
+    res = quadfdi_export("--run", str(run), "--steps", "0")
+    assert res.returncode == 2 and "export.steps must be positive" in res.stderr
+    assert len(res.stderr.strip().splitlines()) == 1
+
+
+def test_a_wrong_gru_graph_stops_the_export_before_anything_is_written(small_run, tmp_path, monkeypatch):
+    """The pipeline's own parity check catches a GRU exported with linear_before_reset=0."""
+    import functools
+
+    import export.run as export_run_module
+    from quadfdi.errors import QuadfdiError
+    from quadfdi.rundir import open_run
+
+    run_dir = make_run(small_run, tmp_path / "run")
+    wrong = functools.partial(export_run_module.build_gru_fp32, linear_before_reset=0)
+    monkeypatch.setattr(export_run_module, "build_gru_fp32", wrong)
+    run, cfg = open_run(run_dir, ["export.steps=1", "export.calib_windows=64"])
+    with pytest.raises(QuadfdiError, match="verification failed, nothing written: gru_fp32_vs_pytorch"):
+        export_run_module.export_run(run, cfg, log=lambda s: None)
+    assert not (run_dir / "export").exists()
