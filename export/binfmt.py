@@ -116,7 +116,8 @@ def _pack_tensor(t: Tensor) -> bytes:
     n_scales = 0 if t.scales is None else len(t.scales)
     want = 0 if code != 2 else (1 if t.axis == -1 else arr.shape[0])
     if n_scales != want:
-        raise ValueError(f"tensor {t.name}: {n_scales} scales do not fit dtype {arr.dtype}, axis {t.axis}, shape {arr.shape}")
+        raise ValueError(f"tensor {t.name}: {n_scales} scales do not fit dtype {arr.dtype}, axis {t.axis}, "
+                         f"shape {arr.shape}")
     shape = list(arr.shape) + [0] * (MAX_NDIM - arr.ndim)
     data = arr.astype(DTYPES[code], copy=False).tobytes()
     out = [TENSOR_HEADER.pack(name, code, arr.ndim, *shape, t.axis if n_scales else -1, n_scales, len(data)),
@@ -156,18 +157,19 @@ class _Cursor:
         return out
 
 
-def unpack(data: bytes, magic: bytes, version: int, where: str) -> tuple[int, list[Section]]:
-    """Parse and check a container; ``where`` names the file in error messages."""
-    if len(data) < FILE_HEADER.size or data[:8] != magic:
-        found = data[:8]
-        raise QuadfdiError(f"{where} is not a quadfdi {magic.rstrip(bytes(1)).decode()} file "
-                           f"(magic {found!r}, expected {magic!r})")
+def unpack(data: bytes, magic: bytes, version: int, where: str, what: str = "file") -> tuple[int, list[Section]]:
+    """Parse and check a container; ``where`` names the file in error messages, ``what`` its kind."""
+    if len(data) < FILE_HEADER.size and magic.startswith(data[:8]):
+        raise QuadfdiError(f"{where} is truncated: {len(data)} bytes, shorter than its {FILE_HEADER.size}-byte "
+                           f"header (re-run `quadfdi export`)")
+    if data[:8] != magic:
+        raise QuadfdiError(f"{where} is not a quadfdi {what} (magic {data[:8]!r}, expected {magic!r})")
     _, ver, n_sections, size = FILE_HEADER.unpack_from(data)
     if ver != version:
         raise QuadfdiError(f"{where} has format version {ver}, this reader reads version {version} "
                            f"(re-run `quadfdi export`)")
     if size != len(data):
-        raise QuadfdiError(f"{where} is truncated or has trailing bytes: its header says {size} bytes, "
+        raise QuadfdiError(f"{where} is truncated (or has trailing bytes): its header says {size} bytes, "
                            f"the file has {len(data)} (re-run `quadfdi export`)")
     (crc,) = struct.unpack_from("<I", data, size - 4)
     if zlib.crc32(data[:size - 4]) != crc:
@@ -188,7 +190,8 @@ def _unpack_section(cur: _Cursor, index: int) -> Section:
     models = {v: k for k, v in MODELS.items()}
     precs = {v: k for k, v in PRECISIONS.items()}
     if tag != SECTION_MAGIC or model not in models or prec not in precs:
-        raise QuadfdiError(f"{cur.where}: section {index} has a bad header (tag {tag!r}, model {model}, precision {prec})")
+        raise QuadfdiError(f"{cur.where}: section {index} has a bad header (tag {tag!r}, model {model}, "
+                           f"precision {prec})")
     if size < SECTION_HEADER.size + 4 or start + size > cur.end:
         raise QuadfdiError(f"{cur.where}: section {index} claims {size} bytes, {cur.end - start} are left")
     (crc,) = struct.unpack_from("<I", cur.data, start + size - 4)
@@ -201,7 +204,8 @@ def _unpack_section(cur: _Cursor, index: int) -> Section:
         t = _unpack_tensor(inner, f"section {index} tensor {k}")
         sec.tensors[t.name] = t
     if inner.pos != inner.end:
-        raise QuadfdiError(f"{cur.where}: section {index} has {inner.end - inner.pos} bytes beyond its {n_tensors} tensors")
+        raise QuadfdiError(f"{cur.where}: section {index} has {inner.end - inner.pos} bytes beyond its "
+                           f"{n_tensors} tensors")
     cur.pos = start + size
     return sec
 
@@ -238,4 +242,4 @@ def read_file(path: str | Path, magic: bytes, version: int, what: str) -> tuple[
         raise QuadfdiError(f"{what} {p} does not exist (run `quadfdi export` first)") from None
     except OSError as exc:
         raise QuadfdiError(f"cannot read {what} {p}: {exc.strerror}") from None
-    return unpack(data, magic, version, f"{what} {p}")
+    return unpack(data, magic, version, f"{what} {p}", what)

@@ -14,10 +14,10 @@ random draw), never from the test split that the verification reports on.
 from __future__ import annotations
 
 import numpy as np
-import onnxruntime as ort
 from onnxruntime.quantization import CalibrationDataReader
 
 from export.graph import Built
+from export.verify import session
 
 
 class WindowReader(CalibrationDataReader):
@@ -56,9 +56,7 @@ def collect_ranges(built: Built, probes: dict[str, str], reader: CalibrationData
     per index of the last axis).
     """
     keys = list(probes)
-    opts = ort.SessionOptions()
-    opts.log_severity_level = 3
-    sess = ort.InferenceSession(built.with_probes(keys).SerializeToString(), opts, providers=["CPUExecutionProvider"])
+    sess = session(built.with_probes(keys).SerializeToString())
     names = [built.probes[k][0] for k in keys]
     amax: dict[str, np.ndarray] = {}
     for feed in reader:

@@ -29,8 +29,8 @@ import torch
 from onnx import TensorProto
 
 from export.graph import BATCH, Built, Graph, class_outputs, telemetry_input
-from export.quantize import (BOUND_SCALE, QWeight, act_scale, int8_linear, int8_matmul, int8_weight, quantize,
-                             quantize_interp, zero_point)
+from export.quantize import (BOUND_SCALE, QWeight, act_scale, int8_linear, int8_matmul, int8_weight,
+                             quantize_channels, quantize_interp)
 from train.control import interp_matrix
 from train.solvers import fixed_method, nearest_index, stage_times
 
@@ -109,16 +109,16 @@ def cnode_params(model: torch.nn.Module, steps: int) -> CnodeParams:
 class CnodeQuant:
     """The int8 CNODE: int8 weights with per-output-channel scales, static activation scales."""
 
-    encoder: QWeight
+    encoder: QWeight  # folded: encoder.weight diag(s_u)
     lin1_z: QWeight
-    lin1_u: QWeight
+    lin1_u: QWeight  # folded: lin1_u weight diag(s_u)
     lin2: QWeight
     head: QWeight
     interp_q: np.ndarray  # (S, W) int8
     interp_scale: np.ndarray  # (S,) float32, P = interp_q * interp_scale[:, None]
     interp_exact: bool
     s_x: np.ndarray  # (C,) x_norm, per channel (P sums over time, so a channel scale factors out)
-    s_u: np.ndarray  # () the control U, per tensor (lin1_u and the encoder sum over channels)
+    s_u: np.ndarray  # (C,) the control U, per channel, folded into the encoder and lin1_u weights
     s_z: np.ndarray  # (4N,) the latent state entering each stage
     s_hid: np.ndarray  # () tanh output of the field's hidden layer: bound 1/127
     s_z1: np.ndarray  # () z1 entering the head
@@ -127,10 +127,11 @@ class CnodeQuant:
 def quantize_cnode(p: CnodeParams, ranges: dict[str, np.ndarray]) -> CnodeQuant:
     """int8 weights of ``p`` and activation scales from calibrated ``ranges`` (max |x|)."""
     pq, ps, exact = quantize_interp(interp_matrix(p.times, p.window))  # float64: exactness is decidable
+    s_u = act_scale(ranges["u"])
     return CnodeQuant(
-        encoder=QWeight.of(p.encoder_w), lin1_z=QWeight.of(p.lin1_wz), lin1_u=QWeight.of(p.lin1_wu),
+        encoder=QWeight.folded(p.encoder_w, s_u), lin1_z=QWeight.of(p.lin1_wz), lin1_u=QWeight.folded(p.lin1_wu, s_u),
         lin2=QWeight.of(p.lin2_w), head=QWeight.of(p.head_w), interp_q=pq, interp_scale=ps, interp_exact=exact,
-        s_x=act_scale(ranges["x_norm"]), s_u=act_scale(ranges["u"]),
+        s_x=act_scale(ranges["x_norm"]), s_u=s_u,
         s_z=act_scale(np.array([ranges[f"stage{e}"] for e in range(p.n_stages)])),
         s_hid=np.asarray(BOUND_SCALE), s_z1=act_scale(ranges["z1"]),
     )
@@ -138,14 +139,14 @@ def quantize_cnode(p: CnodeParams, ranges: dict[str, np.ndarray]) -> CnodeQuant:
 
 def calibration_probes(p: CnodeParams) -> dict[str, str]:
     """Probe key -> reduction ('channel' over the last axis, or 'tensor') for calibration."""
-    out = {"x_norm": "channel", "u": "tensor", "z1": "tensor"}
+    out = {"x_norm": "channel", "u": "channel", "z1": "tensor"}
     out.update({f"stage{e}": "tensor" for e in range(p.n_stages)})
     return out
 
 
 def build_cnode(p: CnodeParams, opset: int, q: CnodeQuant | None = None) -> Built:
     """The fp32 graph (``q`` None) or the int8 graph of ``p`` with N = p.steps RK4 steps."""
-    W, C, L, H, K, S = p.window, p.n_channels, p.latent, p.hidden, p.n_classes, len(p.times)
+    W, C, L, K, S = p.window, p.n_channels, p.latent, p.n_classes, len(p.times)
     g = Graph(f"cnode_rk4_{p.steps}" + ("_int8" if q else ""))
     xn = g.op("Div", g.op("Sub", "telemetry", g.const("norm.mean", p.mean)), g.const("norm.std", p.std), name="x_norm")
     g.probe("x_norm", xn, [BATCH, W, C])
@@ -160,18 +161,18 @@ def build_cnode(p: CnodeParams, opset: int, q: CnodeQuant | None = None) -> Buil
         v = g.op("Add", g.op("MatMul", u, g.const("lin1_u.weight_t", p.lin1_wu.T)), g.const("lin1.bias", p.lin1_b))
     else:
         # x_norm per channel -> int8; U = (float(Pq @ xq) * s_P[s]) * s_x[c]  (exact P when D <= 127)
-        xq = g.op("QuantizeLinear", xn, g.const("act.x_norm.scale", q.s_x), zero_point(g, C), axis=2)
+        xq = quantize_channels(g, xn, g.const("act.x_norm.scale", q.s_x), C)
         acc = g.op("MatMulInteger", g.const("interp.q", q.interp_q, np.int8), xq)  # (B, S, C) int32
         u = g.op("Cast", acc, to=TensorProto.FLOAT)
         u = g.op("Mul", u, g.const("interp.scale", q.interp_scale[:, None]))
         u = g.op("Mul", u, "act.x_norm.scale", name="u")
-        s_u = g.const("act.u.scale", q.s_u)
-        uq = quantize(g, u, s_u)  # (B, S, C) int8, shared by the encoder and lin1_u
+        # U per channel -> int8, shared by the encoder and lin1_u (their weights carry s_u, folded)
+        uq = quantize_channels(g, u, g.const("act.u.scale", q.s_u), C)
         enc_wq, enc_s = int8_weight(g, "encoder", q.encoder)
-        z0 = g.op("Tanh", int8_matmul(g, g.op("Slice", uq, *first), s_u, enc_wq, enc_s,
+        z0 = g.op("Tanh", int8_matmul(g, g.op("Slice", uq, *first), None, enc_wq, enc_s,
                                       g.const("encoder.bias", p.encoder_b)), name="z0")
         w1u, s_w1u = int8_weight(g, "lin1_u", q.lin1_u)
-        v = int8_matmul(g, uq, s_u, w1u, s_w1u, g.const("lin1.bias", p.lin1_b))
+        v = int8_matmul(g, uq, None, w1u, s_w1u, g.const("lin1.bias", p.lin1_b))
     g.probe("u", u, [BATCH, S, C])
     g.probe("z0", z0, [BATCH, 1, L])
     # One Split gives the S rows of V as (B, 1, H) tensors; the state stays (B, 1, L) throughout.
@@ -186,7 +187,8 @@ def build_cnode(p: CnodeParams, opset: int, q: CnodeQuant | None = None) -> Buil
         if q is None:
             a = g.op("Add", g.op("MatMul", z, g.const("lin1_z.weight_t", p.lin1_wz.T)), v_rows[row])
             hid = g.op("Tanh", a)
-            return g.op("Add", g.op("MatMul", hid, g.const("lin2.weight_t", p.lin2_w.T)), g.const("lin2.bias", p.lin2_b))
+            k = g.op("MatMul", hid, g.const("lin2.weight_t", p.lin2_w.T))
+            return g.op("Add", k, g.const("lin2.bias", p.lin2_b))
         a = int8_linear(g, z, g.const(f"act.stage{e}.scale", q.s_z[e]), "lin1_z", q.lin1_z, v_rows[row])
         hid = g.op("Tanh", a)
         return int8_linear(g, hid, g.const("act.hidden.scale", q.s_hid), "lin2", q.lin2, g.const("lin2.bias", p.lin2_b))

@@ -10,12 +10,13 @@ int8: ONNX Runtime has no quantized GRU operator (a ``GRU`` node stays fp32 what
 is told), so the int8 graph unrolls the W = 80 steps into operators that quantize:
 
     GX = int8(x_norm) @ W_ih^T (one MatMulInteger for all steps) + b_ih        (B, W, 3H)
+         (x_norm quantized per channel, the channel scales folded into W_ih)
     step t:  gh = int8(h) @ W_hh^T (MatMulInteger, W_hh stored once) + b_hh     (B, 1, 3H)
              r = sigmoid(gx_r + gh_r),  z = sigmoid(gx_z + gh_z)
              n = tanh(gx_n + r * gh_n),  h' = (h - n) * z + n     (PyTorch's GRU cell, in that order)
 
 h starts at 0 and is a convex combination of tanh outputs, so |h| < 1: its scale is the bound
-1/127, no calibration needed; only x_norm's scale is calibrated.
+1/127, no calibration needed; only x_norm's scales are calibrated.
 """
 
 from __future__ import annotations
@@ -24,10 +25,10 @@ from dataclasses import dataclass
 
 import numpy as np
 import torch
-from onnx import TensorProto
 
 from export.graph import BATCH, Built, Graph, class_outputs, telemetry_input
-from export.quantize import BOUND_SCALE, QWeight, act_scale, int8_linear, int8_matmul, int8_weight, quantize
+from export.quantize import (BOUND_SCALE, QWeight, act_scale, int8_linear, int8_matmul, int8_weight, quantize,
+                             quantize_channels)
 
 
 @dataclass(frozen=True)
@@ -69,19 +70,20 @@ def gru_params(model: torch.nn.Module) -> GruParams:
 class GruQuant:
     """The int8 GRU: int8 weights (per output channel) and static activation scales."""
 
-    w_ih: QWeight
+    w_ih: QWeight  # folded: W_ih diag(s_x)
     w_hh: QWeight
     head: QWeight
-    s_x: np.ndarray  # () x_norm, per tensor (W_ih sums over channels), calibrated
+    s_x: np.ndarray  # (C,) x_norm per channel, calibrated, folded into w_ih
     s_h: np.ndarray  # () the hidden state, bound 1/127
 
 
 def quantize_gru(p: GruParams, ranges: dict[str, np.ndarray]) -> GruQuant:
-    return GruQuant(w_ih=QWeight.of(p.w_ih), w_hh=QWeight.of(p.w_hh), head=QWeight.of(p.head_w),
-                    s_x=act_scale(ranges["x_norm"]), s_h=np.asarray(BOUND_SCALE))
+    s_x = act_scale(ranges["x_norm"])
+    return GruQuant(w_ih=QWeight.folded(p.w_ih, s_x), w_hh=QWeight.of(p.w_hh), head=QWeight.of(p.head_w),
+                    s_x=s_x, s_h=np.asarray(BOUND_SCALE))
 
 
-CALIBRATION_PROBES = {"x_norm": "tensor"}
+CALIBRATION_PROBES = {"x_norm": "channel"}
 
 
 def _onnx_gates(a: np.ndarray) -> np.ndarray:
@@ -104,15 +106,16 @@ def build_gru_fp32(p: GruParams, opset: int, linear_before_reset: int = 1) -> Bu
     xn = _normalise(g, p)
     xs = g.op("Transpose", xn, perm=[1, 0, 2])  # (W, B, C): the GRU operator's default layout
     wb = np.concatenate([_onnx_gates(p.b_ih), _onnx_gates(p.b_hh)])[None]  # (1, 6H): Wb then Rb
-    y, y_h = g.node("GRU", [xs, g.const("gru.W", _onnx_gates(p.w_ih)[None]), g.const("gru.R", _onnx_gates(p.w_hh)[None]),
-                            g.const("gru.B", wb)], out=["h_all", "h_last"], hidden_size=H,
-                    linear_before_reset=linear_before_reset)
+    w_r_b = [g.const("gru.W", _onnx_gates(p.w_ih)[None]), g.const("gru.R", _onnx_gates(p.w_hh)[None]),
+             g.const("gru.B", wb)]
+    y, y_h = g.node("GRU", [xs, *w_r_b], out=["h_all", "h_last"], hidden_size=H, linear_before_reset=linear_before_reset)
     g.probe("h_all", y, [W, 1, BATCH, H])  # (W, num_directions, B, H)
     last = g.op("Squeeze", y_h, g.const("axis0", [0], np.int64))  # (B, H)
     out = g.op("Add", g.op("MatMul", last, g.const("head.weight_t", p.head_w.T)), g.const("head.bias", p.head_b),
                name="logits")
     g.op("Softmax", out, name="proba", axis=-1)
-    doc = f"quadfdi GRU (hidden {H}), fp32, ONNX GRU linear_before_reset={linear_before_reset}; raw telemetry (batch, {W}, {C})"
+    doc = (f"quadfdi GRU (hidden {H}), fp32, ONNX GRU linear_before_reset={linear_before_reset}; "
+           f"raw telemetry (batch, {W}, {C})")
     return g.finish([telemetry_input(W, C)], class_outputs(K), opset, doc)
 
 
@@ -121,7 +124,10 @@ def build_gru_int8(p: GruParams, q: GruQuant, opset: int) -> Built:
     W, C, H, K = p.window, p.n_channels, p.hidden, p.n_classes
     g = Graph("gru_int8")
     xn = _normalise(g, p)
-    gx = int8_linear(g, xn, g.const("act.x_norm.scale", q.s_x), "gru.ih", q.w_ih, g.const("gru.bias_ih", p.b_ih))
+    # x_norm per channel -> int8; its scales are folded into W_ih, so one Mul rescales the sum
+    xq = quantize_channels(g, xn, g.const("act.x_norm.scale", q.s_x), C)
+    wih, s_wih = int8_weight(g, "gru.ih", q.w_ih)
+    gx = int8_matmul(g, xq, None, wih, s_wih, g.const("gru.bias_ih", p.b_ih))
     thirds = g.const("split.gates", [H, H, H], np.int64)
     ones = g.const("split.steps", np.ones(W, np.int64), np.int64)
     gx_r, gx_z, gx_n = g.node("Split", [gx, thirds], n_out=3, axis=2)  # (B, W, H) each
@@ -142,5 +148,6 @@ def build_gru_int8(p: GruParams, q: GruQuant, opset: int) -> Built:
     out = int8_linear(g, h, s_h, "head", q.head, g.const("head.bias", p.head_b))
     g.op("Squeeze", out, g.const("axis1", [1], np.int64), name="logits")
     g.op("Softmax", "logits", name="proba", axis=-1)
-    doc = f"quadfdi GRU (hidden {H}), int8 (MatMulInteger, static scales), unrolled over {W} steps; raw telemetry (batch, {W}, {C})"
+    doc = (f"quadfdi GRU (hidden {H}), int8 (MatMulInteger, static scales), unrolled over {W} steps; "
+           f"raw telemetry (batch, {W}, {C})")
     return g.finish([telemetry_input(W, C)], class_outputs(K), opset, doc)

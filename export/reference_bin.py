@@ -24,13 +24,13 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-import onnxruntime as ort
 import torch
 
 from export.binfmt import Section, pack, read_file
 from export.graph import Built
 from export.onnx_cnode import CnodeParams
 from export.onnx_gru import GruParams
+from export.verify import session, torch_threads
 from export.weights_bin import cnode_dims, gru_dims
 
 MAGIC = b"QFDIREF\0"
@@ -38,7 +38,8 @@ VERSION = 1
 
 
 def pick_windows(y: np.ndarray, n: int) -> np.ndarray:
-    """``n`` test-window indices: the first window of each class present, then the next in order."""
+    """``n`` test-window indices (increasing): the first window of each class present, then the
+    earliest others."""
     firsts = [int(np.flatnonzero(y == c)[0]) for c in np.unique(y)]
     rest = [i for i in range(len(y)) if i not in set(firsts)]
     return np.array(sorted((firsts + rest)[:n]), dtype=np.int64)
@@ -50,14 +51,15 @@ def _softmax(z: np.ndarray) -> np.ndarray:
 
 
 def _run_probes(built: Built, keys: list[str], x: np.ndarray) -> dict[str, np.ndarray]:
-    sess = ort.InferenceSession(built.with_probes(keys).SerializeToString(), providers=["CPUExecutionProvider"])
+    sess = session(built.with_probes(keys).SerializeToString())
     outs = sess.run(["logits", "proba"] + [built.probes[k][0] for k in keys], {"telemetry": x})
     return dict(zip(["logits", "proba"] + keys, outs))
 
 
 def cnode_fp32_tensors(model: torch.nn.Module, x: np.ndarray) -> dict[str, np.ndarray]:
     """PyTorch's trace of the CNODE (its solver must be classic RK4 with the graph's N)."""
-    tr = model.trace(torch.from_numpy(x))
+    with torch_threads():
+        tr = model.trace(torch.from_numpy(x))
     st = tr["stages"]  # (N, 4, B, L)
     n, s, b, latent = st.shape
     logits = tr["logits"].numpy()
@@ -75,7 +77,8 @@ def cnode_int8_tensors(built: Built, p: CnodeParams, x: np.ndarray) -> dict[str,
 
 
 def gru_fp32_tensors(model: torch.nn.Module, x: np.ndarray) -> dict[str, np.ndarray]:
-    tr = model.trace(torch.from_numpy(x))
+    with torch_threads():
+        tr = model.trace(torch.from_numpy(x))
     return {"x_norm": tr["x_norm"].numpy(), "h": tr["h"].numpy(), "logits": tr["logits"].numpy(),
             "proba": torch.softmax(tr["logits"], dim=1).numpy()}
 

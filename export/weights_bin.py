@@ -17,10 +17,12 @@ shapes):
   ``encoder.bias``, ``lin1_z.weight`` (H, L), ``lin1_u.weight`` (H, C), ``lin1.bias`` (H,),
   ``lin2.weight`` (L, H), ``lin2.bias``, ``head.weight`` (K, L), ``head.bias``; int8 only: the
   static activation scales ``act.x_norm.scale`` (C,), ``act.u.scale`` (1,), ``act.stage.scale``
-  (4N,), ``act.hidden.scale`` (1,), ``act.z1.scale`` (1,).
+  (4N,), ``act.hidden.scale`` (1,), ``act.z1.scale`` (1,). ``act.u.scale`` (C,) is folded into the
+  int8 ``encoder.weight`` and ``lin1_u.weight`` (they hold W diag(s_u), quantized per row).
 - GRU: ``gru.weight_ih`` (3H, C), ``gru.weight_hh`` (3H, H) (gate rows r, z, n as in PyTorch),
   ``gru.bias_ih``, ``gru.bias_hh`` (3H,), ``head.weight`` (K, H), ``head.bias``; int8 only:
-  ``act.x_norm.scale`` (1,), ``act.h.scale`` (1,).
+  ``act.x_norm.scale`` (C,) (folded into the int8 ``gru.weight_ih``: W_ih diag(s_x)),
+  ``act.h.scale`` (1,).
 """
 
 from __future__ import annotations
@@ -80,7 +82,7 @@ def cnode_section(p: CnodeParams, q: CnodeQuant | None) -> Section:
             s.add(*biases[name], np.float32)
     if q:
         s.add("act.x_norm.scale", q.s_x, np.float32)
-        s.add("act.u.scale", np.atleast_1d(q.s_u), np.float32)
+        s.add("act.u.scale", q.s_u, np.float32)
         s.add("act.stage.scale", q.s_z, np.float32)
         s.add("act.hidden.scale", np.atleast_1d(q.s_hid), np.float32)
         s.add("act.z1.scale", np.atleast_1d(q.s_z1), np.float32)
@@ -104,7 +106,7 @@ def gru_section(p: GruParams, q: GruQuant | None) -> Section:
         s.add("head.weight", p.head_w, np.float32)
     s.add("head.bias", p.head_b, np.float32)
     if q:
-        s.add("act.x_norm.scale", np.atleast_1d(q.s_x), np.float32)
+        s.add("act.x_norm.scale", q.s_x, np.float32)
         s.add("act.h.scale", np.atleast_1d(q.s_h), np.float32)
     return s
 

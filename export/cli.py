@@ -1,0 +1,33 @@
+"""``quadfdi export --run runs/<name> [--steps N]``: deployable graphs and files for the C++ reference."""
+
+from __future__ import annotations
+
+import argparse
+
+from quadfdi.cli import add_config_args
+from quadfdi.config import replace_section
+from quadfdi.rundir import open_run
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("export", help="export both models to ONNX (fp32, int8), weights.bin, reference.bin",
+                       description="Read cnode.pt, gru.pt and dataset.npz of a run; write <run>/export/: "
+                                   "cnode_rk4_<N>.onnx, cnode_rk4_<N>.int8.onnx, gru.onnx, gru.int8.onnx, "
+                                   "weights.bin, reference.bin, coverage.md, manifest.json.")
+    add_config_args(p, config=False)
+    p.add_argument("--run", required=True, help="run folder holding dataset.npz, cnode.pt and gru.pt")
+    p.add_argument("--steps", type=int, default=None,
+                   help="N, classic RK4 steps of the unrolled CNODE graph (default: the config's export.steps)")
+    p.set_defaults(func=run_export)
+
+
+def run_export(args: argparse.Namespace) -> int:
+    from export.run import export_run
+
+    run, cfg = open_run(args.run, args.overrides, need=("dataset",))
+    if args.steps is not None:
+        cfg = replace_section(cfg, "export", steps=args.steps)
+    manifest = export_run(run, cfg)
+    ok = manifest["verification"]["passed"]
+    print(f"export: verification {'passed' if ok else 'FAILED'}; manifest {run.export / 'manifest.json'}")
+    return 0 if ok else 1
