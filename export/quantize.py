@@ -1,7 +1,7 @@
 """The int8 scheme: how weights and activations become int8, and the node pattern of one product.
 
 One scheme for both models, written so that a C++ reference can redo it integer for integer
-(docs/formats_export.md, "int8 arithmetic"):
+(docs/formats.md, "int8 arithmetic"):
 
 - Weights: symmetric, per output channel (a row of PyTorch's (out, in) matrix), zero point 0:
   ``s_w[o] = max_i |W[o, i]| / 127`` (1.0 for an all-zero row), ``Wq = clip(rne(W / s_w), -127, 127)``

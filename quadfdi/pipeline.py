@@ -11,7 +11,7 @@ from quadfdi.rundir import create_run
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("run", help="run the whole pipeline (sim, train, ...) into one run folder")
+    p = sub.add_parser("run", help="run the whole pipeline (sim, train, export, ...) into one run folder")
     add_config_args(p)
     p.add_argument("--out", default="runs/paper", help="run folder (default: %(default)s)")
     p.set_defaults(func=run_all)
@@ -21,6 +21,7 @@ def run_all(args: argparse.Namespace) -> int:
     from sim.cli import default_plot_rows, generate_into
     from sim.dataset import load_dataset
     from sim.plot import plot_trajectory
+    from export.run import export_run
     from train.run import train_run
 
     cfg = load_config(args.config, args.overrides)
@@ -35,6 +36,9 @@ def run_all(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     train_run(run, cfg, cfg.train.model)
     timings["train"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    export_run(run, cfg)
+    timings["export"] = time.perf_counter() - t0
     print("stage times: " + ", ".join(f"{k} {v:.1f} s" for k, v in timings.items()))
     print(f"run folder: {run.root}")
     return 0
