@@ -4,7 +4,7 @@ PY := .venv/bin/python
 RUN ?= runs/paper
 CONFIG ?= configs/paper.toml
 
-.PHONY: setup run test sim-bench clean
+.PHONY: setup run test sim-bench study clean
 
 setup:
 	bash scripts/setup.sh
@@ -17,6 +17,9 @@ test: setup
 
 sim-bench: setup
 	$(PY) -m quadfdi.cli sim bench --config $(CONFIG)
+
+study: setup
+	$(PY) -m quadfdi.cli train study --run $(RUN) --readme README.md
 
 clean:
 	rm -rf runs/test-* .pytest_cache
