@@ -18,6 +18,7 @@ STAGES = {
     "sim": "sim.cli",
     "train": "train.cli",
     "export": "export.cli",
+    "parity": "parity.cli",
     "run": "quadfdi.pipeline",
 }
 

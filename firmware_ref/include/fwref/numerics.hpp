@@ -1,0 +1,143 @@
+// fwref/numerics.hpp -- scope: the scalar numerics both models share, written to reproduce ONNX
+// Runtime's CPU kernels operation by operation: tanh and the logistic sigmoid (MLAS's rational
+// approximations), QuantizeLinear (float32 division, round half to even, saturation), and the int8
+// products with int32 accumulation and the documented float rescale order
+// (docs/formats_export.md, "int8 arithmetic"). Compile with -ffp-contract=off: every expression
+// below is one IEEE float32 operation per operator, in the order written; the only fused
+// multiply-adds are the explicit std::fma calls, which are what MLAS's FMA3 kernels execute.
+#pragma once
+
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+
+#if defined(__ARM_FEATURE_SIMD32)
+#include <arm_acle.h>
+#endif
+
+namespace fwref {
+
+// ---------------------------------------------------------------------------------------------
+// Activations. ONNX Runtime's Tanh and Sigmoid (and its GRU operator) call MLAS, which evaluates
+// Eigen's rational approximations p(x)/q(x) on x clamped to [-9, 9] (tanh) or [-18, 18]
+// (logistic, p/q + 1/2); on an x86-64 CPU with FMA3 each Horner step is one fused multiply-add.
+// With std::fma here the results are bit-identical to ONNX Runtime 1.32 on such a CPU (0
+// mismatches on 40.7 million inputs, docs/firmware.md), so the int8 paths reproduce ORT's integer
+// sums exactly. The
+// approximation error against the exact function is a few float32 ulps, far below the fp32 parity
+// tolerance. On a Cortex-M4F/M7 std::fma is one VFMA.F32 instruction (correctly rounded, as on x86).
+
+#ifdef FWREF_LIBM_ACTIVATIONS
+// Measurement only (cmake -DFWREF_LIBM_ACTIVATIONS=ON): libm's functions, which differ from ONNX
+// Runtime's by an ulp at times; docs/firmware.md uses this build to show what such a difference
+// does to the int8 results, the reason for the int8 tolerance.
+inline float tanh_approx(float x) { return std::tanh(x); }
+inline float logistic_approx(float x) { return 1.0f / (1.0f + std::exp(-x)); }
+#else
+inline float tanh_approx(float x) {
+  x = x < -9.0f ? -9.0f : x;  // NaN propagates (MLAS's two-step clamp)
+  x = x > 9.0f ? 9.0f : x;
+  const float x2 = x * x;
+  float p = std::fma(x2, -2.76076847742355e-16f, 2.00018790482477e-13f);
+  p = std::fma(p, x2, -8.60467152213735e-11f);
+  p = std::fma(p, x2, 5.12229709037114e-08f);
+  p = std::fma(p, x2, 1.48572235717979e-05f);
+  p = std::fma(p, x2, 6.37261928875436e-04f);
+  p = std::fma(p, x2, 4.89352455891786e-03f);
+  p = p * x;
+  float q = std::fma(x2, 1.19825839466702e-06f, 1.18534705686654e-04f);
+  q = std::fma(q, x2, 2.26843463243900e-03f);
+  q = std::fma(q, x2, 4.89352518554385e-03f);
+  return p / q;
+}
+
+inline float logistic_approx(float x) {
+  x = x < -18.0f ? -18.0f : x;
+  x = x > 18.0f ? 18.0f : x;
+  const float x2 = x * x;
+  float p = std::fma(x2, 4.37031012579801e-11f, 1.15627324459942e-07f);
+  p = std::fma(p, x2, 6.08574864600143e-05f);
+  p = std::fma(p, x2, 8.51377133304701e-03f);
+  p = std::fma(p, x2, 2.48287947061529e-01f);
+  p = p * x;
+  float q = std::fma(x2, 6.10247389755681e-13f, 5.76102136993427e-09f);
+  q = std::fma(q, x2, 6.29106785017040e-06f);
+  q = std::fma(q, x2, 1.70198817374094e-03f);
+  q = std::fma(q, x2, 1.16817656904453e-01f);
+  q = std::fma(q, x2, 9.93151921023180e-01f);
+  // Clamped below at 0 only, as MLAS's FMA3 kernel (the one ONNX Runtime runs on such CPUs) does:
+  // it returns 1.0000001 near x = 18 (its generic C++ kernel clamps to [0, 1]; measured, see
+  // tests/test_firmware.py::test_activations_match_onnx_runtime).
+  const float r = p / q + 0.5f;
+  return r < 0.0f ? 0.0f : r;
+}
+#endif
+
+// ---------------------------------------------------------------------------------------------
+// QuantizeLinear with zero point 0: q = clamp(rne(x / s), -128, 127). The division is a float32
+// DIVISION (x * (1/s) differs at ties). Clamping before rounding gives the same integer as
+// rounding first (the bounds are integers). Round half to even by the 1.5 * 2^23 trick: for
+// |v| <= 2^22 the sum's ulp is 1, so the addition rounds v to an integer in the current (default,
+// nearest-even) mode; no libm call and no VRINT needed, identical on x86 and Cortex-M. A NaN maps
+// to 0 so that the conversion to int is always defined (inputs are checked finite; this only
+// guards the int conversion).
+inline std::int8_t quantize(float x, float scale) {
+  float v = x / scale;
+  if (!(v == v)) v = 0.0f;
+  v = v < -128.0f ? -128.0f : v;
+  v = v > 127.0f ? 127.0f : v;
+  const float magic = 12582912.0f;  // 1.5 * 2^23
+  v = (v + magic) - magic;
+  return static_cast<std::int8_t>(static_cast<int>(v));
+}
+
+// sum_i a[i] * b[i] over int8 in int32 (exact: |sum| < 2^24 by fwref/config.hpp's limits, so the
+// order of the additions does not matter and every variant below gives the same integer).
+#if defined(__ARM_FEATURE_SIMD32)
+// Cortex-M4/M7 DSP extension: one 32-bit load brings four int8; SXTB16 sign-extends bytes 0 and 2
+// (and, rotated by 8, bytes 1 and 3) into two int16 lanes; SMLAD multiplies both lane pairs and adds
+// them to the accumulator: 4 MACs in 8 instructions instead of about 16.
+inline std::int32_t dot_i8(const std::int8_t* a, const std::int8_t* b, int n) {
+  std::int32_t acc = 0;
+  int i = 0;
+  for (; i + 4 <= n; i += 4) {
+    std::uint32_t wa, wb;
+    std::memcpy(&wa, a + i, 4);  // an unaligned LDR (allowed on ARMv7-M)
+    std::memcpy(&wb, b + i, 4);
+    acc = __smlad(__sxtb16(wa), __sxtb16(wb), acc);
+    acc = __smlad(__sxtb16((wa >> 8) | (wa << 24)), __sxtb16((wb >> 8) | (wb << 24)), acc);
+  }
+  for (; i < n; ++i) acc += static_cast<std::int32_t>(a[i]) * static_cast<std::int32_t>(b[i]);
+  return acc;
+}
+#else
+inline std::int32_t dot_i8(const std::int8_t* a, const std::int8_t* b, int n) {
+  std::int32_t acc = 0;
+  for (int i = 0; i < n; ++i) acc += static_cast<std::int32_t>(a[i]) * static_cast<std::int32_t>(b[i]);
+  return acc;
+}
+#endif
+
+// Pattern A (per-tensor activation scale s_a): y[o] = ((f32(acc[o]) * s_a) * s_w[o]) + b[o].
+// ``w`` is (rows, cols) int8 row-major, ``s_w`` (rows,), ``bias`` (rows,), ``x`` (cols,) int8.
+inline void linear_i8_tensor(const std::int8_t* w, const float* s_w, int rows, int cols, const std::int8_t* x,
+                             float s_a, const float* bias, float* y) {
+  for (int o = 0; o < rows; ++o) {
+    const float acc = static_cast<float>(dot_i8(w + o * cols, x, cols));
+    y[o] = ((acc * s_a) * s_w[o]) + bias[o];
+  }
+}
+
+// Pattern B (per-channel activation scales folded into the weight): y[o] = (f32(acc[o]) * s_w'[o]) + b[o].
+inline void linear_i8_folded(const std::int8_t* w, const float* s_w, int rows, int cols, const std::int8_t* x,
+                             const float* bias, float* y) {
+  for (int o = 0; o < rows; ++o) {
+    const float acc = static_cast<float>(dot_i8(w + o * cols, x, cols));
+    y[o] = (acc * s_w[o]) + bias[o];
+  }
+}
+
+// The normalisation inside every graph: x_norm = (x - mean) / std, a Sub then a Div.
+inline float normalise(float x, float mean, float std_) { return (x - mean) / std_; }
+
+}  // namespace fwref

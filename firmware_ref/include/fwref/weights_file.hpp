@@ -1,0 +1,44 @@
+// fwref/weights_file.hpp -- scope: weights.bin on the host: read and check the file
+// (fwref/container.hpp), then bind one section to a model struct (fwref/cnode.hpp, fwref/gru.hpp)
+// after checking that every tensor the model needs is present with the dtype, shape and scales its
+// section's dimensions imply, and that the dimensions fit this build's compile-time maxima. The
+// values are copied once into typed storage owned by the WeightsFile (no aliasing or alignment
+// assumptions about the file's bytes); the bound model points into it.
+#pragma once
+
+#include <cstdint>
+#include <deque>
+#include <string>
+#include <vector>
+
+#include "fwref/cnode.hpp"
+#include "fwref/container.hpp"
+#include "fwref/gru.hpp"
+#include "fwref/status.hpp"
+
+namespace fwref {
+
+constexpr char kWeightsMagic[9] = "QFDIWTS";  // + the terminating NUL: 8 bytes "QFDIWTS\0"
+constexpr std::uint32_t kWeightsVersion = 1;
+
+class WeightsFile {
+ public:
+  Status load(const std::string& path, std::string* error);
+
+  // Bind the section (model, precision); kMissingSection if the file does not hold it.
+  Status bind(CnodeF32* out, std::string* error);
+  Status bind(CnodeI8* out, std::string* error);
+  Status bind(GruF32* out, std::string* error);
+  Status bind(GruI8* out, std::string* error);
+
+  const Container& container() const { return file_; }
+
+ private:
+  friend class Binder;
+  Container file_;
+  std::deque<std::vector<float>> f32_;
+  std::deque<std::vector<std::int8_t>> i8_;
+  std::deque<std::vector<std::int32_t>> i32_;
+};
+
+}  // namespace fwref

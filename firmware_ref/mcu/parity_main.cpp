@@ -1,0 +1,259 @@
+// mcu/parity_main.cpp -- scope: the QEMU parity harness. It runs the four compiled-in models
+// (fwref_weights_*.cpp, generated from weights.bin) on the compiled-in reference windows
+// (fwref_reference.cpp, from reference.bin), one at a time, compares every intermediate tensor with
+// the reference under the tolerances of fwref/parity.hpp, measures instructions per inference
+// (SysTick under -icount) and peak stack (painting), prints one line per result over semihosting
+// and exits QEMU with 0 (all OK), 1 (a tensor NOT OK) or 2 (a model fails its check).
+//
+// Output lines (parsed by parity/mcu.py):
+//   FWREF-MCU cpu=<cpu> windows=<n>
+//   CALIB iterations=<n> ticks=<t> instructions_per_tick=<r>
+//   TENSOR <model> <precision> <name> maxdiff=<d> tol=<t> [steps=<s>] OK|NOT_OK
+//   PERF <model> <precision> window=<k> instructions=<i> stack_bytes=<b>
+//   RESULT PASS|FAIL tensors=<n> failed=<f>
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+
+#include "board.hpp"
+#include "fwref/cnode.hpp"
+#include "fwref/gru.hpp"
+#include "fwref/parity.hpp"
+#include "fwref_reference.hpp"
+#include "fwref_weights.hpp"
+
+#ifndef FWREF_CPU_NAME
+#define FWREF_CPU_NAME "unknown"
+#endif
+
+namespace {
+
+using fwref::kMaxChannels;
+using fwref::kMaxWindow;
+
+// ---------------------------------------------------------------------------- printing (no printf:
+// newlib's float formatting allocates; this harness links no heap at all)
+struct Line {
+  char buf[256];
+  int n = 0;
+  Line& s(const char* t) {
+    while (*t && n < 254) buf[n++] = *t++;
+    return *this;
+  }
+  Line& u(std::uint64_t v) {
+    char tmp[24];
+    int k = 0;
+    do tmp[k++] = char('0' + v % 10); while ((v /= 10) && k < 23);
+    while (k && n < 254) buf[n++] = tmp[--k];
+    return *this;
+  }
+  Line& e(double v) {  // %.3e
+    if (std::isnan(v)) return s("nan");
+    if (v < 0) s("-"), v = -v;
+    if (std::isinf(v)) return s("inf");
+    int ex = 0;
+    if (v != 0.0) {
+      while (v >= 10.0) v /= 10.0, ++ex;
+      while (v < 1.0) v *= 10.0, --ex;
+    }
+    std::uint64_t m = std::uint64_t(v * 1000.0 + 0.5);
+    if (m >= 10000) m /= 10, ++ex;
+    u(m / 1000).s(".");
+    const std::uint64_t f = m % 1000;
+    if (f < 100) s("0");
+    if (f < 10) s("0");
+    u(f).s(ex < 0 ? "e-" : "e+");
+    if ((ex < 0 ? -ex : ex) < 10) s("0");
+    return u(std::uint64_t(ex < 0 ? -ex : ex));
+  }
+  Line& f3(double v) {  // %.3f for small non-negative values
+    const std::uint64_t m = std::uint64_t(v * 1000.0 + 0.5);
+    u(m / 1000).s(".");
+    const std::uint64_t f = m % 1000;
+    if (f < 100) s("0");
+    if (f < 10) s("0");
+    return u(f);
+  }
+  void out() {
+    buf[n++] = '\n';
+    buf[n] = '\0';
+    board::puts(buf);
+  }
+};
+
+// ---------------------------------------------------------------------------- comparison
+int g_checked = 0, g_failed = 0;
+double g_instr_per_tick = 0.0;
+
+const fwref_ref::Tensor* find(const char* model, const char* prec, const char* name) {
+  for (int i = 0; i < fwref_ref::kTensorCount; ++i) {
+    const fwref_ref::Tensor& t = fwref_ref::kTensors[i];
+    if (!std::strcmp(t.model, model) && !std::strcmp(t.precision, prec) && !std::strcmp(t.name, name)) return &t;
+  }
+  return nullptr;
+}
+
+// Running maximum of one tensor over the windows.
+struct Acc {
+  const char* name;
+  int per_window;  // elements per window
+  double max_diff = 0, max_ref = 0, max_steps = 0;
+  bool missing = false;
+};
+
+// step(i) of element i within a window; null for fp32
+template <class StepFn>
+void accumulate(Acc& a, const char* model, const char* prec, int window, const float* ours, StepFn step) {
+  const fwref_ref::Tensor* t = find(model, prec, a.name);
+  if (t == nullptr || t->count != a.per_window * fwref_ref::kWindows) {
+    a.missing = true;
+    return;
+  }
+  const float* want = t->data + window * a.per_window;
+  for (int i = 0; i < a.per_window; ++i) {
+    const double d = std::fabs(double(ours[i]) - double(want[i]));
+    if (std::isnan(d)) {
+      a.max_diff = INFINITY;  // a NaN is the largest difference there is
+    } else if (d > a.max_diff) {
+      a.max_diff = d;
+    }
+    if (std::fabs(double(want[i])) > a.max_ref) a.max_ref = std::fabs(double(want[i]));
+    const double st = step(i);
+    if (st > 0 && d / st > a.max_steps) a.max_steps = d / st;
+  }
+}
+
+void report(const Acc& a, const char* model, const char* prec, bool int8) {
+  Line l;
+  l.s("TENSOR ").s(model).s(" ").s(prec).s(" ").s(a.name).s(" ");
+  bool ok;
+  if (a.missing) {
+    l.s("missing-from-reference");
+    ok = false;
+  } else if (int8) {
+    ok = a.max_steps <= fwref::kI8TolSteps;
+    l.s("maxdiff=").e(a.max_diff).s(" tol=").e(fwref::kI8TolSteps).s(" steps=").f3(a.max_steps);
+  } else {
+    const double tol = fwref::kF32RelTol * (a.max_ref > 1.0 ? a.max_ref : 1.0);
+    ok = a.max_diff <= tol;
+    l.s("maxdiff=").e(a.max_diff).s(" tol=").e(tol);
+  }
+  l.s(ok ? " OK" : " NOT_OK").out();
+  ++g_checked;
+  g_failed += ok ? 0 : 1;
+}
+
+// One timed inference without trace (instructions, peak stack), printed as a PERF line.
+template <class Model, class Workspace>
+__attribute__((noinline)) fwref::Status timed(const Model& m, const float* x, float* logits, Workspace& ws,
+                                              const char* model, const char* prec, int window) {
+  const void* top = board::stack_pointer();
+  board::paint_stack(top);
+  const std::uint64_t t0 = board::ticks();
+  const fwref::Status s = fwref::infer(m, x, logits, ws);
+  const std::uint64_t t1 = board::ticks();
+  const std::uint32_t stack = board::stack_used(top);
+  Line l;
+  l.s("PERF ").s(model).s(" ").s(prec).s(" window=").u(window).s(" instructions=")
+      .u(std::uint64_t(double(t1 - t0) * g_instr_per_tick + 0.5)).s(" stack_bytes=").u(stack).out();
+  return s;
+}
+
+// ---------------------------------------------------------------------------- models
+fwref::CnodeWorkspace g_cnode_ws;
+fwref::GruWorkspace g_gru_ws;
+float g_x_norm[kMaxWindow * kMaxChannels];
+float g_u[fwref::kMaxStageTimes * kMaxChannels];
+float g_z0[fwref::kMaxLatent], g_z1[fwref::kMaxLatent];
+float g_stages[fwref::kMaxEvals * fwref::kMaxLatent];
+float g_h[kMaxWindow * fwref::kMaxGruHidden];
+float g_logits[fwref::kMaxClasses];
+
+double logit_step(const fwref::MatQ& head, float s_in, int o) { return 127.0 * double(s_in) * double(head.scale[o]); }
+
+template <class Model>
+bool run_cnode(const Model& m, const char* prec, bool int8, const fwref::CnodeI8* q) {
+  const fwref::CnodeDims& d = m.dims;
+  const int C = d.channels, W = d.window, L = d.latent, E = d.evals();
+  Acc x_norm{"x_norm", W * C}, u{"u", d.stage_times * C}, z0{"z0", L}, stages{"stages", E * L}, z1{"z1", L},
+      logits{"logits", d.classes};
+  auto none = [](int) { return 0.0; };
+  for (int k = 0; k < fwref_ref::kWindows; ++k) {
+    const float* x = fwref_ref::kTelemetry + k * W * C;
+    if (timed(m, x, g_logits, g_cnode_ws, "cnode", prec, k) != fwref::Status::kOk) return false;
+    fwref::CnodeTrace tr{g_x_norm, g_u, g_z0, g_stages, g_z1};
+    if (fwref::infer(m, x, g_logits, g_cnode_ws, &tr) != fwref::Status::kOk) return false;
+    if (!int8) {
+      accumulate(x_norm, "cnode", prec, k, g_x_norm, none);
+      accumulate(u, "cnode", prec, k, g_u, none);
+      accumulate(z0, "cnode", prec, k, g_z0, none);
+      accumulate(stages, "cnode", prec, k, g_stages, none);
+      accumulate(z1, "cnode", prec, k, g_z1, none);
+      accumulate(logits, "cnode", prec, k, g_logits, none);
+    } else {
+      accumulate(x_norm, "cnode", prec, k, g_x_norm, [&](int i) { return double(q->s_x[i % C]); });
+      accumulate(u, "cnode", prec, k, g_u, [&](int i) { return double(q->s_u[i % C]); });
+      accumulate(z0, "cnode", prec, k, g_z0, [&](int) { return double(q->s_stage[0]); });
+      accumulate(stages, "cnode", prec, k, g_stages, [&](int i) { return double(q->s_stage[i / L]); });
+      accumulate(z1, "cnode", prec, k, g_z1, [&](int) { return double(q->s_z1); });
+      accumulate(logits, "cnode", prec, k, g_logits, [&](int o) { return logit_step(q->head_w, q->s_z1, o); });
+    }
+  }
+  for (const Acc* a : {&x_norm, &u, &z0, &stages, &z1, &logits}) report(*a, "cnode", prec, int8);
+  return true;
+}
+
+template <class Model>
+bool run_gru(const Model& m, const char* prec, bool int8, const fwref::GruI8* q) {
+  const fwref::GruDims& d = m.dims;
+  const int C = d.channels, W = d.window, H = d.hidden;
+  Acc x_norm{"x_norm", W * C}, h{"h", W * H}, logits{"logits", d.classes};
+  auto none = [](int) { return 0.0; };
+  for (int k = 0; k < fwref_ref::kWindows; ++k) {
+    const float* x = fwref_ref::kTelemetry + k * W * C;
+    if (timed(m, x, g_logits, g_gru_ws, "gru", prec, k) != fwref::Status::kOk) return false;
+    fwref::GruTrace tr{g_x_norm, g_h};
+    if (fwref::infer(m, x, g_logits, g_gru_ws, &tr) != fwref::Status::kOk) return false;
+    if (!int8) {
+      accumulate(x_norm, "gru", prec, k, g_x_norm, none);
+      accumulate(h, "gru", prec, k, g_h, none);
+      accumulate(logits, "gru", prec, k, g_logits, none);
+    } else {
+      accumulate(x_norm, "gru", prec, k, g_x_norm, [&](int i) { return double(q->s_x[i % C]); });
+      accumulate(h, "gru", prec, k, g_h, [&](int) { return double(q->s_h); });
+      accumulate(logits, "gru", prec, k, g_logits, [&](int o) { return logit_step(q->head_w, q->s_h, o); });
+    }
+  }
+  for (const Acc* a : {&x_norm, &h, &logits}) report(*a, "gru", prec, int8);
+  return true;
+}
+
+}  // namespace
+
+int main() {
+  board::ticks_start();
+  Line().s("FWREF-MCU cpu=").s(FWREF_CPU_NAME).s(" windows=").u(fwref_ref::kWindows).out();
+  std::uint64_t loop_ticks = 0;
+  const std::uint32_t iterations = 2000000;
+  g_instr_per_tick = board::calibrate(iterations, &loop_ticks);
+  Line().s("CALIB iterations=").u(iterations).s(" ticks=").u(loop_ticks).s(" instructions_per_tick=")
+      .f3(g_instr_per_tick).out();
+
+  using namespace fwref_data;
+  const fwref::Status checks[4] = {fwref::check(kCnodeF32), fwref::check(kCnodeI8), fwref::check(kGruF32),
+                                   fwref::check(kGruI8)};
+  for (fwref::Status s : checks) {
+    if (s != fwref::Status::kOk) {
+      Line().s("RESULT FAIL model check: ").s(fwref::status_name(s)).out();
+      return 2;
+    }
+  }
+  const bool ran = run_cnode(kCnodeF32, "fp32", false, nullptr) && run_cnode(kCnodeI8, "int8", true, &kCnodeI8) &&
+                   run_gru(kGruF32, "fp32", false, nullptr) && run_gru(kGruI8, "int8", true, &kGruI8);
+  if (!ran) {
+    Line().s("RESULT FAIL inference returned an error").out();
+    return 2;
+  }
+  Line().s(g_failed ? "RESULT FAIL" : "RESULT PASS").s(" tensors=").u(g_checked).s(" failed=").u(g_failed).out();
+  return g_failed ? 1 : 0;
+}

@@ -1,0 +1,203 @@
+// src/cnode.cpp -- scope: CNODE inference, fp32 and int8 (fwref/cnode.hpp), and its weight checks.
+#include "fwref/cnode.hpp"
+
+#include "fwref/numerics.hpp"
+#include "model_common.hpp"
+
+namespace fwref {
+
+namespace {
+
+using detail::all_finite;
+using detail::all_positive_finite;
+using detail::dim_ok;
+using detail::view_ok;
+
+Status check_dims(const CnodeDims& d) {
+  if (d.channels <= 0 || d.window < 2 || d.classes <= 0 || d.hidden <= 0 || d.latent <= 0 || d.steps <= 0 ||
+      d.stage_times != 2 * d.steps + 1) {
+    return Status::kDimsInvalid;
+  }
+  if (!dim_ok(d.channels, kMaxChannels) || !dim_ok(d.window, kMaxWindow) || !dim_ok(d.classes, kMaxClasses) ||
+      !dim_ok(d.hidden, kMaxCnodeHidden) || !dim_ok(d.latent, kMaxLatent) || !dim_ok(d.steps, kMaxSteps)) {
+    return Status::kDimsTooLarge;
+  }
+  return Status::kOk;
+}
+
+// Shared by both precisions: the tensors that are float32 in both sections.
+template <class Model>
+Status check_common(const Model& m) {
+  const CnodeDims& d = m.dims;
+  if (m.mean == nullptr || m.std == nullptr || m.stage_index == nullptr || m.rk4 == nullptr ||
+      m.encoder_b == nullptr || m.lin1_b == nullptr || m.lin2_b == nullptr || m.head_b == nullptr) {
+    return Status::kNullArgument;
+  }
+  if (!all_positive_finite(m.std, d.channels) || !all_finite(m.mean, d.channels) || !all_finite(m.rk4, kRk4Consts)) {
+    return Status::kBadWeights;
+  }
+  for (int e = 0; e < d.evals(); ++e) {
+    if (m.stage_index[e] < 0 || m.stage_index[e] >= d.stage_times) return Status::kBadWeights;
+  }
+  return Status::kOk;
+}
+
+// U[s, :] = sum over w with interp[s, w] != 0 of interp[s, w] * x_norm[w, :], in increasing w
+// (the zeros of the dense product add exact zeros, so skipping them changes nothing).
+void interp_row_f32(const float* p_row, const float* x, const float* mean, const float* std_, int window,
+                    int channels, float* u) {
+  for (int c = 0; c < channels; ++c) u[c] = 0.0f;
+  for (int w = 0; w < window; ++w) {
+    const float p = p_row[w];
+    if (p == 0.0f) continue;
+    const float* xw = x + w * channels;
+    for (int c = 0; c < channels; ++c) u[c] += p * normalise(xw[c], mean[c], std_[c]);
+  }
+}
+
+void trace_x_norm(const float* x, const float* mean, const float* std_, int window, int channels, float* out) {
+  for (int w = 0; w < window; ++w) {
+    for (int c = 0; c < channels; ++c) out[w * channels + c] = normalise(x[w * channels + c], mean[c], std_[c]);
+  }
+}
+
+template <class Vec>
+void tanh_inplace(Vec& v) {
+  for (Eigen::Index i = 0; i < v.size(); ++i) v[i] = tanh_approx(v[i]);
+}
+
+template <class Vec>
+void copy_out(const Vec& v, float* out) {
+  if (out == nullptr) return;
+  for (Eigen::Index i = 0; i < v.size(); ++i) out[i] = v[i];
+}
+
+}  // namespace
+
+Status check(const CnodeF32& m) {
+  const CnodeDims& d = m.dims;
+  Status s = check_dims(d);
+  if (s != Status::kOk) return s;
+  if (!view_ok(m.interp, d.stage_times, d.window) || !view_ok(m.encoder_w, d.latent, d.channels) ||
+      !view_ok(m.lin1_z, d.hidden, d.latent) || !view_ok(m.lin1_u, d.hidden, d.channels) ||
+      !view_ok(m.lin2_w, d.latent, d.hidden) || !view_ok(m.head_w, d.classes, d.latent)) {
+    return Status::kBadShape;
+  }
+  return check_common(m);
+}
+
+Status check(const CnodeI8& m) {
+  const CnodeDims& d = m.dims;
+  Status s = check_dims(d);
+  if (s != Status::kOk) return s;
+  if (!view_ok(m.interp, d.stage_times, d.window) || !view_ok(m.encoder_w, d.latent, d.channels) ||
+      !view_ok(m.lin1_z, d.hidden, d.latent) || !view_ok(m.lin1_u, d.hidden, d.channels) ||
+      !view_ok(m.lin2_w, d.latent, d.hidden) || !view_ok(m.head_w, d.classes, d.latent)) {
+    return Status::kBadShape;
+  }
+  if (!all_positive_finite(m.s_x, d.channels) || !all_positive_finite(m.s_u, d.channels) ||
+      !all_positive_finite(m.s_stage, d.evals()) || !all_positive_finite(&m.s_hidden, 1) ||
+      !all_positive_finite(&m.s_z1, 1)) {
+    return Status::kBadWeights;
+  }
+  return check_common(m);
+}
+
+Status infer(const CnodeF32& m, const float* x, float* logits, CnodeWorkspace& ws, CnodeTrace* tr) {
+  if (x == nullptr || logits == nullptr) return Status::kNullArgument;
+  const CnodeDims& d = m.dims;
+  const int C = d.channels, W = d.window, S = d.stage_times, H = d.hidden, L = d.latent;
+  if (!all_finite(x, W * C)) return Status::kNonFiniteInput;
+  if (tr != nullptr && tr->x_norm != nullptr) trace_x_norm(x, m.mean, m.std, W, C, tr->x_norm);
+
+  const ConstMapVec b1(m.lin1_b, H), b2(m.lin2_b, L);
+  // U row by row, each row straight into V = lin1_u U + b1 (MatMul, then Add); row 0 also feeds
+  // the encoder (interp's row 0 is sample 0 alone).
+  for (int s = 0; s < S; ++s) {
+    interp_row_f32(m.interp.data + s * W, x, m.mean, m.std, W, C, ws.u_row);
+    if (tr != nullptr && tr->u != nullptr) {
+      for (int c = 0; c < C; ++c) tr->u[s * C + c] = ws.u_row[c];
+    }
+    const ConstMapVec u(ws.u_row, C);
+    MapVec v(ws.v + s * H, H);
+    matvec(m.lin1_u, u, v);
+    v += b1;
+    if (s == 0) {
+      matvec(m.encoder_w, u, ws.z);
+      ws.z += ConstMapVec(m.encoder_b, L);
+      tanh_inplace(ws.z);
+    }
+  }
+  if (tr != nullptr) copy_out(ws.z, tr->z0);
+
+  auto field = [&](int e, const CnodeWorkspace::Lat& z, CnodeWorkspace::Lat& k) {
+    matvec(m.lin1_z, z, ws.a);
+    ws.a += ConstMapVec(ws.v + m.stage_index[e] * H, H);
+    tanh_inplace(ws.a);
+    matvec(m.lin2_w, ws.a, k);
+    k += b2;
+  };
+  detail::rk4_integrate(m.rk4, d.steps, ws.z, ws.k1, ws.k2, ws.k3, ws.k4, ws.state, field,
+                        tr != nullptr ? tr->stages : nullptr);
+  if (tr != nullptr) copy_out(ws.z, tr->z1);
+
+  MapVec out(logits, d.classes);
+  matvec(m.head_w, ws.z, out);
+  out += ConstMapVec(m.head_b, d.classes);
+  return all_finite(logits, d.classes) ? Status::kOk : Status::kNonFiniteOutput;
+}
+
+Status infer(const CnodeI8& m, const float* x, float* logits, CnodeWorkspace& ws, CnodeTrace* tr) {
+  if (x == nullptr || logits == nullptr) return Status::kNullArgument;
+  const CnodeDims& d = m.dims;
+  const int C = d.channels, W = d.window, S = d.stage_times, H = d.hidden, L = d.latent, K = d.classes;
+  if (!all_finite(x, W * C)) return Status::kNonFiniteInput;
+  if (tr != nullptr && tr->x_norm != nullptr) trace_x_norm(x, m.mean, m.std, W, C, tr->x_norm);
+
+  // U = interp_q @ quantize(x_norm, s_x[c]) in int32, u = (f32(acc) * s_P[s]) * s_x[c], then
+  // quantized per channel with s_u[c]. x_norm is requantized where a sample feeds two rows (the
+  // same numbers both times), so no (W, C) buffer is needed.
+  std::int32_t acc[kMaxChannels];
+  for (int s = 0; s < S; ++s) {
+    const std::int8_t* p_row = m.interp.q + s * W;
+    for (int c = 0; c < C; ++c) acc[c] = 0;
+    for (int w = 0; w < W; ++w) {
+      const std::int32_t p = p_row[w];
+      if (p == 0) continue;
+      const float* xw = x + w * C;
+      for (int c = 0; c < C; ++c) acc[c] += p * quantize(normalise(xw[c], m.mean[c], m.std[c]), m.s_x[c]);
+    }
+    for (int c = 0; c < C; ++c) {
+      const float u = (static_cast<float>(acc[c]) * m.interp.scale[s]) * m.s_x[c];
+      if (tr != nullptr && tr->u != nullptr) tr->u[s * C + c] = u;
+      ws.uq[s * C + c] = quantize(u, m.s_u[c]);
+    }
+  }
+  // z0 = tanh(B(uq[0], encoder) + b); V[s] = B(uq[s], lin1_u) + b1  (pattern B: s_u folded in)
+  ws.z.resize(L);
+  linear_i8_folded(m.encoder_w.q, m.encoder_w.scale, L, C, ws.uq, m.encoder_b, ws.z.data());
+  tanh_inplace(ws.z);
+  if (tr != nullptr) copy_out(ws.z, tr->z0);
+  for (int s = 0; s < S; ++s) {
+    linear_i8_folded(m.lin1_u.q, m.lin1_u.scale, H, C, ws.uq + s * C, m.lin1_b, ws.v + s * H);
+  }
+
+  ws.a.resize(H);
+  auto field = [&](int e, const CnodeWorkspace::Lat& z, CnodeWorkspace::Lat& k) {
+    const float s_z = m.s_stage[e];
+    for (int i = 0; i < L; ++i) ws.q_lat[i] = quantize(z[i], s_z);
+    linear_i8_tensor(m.lin1_z.q, m.lin1_z.scale, H, L, ws.q_lat, s_z, ws.v + m.stage_index[e] * H, ws.a.data());
+    for (int j = 0; j < H; ++j) ws.q_hid[j] = quantize(tanh_approx(ws.a[j]), m.s_hidden);
+    k.resize(L);
+    linear_i8_tensor(m.lin2_w.q, m.lin2_w.scale, L, H, ws.q_hid, m.s_hidden, m.lin2_b, k.data());
+  };
+  detail::rk4_integrate(m.rk4, d.steps, ws.z, ws.k1, ws.k2, ws.k3, ws.k4, ws.state, field,
+                        tr != nullptr ? tr->stages : nullptr);
+  if (tr != nullptr) copy_out(ws.z, tr->z1);
+
+  for (int i = 0; i < L; ++i) ws.q_lat[i] = quantize(ws.z[i], m.s_z1);
+  linear_i8_tensor(m.head_w.q, m.head_w.scale, K, L, ws.q_lat, m.s_z1, m.head_b, logits);
+  return all_finite(logits, K) ? Status::kOk : Status::kNonFiniteOutput;
+}
+
+}  // namespace fwref

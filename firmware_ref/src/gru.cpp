@@ -1,0 +1,130 @@
+// src/gru.cpp -- scope: GRU inference, fp32 and int8 (fwref/gru.hpp), and its weight checks.
+#include "fwref/gru.hpp"
+
+#include "fwref/numerics.hpp"
+#include "model_common.hpp"
+
+namespace fwref {
+
+namespace {
+
+using detail::all_finite;
+using detail::all_positive_finite;
+using detail::dim_ok;
+using detail::view_ok;
+
+Status check_dims(const GruDims& d) {
+  if (d.channels <= 0 || d.window < 1 || d.classes <= 0 || d.hidden <= 0) return Status::kDimsInvalid;
+  if (!dim_ok(d.channels, kMaxChannels) || !dim_ok(d.window, kMaxWindow) || !dim_ok(d.classes, kMaxClasses) ||
+      !dim_ok(d.hidden, kMaxGruHidden)) {
+    return Status::kDimsTooLarge;
+  }
+  return Status::kOk;
+}
+
+template <class Model>
+Status check_common(const Model& m) {
+  const GruDims& d = m.dims;
+  if (m.mean == nullptr || m.std == nullptr || m.b_ih == nullptr || m.b_hh == nullptr || m.head_b == nullptr) {
+    return Status::kNullArgument;
+  }
+  if (!all_positive_finite(m.std, d.channels) || !all_finite(m.mean, d.channels)) return Status::kBadWeights;
+  return Status::kOk;
+}
+
+// PyTorch's GRU cell on the gate pre-activations gx (input part) and gh (recurrent part), in the
+// int8 graph's operator order: r = sigmoid(gx_r + gh_r), z = sigmoid(gx_z + gh_z),
+// n = tanh(gx_n + gh_n * r), h = (h - n) * z + n. h[j] depends on the old h[j] only (gh holds the
+// recurrent product of the old h), so the update is in place.
+template <class Hid, class Gates>
+void gru_cell(const Gates& gx, const Gates& gh, int hidden, Hid& h) {
+  for (int j = 0; j < hidden; ++j) {
+    const float r = logistic_approx(gx[j] + gh[j]);
+    const float z = logistic_approx(gx[hidden + j] + gh[hidden + j]);
+    const float n = tanh_approx(gx[2 * hidden + j] + gh[2 * hidden + j] * r);
+    h[j] = (h[j] - n) * z + n;
+  }
+}
+
+template <class Vec>
+void trace_row(const Vec& v, int n, float* out) {
+  if (out == nullptr) return;
+  for (int i = 0; i < n; ++i) out[i] = v[i];
+}
+
+}  // namespace
+
+Status check(const GruF32& m) {
+  const GruDims& d = m.dims;
+  Status s = check_dims(d);
+  if (s != Status::kOk) return s;
+  if (!view_ok(m.w_ih, 3 * d.hidden, d.channels) || !view_ok(m.w_hh, 3 * d.hidden, d.hidden) ||
+      !view_ok(m.head_w, d.classes, d.hidden)) {
+    return Status::kBadShape;
+  }
+  return check_common(m);
+}
+
+Status check(const GruI8& m) {
+  const GruDims& d = m.dims;
+  Status s = check_dims(d);
+  if (s != Status::kOk) return s;
+  if (!view_ok(m.w_ih, 3 * d.hidden, d.channels) || !view_ok(m.w_hh, 3 * d.hidden, d.hidden) ||
+      !view_ok(m.head_w, d.classes, d.hidden)) {
+    return Status::kBadShape;
+  }
+  if (!all_positive_finite(m.s_x, d.channels) || !all_positive_finite(&m.s_h, 1)) return Status::kBadWeights;
+  return check_common(m);
+}
+
+Status infer(const GruF32& m, const float* x, float* logits, GruWorkspace& ws, GruTrace* tr) {
+  if (x == nullptr || logits == nullptr) return Status::kNullArgument;
+  const GruDims& d = m.dims;
+  const int C = d.channels, W = d.window, H = d.hidden;
+  if (!all_finite(x, W * C)) return Status::kNonFiniteInput;
+  const ConstMapVec b_ih(m.b_ih, 3 * H), b_hh(m.b_hh, 3 * H);
+  ws.h.setZero(H);
+  ws.xn.resize(C);
+  for (int t = 0; t < W; ++t) {
+    for (int c = 0; c < C; ++c) ws.xn[c] = normalise(x[t * C + c], m.mean[c], m.std[c]);
+    if (tr != nullptr) trace_row(ws.xn, C, tr->x_norm == nullptr ? nullptr : tr->x_norm + t * C);
+    matvec(m.w_ih, ws.xn, ws.gx);
+    ws.gx += b_ih;
+    matvec(m.w_hh, ws.h, ws.gh);
+    ws.gh += b_hh;
+    gru_cell(ws.gx, ws.gh, H, ws.h);
+    if (tr != nullptr) trace_row(ws.h, H, tr->h == nullptr ? nullptr : tr->h + t * H);
+  }
+  MapVec out(logits, d.classes);
+  matvec(m.head_w, ws.h, out);
+  out += ConstMapVec(m.head_b, d.classes);
+  return all_finite(logits, d.classes) ? Status::kOk : Status::kNonFiniteOutput;
+}
+
+Status infer(const GruI8& m, const float* x, float* logits, GruWorkspace& ws, GruTrace* tr) {
+  if (x == nullptr || logits == nullptr) return Status::kNullArgument;
+  const GruDims& d = m.dims;
+  const int C = d.channels, W = d.window, H = d.hidden;
+  if (!all_finite(x, W * C)) return Status::kNonFiniteInput;
+  ws.h.setZero(H);
+  ws.gx.resize(3 * H);
+  ws.gh.resize(3 * H);
+  for (int t = 0; t < W; ++t) {
+    for (int c = 0; c < C; ++c) {
+      const float xn = normalise(x[t * C + c], m.mean[c], m.std[c]);
+      if (tr != nullptr && tr->x_norm != nullptr) tr->x_norm[t * C + c] = xn;
+      ws.xq[c] = quantize(xn, m.s_x[c]);
+    }
+    // GX row t = B(xq, W_ih') + b_ih (s_x folded into W_ih'); gh = A(quantize(h, s_h), W_hh, s_h) + b_hh
+    linear_i8_folded(m.w_ih.q, m.w_ih.scale, 3 * H, C, ws.xq, m.b_ih, ws.gx.data());
+    for (int j = 0; j < H; ++j) ws.hq[j] = quantize(ws.h[j], m.s_h);
+    linear_i8_tensor(m.w_hh.q, m.w_hh.scale, 3 * H, H, ws.hq, m.s_h, m.b_hh, ws.gh.data());
+    gru_cell(ws.gx, ws.gh, H, ws.h);
+    if (tr != nullptr) trace_row(ws.h, H, tr->h == nullptr ? nullptr : tr->h + t * H);
+  }
+  for (int j = 0; j < H; ++j) ws.hq[j] = quantize(ws.h[j], m.s_h);
+  linear_i8_tensor(m.head_w.q, m.head_w.scale, d.classes, H, ws.hq, m.s_h, m.head_b, logits);
+  return all_finite(logits, d.classes) ? Status::kOk : Status::kNonFiniteOutput;
+}
+
+}  // namespace fwref

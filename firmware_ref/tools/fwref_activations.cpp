@@ -1,0 +1,34 @@
+// tools/fwref_activations.cpp -- scope: the library's tanh and logistic sigmoid on raw floats, so that
+// tests can compare them with ONNX Runtime's Tanh and Sigmoid kernels bit for bit.
+//
+//   fwref_activations --in <x.f32> --out <y.f32>     y = (2, n) float32: tanh(x), then sigmoid(x)
+#include <string>
+#include <vector>
+
+#include "fwref/numerics.hpp"
+#include "host_common.hpp"
+
+int main(int argc, char** argv) {
+  if (argc != 5 || std::string(argv[1]) != "--in" || std::string(argv[3]) != "--out") {
+    std::fprintf(stderr, "fwref_activations: usage: fwref_activations --in <x.f32> --out <y.f32>\n");
+    return 1;
+  }
+  std::vector<unsigned char> bytes;
+  std::string error;
+  if (!fwref::host::read_file(argv[2], "input", &bytes, &error) || bytes.size() % 4 != 0) {
+    std::fprintf(stderr, "fwref_activations: error: %s\n", error.empty() ? "input is not float32" : error.c_str());
+    return 2;
+  }
+  const std::size_t n = bytes.size() / 4;
+  std::vector<float> x(n), y(2 * n);
+  std::memcpy(x.data(), bytes.data(), bytes.size());
+  for (std::size_t i = 0; i < n; ++i) {
+    y[i] = fwref::tanh_approx(x[i]);
+    y[n + i] = fwref::logistic_approx(x[i]);
+  }
+  if (!fwref::host::write_atomic(argv[4], y.data(), y.size() * 4, &error)) {
+    std::fprintf(stderr, "fwref_activations: error: %s\n", error.c_str());
+    return 2;
+  }
+  return 0;
+}

@@ -1,0 +1,139 @@
+// tools/host_common.hpp -- scope: what the two host programs (fwref_infer, fwref_parity) share:
+// the four bound models behind one interface, the no-heap guard around inference, and file
+// helpers (whole-file read, atomic write: temp file + rename, so no half-written output).
+#pragma once
+
+#include <cerrno>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <unistd.h>
+
+#include "fwref/cnode.hpp"
+#include "fwref/gru.hpp"
+#include "fwref/weights_file.hpp"
+
+#if !defined(__BYTE_ORDER__) || __BYTE_ORDER__ != __ORDER_LITTLE_ENDIAN__
+#error "the host programs read little-endian float32 files directly: build them on a little-endian host"
+#endif
+
+namespace fwref {
+namespace host {
+
+// While alive, any heap allocation by Eigen is an assertion failure (in builds with assertions:
+// the sanitizer build); inference must not allocate.
+struct NoHeapGuard {
+  NoHeapGuard() {
+#ifdef EIGEN_RUNTIME_NO_MALLOC
+    Eigen::internal::set_is_malloc_allowed(false);
+#endif
+  }
+  ~NoHeapGuard() {
+#ifdef EIGEN_RUNTIME_NO_MALLOC
+    Eigen::internal::set_is_malloc_allowed(true);
+#endif
+  }
+};
+
+// One bound model and its workspace (allocated once, before any inference).
+class Model {
+ public:
+  virtual ~Model() = default;
+  virtual Status run(const float* window, float* logits) = 0;
+  int channels = 0, window = 0, classes = 0;
+};
+
+template <class M, class Workspace>
+class BoundModel final : public Model {
+ public:
+  explicit BoundModel(const M& m) : m_(m), ws_(new Workspace()) {}
+  Status run(const float* x, float* logits) override {
+    NoHeapGuard guard;
+    return infer(m_, x, logits, *ws_);
+  }
+  const M& model() const { return m_; }
+  Workspace& workspace() { return *ws_; }
+
+ private:
+  M m_;
+  std::unique_ptr<Workspace> ws_;
+};
+
+// Bind (model, precision) of ``wf``; null with ``*error`` set (and ``*status``) on failure.
+inline std::unique_ptr<Model> bind_model(WeightsFile& wf, const std::string& kind, bool int8, Status* status,
+                                         std::string* error) {
+  std::unique_ptr<Model> out;
+  if (kind == "cnode" && !int8) {
+    CnodeF32 m{};
+    if ((*status = wf.bind(&m, error)) == Status::kOk) out.reset(new BoundModel<CnodeF32, CnodeWorkspace>(m));
+    if (out) out->channels = m.dims.channels, out->window = m.dims.window, out->classes = m.dims.classes;
+  } else if (kind == "cnode") {
+    CnodeI8 m{};
+    if ((*status = wf.bind(&m, error)) == Status::kOk) out.reset(new BoundModel<CnodeI8, CnodeWorkspace>(m));
+    if (out) out->channels = m.dims.channels, out->window = m.dims.window, out->classes = m.dims.classes;
+  } else if (!int8) {
+    GruF32 m{};
+    if ((*status = wf.bind(&m, error)) == Status::kOk) out.reset(new BoundModel<GruF32, GruWorkspace>(m));
+    if (out) out->channels = m.dims.channels, out->window = m.dims.window, out->classes = m.dims.classes;
+  } else {
+    GruI8 m{};
+    if ((*status = wf.bind(&m, error)) == Status::kOk) out.reset(new BoundModel<GruI8, GruWorkspace>(m));
+    if (out) out->channels = m.dims.channels, out->window = m.dims.window, out->classes = m.dims.classes;
+  }
+  return out;
+}
+
+// Whole file into ``out``; false with ``*error`` set on failure.
+inline bool read_file(const std::string& path, const char* what, std::vector<unsigned char>* out, std::string* error) {
+  std::FILE* f = std::fopen(path.c_str(), "rb");
+  if (f == nullptr) {
+    *error = std::string(what) + " " + path + (errno == ENOENT ? " does not exist" : std::string(": ") + std::strerror(errno));
+    return false;
+  }
+  unsigned char chunk[65536];
+  std::size_t got;
+  out->clear();
+  while ((got = std::fread(chunk, 1, sizeof chunk, f)) > 0) out->insert(out->end(), chunk, chunk + got);
+  const bool failed = std::ferror(f) != 0;
+  std::fclose(f);
+  if (failed) *error = std::string("cannot read ") + what + " " + path;
+  return !failed;
+}
+
+// Write ``n`` bytes to ``path`` through a temp file in the same folder and a rename: a reader never
+// sees a partial file, and a failure leaves nothing behind.
+inline bool write_atomic(const std::string& path, const void* data, std::size_t n, std::string* error) {
+  std::string tmp = path + ".tmp.XXXXXX";
+  std::vector<char> name(tmp.begin(), tmp.end());
+  name.push_back('\0');
+  const int fd = mkstemp(name.data());
+  if (fd < 0) {
+    *error = "cannot write " + path + ": " + std::strerror(errno);
+    return false;
+  }
+  const char* p = static_cast<const char*>(data);
+  std::size_t left = n;
+  bool ok = true;
+  while (ok && left > 0) {
+    const ssize_t w = ::write(fd, p, left);
+    if (w < 0 && errno == EINTR) continue;
+    ok = w > 0;
+    if (ok) p += w, left -= static_cast<std::size_t>(w);
+  }
+  const int write_errno = errno;
+  ok = ok && ::fsync(fd) == 0;
+  ok = (::close(fd) == 0) && ok;
+  if (ok) ok = std::rename(name.data(), path.c_str()) == 0;
+  if (!ok) {
+    *error = "cannot write " + path + ": " + std::strerror(write_errno ? write_errno : errno);
+    std::remove(name.data());
+  }
+  return ok;
+}
+
+}  // namespace host
+}  // namespace fwref

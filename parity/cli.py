@@ -1,0 +1,43 @@
+"""``quadfdi parity --run runs/<name> [--no-mcu | --mcu]``: the C++ reference against ONNX Runtime and
+PyTorch on the test split, fwref_parity on reference.bin, and the Cortex-M build under QEMU."""
+
+from __future__ import annotations
+
+import argparse
+import shlex
+import sys
+
+from quadfdi.cli import add_config_args
+from quadfdi.rundir import open_run
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "parity", help="C++ firmware reference vs ONNX Runtime and PyTorch; Cortex-M build under QEMU",
+        description="Build firmware_ref (CMake, Release, firmware_ref/build), run the whole test split one window "
+                    "at a time through C++ fp32/int8, ONNX Runtime fp32/int8 and PyTorch, run fwref_parity on "
+                    "reference.bin and (by default) the Cortex-M4/M7 builds under QEMU; write "
+                    "<run>/parity/parity.json, parity.md and mcu.json. Exits 2 if a parity target is missed.")
+    add_config_args(p, config=False)
+    p.add_argument("--run", required=True, help="run folder holding export/ (after `quadfdi export`)")
+    which = p.add_mutually_exclusive_group()
+    which.add_argument("--no-mcu", action="store_true", help="skip the Cortex-M cross-build and QEMU runs")
+    which.add_argument("--mcu", action="store_true",
+                       help="only the Cortex-M part: cross-build, QEMU runs, mcu.json (updates parity.json/md)")
+    p.set_defaults(func=run_parity)
+
+
+def run_parity(args: argparse.Namespace) -> int:
+    from parity.run import parity_run
+
+    run, cfg = open_run(args.run, args.overrides, need=("export",))
+    command = "quadfdi " + " ".join(shlex.quote(a) for a in sys.argv[1:]) if sys.argv[1:] else None
+    report = parity_run(run, cfg, mcu=not args.no_mcu, host=not args.mcu, command=command)
+    if "models" in report:
+        for model, pairs in report["models"].items():
+            f, q = pairs["cpp_fp32_vs_ort_fp32"], pairs["cpp_int8_vs_ort_int8"]
+            print(f"parity: {model}: C++ fp32 vs ORT max |diff| {f['max_abs_diff']:.3g}, argmax "
+                  f"{100 * f['argmax_agreement']:.2f} %; C++ int8 vs ORT {q['target']['max_diff_steps']:.3g} logit "
+                  f"steps, argmax {100 * q['argmax_agreement']:.2f} %")
+    print(f"parity: passed; report {run.root / 'parity' / 'parity.md'}")
+    return 0

@@ -1,0 +1,87 @@
+"""parity.md: the parity report in markdown, from the dict that parity.json holds."""
+
+from __future__ import annotations
+
+PAIR_TITLES = {
+    "cpp_fp32_vs_ort_fp32": "C++ fp32 vs ONNX Runtime fp32",
+    "cpp_fp32_vs_torch": "C++ fp32 vs PyTorch",
+    "ort_fp32_vs_torch": "ONNX Runtime fp32 vs PyTorch",
+    "cpp_int8_vs_ort_int8": "C++ int8 vs ONNX Runtime int8",
+    "cpp_int8_vs_cpp_fp32": "C++ int8 vs C++ fp32 (quantisation)",
+    "ort_int8_vs_ort_fp32": "ONNX Runtime int8 vs fp32 (quantisation)",
+}
+
+
+def _g(v: float) -> str:
+    return f"{v:.3g}" if isinstance(v, float) else str(v)
+
+
+def _pairs_table(model: str, pairs: dict) -> list[str]:
+    rows = [f"### {model.upper() if model == 'gru' else 'CNODE'}", "",
+            "| pair | max abs diff | RMSE | rel. L2 | cosine | argmax agreement | bit-identical windows | target |",
+            "|---|---|---|---|---|---|---|---|"]
+    for key, m in pairs.items():
+        t = m.get("target")
+        if t is None:
+            verdict = "(information)"
+        else:
+            extra = f", {t['max_diff_steps']:.3g} logit steps" if "max_diff_steps" in t else f", bound {t['bound']:.2g}"
+            verdict = f"{'**pass**' if t['passed'] else '**FAIL**'}: {t['rule']}{extra}"
+        rows.append(f"| {PAIR_TITLES.get(key, key)} | {_g(m['max_abs_diff'])} | {_g(m['rmse'])} | {_g(m['rel_l2'])} | "
+                    f"{m['cosine']:.9f} | {100 * m['argmax_agreement']:.2f} % ({m['argmax_disagreements']} differ) | "
+                    f"{m['bitwise_identical_windows']}/{m['windows']} | {verdict} |")
+    return rows + [""]
+
+
+def _mcu_section(mcu: dict) -> list[str]:
+    out = ["## Cortex-M (QEMU)", ""]
+    if "skipped" in mcu:
+        return out + [f"Not run: {mcu['skipped']}.", ""]
+    tc = mcu.get("toolchain", {})
+    out += [f"Toolchain: {tc.get('arm-none-eabi-gcc')}; {tc.get('qemu-system-arm')}.", "",
+            "Flash and static RAM are the minimal image of one model and precision minus the baseline image "
+            "(startup + window buffer + empty main), from `arm-none-eabi-size -A`; weights and library code are "
+            "the map file's split of the flash. Stack: peak of one inference call (stack painting). "
+            "Instructions: SysTick under `-icount shift=0`, calibrated (instructions per tick "
+            "measured on a loop of known length), median over the reference windows.", "",
+            "| core | model | flash (B) | of which weights (B) | library code (B) | static RAM (B) | stack peak (B) "
+            "| instructions / inference | QEMU parity |", "|---|---|---|---|---|---|---|---|---|"]
+    for cpu, r in mcu["cpus"].items():
+        ok = {(t["model"], t["precision"]): True for t in r["tensors"]}
+        for t in r["tensors"]:
+            ok[(t["model"], t["precision"])] = ok[(t["model"], t["precision"])] and t["ok"]
+        for key, m in r["models"].items():
+            model, prec = key.split("_")
+            verdict = "OK" if ok.get((model, prec)) else "NOT OK"
+            out.append(f"| {cpu} ({r['machine']}) | {model} {prec} | {m['flash_bytes']} | {m['weights_bytes']} | "
+                       f"{m['library_bytes']} | {m['static_ram_bytes']} | {m['stack_peak_bytes']} | "
+                       f"{m['instructions_per_inference']:,} | {verdict} |")
+    out += ["", "Targets: int8 CNODE flash <= 64 KiB and static RAM <= 16 KiB: "
+            + ("**met**" if not [p for p in mcu["problems"] if "cnode_int8" in p] else "**MISSED**") + ".", ""]
+    for cpu, r in mcu["cpus"].items():
+        out += [f"`{r['qemu_command']}` exited {r['exit_code']} ({r['exit_meaning']}).", ""]
+    if mcu["problems"]:
+        out += ["Problems:", ""] + [f"- {p}" for p in mcu["problems"]] + [""]
+    return out
+
+
+def markdown(report: dict) -> str:
+    out = [f"# Parity: {report['run']}", "",
+           f"Command: `{report['command']}`. {report['test_windows']} test windows, each run alone (batch 1) "
+           f"through C++ (`{report['firmware']['infer']}`), ONNX Runtime and PyTorch (classic RK4, "
+           f"N = {report['export_steps']}).", "",
+           "Targets: C++ fp32 vs ONNX Runtime fp32 max |diff| <= 1e-4 x max(1, max |logit|) with 100 % argmax; "
+           "C++ int8 vs ONNX Runtime int8 argmax >= 99.9 % and max |diff| <= "
+           f"{report['tolerances']['int8_tol_steps']:g} logit steps (step of class o = 127 * s_in * s_w[o], the "
+           "largest change one step of one head input can make; docs/firmware.md).", "",
+           f"**Result: {'pass' if report['passed'] else 'FAIL'}**" +
+           ("" if report["passed"] else ": " + "; ".join(report["problems"])), "", "## Logits on the test split", ""]
+    for model, pairs in report["models"].items():
+        out += _pairs_table(model, pairs)
+    fp = report["fwref_parity"]
+    out += ["## fwref_parity on reference.bin", "", f"`{fp['command']}` exited {fp['exit_code']}:", "", "```"]
+    out += fp["output"] + ["```", ""]
+    out += _mcu_section(report["mcu"])
+    out += [f"Stage time: {report['timing_s']['total']:.1f} s "
+            f"({', '.join(f'{k} {v:.1f} s' for k, v in report['timing_s'].items() if k != 'total')}).", ""]
+    return "\n".join(out)

@@ -1,0 +1,212 @@
+"""The parity stage: the C++ reference against ONNX Runtime and PyTorch, host and Cortex-M.
+
+``parity_run(run, cfg)`` reads ``runs/<name>/export/`` (manifest, weights.bin, reference.bin, the
+four ONNX graphs), the run's checkpoints and dataset, and writes ``runs/<name>/parity/``:
+parity.json, parity.md, mcu.json, logits.npz (each atomically). It builds firmware_ref/ (CMake, Release, into
+firmware_ref/build), runs the whole test split one window at a time through C++ fp32 and int8
+(fwref_infer), ONNX Runtime fp32 and int8 (batch 1) and PyTorch, runs fwref_parity on
+reference.bin, and (``mcu=True``) the Cortex-M build under QEMU. The report is written first; then
+a missed target is a one-line QuadfdiError.
+"""
+
+from __future__ import annotations
+
+import json
+import shlex
+import subprocess
+import time
+from pathlib import Path
+from typing import Callable
+
+from export.manifest import check_files, load_manifest
+from export.weights_bin import read_weights
+from parity import compare, mcu as mcu_mod, runners
+from parity.build import HOST_BUILD, build_host
+from parity.report import markdown
+from quadfdi.atomic import ensure_dir, write_text
+from quadfdi.config import Config
+from quadfdi.errors import QuadfdiError
+from quadfdi.npzio import write_npz
+from quadfdi.rundir import RunDir
+from sim.dataset import load_dataset, make_windows
+from train.metrics import to_jsonable
+
+SCHEMA_VERSION = 1
+
+
+def parity_dir(run: RunDir) -> Path:
+    return run.root / "parity"
+
+
+def _write_json(path: Path, data: dict) -> None:
+    write_text(path, json.dumps(to_jsonable(data), indent=2, allow_nan=False) + "\n")
+
+
+def fwref_parity(build_dir: Path, weights: Path, reference: Path) -> dict:
+    cmd = [str(build_dir / "fwref_parity"), "--weights", str(weights), "--reference", str(reference)]
+    res = subprocess.run(cmd, capture_output=True, text=True, timeout=600)
+    lines = res.stdout.splitlines() + [ln for ln in res.stderr.splitlines() if ln.strip()]
+    return {"command": " ".join(shlex.quote(c) for c in cmd), "exit_code": res.returncode,
+            "passed": res.returncode == 0, "output": lines}
+
+
+def host_parity(run: RunDir, manifest: dict, build_dir: Path, log: Callable[[str], None]) -> tuple[dict, dict]:
+    """Logits of every runtime on the test split and the pair metrics; (models, timing). The logits
+    are also written to parity/logits.npz (keys <model>_<runtime>, plus the labels ``y``)."""
+    export = run.export
+    weights_path = export / "weights.bin"
+    weights = read_weights(weights_path)
+    ds = load_dataset(run.dataset)
+    test = make_windows(ds, "test")
+    if len(test) == 0:
+        raise QuadfdiError(f"{run.dataset} has no test windows to check parity on")
+    x = test.x
+    art = manifest["artifacts"]
+    torch_models = runners.torch_models(run, manifest["solver"]["steps"])
+    timing, logits = {}, {}
+    for model in ("cnode", "gru"):
+        t0 = time.perf_counter()
+        logits[model] = {"cpp_fp32": runners.cpp_logits(build_dir, weights_path, model, False, x),
+                         "cpp_int8": runners.cpp_logits(build_dir, weights_path, model, True, x)}
+        timing[f"{model}_cpp"] = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        logits[model]["ort_fp32"] = runners.ort_logits(export / art[f"{model}_fp32"], x)
+        logits[model]["ort_int8"] = runners.ort_logits(export / art[f"{model}_int8"], x)
+        timing[f"{model}_ort"] = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        logits[model]["torch"] = runners.pytorch_logits(torch_models[model], x)
+        timing[f"{model}_torch"] = time.perf_counter() - t0
+        log(f"parity: {model}: {len(x)} windows through C++ ({timing[f'{model}_cpp']:.1f} s), ONNX Runtime "
+            f"({timing[f'{model}_ort']:.1f} s) and PyTorch ({timing[f'{model}_torch']:.1f} s)")
+
+    write_npz(parity_dir(run) / "logits.npz",
+              {"y": test.y, **{f"{m}_{k}": v for m, lg in logits.items() for k, v in lg.items()}})
+    models = {}
+    for model, lg in logits.items():
+        pairs = {
+            "cpp_fp32_vs_ort_fp32": compare.pair_metrics(lg["cpp_fp32"], lg["ort_fp32"]),
+            "cpp_fp32_vs_torch": compare.pair_metrics(lg["cpp_fp32"], lg["torch"]),
+            "ort_fp32_vs_torch": compare.pair_metrics(lg["ort_fp32"], lg["torch"]),
+            "cpp_int8_vs_ort_int8": compare.pair_metrics(lg["cpp_int8"], lg["ort_int8"]),
+            "cpp_int8_vs_cpp_fp32": compare.pair_metrics(lg["cpp_int8"], lg["cpp_fp32"]),
+            "ort_int8_vs_ort_fp32": compare.pair_metrics(lg["ort_int8"], lg["ort_fp32"]),
+        }
+        pairs["cpp_fp32_vs_ort_fp32"]["target"] = compare.fp32_target(pairs["cpp_fp32_vs_ort_fp32"])
+        pairs["cpp_int8_vs_ort_int8"]["target"] = compare.int8_target(
+            lg["cpp_int8"], lg["ort_int8"], compare.logit_steps(weights, model), pairs["cpp_int8_vs_ort_int8"])
+        models[model] = pairs
+    return models, timing
+
+
+def parity_run(run: RunDir, cfg: Config, log: Callable[[str], None] = print, *, mcu: bool = True,
+               host: bool = True, build_dir: Path = HOST_BUILD, command: str | None = None) -> dict:
+    """The stage (see the module docstring); returns the parity.json dict.
+
+    ``host``: C++ / ONNX Runtime / PyTorch on the test split and fwref_parity on reference.bin.
+    ``mcu``: the Cortex-M part (cross-build, QEMU); skipped with a note in the report when the cross
+    toolchain or QEMU is missing and ``host`` is true, an error when only the Cortex-M part was asked for.
+    """
+    del cfg  # the run's export fixed everything parity needs (N, scales, files)
+    t_start = time.perf_counter()
+    export = run.export
+    manifest = load_manifest(export / "manifest.json")
+    check_files(manifest, export)
+    weights, reference = export / "weights.bin", export / "reference.bin"
+    out_dir = ensure_dir(parity_dir(run))
+    command = command or "quadfdi parity --run " + shlex.quote(str(run.root))
+    if not host:
+        return _mcu_only(out_dir, weights, reference, log)
+
+    timing: dict[str, float] = {}
+    t0 = time.perf_counter()
+    build_host(build_dir, log=log)
+    timing["build"] = time.perf_counter() - t0
+    fp = fwref_parity(build_dir, weights, reference)
+    log(f"parity: fwref_parity on reference.bin: {'OK' if fp['passed'] else 'NOT OK'} (exit {fp['exit_code']})")
+    models, t_host = host_parity(run, manifest, build_dir, log)
+    timing.update(t_host)
+    mcu_report = _mcu_part(mcu, weights, reference, out_dir, timing, log)
+    timing["total"] = time.perf_counter() - t_start
+
+    problems = []
+    if not fp["passed"]:
+        problems.append(f"fwref_parity on reference.bin exited {fp['exit_code']}")
+    for model, pairs in models.items():
+        for key in ("cpp_fp32_vs_ort_fp32", "cpp_int8_vs_ort_int8"):
+            t, m = pairs[key]["target"], pairs[key]
+            if not t["passed"]:
+                detail = (f"{t['max_diff_steps']:.3g} logit steps" if "max_diff_steps" in t
+                          else f"max |diff| {m['max_abs_diff']:.3g} (bound {t['bound']:.3g})")
+                problems.append(f"{model} {key}: {detail}, argmax {100 * m['argmax_agreement']:.2f} %")
+    problems += mcu_report.get("problems", [])
+    report = {
+        "schema_version": SCHEMA_VERSION, "producer": "quadfdi parity", "command": command, "run": str(run.root),
+        "test_windows": int(models["cnode"]["cpp_fp32_vs_ort_fp32"]["windows"]),
+        "export_steps": int(manifest["solver"]["steps"]),
+        "firmware": {"build_dir": str(build_dir), "infer": str(build_dir / "fwref_infer"),
+                     "build": f"cmake -S firmware_ref -B {build_dir} -DCMAKE_BUILD_TYPE=Release && "
+                              f"cmake --build {build_dir} -j2"},
+        "tolerances": {"fp32_rel_tol": compare.FP32_REL_TOL, "int8_argmax_min": compare.INT8_ARGMAX_MIN,
+                       "int8_tol_steps": compare.INT8_TOL_STEPS},
+        "fwref_parity": fp, "models": models, "mcu": _mcu_summary(mcu_report),
+        "problems": problems, "passed": not problems, "timing_s": timing,
+    }
+    _write_json(out_dir / "parity.json", report)
+    write_text(out_dir / "parity.md", markdown({**report, "mcu": mcu_report}))
+    log(f"parity: wrote {out_dir / 'parity.json'}, parity.md" + (", mcu.json" if "cpus" in mcu_report else "")
+        + f" in {timing['total']:.1f} s")
+    if problems:
+        raise QuadfdiError("parity target missed: " + "; ".join(problems) + f" (report: {out_dir / 'parity.md'})")
+    return report
+
+
+def _mcu_part(mcu: bool, weights: Path, reference: Path, out_dir: Path, timing: dict,
+              log: Callable[[str], None]) -> dict:
+    if not mcu:
+        return {"skipped": "not requested (--no-mcu)"}
+    missing = mcu_mod.tools_missing()
+    if missing:
+        log(f"parity: Cortex-M part skipped: {missing}")
+        return {"skipped": missing}
+    t0 = time.perf_counter()
+    report = mcu_mod.mcu_run(weights, reference, log=log)
+    timing["mcu"] = report["timing_s"] = time.perf_counter() - t0
+    _write_json(out_dir / "mcu.json", report)
+    return report
+
+
+def _mcu_only(out_dir: Path, weights: Path, reference: Path, log: Callable[[str], None]) -> dict:
+    """``quadfdi parity --mcu``: mcu.json, and parity.json/parity.md updated when a host report exists."""
+    missing = mcu_mod.tools_missing()
+    if missing:
+        raise QuadfdiError(f"cannot run the Cortex-M part: {missing}")
+    t0 = time.perf_counter()
+    mcu_report = mcu_mod.mcu_run(weights, reference, log=log)
+    mcu_report["timing_s"] = time.perf_counter() - t0
+    _write_json(out_dir / "mcu.json", mcu_report)
+    report_path = out_dir / "parity.json"
+    if report_path.is_file():
+        report = json.loads(report_path.read_text())
+        if report.get("schema_version") == SCHEMA_VERSION:
+            report["mcu"] = _mcu_summary(mcu_report)
+            report["problems"] = [p for p in report.get("problems", []) if not p.startswith("cortex-")]
+            report["problems"] += mcu_report["problems"]
+            report["passed"] = not report["problems"]
+            _write_json(report_path, report)
+            write_text(out_dir / "parity.md", markdown({**report, "mcu": mcu_report}))
+    log(f"parity: wrote {out_dir / 'mcu.json'} in {mcu_report['timing_s']:.1f} s")
+    if mcu_report["problems"]:
+        raise QuadfdiError("Cortex-M target missed: " + "; ".join(mcu_report["problems"]))
+    return {"mcu": mcu_report}
+
+
+def _mcu_summary(mcu_report: dict) -> dict:
+    """The Cortex-M numbers for parity.json (mcu.json holds everything, with the harness output)."""
+    if "cpus" not in mcu_report:
+        return mcu_report
+    return {"passed": mcu_report["passed"], "problems": mcu_report["problems"], "file": "mcu.json",
+            "cpus": {cpu: {"machine": r["machine"], "passed": r["passed"],
+                           "models": {k: {f: v[f] for f in ("flash_bytes", "weights_bytes", "static_ram_bytes",
+                                                            "stack_peak_bytes", "instructions_per_inference")}
+                                      for k, v in r["models"].items()}}
+                     for cpu, r in mcu_report["cpus"].items()}}

@@ -1,0 +1,55 @@
+"""Shared, built-once resources of the firmware and parity tests (no tests in this module).
+
+The expensive things (a trained and exported small run, the host, sanitizer and Cortex-M builds)
+are made once per test process, whichever test module asks first: the fixtures below are imported
+by tests/test_firmware.py and tests/test_parity.py, and a process-level cache stops pytest from
+building twice for the two modules.
+"""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import pytest
+
+from parity.build import ASAN_BUILD, HOST_BUILD, build_host
+from tests.conftest import quadfdi
+
+_CACHE: dict[str, object] = {}
+
+
+def _exported_run(small_run: Path, root: Path) -> Path:
+    run = root / "run"
+    run.mkdir(parents=True)
+    for name in ("config.toml", "dataset.npz"):
+        shutil.copy(small_run / name, run / name)
+    res = quadfdi("train", "--run", str(run), "--set", "train.epochs=1", "--set", "train.threads=1")
+    assert res.returncode == 0, res.stderr
+    res = quadfdi("export", "--run", str(run))
+    assert res.returncode == 0, res.stderr
+    return run
+
+
+@pytest.fixture(scope="session")
+def fw_run(small_run, tmp_path_factory) -> Path:
+    """A small run (24 trajectories, 8 s), trained one epoch, exported with N = 8."""
+    if "run" not in _CACHE:
+        _CACHE["run"] = _exported_run(small_run, tmp_path_factory.mktemp("fwrun"))
+    return _CACHE["run"]  # type: ignore[return-value]
+
+
+@pytest.fixture(scope="session")
+def host_build() -> Path:
+    """firmware_ref/build: Release fwref_infer and fwref_parity (the path `quadfdi parity` uses)."""
+    if "host" not in _CACHE:
+        _CACHE["host"] = build_host(HOST_BUILD, log=lambda _: None)
+    return _CACHE["host"]  # type: ignore[return-value]
+
+
+@pytest.fixture(scope="session")
+def asan_build() -> Path:
+    """firmware_ref/build-asan: everything with -fsanitize=address,undefined and assertions on."""
+    if "asan" not in _CACHE:
+        _CACHE["asan"] = build_host(ASAN_BUILD, sanitize=True, log=lambda _: None)
+    return _CACHE["asan"]  # type: ignore[return-value]
