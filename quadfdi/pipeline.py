@@ -11,7 +11,7 @@ from quadfdi.rundir import create_run
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("run", help="run the whole pipeline (sim, train, export, parity, ...) into one run folder")
+    p = sub.add_parser("run", help="run the whole pipeline (sim, train, export, parity, bench) into one run folder")
     add_config_args(p)
     p.add_argument("--out", default="runs/paper", help="run folder (default: %(default)s)")
     p.set_defaults(func=run_all)
@@ -21,6 +21,8 @@ def run_all(args: argparse.Namespace) -> int:
     from sim.cli import default_plot_rows, generate_into
     from sim.dataset import load_dataset
     from sim.plot import plot_trajectory
+    from bench.report import write_run_report
+    from bench.run import bench_run
     from export.run import export_run
     from parity.run import parity_run
     from train.run import train_run
@@ -43,6 +45,10 @@ def run_all(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     parity_run(run, cfg)
     timings["parity"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    bench_run(run, cfg)
+    timings["bench"] = time.perf_counter() - t0
+    report = write_run_report(run.root)
     print("stage times: " + ", ".join(f"{k} {v:.1f} s" for k, v in timings.items()))
-    print(f"run folder: {run.root}")
+    print(f"report: {report}")
     return 0

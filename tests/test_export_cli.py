@@ -2,10 +2,8 @@
 
 from __future__ import annotations
 
-import os
 import shutil
 import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -18,7 +16,7 @@ from export.manifest import ARTIFACT_KEYS, check_files, load_manifest
 from export.reference_bin import read_reference
 from export.weights_bin import read_weights
 from sim.dataset import load_dataset, make_windows
-from tests.conftest import ROOT, quadfdi
+from tests.conftest import quadfdi
 from train.checkpoint import save_checkpoint
 from train.data import fit_normalisation
 from train.models import CNODE, GRUClassifier

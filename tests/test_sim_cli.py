@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from sim.dataset import REQUIRED_KEYS, load_dataset, make_windows, window_starts
-from tests.conftest import ROOT, SMALL_SIM, quadfdi
+from tests.conftest import SMALL_SIM, quadfdi
 
 
 def test_dataset_contract(small_run):

@@ -11,7 +11,7 @@ import torch
 from quadfdi.config import load_config, replace_section
 from quadfdi.errors import QuadfdiError
 from sim.dataset import load_dataset
-from tests.conftest import ROOT, quadfdi
+from tests.conftest import quadfdi
 from train.checkpoint import check_dataset_matches, load_checkpoint, save_checkpoint
 from train.data import batch_order, class_weights, fit_normalisation, split_windows
 from train.loop import weighted_cross_entropy

@@ -1,0 +1,207 @@
+"""Per-runtime latency: one fresh pinned process per setting (``bench.latency_worker``), in turn.
+
+The settings (``plan``), SPEC section 6 and issue 6:
+
+- torch: CNODE with fixed classic RK4 at the export's N (``rk4-N``) and adaptive dopri5 at
+  train.rtol with the path's knots as ``jump_t`` (``dopri5-1e-3``); GRU. 1 and 2 intra-op threads.
+- ort: the four files of the export manifest's ``artifacts`` (CNODE and GRU, fp32 and int8);
+  1 and 2 intra-op threads, each with thread spinning on and off
+  (``session.intra_op.allow_spinning``).
+- cpp: firmware_ref's ``fwref_infer`` on the export's weights.bin, CNODE and GRU, fp32 and int8;
+  single-threaded by design (threads 1, spinning n/a).
+
+Every worker runs under ``taskset -c <cpus>`` (default 0,1) with its thread pools sized by
+environment before any library loads, after warm-up, on the same sample of test windows (seeded;
+cycled when the split is smaller). ``--quick`` keeps every runtime, model and precision but only
+1 thread and spinning off, and few windows.
+
+Workers run one after another, never side by side, so they do not compete for the two cores
+(other users of the machine still can: compare within one run, quote medians).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from bench.limits import cpu_prefix, run_json, worker_env
+from quadfdi.errors import QuadfdiError
+
+ROOT = Path(__file__).resolve().parents[1]
+DEFAULT_FWREF = ROOT / "firmware_ref" / "build" / "fwref_infer"
+
+
+@dataclass(frozen=True)
+class Counts:
+    """How much each worker measures."""
+
+    n: int = 300  # batch-1 windows, each timed once
+    warmup: int = 30
+    batches: int = 10  # batch-96 calls timed
+    batch: int = 96
+    budget_s: float = 8.0  # per timed loop; dopri5 is the one that hits it
+    min_samples: int = 5  # the budget never cuts a loop below this
+
+    @staticmethod
+    def of(quick: bool) -> "Counts":
+        return Counts(n=20, warmup=3, batches=2, budget_s=0.5, min_samples=2) if quick else Counts()
+
+
+@dataclass(frozen=True)
+class Spec:
+    runtime: str
+    model: str
+    precision: str
+    solver: str
+    threads: int
+    spinning: str  # on | off | na
+    artifact: str
+    extra: tuple[str, ...] = field(default=())
+
+    @property
+    def label(self) -> str:
+        spin = "" if self.spinning == "na" else f", spinning {self.spinning}"
+        return f"{self.runtime} {self.model} {self.precision} {self.solver} ({self.threads} thread(s){spin})"
+
+
+def rtol_label(rtol: float) -> str:
+    """1e-3 -> '1e-3', 5e-4 -> '5e-4', 0.0125 -> '0.0125' (for solver labels such as dopri5-1e-3)."""
+    exp = math.floor(math.log10(rtol))
+    mant = rtol / 10 ** exp
+    if abs(mant - round(mant)) < 1e-9:
+        return f"{int(round(mant))}e{exp}"
+    return f"{rtol:g}"
+
+
+def plan(run_root: Path, manifest: dict, rtol: float, quick: bool, fwref: str | None,
+         threads: tuple[int, ...] | None = None) -> list[Spec]:
+    """Every setting to measure, in order (torch, then ort, then cpp)."""
+    export = run_root / "export"
+    steps = int(manifest["solver"]["steps"])
+    threads = threads or ((1,) if quick else (1, 2))
+    spins = ("off",) if quick else ("off", "on")
+    rk4, dopri = f"rk4-{steps}", f"dopri5-{rtol_label(rtol)}"
+    specs = []
+    for t in threads:
+        specs += [Spec("torch", "cnode", "fp32", rk4, t, "na", str(run_root / "cnode.pt")),
+                  Spec("torch", "cnode", "fp32", dopri, t, "na", str(run_root / "cnode.pt")),
+                  Spec("torch", "gru", "fp32", "gru", t, "na", str(run_root / "gru.pt"))]
+    for model in ("cnode", "gru"):
+        for precision in ("fp32", "int8"):
+            art = str(export / manifest["artifacts"][f"{model}_{precision}"])
+            for t in threads:
+                for spin in spins:
+                    specs.append(Spec("ort", model, precision, rk4 if model == "cnode" else "gru", t, spin, art))
+    if fwref:
+        for model in ("cnode", "gru"):
+            for precision in ("fp32", "int8"):
+                specs.append(Spec("cpp", model, precision, rk4 if model == "cnode" else "gru", 1, "na",
+                                  str(export / "weights.bin"), ("--fwref", fwref)))
+    return specs
+
+
+def sample_windows(x: np.ndarray, n: int, seed: int = 0) -> np.ndarray:
+    """``n`` windows of x in a seeded random order (cycling through a permutation when n > len(x))."""
+    if len(x) == 0:
+        raise QuadfdiError("the test split holds no windows to time")
+    rng = np.random.default_rng(seed)
+    reps = -(-n // len(x))
+    idx = np.concatenate([rng.permutation(len(x)) for _ in range(reps)])[:n]
+    return np.ascontiguousarray(x[idx], dtype=np.float32)
+
+
+def find_fwref(explicit: str | None, log: Callable[[str], None]) -> tuple[str | None, str]:
+    """(path to fwref_infer or None, how it was found or why not).
+
+    An explicit ``--fwref`` must exist. Otherwise firmware_ref/build/fwref_infer is used as it is;
+    if missing, it is built with firmware_ref's documented command (cmake, Release).
+    """
+    if explicit:
+        p = Path(explicit)
+        if not p.is_file() or not os.access(p, os.X_OK):
+            raise QuadfdiError(f"--fwref {p}: no such executable (build it: cmake -S firmware_ref -B "
+                               f"firmware_ref/build -DCMAKE_BUILD_TYPE=Release && cmake --build firmware_ref/build)")
+        return str(p), "given with --fwref"
+    if DEFAULT_FWREF.is_file():
+        return str(DEFAULT_FWREF), "firmware_ref/build/fwref_infer (existing build)"
+    cmake = shutil.which("cmake")
+    if cmake is None or not (ROOT / "firmware_ref" / "CMakeLists.txt").is_file():
+        return None, "C++ reference not measured: firmware_ref/build/fwref_infer is missing and cmake is not available"
+    log("bench: building the C++ reference (cmake -S firmware_ref -B firmware_ref/build, Release)")
+    build = ROOT / "firmware_ref" / "build"
+    for cmd in ([cmake, "-S", str(ROOT / "firmware_ref"), "-B", str(build), "-DCMAKE_BUILD_TYPE=Release"],
+                [cmake, "--build", str(build), "-j2", "--target", "fwref_infer"]):
+        res = subprocess.run(cmd, capture_output=True, text=True, timeout=900)
+        if res.returncode != 0:
+            last = (res.stderr.strip().splitlines() or res.stdout.strip().splitlines() or ["?"])[-1]
+            return None, f"C++ reference not measured: building it failed: {last}"
+    return (str(DEFAULT_FWREF), "built firmware_ref/build/fwref_infer") if DEFAULT_FWREF.is_file() else \
+        (None, "C++ reference not measured: the build produced no fwref_infer")
+
+
+def check_cpus(cpus: str) -> str:
+    """``cpus`` ('0,1') if this process may run on all of them, else a one-line error."""
+    try:
+        wanted = {int(c) for c in cpus.split(",") if c.strip()}
+    except ValueError:
+        raise QuadfdiError(f"--cpus must be a comma-separated list of CPU numbers, found {cpus!r}") from None
+    allowed = os.sched_getaffinity(0) if hasattr(os, "sched_getaffinity") else wanted
+    if not wanted or not wanted <= allowed:
+        raise QuadfdiError(f"--cpus {cpus}: this process may only run on CPUs {sorted(allowed)}")
+    return ",".join(str(c) for c in sorted(wanted))
+
+
+def worker_cmd(spec: Spec, windows: Path, counts: Counts, cpus: str, time_exe: str | None) -> list[str]:
+    cmd = [*cpu_prefix(cpus), sys.executable, "-m", "bench.latency_worker", "--runtime", spec.runtime,
+           "--model", spec.model, "--precision", spec.precision, "--solver", spec.solver,
+           "--threads", str(spec.threads), "--spinning", spec.spinning, "--windows", str(windows),
+           "--artifact", spec.artifact, "--n", str(counts.n), "--warmup", str(counts.warmup),
+           "--batch", str(counts.batch), "--batches", str(counts.batches), "--budget-s", str(counts.budget_s),
+           "--min-samples", str(counts.min_samples), "--cpus", cpus, *spec.extra]
+    if spec.runtime == "cpp" and time_exe:
+        cmd += ["--time-exe", time_exe]
+    return cmd
+
+
+def measure_latency(run_root: Path, manifest: dict, test_x: np.ndarray, rtol: float, *, cpus: str = "0,1",
+                    quick: bool = False, fwref: str | None = None, threads: tuple[int, ...] | None = None,
+                    log: Callable[[str], None] = print) -> dict:
+    """Run every worker of ``plan``; return {latency, runtime_memory, workers, skipped, windows, ...}.
+
+    ``fwref`` is the fwref_infer path (None: the C++ reference is skipped, with the reason in
+    ``skipped``). A worker that fails raises a one-line QuadfdiError naming its setting.
+    """
+    cpus = check_cpus(cpus)
+    counts = Counts.of(quick)
+    time_exe = "/usr/bin/time" if Path("/usr/bin/time").is_file() else None  # GNU time, for the C++ peak RSS
+    specs = plan(run_root, manifest, rtol, quick, fwref, threads)
+    records, memory, workers = [], [], []
+    t_all = time.perf_counter()
+    with tempfile.TemporaryDirectory(prefix="quadfdi-bench-") as tmp:
+        windows = Path(tmp) / "windows.npy"
+        np.save(windows, sample_windows(test_x, max(counts.n, counts.batch)))
+        for spec in specs:
+            t0 = time.perf_counter()
+            out = run_json(worker_cmd(spec, windows, counts, cpus, time_exe), worker_env(spec.threads),
+                           f"latency worker {spec.label}", 900)
+            dt = time.perf_counter() - t0
+            records += out["records"]
+            memory.append(out["memory"])
+            workers.append({"setting": spec.label, "seconds": dt, "info": out.get("info", {})})
+            b1, bn = out["records"]
+            log(f"bench latency: {spec.label}: batch 1 p50 {b1['p50_us']:.1f} us (p99 {b1['p99_us']:.1f}, "
+                f"{b1['n_calls']} windows), batch {bn['batch']} {bn['throughput_wps']:.0f} windows/s [{dt:.1f} s]")
+    return {"latency": records, "runtime_memory": memory, "workers": workers,
+            "windows": {"split": "test", "available": int(len(test_x)), "sampled": max(counts.n, counts.batch),
+                        "seed": 0, "cycled": bool(len(test_x) < max(counts.n, counts.batch))},
+            "counts": counts.__dict__, "cpus": cpus, "seconds": time.perf_counter() - t_all}

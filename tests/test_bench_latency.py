@@ -1,0 +1,210 @@
+"""bench: the worker's statistics against numpy, floor arithmetic on hand-made numbers, the plan,
+and one worker process end to end. No timing assertions: benchmarks are commands, not tests."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from bench.floors import attach_distance, cnode_macs, floor_of, floors, targets, weight_traffic
+from bench.latency import plan, rtol_label, sample_windows
+from bench.latency_worker import parse_solver, percentile, summarise, time_calls
+from tests.conftest import ROOT
+
+# ----------------------------------------------------------------------------- statistics
+
+
+@pytest.mark.parametrize("n", [1, 2, 3, 10, 57, 300])
+def test_percentile_matches_numpy_linear(n):
+    rng = np.random.default_rng(n)
+    v = rng.lognormal(4.0, 1.0, size=n).tolist()
+    for q in (0, 1, 25, 50, 90, 99, 99.9, 100):
+        assert percentile(v, q) == pytest.approx(float(np.percentile(v, q)), rel=1e-12, abs=1e-12)
+
+
+def test_percentile_rejects_bad_input():
+    with pytest.raises(ValueError):
+        percentile([], 50)
+    with pytest.raises(ValueError):
+        percentile([1.0], 101)
+
+
+def test_summarise_fields_and_throughput():
+    s = summarise([100.0, 200.0, 300.0, 400.0], batch=96)
+    assert s["p50_us"] == pytest.approx(250.0)
+    assert s["p90_us"] == pytest.approx(np.percentile([100, 200, 300, 400], 90))
+    assert s["throughput_wps"] == pytest.approx(96e6 / 250.0)  # batch x 1e6 / p50
+    assert s["n_calls"] == 4 and s["min_us"] == 100.0 and s["max_us"] == 400.0
+
+
+def test_time_calls_respects_counts():
+    calls = []
+    out = time_calls(calls.append, [1, 2, 3], n=7, warmup=2, budget_s=60.0)
+    assert len(out) == 7 and all(t >= 0 for t in out)
+    assert calls[:2] == [1, 2] and calls[2:] == [1, 2, 3, 1, 2, 3, 1]  # warm-up, then inputs cycled
+    out = time_calls(lambda x: None, [0], n=1000, warmup=0, budget_s=0.0, min_samples=3)
+    assert len(out) == 3  # an exhausted budget stops the loop, never below min_samples
+
+
+def test_solver_labels():
+    assert parse_solver("rk4-8") == ("rk4", 8)
+    assert parse_solver("dopri5-1e-3") == ("dopri5", 1e-3)
+    assert parse_solver("gru") == ("gru", None)
+    with pytest.raises(ValueError):
+        parse_solver("rk45-x")
+    assert rtol_label(1e-3) == "1e-3" and rtol_label(5e-4) == "5e-4" and rtol_label(1e-2) == "1e-2"
+
+
+def test_sample_windows_cycles_a_seeded_permutation():
+    x = np.arange(5 * 2 * 3, dtype=np.float32).reshape(5, 2, 3)
+    s = sample_windows(x, 12, seed=0)
+    assert s.shape == (12, 2, 3) and s.dtype == np.float32
+    firsts = sorted(int(w[0, 0]) // 6 for w in s[:5])
+    assert firsts == [0, 1, 2, 3, 4]  # every window once before any repeats
+    assert np.array_equal(s, sample_windows(x, 12, seed=0))
+
+
+# ----------------------------------------------------------------------------- floors
+
+
+CNODE = {"kind": "cnode", "n_channels": 3, "window": 10, "latent": 4, "hidden": 5, "n_classes": 2}
+GRU = {"kind": "gru", "n_channels": 3, "window": 10, "hidden": 4, "n_classes": 2}
+
+
+def test_floor_of_takes_the_larger_bound():
+    # 1000 MACs at 2 GOP/s = 2000 op / 2e3 op/us = 1 us; 4000 B at 1 GB/s = 4 us -> L2-bound, 4 us.
+    f = floor_of(1000, 4000, 2.0, 1.0)
+    assert f["compute_us"] == pytest.approx(1.0) and f["memory_us"] == pytest.approx(4.0)
+    assert f["floor_us"] == pytest.approx(4.0) and f["bound"] == "L2 bandwidth"
+    f = floor_of(10_000, 400, 2.0, 1.0)
+    assert f["floor_us"] == pytest.approx(10.0) and f["bound"] == "compute"
+    with pytest.raises(ValueError):
+        floor_of(1, 1, 0.0, 1.0)
+
+
+def test_weight_traffic_by_hand():
+    # CNODE N=2: S = 5 stage times. Once: interp 5*10 + encoder 4*3 + lin1_u 5*3 + head 2*4 = 85 weights;
+    # float vectors mean, std (3 + 3), encoder bias 4, lin1 bias 5, head bias 2 = 17 floats.
+    # Reused per evaluation: lin1_z 5*4 + lin2 4*5 = 40 weights, biases 5 + 4 = 9 floats.
+    t = weight_traffic(CNODE, "fp32", 2, l1_bytes=32768)
+    assert t["once_bytes"] == 85 * 4 + 17 * 4 and t["reused_bytes"] == 40 * 4 + 9 * 4
+    assert t["reuse_count"] == 8 and t["reused_fits_l1"]
+    assert t["bytes_per_window"] == t["once_bytes"] + t["reused_bytes"]
+    t8 = weight_traffic(CNODE, "int8", 2, l1_bytes=32768)
+    assert t8["once_bytes"] == 85 + 17 * 4 and t8["reused_bytes"] == 40 + 9 * 4
+    # An L1 too small for the reused set: it streams once per evaluation.
+    small = weight_traffic(CNODE, "fp32", 2, l1_bytes=100)
+    assert not small["reused_fits_l1"] and small["bytes_per_window"] == small["once_bytes"] + 8 * small["reused_bytes"]
+    # GRU H=4: once W_ih 12*3 + head 2*4 = 44 weights, floats mean/std 6 + b_ih 12 + head bias 2 = 20;
+    # reused per step W_hh 12*4 = 48 weights + b_hh 12 floats, W = 10 steps.
+    g = weight_traffic(GRU, "fp32", 2, l1_bytes=100)
+    assert g["once_bytes"] == 44 * 4 + 20 * 4 and g["reused_bytes"] == 48 * 4 + 12 * 4
+    assert g["bytes_per_window"] == g["once_bytes"] + 10 * g["reused_bytes"]
+
+
+def test_cnode_macs_matches_the_model():
+    from train.models import CNODE as Model, SolverSpec
+
+    m = Model(3, window=10, latent=4, hidden=5, n_classes=2, solver=SolverSpec("rk4", steps=2))
+    assert cnode_macs(CNODE, 8) == m.macs_per_window()
+
+
+def _limits():
+    return {"peak_gflops": 10.0, "peak_int8_gops": 40.0, "l2_gbps": 20.0, "caches": {"L1d": 32768}}
+
+
+def test_floors_attach_and_targets():
+    models = {"cnode": {**{k: v for k, v in CNODE.items() if k != "kind"}, "macs_per_window": 10_000},
+              "gru": {**{k: v for k, v in GRU.items() if k != "kind"}, "macs_per_window": 50_000}}
+    fl = floors(models, 2, _limits())
+    assert len(fl) == 4
+    cf = next(f for f in fl if f["model"] == "cnode" and f["precision"] == "fp32")
+    assert cf["compute_us"] == pytest.approx(2 * 10_000 / 10e3)  # 2 us
+    gi = next(f for f in fl if f["model"] == "gru" and f["precision"] == "int8")
+    assert gi["compute_us"] == pytest.approx(2 * 50_000 / 40e3)
+    rec = lambda rt, m, p, p50, t=1, spin=None: {"runtime": rt, "model": m, "precision": p, "solver": "x", "threads": t,
+                                               "spinning": spin, "batch": 1, "p50_us": p50}
+    recs = [rec("cpp", "cnode", "fp32", 3.0), rec("cpp", "gru", "fp32", 100.0),
+            rec("ort", "cnode", "fp32", 40.0, 1, False), rec("ort", "cnode", "fp32", 25.0, 2, True)]
+    attach_distance(recs, fl)
+    assert recs[0]["x_floor"] == pytest.approx(3.0 / cf["floor_us"])
+    ts = targets(recs, fl)
+    within = {t["model"]: t for t in ts if "floor" in t["target"]}
+    assert within["cnode"]["met"] and within["cnode"]["measured"] == pytest.approx(1.5)
+    assert not within["gru"]["met"]
+    vs = [t for t in ts if "ORT" in t["target"]]
+    assert [t["measured"] for t in vs] == pytest.approx([40.0 / 3.0, 25.0 / 3.0])  # like-for-like, then best
+    assert vs[0]["met"] and not vs[1]["met"]
+
+
+def test_plan_covers_every_runtime():
+    manifest = {"solver": {"steps": 8}, "artifacts": {"cnode_fp32": "c.onnx", "cnode_int8": "c8.onnx",
+                                                      "gru_fp32": "g.onnx", "gru_int8": "g8.onnx"}}
+    full = plan(ROOT, manifest, 1e-3, quick=False, fwref="/bin/fwref_infer")
+    assert len([s for s in full if s.runtime == "torch"]) == 6  # (rk4-8, dopri5-1e-3, gru) x 1, 2 threads
+    assert len([s for s in full if s.runtime == "ort"]) == 16  # 2 models x 2 precisions x 2 threads x spin on/off
+    assert len([s for s in full if s.runtime == "cpp"]) == 4
+    assert {s.solver for s in full if s.model == "cnode"} == {"rk4-8", "dopri5-1e-3"}
+    quick = plan(ROOT, manifest, 1e-3, quick=True, fwref=None)
+    assert {s.threads for s in quick} == {1} and not [s for s in quick if s.runtime == "cpp"]
+
+
+# ----------------------------------------------------------------------------- one worker process
+
+
+def test_ort_worker_prints_every_field(tmp_path):
+    """A fresh worker process on a tiny ONNX graph: JSON with both records and the memory fields."""
+    import onnx
+    from onnx import TensorProto, helper
+
+    graph = helper.make_graph(
+        [helper.make_node("ReduceMean", ["telemetry"], ["logits"], axes=[1], keepdims=0)], "tiny",
+        [helper.make_tensor_value_info("telemetry", TensorProto.FLOAT, ["batch", 80, 4])],
+        [helper.make_tensor_value_info("logits", TensorProto.FLOAT, ["batch", 4])])
+    model = helper.make_model(graph, opset_imports=[helper.make_opsetid("", 17)], ir_version=8)
+    onnx.save(model, tmp_path / "tiny.onnx")
+    np.save(tmp_path / "w.npy", np.random.default_rng(0).standard_normal((10, 80, 4)).astype(np.float32))
+    res = subprocess.run([sys.executable, "-m", "bench.latency_worker", "--runtime", "ort", "--model", "gru",
+                          "--solver", "gru", "--spinning", "off", "--windows", str(tmp_path / "w.npy"),
+                          "--artifact", str(tmp_path / "tiny.onnx"), "--n", "7", "--warmup", "2", "--batch", "4",
+                          "--batches", "3"], capture_output=True, text=True, cwd=ROOT, timeout=120)
+    assert res.returncode == 0, res.stderr
+    out = json.loads(res.stdout.splitlines()[-1])
+    b1, b4 = out["records"]
+    for r in (b1, b4):
+        for key in ("model", "runtime", "precision", "solver", "threads", "spinning", "batch", "p50_us", "p90_us",
+                    "p99_us", "throughput_wps"):
+            assert key in r, key
+        assert r["p50_us"] <= r["p90_us"] <= r["p99_us"]
+    assert (b1["batch"], b1["n_calls"], b4["batch"], b4["n_calls"]) == (1, 7, 4, 3)
+    assert b1["spinning"] is False and b1["runtime"] == "ort"
+    mem = out["memory"]
+    assert mem["baseline_kib"] > 0 and mem["peak_batch1_above_baseline_kib"] >= 0
+
+
+def test_worker_reports_a_bad_artifact_in_one_line(tmp_path):
+    np.save(tmp_path / "w.npy", np.zeros((2, 80, 4), dtype=np.float32))
+    (tmp_path / "bad.onnx").write_bytes(b"not an onnx file")
+    res = subprocess.run([sys.executable, "-m", "bench.latency_worker", "--runtime", "ort", "--model", "cnode",
+                          "--windows", str(tmp_path / "w.npy"), "--artifact", str(tmp_path / "bad.onnx")],
+                         capture_output=True, text=True, cwd=ROOT, timeout=120)
+    assert res.returncode == 2
+    assert res.stderr.startswith("latency_worker: error:") and len(res.stderr.strip().splitlines()) == 1
+
+
+def test_merge_limits_keeps_the_best_pass():
+    from bench.limits import merge_limits
+
+    base = {"gemm": [{"label": "x", "gflops": 1.0}], "int8": [], "seconds": 1.0, "caches": {"L1d": 1}}
+    a = {**base, "peak_gflops": 40.0, "peak_gflops_2t": 60.0, "l2_gbps": 50.0, "ort_call_us": 9.0, "ort_node_us": 0.4,
+         "peak_int8_gops": 100.0}
+    b = {**base, "peak_gflops": 90.0, "peak_gflops_2t": None, "l2_gbps": 30.0, "ort_call_us": 7.0, "ort_node_us": 0.5,
+         "peak_int8_gops": 200.0}
+    m = merge_limits([a, b])
+    assert (m["peak_gflops"], m["peak_gflops_2t"], m["l2_gbps"], m["peak_int8_gops"]) == (90.0, 60.0, 50.0, 200.0)
+    assert (m["ort_call_us"], m["ort_node_us"]) == (7.0, 0.4)
+    assert len(m["passes"]) == 2 and [g["pass"] for g in m["gemm"]] == [0, 1] and m["seconds"] == 2.0

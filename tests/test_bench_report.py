@@ -1,0 +1,170 @@
+"""`quadfdi bench --quick` end to end on a tiny exported run: bench.json holds every field of its
+contract (docs/bench.md), report.md assembles every stage present, bad input is one line.
+No timing assertions."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+from pathlib import Path
+
+import pytest
+
+from tests.conftest import ROOT, quadfdi
+
+FWREF = ROOT / "firmware_ref" / "build" / "fwref_infer"
+LATENCY_KEYS = {"model", "runtime", "precision", "solver", "threads", "spinning", "batch", "p50_us", "p90_us",
+                "p99_us", "throughput_wps"}
+MEMORY_KEYS = {"model", "runtime", "precision", "solver", "item", "value", "unit", "source"}
+LIMIT_KEYS = {"peak_gflops", "l2_gbps", "ort_call_us", "peak_gflops_2t", "peak_int8_gops", "ort_node_us", "caches"}
+TOP_KEYS = {"schema_version", "producer", "command", "machine", "limits", "models", "latency", "floors", "targets",
+            "memory", "solvers", "profiles", "windows", "counts", "timing_s"}
+
+
+def quadfdi_bench(*args: str) -> subprocess.CompletedProcess:
+    """``quadfdi bench ...`` through the real dispatcher."""
+    return quadfdi("bench", *args)
+
+
+@pytest.fixture(scope="module")
+def exported_run(small_run, tmp_path_factory) -> Path:
+    """The session's simulated run + random-weight checkpoints, exported with N = 2 (in process)."""
+    import torch
+
+    from export.run import export_run
+    from quadfdi.config import replace_section
+    from quadfdi.rundir import open_run
+    from sim.dataset import load_dataset
+    from train.checkpoint import save_checkpoint
+    from train.data import fit_normalisation
+    from train.models import CNODE, GRUClassifier
+
+    out = tmp_path_factory.mktemp("bench") / "run"
+    out.mkdir()
+    for name in ("config.toml", "dataset.npz"):
+        shutil.copy(small_run / name, out / name)
+    ds = load_dataset(out / "dataset.npz")
+    mean, std = fit_normalisation(ds)
+    torch.manual_seed(0)
+    for kind, model in (("cnode", CNODE(ds.n_channels)), ("gru", GRUClassifier(ds.n_channels))):
+        model.set_normalisation(mean, std)
+        save_checkpoint(out / f"{kind}.pt", model, {}, ds.channel_names)
+    run, cfg = open_run(out)
+    export_run(run, replace_section(cfg, "export", steps=2, calib_windows=64), log=lambda s: None)
+    return out
+
+
+@pytest.fixture(scope="module")
+def benched(exported_run) -> Path:
+    args = ["--run", str(exported_run), "--quick", "--skip-solvers"] + ([] if FWREF.is_file() else ["--skip-cpp"])
+    res = quadfdi_bench(*args)
+    assert res.returncode == 0, res.stderr[-3000:]
+    assert "bench: wrote" in res.stdout
+    return exported_run
+
+
+def test_bench_json_holds_every_field(benched):
+    bench = json.loads((benched / "bench.json").read_text())
+    assert TOP_KEYS <= set(bench)
+    assert bench["schema_version"] == 1 and bench["quick"] is True
+    assert LIMIT_KEYS <= set(bench["limits"])
+    assert bench["limits"]["peak_gflops"] > 0 and bench["limits"]["l2_gbps"] > 0 and bench["limits"]["ort_call_us"] > 0
+    recs = bench["latency"]
+    for r in recs:
+        assert LATENCY_KEYS <= set(r), r
+        assert r["runtime"] in ("torch", "ort", "cpp") and r["precision"] in ("fp32", "int8")
+        assert r["batch"] in (1, 96)
+        assert r["p50_us"] > 0 and r["throughput_wps"] > 0
+    settings = {(r["runtime"], r["model"], r["precision"], r["solver"]) for r in recs}
+    expected = {("torch", "cnode", "fp32", "rk4-2"), ("torch", "cnode", "fp32", "dopri5-1e-3"),
+                ("torch", "gru", "fp32", "gru")}
+    expected |= {("ort", m, p, "rk4-2" if m == "cnode" else "gru") for m in ("cnode", "gru") for p in ("fp32", "int8")}
+    if FWREF.is_file():
+        expected |= {("cpp", m, p, "rk4-2" if m == "cnode" else "gru")
+                     for m in ("cnode", "gru") for p in ("fp32", "int8")}
+    assert settings == expected
+    assert all(r.get("spinning") is False for r in recs if r["runtime"] == "ort")
+    assert all(r.get("spinning") is None for r in recs if r["runtime"] != "ort")
+    assert len([r for r in recs if r["batch"] == 1]) == len([r for r in recs if r["batch"] == 96])
+    assert all("x_floor" in r for r in recs if r["batch"] == 1)
+    assert {(f["model"], f["precision"]) for f in bench["floors"]} == {(m, p) for m in ("cnode", "gru")
+                                                                       for p in ("fp32", "int8")}
+    for m in bench["memory"]:
+        assert MEMORY_KEYS <= set(m), m
+    items = {(m["item"], m["runtime"]) for m in bench["memory"]}
+    assert ("parameters", None) in items and ("file_bytes", "ort") in items
+    assert ("peak_rss_above_baseline_batch1_bytes", "ort") in items
+    assert ("peak_rss_above_baseline_batch1_bytes", "torch") in items
+    assert isinstance(bench["solvers"], list)
+    if FWREF.is_file():
+        assert ("static_ram_bytes", "cpp") in items
+        assert {t["model"] for t in bench["targets"]} == {"cnode", "gru"}
+        assert all({"target", "measured", "threshold", "met"} <= set(t) for t in bench["targets"])
+
+
+def test_report_assembles_every_stage_present(benched):
+    text = (benched / "report.md").read_text()
+    for heading in ("# quadfdi run report", "## Simulation", "## Export", "## Bench: latency, memory, limits",
+                    "### Floors", "### Machine limits", "### Memory"):
+        assert heading in text, heading
+    assert "## Training" not in text  # this run has no metrics.json
+    for fig in ("bench_latency.png", "bench_throughput.png"):
+        assert (benched / "figures" / fig).is_file()
+        assert f"figures/{fig}" in text
+
+
+def test_bench_report_command_rewrites_from_the_files(benched):
+    (benched / "report.md").unlink()
+    res = quadfdi_bench("report", "--run", str(benched))
+    assert res.returncode == 0, res.stderr
+    assert (benched / "report.md").is_file() and "## Bench" in (benched / "report.md").read_text()
+
+
+def test_report_of_a_run_with_only_a_dataset(small_run, tmp_path):
+    from bench.report import write_run_report
+
+    run = tmp_path / "simonly"
+    run.mkdir()
+    for name in ("config.toml", "dataset.npz"):
+        shutil.copy(small_run / name, run / name)
+    text = write_run_report(run).read_text()
+    assert "## Simulation" in text and "## Bench" not in text and "## Export" not in text
+
+
+def test_bad_input_is_one_line(exported_run, tmp_path):
+    res = quadfdi_bench("--run", str(tmp_path / "nope"))
+    assert res.returncode == 2 and res.stderr.startswith("quadfdi bench: error:")
+    assert len(res.stderr.strip().splitlines()) == 1
+    res = quadfdi_bench()
+    assert res.returncode == 2 and "--run" in res.stderr
+    noexport = tmp_path / "noexport"
+    noexport.mkdir()
+    shutil.copy(exported_run / "config.toml", noexport / "config.toml")
+    shutil.copy(exported_run / "dataset.npz", noexport / "dataset.npz")
+    res = quadfdi_bench("--run", str(noexport), "--quick")
+    assert res.returncode == 2 and "export" in res.stderr and len(res.stderr.strip().splitlines()) == 1
+    res = quadfdi_bench("--run", str(exported_run), "--quick", "--cpus", "0,999")
+    assert res.returncode == 2 and "--cpus" in res.stderr
+    bad = tmp_path / "badbench"
+    bad.mkdir()
+    (bad / "bench.json").write_text("{truncated")
+    res = quadfdi_bench("report", "--run", str(bad))
+    assert res.returncode == 2 and "bench.json" in res.stderr and len(res.stderr.strip().splitlines()) == 1
+
+
+def test_cortex_m_numbers_come_from_mcu_json(tmp_path):
+    from bench.memory import mcu_records
+
+    (tmp_path / "parity").mkdir()
+    model = {"flash_bytes": 12000, "weights_bytes": 9000, "static_ram_bytes": 3000, "stack_peak_bytes": 400,
+             "instructions_per_inference": 123456}
+    (tmp_path / "parity" / "mcu.json").write_text(json.dumps(
+        {"cpus": {"cortex-m4": {"machine": "mps2-an386", "models": {"cnode_int8": model, "gru_fp32": model}}}}))
+    recs, raw = mcu_records(tmp_path)
+    assert raw["cpus"]["cortex-m4"]["machine"] == "mps2-an386"
+    got = {(r["runtime"], r["model"], r["precision"], r["item"]): r["value"] for r in recs}
+    assert got[("cortex-m4", "cnode", "int8", "flash_bytes")] == 12000
+    assert got[("cortex-m4", "gru", "fp32", "static_ram_bytes")] == 3000
+    assert len(recs) == 8  # flash, weights, static RAM, stack for each of the two models
+    assert mcu_records(tmp_path / "nothing") == ([], None)

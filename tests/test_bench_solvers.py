@@ -1,0 +1,349 @@
+"""The solver study (bench/solvers.py), the train-by-deploy matrix and their commands.
+
+Numbers are checked against independent computations: evaluation counts against the schemes'
+stage counts, the step-average control against the closed-form mean of a linear path and a fine
+quadrature of a piecewise-linear one, the average-control CNODE against a hand-written Euler loop.
+The commands run on tiny configurations; no timing is asserted.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+
+from bench.cli_solvers import main as cli_main
+from bench.solver_matrix import TrainSpec, control_findings, ott_findings
+from bench.solvers import (
+    AverageControlCNODE,
+    Setting,
+    average_matrix,
+    default_settings,
+    matched_table,
+    reference_setting,
+    run_study,
+    sample_indices,
+    solve_each,
+    with_setting,
+)
+from quadfdi.config import load_config
+from train.models import CNODE
+
+C, W = 5, 80
+RECORD_FIELDS = {
+    "label", "method", "steps", "rtol", "atol", "jump_t", "control", "dtype", "reference", "macro_f1",
+    "argmax_agreement", "max_logit_err", "mean_logit_err", "nfe_per_window", "nfe_min", "nfe_max", "latency_us",
+    "n_windows", "sample", "split_macro_f1", "split_n_windows", "macs_per_window",
+}
+
+
+def _model(seed: int = 0, cls=CNODE) -> CNODE:
+    torch.manual_seed(seed)
+    m = cls(C, window=W, latent=8, hidden=16)
+    m.eval()
+    return m
+
+
+def _windows(n: int, seed: int = 1) -> np.ndarray:
+    rng = np.random.default_rng(seed)
+    # smooth-ish random telemetry: a random walk per channel, (n, W, C) float32
+    return np.cumsum(rng.normal(scale=0.3, size=(n, W, C)), axis=1).astype(np.float32)
+
+
+# ------------------------------------------------------------------------------- settings
+
+
+def test_setting_parse_and_labels():
+    assert Setting.parse("rk4:8") == Setting("rk4", steps=8)
+    assert Setting.parse("rk4:8:avg").control == "average"
+    d = Setting.parse("dopri5:1e-3")
+    assert (d.rtol, d.atol, d.jump_t) == (1e-3, pytest.approx(1e-4), True)
+    assert Setting.parse("bosh3:1e-4:nojump").jump_t is False
+    assert Setting.parse("ref") == reference_setting()
+    assert Setting.parse("dopri5:1e-3:restart").label == "dopri5 rtol=1e-3 restart"
+    labels = [s.label for s in default_settings()]
+    assert len(labels) == len(set(labels)) == 3 * 7 + 2 * 5 * 2
+    for bad in ("rk4", "rk4:0", "dopri5:x", "heun:4", "dopri5:1e-3:avg", "rk4:8:mean"):
+        with pytest.raises(ValueError):
+            Setting.parse(bad)
+
+
+def test_sample_indices_fixed_and_sorted():
+    a, b = sample_indices(1188, 128, 0), sample_indices(1188, 128, 0)
+    assert np.array_equal(a, b) and len(a) == 128 and np.all(np.diff(a) > 0)
+    assert not np.array_equal(a, sample_indices(1188, 128, 1))
+    assert np.array_equal(sample_indices(10, 0), np.arange(10))
+    assert np.array_equal(sample_indices(10, 50), np.arange(10))
+
+
+# ----------------------------------------------------------------------- evaluation counts
+
+
+@pytest.mark.parametrize("method,per_step", [("euler", 1), ("midpoint", 2), ("rk4", 4)])
+@pytest.mark.parametrize("n", [1, 3, 8])
+def test_fixed_nfe_per_window(method, per_step, n):
+    s = Setting(method, steps=n)
+    out = solve_each(_model(), s, _windows(3))
+    assert np.all(out.nfe == per_step * n) and s.evals_per_window() == per_step * n
+    avg = solve_each(_model(), Setting(method, steps=n, control="average"), _windows(3))
+    assert np.all(avg.nfe == per_step * n)
+
+
+def test_adaptive_nfe_counted_per_window():
+    x = _windows(2)
+    out = solve_each(_model(), Setting("dopri5", rtol=1e-3, atol=1e-4, jump_t=True), x)
+    # with the 78 knots as jump_t dopri5 cannot step over a segment: >= 6 evaluations per segment
+    assert np.all(out.nfe >= 6 * (W - 1))
+    free = solve_each(_model(), Setting("dopri5", rtol=1e-3, atol=1e-4, jump_t=False), x)
+    assert np.all(free.nfe < out.nfe)
+
+
+# --------------------------------------------------------------------- the average control
+
+
+@pytest.mark.parametrize("n", [1, 2, 3, 7, 8, 79, 100])
+def test_average_matrix_rows_and_linear_path(n):
+    a = average_matrix(n, W)
+    assert a.shape == (n, W)
+    np.testing.assert_allclose(a.sum(axis=1), 1.0, atol=1e-13)
+    assert np.all(a >= -1e-15)
+    t = np.arange(W) / (W - 1)
+    x = 0.7 - 2.5 * t  # a linear path: its mean over [k/n, (k+1)/n] is its value at the midpoint
+    mid = (np.arange(n) + 0.5) / n
+    np.testing.assert_allclose(a @ x, 0.7 - 2.5 * mid, rtol=0, atol=1e-13)
+
+
+def test_average_matrix_equals_fine_quadrature_of_piecewise_linear_path():
+    rng = np.random.default_rng(3)
+    x = rng.normal(size=W)
+    for n in (1, 2, 5, 8, 32):
+        expect = []
+        for k in range(n):  # the trapezoid rule on a fine grid of step k (knots need not be on it)
+            fine = np.linspace(k / n, (k + 1) / n, 20_001)
+            expect.append(np.trapezoid(np.interp(fine, np.arange(W) / (W - 1), x), fine) * n)
+        np.testing.assert_allclose(average_matrix(n, W) @ x, expect, atol=1e-6)
+    # a coarse grid still sees every sample: every column has weight at N = 2
+    assert np.all(average_matrix(2, W).sum(axis=0) > 0)
+
+
+def test_average_control_cnode_is_a_hand_written_euler_loop():
+    point = _model(4)
+    avg = with_setting(point, Setting("euler", steps=4, control="average"))
+    assert isinstance(avg, AverageControlCNODE)
+    x = torch.from_numpy(_windows(2))
+    with torch.no_grad():
+        xn = avg.normalise(x)
+        z = torch.tanh(avg.encoder(xn[:, 0]))
+        ubar = torch.einsum("nw,bwc->bnc", torch.as_tensor(average_matrix(4, W), dtype=torch.float32), xn)
+        for k in range(4):
+            z = z + 0.25 * avg.field(z, ubar[:, k])
+        np.testing.assert_allclose(avg(x).numpy(), avg.head(z).numpy(), rtol=1e-5, atol=1e-6)
+        # and the trace has integrate_fixed's layout: z0, N*S stage states, z1
+        avg.solver = Setting("rk4", steps=3, control="average").spec()
+        tr = avg.trace(x)
+        assert tr["stages"].shape == (3, 4, 2, 8) and tr["u"].shape == (2, 3, C)
+        torch.testing.assert_close(tr["logits"], avg(x))
+    # weights move between the two classes unchanged
+    assert all(torch.equal(a, b) for a, b in zip(point.state_dict().values(), avg.state_dict().values()))
+
+
+# ---------------------------------------------------------------------------- the study
+
+
+def test_reference_equals_fine_float64_rk4_on_the_knot_grid():
+    # rk4 with 8 steps per segment never straddles a knot: 4th order on each linear piece, an
+    # independent solver (no torchdiffeq, no step control)
+    x = _windows(2)
+    ref = solve_each(_model(2), reference_setting(), x)
+    fine = solve_each(_model(2), Setting("rk4", steps=8 * (W - 1), dtype="float64"), x)
+    np.testing.assert_allclose(ref.logits, fine.logits, rtol=0, atol=1e-6)
+    # restarting at each knot costs a few evaluations per segment, not thousands (torchdiffeq's
+    # jump_t can lose track of the knots at rtol 1e-9, see KnotRestartCNODE)
+    assert np.all(ref.nfe < 40 * (W - 1))
+
+
+def test_knot_restart_matches_jump_t_where_jump_t_works():
+    x = _windows(2)
+    a = solve_each(_model(3), Setting.parse("dopri5:1e-5:restart"), x)
+    b = solve_each(_model(3), Setting.parse("dopri5:1e-5"), x)
+    np.testing.assert_allclose(a.logits, b.logits, rtol=0, atol=1e-4)
+
+
+def test_study_reference_agrees_with_itself_and_records_hold_every_field():
+    x, y = _windows(6), np.array([0, 1, 2, 3, 0, 1])
+    settings = [Setting.parse(s) for s in ("euler:2", "rk4:1", "rk4:79", "dopri5:1e-2", "dopri5:1e-2:nojump")]
+    out = run_study(_model(), x, y, settings, sample=4, seed=0, log=lambda s: None)
+    ref = out["solvers"][0]
+    assert ref["reference"] and ref is out["reference"]
+    assert ref["max_logit_err"] == 0 and ref["mean_logit_err"] == 0 and ref["argmax_agreement"] == 1
+    assert ref["dtype"] == "float64" and ref["rtol"] == 1e-9 and ref["restart"] is True
+    assert out["meta"]["reference_check"]["max_abs_logit_diff"] < 1e-6
+    for r in out["solvers"]:
+        assert RECORD_FIELDS <= set(r), RECORD_FIELDS - set(r)
+        assert r["n_windows"] == 4 and "4 of 6 test windows" in r["sample"]
+    by = {r["label"]: r for r in out["solvers"]}
+    assert by["rk4 N=1"]["nfe_per_window"] == 4 and by["euler N=2"]["nfe_per_window"] == 2
+    assert by["rk4 N=1"]["split_n_windows"] == 6 and by["dopri5 rtol=1e-2 jump"]["split_macro_f1"] is None
+    # rk4 on the knot grid is 4th order on each linear piece: far closer than rk4 N=1
+    assert by["rk4 N=79"]["max_logit_err"] < 1e-3 * by["rk4 N=1"]["max_logit_err"] + 1e-6
+    assert [m["adaptive"] for m in out["matched"]] == ["dopri5 rtol=1e-2 jump", "dopri5 rtol=1e-2 nojump"]
+
+
+def _rec(label, method, nfe, err, f1, control="point", **kw):
+    return {"label": label, "method": method, "nfe_per_window": nfe, "max_logit_err": err, "macro_f1": f1,
+            "control": control, "reference": False, **kw}
+
+
+def test_matched_table_picks_cheapest_matching_fixed():
+    recs = [
+        _rec("ref", "dopri5", 900, 0.0, 0.90, reference=True),
+        _rec("dopri5 a", "dopri5", 554, 1e-3, 0.900),
+        _rec("rk4 N=79", "rk4", 316, 1e-6, 0.900),  # matches
+        _rec("rk4 N=16", "rk4", 64, 5e-4, 0.9015),  # matches, cheaper: chosen
+        _rec("euler N=8", "euler", 8, 2e-3, 0.900),  # cheaper still, but error too large
+        _rec("midpoint N=8", "midpoint", 16, 1e-4, 0.895),  # error fine, F1 off by 0.5 point
+        _rec("rk4 N=2 avg", "rk4", 8, 1e-5, 0.900, control="average"),  # another model: not a candidate
+        _rec("dopri5 b", "dopri5", 30, 1e-9, 0.900),  # nothing is that accurate
+    ]
+    table = {m["adaptive"]: m for m in matched_table(recs)}
+    assert set(table) == {"dopri5 a", "dopri5 b"}  # the reference is not an adaptive setting to match
+    assert table["dopri5 a"]["fixed"] == "rk4 N=16"
+    assert table["dopri5 a"]["ratio"] == pytest.approx(554 / 64)
+    assert table["dopri5 b"]["fixed"] is None and table["dopri5 b"]["ratio"] is None
+
+
+def test_matched_table_equal_cost_prefers_smaller_error_and_f1_tolerance_is_inclusive():
+    recs = [_rec("dopri5", "dopri5", 100, 1e-2, 0.8), _rec("midpoint N=2", "midpoint", 4, 9e-3, 0.802),
+            _rec("rk4 N=1", "rk4", 4, 1e-3, 0.798)]
+    assert matched_table(recs)[0]["fixed"] == "rk4 N=1"
+    assert matched_table(recs, f1_tol=0.001)[0]["fixed"] == "midpoint N=2"  # F1 above: at least as accurate
+    assert matched_table(recs, f1_tol=0.001, two_sided=True)[0]["fixed"] is None
+    better = [_rec("dopri5", "dopri5", 100, 1e-2, 0.80), _rec("rk4 N=4", "rk4", 16, 1e-3, 0.85)]
+    assert matched_table(better)[0]["fixed"] == "rk4 N=4"
+    assert matched_table(better, two_sided=True)[0]["fixed"] is None
+
+
+# ------------------------------------------------------------------------- matrix findings
+
+
+def test_ott_and_control_findings_on_hand_made_matrix():
+    def info(label, method, steps=None, control="point", rtol=None, jump=None):
+        return {"label": label, "method": method, "steps": steps, "control": control, "rtol": rtol, "jump_t": jump}
+
+    ref = reference_setting().to_dict()
+    deploys = [Setting.parse(s).to_dict() for s in ("dopri5:1e-3", "rk4:2", "rk4:8", "rk4:2:avg")] + [ref]
+    train = [info("dopri5 jump", "dopri5", rtol=1e-3, jump=True), info("rk4 N=2", "rk4", 2),
+             info("rk4 N=8", "rk4", 8), info("rk4 N=2 avg", "rk4", 2, "average")]
+    f1 = {  # train -> deploy -> F1
+        "dopri5 jump": [0.90, 0.85, 0.90, 0.70, 0.90], "rk4 N=2": [0.60, 0.85, 0.70, 0.5, 0.60],
+        "rk4 N=8": [0.90, 0.80, 0.90, 0.6, 0.895], "rk4 N=2 avg": [0.7, 0.6, 0.7, 0.905, 0.7],
+    }
+    cells = [{"train": t, "deploy": d["label"], "macro_f1": v, "max_logit_err": 0.1, "nfe_per_window": n}
+             for t, vals in f1.items() for d, v, n in zip(deploys, vals, (554, 8, 32, 8, 900))]
+    m = {"train": train, "deploy": deploys, "cells": cells, "meta": {"break_tol": 0.02}}
+    ott = {o["train"]: o for o in ott_findings(m)}
+    assert ott["rk4 N=2"]["breaks"] and not ott["rk4 N=8"]["breaks"] and not ott["dopri5 jump"]["breaks"]
+    assert ott["rk4 N=2"]["own_deploy"] == "rk4 N=2" and ott["dopri5 jump"]["own_deploy"] == "dopri5 rtol=1e-3 jump"
+    assert ott["rk4 N=2"]["f1_drop_to_ref"] == pytest.approx(0.25)
+    ctl = control_findings(m)
+    assert ctl == [{"method": "rk4", "steps": 2, "nfe_per_window": 8, "average": "rk4 N=2 avg", "point": "rk4 N=2",
+                    "average_macro_f1": 0.905, "average_max_logit_err": 0.1, "point_macro_f1": 0.85,
+                    "point_max_logit_err": 0.1}]
+    from bench.solver_report import f1_match_sentence, ott_sentence
+
+    assert "between h = 1/8 and h = 1/2" in ott_sentence({**m, "ott": list(ott.values())})
+    assert "rk4 N=2 avg" in f1_match_sentence({**m, "ott": list(ott.values())})
+
+
+# ----------------------------------------------------------------------------- the commands
+
+
+@pytest.fixture(scope="module")
+def tiny_run(small_run, tmp_path_factory) -> Path:
+    """A copy of the session's small run with a random-weight (untrained) CNODE checkpoint."""
+    from sim.dataset import load_dataset
+    from train.checkpoint import save_checkpoint
+    from train.data import fit_normalisation
+    from train.models import build_model
+
+    run = tmp_path_factory.mktemp("solvers") / "run"
+    run.mkdir()
+    for name in ("dataset.npz", "config.toml"):
+        shutil.copy(small_run / name, run / name)
+    ds = load_dataset(run / "dataset.npz")
+    cfg = load_config(run / "config.toml")
+    torch.manual_seed(0)
+    model = build_model("cnode", ds.n_channels, cfg.train, window=cfg.sim.window)
+    model.set_normalisation(*fit_normalisation(ds))
+    save_checkpoint(run / "cnode.pt", model, cfg.to_dict(), ds.channel_names)
+    return run
+
+
+def test_solvers_command_writes_every_field(tiny_run):
+    rc = cli_main(["solvers", "--run", str(tiny_run), "--sample", "3", "--steps", "1,2", "--fixed-methods",
+                   "euler,rk4", "--adaptive-methods", "dopri5,bosh3", "--rtols", "1e-2", "--jump", "both"])
+    assert rc == 0
+    out = json.loads((tiny_run / "bench" / "solvers.json").read_text())
+    assert set(out) == {"solvers", "matched", "matched_any_control", "reference", "meta"}
+    assert len(out["solvers"]) == 1 + 2 * 4 + 4  # reference, fixed x (point, average), adaptive
+    assert "rk4 N=2 avg" in {r["label"] for r in out["solvers"]}
+    assert len(out["matched_any_control"]) == len(out["matched"]) == 4
+    for r in out["solvers"]:
+        assert RECORD_FIELDS <= set(r)
+    for m in out["matched"]:
+        assert {"adaptive", "adaptive_nfe", "fixed", "fixed_nfe", "ratio"} <= set(m)
+    assert {"sample", "n_windows", "n_test_windows", "sample_indices", "threads", "latency_note", "checkpoint",
+            "command", "seconds"} <= set(out["meta"])
+    md = (tiny_run / "bench" / "solvers.md").read_text()
+    assert "### Matched accuracy" in md and "rk4 N=2" in md
+    for f in ("solver_error_vs_nfe.png", "solver_f1_vs_latency.png"):
+        assert (tiny_run / "figures" / f).read_bytes()[:4] == b"\x89PNG"
+
+
+def test_matrix_command_writes_every_field_and_reuses_models(tiny_run, capsys):
+    args = ["matrix", "--run", str(tiny_run), "--epochs", "1", "--max-train-windows", "96",
+            "--train", "dopri5,rk4:1,rk4:1:avg", "--deploy", "dopri5:1e-2:nojump,rk4:1,rk4:2,rk4:1:avg,ref",
+            "--set", "train.rtol=1e-2", "--set", "train.atol=1e-3", "--set", "train.jump_t=false"]
+    assert cli_main(args) == 0
+    out = json.loads((tiny_run / "bench" / "solver_matrix.json").read_text())
+    assert set(out) == {"train", "deploy", "cells", "ott", "controls", "meta"}
+    assert [i["label"] for i in out["train"]] == ["dopri5 nojump", "rk4 N=1", "rk4 N=1 avg"]
+    for i in out["train"]:
+        assert {"epochs", "train_seconds", "nfe_per_forward_train", "best_val_macro_f1", "control"} <= set(i)
+        assert i["n_train_windows"] == 96
+    assert len(out["cells"]) == 3 * 5
+    for c in out["cells"]:
+        assert {"train", "deploy", "macro_f1", "argmax_agreement", "max_logit_err", "mean_logit_err",
+                "nfe_per_window", "n_windows"} <= set(c)
+        if c["deploy"].startswith("reference"):
+            assert c["max_logit_err"] == 0
+    assert {o["train"] for o in out["ott"]} == {"dopri5 nojump", "rk4 N=1", "rk4 N=1 avg"}
+    assert out["controls"][0]["steps"] == 1 and out["controls"][0]["nfe_per_window"] == 4
+    assert {"seconds", "train_seconds", "epochs", "n_test_windows"} <= set(out["meta"])
+    assert (tiny_run / "figures" / "solver_matrix_f1.png").is_file()
+    assert (tiny_run / "figures" / "solver_controls.png").is_file()
+    assert "Ott et al." in (tiny_run / "bench" / "solver_matrix.md").read_text()
+    first = {c["train"] + c["deploy"]: c["macro_f1"] for c in out["cells"]}
+    capsys.readouterr()
+    assert args[8] == "dopri5,rk4:1,rk4:1:avg"
+    assert cli_main([*args[:8], "rk4:1:avg", *args[9:], "--reuse"]) == 0
+    assert "reuse rk4 N=1 avg" in capsys.readouterr().out
+    again = json.loads((tiny_run / "bench" / "solver_matrix.json").read_text())
+    assert {c["train"] + c["deploy"]: c["macro_f1"] for c in again["cells"]} == \
+        {k: v for k, v in first.items() if k.startswith("rk4 N=1 avg")}
+
+
+def test_commands_fail_with_one_line_errors(tiny_run, tmp_path, capsys):
+    assert cli_main(["solvers", "--run", str(tiny_run), "--checkpoint", str(tmp_path / "none.pt")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.count("\n") == 0 and "does not exist" in err
+    assert cli_main(["matrix", "--run", str(tiny_run), "--train", "rk4:0"]) == 2
+    assert "bad solver setting 'rk4:0'" in capsys.readouterr().err
+    assert cli_main(["solvers", "--run", str(tiny_run), "--fixed-methods", "heun"]) == 2
+    assert "unknown method 'heun'" in capsys.readouterr().err
+    assert cli_main(["matrix", "--run", str(tmp_path / "nothing")]) == 2
+    assert TrainSpec.parse("dopri5", load_config(tiny_run / "config.toml")).setting.rtol == 1e-3
