@@ -4,7 +4,7 @@ PY := .venv/bin/python
 RUN ?= runs/paper
 CONFIG ?= configs/paper.toml
 
-.PHONY: setup run test sim-bench study clean
+.PHONY: setup run test sim-bench study solvers solver-matrix clean
 
 setup:
 	bash scripts/setup.sh
@@ -20,6 +20,12 @@ sim-bench: setup
 
 study: setup
 	$(PY) -m quadfdi.cli train study --run $(RUN) --readme README.md
+
+solvers: setup
+	$(PY) -m quadfdi.cli bench solvers --run $(RUN)
+
+solver-matrix: setup
+	$(PY) -m quadfdi.cli bench solver-matrix --run $(RUN)
 
 clean:
 	rm -rf runs/test-* .pytest_cache

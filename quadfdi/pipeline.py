@@ -9,6 +9,8 @@ from quadfdi.cli import add_config_args
 from quadfdi.config import load_config
 from quadfdi.rundir import create_run
 
+PIPELINE_SOLVER_ARGS = ("--sample", "64")
+
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("run", help="run the whole pipeline (sim, train, export, parity, bench) into one run folder")
@@ -46,9 +48,12 @@ def run_all(args: argparse.Namespace) -> int:
     parity_run(run, cfg)
     timings["parity"] = time.perf_counter() - t0
     t0 = time.perf_counter()
-    bench_run(run, cfg)
+    # The solver study on 64 sampled test windows keeps the whole run inside ~20 minutes on
+    # 2 cores; `make solvers` runs it on 128 (about 11 minutes by itself).
+    bench_run(run, cfg, solver_args=list(PIPELINE_SOLVER_ARGS))
     timings["bench"] = time.perf_counter() - t0
     report = write_run_report(run.root)
-    print("stage times: " + ", ".join(f"{k} {v:.1f} s" for k, v in timings.items()))
+    print("stage times: " + ", ".join(f"{k} {v:.1f} s" for k, v in timings.items())
+          + f"; total {sum(timings.values()):.0f} s")
     print(f"report: {report}")
     return 0
