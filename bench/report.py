@@ -28,7 +28,8 @@ import json
 from pathlib import Path
 from typing import Callable
 
-from quadfdi.atomic import atomic_path, write_text
+from quadfdi.atomic import write_text
+from quadfdi.plotting import pyplot, save_png
 
 RUNTIME_ORDER = {"cpp": 0, "ort": 1, "torch": 2}
 RUNTIME_NAME = {"cpp": "C++", "ort": "ONNX Runtime", "torch": "PyTorch"}
@@ -389,21 +390,13 @@ def bench_section(bench: dict, figures: str = "figures", run_root: Path | None =
 
 
 def _save(fig, path: Path) -> None:
-    import matplotlib.pyplot as plt
-
-    with atomic_path(path, "wb") as fh:
-        fig.savefig(fh, format="png", dpi=90, bbox_inches="tight")
-    plt.close(fig)
+    save_png(fig, path, bbox_inches="tight")
 
 
 def draw_bench_figures(bench: dict, fig_dir: Path) -> list[Path]:
     """figures/bench_latency.png (batch-1 p50 with p90-p99 whiskers and each floor) and
     figures/bench_throughput.png (batch-96 windows per second)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    plt = pyplot()
     written = []
     recs1 = [r for r in bench["latency"] if r["batch"] == 1]
     recsn = [r for r in bench["latency"] if r["batch"] != 1]

@@ -18,27 +18,14 @@ from pathlib import Path
 
 import numpy as np
 
-from quadfdi.atomic import atomic_path
+from quadfdi.plotting import pyplot as _plt
+from quadfdi.plotting import save_png as _save
 
 MARKERS = {"euler": "o", "midpoint": "s", "rk4": "^", "dopri5": "D", "bosh3": "v"}
 COLORS = {"euler": "tab:blue", "midpoint": "tab:orange", "rk4": "tab:green", "dopri5": "tab:red", "bosh3": "tab:purple"}
 ERR_FLOOR = 1e-12  # a zero error cannot sit on a log axis
 
 
-def _plt():
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
-
-
-def _save(fig, path: Path) -> Path:
-    with atomic_path(path, "wb") as fh:
-        fig.savefig(fh, format="png", dpi=90)
-    _plt().close(fig)
-    return Path(path)
 
 
 def _families(records: list[dict]) -> dict[tuple, list[dict]]:

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from quadfdi.atomic import atomic_path
+from quadfdi.plotting import pyplot, save_png
 from quadfdi.config import CLASS_NAMES
 
 
@@ -23,11 +23,7 @@ def _series(ds, row: int, name: str) -> np.ndarray | None:
 
 def plot_trajectory(ds, row: int, out: str | Path) -> Path:
     """Draw trajectory ``row`` of dataset ``ds`` into the PNG ``out`` (atomic write)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    plt = pyplot()
     t = ds["time"]
     cls = int(ds["fault_class"][row])
     onset, det = float(ds["onset_s"][row]), float(ds["detectable_s"][row])
@@ -74,8 +70,4 @@ def plot_trajectory(ds, row: int, out: str | Path) -> Path:
     on_txt = f", onset {onset:.2f} s" if cls else ""
     fig.suptitle(f"trajectory {row}: {CLASS_NAMES[cls]}{extra}{on_txt}{det_txt} (dotted: onset, dashed: detectable)")
     fig.tight_layout()
-    out = Path(out)
-    with atomic_path(out, "wb") as fh:
-        fig.savefig(fh, format="png", dpi=90)
-    plt.close(fig)
-    return out
+    return save_png(fig, out)

@@ -9,26 +9,12 @@ from pathlib import Path
 import numpy as np
 from sklearn.metrics import confusion_matrix, roc_curve
 
-from quadfdi.atomic import atomic_path
+from quadfdi.plotting import pyplot as _plt
+from quadfdi.plotting import save_png as _save
 from quadfdi.config import CLASS_NAMES
 
 SHORT = ("Healthy", "Battery", "Motor", "Overheat")
 LABEL = {"cnode": "Neural ODE", "gru": "GRU", "baseline": "LogReg baseline"}
-
-
-def _plt():
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
-
-
-def _save(fig, path: Path) -> None:
-    with atomic_path(path, "wb") as fh:
-        fig.savefig(fh, format="png", dpi=90)
-    _plt().close(fig)
 
 
 def draw_curves(history: dict, out: Path) -> None:
