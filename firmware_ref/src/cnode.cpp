@@ -72,17 +72,22 @@ void copy_out(const Vec& v, float* out) {
   for (Eigen::Index i = 0; i < v.size(); ++i) out[i] = v[i];
 }
 
+// The matrix shapes a CNODE of either precision must have (same layout, other element type).
+template <class Model>
+bool shapes_ok(const Model& m) {
+  const CnodeDims& d = m.dims;
+  return view_ok(m.interp, d.stage_times, d.window) && view_ok(m.encoder_w, d.latent, d.channels) &&
+         view_ok(m.lin1_z, d.hidden, d.latent) && view_ok(m.lin1_u, d.hidden, d.channels) &&
+         view_ok(m.lin2_w, d.latent, d.hidden) && view_ok(m.head_w, d.classes, d.latent);
+}
+
 }  // namespace
 
 Status check(const CnodeF32& m) {
   const CnodeDims& d = m.dims;
   Status s = check_dims(d);
   if (s != Status::kOk) return s;
-  if (!view_ok(m.interp, d.stage_times, d.window) || !view_ok(m.encoder_w, d.latent, d.channels) ||
-      !view_ok(m.lin1_z, d.hidden, d.latent) || !view_ok(m.lin1_u, d.hidden, d.channels) ||
-      !view_ok(m.lin2_w, d.latent, d.hidden) || !view_ok(m.head_w, d.classes, d.latent)) {
-    return Status::kBadShape;
-  }
+  if (!shapes_ok(m)) return Status::kBadShape;
   return check_common(m);
 }
 
@@ -90,11 +95,7 @@ Status check(const CnodeI8& m) {
   const CnodeDims& d = m.dims;
   Status s = check_dims(d);
   if (s != Status::kOk) return s;
-  if (!view_ok(m.interp, d.stage_times, d.window) || !view_ok(m.encoder_w, d.latent, d.channels) ||
-      !view_ok(m.lin1_z, d.hidden, d.latent) || !view_ok(m.lin1_u, d.hidden, d.channels) ||
-      !view_ok(m.lin2_w, d.latent, d.hidden) || !view_ok(m.head_w, d.classes, d.latent)) {
-    return Status::kBadShape;
-  }
+  if (!shapes_ok(m)) return Status::kBadShape;
   if (!all_positive_finite(m.s_x, d.channels) || !all_positive_finite(m.s_u, d.channels) ||
       !all_positive_finite(m.s_stage, d.evals()) || !all_positive_finite(&m.s_hidden, 1) ||
       !all_positive_finite(&m.s_z1, 1)) {

@@ -52,16 +52,21 @@ void trace_row(const Vec& v, int n, float* out) {
   for (int i = 0; i < n; ++i) out[i] = v[i];
 }
 
+// The matrix shapes a GRU of either precision must have (same layout, other element type).
+template <class Model>
+bool shapes_ok(const Model& m) {
+  const GruDims& d = m.dims;
+  return view_ok(m.w_ih, 3 * d.hidden, d.channels) && view_ok(m.w_hh, 3 * d.hidden, d.hidden) &&
+         view_ok(m.head_w, d.classes, d.hidden);
+}
+
 }  // namespace
 
 Status check(const GruF32& m) {
   const GruDims& d = m.dims;
   Status s = check_dims(d);
   if (s != Status::kOk) return s;
-  if (!view_ok(m.w_ih, 3 * d.hidden, d.channels) || !view_ok(m.w_hh, 3 * d.hidden, d.hidden) ||
-      !view_ok(m.head_w, d.classes, d.hidden)) {
-    return Status::kBadShape;
-  }
+  if (!shapes_ok(m)) return Status::kBadShape;
   return check_common(m);
 }
 
@@ -69,10 +74,7 @@ Status check(const GruI8& m) {
   const GruDims& d = m.dims;
   Status s = check_dims(d);
   if (s != Status::kOk) return s;
-  if (!view_ok(m.w_ih, 3 * d.hidden, d.channels) || !view_ok(m.w_hh, 3 * d.hidden, d.hidden) ||
-      !view_ok(m.head_w, d.classes, d.hidden)) {
-    return Status::kBadShape;
-  }
+  if (!shapes_ok(m)) return Status::kBadShape;
   if (!all_positive_finite(m.s_x, d.channels) || !all_positive_finite(&m.s_h, 1)) return Status::kBadWeights;
   return check_common(m);
 }
