@@ -17,7 +17,7 @@ import json
 import shlex
 import sys
 
-from quadfdi.errors import QuadfdiError
+from core.errors import QuadfdiError
 
 
 def _command(args: argparse.Namespace) -> str:
@@ -26,7 +26,7 @@ def _command(args: argparse.Namespace) -> str:
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
-    from quadfdi.cli import add_config_args
+    from core.cliargs import add_config_args
 
     p = sub.add_parser("bench", help="latency, memory and solver benchmarks of a run (bench.json, report.md)",
                        description=__doc__.splitlines()[0])
@@ -79,7 +79,7 @@ def run_solver_matrix(args: argparse.Namespace) -> int:
 
 def run_bench(args: argparse.Namespace) -> int:
     from bench.run import bench_run
-    from quadfdi.rundir import open_run
+    from core.rundir import open_run
 
     if args.run is None:
         raise QuadfdiError("quadfdi bench needs --run <run folder> (a run with an export: quadfdi export --run ...)")

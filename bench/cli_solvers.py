@@ -28,7 +28,7 @@ import sys
 import time
 from pathlib import Path
 
-from quadfdi.errors import QuadfdiError
+from core.errors import QuadfdiError
 
 
 def _csv(kind, what: str):
@@ -102,10 +102,10 @@ def _command(default: str) -> str:
 
 
 def _write_json(path: Path, obj: dict) -> None:
-    from quadfdi.atomic import write_text
-    from train.metrics import to_jsonable
+    from core.atomic import write_text
+    from core.jsonio import write_json
 
-    write_text(path, json.dumps(to_jsonable(obj), indent=2, allow_nan=False) + "\n")
+    write_json(path, obj, indent=2)
 
 
 def _test_windows(run, cfg, model_blob=None):
@@ -133,8 +133,8 @@ def run_solvers(args: argparse.Namespace) -> int:
     from bench.solver_plots import draw_study
     from bench.solver_report import headline, study_markdown
     from bench.solvers import ADAPTIVE_METHODS, CONTROLS, FIXED_METHODS, default_settings, run_study
-    from quadfdi.atomic import write_text
-    from quadfdi.rundir import open_run
+    from core.atomic import write_text
+    from core.rundir import open_run
     from train.checkpoint import load_checkpoint
 
     run, cfg = open_run(args.run, args.overrides, need=("dataset",))
@@ -197,8 +197,8 @@ def run_matrix_cmd(args: argparse.Namespace) -> int:
     from bench.solver_plots import draw_matrix
     from bench.solver_report import matrix_markdown, ott_sentence
     from bench.solvers import Setting
-    from quadfdi.atomic import write_text
-    from quadfdi.rundir import open_run
+    from core.atomic import write_text
+    from core.rundir import open_run
     from sim.dataset import load_dataset
 
     run, cfg = open_run(args.run, args.overrides, need=("dataset",))
@@ -285,7 +285,7 @@ def run_render(args: argparse.Namespace) -> int:
     from bench.solver_plots import draw_matrix, draw_study
     from bench.solver_report import matrix_markdown, study_markdown
     from bench.solvers import CONTROLS, F1_TOL, matched_table
-    from quadfdi.atomic import write_text
+    from core.atomic import write_text
 
     root = Path(args.run)
     bench = root / "bench"

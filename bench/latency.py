@@ -35,7 +35,7 @@ from typing import Callable
 import numpy as np
 
 from bench.limits import cpu_prefix, run_json, worker_env
-from quadfdi.errors import QuadfdiError
+from core.errors import QuadfdiError
 
 ROOT = Path(__file__).resolve().parents[1]
 DEFAULT_FWREF = ROOT / "firmware_ref" / "build" / "fwref_infer"

@@ -37,7 +37,7 @@ import time
 from pathlib import Path
 from typing import Callable
 
-from quadfdi.errors import QuadfdiError
+from core.errors import QuadfdiError
 
 # (label, M, K, N): the models' products at batch 1 and 96, plus a large one that reaches the peak.
 #   cnode field lin1 (z and u concatenated: L + C = 63 -> H = 64), lin2 (64 -> 40);

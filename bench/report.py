@@ -28,8 +28,8 @@ import json
 from pathlib import Path
 from typing import Callable
 
-from quadfdi.atomic import write_text
-from quadfdi.plotting import pyplot, save_png
+from core.atomic import write_text
+from core.plotting import pyplot, save_png
 
 RUNTIME_ORDER = {"cpp": 0, "ort": 1, "torch": 2}
 RUNTIME_NAME = {"cpp": "C++", "ort": "ONNX Runtime", "torch": "PyTorch"}
@@ -446,7 +446,7 @@ def sim_section(root: Path) -> list[str]:
         return []
     import numpy as np
 
-    from quadfdi.config import CLASS_NAMES
+    from core.contracts import CLASS_NAMES
     from sim.dataset import SPLITS, load_dataset, window_starts
 
     try:

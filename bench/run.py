@@ -25,10 +25,10 @@ import time
 from pathlib import Path
 from typing import Callable
 
-from quadfdi.atomic import write_text
-from quadfdi.config import Config
-from quadfdi.errors import QuadfdiError
-from quadfdi.rundir import RunDir
+from core.atomic import write_text
+from core.config import Config
+from core.errors import QuadfdiError
+from core.rundir import RunDir
 
 SCHEMA_VERSION = 1
 QUICK_SOLVER_ARGS = ["--sample", "4", "--steps", "1,4,8", "--rtols", "1e-2,1e-3", "--jump", "on",
@@ -149,7 +149,7 @@ def bench_run(run: RunDir, cfg: Config, log: Callable[[str], None] = print, *, q
     from bench.report import draw_bench_figures, write_run_report
     from export.manifest import check_files, load_manifest
     from sim.dataset import load_dataset, make_windows
-    from train.metrics import to_jsonable
+    from core.jsonio import to_jsonable, write_json
 
     t_start = time.perf_counter()
     timing: dict[str, float] = {}
@@ -230,7 +230,7 @@ def bench_run(run: RunDir, cfg: Config, log: Callable[[str], None] = print, *, q
         "timing_s": timing,
     }
     bench = to_jsonable(bench)
-    write_text(bench_json_path(run), json.dumps(bench, indent=1, allow_nan=False) + "\n")
+    write_json(bench_json_path(run), bench, indent=1)
     figs = draw_bench_figures(bench, run.figures)
     report = write_run_report(run.root)
     log(f"bench: wrote {bench_json_path(run)}, {len(figs)} figures and {report} in {timing['total']:.0f} s "

@@ -37,7 +37,7 @@ from bench.solvers import (
     solve_batched,
     with_setting,
 )
-from quadfdi.config import Config, replace_section
+from core.config import Config, replace_section
 from sim.dataset import Windows
 from train.data import class_weights, fit_normalisation, split_windows
 from train.loop import train_model
@@ -267,7 +267,7 @@ def save_variant(path: Path, model: CNODE, info: dict, cfg: Config, channel_name
 
 def load_variant(path: Path) -> tuple[CNODE, dict] | None:
     """A model saved by ``save_variant`` (in its control's class) and its info; None if unusable."""
-    from quadfdi.errors import QuadfdiError
+    from core.errors import QuadfdiError
     from train.checkpoint import load_checkpoint
 
     try:

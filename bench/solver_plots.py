@@ -18,8 +18,8 @@ from pathlib import Path
 
 import numpy as np
 
-from quadfdi.plotting import pyplot as _plt
-from quadfdi.plotting import save_png as _save
+from core.plotting import pyplot as _plt
+from core.plotting import save_png as _save
 
 MARKERS = {"euler": "o", "midpoint": "s", "rk4": "^", "dopri5": "D", "bosh3": "v"}
 COLORS = {"euler": "tab:blue", "midpoint": "tab:orange", "rk4": "tab:green", "dopri5": "tab:red", "bosh3": "tab:purple"}

@@ -44,7 +44,7 @@ from pathlib import Path
 
 import numpy as np
 
-from quadfdi.errors import QuadfdiError
+from core.errors import QuadfdiError
 
 MODELS = {"none": 0, "cnode": 1, "gru": 2}
 PRECISIONS = {"none": 0, "fp32": 1, "int8": 2}

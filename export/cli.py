@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import argparse
 
-from quadfdi.cli import add_config_args
-from quadfdi.config import replace_section
-from quadfdi.rundir import open_run
+from core.cliargs import add_config_args
+from core.config import replace_section
+from core.rundir import open_run
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:

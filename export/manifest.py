@@ -15,9 +15,9 @@ import hashlib
 import json
 from pathlib import Path
 
-from quadfdi.atomic import write_text
-from quadfdi.errors import QuadfdiError
-from train.metrics import to_jsonable
+from core.atomic import write_text
+from core.errors import QuadfdiError
+from core.jsonio import write_json
 
 SCHEMA_VERSION = 1
 ARTIFACT_KEYS = ("cnode_fp32", "cnode_int8", "gru_fp32", "gru_int8")
@@ -34,7 +34,7 @@ def file_entry(data: bytes) -> dict:
 
 
 def write_manifest(path: str | Path, manifest: dict) -> None:
-    write_text(path, json.dumps(to_jsonable(manifest), indent=2, allow_nan=False) + "\n")
+    write_json(path, manifest, indent=2)
 
 
 def load_manifest(path: str | Path) -> dict:

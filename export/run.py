@@ -24,10 +24,11 @@ from export.onnx_gru import CALIBRATION_PROBES, build_gru_fp32, build_gru_int8, 
 from export.reference_bin import pick_windows, reference_bytes
 from export.verify import batch_independence, int8_vs_fp32, ort_outputs, parity, session, torch_logits
 from export.weights_bin import weights_bytes
-from quadfdi.atomic import ensure_dir, write_bytes
-from quadfdi.config import CLASS_NAMES, Config
-from quadfdi.errors import QuadfdiError
-from quadfdi.rundir import RunDir
+from core.atomic import ensure_dir, write_bytes
+from core.config import Config
+from core.contracts import CLASS_NAMES
+from core.errors import QuadfdiError
+from core.rundir import RunDir
 from sim.dataset import Dataset, load_dataset, make_windows
 from train.checkpoint import check_dataset_matches, load_checkpoint
 from train.metrics import compute_metrics

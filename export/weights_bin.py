@@ -35,8 +35,8 @@ import numpy as np
 from export.binfmt import Section, pack, read_file
 from export.onnx_cnode import CnodeParams, CnodeQuant
 from export.onnx_gru import GruParams, GruQuant
-from quadfdi.atomic import write_bytes
-from quadfdi.errors import QuadfdiError
+from core.atomic import write_bytes
+from core.errors import QuadfdiError
 
 MAGIC = b"QFDIWTS\0"
 VERSION = 1

@@ -7,8 +7,8 @@ import argparse
 import shlex
 import sys
 
-from quadfdi.cli import add_config_args
-from quadfdi.rundir import open_run
+from core.cliargs import add_config_args
+from core.rundir import open_run
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:

@@ -23,13 +23,13 @@ from export.weights_bin import read_weights
 from parity import compare, mcu as mcu_mod, runners
 from parity.build import HOST_BUILD, build_host
 from parity.report import markdown
-from quadfdi.atomic import ensure_dir, write_text
-from quadfdi.config import Config
-from quadfdi.errors import QuadfdiError
-from quadfdi.npzio import write_npz
-from quadfdi.rundir import RunDir
+from core.atomic import ensure_dir, write_text
+from core.config import Config
+from core.errors import QuadfdiError
+from core.npzio import write_npz
+from core.rundir import RunDir
 from sim.dataset import load_dataset, make_windows
-from train.metrics import to_jsonable
+from core.jsonio import write_json
 
 SCHEMA_VERSION = 1
 
@@ -39,7 +39,7 @@ def parity_dir(run: RunDir) -> Path:
 
 
 def _write_json(path: Path, data: dict) -> None:
-    write_text(path, json.dumps(to_jsonable(data), indent=2, allow_nan=False) + "\n")
+    write_json(path, data, indent=2)
 
 
 def fwref_parity(build_dir: Path, weights: Path, reference: Path) -> dict:

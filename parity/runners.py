@@ -17,8 +17,8 @@ import numpy as np
 import torch
 
 from export.verify import session, torch_logits
-from quadfdi.errors import QuadfdiError
-from quadfdi.rundir import RunDir
+from core.errors import QuadfdiError
+from core.rundir import RunDir
 from train.checkpoint import load_checkpoint
 from train.models import SolverSpec
 

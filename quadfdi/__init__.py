@@ -1,7 +1,8 @@
 """quadfdi: physics-based fault diagnosis of quadrotors, from simulation to a Cortex-M build.
 
-The stages live in their own top-level packages (``sim``, ``train``, ``export``, ``bench``);
-this package holds what they share: the config, atomic file output, errors and the CLI.
+This package is the app layer: the ``quadfdi`` command-line dispatcher, ``quadfdi run`` (every
+stage in order) and the run report. No stage imports it. What the stages share (config, atomic
+I/O, contracts) is the ground floor, ``core``.
 """
 
 __version__ = "0.1.0"

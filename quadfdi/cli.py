@@ -12,7 +12,7 @@ import argparse
 import importlib
 import sys
 
-from quadfdi.errors import QuadfdiError
+from core.errors import QuadfdiError
 
 STAGES = {
     "sim": "sim.cli",
@@ -50,14 +50,6 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print(f"quadfdi {args.stage}: interrupted", file=sys.stderr)
         return 130
-
-
-def add_config_args(p: argparse.ArgumentParser, config: bool = True) -> None:
-    """The options every stage shares: ``--config`` and repeated ``--set section.key=value``."""
-    if config:
-        p.add_argument("--config", default="configs/paper.toml", help="TOML config (default: %(default)s)")
-    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="SECTION.KEY=VALUE",
-                   help="override one config value; repeatable")
 
 
 if __name__ == "__main__":

@@ -5,9 +5,9 @@ from __future__ import annotations
 import argparse
 import time
 
-from quadfdi.cli import add_config_args
-from quadfdi.config import load_config
-from quadfdi.rundir import create_run
+from core.cliargs import add_config_args
+from core.config import load_config
+from core.rundir import create_run
 
 PIPELINE_SOLVER_ARGS = ("--sample", "64")
 

@@ -24,7 +24,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from quadfdi.errors import QuadfdiError
+from core.errors import QuadfdiError
 
 ASSIGN_SPAWN_KEY = (0xA55,)
 TRAIN, VALIDATION, TEST = 0, 1, 2

@@ -7,10 +7,10 @@ import argparse
 import time
 from pathlib import Path
 
-from quadfdi.cli import add_config_args
-from quadfdi.config import Config, load_config
-from quadfdi.errors import QuadfdiError
-from quadfdi.rundir import RunDir, create_run, open_run
+from core.cliargs import add_config_args
+from core.config import Config, load_config
+from core.errors import QuadfdiError
+from core.rundir import RunDir, create_run, open_run
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:

@@ -18,11 +18,11 @@ from typing import Any
 
 import numpy as np
 
-from quadfdi.npzio import read_npz, write_npz  # noqa: F401  (re-exported: the dataset's own I/O)
-from quadfdi.config import Config, build_config
-from quadfdi.errors import QuadfdiError
+from core.contracts import SPLITS
+from core.npzio import read_npz, write_npz  # noqa: F401  (re-exported: the dataset's own I/O)
+from core.config import Config, build_config
+from core.errors import QuadfdiError
 
-SPLITS = {"train": 0, "validation": 1, "test": 2}
 
 # key -> (dtype kind, number of dimensions); the contract of docs/formats.md.
 REQUIRED_KEYS: dict[str, tuple[str, int]] = {

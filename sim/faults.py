@@ -22,7 +22,6 @@ import numpy as np
 from sim.params import VehicleParams
 
 HEALTHY, BATTERY, MOTOR, OVERHEAT = 0, 1, 2, 3
-N_CLASSES = 4
 
 
 def sat(u: np.ndarray) -> np.ndarray:

@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from quadfdi.errors import QuadfdiError
+from core.errors import QuadfdiError
 
 
 @dataclass(frozen=True)

@@ -6,8 +6,8 @@ from pathlib import Path
 
 import numpy as np
 
-from quadfdi.plotting import pyplot, save_png
-from quadfdi.config import CLASS_NAMES
+from core.plotting import pyplot, save_png
+from core.contracts import CLASS_NAMES
 
 
 def _series(ds, row: int, name: str) -> np.ndarray | None:

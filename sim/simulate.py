@@ -40,8 +40,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from quadfdi.config import SimConfig
-from quadfdi.errors import QuadfdiError
+from core.config import SimConfig
+from core.errors import QuadfdiError
 from sim import battery, controller, faults, reference, rigid_body, sensors, thermal
 from sim.assign import assign
 from sim.params import VehicleParams, get_vehicle

@@ -33,8 +33,8 @@ def exported_run(small_run, tmp_path_factory) -> Path:
     import torch
 
     from export.run import export_run
-    from quadfdi.config import replace_section
-    from quadfdi.rundir import open_run
+    from core.config import replace_section
+    from core.rundir import open_run
     from sim.dataset import load_dataset
     from train.checkpoint import save_checkpoint
     from train.data import fit_normalisation

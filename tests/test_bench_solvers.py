@@ -30,7 +30,7 @@ from bench.solvers import (
     solve_each,
     with_setting,
 )
-from quadfdi.config import load_config
+from core.config import load_config
 from train.models import CNODE
 
 C, W = 5, 80

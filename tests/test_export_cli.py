@@ -101,8 +101,8 @@ def test_a_wrong_gru_graph_stops_the_export_before_anything_is_written(small_run
     import functools
 
     import export.run as export_run_module
-    from quadfdi.errors import QuadfdiError
-    from quadfdi.rundir import open_run
+    from core.errors import QuadfdiError
+    from core.rundir import open_run
 
     run_dir = make_run(small_run, tmp_path / "run")
     wrong = functools.partial(export_run_module.build_gru_fp32, linear_before_reset=0)

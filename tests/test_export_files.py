@@ -20,7 +20,7 @@ from export.binfmt import Section, pack
 from export.manifest import SCHEMA_VERSION, load_manifest
 from export.reference_bin import read_reference, reference_bytes
 from export.weights_bin import MAGIC, read_weights, write_weights
-from quadfdi.errors import QuadfdiError
+from core.errors import QuadfdiError
 from tests.test_export_graphs import make_tiny, run
 
 F = np.float32

@@ -20,7 +20,8 @@ from sklearn.metrics import (
     roc_auc_score,
 )
 
-from quadfdi.config import CLASS_NAMES
+from core.contracts import CLASS_NAMES
+from core.jsonio import to_jsonable
 from train.metrics import (
     METRIC_KEYS,
     classification_metrics,
@@ -29,7 +30,6 @@ from train.metrics import (
     macro_specificity,
     mean_std,
     summarize_seeds,
-    to_jsonable,
 )
 
 LABELS = [0, 1, 2, 3]

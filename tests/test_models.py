@@ -16,7 +16,7 @@ import pytest
 import torch
 from torchdiffeq import odeint
 
-from quadfdi.config import TrainConfig
+from core.config import TrainConfig
 from train.control import LinearPath, interp_matrix
 from train.models import (
     CNODE,

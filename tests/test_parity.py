@@ -17,9 +17,9 @@ from parity import compare, runners
 from parity.mcu import tools_missing
 from parity.run import parity_run
 from quadfdi.cli import STAGES, main
-from quadfdi.errors import QuadfdiError
-from quadfdi.npzio import read_npz
-from quadfdi.rundir import open_run
+from core.errors import QuadfdiError
+from core.npzio import read_npz
+from core.rundir import open_run
 from tests.test_firmware_fixtures import fw_run, host_build  # noqa: F401 (fixtures)
 
 PAIRS = ("cpp_fp32_vs_ort_fp32", "cpp_fp32_vs_torch", "ort_fp32_vs_torch", "cpp_int8_vs_ort_int8",

@@ -100,7 +100,7 @@ def test_unwritable_output(tmp_path):
 
 
 def test_truncated_dataset(small_run, tmp_path):
-    from quadfdi.errors import QuadfdiError
+    from core.errors import QuadfdiError
 
     bad = tmp_path / "dataset.npz"
     bad.write_bytes((small_run / "dataset.npz").read_bytes()[:5000])
@@ -113,7 +113,7 @@ def test_truncated_dataset(small_run, tmp_path):
 
 
 def test_nan_telemetry_rejected(small_run, tmp_path):
-    from quadfdi.errors import QuadfdiError
+    from core.errors import QuadfdiError
     from sim.dataset import read_npz, write_npz
 
     arrays = read_npz(small_run / "dataset.npz")

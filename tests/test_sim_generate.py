@@ -9,8 +9,8 @@ import io
 import numpy as np
 import pytest
 
-from quadfdi.config import SimConfig
-from quadfdi.errors import QuadfdiError
+from core.config import SimConfig
+from core.errors import QuadfdiError
 from sim import sensors
 from sim.assign import assign, class_counts
 from sim.params import get_vehicle

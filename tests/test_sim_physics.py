@@ -13,7 +13,7 @@ import pytest
 from scipy.integrate import solve_ivp
 from scipy.spatial.transform import Rotation
 
-from quadfdi.errors import QuadfdiError
+from core.errors import QuadfdiError
 from sim import battery, controller, faults, rigid_body, sensors, thermal
 from sim.params import VEHICLES, get_vehicle
 from sim.simulate import rk4_step

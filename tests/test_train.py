@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 import torch
 
-from quadfdi.config import load_config, replace_section
-from quadfdi.errors import QuadfdiError
+from core.config import load_config, replace_section
+from core.errors import QuadfdiError
 from sim.dataset import load_dataset
 from tests.conftest import quadfdi
 from train.checkpoint import check_dataset_matches, load_checkpoint, save_checkpoint

@@ -23,9 +23,8 @@ from sklearn.linear_model import LogisticRegression
 from sklearn.pipeline import Pipeline
 from sklearn.preprocessing import StandardScaler
 
-from quadfdi.config import CLASS_NAMES
+from core.contracts import CLASS_NAMES, N_CLASSES
 
-N_CLASSES = len(CLASS_NAMES)
 MAX_ITER = 2000
 
 

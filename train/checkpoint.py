@@ -12,8 +12,8 @@ from typing import Any
 
 import torch
 
-from quadfdi.atomic import atomic_path
-from quadfdi.errors import QuadfdiError
+from core.atomic import atomic_path
+from core.errors import QuadfdiError
 from train.models import model_from_signature, model_signature
 
 CHECKPOINT_VERSION = 1

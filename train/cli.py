@@ -8,9 +8,9 @@ import shlex
 import sys
 from pathlib import Path
 
-from quadfdi.cli import add_config_args
-from quadfdi.errors import QuadfdiError
-from quadfdi.rundir import open_run
+from core.cliargs import add_config_args
+from core.errors import QuadfdiError
+from core.rundir import open_run
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:

@@ -10,9 +10,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from core.contracts import N_CLASSES
+
 from sim.dataset import Dataset, Windows, make_windows
 
-N_CLASSES = 4
 
 
 @dataclass(frozen=True)

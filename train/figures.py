@@ -9,9 +9,9 @@ from pathlib import Path
 import numpy as np
 from sklearn.metrics import confusion_matrix, roc_curve
 
-from quadfdi.plotting import pyplot as _plt
-from quadfdi.plotting import save_png as _save
-from quadfdi.config import CLASS_NAMES
+from core.plotting import pyplot as _plt
+from core.plotting import save_png as _save
+from core.contracts import CLASS_LABELS, CLASS_NAMES
 
 SHORT = ("Healthy", "Battery", "Motor", "Overheat")
 LABEL = {"cnode": "Neural ODE", "gru": "GRU", "baseline": "LogReg baseline"}
@@ -35,7 +35,7 @@ def draw_curves(history: dict, out: Path) -> None:
 
 def draw_confusion(y: np.ndarray, proba: np.ndarray, title: str, out: Path) -> None:
     plt = _plt()
-    cm = confusion_matrix(y, proba.argmax(1), labels=[0, 1, 2, 3])
+    cm = confusion_matrix(y, proba.argmax(1), labels=list(CLASS_LABELS))
     fig, ax = plt.subplots(figsize=(5, 4.3))
     ax.imshow(cm, cmap="Blues")
     for i in range(4):

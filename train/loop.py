@@ -16,7 +16,8 @@ import numpy as np
 import torch
 from sklearn.metrics import f1_score
 
-from quadfdi.config import TrainConfig
+from core.contracts import CLASS_LABELS
+from core.config import TrainConfig
 from sim.dataset import Windows
 from train.data import batch_order
 from train.models import GRUClassifier
@@ -95,7 +96,7 @@ def train_model(model: torch.nn.Module, train: Windows, val: Windows, cfg: Train
         if nfes:
             hist.nfe_per_forward.append(float(np.mean(nfes)))
         val_pred = predict_proba(model, val.x).argmax(1)
-        f1 = float(f1_score(val.y, val_pred, labels=[0, 1, 2, 3], average="macro", zero_division=0))
+        f1 = float(f1_score(val.y, val_pred, labels=list(CLASS_LABELS), average="macro", zero_division=0))
         hist.val_macro_f1.append(f1)
         if f1 > best_f1:
             best_f1, best_state, hist.best_epoch = f1, copy.deepcopy(model.state_dict()), epoch

@@ -64,7 +64,6 @@ Undefined values are NaN, never an exception; ``to_jsonable`` turns them into JS
 
 from __future__ import annotations
 
-import json
 import math
 import re
 import warnings
@@ -86,10 +85,9 @@ from sklearn.metrics import (
 )
 from sklearn.preprocessing import label_binarize
 
-from quadfdi.config import CLASS_NAMES
+from core.contracts import CLASS_NAMES, N_CLASSES
 
 LABELS = list(range(len(CLASS_NAMES)))
-N_CLASSES = len(CLASS_NAMES)
 THRESHOLD = 0.5  # any-fault decision: 1 - p(Healthy) > THRESHOLD
 T_TOL_S = 1e-6  # tolerance of "window ending at or after t_det"
 
@@ -376,32 +374,3 @@ def mean_std(summary: Mapping | Sequence[Mapping], ddof: int = 1) -> dict:
         else:
             out[k] = _mean_std(v, ddof)
     return out
-
-
-def to_jsonable(d: Any) -> Any:
-    """Recursively convert to plain JSON types; NaN and +-inf become None (JSON null).
-
-    The result passes ``json.dumps(..., allow_nan=False)``. numpy scalars and arrays become Python
-    numbers and lists, tuples become lists, mapping keys become strings.
-    """
-    if isinstance(d, Mapping):
-        return {str(k): to_jsonable(v) for k, v in d.items()}
-    if isinstance(d, np.ndarray):
-        return [to_jsonable(v) for v in d.tolist()]
-    if isinstance(d, (list, tuple)):
-        return [to_jsonable(v) for v in d]
-    if isinstance(d, (bool, np.bool_)):
-        return bool(d)
-    if isinstance(d, (int, np.integer)):
-        return int(d)
-    if isinstance(d, (float, np.floating)):
-        f = float(d)
-        return f if math.isfinite(f) else None
-    if d is None or isinstance(d, str):
-        return d
-    raise TypeError(f"to_jsonable: cannot convert {type(d).__name__}")
-
-
-def dumps(d: Any) -> str:
-    """Strict JSON text of ``to_jsonable(d)`` (no NaN tokens)."""
-    return json.dumps(to_jsonable(d), indent=2, allow_nan=False)

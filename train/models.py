@@ -17,7 +17,7 @@ import torch
 from torch import nn
 from torchdiffeq import odeint
 
-from quadfdi.config import TrainConfig
+from core.config import TrainConfig
 from train.control import LinearPath, interp_matrix, knots
 from train.solvers import FIXED_METHODS, SolverSpec, fixed_method, integrate_fixed, nearest_index, stage_times
 

@@ -13,17 +13,18 @@ from typing import Callable
 import numpy as np
 import torch
 
-from quadfdi.atomic import write_text
-from quadfdi.config import Config, replace_section
-from quadfdi.errors import QuadfdiError
-from quadfdi.rundir import RunDir
-from quadfdi.npzio import write_npz
+from core.atomic import write_text
+from core.config import Config, replace_section
+from core.errors import QuadfdiError
+from core.rundir import RunDir
+from core.npzio import write_npz
 from sim.dataset import Dataset, Windows, load_dataset
 from train.baseline import fit_baseline, predict_proba_baseline
 from train.checkpoint import save_checkpoint
 from train.data import class_weights, fit_normalisation, split_windows
 from train.loop import predict_proba, train_model
-from train.metrics import compute_metrics, to_jsonable
+from core.jsonio import write_json
+from train.metrics import compute_metrics
 from train.models import build_model
 
 
@@ -76,7 +77,7 @@ def write_outputs(run: RunDir, ds: Dataset, cfg: Config, result: dict) -> None:
     if run.metrics.is_file():
         metrics = json.loads(run.metrics.read_text())
     metrics.update(result["metrics"])
-    write_text(run.metrics, json.dumps(to_jsonable(metrics), indent=2, allow_nan=False))
+    write_json(run.metrics, metrics, indent=2)
     hist_path = run.root / "history.json"
     hist = json.loads(hist_path.read_text()) if hist_path.is_file() else {}
     hist.update({k: h.to_dict() for k, h in result["history"].items()})

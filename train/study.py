@@ -11,11 +11,13 @@ from typing import Callable
 
 import numpy as np
 
-from quadfdi.atomic import write_text
-from quadfdi.config import CLASS_NAMES, Config, replace_section
-from quadfdi.rundir import RunDir
+from core.atomic import write_text
+from core.config import Config, replace_section
+from core.contracts import CLASS_NAMES
+from core.rundir import RunDir
 from sim.dataset import load_dataset
-from train.metrics import summarize_seeds, to_jsonable
+from core.jsonio import to_jsonable, write_json
+from train.metrics import summarize_seeds
 
 # The paper's Tables 3 and 4 (seed paper, Section IV-B).
 PAPER_TABLE3 = {
@@ -90,7 +92,7 @@ def run_study(run: RunDir, cfg: Config, seeds: list[int], command: str, log: Cal
     seeds_json = to_jsonable(by_model)
     seeds_json["seeds"] = list(seeds)
     seeds_json["seconds_per_seed"] = timings
-    write_text(run.root / "seeds.json", json.dumps(seeds_json, indent=2, allow_nan=False))
+    write_json(run.root / "seeds.json", seeds_json, indent=2)
     table = results_table(by_model, seeds, command)
     write_text(run.root / "results.md", table)
     return {"seeds": seeds_json, "table": table}

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from quadfdi.atomic import atomic_path
+from core.atomic import atomic_path
 
 
 def pyplot():

@@ -8,9 +8,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-from quadfdi.atomic import ensure_dir, write_text
-from quadfdi.config import Config, dumps_toml, load_config
-from quadfdi.errors import QuadfdiError
+from core.atomic import ensure_dir, write_text
+from core.config import Config, dumps_toml, load_config
+from core.errors import QuadfdiError
 
 
 @dataclass(frozen=True)

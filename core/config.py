@@ -16,9 +16,8 @@ from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any, get_args, get_origin, get_type_hints
 
-from quadfdi.errors import QuadfdiError
+from core.errors import QuadfdiError
 
-CLASS_NAMES = ("Healthy", "BatteryFault", "MotorFault", "OverheatFault")
 
 
 @dataclass(frozen=True)
