@@ -1,7 +1,7 @@
 """Fixed-step Runge-Kutta solvers, each a small declared thing (torchdiffeq style).
 
-One step function per scheme, written once and reused by training (``train.models``), by the
-ONNX unrolling (``export``) and by the tests: ``step(f, t, z, h) -> z_next`` with ``f(t, z)`` the
+One step function per scheme, reused by training (``train.models``) and the tests; classic RK4's
+lives in ``core.rk4`` (the program the simulator, the ONNX unrolling and the C++ reference share): ``step(f, t, z, h) -> z_next`` with ``f(t, z)`` the
 vector field, ``t`` and ``h`` Python floats and ``z`` a torch tensor or a numpy array (the steps
 are pure arithmetic, so they work on both and keep the dtype of ``z``). ``integrate_fixed`` owns
 the grid loop.
@@ -23,6 +23,8 @@ from typing import Any, Callable
 
 import numpy as np
 
+from core.rk4 import RK4_C, RK4_ORDER, rk4_step
+
 State = Any  # torch.Tensor or np.ndarray, any shape, e.g. (batch, latent)
 VectorField = Callable[[float, State], State]  # f(t, z) -> dz/dt, same shape and dtype as z
 StepFunction = Callable[[VectorField, float, State, float], State]
@@ -43,21 +45,6 @@ def midpoint_step(f: VectorField, t: float, z: State, h: float) -> State:
     half = 0.5 * h
     k1 = f(t, z)
     return z + h * f(t + half, z + half * k1)
-
-
-def rk4_step(f: VectorField, t: float, z: State, h: float) -> State:
-    """Classic RK4. Order 4, four evaluations, stages at t, t + h/2, t + h/2, t + h.
-
-    k1 = f(t, z), k2 = f(t + h/2, z + h/2 k1), k3 = f(t + h/2, z + h/2 k2),
-    k4 = f(t + h, z + h k3); z_next = z + h/6 (k1 + 2 k2 + 2 k3 + k4).
-    The C++ reference evaluates exactly these expressions in this order (float rounding parity).
-    """
-    half = 0.5 * h
-    k1 = f(t, z)
-    k2 = f(t + half, z + half * k1)
-    k3 = f(t + half, z + half * k2)
-    k4 = f(t + h, z + h * k3)
-    return z + (h / 6.0) * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
 
 
 @dataclass(frozen=True)
@@ -82,7 +69,7 @@ class FixedMethod:
 FIXED_METHODS: dict[str, FixedMethod] = {
     "euler": FixedMethod("euler", 1, (0.0,), euler_step),
     "midpoint": FixedMethod("midpoint", 2, (0.0, 0.5), midpoint_step),
-    "rk4": FixedMethod("rk4", 4, (0.0, 0.5, 0.5, 1.0), rk4_step),
+    "rk4": FixedMethod("rk4", RK4_ORDER, RK4_C, rk4_step),  # core.rk4: the one RK4 program
 }
 
 
