@@ -16,7 +16,7 @@ from scipy.spatial.transform import Rotation
 from core.errors import QuadfdiError
 from sim import battery, controller, faults, rigid_body, sensors, thermal
 from sim.params import VEHICLES, get_vehicle
-from sim.simulate import rk4_step
+from sim.dynamics import rk4_step
 
 VP = get_vehicle("f450_3s")
 RNG = np.random.default_rng(1234)
