@@ -4,11 +4,11 @@ Augmented integrated state (Eq. 1), (batch, 17): p (0:3) [m], v (3:6) [m/s], eta
 omega_B (9:12) [rad/s], SoC (12) [-], T_m (13:17) [degC]. V_b and I_b are algebraic (closed
 form in ``battery.terminal`` at every evaluation), so they are outputs, not integrated states.
 
-Integration: classic RK4 (weights 1/6, 1/3, 1/3, 1/6, stages at 0, h/2, h/2, h; not the 3/8
-rule) at a fixed step ``cfg.sim_dt_s`` = 5 ms, ``cfg.substeps`` = 8 steps per 40 ms telemetry
-sample. Why: the fastest closed-loop mode is the body-rate loop at ~25 rad/s (h * 25 = 0.125,
-far inside RK4's stability region and with a local error ~1e-9), and a fixed step keeps every
-trajectory of a batch on the same time grid, which is what makes the batch vectorisable and the
+Integration: classic RK4 (``core.rk4.rk4_step``: weights 1/6, 1/3, 1/3, 1/6, stages at 0, h/2,
+h/2, h; not the 3/8 rule) at a fixed step ``cfg.sim_dt_s`` = 5 ms, ``cfg.substeps`` = 8 steps
+per 40 ms telemetry sample. Why: the fastest closed-loop mode is the body-rate loop at
+~25 rad/s (h * 25 = 0.125, far inside RK4's stability region and with a local error ~1e-9),
+and a fixed step keeps every trajectory of a batch on the same time grid, which is what makes the batch vectorisable and the
 result independent of the batch's composition. The controller runs at every step and its
 command is held over the step (zero-order hold), like a 200 Hz flight controller; so are the
 exogenous fault severities s_k(t) (Eq. 6) and the voltage sensitivity kappa_V, which uses the
@@ -31,30 +31,17 @@ a trajectory's numbers do not depend on the other trajectories of its batch.
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from typing import NamedTuple
 
 import numpy as np
 
 from core.config import SimConfig
+from core.rk4 import rk4_step
 from sim import battery, controller, faults, reference, rigid_body, thermal
 from sim.params import VehicleParams
 
 N_X = 17  # integrated augmented state size
 REF_BLOCK_STEPS = 128  # reference evaluated for this many steps at once (speed only)
-
-
-def rk4_step(f: Callable[[np.ndarray, float], np.ndarray], x: np.ndarray, t: float, dt: float,
-             k1: np.ndarray | None = None) -> np.ndarray:
-    """One classic RK4 step of x' = f(x, t); ``k1`` = f(x, t) when the caller already has it.
-    x: (batch, n) -> (batch, n)."""
-    if k1 is None:
-        k1 = f(x, t)
-    h2 = 0.5 * dt
-    k2 = f(x + h2 * k1, t + h2)
-    k3 = f(x + h2 * k2, t + h2)
-    k4 = f(x + dt * k3, t + dt)
-    return x + (dt / 6.0) * ((k1 + k4) + 2.0 * (k2 + k3))
 
 
 class StepInputs(NamedTuple):
@@ -215,5 +202,5 @@ def integrate(x: np.ndarray, V_prev: np.ndarray, ref: dict[str, np.ndarray], sch
             rec.take(n // sub, x, aux, F_cmd, u, kappa, r)
         if n == n_steps:
             break
-        x = rk4_step(lambda xs, ts: augmented_deriv(xs, u, vp)[0], x, t, dt, k1)
+        x = rk4_step(lambda ts, xs: augmented_deriv(xs, u, vp)[0], t, x, dt, k1)
     return rec

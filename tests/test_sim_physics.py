@@ -14,9 +14,9 @@ from scipy.integrate import solve_ivp
 from scipy.spatial.transform import Rotation
 
 from core.errors import QuadfdiError
-from sim import battery, controller, faults, rigid_body, sensors, thermal
+from core.rk4 import rk4_step
+from sim import battery, controller, dynamics, faults, rigid_body, sensors, thermal
 from sim.params import VEHICLES, get_vehicle
-from sim.dynamics import rk4_step
 
 VP = get_vehicle("f450_3s")
 RNG = np.random.default_rng(1234)
@@ -48,20 +48,25 @@ def test_vehicle_is_plausible_f450():
 # ----------------------------------------------------------------------------- integrator
 
 
+def test_simulator_integrates_with_the_shared_rk4():
+    # one RK4 program for the simulator, training, ONNX and C++ (core/rk4.py)
+    assert dynamics.rk4_step is rk4_step
+
+
 def test_rk4_is_classic_not_three_eighths():
     # x' = t^4 over one step of h = 1: classic RK4 is Simpson's rule (5/24); the 3/8 rule gives 11/54.
     calls = []
 
-    def f(x, t):
+    def f(t, x):
         calls.append(t)
         return np.full_like(x, t**4)
 
-    x1 = rk4_step(f, np.zeros((1, 1)), 0.0, 1.0)
+    x1 = rk4_step(f, 0.0, np.zeros((1, 1)), 1.0)
     assert x1[0, 0] == pytest.approx(5.0 / 24.0, abs=1e-15)
     assert abs(x1[0, 0] - 11.0 / 54.0) > 1e-3
     assert calls == [0.0, 0.5, 0.5, 1.0]  # 4 evaluations, stages at 0, h/2, h/2, h
     calls.clear()
-    rk4_step(f, np.zeros((1, 1)), 0.0, 1.0, k1=f(np.zeros((1, 1)), 0.0))
+    rk4_step(f, 0.0, np.zeros((1, 1)), 1.0, k1=f(0.0, np.zeros((1, 1))))
     assert len(calls) == 4  # k1 supplied by the caller: 3 more evaluations
 
 
@@ -95,7 +100,7 @@ def test_rigid_body_rk4_matches_solve_ivp():
         x = x0.copy()
         n = int(round(t_end / dt))
         for k in range(n):
-            x = rk4_step(lambda xs, ts: rigid_body.deriv(xs, F, VP), x, k * dt, dt)
+            x = rk4_step(lambda ts, xs: rigid_body.deriv(xs, F, VP), k * dt, x, dt)
         errs.append(np.abs(x[0] - ref.y[:, -1]).max())
     assert errs[0] < 2e-6, errs  # the simulator's 5 ms step
     assert 12 < errs[0] / errs[1] < 20, errs  # fourth order: halving h divides the error by ~16
@@ -190,14 +195,14 @@ def test_soc_drop_equals_integrated_current_over_capacity():
     def power(t):
         return 160 + 60 * np.sin(0.7 * t)
 
-    def f(x, t):
+    def f(t, x):
         _, I, _ = battery.terminal(x[:, 0], np.full(1, power(t)), VP.R_0, 0.0, 1.0, VP)
         return battery.deriv(I, VP.C_nom)[:, None]
 
     x, dt = np.array([[0.9]]), 0.01
     for k in range(1000):
-        x = rk4_step(f, x, k * dt, dt)
-    soc_t = solve_ivp(lambda t, y: f(y[None, :], t)[0], (0, 10), [0.9], rtol=1e-12, atol=1e-14, dense_output=True)
+        x = rk4_step(f, k * dt, x, dt)
+    soc_t = solve_ivp(lambda t, y: f(t, y[None, :])[0], (0, 10), [0.9], rtol=1e-12, atol=1e-14, dense_output=True)
     ts = np.linspace(0, 10, 20001)
     I = np.array([battery.terminal(np.array([soc_t.sol(t)[0]]), np.array([power(t)]), VP.R_0, 0.0, 1.0, VP)[1][0]
                   for t in ts])
@@ -220,7 +225,7 @@ def test_thermal_steady_state_and_time_constant():
     # from ambient: T(t) = T_ss + (T0 - T_ss) exp(-h t / C_th)
     T, dt = np.full((1, 4), T_amb), 0.05
     for k in range(800):  # 40 s
-        T = rk4_step(lambda Ts, ts: thermal.deriv(Ts, I_m, F, h, Q, T_amb, VP), T, k * dt, dt)
+        T = rk4_step(lambda ts, Ts: thermal.deriv(Ts, I_m, F, h, Q, T_amb, VP), k * dt, T, dt)
     exact = T_ss + (T_amb - T_ss) * np.exp(-h * 40.0 / VP.C_th)
     np.testing.assert_allclose(T, exact, rtol=1e-9)
 
