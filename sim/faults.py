@@ -70,7 +70,3 @@ def kappa_v(V_b: np.ndarray, vp: VehicleParams) -> np.ndarray:
     """Voltage sensitivity kappa_V = 1 - k_V (V_nom - V_b) / V_nom [-], (batch,)."""
     return 1.0 - vp.k_V * (vp.V_nom - V_b) / vp.V_nom
 
-
-def actuated_thrust(F_cmd: np.ndarray, c: np.ndarray, d: np.ndarray, kappa: np.ndarray) -> np.ndarray:
-    """Eq. (8): F_act = c_i d_m kappa_V F_cmd [N]; F_cmd, c, d (batch, 4), kappa (batch,)."""
-    return c * d * (kappa[:, None] * F_cmd)

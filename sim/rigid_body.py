@@ -42,7 +42,7 @@ def rot_z(psi: np.ndarray) -> np.ndarray:
 
 def rotation(eta: np.ndarray) -> np.ndarray:
     """R_B^I(eta) = Rz(psi) Ry(theta) Rx(phi), eta (batch, 3) -> (batch, 3, 3). Reference form
-    (used by tests and plots); ``deriv`` uses only its third column, written out."""
+    (the physics tests check ``deriv`` against it); ``deriv`` uses only its third column, written out."""
     return rot_z(eta[:, 2]) @ rot_y(eta[:, 1]) @ rot_x(eta[:, 0])
 
 
@@ -85,11 +85,6 @@ def deriv(x: np.ndarray, F: np.ndarray, vp: VehicleParams, out: np.ndarray | Non
     Returns (batch, 12).
     """
     return _deriv(x, *_moments(F, vp), vp, out)
-
-
-def deriv_tm(x: np.ndarray, T: np.ndarray, M: np.ndarray, vp: VehicleParams) -> np.ndarray:
-    """Eq. (2) from the collective thrust T (batch,) [N] and body moments M (batch, 3) [N m]."""
-    return _deriv(x, T, M[:, 0], M[:, 1], M[:, 2], vp, None)
 
 
 def _deriv(x: np.ndarray, T: np.ndarray, Mx: np.ndarray, My: np.ndarray, Mz: np.ndarray, vp: VehicleParams,

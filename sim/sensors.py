@@ -36,7 +36,6 @@ STATE_UNITS = (
     "m", "m", "m", "m/s", "m/s", "m/s", "rad", "rad", "rad", "rad/s", "rad/s", "rad/s",
     "-", "V", "A", "degC", "degC", "degC", "degC",
 )
-N_STATES = len(STATE_NAMES)  # 19
 
 # C of Eq. (9): telemetry channel j reads STATE_NAMES[_STATE_OF_CHANNEL[j]]; -1 = throttle (input).
 _STATE_OF_CHANNEL = tuple(STATE_NAMES.index(c) if c in STATE_NAMES else -1 for c in CHANNEL_NAMES)

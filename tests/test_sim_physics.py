@@ -265,8 +265,21 @@ def test_motor_fault_reduces_only_the_faulty_rotor():
     onehot = np.array([[0.0, 0.0, 1.0, 0.0]])
     c = faults.motor_effectiveness(np.array([0.8]), onehot, VP)
     np.testing.assert_allclose(c, [[1, 1, 1 - VP.a_M * 0.8, 1]])
-    F_act = faults.actuated_thrust(np.full((1, 4), 4.0), c, np.ones((1, 4)), np.array([1.0]))
-    assert F_act[0, 2] < F_act[0, 0] == 4.0
+    # through the simulator's thrust path (Eq. 8): F_act = c_i d_m kappa_V F_cmd, d_m = 1 below T_der;
+    # power and heat follow the drive (kappa_V F_cmd d_m), so the bus current does not change
+    x = np.zeros((1, dynamics.N_X))
+    x[0, 12], x[0, 13:17] = 0.8, VP.T_der - 20.0
+
+    def held(c_i):
+        return dynamics.StepInputs(np.full((1, 4), 4.0), c_i, np.ones((1, 4)), np.full((1, 4), VP.h_nom),
+                                   np.zeros((1, 4)), np.array([VP.R_0]), np.array([VP.C_nom]), np.zeros(1),
+                                   np.ones(1), np.full((1, 1), 20.0))
+
+    _, aux = dynamics.augmented_deriv(x, held(c), VP)
+    _, aux_ok = dynamics.augmented_deriv(x, held(np.ones((1, 4))), VP)
+    np.testing.assert_allclose(aux.F_act, 4.0 * c, rtol=1e-15)
+    assert aux.F_act[0, 2] < aux.F_act[0, 0] == 4.0
+    assert aux.I_b[0] == aux_ok.I_b[0]
 
 
 def test_overheat_fault_cools_less_heats_more_and_derates():
