@@ -128,6 +128,18 @@ def test_shard_regeneration_is_bitwise(small):
             assert shard[key].tobytes() == value.tobytes(), key
 
 
+def test_two_chunks_equal_one_batch(small):
+    # SMALL is one batch of 30 (chunk 240); the same dataset integrated as two batches of 15
+    assert SMALL.chunk >= SMALL.n_traj
+    seen = []
+    halves = generate(dataclasses.replace(SMALL, chunk=15), progress=seen.append)
+    assert seen == [15, 15]
+    assert halves.keys() == small.keys()
+    for key, value in small.items():
+        assert halves[key].dtype == value.dtype and halves[key].shape == value.shape, key
+        assert halves[key].tobytes() == value.tobytes(), key
+
+
 # ----------------------------------------------------------------------------- assign
 
 
