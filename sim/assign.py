@@ -24,11 +24,11 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from core.contracts import N_CLASSES, SPLIT_TEST, SPLIT_TRAIN, SPLIT_VALIDATION
 from core.errors import QuadfdiError
 
 ASSIGN_SPAWN_KEY = (0xA55,)
-TRAIN, VALIDATION, TEST = 0, 1, 2
-N_FAULT_CLASSES = 3
+N_FAULT_CLASSES = N_CLASSES - 1  # every class but Healthy
 
 
 def round_half_up(x: float) -> int:
@@ -67,7 +67,7 @@ def assign(seed: int, n_traj: int, fault_ratio: float, split: Sequence[float]) -
         raise QuadfdiError(f"sim.split must be three non-negative shares summing to 1, found {list(split)}")
     labels_cls, labels_split = [], []
     for cls, count in enumerate(class_counts(n_traj, fault_ratio)):
-        for code, k in enumerate(split_counts(int(count), split)):
+        for code, k in zip((SPLIT_TRAIN, SPLIT_VALIDATION, SPLIT_TEST), split_counts(int(count), split)):
             labels_cls += [cls] * k
             labels_split += [code] * k
     perm = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=ASSIGN_SPAWN_KEY)).permutation(n_traj)

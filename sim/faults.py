@@ -19,9 +19,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from core.contracts import CLASS_NAMES, HEALTHY  # noqa: F401  (faults.HEALTHY, beside the fault labels)
 from sim.params import VehicleParams
 
-HEALTHY, BATTERY, MOTOR, OVERHEAT = 0, 1, 2, 3
+BATTERY, MOTOR, OVERHEAT = (CLASS_NAMES.index(n) for n in ("BatteryFault", "MotorFault", "OverheatFault"))
 
 
 def sat(u: np.ndarray) -> np.ndarray:
