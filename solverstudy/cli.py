@@ -19,7 +19,8 @@ from core.cliargs import add_config_args
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("solvers", help="the ODE-solver study of a trained CNODE and the train-by-deploy matrix",
-                       description=__doc__.splitlines()[0])
+                       description="The ODE-solver study of a run's CNODE: fixed against adaptive solvers, "
+                                   "the train-by-deploy matrix, their report. Settings: config section [solvers].")
     acts = p.add_subparsers(dest="action", required=True, metavar="{study,matrix,render}")
     ps = acts.add_parser("study", help="fixed against adaptive solvers on one trained CNODE (solvers/solvers.json)")
     ps.add_argument("--checkpoint", default=None, help="CNODE checkpoint (default: <run>/cnode.pt)")
