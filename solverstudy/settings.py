@@ -33,9 +33,9 @@ class Setting:
 
     ``steps`` applies to fixed methods, ``rtol``/``atol``/``jump_t`` to adaptive ones (None
     otherwise). ``control`` is "point" (u at the stage times, the trained CNODE's own form) or
-    "average" (each fixed step sees the mean of u over the step, ``AverageControlCNODE``).
+    "average" (each fixed step sees the mean of u over the step, ``train.variants.AverageControlCNODE``).
     ``restart`` (adaptive only): a fresh ``odeint`` on each segment between two knots instead of
-    one solve told the knots through ``jump_t`` (``KnotRestartCNODE``); exact knot handling that
+    one solve told the knots through ``jump_t`` (``train.variants.KnotRestartCNODE``); exact knot handling that
     does not rely on torchdiffeq's ``jump_t`` bookkeeping (see ``KnotRestartCNODE`` for why).
     ``reference`` marks the float64 tight-tolerance solve everything is compared to.
     """

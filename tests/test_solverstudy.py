@@ -145,6 +145,25 @@ def test_average_control_cnode_is_a_hand_written_euler_loop():
     assert all(torch.equal(a, b) for a, b in zip(point.state_dict().values(), avg.state_dict().values()))
 
 
+def test_signature_records_the_control_and_a_checkpoint_loads_either(tmp_path):
+    from train.checkpoint import load_checkpoint, save_checkpoint
+    from train.models import model_from_signature, model_signature
+
+    avg = with_setting(_model(5), Setting("rk4", steps=2, control="average"))
+    sig = model_signature(avg)
+    assert sig["control"] == "average" and model_signature(_model())["control"] == "point"
+    save_checkpoint(tmp_path / "avg.pt", avg, {}, [f"c{i}" for i in range(C)])
+    back, blob = load_checkpoint(tmp_path / "avg.pt", "cnode")
+    assert type(back) is AverageControlCNODE and back.solver == avg.solver
+    x = torch.from_numpy(_windows(2))
+    with torch.no_grad():
+        torch.testing.assert_close(back(x), avg(x), rtol=0, atol=0)
+    with pytest.raises(ValueError, match="control"):  # train.models alone knows the point control only
+        model_from_signature(sig)
+    old = {k: v for k, v in sig.items() if k != "control"}  # checkpoints written before the control was recorded
+    assert type(model_from_signature(old)) is CNODE
+
+
 # ---------------------------------------------------------------------------- the study
 
 
