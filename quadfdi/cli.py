@@ -19,6 +19,7 @@ STAGES = {
     "train": "train.cli",
     "export": "export.cli",
     "parity": "parity.cli",
+    "solvers": "solverstudy.cli",
     "bench": "bench.cli",
     "run": "quadfdi.pipeline",
 }

@@ -8,7 +8,7 @@
 - ``solver_controls.png``: point-sampled vs step-average control, trained and deployed at N:
   macro F1 and logit error vs evaluations.
 
-Each takes the dict that ``bench.solvers.run_study`` / ``bench.solver_matrix.run_matrix``
+Each takes the dict that ``solverstudy.study.run_study`` / ``solverstudy.matrix.run_matrix``
 returns (or its JSON), so a figure is redrawn from the JSON alone.
 """
 
@@ -20,12 +20,11 @@ import numpy as np
 
 from core.plotting import pyplot as _plt
 from core.plotting import save_png as _save
+from solverstudy.files import MATRIX_FIGURES, STUDY_FIGURES
 
 MARKERS = {"euler": "o", "midpoint": "s", "rk4": "^", "dopri5": "D", "bosh3": "v"}
 COLORS = {"euler": "tab:blue", "midpoint": "tab:orange", "rk4": "tab:green", "dopri5": "tab:red", "bosh3": "tab:purple"}
 ERR_FLOOR = 1e-12  # a zero error cannot sit on a log axis
-
-
 
 
 def _families(records: list[dict]) -> dict[tuple, list[dict]]:
@@ -139,12 +138,11 @@ def plot_controls(matrix: dict, path: Path) -> Path:
 
 
 def draw_study(study: dict, figures: Path) -> list[Path]:
-    return [plot_error_vs_nfe(study, figures / "solver_error_vs_nfe.png"),
-            plot_f1_vs_latency(study, figures / "solver_f1_vs_latency.png")]
+    return [plot_error_vs_nfe(study, figures / STUDY_FIGURES[0]), plot_f1_vs_latency(study, figures / STUDY_FIGURES[1])]
 
 
 def draw_matrix(matrix: dict, figures: Path) -> list[Path]:
-    out = [plot_matrix(matrix, figures / "solver_matrix_f1.png")]
+    out = [plot_matrix(matrix, figures / MATRIX_FIGURES[0])]
     if matrix.get("controls"):
-        out.append(plot_controls(matrix, figures / "solver_controls.png"))
+        out.append(plot_controls(matrix, figures / MATRIX_FIGURES[1]))
     return out
