@@ -1,6 +1,12 @@
-"""parity.md: the parity report in markdown, from the dict that parity.json holds."""
+"""parity.md: the parity report in markdown, from the dict that parity.json holds; and parity's
+section of the run's report.md (``report_section``)."""
 
 from __future__ import annotations
+
+from pathlib import Path
+
+from core.jsonio import read_json
+from core.reportmd import demote, not_run
 
 PAIR_TITLES = {
     "cpp_fp32_vs_ort_fp32": "C++ fp32 vs ONNX Runtime fp32",
@@ -85,3 +91,19 @@ def markdown(report: dict) -> str:
     out += [f"Stage time: {report['timing_s']['total']:.1f} s "
             f"({', '.join(f'{k} {v:.1f} s' for k, v in report['timing_s'].items() if k != 'total')}).", ""]
     return "\n".join(out)
+
+
+def report_section(run_root: Path) -> list[str]:
+    """Parity's section of the run's report.md: parity/parity.md (headings one level down), else a
+    short summary of parity/parity.json."""
+    root = Path(run_root)
+    md = root / "parity" / "parity.md"
+    if md.is_file():
+        return ["## Parity (C++ reference vs ONNX Runtime and PyTorch; Cortex-M)", ""] + demote(md.read_text(), 2)
+    path = root / "parity" / "parity.json"
+    if not path.is_file():
+        return not_run("## Parity", f"no parity/parity.json in this run (`quadfdi parity --run {root}` writes it)")
+    p = read_json(path, "parity results")
+    verdict = "pass" if p.get("passed") else "FAIL"
+    return ["## Parity", "", f"Made by `{p.get('command', 'quadfdi parity')}`: **{verdict}**"
+            + ("" if p.get("passed") else ": " + "; ".join(p.get("problems", []))) + ".", ""]
