@@ -26,7 +26,7 @@ from __future__ import annotations
 import shutil
 from pathlib import Path
 
-from core.jsonio import read_json
+from core.reportmd import optional_json
 
 MCU_ITEMS = ("flash_bytes", "weights_bytes", "static_ram_bytes", "stack_peak_bytes")
 
@@ -103,10 +103,9 @@ def static_ram_records(fwref: str | None) -> list[dict]:
 
 def mcu_records(run_root: Path) -> tuple[list[dict], dict | None]:
     """Cortex-M flash / RAM / stack records from parity/mcu.json, and the file's content (None if absent)."""
-    path = run_root / "parity" / "mcu.json"
-    if not path.is_file():
+    mcu = optional_json(run_root / "parity" / "mcu.json", "Cortex-M results")
+    if mcu is None:
         return [], None
-    mcu = read_json(path, "Cortex-M results")
     out = []
     for cpu, r in (mcu.get("cpus") or {}).items():
         for key, m in (r.get("models") or {}).items():

@@ -16,8 +16,7 @@ from bench.figures import draw_bench_figures
 from bench.report_fmt import RUNTIME_NAME, RUNTIME_ORDER, nbytes, setting, us
 from bench.report_targets import targets_section
 from core.errors import QuadfdiError
-from core.jsonio import read_json
-from core.reportmd import figure_links, not_run, num
+from core.reportmd import figure_links, not_run, num, optional_json
 from core.tables import md_table
 
 HEADING = "## Bench: latency, memory, limits"
@@ -27,9 +26,9 @@ __all__ = ["report_section", "headline", "redraw_figures", "draw_bench_figures",
 def load_bench(run_root: Path) -> dict | None:
     """bench.json of a run (None when bench has not run); a foreign or truncated file is a one-line error."""
     path = Path(run_root) / "bench.json"
-    if not path.is_file():
+    bench = optional_json(path, "bench results")
+    if bench is None:
         return None
-    bench = read_json(path, "bench results")
     if not isinstance(bench, dict) or bench.get("schema_version") != 1 or "latency" not in bench:
         raise QuadfdiError(f"{path} is not a quadfdi bench.json of schema version 1 (re-run quadfdi bench)")
     return bench

@@ -8,7 +8,9 @@ unreadable is a one-line QuadfdiError (core.jsonio.read_json, core.npzio.read_np
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Sequence
+from typing import Any, Sequence
+
+from core.jsonio import read_json
 
 
 def num(x: float | None, nd: int = 1) -> str:
@@ -38,3 +40,9 @@ def figure_links(run_root: Path, names: Sequence[str], rel: str = "figures") -> 
 def not_run(heading: str, reason: str) -> list[str]:
     """The section of a stage whose files are not in the run folder: its heading and one line."""
     return [heading, "", f"Not run: {reason}.", ""]
+
+
+def optional_json(path: Path, what: str) -> Any | None:
+    """A stage's JSON file: None when it is absent (the stage has not run), its content when it reads,
+    a one-line QuadfdiError when it is there but truncated or foreign."""
+    return read_json(path, what) if Path(path).is_file() else None

@@ -5,16 +5,14 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from core.jsonio import read_json
-from core.reportmd import demote, not_run, num, pct
+from core.reportmd import demote, not_run, num, optional_json, pct
 from core.tables import md_table
 
 HEADING = "## Export"
 
 
 def _manifest(root: Path) -> dict | None:
-    path = root / "export" / "manifest.json"
-    return read_json(path, "export manifest") if path.is_file() else None
+    return optional_json(root / "export" / "manifest.json", "export manifest")
 
 
 def headline(run_root: Path) -> list[str]:

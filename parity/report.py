@@ -5,8 +5,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from core.jsonio import read_json
-from core.reportmd import demote, not_run
+from core.reportmd import demote, not_run, optional_json
 
 PAIR_TITLES = {
     "cpp_fp32_vs_ort_fp32": "C++ fp32 vs ONNX Runtime fp32",
@@ -100,10 +99,9 @@ def report_section(run_root: Path) -> list[str]:
     md = root / "parity" / "parity.md"
     if md.is_file():
         return ["## Parity (C++ reference vs ONNX Runtime and PyTorch; Cortex-M)", ""] + demote(md.read_text(), 2)
-    path = root / "parity" / "parity.json"
-    if not path.is_file():
+    p = optional_json(root / "parity" / "parity.json", "parity results")
+    if p is None:
         return not_run("## Parity", f"no parity/parity.json in this run (`quadfdi parity --run {root}` writes it)")
-    p = read_json(path, "parity results")
     verdict = "pass" if p.get("passed") else "FAIL"
     return ["## Parity", "", f"Made by `{p.get('command', 'quadfdi parity')}`: **{verdict}**"
             + ("" if p.get("passed") else ": " + "; ".join(p.get("problems", []))) + ".", ""]

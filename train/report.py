@@ -5,8 +5,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from core.jsonio import read_json
-from core.reportmd import demote, figure_links, not_run, num
+from core.reportmd import demote, figure_links, not_run, num, optional_json
 from core.tables import md_table
 
 HEADING = "## Training and test metrics"
@@ -17,21 +16,15 @@ COLUMNS = [("macro_f1", "macro F1", 4), ("accuracy", "accuracy", 4), ("balanced_
            ("false_alarm_rate", "false alarms", 3)]
 
 
-def _metrics(root: Path) -> dict | None:
-    path = root / "metrics.json"
-    return read_json(path, "test metrics") if path.is_file() else None
-
-
 def headline(run_root: Path) -> list[str]:
     """The report's headline bullet on test macro F1 ([] when training has not run)."""
-    metrics = _metrics(Path(run_root)) or {}
+    metrics = optional_json(Path(run_root) / "metrics.json", "test metrics") or {}
     f1 = [f"{k} {v['macro_f1']:.4f}" for k, v in metrics.items() if isinstance(v, dict) and "macro_f1" in v]
     return [f"- Test macro F1 (metrics.json): {', '.join(f1)}."] if f1 else []
 
 
 def _history_rows(root: Path) -> list[list[str]]:
-    path = root / "history.json"
-    hist = read_json(path, "training history") if path.is_file() else {}
+    hist = optional_json(root / "history.json", "training history") or {}
     rows = []
     for model, h in hist.items():
         if isinstance(h, dict) and h.get("loss"):
@@ -46,7 +39,7 @@ def _history_rows(root: Path) -> list[list[str]]:
 def report_section(run_root: Path) -> list[str]:
     """Test metrics per model, per-class F1, training history, the seeds study, the figures."""
     root = Path(run_root)
-    metrics = _metrics(root)
+    metrics = optional_json(root / "metrics.json", "test metrics")
     if not metrics:
         return not_run(HEADING, f"no metrics.json in this run (`quadfdi train --run {root}` writes it)")
     out = [HEADING, "",
