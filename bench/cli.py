@@ -27,6 +27,7 @@ def _command(args: argparse.Namespace) -> str:
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     from core.cliargs import add_config_args
+    from core.config import BenchConfig
 
     p = sub.add_parser("bench", help="latency, memory and limits of a run's deployed runtimes (bench.json)",
                        description=DESCRIPTION)
@@ -43,7 +44,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     acts = p.add_subparsers(dest="action", metavar="{limits}")
     pl = acts.add_parser("limits", help="measure peak GFLOP/s, L2 bandwidth and ORT's call cost; print JSON")
     pl.add_argument("--quick", action="store_true")
-    pl.add_argument("--cpus", default="0,1", help="CPUs to pin to (default: %(default)s)")
+    pl.add_argument("--cpus", default=BenchConfig.cpus, help="CPUs to pin to (default: %(default)s)")
     pl.set_defaults(func=run_limits)
 
 

@@ -46,13 +46,13 @@ DEFAULT_FWREF = ROOT / "firmware_ref" / "build" / "fwref_infer"
 class Counts:
     """How much each worker measures: the [bench] config section, or tiny counts for ``--quick``."""
 
-    n: int = 300  # batch-1 windows, each timed once
-    warmup: int = 30
-    warmup_s: float = 1.0
-    batches: int = 10  # batched calls timed
-    batch: int = 96
-    budget_s: float = 8.0  # per timed loop; dopri5 is the one that hits it
-    min_samples: int = 5  # the budget never cuts a loop below this
+    n: int  # batch-1 windows, each timed once
+    warmup: int
+    warmup_s: float
+    batches: int  # batched calls timed
+    batch: int
+    budget_s: float  # per timed loop; dopri5 is the one that hits it
+    min_samples: int  # the budget never cuts a loop below this
 
     @staticmethod
     def of(bench: BenchConfig, quick: bool) -> "Counts":
@@ -181,7 +181,7 @@ def worker_cmd(spec: Spec, windows: Path, counts: Counts, cpus: str, time_exe: s
 
 
 def measure_latency(run_root: Path, manifest: dict, test_x: np.ndarray, rtol: float, bench: BenchConfig, *,
-                    cpus: str = "0,1", quick: bool = False, fwref: str | None = None,
+                    cpus: str = BenchConfig.cpus, quick: bool = False, fwref: str | None = None,
                     log: Callable[[str], None] = print) -> dict:
     """Run every worker of ``plan``; return {latency, runtime_memory, workers, skipped, windows, ...}.
 

@@ -35,6 +35,7 @@ from pathlib import Path
 from bench.runtimes.common import MIN_SAMPLES, WARMUP_SECONDS, batches_of, peak_rss_kib, proc_status_kib, \
     reset_peak_rss, summarise, time_calls
 from bench.runtimes.torch_rt import parse_solver
+from core.config import BenchConfig
 
 RUNTIMES = ("torch", "ort", "cpp")
 
@@ -102,11 +103,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--windows", required=True, help=".npy of (n, W, C) float32 windows")
     p.add_argument("--artifact", required=True, help="checkpoint (torch), .onnx (ort) or weights.bin (cpp)")
     p.add_argument("--fwref", default=None, help="fwref_infer program (cpp)")
-    p.add_argument("--n", type=int, default=300, help="batch-1 windows timed (default: %(default)s)")
-    p.add_argument("--warmup", type=int, default=30, help="warm-up calls (default: %(default)s)")
-    p.add_argument("--batch", type=int, default=96)
-    p.add_argument("--batches", type=int, default=10, help="batches timed (default: %(default)s)")
-    p.add_argument("--budget-s", type=float, default=10.0, help="time budget of each timed loop (default: %(default)s)")
+    # The defaults are the [bench] config section's (bench.latency passes the run's values).
+    d = BenchConfig()
+    p.add_argument("--n", type=int, default=d.windows, help="batch-1 windows timed (default: %(default)s)")
+    p.add_argument("--warmup", type=int, default=d.warmup, help="warm-up calls (default: %(default)s)")
+    p.add_argument("--batch", type=int, default=d.batch)
+    p.add_argument("--batches", type=int, default=d.batches, help="batches timed (default: %(default)s)")
+    p.add_argument("--budget-s", type=float, default=d.budget_s,
+                   help="time budget of each timed loop (default: %(default)s)")
     p.add_argument("--warmup-s", type=float, default=WARMUP_SECONDS,
                    help="warm-up stops after this many seconds (default: %(default)s)")
     p.add_argument("--min-samples", type=int, default=MIN_SAMPLES,

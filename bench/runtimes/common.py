@@ -6,8 +6,10 @@ import math
 import time
 from typing import Callable, Sequence
 
-WARMUP_SECONDS = 1.0  # default: warm-up stops after this long even when fewer calls ran ([bench] warmup_s)
-MIN_SAMPLES = 5  # default: a time budget never cuts a measurement below this many calls ([bench] min_samples)
+from core.config import BenchConfig
+
+WARMUP_SECONDS = BenchConfig.warmup_s  # default: warm-up stops after this long even when fewer calls ran
+MIN_SAMPLES = BenchConfig.min_samples  # default: a time budget never cuts a measurement below this many calls
 
 
 def percentile(values: Sequence[float], q: float) -> float:
