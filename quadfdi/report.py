@@ -15,6 +15,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import importlib.util
+import sys
 from pathlib import Path
 from typing import Callable
 
@@ -29,7 +30,8 @@ OPTIONAL = {"solverstudy.report": "## Solvers"}  # a package that may be absent 
 
 def _module(name: str):
     """The stage's report module, or None for an optional package that is not installed."""
-    if name in OPTIONAL and importlib.util.find_spec(name.split(".")[0]) is None:
+    package = name.split(".")[0]
+    if name in OPTIONAL and package not in sys.modules and importlib.util.find_spec(package) is None:
         return None
     return importlib.import_module(name)
 
