@@ -42,14 +42,9 @@ def _machine(cpus: str) -> dict:
     import onnxruntime
     import torch
 
-    model = ""
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                model = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
+    cpuinfo = Path("/proc/cpuinfo")  # Linux; elsewhere platform.processor() names the CPU
+    lines = cpuinfo.read_text().splitlines() if cpuinfo.is_file() else []
+    model = next((ln.split(":", 1)[1].strip() for ln in lines if ln.startswith("model name")), "")
     return {"cpu": model or platform.processor(), "logical_cpus": os.cpu_count(), "pinned_cpus": cpus,
             "python": platform.python_version(), "torch": torch.__version__, "onnxruntime": onnxruntime.__version__,
             "numpy": numpy.__version__, "load_average_start": list(os.getloadavg())}
