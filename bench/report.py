@@ -20,7 +20,6 @@ from core.reportmd import figure_links, not_run, num, optional_json
 from core.tables import md_table
 
 HEADING = "## Bench: latency, memory, limits"
-__all__ = ["report_section", "headline", "redraw_figures", "draw_bench_figures", "bench_section", "load_bench"]
 
 
 def load_bench(run_root: Path) -> dict | None:

@@ -6,7 +6,7 @@ parity/mcu.json when present), measures with the settings of ``cfg.bench`` (the 
 config section; ``quick`` replaces the counts with tiny ones) and writes:
 
 - ``runs/<name>/bench.json`` (docs/bench.md), atomically, after everything was measured;
-- ``runs/<name>/figures/bench_*.png`` (``bench.report.draw_bench_figures``).
+- ``runs/<name>/figures/bench_*.png`` (``bench.figures.draw_bench_figures``).
 
 It measures limits, latency, floors, memory and profiles; it solves no ODE and trains nothing.
 The solver study is its own stage (package ``solverstudy``): bench.json's ``solvers`` list copies
@@ -221,7 +221,7 @@ def bench_run(run: RunDir, cfg: Config, log: Callable[[str], None] = print, *, q
 
     cpus = check_cpus(cpus or cfg.bench.cpus)  # before the heavy imports: a typo fails at once
     from bench.latency import find_fwref
-    from bench.report import draw_bench_figures
+    from bench.figures import draw_bench_figures
     from core.jsonio import to_jsonable, write_json
     from export.manifest import check_files, load_manifest
 
@@ -244,5 +244,6 @@ def bench_run(run: RunDir, cfg: Config, log: Callable[[str], None] = print, *, q
     write_json(bench_json_path(run), bench, indent=1)
     figs = draw_bench_figures(bench, run.figures)
     log(f"bench: wrote {bench_json_path(run)} and {len(figs)} figures in {timing['total']:.0f} s "
-        f"(limits {timing['limits']:.0f} s, latency {timing['latency']:.0f} s, profiles {timing['profiles']:.0f} s)")
+        f"(limits {timing['limits']:.0f} s, latency {timing['latency']:.0f} s, profiles {timing['profiles']:.0f} s); "
+        f"`quadfdi report --run {run.root}` rewrites report.md")
     return bench
