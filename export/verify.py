@@ -20,20 +20,11 @@ import onnxruntime as ort
 import torch
 from sklearn.metrics import f1_score
 
-# One thread for both runtimes: the graphs are small, and on a shared 2-core machine a second
-# thread made PyTorch's GRU 50x slower (OpenMP spin-waiting against other processes).
-THREADS = 1
+from export.ort_session import THREADS, session  # noqa: F401  (session: the export's callers import it here)
+
 FP32_REL_TOL = 1e-5
 F1_DROP_TARGET_POINTS = 0.5
 CHUNK = 512
-
-
-def session(model_bytes: bytes, threads: int = THREADS) -> ort.InferenceSession:
-    opts = ort.SessionOptions()
-    opts.log_severity_level = 3
-    opts.intra_op_num_threads = threads
-    opts.inter_op_num_threads = 1
-    return ort.InferenceSession(model_bytes, opts, providers=["CPUExecutionProvider"])
 
 
 def ort_outputs(sess: ort.InferenceSession, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
