@@ -132,7 +132,7 @@ def deployment_block(root: Path) -> str:
              "**Cortex-M** (`parity/mcu.json`, minimal images, `arm-none-eabi-size`):", "", *mcu_table(mcu)]
     solvers = root / "solvers" / "solvers.json"
     if solvers.is_file():
-        from solverstudy.report import headline_lines
+        from solverstudy.report import headline
 
-        lines += ["**Solvers** (`solvers/solvers.md`):", "", *headline_lines(root), ""]
+        lines += ["**Solvers** (`solvers/solvers.md`):", "", *headline(root), ""]
     return "\n".join(lines)

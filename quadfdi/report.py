@@ -5,7 +5,7 @@
 Each stage owns its section and reads only its own files: ``report_section(run_root) -> list[str]``
 in sim.report, train.report, export.report, parity.report, bench.report and solverstudy.report,
 in that order, after a headline made of the bullets of ``headline(run_root)`` (train, export, bench
-and, when it has one, solverstudy). A stage whose files are absent says "Not run" under its
+and solverstudy). A stage whose files are absent says "Not run" under its
 heading; a file that is there but unreadable stops the report with a one-line QuadfdiError.
 Figures that no section links come last, under "Other figures".
 """
@@ -14,45 +14,28 @@ from __future__ import annotations
 
 import argparse
 import importlib
-import importlib.util
-import sys
 from pathlib import Path
 from typing import Callable
 
 from core.atomic import write_text
 from core.errors import QuadfdiError
-from core.reportmd import figure_links, not_run
+from core.reportmd import figure_links
 
 SECTIONS = ("sim.report", "train.report", "export.report", "parity.report", "bench.report", "solverstudy.report")
 HEADLINES = ("train.report", "export.report", "bench.report", "solverstudy.report")
-OPTIONAL = {"solverstudy.report": "## Solvers"}  # a package that may be absent from an installation
-
-
-def _module(name: str):
-    """The stage's report module, or None for an optional package that is not installed."""
-    package = name.split(".")[0]
-    if name in OPTIONAL and package not in sys.modules and importlib.util.find_spec(package) is None:
-        return None
-    return importlib.import_module(name)
 
 
 def headline(root: Path) -> list[str]:
     out = []
     for name in HEADLINES:
-        mod = _module(name)
-        if mod is not None and hasattr(mod, "headline"):
-            out += mod.headline(root)
+        out += importlib.import_module(name).headline(root)
     return (["## Headline", ""] + out + [""]) if out else []
 
 
 def sections(root: Path) -> list[str]:
     out = []
     for name in SECTIONS:
-        mod = _module(name)
-        if mod is None:
-            out += not_run(OPTIONAL[name], f"the {name.split('.')[0]} package is not installed")
-        else:
-            out += mod.report_section(root)
+        out += importlib.import_module(name).report_section(root)
     return out
 
 

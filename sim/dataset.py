@@ -71,9 +71,13 @@ class Dataset:
 
 
 def dataset_arrays(arrays: dict[str, np.ndarray], cfg: Config) -> dict[str, np.ndarray]:
-    """The simulator's arrays plus the config (JSON) that made them: what the file holds."""
+    """The simulator's arrays plus the config (JSON) that made them: what the file holds.
+
+    Only the ``[sim]`` section: it alone decides these bytes, so a change to a later stage's
+    settings (or a new config section) neither changes the dataset nor makes it look stale.
+    """
     out = dict(arrays)
-    out["config"] = np.array(json.dumps(cfg.to_dict(), sort_keys=True))
+    out["config"] = np.array(json.dumps({"sim": cfg.to_dict()["sim"]}, sort_keys=True))
     return out
 
 

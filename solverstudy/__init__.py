@@ -6,7 +6,7 @@ One job per module:
 - ``study``: solve test windows one at a time with each setting, compare with the reference;
 - ``matching``: the cheapest fixed setting that matches each adaptive one;
 - ``matrix``: CNODEs trained with several solvers and controls, each deployed with each;
-- ``report``: markdown and findings in words; ``report_section``/``headline_lines``/``load_records``
+- ``report``: markdown and findings in words; ``report_section``/``headline``/``load_records``
   for the run report and bench (JSON only, no torch);
 - ``plots``: the figures; ``files``: where the outputs live (``runs/<name>/solvers/``, figures in
   ``runs/<name>/figures/``);

@@ -5,7 +5,7 @@ results), so a rerun at another scale rewrites its own conclusions. Inputs are t
 ``solverstudy.study.run_study`` and ``solverstudy.matrix.run_matrix`` (or their JSON files).
 
 What other stages read (from the run folder's files alone, no torch imported):
-``report_section(run_root)`` (the run report's solver section), ``headline_lines(run_root)``
+``report_section(run_root)`` (the run report's solver section), ``headline(run_root)``
 and ``load_records(run_root)`` (the study's records, bench.json's ``solvers`` list).
 """
 
@@ -15,6 +15,7 @@ from pathlib import Path
 
 from core.errors import QuadfdiError
 from core.jsonio import read_json
+from core.reportmd import not_run
 from core.tables import md_table
 from solverstudy.files import SolverFiles
 from solverstudy.settings import F1_TOL
@@ -45,7 +46,7 @@ def _rule(meta: dict) -> str:
     return f"at most {tol:.1f} point below it (a higher F1 is at least as accurate)"
 
 
-def headline(study: dict, adaptive: str = "dopri5 rtol=1e-3 jump") -> str:
+def study_headline(study: dict, adaptive: str = "dopri5 rtol=1e-3 jump") -> str:
     """One sentence on the cheapest fixed setting that matches ``adaptive`` (issue 6's target)."""
     row = next((m for m in study["matched"] if m["adaptive"] == adaptive), None)
     if row is None:
@@ -93,7 +94,7 @@ def study_markdown(study: dict, command: str | None = None, figures: str = "../f
            f"{_e(meta['reference_check']['max_abs_logit_diff'])} in a logit on {meta['reference_check']['n_windows']} "
            "windows." if meta.get("reference_check") else ""),
         "",
-        f"**{headline(study)}**",
+        f"**{study_headline(study)}**",
         "",
         "### Matched accuracy",
         "",
@@ -294,8 +295,11 @@ def load_records(run_root: str | Path) -> list[dict]:
 
 def report_section(run_root: str | Path) -> list[str]:
     """Markdown lines of the run report's solver section (figure links relative to the run
-    folder); [] when neither the study nor the matrix has run."""
+    folder); a "Not run" section when neither the study nor the matrix has run."""
     study, matrix = read_outputs(run_root)
+    if not study and not matrix:
+        return not_run("## Solvers", f"no solvers/solvers.json in this run (`quadfdi solvers study --run {run_root}` "
+                                     "writes it)")
     parts = []
     if study:
         parts.append(study_markdown(study, study["meta"].get("command"), figures="figures"))
@@ -305,9 +309,9 @@ def report_section(run_root: str | Path) -> list[str]:
     return text.splitlines() + [""] if text.strip() else []
 
 
-def headline_lines(run_root: str | Path) -> list[str]:
+def headline(run_root: str | Path) -> list[str]:
     """The run report's headline bullet of the study (issue 6's question), or []."""
     study, _ = read_outputs(run_root)
     if not study or not study.get("matched"):
         return []
-    return [f"- Solvers (solvers/solvers.json): {headline(study)}"]
+    return [f"- Solvers (solvers/solvers.json): {study_headline(study)}"]

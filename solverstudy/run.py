@@ -32,7 +32,7 @@ from core.jsonio import write_json
 from core.rundir import RunDir
 from solverstudy.files import SolverFiles
 from solverstudy.matching import matched_tables
-from solverstudy.report import headline, matrix_markdown, ott_sentence, read_outputs, study_markdown
+from solverstudy.report import study_headline, matrix_markdown, ott_sentence, read_outputs, study_markdown
 
 Log = Callable[[str], None]
 
@@ -97,7 +97,7 @@ def study_run(run: RunDir, cfg: Config, log: Log = print, checkpoint: str | Path
     write_json(files.study_json, study, indent=2)
     figs = draw_study(study, files.figures)
     write_text(files.study_md, study_markdown(study, study["meta"]["command"]))
-    log(headline(study))
+    log(study_headline(study))
     log(f"wrote {files.study_json}, {files.study_md} and {', '.join(str(f) for f in figs)} "
         f"in {study['meta']['seconds']:.0f} s")
     return study

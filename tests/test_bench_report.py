@@ -227,41 +227,16 @@ def test_solver_records_of_a_run_without_the_study(tmp_path):
     assert records == [] and "solvers/solvers.json absent" in meta["note"]
 
 
-def _fake_solverstudy(monkeypatch) -> None:
-    """A stand-in for the solverstudy package with its report API (report_section, headline, load_records)."""
-    import sys
-    import types
-
-    pkg, rep = types.ModuleType("solverstudy"), types.ModuleType("solverstudy.report")
-    rep.report_section = lambda root: ["## Solvers", "", f"study of {Path(root).name}", ""]
-    rep.headline = lambda root: ["- Solvers (solvers/solvers.json): fake."]
-    rep.load_records = lambda root: [{"solver": "rk4", "steps": 8}]
-    pkg.report = rep
-    monkeypatch.setitem(sys.modules, "solverstudy", pkg)
-    monkeypatch.setitem(sys.modules, "solverstudy.report", rep)
-
-
-def test_solver_records_come_from_the_study(tmp_path, monkeypatch):
-    from bench.run import solver_records
-
-    _fake_solverstudy(monkeypatch)
-    (tmp_path / "solvers").mkdir()
-    (tmp_path / "solvers" / "solvers.json").write_text("{}")
-    records, meta = solver_records(tmp_path)
-    assert records == [{"solver": "rk4", "steps": 8}] and meta == {"file": "solvers/solvers.json"}
-
-
-def test_report_takes_the_solver_section_from_the_study(small_run, tmp_path, monkeypatch):
+def test_report_sections_in_stage_order(small_run, tmp_path):
+    """The real stage modules, in the pipeline's order; a stage that has not run says so."""
     from quadfdi.report import run_report_markdown
 
-    _fake_solverstudy(monkeypatch)
-    run = tmp_path / "withstudy"
+    run = tmp_path / "nostudy"
     run.mkdir()
     shutil.copy(small_run / "config.toml", run / "config.toml")
     text = run_report_markdown(run)
-    assert "- Solvers (solvers/solvers.json): fake." in text.split("## Simulation")[0]  # in the headline
     order = [text.index(h) for h in ("## Simulation", "## Training", "## Export", "## Parity", "## Bench",
-                                     "## Solvers\n\nstudy of withstudy")]
+                                     "## Solvers\n\nNot run: no solvers/solvers.json")]
     assert order == sorted(order)
 
 

@@ -327,13 +327,13 @@ def test_solvers_command_writes_every_field(tiny_run):
     for f in ("solver_error_vs_nfe.png", "solver_f1_vs_latency.png"):
         assert (tiny_run / "figures" / f).read_bytes()[:4] == b"\x89PNG"
     # what bench and the run report read, from the files alone
-    from solverstudy.report import headline_lines, load_records, report_section
+    from solverstudy.report import headline, load_records, report_section
 
     assert load_records(tiny_run) == out["solvers"]
     section = report_section(tiny_run)
     assert section[0] == "## Solvers: fixed against adaptive steps"
     assert "![logit error vs evaluations](figures/solver_error_vs_nfe.png)" in section
-    assert headline_lines(tiny_run)[0].startswith("- Solvers (solvers/solvers.json): ")
+    assert headline(tiny_run)[0].startswith("- Solvers (solvers/solvers.json): ")
 
 
 def test_render_recomputes_the_matched_table_from_the_json(tiny_run, capsys):
