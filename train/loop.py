@@ -49,9 +49,15 @@ class History:
     nfe_per_forward: list[float] = field(default_factory=list)  # CNODE only
     best_epoch: int = -1
 
-    def to_dict(self) -> dict:
-        return {"loss": self.loss, "val_macro_f1": self.val_macro_f1, "epoch_s": self.epoch_s,
-                "nfe_per_forward": self.nfe_per_forward, "best_epoch": self.best_epoch}
+    def to_dict(self, times: bool = True) -> dict:
+        """The history as plain lists; ``times=False`` leaves out the wall-clock ``epoch_s``, which
+        differs from run to run, so that what is stored in a checkpoint depends on data, config and
+        seed alone (same seed, same checkpoint bytes)."""
+        out = {"loss": self.loss, "val_macro_f1": self.val_macro_f1, "epoch_s": self.epoch_s,
+               "nfe_per_forward": self.nfe_per_forward, "best_epoch": self.best_epoch}
+        if not times:
+            del out["epoch_s"]
+        return out
 
 
 def learning_rate(model: torch.nn.Module, cfg: TrainConfig) -> float:

@@ -69,7 +69,7 @@ def write_outputs(run: RunDir, ds: Dataset, cfg: Config, result: dict) -> None:
     test = result["splits"].test
     for kind, model in result["models"].items():
         save_checkpoint(run.checkpoint(kind), model, cfg.to_dict(), ds.channel_names,
-                        extra={"history": result["history"][kind].to_dict()})
+                        extra={"history": result["history"][kind].to_dict(times=False)})
         write_npz(run.predictions(kind), {"y_true": test.y, "proba": result["proba"][kind],
                                           "traj": test.traj, "t_end": test.t_end})
     metrics = read_json(run.metrics, "metrics") if run.metrics.is_file() else {}
