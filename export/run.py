@@ -22,7 +22,7 @@ from core.rundir import RunDir
 from export.calibrate import WindowReader, collect_ranges, select_windows
 from export.coverage import compare, coverage, fp32_constants, markdown
 from export.graph import IR_VERSION, Built
-from export.manifest import artifact_names, build_manifest, write_manifest
+from export.manifest import MODEL_KINDS, artifact_names, build_manifest, write_manifest
 from export.onnx_cnode import CnodeParams, CnodeQuant, build_cnode, calibration_probes, cnode_params, quantize_cnode
 from export.onnx_gru import (CALIBRATION_PROBES, GruParams, GruQuant, build_gru_fp32, build_gru_int8, gru_params,
                              quantize_gru)
@@ -59,7 +59,7 @@ def _check(model: onnx.ModelProto, what: str) -> bytes:
 
 def _load_models(run: RunDir, ds: Dataset, steps: int) -> tuple[torch.nn.Module, dict, torch.nn.Module, dict]:
     models = []
-    for kind in ("cnode", "gru"):
+    for kind in MODEL_KINDS:
         path = run.checkpoint(kind)
         model, blob = load_checkpoint(path, kind)
         check_dataset_matches(blob, ds.channel_names, str(path))
@@ -98,7 +98,7 @@ def _require_parity(verification: dict, log: Callable[[str], None]) -> None:
 def coverage_of(graphs: Graphs, log: Callable[[str], None]) -> dict[str, dict]:
     """Per model: the coverage of its fp32 and int8 graphs and the int8 graph's summary."""
     cov = {}
-    for model in ("cnode", "gru"):
+    for model in MODEL_KINDS:
         fp32 = coverage(getattr(graphs, f"{model}_fp32").model)
         int8_model = getattr(graphs, f"{model}_int8").model
         int8 = coverage(int8_model)
