@@ -20,7 +20,7 @@ from sklearn.metrics import (
     roc_auc_score,
 )
 
-from core.contracts import CLASS_NAMES
+from core.contracts import CLASS_LABELS, CLASS_NAMES
 from core.jsonio import to_jsonable
 from train.metrics import (
     METRIC_KEYS,
@@ -32,7 +32,7 @@ from train.metrics import (
     summarize_seeds,
 )
 
-LABELS = [0, 1, 2, 3]
+LABELS = list(CLASS_LABELS)
 
 # the scikit-learn reference calls below warn on the degenerate cases; train.metrics does not
 pytestmark = pytest.mark.filterwarnings("ignore:y_pred contains classes not in y_true:UserWarning")

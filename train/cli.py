@@ -43,16 +43,19 @@ def run_train(args: argparse.Namespace) -> int:
 
 
 def run_study_cmd(args: argparse.Namespace) -> int:
-    from train.study import run_study, update_readme
+    from train.study import check_readme, run_study, update_readme
 
     run, cfg = open_run(args.run, args.overrides, need=("dataset",))
     try:
         seeds = [int(s) for s in args.seeds.split(",")] if args.seeds else list(cfg.train.seeds)
     except ValueError:
         raise QuadfdiError(f"--seeds expects comma-separated integers, found {args.seeds!r}") from None
+    readme = Path(args.readme) if args.readme else None
+    if readme is not None:
+        check_readme(readme)
     command = "quadfdi " + " ".join(shlex.quote(a) for a in sys.argv[1:]) if sys.argv[1:] else "quadfdi train study"
     out = run_study(run, cfg, seeds, command)
     print(out["table"])
-    if args.readme and not update_readme(Path(args.readme), out["table"]):
-        raise QuadfdiError(f"{args.readme} has no results markers to replace")
+    if readme is not None:
+        update_readme(readme, out["table"])
     return 0
