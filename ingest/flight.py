@@ -102,8 +102,11 @@ def read_log(path: str | Path):
 
 def ingest(log: str | Path, min_airborne_s: float = segments.MIN_AIRBORNE_S) -> tuple[LogRead, dict[str, np.ndarray]]:
     """Read, check and assemble one log; raises QuadfdiError (one line) for a refused log."""
-    lr = read_log(log)
-    segments.check_airborne(lr.airborne, min_airborne_s, lr.data_span)
+    try:
+        lr = read_log(log)
+        segments.check_airborne(lr.airborne, min_airborne_s, lr.data_span)
+    except QuadfdiError as exc:
+        raise QuadfdiError(f"{Path(log).name}: refused: {exc}") from None
     return lr, build(lr, log)
 
 

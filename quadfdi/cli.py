@@ -20,6 +20,8 @@ STAGES = {
     "export": "export.cli",
     "parity": "parity.cli",
     "bench": "bench.cli",
+    "ingest": "ingest.cli",
+    "realism": "realism.cli",
     "run": "quadfdi.pipeline",
 }
 

@@ -1,0 +1,109 @@
+"""Frames and resampling checked against the logs themselves and a synthetic chirp."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+import numpy as np
+import pytest
+
+from conftest import ROOT
+
+# CI places shared/ beside the clone; a git worktree elsewhere points QUADFDI_FLIGHTLOGS at it.
+LOGS = Path(os.environ.get("QUADFDI_FLIGHTLOGS", ROOT.parent / "shared" / "data" / "flightlogs"))
+needs_logs = pytest.mark.skipif(not LOGS.is_dir(), reason=f"shared flight logs not found at {LOGS}")
+
+
+def _euler_rate_agreement(lr, flip: bool = False) -> list[float]:
+    """Correlation of d(eta)/dt (attitude differences) with E(eta) omega (integrated body rates), airborne."""
+    from sim.rigid_body import euler_rate_matrix
+
+    ch = lr.channels
+    ta = ch["roll"].t
+    eta = np.stack([ch["roll"].v, ch["pitch"].v, np.unwrap(ch["yaw"].v)], 1)
+    w = np.stack([np.interp(ta, ch[k].t, ch[k].v) for k in "pqr"], 1)
+    if flip:
+        w[:, 1:] *= -1  # the log's FRD rates against our z-up attitude: must disagree
+    rate = np.einsum("nij,nj->ni", euler_rate_matrix(eta), w)
+    mid, d = 0.5 * (rate[1:] + rate[:-1]), np.diff(eta, axis=0) / np.diff(ta)[:, None]
+    air = np.zeros(len(d), bool)
+    for a, b in lr.airborne:
+        air |= (ta[1:] >= a) & (ta[1:] <= b)
+    return [float(np.corrcoef(mid[air, i], d[air, i])[0, 1]) for i in range(3)]
+
+
+@needs_logs
+@pytest.mark.parametrize("name", ["px4_quad_6s_gps_interference.ulg", "px4_quad_battery_monitor_disconnected.ulg"])
+def test_body_rates_integrate_to_logged_attitude(name):
+    from ingest.flight import read_log
+
+    lr = read_log(LOGS / name)
+    assert min(_euler_rate_agreement(lr)) > 0.9
+    flipped = _euler_rate_agreement(lr, flip=True)
+    assert flipped[1] < -0.5 and flipped[2] < -0.5
+
+
+@needs_logs
+@pytest.mark.parametrize("name", ["px4_quad_6s_gps_interference.ulg", "px4_quad_battery_monitor_disconnected.ulg"])
+def test_velocity_matches_position_differences(name):
+    from ingest.flight import read_log
+
+    ch = read_log(LOGS / name).channels
+    t = ch["x"].t
+    pos = np.stack([ch[k].v for k in ("x", "y", "z")], 1)
+    vel = np.stack([ch[k].v for k in ("vx", "vy", "vz")], 1)
+    dp, vm = np.diff(pos, axis=0) / np.diff(t)[:, None], 0.5 * (vel[1:] + vel[:-1])
+    ok = np.isfinite(dp).all(1) & np.isfinite(vm).all(1)
+    assert min(np.corrcoef(vm[ok, i], dp[ok, i])[0, 1] for i in range(3)) > 0.95
+    # z up: climbing after take-off means z grows
+    assert np.nanmax(ch["z"].v) - ch["z"].v[0] > 0.5
+
+
+def test_resampler_removes_what_would_alias():
+    from ingest.resample import make_grid, resample
+
+    fs, dur = 250.0, 40.0
+    t = np.arange(0, dur, 1 / fs)
+    f_inst = 0.2 + (60.0 - 0.2) * t / dur  # linear chirp 0.2 -> 60 Hz
+    x = np.sin(2 * np.pi * np.cumsum(f_inst) / fs)
+    grid = make_grid(0.0, dur - 1 / fs)
+    y, m = resample(t, x, grid)
+    assert m.all()
+    f_at = np.interp(grid, t, f_inst)
+    hi = f_at > 15.0  # anything above 15 Hz lands on 0..10 Hz after 25 Hz sampling
+    assert np.sqrt(np.mean(y[hi & (f_at < 55)] ** 2)) < 0.03
+    naive = np.interp(grid, t, x)  # decimation without the filter: the alias survives at full power
+    assert np.sqrt(np.mean(naive[hi & (f_at < 55)] ** 2)) > 0.5
+    lo = f_at < 5.0  # the passband is kept
+    assert np.max(np.abs(y[lo][5:] - naive[lo][5:])) < 0.03
+
+
+def test_resampler_masks_gaps_instead_of_interpolating():
+    from ingest.resample import make_grid, resample
+
+    t = np.concatenate([np.arange(0, 5, 0.1), np.arange(7, 10, 0.1)])
+    v = np.sin(t)
+    grid = make_grid(0.0, 9.9)
+    y, m = resample(t, v, grid)
+    inside = (grid > 4.95) & (grid < 7.0)
+    assert not m[inside].any() and np.isnan(y[inside]).all()
+    assert m[(grid < 4.9) | (grid >= 7.0) & (grid <= 9.9)].all()
+    assert np.allclose(y[m], np.sin(grid[m]), atol=2e-3)
+
+
+def test_angles_wrap_through_the_resampler():
+    from ingest.resample import make_grid, resample
+
+    t = np.arange(0, 10, 0.01)
+    yaw = (np.pi - 0.05 + 0.1 * t + np.pi) % (2 * np.pi) - np.pi  # crosses +-pi at t = 0.5
+    y, m = resample(t, yaw, make_grid(0, 9.99), angle=True)
+    assert m.all() and np.max(np.abs(y)) <= np.pi and np.max(np.abs(np.diff(np.unwrap(y)))) < 0.01
+
+
+def test_motor_map_quad_x_and_plus():
+    from ingest.motors import QUAD_PLUS_PX4, QUAD_X, motor_map, pwm_to_thrust
+
+    assert motor_map(QUAD_X) == [2, 1, 3, 0]
+    assert motor_map(QUAD_PLUS_PX4) == [2, 1, 3, 0]  # front (CW), left, back (CW), right
+    thr, below = pwm_to_thrust(np.array([900.0, 1000.0, 1500.0, 2000.0]), 1000, 2000, 0.6)
+    assert below == 1 and np.allclose(thr, [0, 0, 0.4 * 0.5 + 0.6 * 0.25, 1.0])
