@@ -107,3 +107,22 @@ def test_motor_map_quad_x_and_plus():
     assert motor_map(QUAD_PLUS_PX4) == [2, 1, 3, 0]  # front (CW), left, back (CW), right
     thr, below = pwm_to_thrust(np.array([900.0, 1000.0, 1500.0, 2000.0]), 1000, 2000, 0.6)
     assert below == 1 and np.allclose(thr, [0, 0, 0.4 * 0.5 + 0.6 * 0.25, 1.0])
+
+
+def test_labels_json_is_checked(tmp_path):
+    from core.errors import QuadfdiError
+    from ingest.labels import load_labels
+
+    time = np.arange(0, 60, 0.04)
+    p = tmp_path / "labels.json"
+    p.write_text('{"faults": [{"class": "MotorFault", "motor": 2, "start_s": 31.0, "end_s": 44.5}]}')
+    assert load_labels(p, time)[0]["motor"] == 2
+    p.write_text('{"faults": [{"class": "MotorFault", "start_s": 31.0, "end_s": 44.5}]}')
+    with pytest.raises(QuadfdiError, match="needs 'motor'"):
+        load_labels(p, time)
+    p.write_text('{"faults": [{"class": "Healthy", "start_s": 1.0, "end_s": 2.0}]}')
+    with pytest.raises(QuadfdiError, match="is not one of"):
+        load_labels(p, time)
+    p.write_text('{"faults": [{"class": "BatteryFault", "start_s": 50.0, "end_s": 70.0}]}')
+    with pytest.raises(QuadfdiError, match="end_s"):
+        load_labels(p, time)
