@@ -109,3 +109,20 @@ def test_deterministic_bytes(ingested, tmp_path):
     res = quadfdi("ingest", str(LOGS / name), "--out", str(tmp_path))
     assert res.returncode == 0
     assert (tmp_path / "flight.npz").read_bytes() == (ingested[name] / "flight.npz").read_bytes()
+
+
+def test_bench_prints_seconds_per_flight_hour():
+    res = quadfdi("ingest", "bench", str(LOGS / "px4_sitl_quad_esc.ulg"), "--repeat", "1")
+    assert res.returncode == 0, res.stderr
+    data = json.loads(res.stdout)
+    assert data["s_per_flight_hour"] > 0 and data["logs"][0]["log_span_s"] > 30 and "extrapolated" in data["method"]
+
+
+def test_usage_errors_are_one_line(tmp_path):
+    res = quadfdi("ingest", str(LOGS / "px4_sitl_quad_esc.ulg"))
+    assert res.returncode == 2 and "needs --out" in res.stderr
+    foreign = tmp_path / "x.ulg"
+    foreign.write_bytes(b"not a log at all")
+    res = quadfdi("ingest", str(foreign), "--out", str(tmp_path / "o"))
+    assert res.returncode == 2 and "neither a PX4 ULog nor an ArduPilot DataFlash" in res.stderr
+    assert not (tmp_path / "o").exists()
