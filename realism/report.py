@@ -6,9 +6,9 @@ from pathlib import Path
 
 import numpy as np
 
+from core.atomic import write_text
 from core.jsonio import write_json
 from core.plotting import pyplot, save_png
-from core.atomic import write_text
 from core.tables import md_table
 from ingest.model import CHANNEL_UNITS
 from realism.compare import COMPARED, MIN_STEADY_S
@@ -102,11 +102,15 @@ def figures(res: dict, out: Path) -> list[Path]:
     return paths
 
 
+def _without_psd(side: dict) -> dict:
+    """A real or simulated result with its spectra left out (they go to the figures, not the JSON)."""
+    chans = {c: {k: v for k, v in d.items() if k != "psd"} for c, d in side.get("channels", {}).items()}
+    return {**{k: v for k, v in side.items() if k != "channels"}, "channels": chans}
+
+
 def write(res: dict, out: Path, command: str) -> list[Path]:
     rows = table(res)
-    strip = {"real": [{k: v for k, v in r.items() if k != "channels"} | {"channels": {c: {k: v for k, v in d.items() if k != "psd"} for c, d in r.get("channels", {}).items()}} for r in res["real"]],
-             "sim": {k: v for k, v in res["sim"].items() if k != "channels"} | {"channels": {c: {k: v for k, v in d.items() if k != "psd"} for c, d in res["sim"]["channels"].items()}},
-             "rates": res["rates"], "table": rows, "command": command}
-    write_json(out / "realism.json", strip)
+    write_json(out / "realism.json", {"real": [_without_psd(r) for r in res["real"]], "sim": _without_psd(res["sim"]),
+                                      "rates": res["rates"], "table": rows, "command": command})
     write_text(out / "realism.md", markdown(res, rows, command) + "\n")
     return [out / "realism.json", out / "realism.md", *figures(res, out)]
