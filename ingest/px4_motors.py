@@ -50,6 +50,9 @@ def motor_channels(tp, params: dict, mmap: list[int], lr: LogRead) -> None:
             lr.channels[f"thr{k + 1}"] = Channel(f"thr{k + 1}", am["t"], am[f"control[{m}]"].astype(float),
                                                  f"actuator_motors.control[{m}]")
         lr.vehicle["motor_command"] = "actuator_motors (thrust fraction, as logged)"
+        # recorded for the vehicle facts only: actuator_motors is already normalised
+        lr.vehicle["pwm_range"] = {f"motor{m + 1}": [*_pwm_range(params, m)[:2], _pwm_range(params, m)[2] + " (not used)"]
+                                   for m in range(4)}
         return
     streams = _streams(tp, lr)
     if not streams:

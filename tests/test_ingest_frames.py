@@ -133,3 +133,36 @@ def test_labels_json_is_checked(tmp_path):
     p.write_text('{"faults": [{"class": "BatteryFault", "start_s": 50.0, "end_s": 70.0}]}')
     with pytest.raises(QuadfdiError, match="end_s"):
         load_labels(p, time)
+
+
+def test_ardupilot_conversions_and_airborne_fallback_on_synthetic_messages():
+    """The DataFlash path of a flying copter (no shared log has one): units, frames, PWM, airborne."""
+    from ingest.ardupilot import flight_state, motor_channels, state_channels
+    from ingest.model import LogRead
+
+    t = np.arange(0, 30, 0.1)
+    n = len(t)
+    up = (t > 5) & (t < 25)
+    cols = {
+        "XKF1": {"t": t, "PN": t * 0 + 1.0, "PE": t * 0 + 2.0, "PD": np.where(up, -3.0, 0.0),
+                 "VN": t * 0, "VE": t * 0 + 0.5, "VD": t * 0},
+        "ATT": {"t": t, "Roll": t * 0 + 10.0, "Pitch": t * 0 + 5.0, "Yaw": t * 0 + 90.0},
+        "RATE": {"t": t, "R": t * 0 + 30.0, "P": t * 0 + 30.0, "Y": t * 0 + 30.0},
+        "RCOU": {"t": t, **{f"C{k}": np.where(up, 1520.0, 1000.0) for k in range(1, 15)}},
+        "CTUN": {"t": t, "ThO": np.where(up, 0.4, 0.0), "Alt": np.where(up, 3.0, 0.0)},
+        "ARM": {"t": np.array([1.0, 28.0]), "ArmState": np.array([1, 0])},
+    }
+    params = {"MOT_PWM_MIN": 0.0, "MOT_PWM_MAX": 0.0, "RC3_MIN": 1000.0, "RC3_MAX": 2000.0, "MOT_THST_EXPO": 0.5}
+    lr = LogRead("ardupilot", {}, {}, {}, [], [], "none", (0.0, float(t[-1])), [])
+    state_channels(cols, lr)
+    motor_channels(cols, params, [2, 1, 3, 0], lr)
+    flight_state(cols, lr)
+    c = lr.channels
+    assert c["x"].v[0] == 1.0 and c["y"].v[0] == -2.0 and c["vy"].v[0] == -0.5 and c["z"].v[100] == 3.0
+    assert np.isclose(c["roll"].v[0], np.radians(10)) and np.isclose(c["pitch"].v[0], -np.radians(5))
+    assert np.isclose(c["yaw"].v[0], -np.pi / 2)
+    assert np.isclose(c["p"].v[0], np.radians(30)) and np.isclose(c["q"].v[0], -np.radians(30))
+    assert lr.vehicle["pwm_range"][2].startswith("RC3_MIN/MAX")  # MOT_PWM_* unset: ArduCopter's fallback
+    assert np.isclose(c["thr1"].v[100], 0.5 * 0.52 + 0.5 * 0.52 ** 2) and c["thr1"].source.startswith("RCOU.C3")
+    assert lr.armed == [(1.0, 28.0)] and len(lr.airborne) == 1
+    assert abs(lr.airborne[0][0] - 5.1) < 0.11 and abs(lr.airborne[0][1] - 25.0) < 0.11

@@ -115,3 +115,4 @@ def test_arducopter_ground_log_parameters_and_channels():
     assert {"x", "roll", "p", "V_b", "thr1", "vib_acc"} <= set(lr.channels)
     assert lr.airborne == []
     assert json.dumps(v, default=float)
+
