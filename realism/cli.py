@@ -13,7 +13,26 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                        description="Compare <run>/dataset.npz with real PX4/ArduPilot logs on steady segments.")
     p.add_argument("--run", required=True, help="run folder holding dataset.npz")
     p.add_argument("--logs", nargs="+", required=True, metavar="LOG", help="real flight logs (.ulg, .BIN)")
+    p.add_argument("--mass", action="append", default=[], metavar="LOG=KG",
+                   help="take-off mass of a log's vehicle (file name = kg), for current per kg; repeatable")
     p.set_defaults(func=run)
+
+
+def parse_masses(items: list[str]) -> dict[str, float]:
+    from pathlib import Path
+
+    from core.errors import QuadfdiError
+
+    out = {}
+    for item in items:
+        name, _, kg = item.rpartition("=")
+        try:
+            out[Path(name).name] = float(kg)
+        except ValueError:
+            raise QuadfdiError(f"--mass {item!r}: expected LOG=KG, e.g. flight.ulg=2.4") from None
+        if not name or out[Path(name).name] <= 0:
+            raise QuadfdiError(f"--mass {item!r}: expected LOG=KG with a positive mass")
+    return out
 
 
 def run(args: argparse.Namespace) -> int:
@@ -22,7 +41,7 @@ def run(args: argparse.Namespace) -> int:
     from realism.report import write
 
     run_dir, _ = open_run(args.run, need=("dataset",))
-    res = compare(run_dir.dataset, args.logs)
+    res = compare(run_dir.dataset, args.logs, parse_masses(args.mass))
     command = "quadfdi realism " + shlex.join(sys.argv[2:] if sys.argv[1:2] == ["realism"] else ["--run", args.run, "--logs", *args.logs])
     for path in write(res, run_dir.root / "realism", command):
         print(f"wrote {path}")

@@ -121,8 +121,15 @@ def sim_side(dataset_path: Path, rates: dict[str, float]) -> dict:
     return out
 
 
-def compare(dataset_path: Path, logs: list[str]) -> dict:
+def compare(dataset_path: Path, logs: list[str], masses: dict[str, float] | None = None) -> dict:
+    """``masses``: log file name -> take-off mass in kg (no log records it) for current per kg."""
     real = [real_flight(log) for log in logs]
+    for r in real:
+        m = (masses or {}).get(r["log"])
+        cur = r.get("hover", {}).get("current_a")
+        if m and r.get("hover") is not None:
+            r["hover"]["mass_kg"] = m
+            r["hover"]["current_per_kg"] = cur / m if cur is not None else None
     rates = {}
     for c in COMPARED:
         rs = [r["channels"][c]["rate_hz"] for r in real if c in r.get("channels", {})]

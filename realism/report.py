@@ -71,7 +71,9 @@ def markdown(res: dict, rows: list[dict], command: str) -> str:
                         _fmt(r["noise_ratio"]), _fmt(r["real_hf_rms"]), _fmt(r["sim_hf_rms"]), _fmt(r["hf_ratio"])]
                        for r in rows])
     lines += ["## Hover", ""]
-    hov = [[r["log"], _fmt(r["hover"].get("thr")), _fmt(r["hover"].get("current_a")), "unknown (not in the log)"]
+    hov = [[r["log"], _fmt(r["hover"].get("thr")), _fmt(r["hover"].get("current_a")),
+            f"{r['hover']['mass_kg']:g} kg (--mass): {_fmt(r['hover'].get('current_per_kg'))} A/kg"
+            if r["hover"].get("mass_kg") else "unknown (no log records it; --mass LOG=KG)"]
            for r in res["real"] if r.get("segments")]
     hs = sim["hover"]
     hov.append(["simulator", _fmt(hs["thr"]), _fmt(hs["current_a"]),

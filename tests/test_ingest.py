@@ -59,8 +59,7 @@ def _load(d: Path) -> dict:
 
 
 def test_every_shared_log_is_covered():
-    assert sorted(INGESTS) + sorted(REFUSALS) and {p.name for p in LOGS.iterdir() if p.suffix in (".ulg", ".BIN")} \
-        == set(INGESTS) | set(REFUSALS)
+    assert {p.name for p in LOGS.iterdir() if p.suffix in (".ulg", ".BIN")} == set(INGESTS) | set(REFUSALS)
 
 
 @pytest.mark.parametrize("name", sorted(REFUSALS))

@@ -52,7 +52,8 @@ def test_steady_segments_hover_and_manoeuvre():
 def test_realism_command_writes_table_and_figures(small_run):
     logs = ["px4_quad_6s_gps_interference.ulg", "px4_quad_battery_monitor_disconnected.ulg",
             "px4_quad_6s_uavcan_mission.ulg", "ardupilot_plane_1s.BIN"]
-    res = quadfdi("realism", "--run", str(small_run), "--logs", *(str(LOGS / n) for n in logs))
+    res = quadfdi("realism", "--run", str(small_run), "--logs", *(str(LOGS / n) for n in logs),
+                  "--mass", "px4_quad_6s_gps_interference.ulg=2.5")
     assert res.returncode == 0, res.stderr
     out = small_run / "realism"
     for group in ("position", "velocity", "attitude", "rates", "battery", "motors"):
@@ -67,6 +68,7 @@ def test_realism_command_writes_table_and_figures(small_run):
         assert rows[c]["logs"] == 2 and rows[c]["noise_ratio"] is not None and rows[c]["noise_ratio"] > 0
     assert rows["p"]["real_rate_hz"] > 45 and rows["p"]["sim_rate_hz"] == 25.0  # the simulator is capped at 25 Hz
     assert rows["thr1"]["sim_rate_hz"] == pytest.approx(rows["thr1"]["real_rate_hz"])  # logged at the real rate
+    assert "2.5 kg (--mass)" in md and "unknown (no log records it" in md
     segs = [s for r in data["real"] for s in r["segments"]]
     assert len(segs) == 2 and all(s["end_s"] - s["start_s"] >= 20 for s in segs)
 
