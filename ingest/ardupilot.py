@@ -13,7 +13,7 @@ from core.errors import QuadfdiError
 from ingest import battery, checks, frames, motors, segments
 from ingest.model import Channel, LogRead
 
-WANTED = ["PARM", "MSG", "XKF1", "NKF1", "ATT", "RATE", "IMU", "BAT", "RCOU", "ESC", "VIBE", "CTUN", "ARM", "EV"]
+WANTED = ["PARM", "MSG", "XKF1", "NKF1", "POS", "ATT", "RATE", "IMU", "BAT", "RCOU", "ESC", "VIBE", "CTUN", "ARM", "EV"]
 ARMED_EV, DISARMED_EV = 10, 11  # ArduPilot LogEvent ids
 
 
@@ -62,6 +62,8 @@ def state_channels(c: dict, lr: LogRead) -> None:
         for name, v, f in (("x", x, "PN"), ("y", y, "PE, negated"), ("z", z, "PD, negated"),
                            ("vx", vx, "VN"), ("vy", vy, "VE, negated"), ("vz", vz, "VD, negated")):
             lr.channels[name] = Channel(name, e["t"], v.astype(float), f"{ekf}.{f}")
+    elif "POS" in c:  # no EKF message: the global position, made local at the first fix (no velocity)
+        pos_channels(c["POS"], lr)
     if "ATT" in c:
         a = c["ATT"]
         r, p, y = frames.euler_ned_to_sim(*(np.radians(a[k].astype(float)) for k in ("Roll", "Pitch", "Yaw")))
@@ -79,6 +81,20 @@ def state_channels(c: dict, lr: LogRead) -> None:
         return
     for name, v, s in zip(("p", "q", "r"), rates, src):
         lr.channels[name] = Channel(name, g["t"], v, s)
+
+
+def pos_channels(p: dict, lr: LogRead) -> None:
+    """x, y, z from POS Lat/Lng (deg, equirectangular about the first fix) and RelHomeAlt (m, up)."""
+    m_per_deg = 111319.49  # WGS-84 equatorial metres per degree; the error over a flight's extent is < 0.5 %
+    lat0, lng0 = float(p["Lat"][0]), float(p["Lng"][0])
+    north = (p["Lat"].astype(float) - lat0) * m_per_deg
+    east = (p["Lng"].astype(float) - lng0) * m_per_deg * np.cos(np.radians(lat0))
+    x, y, z = frames.ned_to_sim(north, east, -p["RelHomeAlt"].astype(float))
+    for name, v, f in (("x", x, "Lat -> m north of the first fix"), ("y", y, "Lng -> m west of the first fix"),
+                       ("z", z, "RelHomeAlt")):
+        lr.channels[name] = Channel(name, p["t"], v, f"POS.{f}")
+    for name in ("vx", "vy", "vz"):
+        lr.status[name] = "absent: no XKF1/NKF1 (POS has no velocity)"
 
 
 def power_channels(c: dict, params: dict, lr: LogRead) -> float:

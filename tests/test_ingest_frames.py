@@ -166,3 +166,17 @@ def test_ardupilot_conversions_and_airborne_fallback_on_synthetic_messages():
     assert np.isclose(c["thr1"].v[100], 0.5 * 0.52 + 0.5 * 0.52 ** 2) and c["thr1"].source.startswith("RCOU.C3")
     assert lr.armed == [(1.0, 28.0)] and len(lr.airborne) == 1
     assert abs(lr.airborne[0][0] - 5.1) < 0.11 and abs(lr.airborne[0][1] - 25.0) < 0.11
+
+
+def test_ardupilot_pos_fallback_without_ekf_messages():
+    from ingest.ardupilot import state_channels
+    from ingest.model import LogRead
+
+    t = np.arange(0, 10, 0.1)
+    pos = {"t": t, "Lat": 52.0 + 1e-5 * t, "Lng": 10.0 - 1e-5 * t, "RelHomeAlt": 0.5 * t}
+    lr = LogRead("ardupilot", {}, {}, {}, [], [], "none", (0.0, 9.9), [])
+    state_channels({"POS": pos}, lr)
+    c = lr.channels
+    assert np.isclose(c["x"].v[-1], 9.9e-5 * 111319.49, rtol=1e-6)  # north
+    assert c["y"].v[-1] > 0.6  # moving west: +y in NWU
+    assert np.isclose(c["z"].v[-1], 4.95) and "vx" in lr.status
