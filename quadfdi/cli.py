@@ -21,7 +21,10 @@ STAGES = {
     "parity": "parity.cli",
     "solvers": "solverstudy.cli",
     "bench": "bench.cli",
+    "ingest": "ingest.cli",
+    "realism": "realism.cli",
     "report": "quadfdi.report",
+    "readme": "quadfdi.readme",
     "run": "quadfdi.pipeline",
 }
 DESCRIPTION = ("quadfdi: quadrotor fault diagnosis, from the physics simulator to the firmware reference; "
