@@ -12,15 +12,13 @@
 
 from __future__ import annotations
 
-import contextlib
-from typing import Iterator
-
 import numpy as np
 import onnxruntime as ort
 import torch
 from sklearn.metrics import f1_score
 
 from export.ort_session import THREADS, session  # noqa: F401  (session: the export's callers import it here)
+from train.threads import torch_threads as _torch_threads
 
 FP32_REL_TOL = 1e-5
 F1_DROP_TARGET_POINTS = 0.5
@@ -33,14 +31,9 @@ def ort_outputs(sess: ort.InferenceSession, x: np.ndarray) -> tuple[np.ndarray, 
     return np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
 
 
-@contextlib.contextmanager
-def torch_threads(n: int = THREADS) -> Iterator[None]:
-    before = torch.get_num_threads()
-    torch.set_num_threads(n)
-    try:
-        yield
-    finally:
-        torch.set_num_threads(before)
+def torch_threads(n: int = THREADS):
+    """``train.threads.torch_threads`` at the export's thread count by default."""
+    return _torch_threads(n)
 
 
 @torch.no_grad()
