@@ -24,16 +24,6 @@ std::uint32_t u32_at(const unsigned char* p) {
 
 std::uint64_t u64_at(const unsigned char* p) { return std::uint64_t(u32_at(p)) | (std::uint64_t(u32_at(p + 4)) << 32); }
 
-std::string fmt(const char* f, ...) __attribute__((format(printf, 1, 2)));
-std::string fmt(const char* f, ...) {
-  char buf[512];
-  va_list ap;
-  va_start(ap, f);
-  std::vsnprintf(buf, sizeof buf, f, ap);
-  va_end(ap);
-  return buf;
-}
-
 // A magic as Python prints bytes: b'QFDIWTS\x00'.
 std::string bytes_repr(const unsigned char* p, std::size_t n) {
   std::string out = "b'";
@@ -51,6 +41,15 @@ std::string bytes_repr(const unsigned char* p, std::size_t n) {
 std::size_t dtype_size(std::uint32_t code) { return code == 2 ? 1 : 4; }
 
 }  // namespace
+
+std::string fmt(const char* f, ...) {
+  char buf[512];
+  va_list ap;
+  va_start(ap, f);
+  std::vsnprintf(buf, sizeof buf, f, ap);
+  va_end(ap);
+  return buf;
+}
 
 const char* dtype_name(DType t) {
   switch (t) {
