@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import sys
 from pathlib import Path
+from typing import Callable
 
 from core.rk4 import RK4_CONSTANT_NAMES, RK4_PROGRAM, RK4_C
 
@@ -89,16 +90,17 @@ constexpr const char* kRk4ConstNames[kRk4NumConsts] = {{{rk4_names}}};
 """
 
 
-def main(argv: list[str] | None = None) -> int:
-    args = sys.argv[1:] if argv is None else argv
-    if args[:1] != ["--header"] or len(args) > 2:
-        print("usage: python -m core.contracts --header [PATH]   (default: the committed header)", file=sys.stderr)
+def header_cli(argv: list[str], default: Path, text: Callable[[], str], module: str) -> int:
+    """``python -m <module> --header [PATH]``: write a generated header (default: the committed one)."""
+    if argv[:1] != ["--header"] or len(argv) > 2:
+        print(f"usage: python -m {module} --header [PATH]   (default: {default.name}, the committed header)",
+              file=sys.stderr)
         return 1
-    path = Path(args[1]) if len(args) == 2 else HEADER_PATH
-    path.write_text(cpp_header())
+    path = Path(argv[1]) if len(argv) == 2 else default
+    path.write_text(text())
     print(f"wrote {path}")
     return 0
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(header_cli(sys.argv[1:], HEADER_PATH, cpp_header, "core.contracts"))

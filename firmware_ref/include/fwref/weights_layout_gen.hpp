@@ -61,11 +61,10 @@ constexpr bool follows(std::size_t b_offset, std::size_t a_offset, std::size_t a
   return b_offset >= a_offset + a_size && b_offset < a_offset + a_size + b_align;
 }
 
-// Member b of T starts where member a ends, give or take b's alignment padding; the last member
-// ends the struct, give or take its padding.
-#define FWREF_FOLLOWS(T, a, b)                                                                     \
-  static_assert(follows(offsetof(T, b), offsetof(T, a), sizeof(T::a), alignof(decltype(T::b))), \
-                #T ": " #b " must follow " #a)
+// The Cortex-M generator initialises each model struct in table order (dims first), so each
+// struct's members must be exactly dims and the bound tensors, in table order.
+#define FWREF_FOLLOWS(T, a, b) \
+  static_assert(follows(offsetof(T, b), offsetof(T, a), sizeof(T::a), alignof(decltype(T::b))), #T ": " #b " must follow " #a)
 #define FWREF_LAST(T, a) \
   static_assert(follows(sizeof(T), offsetof(T, a), sizeof(T::a), alignof(T)), #T ": " #a " must be the last member")
 
@@ -119,18 +118,22 @@ inline void dims_from(const std::uint32_t* v, CnodeDims* d) {
   d->stage_times = static_cast<int>(v[6]);
 }
 
-template <> struct Section<CnodeF32> {
-  static constexpr std::uint32_t model = 1, precision = 1;
-  static constexpr const char* label = "cnode fp32";
+template <std::uint32_t P>
+struct CnodeSection {
+  static constexpr std::uint32_t model = 1, precision = P;
+  static constexpr const char* label = P == 1 ? "cnode fp32" : "cnode int8";
   static constexpr const DimSpec* dims = kCnodeDims;
   static constexpr int dim_count = kCnodeDimCount;
   static constexpr const TensorSpec* tensors = kCnodeTensors;
   static constexpr int tensor_count = kCnodeTensorCount;
 };
+template <> struct Section<CnodeF32> : CnodeSection<1> {};
+template <> struct Section<CnodeI8> : CnodeSection<2> {};
 
-// Every tensor of the cnode fp32 section, in file order, with the member it binds to.
+// Every tensor of a cnode section, in file order, with the member it binds to.
 template <class M, class F>
-std::enable_if_t<std::is_same_v<std::remove_const_t<M>, CnodeF32>> visit(M& m, F& f) {
+std::enable_if_t<std::is_same_v<std::remove_const_t<M>, CnodeF32> || std::is_same_v<std::remove_const_t<M>, CnodeI8>>
+visit(M& m, F& f) {
   f(m.mean, kCnodeTensors[0]);
   f(m.std, kCnodeTensors[1]);
   f(m.interp, kCnodeTensors[2]);
@@ -146,82 +149,42 @@ std::enable_if_t<std::is_same_v<std::remove_const_t<M>, CnodeF32>> visit(M& m, F
   f(m.lin2_b, kCnodeTensors[12]);
   f(m.head_w, kCnodeTensors[13]);
   f(m.head_b, kCnodeTensors[14]);
+  if constexpr (Section<std::remove_const_t<M>>::precision == 2) {
+    f(m.s_x, kCnodeTensors[15]);
+    f(m.s_u, kCnodeTensors[16]);
+    f(m.s_stage, kCnodeTensors[17]);
+    f(m.s_hidden, kCnodeTensors[18]);
+    f(m.s_z1, kCnodeTensors[19]);
+  }
 }
 
-// CnodeF32's members are exactly dims + the bound tensors, in file order.
-static_assert(offsetof(CnodeF32, dims) == 0, "CnodeF32 starts with dims");
-FWREF_FOLLOWS(CnodeF32, dims, mean);
-FWREF_FOLLOWS(CnodeF32, mean, std);
-FWREF_FOLLOWS(CnodeF32, std, interp);
-FWREF_FOLLOWS(CnodeF32, interp, stage_index);
-FWREF_FOLLOWS(CnodeF32, stage_index, rk4);
-FWREF_FOLLOWS(CnodeF32, rk4, encoder_w);
-FWREF_FOLLOWS(CnodeF32, encoder_w, encoder_b);
-FWREF_FOLLOWS(CnodeF32, encoder_b, lin1_z);
-FWREF_FOLLOWS(CnodeF32, lin1_z, lin1_u);
-FWREF_FOLLOWS(CnodeF32, lin1_u, lin1_b);
-FWREF_FOLLOWS(CnodeF32, lin1_b, lin2_w);
-FWREF_FOLLOWS(CnodeF32, lin2_w, lin2_b);
-FWREF_FOLLOWS(CnodeF32, lin2_b, head_w);
-FWREF_FOLLOWS(CnodeF32, head_w, head_b);
+#define FWREF_CNODE_ORDER(T)                                  \
+  static_assert(offsetof(T, dims) == 0, #T " starts with dims"); \
+  FWREF_FOLLOWS(T, dims, mean); \
+  FWREF_FOLLOWS(T, mean, std); \
+  FWREF_FOLLOWS(T, std, interp); \
+  FWREF_FOLLOWS(T, interp, stage_index); \
+  FWREF_FOLLOWS(T, stage_index, rk4); \
+  FWREF_FOLLOWS(T, rk4, encoder_w); \
+  FWREF_FOLLOWS(T, encoder_w, encoder_b); \
+  FWREF_FOLLOWS(T, encoder_b, lin1_z); \
+  FWREF_FOLLOWS(T, lin1_z, lin1_u); \
+  FWREF_FOLLOWS(T, lin1_u, lin1_b); \
+  FWREF_FOLLOWS(T, lin1_b, lin2_w); \
+  FWREF_FOLLOWS(T, lin2_w, lin2_b); \
+  FWREF_FOLLOWS(T, lin2_b, head_w); \
+  FWREF_FOLLOWS(T, head_w, head_b); \
+
+FWREF_CNODE_ORDER(CnodeF32);
 FWREF_LAST(CnodeF32, head_b);
-
-template <> struct Section<CnodeI8> {
-  static constexpr std::uint32_t model = 1, precision = 2;
-  static constexpr const char* label = "cnode int8";
-  static constexpr const DimSpec* dims = kCnodeDims;
-  static constexpr int dim_count = kCnodeDimCount;
-  static constexpr const TensorSpec* tensors = kCnodeTensors;
-  static constexpr int tensor_count = kCnodeTensorCount;
-};
-
-// Every tensor of the cnode int8 section, in file order, with the member it binds to.
-template <class M, class F>
-std::enable_if_t<std::is_same_v<std::remove_const_t<M>, CnodeI8>> visit(M& m, F& f) {
-  f(m.mean, kCnodeTensors[0]);
-  f(m.std, kCnodeTensors[1]);
-  f(m.interp, kCnodeTensors[2]);
-  f(m.stage_index, kCnodeTensors[3]);
-  f(Unbound{}, kCnodeTensors[4]);
-  f(m.rk4, kCnodeTensors[5]);
-  f(m.encoder_w, kCnodeTensors[6]);
-  f(m.encoder_b, kCnodeTensors[7]);
-  f(m.lin1_z, kCnodeTensors[8]);
-  f(m.lin1_u, kCnodeTensors[9]);
-  f(m.lin1_b, kCnodeTensors[10]);
-  f(m.lin2_w, kCnodeTensors[11]);
-  f(m.lin2_b, kCnodeTensors[12]);
-  f(m.head_w, kCnodeTensors[13]);
-  f(m.head_b, kCnodeTensors[14]);
-  f(m.s_x, kCnodeTensors[15]);
-  f(m.s_u, kCnodeTensors[16]);
-  f(m.s_stage, kCnodeTensors[17]);
-  f(m.s_hidden, kCnodeTensors[18]);
-  f(m.s_z1, kCnodeTensors[19]);
-}
-
-// CnodeI8's members are exactly dims + the bound tensors, in file order.
-static_assert(offsetof(CnodeI8, dims) == 0, "CnodeI8 starts with dims");
-FWREF_FOLLOWS(CnodeI8, dims, mean);
-FWREF_FOLLOWS(CnodeI8, mean, std);
-FWREF_FOLLOWS(CnodeI8, std, interp);
-FWREF_FOLLOWS(CnodeI8, interp, stage_index);
-FWREF_FOLLOWS(CnodeI8, stage_index, rk4);
-FWREF_FOLLOWS(CnodeI8, rk4, encoder_w);
-FWREF_FOLLOWS(CnodeI8, encoder_w, encoder_b);
-FWREF_FOLLOWS(CnodeI8, encoder_b, lin1_z);
-FWREF_FOLLOWS(CnodeI8, lin1_z, lin1_u);
-FWREF_FOLLOWS(CnodeI8, lin1_u, lin1_b);
-FWREF_FOLLOWS(CnodeI8, lin1_b, lin2_w);
-FWREF_FOLLOWS(CnodeI8, lin2_w, lin2_b);
-FWREF_FOLLOWS(CnodeI8, lin2_b, head_w);
-FWREF_FOLLOWS(CnodeI8, head_w, head_b);
+FWREF_CNODE_ORDER(CnodeI8);
 FWREF_FOLLOWS(CnodeI8, head_b, s_x);
 FWREF_FOLLOWS(CnodeI8, s_x, s_u);
 FWREF_FOLLOWS(CnodeI8, s_u, s_stage);
 FWREF_FOLLOWS(CnodeI8, s_stage, s_hidden);
 FWREF_FOLLOWS(CnodeI8, s_hidden, s_z1);
 FWREF_LAST(CnodeI8, s_z1);
+#undef FWREF_CNODE_ORDER
 
 // ---- gru: section dims u32[8] and tensors, in file order
 
@@ -254,18 +217,22 @@ inline void dims_from(const std::uint32_t* v, GruDims* d) {
   d->hidden = static_cast<int>(v[3]);
 }
 
-template <> struct Section<GruF32> {
-  static constexpr std::uint32_t model = 2, precision = 1;
-  static constexpr const char* label = "gru fp32";
+template <std::uint32_t P>
+struct GruSection {
+  static constexpr std::uint32_t model = 2, precision = P;
+  static constexpr const char* label = P == 1 ? "gru fp32" : "gru int8";
   static constexpr const DimSpec* dims = kGruDims;
   static constexpr int dim_count = kGruDimCount;
   static constexpr const TensorSpec* tensors = kGruTensors;
   static constexpr int tensor_count = kGruTensorCount;
 };
+template <> struct Section<GruF32> : GruSection<1> {};
+template <> struct Section<GruI8> : GruSection<2> {};
 
-// Every tensor of the gru fp32 section, in file order, with the member it binds to.
+// Every tensor of a gru section, in file order, with the member it binds to.
 template <class M, class F>
-std::enable_if_t<std::is_same_v<std::remove_const_t<M>, GruF32>> visit(M& m, F& f) {
+std::enable_if_t<std::is_same_v<std::remove_const_t<M>, GruF32> || std::is_same_v<std::remove_const_t<M>, GruI8>>
+visit(M& m, F& f) {
   f(m.mean, kGruTensors[0]);
   f(m.std, kGruTensors[1]);
   f(m.w_ih, kGruTensors[2]);
@@ -274,57 +241,30 @@ std::enable_if_t<std::is_same_v<std::remove_const_t<M>, GruF32>> visit(M& m, F& 
   f(m.b_hh, kGruTensors[5]);
   f(m.head_w, kGruTensors[6]);
   f(m.head_b, kGruTensors[7]);
+  if constexpr (Section<std::remove_const_t<M>>::precision == 2) {
+    f(m.s_x, kGruTensors[8]);
+    f(m.s_h, kGruTensors[9]);
+  }
 }
 
-// GruF32's members are exactly dims + the bound tensors, in file order.
-static_assert(offsetof(GruF32, dims) == 0, "GruF32 starts with dims");
-FWREF_FOLLOWS(GruF32, dims, mean);
-FWREF_FOLLOWS(GruF32, mean, std);
-FWREF_FOLLOWS(GruF32, std, w_ih);
-FWREF_FOLLOWS(GruF32, w_ih, w_hh);
-FWREF_FOLLOWS(GruF32, w_hh, b_ih);
-FWREF_FOLLOWS(GruF32, b_ih, b_hh);
-FWREF_FOLLOWS(GruF32, b_hh, head_w);
-FWREF_FOLLOWS(GruF32, head_w, head_b);
+#define FWREF_GRU_ORDER(T)                                  \
+  static_assert(offsetof(T, dims) == 0, #T " starts with dims"); \
+  FWREF_FOLLOWS(T, dims, mean); \
+  FWREF_FOLLOWS(T, mean, std); \
+  FWREF_FOLLOWS(T, std, w_ih); \
+  FWREF_FOLLOWS(T, w_ih, w_hh); \
+  FWREF_FOLLOWS(T, w_hh, b_ih); \
+  FWREF_FOLLOWS(T, b_ih, b_hh); \
+  FWREF_FOLLOWS(T, b_hh, head_w); \
+  FWREF_FOLLOWS(T, head_w, head_b); \
+
+FWREF_GRU_ORDER(GruF32);
 FWREF_LAST(GruF32, head_b);
-
-template <> struct Section<GruI8> {
-  static constexpr std::uint32_t model = 2, precision = 2;
-  static constexpr const char* label = "gru int8";
-  static constexpr const DimSpec* dims = kGruDims;
-  static constexpr int dim_count = kGruDimCount;
-  static constexpr const TensorSpec* tensors = kGruTensors;
-  static constexpr int tensor_count = kGruTensorCount;
-};
-
-// Every tensor of the gru int8 section, in file order, with the member it binds to.
-template <class M, class F>
-std::enable_if_t<std::is_same_v<std::remove_const_t<M>, GruI8>> visit(M& m, F& f) {
-  f(m.mean, kGruTensors[0]);
-  f(m.std, kGruTensors[1]);
-  f(m.w_ih, kGruTensors[2]);
-  f(m.w_hh, kGruTensors[3]);
-  f(m.b_ih, kGruTensors[4]);
-  f(m.b_hh, kGruTensors[5]);
-  f(m.head_w, kGruTensors[6]);
-  f(m.head_b, kGruTensors[7]);
-  f(m.s_x, kGruTensors[8]);
-  f(m.s_h, kGruTensors[9]);
-}
-
-// GruI8's members are exactly dims + the bound tensors, in file order.
-static_assert(offsetof(GruI8, dims) == 0, "GruI8 starts with dims");
-FWREF_FOLLOWS(GruI8, dims, mean);
-FWREF_FOLLOWS(GruI8, mean, std);
-FWREF_FOLLOWS(GruI8, std, w_ih);
-FWREF_FOLLOWS(GruI8, w_ih, w_hh);
-FWREF_FOLLOWS(GruI8, w_hh, b_ih);
-FWREF_FOLLOWS(GruI8, b_ih, b_hh);
-FWREF_FOLLOWS(GruI8, b_hh, head_w);
-FWREF_FOLLOWS(GruI8, head_w, head_b);
+FWREF_GRU_ORDER(GruI8);
 FWREF_FOLLOWS(GruI8, head_b, s_x);
 FWREF_FOLLOWS(GruI8, s_x, s_h);
 FWREF_LAST(GruI8, s_h);
+#undef FWREF_GRU_ORDER
 
 }  // namespace layout
 }  // namespace fwref
