@@ -30,11 +30,11 @@ import numpy as np
 
 from core.contracts import header_cli
 from core.rk4 import RK4_C, RK4_CONSTANT_NAMES
+from export.binfmt import N_DIMS
 
 MAGIC = b"QFDIWTS\0"
 VERSION = 1
 PRECISIONS = ("fp32", "int8")
-KINDS = ("vec", "index", "mat", "scalar")
 STAGES_PER_STEP = len(RK4_C)  # field evaluations per classic RK4 step
 
 
@@ -122,8 +122,6 @@ GRU = ModelLayout(
 
 MODELS: dict[str, ModelLayout] = {"cnode": CNODE, "gru": GRU}
 SECTION_ORDER: tuple[tuple[str, str], ...] = tuple((m, p) for m in MODELS for p in PRECISIONS)
-N_DIMS = 8
-
 _EXTENT = re.compile(r"^(\d*)([A-Z]?)$")
 
 
