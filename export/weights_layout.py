@@ -202,6 +202,9 @@ namespace layout {
 
 constexpr char kMagic[9] = "@MAGIC@";  // + the terminating NUL: 8 bytes
 constexpr std::uint32_t kVersion = @VERSION@;
+// reference.bin (export/reference_bin.py) shares the container; fwref_parity reads it.
+constexpr char kReferenceMagic[9] = "@REF_MAGIC@";
+constexpr std::uint32_t kReferenceVersion = @REF_VERSION@;
 constexpr const char* kSectionOrder[] = {@ORDER@};
 
 // vec: float32; index: int32; mat: float32 (fp32 section) or int8 per row (int8 section);
@@ -334,11 +337,15 @@ def _cpp_structs(layout: ModelLayout, title: str) -> list[str]:
 
 def cpp_header() -> str:
     """The text of fwref/weights_layout_gen.hpp."""
+    from export import reference_bin  # it imports this module (through weights_bin)
+
     body = []
     for layout in MODELS.values():
         title = layout.model.capitalize()
         body += _cpp_tables(layout, title) + _cpp_structs(layout, title)
     return (_PREAMBLE.replace("@MAGIC@", MAGIC.rstrip(b"\0").decode()).replace("@VERSION@", str(VERSION))
+            .replace("@REF_MAGIC@", reference_bin.MAGIC.rstrip(b"\0").decode())
+            .replace("@REF_VERSION@", str(reference_bin.VERSION))
             .replace("@ORDER@", ", ".join(f'"{m} {p}"' for m, p in SECTION_ORDER)).replace("@BODY@", "\n".join(body)))
 
 

@@ -162,9 +162,11 @@ def expected_contract_lines() -> list[str]:
     """What fwref_contracts must print, from the Python tables alone."""
     from core import contracts
     from core.rk4 import RK4_CONSTANT_NAMES
+    from export import reference_bin
     from export.weights_layout import MAGIC, MODELS, SECTION_ORDER, VERSION, dtype_of
 
-    lines = [f"weights {MAGIC.rstrip(bytes(1)).decode()} {VERSION}"]
+    lines = [f"weights {MAGIC.rstrip(bytes(1)).decode()} {VERSION}",
+             f"reference {reference_bin.MAGIC.rstrip(bytes(1)).decode()} {reference_bin.VERSION}"]
     for model, precision in SECTION_ORDER:
         layout = MODELS[model]
         lines.append(f"section {model} {precision}")

@@ -7,7 +7,7 @@
 //   fwref_contracts
 //
 // Lines:
-//   weights <magic> <version>
+//   weights <magic> <version> | reference <magic> <version>
 //   section <model> <precision>
 //   dim <symbol> <index> limit <macro> | dim <symbol> <index> = <a><symbol> + <b>
 //   tensor <name> <float32|int8|int32> <shape formula, e.g. (3H,C)>
@@ -78,6 +78,7 @@ int main(int argc, char**) {
   }
   namespace c = fwref::contracts;
   std::printf("weights %s %u\n", fwref::layout::kMagic, fwref::layout::kVersion);
+  std::printf("reference %s %u\n", fwref::layout::kReferenceMagic, fwref::layout::kReferenceVersion);
   print_section<fwref::CnodeF32>();
   print_section<fwref::CnodeI8>();
   print_section<fwref::GruF32>();

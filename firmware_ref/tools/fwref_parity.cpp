@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "fwref/parity.hpp"
+#include "fwref/weights_layout_gen.hpp"
 #include "host_common.hpp"
 
 namespace {
@@ -21,8 +22,6 @@ using fwref::SectionInfo;
 using fwref::Status;
 using fwref::TensorInfo;
 
-constexpr char kReferenceMagic[9] = "QFDIREF";  // export/reference_bin.py
-constexpr std::uint32_t kReferenceVersion = 1;
 
 int fail(const std::string& message) {
   std::fprintf(stderr, "fwref_parity: error: %s\n", message.c_str());
@@ -197,7 +196,7 @@ int main(int argc, char** argv) {
   fwref::WeightsFile wf;
   if (wf.load(weights, &error) != Status::kOk) return fail(error);
   Container ref;
-  if (ref.load(reference, kReferenceMagic, kReferenceVersion, "reference file", &error) != Status::kOk) return fail(error);
+  if (ref.load(reference, fwref::layout::kReferenceMagic, fwref::layout::kReferenceVersion, "reference file", &error) != Status::kOk) return fail(error);
   const SectionInfo* inputs = ref.find(fwref::kModelNone, fwref::kPrecNone);
   const TensorInfo* tel = inputs ? inputs->find("telemetry") : nullptr;
   if (tel == nullptr || tel->dtype != fwref::DType::kF32 || tel->ndim != 3) {

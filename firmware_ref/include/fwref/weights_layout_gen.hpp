@@ -16,6 +16,9 @@ namespace layout {
 
 constexpr char kMagic[9] = "QFDIWTS";  // + the terminating NUL: 8 bytes
 constexpr std::uint32_t kVersion = 1;
+// reference.bin (export/reference_bin.py) shares the container; fwref_parity reads it.
+constexpr char kReferenceMagic[9] = "QFDIREF";
+constexpr std::uint32_t kReferenceVersion = 1;
 constexpr const char* kSectionOrder[] = {"cnode fp32", "cnode int8", "gru fp32", "gru int8"};
 
 // vec: float32; index: int32; mat: float32 (fp32 section) or int8 per row (int8 section);
