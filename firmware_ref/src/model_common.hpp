@@ -37,6 +37,16 @@ inline bool view_ok(const MatQ& m, int rows, int cols) {
   return m.q != nullptr && m.rows == rows && m.cols == cols && all_positive_finite(m.scale, rows);
 }
 
+// Every model check runs in this order: the dimensions first (they size everything else), then the
+// views' shapes, then the values (read with those dimensions). ``shapes_ok()`` -> bool and
+// ``values()`` -> Status are called only when what precedes them passed.
+template <class Shapes, class Values>
+Status check_model(Status dims, Shapes shapes_ok, Values values) {
+  if (dims != Status::kOk) return dims;
+  if (!shapes_ok()) return Status::kBadShape;
+  return values();
+}
+
 // Classic RK4, N steps of h over [0, 1], evaluated exactly as core/rk4.py's RK4_PROGRAM (repeated in
 // fwref/contracts_gen.hpp), with its float32 constants ``c`` in RK4_CONSTANT_NAMES order (weights.bin's
 // rk4.consts): int8 results are bit-identical to ONNX Runtime's only if every float32 operation
@@ -58,14 +68,14 @@ void rk4_integrate(const float* c, int steps, Vec& z, Vec& k1, Vec& k2, Vec& k3,
     ++e;
   };
   for (int step = 0; step < steps; ++step) {
-    eval(z, k1);                                          // k1 = f(t, z)
-    state = z + k1 * half_h;                              // k2 = f(t + h/2, z + half_h * k1)
+    eval(z, k1);                                             // k1 = f(t, z)
+    state = z + k1 * half_h;                                 // k2 = f(t + h/2, z + half_h * k1)
     eval(state, k2);
-    state = z + k2 * half_h;                              // k3 = f(t + h/2, z + half_h * k2)
+    state = z + k2 * half_h;                                 // k3 = f(t + h/2, z + half_h * k2)
     eval(state, k3);
-    state = z + k3 * h;                                   // k4 = f(t + h, z + h * k3)
+    state = z + k3 * h;                                      // k4 = f(t + h, z + h * k3)
     eval(state, k4);
-    z = z + (((k1 + k2 * two) + k3 * two) + k4) * h_over_6;  // z + h_over_6 * (((k1 + two k2) + two k3) + k4)
+    z = z + (((k1 + k2 * two) + k3 * two) + k4) * h_over_6;  // z = z + h_over_6 * (((k1 + two * k2) + ...
   }
 }
 
