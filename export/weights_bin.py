@@ -118,7 +118,8 @@ def check_layout(sections: list[Section], where: str) -> None:
     dtype and shape its dims imply; otherwise a one-line QuadfdiError."""
     got = [(s.model, s.precision) for s in sections]
     if got != list(SECTION_ORDER):
-        raise QuadfdiError(f"{where} holds sections {got}, the layout is {list(SECTION_ORDER)} (re-run `quadfdi export`)")
+        raise QuadfdiError(f"{where} holds sections {got}, the layout is {list(SECTION_ORDER)} "
+                           f"(re-run `quadfdi export`)")
     for s in sections:
         label = f"{where}: section {s.model} {s.precision}"
         bad = check_dims(s.model, s.dims)

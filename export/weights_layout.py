@@ -253,7 +253,8 @@ constexpr bool follows(std::size_t b_offset, std::size_t a_offset, std::size_t a
 // The Cortex-M generator initialises each model struct in table order (dims first), so each
 // struct's members must be exactly dims and the bound tensors, in table order.
 #define FWREF_FOLLOWS(T, a, b) \\
-  static_assert(follows(offsetof(T, b), offsetof(T, a), sizeof(T::a), alignof(decltype(T::b))), #T ": " #b " must follow " #a)
+  static_assert(follows(offsetof(T, b), offsetof(T, a), sizeof(T::a), alignof(decltype(T::b))), \\
+                #T ": " #b " must follow " #a)
 #define FWREF_LAST(T, a) \\
   static_assert(follows(sizeof(T), offsetof(T, a), sizeof(T::a), alignof(T)), #T ": " #a " must be the last member")
 
@@ -293,7 +294,8 @@ def _cpp_tables(layout: ModelLayout, title: str) -> list[str]:
             f'"({", ".join(t.shape)}{"," if len(t.shape) == 1 else ""})", {str(t.int8_only).lower()}}},'
             for t in layout.tensors]
     return [f"// ---- {layout.model}: section dims u32[8] and tensors, in file order", "",
-            f"constexpr DimSpec k{title}Dims[] = {{", *dims, "};", f"constexpr int k{title}DimCount = {len(layout.dims)};",
+            f"constexpr DimSpec k{title}Dims[] = {{", *dims, "};",
+            f"constexpr int k{title}DimCount = {len(layout.dims)};",
             "", f"constexpr TensorSpec k{title}Tensors[] = {{", *rows, "};",
             f"constexpr int k{title}TensorCount = {len(layout.tensors)};", "",
             f"inline void dims_from(const std::uint32_t* v, {layout.cpp_dims}* d) {{",
@@ -311,10 +313,12 @@ def _cpp_structs(layout: ModelLayout, title: str) -> list[str]:
              f"  static constexpr int dim_count = k{title}DimCount;",
              f"  static constexpr const TensorSpec* tensors = k{title}Tensors;",
              f"  static constexpr int tensor_count = k{title}TensorCount;", "};"]
-    lines += [f"template <> struct Section<{types[p]}> : {title}Section<{i + 1}> {{}};" for i, p in enumerate(PRECISIONS)]
+    lines += [f"template <> struct Section<{types[p]}> : {title}Section<{i + 1}> {{}};"
+              for i, p in enumerate(PRECISIONS)]
     common, int8 = [], []
     for i, t in enumerate(layout.tensors):
-        (int8 if t.int8_only else common).append(f"f({f'm.{t.field}' if t.field else 'Unbound{}'}, k{title}Tensors[{i}]);")
+        member = f"m.{t.field}" if t.field else "Unbound{}"
+        (int8 if t.int8_only else common).append(f"f({member}, k{title}Tensors[{i}]);")
     lines += ["", f"// Every tensor of a {m} section, in file order, with the member it binds to.",
               "template <class M, class F>",
               f"std::enable_if_t<std::is_same_v<std::remove_const_t<M>, {types['fp32']}> || "

@@ -196,7 +196,10 @@ int main(int argc, char** argv) {
   fwref::WeightsFile wf;
   if (wf.load(weights, &error) != Status::kOk) return fail(error);
   Container ref;
-  if (ref.load(reference, fwref::layout::kReferenceMagic, fwref::layout::kReferenceVersion, "reference file", &error) != Status::kOk) return fail(error);
+  if (ref.load(reference, fwref::layout::kReferenceMagic, fwref::layout::kReferenceVersion, "reference file",
+               &error) != Status::kOk) {
+    return fail(error);
+  }
   const SectionInfo* inputs = ref.find(fwref::kModelNone, fwref::kPrecNone);
   const TensorInfo* tel = inputs ? inputs->find("telemetry") : nullptr;
   if (tel == nullptr || tel->dtype != fwref::DType::kF32 || tel->ndim != 3) {

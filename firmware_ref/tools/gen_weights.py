@@ -90,7 +90,8 @@ def section_unit(model: str, precision: str, section) -> str:
     typ = layout.cpp_types[precision]
     var = "k" + typ
     init = ",\n    ".join(fields)
-    return (f'#include "fwref_weights.hpp"\n\nnamespace fwref_data {{\nnamespace {{\n{"".join(parts)}}}  // namespace\n\n'
+    return (f'#include "fwref_weights.hpp"\n\nnamespace fwref_data {{\nnamespace {{\n'
+            f'{"".join(parts)}}}  // namespace\n\n'
             f"const fwref::{typ} {var} = {{\n    {init}\n}};\n\n"
             f"}}  // namespace fwref_data\n")
 
@@ -115,7 +116,9 @@ def limits_header(weights) -> str:
 def weights_header() -> str:
     decls = "".join(f"extern const fwref::{t} k{t};\n" for m, p in SECTION_ORDER for t in [MODELS[m].cpp_types[p]])
     return ("#pragma once\n// The four models of weights.bin as constant structs in flash (one .cpp per section).\n"
-            '#include "fwref/cnode.hpp"\n#include "fwref/gru.hpp"\n#include "fwref/weights_layout_gen.hpp"  // pins the member order used below\n\nnamespace fwref_data {\n' + decls +
+            '#include "fwref/cnode.hpp"\n#include "fwref/gru.hpp"\n'
+            '#include "fwref/weights_layout_gen.hpp"  // pins the member order used below\n\n'
+            "namespace fwref_data {\n" + decls +
             "}  // namespace fwref_data\n")
 
 

@@ -67,7 +67,8 @@ constexpr bool follows(std::size_t b_offset, std::size_t a_offset, std::size_t a
 // The Cortex-M generator initialises each model struct in table order (dims first), so each
 // struct's members must be exactly dims and the bound tensors, in table order.
 #define FWREF_FOLLOWS(T, a, b) \
-  static_assert(follows(offsetof(T, b), offsetof(T, a), sizeof(T::a), alignof(decltype(T::b))), #T ": " #b " must follow " #a)
+  static_assert(follows(offsetof(T, b), offsetof(T, a), sizeof(T::a), alignof(decltype(T::b))), \
+                #T ": " #b " must follow " #a)
 #define FWREF_LAST(T, a) \
   static_assert(follows(sizeof(T), offsetof(T, a), sizeof(T::a), alignof(T)), #T ": " #a " must be the last member")
 
