@@ -28,6 +28,7 @@ import numpy as np
 
 from export.binfmt import Section, pack, read_file
 from export.weights_bin import cnode_dims, gru_dims
+from export.weights_layout import REFERENCE_MAGIC, REFERENCE_VERSION
 
 if TYPE_CHECKING:  # the reader needs neither torch nor onnx (firmware_ref/tools/gen_weights.py uses it)
     import torch
@@ -36,8 +37,7 @@ if TYPE_CHECKING:  # the reader needs neither torch nor onnx (firmware_ref/tools
     from export.onnx_cnode import CnodeParams
     from export.onnx_gru import GruParams
 
-MAGIC = b"QFDIREF\0"
-VERSION = 1
+MAGIC, VERSION = REFERENCE_MAGIC, REFERENCE_VERSION  # export/weights_layout.py
 
 
 def pick_windows(y: np.ndarray, n: int) -> np.ndarray:

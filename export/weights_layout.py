@@ -34,6 +34,10 @@ from export.binfmt import N_DIMS
 
 MAGIC = b"QFDIWTS\0"
 VERSION = 1
+# reference.bin shares the container (export/reference_bin.py): its identifiers live here too, so the
+# generated header takes both from one module.
+REFERENCE_MAGIC = b"QFDIREF\0"
+REFERENCE_VERSION = 1
 PRECISIONS = ("fp32", "int8")
 STAGES_PER_STEP = len(RK4_C)  # field evaluations per classic RK4 step
 
@@ -341,15 +345,13 @@ def _cpp_structs(layout: ModelLayout, title: str) -> list[str]:
 
 def cpp_header() -> str:
     """The text of fwref/weights_layout_gen.hpp."""
-    from export import reference_bin  # it imports this module (through weights_bin)
-
     body = []
     for layout in MODELS.values():
         title = layout.model.capitalize()
         body += _cpp_tables(layout, title) + _cpp_structs(layout, title)
     return (_PREAMBLE.replace("@MAGIC@", MAGIC.rstrip(b"\0").decode()).replace("@VERSION@", str(VERSION))
-            .replace("@REF_MAGIC@", reference_bin.MAGIC.rstrip(b"\0").decode())
-            .replace("@REF_VERSION@", str(reference_bin.VERSION))
+            .replace("@REF_MAGIC@", REFERENCE_MAGIC.rstrip(b"\0").decode())
+            .replace("@REF_VERSION@", str(REFERENCE_VERSION))
             .replace("@ORDER@", ", ".join(f'"{m} {p}"' for m, p in SECTION_ORDER)).replace("@BODY@", "\n".join(body)))
 
 
