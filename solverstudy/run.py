@@ -81,13 +81,16 @@ def study_run(run: RunDir, cfg: Config, log: Log = print, checkpoint: str | Path
     study["meta"].update(checkpoint=str(ckpt), trained_with=_trained_with(blob),
                          command=command or f"quadfdi solvers study --run {run.root}")
     files = SolverFiles(run.root)
-    write_json(files.study_json, study, indent=2)
-    figs = draw_study(study, files.figures)
-    write_text(files.study_md, study_markdown(study, study["meta"]["command"]))
+    _write(files.study_json, files.study_md, study, study_markdown, draw_study(study, files.figures), log)
     log(study_headline(study))
-    log(f"wrote {files.study_json}, {files.study_md} and {', '.join(str(f) for f in figs)} "
-        f"in {study['meta']['seconds']:.0f} s")
     return study
+
+
+def _write(json_path: Path, md_path: Path, result: dict, markdown: Callable, figs: list, log: Log) -> None:
+    """A study's JSON and markdown (its figures are drawn already), and one line saying so."""
+    write_json(json_path, result, indent=2)
+    write_text(md_path, markdown(result, result["meta"]["command"]))
+    log(f"wrote {json_path}, {md_path} and {', '.join(str(f) for f in figs)} in {result['meta']['seconds']:.0f} s")
 
 
 def _sha256(path: Path) -> str:
@@ -151,12 +154,8 @@ def matrix_run(run: RunDir, cfg: Config, log: Log = print, reuse: bool = False, 
         matrix = run_matrix(ds, cfg, specs, deploys, models=models, on_trained=save, log=log)
     matrix["meta"].update(command=command or f"quadfdi solvers matrix --run {run.root}", reused=reused,
                           seconds=time.perf_counter() - t0)
-    write_json(files.matrix_json, matrix, indent=2)
-    figs = draw_matrix(matrix, files.figures)
-    write_text(files.matrix_md, matrix_markdown(matrix, matrix["meta"]["command"]))
+    _write(files.matrix_json, files.matrix_md, matrix, matrix_markdown, draw_matrix(matrix, files.figures), log)
     log(ott_sentence(matrix))
-    log(f"wrote {files.matrix_json}, {files.matrix_md} and {', '.join(str(f) for f in figs)} "
-        f"in {matrix['meta']['seconds']:.0f} s")
     return matrix
 
 
