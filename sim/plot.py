@@ -7,7 +7,6 @@ from pathlib import Path
 import numpy as np
 
 from core.plotting import pyplot, save_png
-from core.contracts import CLASS_NAMES
 
 
 def _series(ds, row: int, name: str) -> np.ndarray | None:
@@ -68,6 +67,8 @@ def plot_trajectory(ds, row: int, out: str | Path) -> Path:
     extra = f", motor {motor + 1}" if motor >= 0 else ""
     det_txt = f", detectable {det:.2f} s" if np.isfinite(det) else ""
     on_txt = f", onset {onset:.2f} s" if cls else ""
-    fig.suptitle(f"trajectory {row}: {CLASS_NAMES[cls]}{extra}{on_txt}{det_txt} (dotted: onset, dashed: detectable)")
+    from sim.dataset import class_names
+
+    fig.suptitle(f"trajectory {row}: {class_names(ds.arrays)[cls]}{extra}{on_txt}{det_txt} (dotted: onset, dashed: detectable)")
     fig.tight_layout()
     return save_png(fig, out)

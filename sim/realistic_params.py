@@ -18,8 +18,14 @@ from sim.params import get_vehicle
 # Altitude integrator clamp 8 m/s^2: it stands in for PX4's hover-thrust estimator (MPC_USE_HTE),
 # which learns a 2.2 kg vehicle's hover thrust (g * (2.2/1.5 - 1) = 4.6 m/s^2 above nominal) plus sag.
 # Rate P 18/s: with 20-40 ms of motor lag, 25/s left < 35 deg of phase margin (PX4 tunes P down with lag).
+# Thermal fault and derating for 75 s flights (the paper's 16 s never got there): with a_Q = 30 W,
+# lambda_T = 0.02 and d_min = 0.3, an overheat fault ran away to 110-136 degC and the derated motor
+# (30 %) tipped 13 of 784 flights over. Here a_Q = 15 W (a seizing bearing, half the paper's) and
+# the ESC's thermal foldback takes 1 % per degC above T_der down to 60 % (BLHeli_32-style
+# temperature protection reduces power in steps to ~50-75 %, it does not stop the motor).
+# The controller does not use these fields; the realistic physics does (sim/realistic_dynamics.py).
 NOMINAL = dataclasses.replace(get_vehicle("f450_3s"), name="f450_nominal", tilt_max=0.70, iz_max=8.0,
-                              k_rate_rp=18.0, irate_max_rp=80.0)
+                              k_rate_rp=18.0, irate_max_rp=80.0, a_Q=15.0, lambda_T=0.01, d_min=0.6)
 
 # --- vehicle variability (per flight) ---------------------------------------------------------
 MASS_KG = (1.0, 2.2)  # total take-off mass: bare 450-class frame with a small pack .. a 6S 8 Ah pack + camera
