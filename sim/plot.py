@@ -48,7 +48,12 @@ def plot_trajectory(ds, row: int, out: str | Path) -> Path:
     if "effectiveness" in ds.arrays:
         for m in range(4):
             ax.plot(t, ds["effectiveness"][row, :, m], lw=1, label=f"motor {m + 1}")
-    ax.set_title("effectiveness c_i d_m [-]", fontsize=10)
+        ax.set_title("effectiveness c_i d_m [-]", fontsize=10)
+    else:  # the realistic suite logs vibration metrics instead of recording effectiveness
+        for name in ("vib_px4", "vib_ap"):
+            if name in ds.channel_names:
+                ax.plot(t, ds["telemetry"][row, :, ds.channel_names.index(name)], lw=1, label=name)
+        ax.set_title("vibration metrics [m/s^2]", fontsize=10)
     ax.legend(fontsize=7)
     ax = axes[len(panels) + 1]
     ax.plot(t, ds["severity"][row], color="k", lw=1.2, label="severity s_k")

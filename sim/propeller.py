@@ -37,7 +37,7 @@ broadband floor sigma_f per axis. The two logged metrics, in closed form for tha
 They are different quantities: VIBE is flat in frequency above 5 Hz, PX4's metric weighs the
 rotor frequency by g(f) (1.35 at 90 Hz, 0 at 200 Hz). ``px4_metric_time_domain`` and
 ``ap_vibe_time_domain`` run both algorithms on a synthesised 1 kHz signal
-(tests/test_realistic_propeller.py checks the closed forms against them).
+(tests/test_realistic_physics.py checks the closed forms against them).
 """
 
 from __future__ import annotations

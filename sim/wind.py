@@ -13,7 +13,7 @@ H_v = sigma_v sqrt(tau_v) (1 + sqrt(3) tau_v s) / (1 + tau_v s)^2, tau = L / V. 
 filter is split as sqrt(3) lag(n) + (1 - sqrt(3)) lag(lag(n)), each lag discretised
 z' = phi z + (1 - phi) n_k with phi = exp(-dt / tau) and n_k ~ N(0, 1/dt) (white noise held over a
 step): exact variance 1 / (2 tau) at dt << tau, and the Dryden shape below the 100 Hz step
-Nyquist. tests/test_realistic_wind.py compares the Welch PSD of this very code with Phi.
+Nyquist. tests/test_realistic_physics.py compares the Welch PSD of this very code with Phi.
 
 V is the airspeed the eddies pass the vehicle at. At hover it is the mean wind (Taylor's frozen
 turbulence), and Dryden's tau = L / V diverges as V -> 0, so V = max(W_mean, WIND_V_FLOOR): the
