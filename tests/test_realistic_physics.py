@@ -162,3 +162,53 @@ def test_thrust_curve_inverse():
     u = rd.motor_output(f * rd.NOM.F_max)
     k = P.THR_MDL_FAC
     assert np.allclose((1 - k) * u + k * u * u, f) and u[-1] == pytest.approx(1.0)
+
+
+def test_intermittent_events_and_their_labels():
+    from sim import realistic_faults as rf
+
+    draws = [draw_flight(CFG, i, 0) for i in range(40)]
+    cls = np.array([1, 2] * 20)  # battery (connector spikes) and motor (ESC desync)
+    for d in draws:
+        d["mode_u"] = 0.99  # the intermittent mode of both classes
+    fp = rf.plan(draws, CFG.classes, cls, CFG.duration_s)
+    assert np.all(fp.mode == rf.INTERMITTENT)
+    dt = 0.01
+    n = int(CFG.duration_s / dt)
+    ev = rf.event_mask(fp, n, dt)
+    t = np.arange(n + 1) * dt
+    for b in range(40):
+        on = ev[:, b].astype(int)
+        starts, ends = np.flatnonzero(np.diff(on) == 1) + 1, np.flatnonzero(np.diff(on) == -1) + 1
+        assert len(starts) > 0 and t[starts[0]] >= fp.onset[b] - dt
+        lo, hi = (P.CONN_SPIKE_S if cls[b] == 1 else P.DESYNC_S)
+        lengths = (ends[: len(starts)] - starts[: len(ends)]) * dt
+        single = lengths[lengths < hi]  # overlapping events merge into longer ones
+        assert np.all(single >= lo - 2 * dt)
+    sev = rf.label_severity(fp, t)
+    assert np.all(sev[t < fp.onset.min() - 1e-9] == 0)
+    after = t[:, None] >= fp.onset[None, :]
+    assert np.allclose(sev[after], np.broadcast_to(fp.s_max, sev.shape)[after])  # faulty between spikes too
+    assert np.all(rf.physical_severity(fp, t) == 0.0)  # they act through the events only
+
+
+def test_takeoff_faults_are_present_from_the_first_sample():
+    from sim import realistic_faults as rf
+
+    draws = [draw_flight(CFG, i, 0) for i in range(10)]
+    for d in draws:
+        d["mode_u"] = 0.6  # battery: takeoff (0.5..0.8); propeller: takeoff (0.5..1.0)
+    cls = np.array([1, 4] * 5)
+    fp = rf.plan(draws, CFG.classes, cls, CFG.duration_s)
+    assert np.all(fp.mode == rf.TAKEOFF)
+    assert np.allclose(rf.label_severity(fp, np.array([0.0]))[0], fp.s_max)
+
+
+def test_paper_scenario_keeps_the_paper_classes():
+    from core.config import load_config
+    from core.errors import QuadfdiError
+
+    with pytest.raises(QuadfdiError, match="scenario"):
+        load_config(None, ['sim.classes=["Healthy", "PropellerFault"]'])
+    with pytest.raises(QuadfdiError, match="sim.classes"):
+        load_config(None, ["sim.scenario=realistic", 'sim.classes=["BatteryFault", "Healthy"]'])
