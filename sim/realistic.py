@@ -18,7 +18,11 @@ import numpy as np
 
 from core.config import SimConfig
 from core.errors import QuadfdiError
-from sim import mission, propeller, realistic_faults as rf, realistic_loop as rl, sensors, telemetry
+from sim import mission, propeller, sensors, telemetry
+from sim import realistic_dynamics as rd
+from sim import realistic_faults as rf
+from sim import realistic_loop as rl
+from sim import realistic_params as P
 from sim.assign import ASSIGN_SPAWN_KEY, assign
 from sim.variability import MODES, draw_flight, stack
 
@@ -50,7 +54,7 @@ def n_flights(cfg: SimConfig) -> int:
 def _series(rec: rl.Record, fp: rf.FaultPlan, draws: list[dict], veh, noise: np.ndarray, t_rec: np.ndarray,
             dt: float) -> dict[str, np.ndarray]:
     """Every logged channel at the 50 Hz record, (n_rec, B), before the logger's decimation."""
-    vp = rl.rd.NOM
+    vp = rd.NOM
     walk = np.cumsum(noise[:, :, 8:] * np.sqrt(dt), axis=0)
     sig_n = np.array([vp.sens_vb[0], vp.sens_ib[0]] + [vp.sens_temp[0]] * 4)
     sig_b = np.array([vp.sens_vb[1], vp.sens_ib[1]] + [vp.sens_temp[1]] * 4)
@@ -58,12 +62,12 @@ def _series(rec: rl.Record, fp: rf.FaultPlan, draws: list[dict], veh, noise: np.
         + noise[..., :6] * sig_n + walk[..., :6] * sig_b
     d = stack(draws, ("soc0", "vib_floor", "imbalance_g"))
     s = rf.physical_severity(fp, t_rec)
-    delta0 = rl.rd.P.IMBALANCE_CELL_SOC * s[0] * fp.kind[:, 1] * fp.submode[:, 2]
+    delta0 = P.IMBALANCE_CELL_SOC * s[0] * fp.kind[:, 1] * fp.submode[:, 2]
     E_boot = telemetry.battery_rest_voltage(d["soc0"], veh.cells, delta0)  # a weak cell present at boot
     soc = telemetry.coulomb_soc(meas[..., 1], E_boot, veh.cells, veh.C_label, dt)
     cut = propeller.cut_of_severity(s * fp.kind[:, 4])[..., None] * fp.onehot
     px4, ap = telemetry.vibration(rec.x[..., 17:21], cut, d["imbalance_g"], rec.mass, d["vib_floor"], dt)
-    rel = 1.0 + rl.rd.P.VIB_REL_NOISE * noise[..., 6:8]
+    rel = 1.0 + P.VIB_REL_NOISE * noise[..., 6:8]
     out = {name: rec.est[..., j] for j, name in enumerate(sensors.CHANNEL_NAMES[:12])}
     out.update({"V_b": meas[..., 0], "I_b": meas[..., 1], "SoC": soc, "vib_px4": px4 * rel[..., 0],
                 "vib_ap": ap * rel[..., 1]})
@@ -85,8 +89,8 @@ def _chunk(cfg: SimConfig, idx: np.ndarray, cls: np.ndarray, split: np.ndarray, 
     draws = [draw_flight(cfg, int(i), int(g)) for i, g in zip(idx, group)]
     fp = rf.plan(draws, cfg.classes, cls, cfg.duration_s)
     rec = rl.integrate(draws, fp, cfg.seed, idx, cfg.duration_s, cfg.sim_dt_s)
-    veh = rl.rd.vehicle(draws)
-    dt_rec = 1.0 / rl.P.RECORD_HZ
+    veh = rd.vehicle(draws)
+    dt_rec = 1.0 / P.RECORD_HZ
     t_rec = np.arange(rec.x.shape[0]) * dt_rec
     noise = telemetry.sensor_noise(cfg.seed, idx, rec.x.shape[0])
     tel = telemetry.to_grid(_series(rec, fp, draws, veh, noise, t_rec, dt_rec), time)

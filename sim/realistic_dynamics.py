@@ -46,7 +46,7 @@ class Vehicle(NamedTuple):
     rx: np.ndarray  # (B, 4) rotor x positions [m]
     ry: np.ndarray  # (B, 4)
     cg: np.ndarray  # (B, 2)
-    fmax: np.ndarray  # (B, 4) F_max kf_i
+    fmax: np.ndarray  # (B, 4) F_max kf_i: the build's full thrust (thrust-to-weight draw) x the motor's spread
     h: np.ndarray  # (B, 4) healthy cooling h_nom cool_i
     tau_m: np.ndarray  # (B, 4)
     cells: np.ndarray  # (B,)
@@ -64,12 +64,13 @@ def rotor_positions(frame: np.ndarray, arm: np.ndarray) -> tuple[np.ndarray, np.
 
 def vehicle(draws: list[dict]) -> Vehicle:
     d = stack(draws, ("mass", "payload_kg", "payload_t", "frame", "arm", "cells", "cg", "kf", "cool", "capacity",
-                      "age", "t_amb", "motor_tau"))
+                      "age", "t_amb", "motor_tau", "thrust_to_weight"))
+    F_max = d["thrust_to_weight"] * d["mass"] * NOM.g / 4.0  # the build's propulsion (realistic_params)
     rx, ry = rotor_positions(d["frame"], d["arm"])
     scale = (d["mass"] / NOM.m) * (d["arm"] / NOM.L) ** 2  # point-mass scaling of the inertia
     R = d["cells"] * P.R_CELL_5AH * (5.0 / d["capacity"]) * (1 + P.AGE_R_GROWTH * d["age"]) + P.R_LEADS
     return Vehicle(d["mass"], d["payload_kg"], d["payload_t"], NOM.J[None, :] * scale[:, None], rx, ry, d["cg"],
-                   NOM.F_max * d["kf"], NOM.h_nom * d["cool"], d["motor_tau"], d["cells"], R,
+                   F_max[:, None] * d["kf"], NOM.h_nom * d["cool"], d["motor_tau"], d["cells"], R,
                    d["capacity"] * (1 - P.AGE_FADE * d["age"]), d["capacity"], d["t_amb"][:, None])
 
 

@@ -64,7 +64,10 @@ def initial(draws: list[dict], veh: rd.Vehicle, m: dict) -> tuple[np.ndarray, Ct
     x[:, 13:17] = veh.T_amb + 8.0  # motors warmed by the climb to mission altitude
     W = veh.m0 * rd.NOM.g
     x[:, 17:21] = (W / 4.0)[:, None]
-    i_z = np.clip(rd.NOM.g * (veh.m0 / rd.NOM.m - 1.0), -rd.NOM.iz_max, rd.NOM.iz_max)
+    # the nominal controller commands m_nom (g + i_z) of thrust, which the build turns into that times
+    # F_max / F_max_nom: trimmed when m0 g = (F_max / F_max_nom) m_nom (g + i_z)
+    gain = veh.fmax.mean(axis=1) / rd.NOM.F_max * (rd.NOM.m / veh.m0)
+    i_z = np.clip(rd.NOM.g * (1.0 / gain - 1.0), -rd.NOM.iz_max, rd.NOM.iz_max)
     i_rate = np.stack([veh.cg[:, 1] * W / rd.NOM.Jxx, -veh.cg[:, 0] * W / rd.NOM.Jyy, np.zeros(B)], -1)
     i_rate = np.clip(i_rate, -rd.NOM.irate_max_rp, rd.NOM.irate_max_rp)
     return x, CtrlState(i_z=i_z, i_rate=i_rate)

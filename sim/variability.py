@@ -49,9 +49,11 @@ def _vehicle(rng: np.random.Generator, group: int, duration: float) -> dict:
         "cg": rng.uniform(-P.CG_OFFSET_M, P.CG_OFFSET_M, 2),
         "kf": 1.0 + rng.uniform(-P.KF_SPREAD, P.KF_SPREAD, 4),
         "cool": 1.0 + rng.uniform(-P.COOL_SPREAD, P.COOL_SPREAD, 4),
-        "capacity": rng.uniform(*P.CAPACITY_AH), "age": rng.uniform(*P.AGE), "soc0": rng.uniform(*P.SOC_BOOT),
+        "capacity": rng.uniform(*P.PACK_MASS_SHARE) * m0 * P.PACK_WH_PER_KG / (3.7 * cells),
+        "age": rng.uniform(*P.AGE), "soc0": rng.uniform(*P.SOC_BOOT),
         "t_amb": rng.uniform(*P.T_AMB_C), "motor_tau": rng.uniform(*P.MOTOR_TAU_S, 4),
         "vib_floor": rng.uniform(*P.VIB_FLOOR), "imbalance_g": rng.uniform(*P.IMBALANCE_G, 4),
+        "thrust_to_weight": rng.uniform(*P.THRUST_TO_WEIGHT),
     }
 
 

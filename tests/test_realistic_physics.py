@@ -42,7 +42,9 @@ def test_vehicle_draws_within_their_ranges(draws):
         dev = np.abs(_arr(draws, key) - 1.0)
         assert dev.max() <= spread and dev.max() > 0.9 * spread
     assert set(_arr(draws, "cells")) == set(P.CELLS) and set(_arr(draws, "frame")) == {0, 1}
-    for key, (lo, hi) in (("capacity", P.CAPACITY_AH), ("age", P.AGE), ("t_amb", P.T_AMB_C), ("soc0", P.SOC_BOOT),
+    share = _arr(draws, "capacity") * 3.7 * _arr(draws, "cells") / (m * P.PACK_WH_PER_KG)
+    assert share.min() >= P.PACK_MASS_SHARE[0] - 1e-12 and share.max() <= P.PACK_MASS_SHARE[1] + 1e-12
+    for key, (lo, hi) in (("thrust_to_weight", P.THRUST_TO_WEIGHT), ("age", P.AGE), ("t_amb", P.T_AMB_C), ("soc0", P.SOC_BOOT),
                           ("motor_tau", P.MOTOR_TAU_S), ("vib_floor", P.VIB_FLOOR), ("wind_ms", P.WIND_MS)):
         v = _arr(draws, key)
         assert v.min() >= lo and v.max() <= hi and np.ptp(v) > 0.9 * (hi - lo), key
