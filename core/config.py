@@ -90,6 +90,9 @@ class SimConfig:
         if bad or len(set(self.classes)) != len(self.classes) or self.classes[:1] != ("Healthy",) or len(self.classes) < 2:
             raise QuadfdiError(f"sim.classes must start with Healthy and list distinct classes of {list(known)}, "
                                f"found {list(self.classes)}")
+        if self.scenario == "realistic" and self.vehicle != "f450_3s":
+            raise QuadfdiError("sim.scenario='realistic' draws its vehicles around the nominal f450_3s "
+                               f"(sim/realistic_params.py); sim.vehicle must be 'f450_3s', found {self.vehicle!r}")
         if self.ood_traj < 0:
             raise QuadfdiError(f"sim.ood_traj must not be negative, found {self.ood_traj}")
 
