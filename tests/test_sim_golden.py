@@ -35,3 +35,23 @@ def test_paper_dataset_golden_hash(tmp_path):
     assert res.returncode == 0, res.stderr
     digest = hashlib.sha256((out / "dataset.npz").read_bytes()).hexdigest()
     assert digest == GOLDEN_SHA256
+
+
+def test_paper_dataset_has_no_realistic_keys(tmp_path):
+    """The new [sim] keys stay out of a paper dataset's embedded config, and so do class/split names
+    (readers fall back to the paper's); that is what keeps the golden bytes."""
+    import dataclasses
+    import json
+
+    from core.config import Config, SimConfig
+    from sim.dataset import LATER_SIM_KEYS, class_names, dataset_arrays, split_names
+    from sim.simulate import generate
+
+    cfg = Config(sim=dataclasses.replace(SimConfig(), n_traj=4, duration_s=4.0, window=40, stride=5,
+                                         onset_frac=(0.1, 0.3), ramp_frac=(0.2, 0.4)))
+    arrays = dataset_arrays(generate(cfg.sim), cfg)
+    embedded = json.loads(str(arrays["config"]))["sim"]
+    assert not set(LATER_SIM_KEYS) & set(embedded)
+    assert "class_names" not in arrays and "split_names" not in arrays
+    assert class_names(arrays) == ("Healthy", "BatteryFault", "MotorFault", "OverheatFault")
+    assert split_names(arrays) == ("train", "validation", "test")
