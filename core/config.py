@@ -39,9 +39,15 @@ class SimConfig:
     window: int = 80
     stride: int = 10
     chunk: int = 240  # trajectories integrated together (vectorised batch)
+    # --- realistic suite (docs/realistic.md); the defaults are the paper's and leave its dataset byte for byte ---
+    scenario: str = "paper"  # paper: Eqs. 1-9 as published | realistic: sim/realistic*.py
+    classes: tuple[str, ...] = ("Healthy", "BatteryFault", "MotorFault", "OverheatFault")  # label order
+    ood_traj: int = 0  # realistic: flights per out-of-distribution test set (4 sets), on top of n_traj
 
     def validate(self) -> None:
         _positive(self, "n_traj", "duration_s", "sample_dt_s", "sim_dt_s", "window", "stride", "chunk")
+        _choice(self, "scenario", ("paper", "realistic"))
+        self._validate_classes()
         if not 0.0 <= self.fault_ratio <= 1.0:
             raise QuadfdiError(f"sim.fault_ratio must be in [0, 1], found {self.fault_ratio}")
         for name in ("onset_frac", "ramp_frac", "severity_max"):
@@ -73,6 +79,22 @@ class SimConfig:
                 f"sim: a fault may become detectable at {t_det_worst:.2f} s, later than one stride before the "
                 f"last sample ({last_end:.2f} s); lower sim.severity_threshold or raise sim.severity_max"
             )
+
+    def _validate_classes(self) -> None:
+        paper = SimConfig.classes
+        known = (*paper, "PropellerFault")  # sim/realistic_faults.py simulates these
+        if self.scenario == "paper" and (self.classes != paper or self.ood_traj):
+            raise QuadfdiError(f"sim.scenario='paper' simulates exactly the classes {list(paper)} and no "
+                               f"out-of-distribution sets (sim.ood_traj = 0); use sim.scenario='realistic'")
+        bad = [c for c in self.classes if c not in known]
+        if bad or len(set(self.classes)) != len(self.classes) or self.classes[:1] != ("Healthy",) or len(self.classes) < 2:
+            raise QuadfdiError(f"sim.classes must start with Healthy and list distinct classes of {list(known)}, "
+                               f"found {list(self.classes)}")
+        if self.scenario == "realistic" and self.vehicle != "f450_3s":
+            raise QuadfdiError("sim.scenario='realistic' draws its vehicles around the nominal f450_3s "
+                               f"(sim/realistic_params.py); sim.vehicle must be 'f450_3s', found {self.vehicle!r}")
+        if self.ood_traj < 0:
+            raise QuadfdiError(f"sim.ood_traj must not be negative, found {self.ood_traj}")
 
     @property
     def n_samples(self) -> int:
