@@ -5,9 +5,9 @@ S = 2N + 1 stage times, K classes):
 
     x_norm = (telemetry - mean) / std                                  (B, W, C)
     U      = P @ x_norm                                                (B, S, C)   one constant matrix
-    z0     = tanh(U[:, 0:1] @ We^T + be)                               (B, 1, L)   P's row 0 is sample 0
+    z0     = tanh(U[:, 0] @ We^T + be)                                 (B, L)      P's row 0 is sample 0
     V      = U @ W1u^T + b1                                            (B, S, H)   u-part of lin1, all stages
-    f_e(z) = lin2(tanh(z @ W1z^T + V[:, idx(e)]))                      (B, 1, L)
+    f_e(z) = lin2(tanh(z @ W1z^T + V[:, idx(e)]))                      (B, L)      Gemm, Tanh, Gemm
     z1     = N classic RK4 steps of f over [0, 1] (core.rk4.rk4_step run on graph values)
     logits = z1 @ Wh^T + bh,  proba = softmax(logits)                  (B, K)
 
@@ -16,8 +16,11 @@ stage time is one constant linear map of the window, so there is no Loop, If or 
 indexing. Because f's first layer is linear in [z; u], its u-part for all S stage times is one
 (B, S, C) x (C, H) product computed before the loop; each of the 4N stages then multiplies only
 the latent state (L x H) and adds its precomputed row of V. Every weight is one initializer that
-all 4N stages share. The int8 graph has the same topology with each product on MatMulInteger
-(export/quantize.py), the RK4 combination and the state kept in float32.
+all 4N stages share. The int8 graph has the same topology with each product one
+com.microsoft.MatMulIntegerToFloat on int8 activations (export/quantize.py; the row of V a separate
+Add), the RK4 combination and the state kept in float32. Per RK4 step the combination is 9 nodes:
+three stage inputs (Mul, Add), one Sum ((k1 + 2 k2) + 2 k3) + k4, a Mul by h/6 and an Add; the
+doubling of k2 and k3 lives in lin2's scales (exact, see GraphValue).
 """
 
 from __future__ import annotations
@@ -29,9 +32,9 @@ import torch
 from onnx import TensorProto
 
 from core.rk4 import RK4_CONSTANT_NAMES, rk4_constants, rk4_step
-from export.graph import BATCH, Built, Graph, class_outputs, telemetry_input
-from export.quantize import (BOUND_SCALE, QWeight, act_scale, int8_linear, int8_matmul, int8_weight,
-                             quantize_channels, quantize_interp)
+from export.graph import BATCH, MS_DOMAIN, Built, Graph, class_outputs, telemetry_input
+from export.quantize import (BOUND_SCALE, QWeight, act_scale, int8_matmul, int8_weight, quantize, quantize_channels,
+                             quantize_interp)
 from train.control import interp_matrix
 from train.solvers import fixed_method, nearest_index, stage_times
 
@@ -83,25 +86,59 @@ class CnodeParams:
         return STAGES_PER_STEP * self.steps
 
 
-@dataclass(frozen=True)
 class GraphValue:
-    """A tensor of a graph under construction that core.rk4.rk4_step can compute with: ``+`` emits an
-    Add node, ``*`` by a float a Mul node whose second input is the float32 constant of that value
-    (``consts``: value -> initializer name). Evaluating rk4_step on it writes RK4_PROGRAM into the
-    graph operation by operation, in the program's order."""
+    """A tensor of a graph under construction that core.rk4.rk4_step can compute with, so that the
+    graph is RK4_PROGRAM evaluated operation by operation, in the program's order. How a value is
+    represented may differ from the program's text, never its float32 results:
 
-    g: Graph
-    name: str
-    consts: dict
+    - ``a + b`` is kept pending and chained sums become ONE ``Sum`` node when the value is used
+      (ONNX Runtime's Sum adds its inputs left to right: ``((k1 + two*k2) + two*k3) + k4`` exactly);
+      a two-term sum is an ``Add``.
+    - ``scale``: the tensor holds ``scale * value`` with ``scale`` a power of two (the field's lin2
+      multiplied its scales and bias by 2, which is exact in float32). ``value * c`` is then the
+      tensor itself when ``c == scale`` (no node: ``k2 * two``) or ``Mul(tensor, c / scale)``,
+      ``c / scale`` exact, and ``f32(2 k * c/2) == f32(k * c)`` bit for bit.
+    - ``* c`` by a float is a Mul whose second input is the float32 constant (``consts``: value ->
+      initializer name; a constant divided by the scale is added under ``<name>/<scale>``).
+    """
+
+    def __init__(self, g: Graph, consts: dict, name: str | None = None, terms: tuple = (), scale: float = 1.0):
+        self.g, self.consts, self._name, self.terms, self.scale = g, consts, name, terms, scale
+
+    @property
+    def name(self) -> str:
+        """The tensor (materialising a pending sum once)."""
+        if self._name is None:
+            op = "Add" if len(self.terms) == 2 else "Sum"
+            self._name = self.g.op(op, *(t.unit() for t in self.terms))
+            self.terms = ()
+        return self._name
+
+    def unit(self) -> str:
+        """A tensor holding the value itself (scale 1)."""
+        return self.name if self.scale == 1.0 else (self * 1.0).name
 
     def __add__(self, other: "GraphValue") -> "GraphValue":
-        return GraphValue(self.g, self.g.op("Add", self.name, other.name), self.consts)
+        left = self.terms if self._name is None else (self,)
+        return GraphValue(self.g, self.consts, terms=left + (other,))
 
     def __mul__(self, c: float) -> "GraphValue":
-        name = self.consts.get(float(np.float32(c)))
-        if name is None:
+        c32 = float(np.float32(c))
+        if c32 == self.scale:
+            return GraphValue(self.g, self.consts, self.name)
+        name = self.consts.get(c32)
+        if name is None and c32 != 1.0:
             raise ValueError(f"RK4 constant {c!r} is not one of rk4_constants (h)")
-        return GraphValue(self.g, self.g.op("Mul", self.name, name), self.consts)
+        if self.scale != 1.0:
+            value = np.float32(c32) / np.float32(self.scale)  # exact: the scale is a power of two
+            name = self.consts.get(float(value)) or self.g.const(f"{name or 'one'}/{self.scale:g}", value)
+            self.consts.setdefault(float(value), name)
+        return GraphValue(self.g, self.consts, self.g.op("Mul", self.name, name))
+
+
+# Stages (of 4 per step) whose field output the graph holds doubled: rk4_step multiplies k2 and k3 by
+# two, so lin2 produces 2 k directly there (scales and bias times 2, exact) and no Mul is needed.
+DOUBLED_STAGES = (1, 2)
 
 
 def rk4_stage_index(times: np.ndarray, steps: int) -> np.ndarray:
@@ -167,53 +204,74 @@ def calibration_probes(p: CnodeParams) -> dict[str, str]:
 
 
 def build_cnode(p: CnodeParams, opset: int, q: CnodeQuant | None = None) -> Built:
-    """The fp32 graph (``q`` None) or the int8 graph of ``p`` with N = p.steps RK4 steps."""
-    W, C, L, K, S = p.window, p.n_channels, p.latent, p.n_classes, len(p.times)
+    """The fp32 graph (``q`` None) or the int8 graph of ``p`` with N = p.steps RK4 steps.
+
+    Batch-first 2-D tensors from the control path on: the state is (B, L), each stage's row of V
+    (B, H) comes out of one Reshape and one Split, so that every fp32 product is a Gemm with its
+    bias or row of V folded in, and every int8 product one MatMulIntegerToFloat."""
+    W, C, L, K, S, H = p.window, p.n_channels, p.latent, p.n_classes, len(p.times), p.hidden
     g = Graph(f"cnode_rk4_{p.steps}" + ("_int8" if q else ""))
     xn = g.op("Div", g.op("Sub", "telemetry", g.const("norm.mean", p.mean)), g.const("norm.std", p.std), name="x_norm")
     g.probe("x_norm", xn, [BATCH, W, C])
-    first = [g.const("slice.start0", [0], np.int64), g.const("slice.end1", [1], np.int64),
-             g.const("axis1", [1], np.int64)]
+    row0 = g.const("gather.row0", np.int64(0), np.int64)
+    v_shape = g.const("reshape.v", [0, S * H], np.int64)
 
     if q is None:
         u = g.op("MatMul", g.const("interp", p.interp), xn, name="u")  # (B, S, C)
-        u0 = g.op("Slice", u, *first)  # (B, 1, C) = x_norm[:, 0:1]: P's row 0 is sample 0
-        z0 = g.op("Tanh", g.op("Add", g.op("MatMul", u0, g.const("encoder.weight_t", p.encoder_w.T)),
-                                g.const("encoder.bias", p.encoder_b)), name="z0")
+        u0 = g.op("Gather", u, row0, axis=1)  # (B, C) = x_norm[:, 0]: P's row 0 is sample 0
+        z0 = g.op("Tanh", g.op("Gemm", u0, g.const("encoder.weight", p.encoder_w), g.const("encoder.bias", p.encoder_b),
+                               transB=1), name="z0")
         v = g.op("Add", g.op("MatMul", u, g.const("lin1_u.weight_t", p.lin1_wu.T)), g.const("lin1.bias", p.lin1_b))
     else:
-        # x_norm per channel -> int8; U = (float(Pq @ xq) * s_P[s]) * s_x[c]  (exact P when D <= 127)
+        # x_norm per channel -> int8; u[s, c] = f32(acc) * f32(s_P[s] * s_x[c]) (exact P when D <= 127):
+        # one MatMulIntegerToFloat when s_P is one number (A = P_q, B = xq, per-column scale s_x).
         xq = quantize_channels(g, xn, g.const("act.x_norm.scale", q.s_x), C)
-        acc = g.op("MatMulInteger", g.const("interp.q", q.interp_q, np.int8), xq)  # (B, S, C) int32
-        u = g.op("Cast", acc, to=TensorProto.FLOAT)
-        u = g.op("Mul", u, g.const("interp.scale", q.interp_scale[:, None]))
-        u = g.op("Mul", u, "act.x_norm.scale", name="u")
+        pq = g.const("interp.q", q.interp_q, np.int8)
+        if np.all(q.interp_scale == q.interp_scale[0]):
+            u = g.op("MatMulIntegerToFloat", pq, xq, g.const("interp.scale", q.interp_scale[0]),
+                     "act.x_norm.scale", domain=MS_DOMAIN, name="u")
+        else:
+            mult = (q.interp_scale[:, None] * q.s_x[None, :]).astype(np.float32)  # f32(s_P[s] * s_x[c])
+            acc = g.op("MatMulInteger", pq, xq)  # (B, S, C) int32
+            u = g.op("Mul", g.op("Cast", acc, to=TensorProto.FLOAT), g.const("interp.multiplier", mult), name="u")
         # U per channel -> int8, shared by the encoder and lin1_u (their weights carry s_u, folded)
         uq = quantize_channels(g, u, g.const("act.u.scale", q.s_u), C)
         enc_wq, enc_s = int8_weight(g, "encoder", q.encoder)
-        z0 = g.op("Tanh", int8_matmul(g, g.op("Slice", uq, *first), None, enc_wq, enc_s,
+        z0 = g.op("Tanh", int8_matmul(g, g.op("Gather", uq, row0, axis=1), None, enc_wq, enc_s,
                                       g.const("encoder.bias", p.encoder_b)), name="z0")
         w1u, s_w1u = int8_weight(g, "lin1_u", q.lin1_u)
         v = int8_matmul(g, uq, None, w1u, s_w1u, g.const("lin1.bias", p.lin1_b))
     g.probe("u", u, [BATCH, S, C])
-    g.probe("z0", z0, [BATCH, 1, L])
-    # One Split gives the S rows of V as (B, 1, H) tensors; the state stays (B, 1, L) throughout.
-    v_rows = g.node("Split", [v, g.const("split.ones", np.ones(S, np.int64), np.int64)], n_out=S, axis=1)
+    g.probe("z0", z0, [BATCH, L])
+    # (B, S, H) -> (B, S*H) -> S rows (B, H): one Reshape and one Split for the whole integration.
+    v_rows = g.node("Split", [g.op("Reshape", v, v_shape), g.const("split.rows", np.full(S, H, np.int64), np.int64)],
+                    n_out=S, axis=1)
+    if q is not None:
+        w1z, s_w1z = int8_weight(g, "lin1_z", q.lin1_z)
+        w2, s_w2 = int8_weight(g, "lin2", q.lin2)
+        s_hid = g.const("act.hidden.scale", q.s_hid)
+        # lin2 doubled (DOUBLED_STAGES): f32(acc) * f32(s_hid * 2 s_w) + 2 b == 2 (f32(acc) * f32(s_hid * s_w) + b)
+        s_w2x2 = g.const("lin2.weight_scale_x2", q.lin2.scale * np.float32(2))
+        b2x2 = g.const("lin2.bias_x2", p.lin2_b * np.float32(2))
 
     stage = [0]
 
-    def f(z: str, row: int) -> str:
+    def f(z: str, row: int) -> tuple[str, float]:
         e = stage[0]
         stage[0] += 1
-        g.probe(f"stage{e}", z, [BATCH, 1, L])
+        scale = 2.0 if e % STAGES_PER_STEP in DOUBLED_STAGES else 1.0
+        g.probe(f"stage{e}", z, [BATCH, L])
         if q is None:
-            a = g.op("Add", g.op("MatMul", z, g.const("lin1_z.weight_t", p.lin1_wz.T)), v_rows[row])
+            a = g.op("Gemm", z, g.const("lin1_z.weight", p.lin1_wz), v_rows[row], transB=1)
             hid = g.op("Tanh", a)
-            k = g.op("MatMul", hid, g.const("lin2.weight_t", p.lin2_w.T))
-            return g.op("Add", k, g.const("lin2.bias", p.lin2_b))
-        a = int8_linear(g, z, g.const(f"act.stage{e}.scale", q.s_z[e]), "lin1_z", q.lin1_z, v_rows[row])
-        hid = g.op("Tanh", a)
-        return int8_linear(g, hid, g.const("act.hidden.scale", q.s_hid), "lin2", q.lin2, g.const("lin2.bias", p.lin2_b))
+            b2 = g.const("lin2.bias", p.lin2_b) if scale == 1.0 else g.const("lin2.bias_x2", p.lin2_b * np.float32(2))
+            return g.op("Gemm", hid, g.const("lin2.weight", p.lin2_w), b2, transB=1, alpha=scale), scale
+        s_z = g.const(f"act.stage{e}.scale", q.s_z[e])
+        a = g.op("Add", int8_matmul(g, quantize(g, z, s_z), s_z, w1z, s_w1z, None), v_rows[row])
+        hid_q = quantize(g, g.op("Tanh", a), s_hid)
+        if scale == 1.0:
+            return int8_matmul(g, hid_q, s_hid, w2, s_w2, g.const("lin2.bias", p.lin2_b)), scale
+        return int8_matmul(g, hid_q, s_hid, w2, s_w2x2, b2x2), scale
 
     # core.rk4.rk4_step evaluated on graph values: the graph is RK4_PROGRAM by construction, with
     # its float32 constants as initializers named after RK4_CONSTANT_NAMES.
@@ -225,20 +283,23 @@ def build_cnode(p: CnodeParams, opset: int, q: CnodeQuant | None = None) -> Buil
         row = next(rows)
         if abs(p.times[row] - t) > 1e-9:  # stage_index must follow rk4_step's calls
             raise ValueError(f"stage_index row {row} is time {p.times[row]}, rk4_step evaluates at {t}")
-        return GraphValue(g, f(z.name, row), consts)
+        k, scale = f(z.unit(), row)
+        return GraphValue(g, consts, k, scale=scale)
 
-    z = GraphValue(g, z0, consts)
+    z = GraphValue(g, consts, z0)
     for k in range(p.steps):
         z = rk4_step(field, k * h, z, h)
-    z = z.name
-    g.probe("z1", z, [BATCH, 1, L])
+    z = z.unit()
+    g.probe("z1", z, [BATCH, L])
 
     if q is None:
-        out = g.op("Add", g.op("MatMul", z, g.const("head.weight_t", p.head_w.T)), g.const("head.bias", p.head_b))
+        g.op("Gemm", z, g.const("head.weight", p.head_w), g.const("head.bias", p.head_b), transB=1, name="logits")
     else:
-        out = int8_linear(g, z, g.const("act.z1.scale", q.s_z1), "head", q.head, g.const("head.bias", p.head_b))
-    logits = g.op("Squeeze", out, "axis1", name="logits")
-    g.op("Softmax", logits, name="proba", axis=-1)
+        wh, s_wh = int8_weight(g, "head", q.head)
+        s_z1 = g.const("act.z1.scale", q.s_z1)
+        int8_matmul(g, quantize(g, z, s_z1), s_z1, wh, s_wh, g.const("head.bias", p.head_b), name="logits")
+    g.op("Softmax", "logits", name="proba", axis=-1)
     doc = (f"quadfdi CNODE, classic RK4 unrolled over N={p.steps} steps, "
-           f"{'int8 (MatMulInteger, static scales)' if q else 'fp32'}; input raw telemetry (batch, {W}, {C})")
+           f"{'int8 (int8 activations, MatMulIntegerToFloat, static scales)' if q else 'fp32'}; "
+           f"input raw telemetry (batch, {W}, {C})")
     return g.finish([telemetry_input(W, C)], class_outputs(K), opset, doc)

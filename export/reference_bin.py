@@ -80,9 +80,10 @@ def cnode_fp32_tensors(model: torch.nn.Module, x: np.ndarray) -> dict[str, np.nd
 def cnode_int8_tensors(built: Built, p: CnodeParams, x: np.ndarray) -> dict[str, np.ndarray]:
     keys = ["x_norm", "u", "z0", "z1"] + [f"stage{e}" for e in range(p.n_stages)]
     r = _run_probes(built, keys, x)
-    return {"x_norm": r["x_norm"], "u": r["u"], "z0": r["z0"][:, 0],
-            "stages": np.stack([r[f"stage{e}"][:, 0] for e in range(p.n_stages)], axis=1),
-            "z1": r["z1"][:, 0], "logits": r["logits"], "proba": r["proba"]}
+    flat = lambda a: a.reshape(a.shape[0], -1)  # noqa: E731  (B, L) whether the probe is (B, L) or (B, 1, L)
+    return {"x_norm": r["x_norm"], "u": r["u"], "z0": flat(r["z0"]),
+            "stages": np.stack([flat(r[f"stage{e}"]) for e in range(p.n_stages)], axis=1),
+            "z1": flat(r["z1"]), "logits": r["logits"], "proba": r["proba"]}
 
 
 def gru_fp32_tensors(model: torch.nn.Module, x: np.ndarray) -> dict[str, np.ndarray]:

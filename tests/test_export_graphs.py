@@ -125,29 +125,55 @@ def test_opset_17_works_too():
 def test_cnode_op_counts_grow_linearly_with_n(steps):
     t = make_tiny(steps=steps)
     fp32, int8 = op_counts(t.cnode_fp32.model), op_counts(t.cnode_int8.model)
-    # fp32: P@x, encoder, lin1_u (all stage times at once), head + 2 per stage (lin1_z, lin2).
-    assert fp32["MatMul"] == 8 * steps + 4
+    # fp32: P@x and lin1_u (all stage times at once) MatMul; encoder, head + 2 per stage Gemm.
+    assert fp32["MatMul"] == 2 and fp32["Gemm"] == 8 * steps + 2
     assert fp32["Tanh"] == int8["Tanh"] == 4 * steps + 1  # z0 + one per stage
     assert fp32["Split"] == int8["Split"] == 1  # V's 2N+1 rows, once
-    # int8: the same products, every one on MatMulInteger; no float product left.
-    assert int8["MatMulInteger"] == 8 * steps + 4 and int8["MatMul"] == 0 and int8["Gemm"] == 0
+    assert fp32["Sum"] == int8["Sum"] == steps  # ((k1 + 2 k2) + 2 k3) + k4, one node per step
+    assert fp32["Mul"] == int8["Mul"] == 4 * steps  # 3 stage inputs + h/6; 2 k2, 2 k3 come from lin2
+    # int8: every product one MatMulIntegerToFloat (P@x too: P is exact); no float product left.
+    assert int8["MatMulIntegerToFloat"] == 8 * steps + 4
+    assert int8["MatMulInteger"] == int8["MatMul"] == int8["Gemm"] == int8["Cast"] == 0
+    assert int8["Add"] == 8 * steps  # 3 stage inputs, the new state, and the row of V per stage
     # QuantizeLinear: x_norm, U, z1 + 2 per stage (its state, its tanh output).
     assert int8["QuantizeLinear"] == 8 * steps + 3
-    for counts in (fp32, int8):  # no control flow, no data-dependent indexing
-        assert not {"Loop", "If", "Scan", "Gather", "GatherElements", "GatherND"} & set(counts)
+    for model in (t.cnode_fp32.model, t.cnode_int8.model):  # no control flow, no data-dependent indexing
+        counts = op_counts(model)
+        assert not {"Loop", "If", "Scan", "GatherElements", "GatherND"} & set(counts)
+        gathers = [n for n in model.graph.node if n.op_type == "Gather"]
+        assert len(gathers) == 1 and gathers[0].input[1] in inits(model)  # row 0 of U, a constant index
+
+
+@pytest.mark.parametrize("steps", [1, 3, 8])
+def test_ort_optimized_node_counts(steps):
+    """Nodes after ONNX Runtime's optimizer (what it dispatches per call, ~0.4 us each): fp32 fuses
+    each stage's Gemm + Tanh (FusedGemm), 2 nodes per evaluation + 9 per RK4 step; int8 has 6 per
+    evaluation (QuantizeLinear, MatMulIntegerToFloat, Add row of V, Tanh, QuantizeLinear,
+    MatMulIntegerToFloat) + the same 9; the int8 GRU 12 per time step."""
+    from export.ort_session import optimized_nodes
+
+    t = make_tiny(steps=steps)
+    count = {k: optimized_nodes(getattr(t, k).model.SerializeToString())["total"]
+             for k in ("cnode_fp32", "cnode_int8", "gru_fp32", "gru_int8")}
+    assert count["cnode_fp32"] == 11 + 17 * steps  # N = 8: 147 (was 278)
+    assert count["cnode_int8"] == 14 + 33 * steps  # N = 8: 278 (was 547)
+    assert count["gru_int8"] == 10 + 12 * W  # 970 (was 1,372)
+    assert count["gru_fp32"] <= 8
 
 
 def test_cnode_weights_stored_once(tiny):
     fp32, int8 = inits(tiny.cnode_fp32.model), inits(tiny.cnode_int8.model)
     names = ("encoder", "lin1_u", "lin1_z", "lin2", "head")
 
-    def constants_of(model, op):
-        return [i for n in model.graph.node if n.op_type == op for i in n.input if i in inits(model)]
+    def constants_of(model, *ops):
+        return [n.input[1] for n in model.graph.node if n.op_type in ops and n.input[1] in inits(model)]
 
     # 8N + 4 products read 6 matrices: the interpolation matrix and five weights, each stored once.
-    used = constants_of(tiny.cnode_fp32.model, "MatMul")
-    assert len(used) == 8 * tiny.steps + 4 and set(used) == {"interp"} | {f"{w}.weight_t" for w in names}
-    used = constants_of(tiny.cnode_int8.model, "MatMulInteger")
+    used = constants_of(tiny.cnode_fp32.model, "MatMul", "Gemm") + ["interp"]
+    assert len(used) == 8 * tiny.steps + 4
+    assert set(used) == {"interp", "lin1_u.weight_t"} | {f"{w}.weight" for w in names if w != "lin1_u"}
+    used = [n.input[0] if n.input[0] == "interp.q" else n.input[1] for n in tiny.cnode_int8.model.graph.node
+            if n.op_type == "MatMulIntegerToFloat"]
     assert len(used) == 8 * tiny.steps + 4 and set(used) == {"interp.q"} | {f"{w}.weight_q" for w in names}
     weights_q = {k: v for k, v in int8.items() if k.endswith(".weight_q") or k == "interp.q"}
     assert len(weights_q) == 6 and all(v.dtype == np.int8 for v in weights_q.values())
@@ -164,26 +190,37 @@ def test_gru_structure():
     (node,) = [n for n in t.gru_fp32.model.graph.node if n.op_type == "GRU"]
     assert {a.name: a.i for a in node.attribute}["linear_before_reset"] == 1
     # int8: unrolled over W steps; the input projection of all steps is one integer product.
-    assert int8["GRU"] == 0 and int8["MatMul"] == 0
-    assert int8["MatMulInteger"] == W + 2  # x projection, one per step, head
-    assert int8["Sigmoid"] == 2 * W and int8["Tanh"] == W
-    weights_q = {k for k, v in inits(t.gru_int8.model).items() if v.dtype == np.int8 and v.ndim == 2}
-    assert weights_q == {"gru.ih.weight_q", "gru.hh.weight_q", "head.weight_q"}
+    assert int8["GRU"] == 0 and int8["MatMul"] == 0 and int8["MatMulInteger"] == 0
+    assert int8["MatMulIntegerToFloat"] == W + 2  # x projection, one per step, head
+    assert int8["Sigmoid"] == W and int8["Tanh"] == W  # r and z in one Sigmoid per step
+    weights_q = {k: v for k, v in inits(t.gru_int8.model).items() if v.dtype == np.int8 and v.ndim == 2}
+    assert set(weights_q) == {"gru.ih.weight_q", "gru.hh.weight_q", "head.weight_q"}
+    # uint8 activations (zero point 128) beside 7-bit weights: u8 x s8 sums exact on every CPU.
+    assert all(np.abs(v.astype(int)).max() <= 63 for v in weights_q.values())
+    quant = [n for n in t.gru_int8.model.graph.node if n.op_type == "QuantizeLinear"]
+    zps = inits(t.gru_int8.model)
+    assert all(zps[n.input[2]].dtype == np.uint8 and np.all(zps[n.input[2]] == 128) for n in quant)
 
 
 def test_cnode_graph_is_the_rk4_program(tiny):
     """The unrolled graph is core.rk4.rk4_step evaluated on graph values: its RK4 constants are
-    rk4_constants(1/N) under RK4_CONSTANT_NAMES, multiplied in RK4_PROGRAM's order every step."""
+    rk4_constants(1/N) under RK4_CONSTANT_NAMES, multiplied in RK4_PROGRAM's order every step.
+    k2 and k3 are held doubled (lin2's scales and bias times 2, exact), so ``two * k`` needs no
+    node and ``half_h * k2`` multiplies 2 k2 by half_h / 2 (exact)."""
     from core.rk4 import RK4_CONSTANT_NAMES, rk4_constants
 
-    names = {f"rk4.{n}": n for n in RK4_CONSTANT_NAMES}
+    names = {f"rk4.{n}": n for n in RK4_CONSTANT_NAMES} | {"rk4.half_h/2": "half_h/2"}
     for built in (tiny.cnode_fp32, tiny.cnode_int8):
         init = inits(built.model)
         consts = [init[f"rk4.{n}"] for n in RK4_CONSTANT_NAMES]
         assert all(c.dtype == np.float32 and c.shape == () for c in consts)
         assert np.array_equal(np.array(consts), rk4_constants(1.0 / tiny.steps))
+        assert init["rk4.half_h/2"] == init["rk4.half_h"] / np.float32(2)
         muls = [names[n.input[1]] for n in built.model.graph.node if n.op_type == "Mul" and n.input[1] in names]
-        assert muls == ["half_h", "half_h", "h", "two", "two", "h_over_6"] * tiny.steps
+        assert muls == ["half_h", "half_h/2", "half_h", "h_over_6"] * tiny.steps
+    init = inits(tiny.cnode_int8.model)
+    assert np.array_equal(init["lin2.weight_scale_x2"], init["lin2.weight_scale"] * 2)
+    assert np.array_equal(init["lin2.bias_x2"], init["lin2.bias"] * 2)
 
 
 def test_weights_bin_rk4_constants_are_the_graphs(tiny, tmp_path):
