@@ -49,6 +49,40 @@ def _latency_rows(bench: dict) -> list[list[str]]:
     return rows
 
 
+def speedup_rows(recs: list[dict]) -> list[list[str]]:
+    """int8 / fp32 speed-up (fp32 p50 over int8 p50) per model, runtime, setting and batch."""
+    key = lambda r: (r["model"], r["runtime"], r["solver"], r["threads"], r.get("spinning"), r["batch"])  # noqa: E731
+    fp32 = {key(r): r for r in recs if r["precision"] == "fp32" and r.get("p50_us")}
+    rows = []
+    for r in sorted((r for r in recs if r["precision"] == "int8" and r.get("p50_us") and key(r) in fp32),
+                    key=lambda r: (r["model"], RUNTIME_ORDER.get(r["runtime"], 9), r["batch"], r["threads"])):
+        f = fp32[key(r)]
+        x = f["p50_us"] / r["p50_us"]
+        rows.append([r["model"], RUNTIME_NAME.get(r["runtime"], r["runtime"]), setting(r), str(r["batch"]),
+                     us(f["p50_us"]), us(r["p50_us"]), f"{x:.2f}x" + ("" if x >= 1 else " (int8 slower)")])
+    return rows
+
+
+def _speedup_section(bench: dict) -> list[str]:
+    rows = speedup_rows(bench["latency"])
+    if not rows:
+        return []
+    return (["### int8 against fp32", "", "Speed-up = fp32 p50 / int8 p50, same runtime, setting and batch.", ""]
+            + md_table(["model", "runtime", "setting", "batch", "fp32 p50 (us)", "int8 p50 (us)", "int8 speed-up"], rows))
+
+
+def _graphs_section(bench: dict) -> list[str]:
+    g = bench.get("graphs") or {}
+    if not g:
+        return []
+    rows = [[k, str(v["nodes"]), str(v["ort_nodes"]),
+             ", ".join(f"{op} {n}" for op, n in sorted(v["ort_ops"].items(), key=lambda kv: -kv[1])[:6])]
+            for k, v in g.items()]
+    return (["### ONNX graphs", "", "Nodes as exported and after ONNX Runtime's optimizer (ORT_ENABLE_ALL, CPU; "
+             "`SessionOptions.optimized_model_filepath`, counted): each costs ~0.4 us of dispatch per call.", ""]
+            + md_table(["graph", "nodes", "nodes after ORT optimizer", "largest op counts"], rows))
+
+
 def _floors_section(bench: dict) -> list[str]:
     lim = bench["limits"]
     rows = [[f["model"], f["precision"], f"{f['macs_per_window']:,}", nbytes(f["weight_bytes_per_window"]),
@@ -218,12 +252,16 @@ def bench_section(bench: dict, figures: str = "figures", run_root: Path | None =
     if run_root is not None:
         out += figure_links(run_root, ["bench_latency.png", "bench_throughput.png"], figures)
     below = [r for r in bench["latency"] if r["batch"] == 1 and r.get("x_floor") is not None and r["x_floor"] < 1]
-    if below:
+    if bench.get("floor_violations"):
+        out += ["**FLOORS INVALID (the bench failed):** still below the floor after re-measuring the limits: "
+                + bench["floor_violations"] + ". No floor target counts as met.", ""]
+    elif below:
         out += ["**Below the floor:** " + "; ".join(
             f"{RUNTIME_NAME.get(r['runtime'], r['runtime'])} {r['model']} {r['precision']} ({setting(r)}) at "
             f"{r['x_floor']:.2f}x" for r in below) + ". A measured time under the floor means the limits were "
             "measured low (another user of the shared machine slowed the peak or bandwidth probe) or the floor's "
             "traffic model is too pessimistic for that runtime; treat the floor as approximate here.", ""]
+    out += _speedup_section(bench) + _graphs_section(bench)
     out += _floors_section(bench) + targets_section(bench) + _limits_section(bench) + _memory_section(bench)
     out += _profiles_section(bench)
     note = bench.get("solvers_meta", {}).get("note") or bench.get("solvers_meta", {}).get("skipped")
