@@ -33,12 +33,17 @@ from onnx import TensorProto
 
 from core.rk4 import RK4_CONSTANT_NAMES, rk4_constants, rk4_step
 from export.graph import BATCH, MS_DOMAIN, Built, Graph, class_outputs, telemetry_input
-from export.quantize import (BOUND_SCALE, QWeight, act_scale, int8_matmul, int8_weight, quantize, quantize_channels,
-                             quantize_interp)
+from export.quantize import (BOUND_SCALE, UINT8, QWeight, act_scale, int8_matmul, int8_weight, quantize,
+                             quantize_channels, quantize_interp, weight_qmax)
 from train.control import interp_matrix
 from train.solvers import fixed_method, nearest_index, stage_times
 
 STAGES_PER_STEP = fixed_method("rk4").evals_per_step  # 4
+# Activation encoding of the int8 CNODE after the control path: uint8 (zero point 128) with 7-bit
+# weights, ONNX Runtime's u8 x s8 kernel. Measured on the trained paper-scale run (1188 test windows):
+# macro-F1 drop 0.17 point (int8 / 8-bit: 0.09), target 0.5; batch-96 latency halved against int8
+# activations (docs/formats.md, "Activation encoding"). x_norm and the exact P @ x_norm stay int8.
+CNODE_ACT = UINT8
 
 
 @dataclass(frozen=True)
@@ -181,15 +186,20 @@ class CnodeQuant:
     s_z: np.ndarray  # (4N,) the latent state entering each stage
     s_hid: np.ndarray  # () tanh output of the field's hidden layer: bound 1/127
     s_z1: np.ndarray  # () z1 entering the head
+    act: str = CNODE_ACT  # activations after the control path: "int8" (zp 0) or "uint8" (zp 128, 7-bit weights)
 
 
-def quantize_cnode(p: CnodeParams, ranges: dict[str, np.ndarray]) -> CnodeQuant:
-    """int8 weights of ``p`` and activation scales from calibrated ``ranges`` (max |x|)."""
+def quantize_cnode(p: CnodeParams, ranges: dict[str, np.ndarray], act: str = "") -> CnodeQuant:
+    """int8 weights of ``p`` and activation scales from calibrated ``ranges`` (max |x|); ``act`` the
+    activation encoding of the products after the control path (CNODE_ACT by default)."""
+    act = act or CNODE_ACT
     pq, ps, exact = quantize_interp(interp_matrix(p.times, p.window))  # float64: exactness is decidable
     s_u = act_scale(ranges["u"])
+    qm = weight_qmax(act)
     return CnodeQuant(
-        encoder=QWeight.folded(p.encoder_w, s_u), lin1_z=QWeight.of(p.lin1_wz), lin1_u=QWeight.folded(p.lin1_wu, s_u),
-        lin2=QWeight.of(p.lin2_w), head=QWeight.of(p.head_w), interp_q=pq, interp_scale=ps, interp_exact=exact,
+        encoder=QWeight.folded(p.encoder_w, s_u, qm), lin1_z=QWeight.of(p.lin1_wz, qm),
+        lin1_u=QWeight.folded(p.lin1_wu, s_u, qm), act=act,
+        lin2=QWeight.of(p.lin2_w, qm), head=QWeight.of(p.head_w, qm), interp_q=pq, interp_scale=ps, interp_exact=exact,
         s_x=act_scale(ranges["x_norm"]), s_u=s_u,
         s_z=act_scale(np.array([ranges[f"stage{e}"] for e in range(p.n_stages)])),
         s_hid=np.asarray(BOUND_SCALE), s_z1=act_scale(ranges["z1"]),
@@ -235,12 +245,12 @@ def build_cnode(p: CnodeParams, opset: int, q: CnodeQuant | None = None) -> Buil
             acc = g.op("MatMulInteger", pq, xq)  # (B, S, C) int32
             u = g.op("Mul", g.op("Cast", acc, to=TensorProto.FLOAT), g.const("interp.multiplier", mult), name="u")
         # U per channel -> int8, shared by the encoder and lin1_u (their weights carry s_u, folded)
-        uq = quantize_channels(g, u, g.const("act.u.scale", q.s_u), C)
+        uq = quantize_channels(g, u, g.const("act.u.scale", q.s_u), C, q.act)
         enc_wq, enc_s = int8_weight(g, "encoder", q.encoder)
         z0 = g.op("Tanh", int8_matmul(g, g.op("Gather", uq, row0, axis=1), None, enc_wq, enc_s,
-                                      g.const("encoder.bias", p.encoder_b)), name="z0")
+                                      g.const("encoder.bias", p.encoder_b), q.act), name="z0")
         w1u, s_w1u = int8_weight(g, "lin1_u", q.lin1_u)
-        v = int8_matmul(g, uq, None, w1u, s_w1u, g.const("lin1.bias", p.lin1_b))
+        v = int8_matmul(g, uq, None, w1u, s_w1u, g.const("lin1.bias", p.lin1_b), q.act)
     g.probe("u", u, [BATCH, S, C])
     g.probe("z0", z0, [BATCH, L])
     # (B, S, H) -> (B, S*H) -> S rows (B, H): one Reshape and one Split for the whole integration.
@@ -267,11 +277,11 @@ def build_cnode(p: CnodeParams, opset: int, q: CnodeQuant | None = None) -> Buil
             b2 = g.const("lin2.bias", p.lin2_b) if scale == 1.0 else g.const("lin2.bias_x2", p.lin2_b * np.float32(2))
             return g.op("Gemm", hid, g.const("lin2.weight", p.lin2_w), b2, transB=1, alpha=scale), scale
         s_z = g.const(f"act.stage{e}.scale", q.s_z[e])
-        a = g.op("Add", int8_matmul(g, quantize(g, z, s_z), s_z, w1z, s_w1z, None), v_rows[row])
-        hid_q = quantize(g, g.op("Tanh", a), s_hid)
+        a = g.op("Add", int8_matmul(g, quantize(g, z, s_z, q.act), s_z, w1z, s_w1z, None, q.act), v_rows[row])
+        hid_q = quantize(g, g.op("Tanh", a), s_hid, q.act)
         if scale == 1.0:
-            return int8_matmul(g, hid_q, s_hid, w2, s_w2, g.const("lin2.bias", p.lin2_b)), scale
-        return int8_matmul(g, hid_q, s_hid, w2, s_w2x2, b2x2), scale
+            return int8_matmul(g, hid_q, s_hid, w2, s_w2, g.const("lin2.bias", p.lin2_b), q.act), scale
+        return int8_matmul(g, hid_q, s_hid, w2, s_w2x2, b2x2, q.act), scale
 
     # core.rk4.rk4_step evaluated on graph values: the graph is RK4_PROGRAM by construction, with
     # its float32 constants as initializers named after RK4_CONSTANT_NAMES.
@@ -297,7 +307,8 @@ def build_cnode(p: CnodeParams, opset: int, q: CnodeQuant | None = None) -> Buil
     else:
         wh, s_wh = int8_weight(g, "head", q.head)
         s_z1 = g.const("act.z1.scale", q.s_z1)
-        int8_matmul(g, quantize(g, z, s_z1), s_z1, wh, s_wh, g.const("head.bias", p.head_b), name="logits")
+        int8_matmul(g, quantize(g, z, s_z1, q.act), s_z1, wh, s_wh, g.const("head.bias", p.head_b), q.act,
+                    name="logits")
     g.op("Softmax", "logits", name="proba", axis=-1)
     doc = (f"quadfdi CNODE, classic RK4 unrolled over N={p.steps} steps, "
            f"{'int8 (int8 activations, MatMulIntegerToFloat, static scales)' if q else 'fp32'}; "

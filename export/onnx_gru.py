@@ -134,29 +134,34 @@ def build_gru_int8(p: GruParams, q: GruQuant, opset: int) -> Built:
     W, C, H, K = p.window, p.n_channels, p.hidden, p.n_classes
     g = Graph("gru_int8")
     xn = _normalise(g, p)
-    # x_norm per channel -> int8; its scales are folded into W_ih (pattern B, s_a = 1)
-    xq = quantize_channels(g, xn, g.const("act.x_norm.scale", q.s_x), C, q.act)
-    wih, s_wih = int8_weight(g, "gru.ih", q.w_ih)
-    gx = int8_matmul(g, xq, None, wih, s_wih, g.const("gru.bias_ih", p.b_ih), q.act)  # (B, W, 3H)
+    # x_norm per channel -> int8, time-major (W, B, C) so that each step's slice is contiguous; its
+    # scales are folded into W_ih (pattern B, s_a = 1). Two products (rows r,z and rows n) give the
+    # gates' input parts without a gate Split.
+    xq = quantize_channels(g, g.op("Transpose", xn, perm=[1, 0, 2]), g.const("act.x_norm.scale", q.s_x), C, q.act)
     rz_n = g.const("split.rz_n", [2 * H, H], np.int64)
     r_z = g.const("split.r_z", [H, H], np.int64)
     ones = g.const("split.steps", np.ones(W, np.int64), np.int64)
-    gx_rz, gx_n = g.node("Split", [gx, rz_n], n_out=2, axis=2)  # (B, W, 2H), (B, W, H)
-    # Each step's input part: two Split nodes for the whole window, (B, 1, 2H) and (B, 1, H) per step.
-    x_rz, x_n = (g.node("Split", [t, ones], n_out=W, axis=1) for t in (gx_rz, gx_n))
+    wih_rz, wih_n = (g.const(f"gru.ih_{k}.weight_q", np.ascontiguousarray(q.w_ih.q[sl].T), np.int8)
+                     for k, sl in (("rz", slice(0, 2 * H)), ("n", slice(2 * H, 3 * H))))
+    gx_rz = int8_matmul(g, xq, None, wih_rz, g.const("gru.ih_rz.weight_scale", q.w_ih.scale[:2 * H]),
+                        g.const("gru.bias_ih_rz", p.b_ih[:2 * H]), q.act)  # (W, B, 2H)
+    gx_n = int8_matmul(g, xq, None, wih_n, g.const("gru.ih_n.weight_scale", q.w_ih.scale[2 * H:]),
+                       g.const("gru.bias_ih_n", p.b_ih[2 * H:]), q.act)  # (W, B, H)
+    # Each step's input part: two Split nodes for the whole window, (1, B, 2H) and (1, B, H) per step.
+    x_rz, x_n = (g.node("Split", [t, ones], n_out=W, axis=0) for t in (gx_rz, gx_n))
     s_h = g.const("act.h.scale", q.s_h)
     whh, s_whh = int8_weight(g, "gru.hh", q.w_hh)
     b_hh = g.const("gru.bias_hh", p.b_hh)
-    h = g.const("gru.h0", np.zeros((1, 1, H), np.float32))  # broadcasts against (B, 1, H)
+    h = g.const("gru.h0", np.zeros((1, 1, H), np.float32))  # broadcasts against (1, B, H)
     for t in range(W):
         gh = int8_matmul(g, quantize(g, h, s_h, q.act), s_h, whh, s_whh, b_hh, q.act)
         gh_rz, gh_n = g.node("Split", [gh, rz_n], n_out=2, axis=2)
         r, z = g.node("Split", [g.op("Sigmoid", g.op("Add", x_rz[t], gh_rz)), r_z], n_out=2, axis=2)
         n = g.op("Tanh", g.op("Add", x_n[t], g.op("Mul", gh_n, r)))
         h = g.op("Add", g.op("Mul", g.op("Sub", h, n), z), n, name=f"h{t}")
-        g.probe(f"h{t}", h, [BATCH, 1, H])
+        g.probe(f"h{t}", h, [1, BATCH, H])
     out = int8_linear(g, h, s_h, "head", q.head, g.const("head.bias", p.head_b), q.act)
-    g.op("Squeeze", out, g.const("axis1", [1], np.int64), name="logits")
+    g.op("Squeeze", out, g.const("axis0", [0], np.int64), name="logits")
     g.op("Softmax", "logits", name="proba", axis=-1)
     doc = (f"quadfdi GRU (hidden {H}), int8 ({q.act} activations, MatMulIntegerToFloat, static scales), "
            f"unrolled over {W} steps; raw telemetry (batch, {W}, {C})")

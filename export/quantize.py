@@ -140,9 +140,14 @@ def quantize(g: Graph, x: str, scale: str, act: str = INT8) -> str:
     return g.op("QuantizeLinear", x, scale, zero_point(g, act=act))
 
 
-def quantize_channels(g: Graph, x: str, scale: str, n: int, act: str = INT8, axis: int = 2) -> str:
-    """QuantizeLinear(x, scale (n,), zp) along ``axis`` of x (the channels) -> int8 / uint8."""
-    return g.op("QuantizeLinear", x, scale, zero_point(g, n, act), axis=axis)
+def quantize_channels(g: Graph, x: str, scale: str, n: int, act: str = INT8) -> str:
+    """Per-channel QuantizeLinear over the last axis, written as Div(x, scale (n,)) then a per-tensor
+    QuantizeLinear with scale 1: the same integers (``x / s[c]`` is the same float32 division, and
+    ``v / 1`` is exact), but ONNX Runtime's per-axis QuantizeLinear on the last axis quantizes
+    element by element (measured: 23 ms for a batch of 96 windows against well under 1 ms)."""
+    del n  # the scale's length is the channel count
+    return g.op("QuantizeLinear", g.op("Div", x, scale), g.const("q.unit_scale", np.float32(1.0)),
+                zero_point(g, act=act))
 
 
 def int8_matmul(g: Graph, xq: str, a_scale: str | None, wq_t: str, w_scale: str, bias: str | None,

@@ -100,7 +100,8 @@ def gru_fp32_tensors(model: torch.nn.Module, x: np.ndarray) -> dict[str, np.ndar
 def gru_int8_tensors(built: Built, p: GruParams, x: np.ndarray) -> dict[str, np.ndarray]:
     keys = ["x_norm"] + [f"h{t}" for t in range(p.window)]
     r = _run_probes(built, keys, x)
-    return {"x_norm": r["x_norm"], "h": np.stack([r[f"h{t}"][:, 0] for t in range(p.window)], axis=1),
+    flat = lambda a: a.reshape(-1, a.shape[-1])  # noqa: E731  (B, H) from (B, 1, H) or (1, B, H)
+    return {"x_norm": r["x_norm"], "h": np.stack([flat(r[f"h{t}"]) for t in range(p.window)], axis=1),
             "logits": r["logits"], "proba": r["proba"]}
 
 

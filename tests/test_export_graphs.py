@@ -135,8 +135,9 @@ def test_cnode_op_counts_grow_linearly_with_n(steps):
     assert int8["MatMulIntegerToFloat"] == 8 * steps + 4
     assert int8["MatMulInteger"] == int8["MatMul"] == int8["Gemm"] == int8["Cast"] == 0
     assert int8["Add"] == 8 * steps  # 3 stage inputs, the new state, and the row of V per stage
-    # QuantizeLinear: x_norm, U, z1 + 2 per stage (its state, its tanh output).
-    assert int8["QuantizeLinear"] == 8 * steps + 3
+    # QuantizeLinear: x_norm, U, z1 + 2 per stage (its state, its tanh output); x_norm and U per
+    # channel as Div then QuantizeLinear with scale 1 (ORT's per-axis kernel goes element by element).
+    assert int8["QuantizeLinear"] == 8 * steps + 3 and int8["Div"] == 3
     for model in (t.cnode_fp32.model, t.cnode_int8.model):  # no control flow, no data-dependent indexing
         counts = op_counts(model)
         assert not {"Loop", "If", "Scan", "GatherElements", "GatherND"} & set(counts)
@@ -156,8 +157,8 @@ def test_ort_optimized_node_counts(steps):
     count = {k: optimized_nodes(getattr(t, k).model.SerializeToString())["total"]
              for k in ("cnode_fp32", "cnode_int8", "gru_fp32", "gru_int8")}
     assert count["cnode_fp32"] == 11 + 17 * steps  # N = 8: 147 (was 278)
-    assert count["cnode_int8"] == 14 + 33 * steps  # N = 8: 278 (was 547)
-    assert count["gru_int8"] == 10 + 12 * W  # 970 (was 1,372)
+    assert count["cnode_int8"] == 16 + 33 * steps  # N = 8: 280 (was 547)
+    assert count["gru_int8"] == 12 + 12 * W  # 972 (was 1,372)
     assert count["gru_fp32"] <= 8
 
 
@@ -191,14 +192,17 @@ def test_gru_structure():
     assert {a.name: a.i for a in node.attribute}["linear_before_reset"] == 1
     # int8: unrolled over W steps; the input projection of all steps is one integer product.
     assert int8["GRU"] == 0 and int8["MatMul"] == 0 and int8["MatMulInteger"] == 0
-    assert int8["MatMulIntegerToFloat"] == W + 2  # x projection, one per step, head
+    assert int8["MatMulIntegerToFloat"] == W + 3  # x projection (rows r,z and rows n), one per step, head
     assert int8["Sigmoid"] == W and int8["Tanh"] == W  # r and z in one Sigmoid per step
     weights_q = {k: v for k, v in inits(t.gru_int8.model).items() if v.dtype == np.int8 and v.ndim == 2}
-    assert set(weights_q) == {"gru.ih.weight_q", "gru.hh.weight_q", "head.weight_q"}
+    assert set(weights_q) == {"gru.ih_rz.weight_q", "gru.ih_n.weight_q", "gru.hh.weight_q", "head.weight_q"}
+    assert np.array_equal(np.concatenate([weights_q["gru.ih_rz.weight_q"], weights_q["gru.ih_n.weight_q"]], 1).T,
+                          t.gq.w_ih.q)  # W_ih stored once, split by rows
     # uint8 activations (zero point 128) beside 7-bit weights: u8 x s8 sums exact on every CPU.
     assert all(np.abs(v.astype(int)).max() <= 63 for v in weights_q.values())
     quant = [n for n in t.gru_int8.model.graph.node if n.op_type == "QuantizeLinear"]
     zps = inits(t.gru_int8.model)
+    assert all(len(zps[n.input[1]].shape) == 0 for n in quant)  # per-tensor: no per-axis QuantizeLinear
     assert all(zps[n.input[2]].dtype == np.uint8 and np.all(zps[n.input[2]] == 128) for n in quant)
 
 
