@@ -10,9 +10,12 @@ shared machine interference only ever slows a trial down, so the fastest trial i
   (8-bit x int8 -> int32, MLAS, VNNI where the CPU has it) at a large size, one core, the faster of
   uint8 and int8 activations: the compute half of the int8 floors (``s8s8_int8_gops``: int8
   activations, the type of quadfdi's graphs).
-- ``l2_gbps``: read bandwidth of one core from a buffer that fits its L2 but not its L1
-  (``bench/cpp/l2bw.cpp``, compiled here with g++ -O2 -march=native; numpy's ``dot`` when no
-  compiler is found, which is call-overhead bound and therefore an under-estimate, flagged as such).
+- ``l1_gbps``, ``l2_gbps``: read bandwidth of one core from buffers of 1/4 and 1/2 of L1d and of
+  L2 (``bench/cpp/l2bw.cpp``, compiled here per ISA with g++ -O2 -march=native -DVEC_BYTES=64|32|16,
+  the host's widest variant whose hot loops pass ``check_vectorised``: objdump shows vector
+  registers of that width and no stack access); best trial, best size. Sanity: L1 >= 1.5x L2
+  (``bandwidth_sane``). ``fma_peak_gflops``: the same probe's FMA loop, part of ``peak_gflops``.
+  numpy's ``dot`` when no compiler is found (call-overhead bound, an under-estimate, flagged).
 - ``ort_call_us``: ONNX Runtime's fixed cost per ``run()`` call: the median of an Identity model on
   one (1, W, C) window, one intra-op thread; ``ort_node_us``: its cost per extra small node (a
   chain of 256 Add nodes on a (1, 64) tensor, minus the call, over 256).
