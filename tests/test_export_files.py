@@ -253,7 +253,7 @@ def test_manifest_of_another_schema_version_is_refused(tmp_path):
         load_manifest(path)
     assert "\n" not in str(info.value)
     path.write_text('{"schema_version": 1, "artif')
-    with pytest.raises(QuadfdiError, match="not valid JSON"):
+    with pytest.raises(QuadfdiError, match="cannot be read as JSON"):
         load_manifest(path)
     with pytest.raises(QuadfdiError, match="does not exist"):
         load_manifest(tmp_path / "none.json")
