@@ -106,9 +106,9 @@ def _limits_section(bench: dict) -> list[str]:
     out += md_table(["limit", "value", "how"], [
         ["peak fp32, 1 thread", f"{lim['peak_gflops']:.1f} GFLOP/s", "numpy (OpenBLAS) / torch (MKL) sgemm, best size"],
         ["peak fp32, 2 threads", f"{lim['peak_gflops_2t']:.1f} GFLOP/s", "same"],
-        ["peak int8, 1 thread", f"{lim['peak_int8_gops']:.0f} GOP/s", "ORT MatMulInteger, uint8 x int8 (MLAS)"],
+        ["peak int8, 1 thread", f"{lim['peak_int8_gops']:.0f} GOP/s", "ORT MatMulInteger, uint8 x int8 (MLAS): the exported graphs' products (7-bit weights)"],
         ["int8 x int8, 1 thread", f"{lim.get('s8s8_int8_gops', float('nan')):.0f} GOP/s",
-         "ORT MatMulInteger, int8 activations (the exported graphs' type)"],
+         "ORT MatMulInteger, int8 activations (only the CNODE's P @ x_norm product uses it)"],
         ["L2 read bandwidth, 1 core", f"{lim['l2_gbps']:.0f} GB/s",
          f"{lim.get('l2_probe_kib')} KiB buffer; {lim.get('bandwidth_probe')}"],
         ["L1 read bandwidth, 1 core", f"{num(lim.get('l1_gbps'), 0)} GB/s", "same probe, half of L1d"],
