@@ -479,7 +479,8 @@ def measure_limits(cpus: str = "0,1", quick: bool = False, window: int = 80, cha
     return limits
 
 
-BEST_OF = ("peak_gflops", "gemm_peak_gflops", "fma_peak_gflops", "peak_gflops_2t", "peak_int8_gops", "peak_int8_gops_2t", "s8s8_int8_gops", "l2_gbps",
+BEST_OF = ("peak_gflops", "gemm_peak_gflops", "fma_peak_gflops", "peak_gflops_2t", "peak_int8_gops",
+           "peak_int8_gops_2t", "s8s8_int8_gops", "l2_gbps",
            "l1_gbps")
 LEAST_OF = ("ort_call_us", "ort_node_us")
 

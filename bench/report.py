@@ -68,7 +68,8 @@ def _speedup_section(bench: dict) -> list[str]:
     if not rows:
         return []
     return (["### int8 against fp32", "", "Speed-up = fp32 p50 / int8 p50, same runtime, setting and batch.", ""]
-            + md_table(["model", "runtime", "setting", "batch", "fp32 p50 (us)", "int8 p50 (us)", "int8 speed-up"], rows))
+            + md_table(["model", "runtime", "setting", "batch", "fp32 p50 (us)", "int8 p50 (us)", "int8 speed-up"],
+                       rows))
 
 
 def _graphs_section(bench: dict) -> list[str]:
@@ -104,14 +105,22 @@ def _limits_section(bench: dict) -> list[str]:
     out = ["### Machine limits", "",
            f"Measured in the same run, pinned to CPUs {lim.get('cpus')}; {lim.get('method')}.", ""]
     out += md_table(["limit", "value", "how"], [
-        ["peak fp32, 1 thread", f"{lim['peak_gflops']:.1f} GFLOP/s", "numpy (OpenBLAS) / torch (MKL) sgemm, best size"],
+        ["peak fp32, 1 thread", f"{lim['peak_gflops']:.1f} GFLOP/s",
+         "best of numpy (OpenBLAS) / torch (MKL) sgemm (best size)"
+         + (f" {lim['gemm_peak_gflops']:.1f} and the probe's FMA loop {lim['fma_peak_gflops']:.1f}"
+            if lim.get("fma_peak_gflops") else "")],
         ["peak fp32, 2 threads", f"{lim['peak_gflops_2t']:.1f} GFLOP/s", "same"],
-        ["peak int8, 1 thread", f"{lim['peak_int8_gops']:.0f} GOP/s", "ORT MatMulInteger, uint8 x int8 (MLAS): the exported graphs' products (7-bit weights)"],
+        ["peak int8, 1 thread", f"{lim['peak_int8_gops']:.0f} GOP/s",
+         "ORT MatMulInteger, uint8 x int8 (MLAS): the exported graphs' products (7-bit weights)"],
         ["int8 x int8, 1 thread", f"{lim.get('s8s8_int8_gops', float('nan')):.0f} GOP/s",
          "ORT MatMulInteger, int8 activations (only the CNODE's P @ x_norm product uses it)"],
         ["L2 read bandwidth, 1 core", f"{lim['l2_gbps']:.0f} GB/s",
          f"{lim.get('l2_probe_kib')} KiB buffer; {lim.get('bandwidth_probe')}"],
-        ["L1 read bandwidth, 1 core", f"{num(lim.get('l1_gbps'), 0)} GB/s", "same probe, half of L1d"],
+        *([["L1 read bandwidth, 1 core",
+            f"{lim['l1_gbps']:.0f} GB/s (L1 / L2 {lim['l1_gbps'] / lim['l2_gbps']:.1f}x, sane >= 1.5x)",
+            "best of sizes " + ", ".join(f"{k}: {v:.0f}" for k, v in (lim.get("bandwidth_by_size") or {}).items())
+            + ("" if lim.get("bandwidth_sane", True) else "; IMPLAUSIBLE: L1 < 1.5x L2")]]
+          if lim.get("l1_gbps") else []),
         ["ORT fixed cost per call", f"{us(lim['ort_call_us'])} us", "Identity model, one (1, W, C) window, median"],
         ["ORT cost per node", f"{lim.get('ort_node_us', 0):.2f} us",
          "256-node Add chain on (1, 64), minus the call, / 256"],

@@ -16,8 +16,8 @@ is told), so the int8 graph unrolls the W = 80 steps into operators that quantiz
              n = tanh(gx_n + r * gh_n),  h' = (h - n) * z + n     (PyTorch's GRU cell, in that order)
 
 Activations are uint8 with zero point 128 and 7-bit weights (GRU_ACT; the integer sums equal the
-int8 ones, see export/quantize.py). h starts at 0 and is a convex combination of tanh outputs, so |h| < 1: its scale is the bound
-1/127, no calibration needed; only x_norm's scales are calibrated.
+int8 ones, see export/quantize.py). h starts at 0 and is a convex combination of tanh outputs, so
+|h| < 1: its scale is the bound 1/127, no calibration needed; only x_norm's scales are calibrated.
 """
 
 from __future__ import annotations
