@@ -20,11 +20,13 @@ all 4N stages share. The int8 graph has the same topology with each product one
 com.microsoft.MatMulIntegerToFloat on int8 activations (export/quantize.py; the row of V a separate
 Add), the RK4 combination and the state kept in float32. Per RK4 step the combination is 9 nodes:
 three stage inputs (Mul, Add), one Sum ((k1 + 2 k2) + 2 k3) + k4, a Mul by h/6 and an Add; the
-doubling of k2 and k3 lives in lin2's scales (exact, see GraphValue).
+scaling of the field outputs lives in lin2's scales (exact, see GraphValue and field_scales); when
+N is a power of two the combination is 7 nodes per step.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -91,37 +93,59 @@ class CnodeParams:
         return STAGES_PER_STEP * self.steps
 
 
+def is_pow2(x: float) -> bool:
+    """x > 0 is a power of two (multiplying by it is exact in float32, barring under/overflow)."""
+    return x > 0 and math.frexp(x)[0] == 0.5
+
+
 class GraphValue:
     """A tensor of a graph under construction that core.rk4.rk4_step can compute with, so that the
     graph is RK4_PROGRAM evaluated operation by operation, in the program's order. How a value is
     represented may differ from the program's text, never its float32 results:
 
+    - ``scale``: the tensor holds ``scale * value`` with ``scale`` a power of two (the field's lin2
+      multiplied its scales and bias by a power of two, which is exact in float32).
+    - ``value * c``: when c is a power of two the product is exact, so the same tensor is the
+      result with scale ``scale / c`` (no node: ``k2 * two``, and ``k1 * half_h`` when N is a power
+      of two); otherwise ``Mul(tensor, c / scale)`` (``c / scale`` exact) gives
+      ``f32(scale v * c/scale) == f32(v * c)`` bit for bit, at scale 1.
     - ``a + b`` is kept pending and chained sums become ONE ``Sum`` node when the value is used
       (ONNX Runtime's Sum adds its inputs left to right: ``((k1 + two*k2) + two*k3) + k4`` exactly);
-      a two-term sum is an ``Add``.
-    - ``scale``: the tensor holds ``scale * value`` with ``scale`` a power of two (the field's lin2
-      multiplied its scales and bias by 2, which is exact in float32). ``value * c`` is then the
-      tensor itself when ``c == scale`` (no node: ``k2 * two``) or ``Mul(tensor, c / scale)``,
-      ``c / scale`` exact, and ``f32(2 k * c/2) == f32(k * c)`` bit for bit.
-    - ``* c`` by a float is a Mul whose second input is the float32 constant (``consts``: value ->
-      initializer name; a constant divided by the scale is added under ``<name>/<scale>``).
+      a two-term sum is an ``Add``. Terms of one common scale are added as they are (a sum of
+      values all scaled by the same power of two is that power times the sum, exactly), else each
+      is brought to scale 1 first.
+    - constants are float32 initializers (``consts``: value -> name; a constant divided by a
+      scale is added under ``<name>/<scale>``).
+    Exactness assumes no result underflows to a subnormal (|k| > 1e-37 or 0), as in any float32 run.
     """
 
     def __init__(self, g: Graph, consts: dict, name: str | None = None, terms: tuple = (), scale: float = 1.0):
         self.g, self.consts, self._name, self.terms, self.scale = g, consts, name, terms, scale
+        if terms:
+            same = all(t.scale == terms[0].scale for t in terms)
+            self.scale = terms[0].scale if same else 1.0
 
     @property
     def name(self) -> str:
-        """The tensor (materialising a pending sum once)."""
+        """The tensor (materialising a pending sum once), holding ``scale * value``."""
         if self._name is None:
             op = "Add" if len(self.terms) == 2 else "Sum"
-            self._name = self.g.op(op, *(t.unit() for t in self.terms))
+            same = all(t.scale == self.scale for t in self.terms)
+            self._name = self.g.op(op, *((t.name if same else t.unit()) for t in self.terms))
             self.terms = ()
         return self._name
 
+    def _const(self, value: float, label: str) -> str:
+        v32 = float(np.float32(value))
+        name = self.consts.get(v32) or self.g.const(label, np.float32(v32))
+        self.consts.setdefault(v32, name)
+        return name
+
     def unit(self) -> str:
         """A tensor holding the value itself (scale 1)."""
-        return self.name if self.scale == 1.0 else (self * 1.0).name
+        if self.scale == 1.0:
+            return self.name
+        return self.g.op("Mul", self.name, self._const(1.0 / self.scale, f"rk4.unscale_{self.scale:g}"))
 
     def __add__(self, other: "GraphValue") -> "GraphValue":
         left = self.terms if self._name is None else (self,)
@@ -129,21 +153,27 @@ class GraphValue:
 
     def __mul__(self, c: float) -> "GraphValue":
         c32 = float(np.float32(c))
-        if c32 == self.scale:
-            return GraphValue(self.g, self.consts, self.name)
         name = self.consts.get(c32)
-        if name is None and c32 != 1.0:
+        if name is None:
             raise ValueError(f"RK4 constant {c!r} is not one of rk4_constants (h)")
+        if is_pow2(c32):  # v * c is exact: the same tensor, read at scale / c
+            return GraphValue(self.g, self.consts, self.name, scale=self.scale / c32)
         if self.scale != 1.0:
-            value = np.float32(c32) / np.float32(self.scale)  # exact: the scale is a power of two
-            name = self.consts.get(float(value)) or self.g.const(f"{name or 'one'}/{self.scale:g}", value)
-            self.consts.setdefault(float(value), name)
+            name = self._const(c32 / self.scale, f"{name}/{self.scale:g}")  # exact: the scale is a power of two
         return GraphValue(self.g, self.consts, self.g.op("Mul", self.name, name))
 
 
-# Stages (of 4 per step) whose field output the graph holds doubled: rk4_step multiplies k2 and k3 by
-# two, so lin2 produces 2 k directly there (scales and bias times 2, exact) and no Mul is needed.
-DOUBLED_STAGES = (1, 2)
+def field_scales(h: float) -> tuple[float, ...]:
+    """The power of two each of a step's 4 field outputs is held at (lin2's scales and bias times it).
+
+    rk4_step uses k1 as ``k1 * half_h`` and ``k1``, k2 as ``k2 * half_h`` and ``k2 * two``, k3 as
+    ``k3 * h`` and ``k3 * two``, k4 as ``k4``. When h = 1/N is a power of two, holding (half_h k1,
+    h k2, h k3, half_h k4) makes every one of these uses but ``k2 * half_h`` a free view, and the Sum
+    of (k1, 2 k2, 2 k3, k4) is held at half_h: 7 nodes per step. Otherwise (k1, 2 k2, 2 k3, k4): 9."""
+    half, full = (float(v) for v in rk4_constants(h)[:2])
+    if is_pow2(half) and is_pow2(full):
+        return (half, full, full, half)
+    return (1.0, 2.0, 2.0, 1.0)
 
 
 def rk4_stage_index(times: np.ndarray, steps: int) -> np.ndarray:
@@ -260,28 +290,30 @@ def build_cnode(p: CnodeParams, opset: int, q: CnodeQuant | None = None) -> Buil
         w1z, s_w1z = int8_weight(g, "lin1_z", q.lin1_z)
         w2, s_w2 = int8_weight(g, "lin2", q.lin2)
         s_hid = g.const("act.hidden.scale", q.s_hid)
-        # lin2 doubled (DOUBLED_STAGES): f32(acc) * f32(s_hid * 2 s_w) + 2 b == 2 (f32(acc) * f32(s_hid * s_w) + b)
-        s_w2x2 = g.const("lin2.weight_scale_x2", q.lin2.scale * np.float32(2))
-        b2x2 = g.const("lin2.bias_x2", p.lin2_b * np.float32(2))
+    scales = field_scales(1.0 / p.steps)
 
     stage = [0]
 
     def f(z: str, row: int) -> tuple[str, float]:
         e = stage[0]
         stage[0] += 1
-        scale = 2.0 if e % STAGES_PER_STEP in DOUBLED_STAGES else 1.0
+        scale = scales[e % STAGES_PER_STEP]
         g.probe(f"stage{e}", z, [BATCH, L])
         if q is None:
             a = g.op("Gemm", z, g.const("lin1_z.weight", p.lin1_wz), v_rows[row], transB=1)
             hid = g.op("Tanh", a)
-            b2 = g.const("lin2.bias", p.lin2_b) if scale == 1.0 else g.const("lin2.bias_x2", p.lin2_b * np.float32(2))
+            b2 = g.const("lin2.bias", p.lin2_b) if scale == 1.0 else g.const(f"lin2.bias_x{scale:g}",
+                                                                              p.lin2_b * np.float32(scale))
             return g.op("Gemm", hid, g.const("lin2.weight", p.lin2_w), b2, transB=1, alpha=scale), scale
         s_z = g.const(f"act.stage{e}.scale", q.s_z[e])
         a = g.op("Add", int8_matmul(g, quantize(g, z, s_z, q.act), s_z, w1z, s_w1z, None, q.act), v_rows[row])
         hid_q = quantize(g, g.op("Tanh", a), s_hid, q.act)
         if scale == 1.0:
             return int8_matmul(g, hid_q, s_hid, w2, s_w2, g.const("lin2.bias", p.lin2_b), q.act), scale
-        return int8_matmul(g, hid_q, s_hid, w2, s_w2x2, b2x2, q.act), scale
+        # f32(acc) * f32(s_hid * (c s_w)) + c b == c (f32(acc) * f32(s_hid * s_w) + b) for a power of two c
+        s_w2c = g.const(f"lin2.weight_scale_x{scale:g}", q.lin2.scale * np.float32(scale))
+        b2c = g.const(f"lin2.bias_x{scale:g}", p.lin2_b * np.float32(scale))
+        return int8_matmul(g, hid_q, s_hid, w2, s_w2c, b2c, q.act), scale
 
     # core.rk4.rk4_step evaluated on graph values: the graph is RK4_PROGRAM by construction, with
     # its float32 constants as initializers named after RK4_CONSTANT_NAMES.

@@ -130,7 +130,9 @@ def test_cnode_op_counts_grow_linearly_with_n(steps):
     assert fp32["Tanh"] == int8["Tanh"] == 4 * steps + 1  # z0 + one per stage
     assert fp32["Split"] == int8["Split"] == 1  # V's 2N+1 rows, once
     assert fp32["Sum"] == int8["Sum"] == steps  # ((k1 + 2 k2) + 2 k3) + k4, one node per step
-    assert fp32["Mul"] == int8["Mul"] == 4 * steps  # 3 stage inputs + h/6; 2 k2, 2 k3 come from lin2
+    # Muls per step: 3 stage inputs + h/6, 2 k2 and 2 k3 coming from lin2; when N is a power of two
+    # lin2 also folds half_h and h, leaving k2 * half_h and the h/6 (export.onnx_cnode.field_scales).
+    assert fp32["Mul"] == int8["Mul"] == (2 if steps in (1, 2, 4, 8) else 4) * steps
     # int8: every product one MatMulIntegerToFloat (P@x too: P is exact); no float product left.
     assert int8["MatMulIntegerToFloat"] == 8 * steps + 4
     assert int8["MatMulInteger"] == int8["MatMul"] == int8["Gemm"] == int8["Cast"] == 0
@@ -150,14 +152,15 @@ def test_ort_optimized_node_counts(steps):
     """Nodes after ONNX Runtime's optimizer (what it dispatches per call, ~0.4 us each): fp32 fuses
     each stage's Gemm + Tanh (FusedGemm), 2 nodes per evaluation + 9 per RK4 step; int8 has 6 per
     evaluation (QuantizeLinear, MatMulIntegerToFloat, Add row of V, Tanh, QuantizeLinear,
-    MatMulIntegerToFloat) + the same 9; the int8 GRU 12 per time step."""
+    MatMulIntegerToFloat) + the same 9 (7 when N is a power of two); the int8 GRU 12 per time step."""
     from export.ort_session import optimized_nodes
 
     t = make_tiny(steps=steps)
     count = {k: optimized_nodes(getattr(t, k).model.SerializeToString())["total"]
              for k in ("cnode_fp32", "cnode_int8", "gru_fp32", "gru_int8")}
-    assert count["cnode_fp32"] == 11 + 17 * steps  # N = 8: 147 (was 278)
-    assert count["cnode_int8"] == 16 + 33 * steps  # N = 8: 280 (was 547)
+    pow2 = steps in (1, 2, 4, 8)  # 2 nodes fewer per step (field_scales)
+    assert count["cnode_fp32"] == 11 + (15 if pow2 else 17) * steps  # N = 8: 131 (was 278)
+    assert count["cnode_int8"] == 16 + (31 if pow2 else 33) * steps  # N = 8: 264 (was 547)
     assert count["gru_int8"] == 12 + 12 * W  # 972 (was 1,372)
     assert count["gru_fp32"] <= 8
 
@@ -293,3 +296,39 @@ def test_interp_matrix_is_exact_in_int8(tiny):
     expect = np.rint(tiny.cp.interp.astype(np.float64) * 2 * tiny.steps)
     assert np.array_equal(tiny.cq.interp_q.astype(np.int64), expect)
     assert np.allclose(tiny.cq.interp_scale, 1 / (2 * tiny.steps))
+
+
+@pytest.mark.parametrize("steps", [3, 4])
+def test_rk4_graph_representation_is_bit_exact(steps):
+    """The RK4 combination as the graph writes it (Sum nodes, field outputs held at a power of two)
+    gives the same float32 bits as RK4_PROGRAM written out in numpy, on the int8 graph's own stage
+    states: each probed stage state e+1 is recomputed from states and field outputs of the graph."""
+    from core.rk4 import rk4_constants
+
+    t = make_tiny(steps=steps)
+    sess = session(t.cnode_int8.with_probes([f"stage{e}" for e in range(4 * steps)] + ["z1"]).SerializeToString())
+    names = [t.cnode_int8.probes[f"stage{e}"][0] for e in range(4 * steps)] + [t.cnode_int8.probes["z1"][0]]
+    st = sess.run(names, {"telemetry": t.x})
+    half, h, two, h6 = (np.float32(v) for v in rk4_constants(1.0 / steps))
+    # The field outputs (lin2 of every evaluation) as the graph holds them, from a copy of the model
+    # that outputs them too; the program is then run on them in numpy.
+    lin2 = [n.output[0] for n in t.cnode_int8.model.graph.node
+            if n.op_type == "MatMulIntegerToFloat" and n.input[1] == "lin2.weight_q"]
+    assert len(lin2) == 4 * steps
+    m = onnx.ModelProto()
+    m.CopyFrom(t.cnode_int8.model)
+    for n in lin2:
+        m.graph.output.append(onnx.helper.make_tensor_value_info(n, TensorProto.FLOAT, None))
+    ks = session(m.SerializeToString()).run(lin2, {"telemetry": t.x})
+    from export.onnx_cnode import field_scales
+
+    sig = [np.float32(c) for c in field_scales(1.0 / steps)]  # lin2 holds sig[i] * k
+    z = st[0]
+    for k in range(steps):
+        k1, k2, k3, k4 = (ks[4 * k + i] / sig[i] for i in range(4))  # exact: powers of two
+        assert np.array_equal(z, st[4 * k])
+        assert np.array_equal(z + k1 * half, st[4 * k + 1])
+        assert np.array_equal(z + k2 * half, st[4 * k + 2])
+        assert np.array_equal(z + k3 * h, st[4 * k + 3])
+        z = z + (((k1 + k2 * two) + k3 * two) + k4) * h6
+    assert np.array_equal(z, st[-1])
