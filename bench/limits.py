@@ -10,9 +10,12 @@ shared machine interference only ever slows a trial down, so the fastest trial i
   (8-bit x int8 -> int32, MLAS, VNNI where the CPU has it) at a large size, one core, the faster of
   uint8 and int8 activations: the compute half of the int8 floors (``s8s8_int8_gops``: int8
   activations, the type of quadfdi's graphs).
-- ``l2_gbps``: read bandwidth of one core from a buffer that fits its L2 but not its L1
-  (``bench/cpp/l2bw.cpp``, compiled here with g++ -O2 -march=native; numpy's ``dot`` when no
-  compiler is found, which is call-overhead bound and therefore an under-estimate, flagged as such).
+- ``l1_gbps``, ``l2_gbps``: read bandwidth of one core from buffers of 1/4 and 1/2 of L1d and of
+  L2 (``bench/cpp/l2bw.cpp``, compiled here per ISA with g++ -O2 -march=native -DVEC_BYTES=64|32|16,
+  the host's widest variant whose hot loops pass ``check_vectorised``: objdump shows vector
+  registers of that width and no stack access); best trial, best size. Sanity: L1 >= 1.5x L2
+  (``bandwidth_sane``). ``fma_peak_gflops``: the same probe's FMA loop, part of ``peak_gflops``.
+  numpy's ``dot`` when no compiler is found (call-overhead bound, an under-estimate, flagged).
 - ``ort_call_us``: ONNX Runtime's fixed cost per ``run()`` call: the median of an Identity model on
   one (1, W, C) window, one intra-op thread; ``ort_node_us``: its cost per extra small node (a
   chain of 256 Add nodes on a (1, 64) tensor, minus the call, over 256).
@@ -227,15 +230,110 @@ def l2_probe_kib(caches: dict[str, int]) -> int:
     return int(kib) if kib * 1024 < l2 else L2_PROBE_KIB_DEFAULT
 
 
-def build_l2bw(workdir: Path) -> Path | None:
-    """Compile bench/cpp/l2bw.cpp into ``workdir``; None when no g++ is available or it fails."""
+def host_vector_bytes() -> int:
+    """Width of the host's widest float vector registers: 64 (AVX-512F), 32 (AVX2 + FMA) or 16."""
+    try:
+        flags = next((ln.split(":", 1)[1].split() for ln in Path("/proc/cpuinfo").read_text().splitlines()
+                      if ln.startswith("flags")), [])
+    except OSError:
+        flags = []
+    if "avx512f" in flags:
+        return 64
+    return 32 if {"avx2", "fma"} <= set(flags) else 16
+
+
+VECTOR_REG = {16: "xmm", 32: "ymm", 64: "zmm"}
+
+
+def build_l2bw(workdir: Path, vec_bytes: int | None = None) -> Path | None:
+    """Compile bench/cpp/l2bw.cpp into ``workdir`` for vectors of ``vec_bytes`` (the host's
+    widest by default); None when no g++ is available or it fails."""
     cxx = shutil.which("g++") or shutil.which("c++")
     if cxx is None:
         return None
-    exe = workdir / "l2bw"
-    res = subprocess.run([cxx, "-O2", "-march=native", "-o", str(exe), str(L2BW_SOURCE)], capture_output=True,
-                         text=True)
+    vec = vec_bytes or host_vector_bytes()
+    exe = workdir / f"l2bw_v{vec}"
+    res = subprocess.run([cxx, "-O2", "-march=native", f"-DVEC_BYTES={vec}", "-o", str(exe), str(L2BW_SOURCE)],
+                         capture_output=True, text=True)
     return exe if res.returncode == 0 else None
+
+
+def hot_loop(disassembly: str, symbol: str) -> list[str]:
+    """The instructions of ``symbol``'s hottest loop in ``objdump -d`` text: among the backward
+    branches inside the function, the loop [target, branch] with the most vector instructions."""
+    lines, inside = [], False
+    for ln in disassembly.splitlines():
+        if ln.endswith(f"<{symbol}>:"):
+            inside = True
+            continue
+        if inside:
+            if not ln.strip():
+                break
+            addr, _, text = ln.partition(":")
+            try:
+                lines.append((int(addr.strip(), 16), text.strip()))
+            except ValueError:
+                continue
+    best: list[str] = []
+    for i, (addr, text) in enumerate(lines):
+        parts = text.split()
+        if not parts or not parts[0].startswith("j") or parts[0] == "jmp" or len(parts) < 2:  # loops: conditional
+            continue
+        try:
+            target = int(parts[1], 16)
+        except ValueError:
+            continue
+        if target <= addr:
+            body = [t for a, t in lines if target <= a <= addr]
+            if sum(t.startswith("v") for t in body) > sum(t.startswith("v") for t in best):
+                best = body
+    return best
+
+
+def check_vectorised(exe: Path, vec_bytes: int) -> dict:
+    """objdump the probe's two kernels: each hot loop must use ``vec_bytes`` vector registers
+    (xmm/ymm/zmm) and touch no stack slot (no spill). {"checked", "ok", per kernel details}."""
+    objdump = shutil.which("objdump")
+    if objdump is None:
+        return {"checked": False, "ok": None, "why": "objdump not found"}
+    res = subprocess.run([objdump, "-d", "--no-show-raw-insn", str(exe)], capture_output=True, text=True)
+    reg = VECTOR_REG[vec_bytes]
+    out: dict = {"checked": True, "register": reg, "vec_bytes": vec_bytes}
+    ok = True
+    for symbol in ("l2bw_read_pass", "l2bw_fma_kernel"):
+        loop = hot_loop(res.stdout, symbol)
+        vec_ops = [t for t in loop if t.startswith("v") and f"%{reg}" in t]
+        stack = [t for t in loop if "(%rsp" in t or "(%rbp" in t]
+        good = bool(loop) and len(vec_ops) >= 8 and not stack
+        out[symbol] = {"loop_instructions": len(loop), "vector_ops": len(vec_ops), "stack_accesses": len(stack),
+                       "ok": good}
+        ok = ok and good
+    out["ok"] = ok
+    return out
+
+
+def build_checked_probe(workdir: Path) -> tuple[Path | None, dict]:
+    """The widest probe variant whose hot loops pass ``check_vectorised`` (host width first, then
+    narrower); (None, reason) without a compiler. An unchecked build (no objdump) is used as is."""
+    tried = []
+    for vec in [v for v in (64, 32, 16) if v <= host_vector_bytes()]:
+        exe = build_l2bw(workdir, vec)
+        if exe is None:
+            return None, {"checked": False, "ok": None, "why": "no C++ compiler or the build failed"}
+        check = check_vectorised(exe, vec)
+        tried.append(check)
+        if check["ok"] or not check["checked"]:
+            return exe, {**check, "tried": tried[:-1]}
+    return exe, {**tried[-1], "tried": tried[:-1]}
+
+
+def fma_peak(exe: Path, cpu_prefix: list[str], trials: int, min_s: float) -> float:
+    """Best GFLOP/s of the probe's FMA kernel (10 independent vector FMA chains), one core."""
+    res = subprocess.run([*cpu_prefix, str(exe), "--fma", str(trials), str(min_s)], capture_output=True, text=True,
+                         timeout=120)
+    if res.returncode != 0:
+        raise QuadfdiError(f"FMA probe {exe} failed: {res.stderr.strip() or res.returncode}")
+    return max(float(f) / float(s) / 1e9 for f, s in (ln.split() for ln in res.stdout.splitlines() if ln.strip()))
 
 
 def bandwidth(exe: Path, kib: int, cpu_prefix: list[str], trials: int, min_s: float) -> float:
@@ -246,6 +344,16 @@ def bandwidth(exe: Path, kib: int, cpu_prefix: list[str], trials: int, min_s: fl
         raise QuadfdiError(f"bandwidth probe {exe} failed: {res.stderr.strip() or res.returncode}")
     rates = [float(b) / float(s) / 1e9 for b, s in (line.split() for line in res.stdout.split("\n") if line.strip())]
     return max(rates)
+
+
+def probe_sizes_kib(caches: dict[str, int]) -> dict[str, list[int]]:
+    """Buffer sizes per level: L1 at 1/4 and 1/2 of L1d; L2 at 1/4 and 1/2 of L2 (at least 4x L1d)."""
+    l1, l2 = caches.get("L1d", 32 * 1024), caches.get("L2", 1024 * 1024)
+    l2_sizes = sorted({max(4 * l1, l2 // 4) // 1024, l2_probe_kib(caches)})
+    return {"L1": [max(4, l1 // 4096), max(4, l1 // 2048)], "L2": l2_sizes}
+
+
+L1_OVER_L2_MIN = 1.5  # sanity: an L1-resident read must be at least this much faster than an L2 one
 
 
 def numpy_bandwidth(kib: int) -> float:
@@ -310,20 +418,39 @@ def measure_limits(cpus: str = "0,1", quick: bool = False, window: int = 80, cha
     caches = cache_sizes()
     kib = l2_probe_kib(caches)
     trials, min_s = (2, 0.01) if quick else (7, 0.08)
+    sizes = probe_sizes_kib(caches)
+    per_size: dict[str, float] = {}
+    fma = None
     with tempfile.TemporaryDirectory(prefix="quadfdi-l2bw-") as tmp:
-        exe = build_l2bw(Path(tmp))
+        exe, vector_check = build_checked_probe(Path(tmp))
         pin_one = prefix[:2] + [cpus.split(",")[0]] if prefix else []
         if exe is not None:
-            l2 = bandwidth(exe, kib, pin_one, trials, min_s)
-            l1 = bandwidth(exe, max(4, caches.get("L1d", 32768) // 2048), pin_one, trials, min_s)
-            probe = "bench/cpp/l2bw.cpp (g++ -O2 -march=native), 8 vector accumulators, one core"
+            for level in ("L1", "L2"):
+                for k in sizes[level]:
+                    per_size[f"{level} {k} KiB"] = bandwidth(exe, k, pin_one, trials, min_s)
+            l1 = max(v for n, v in per_size.items() if n.startswith("L1"))
+            l2 = max(v for n, v in per_size.items() if n.startswith("L2"))
+            fma = fma_peak(exe, pin_one, trials, min_s)
+            probe = (f"bench/cpp/l2bw.cpp (g++ -O2 -march=native -DVEC_BYTES={vector_check.get('vec_bytes')}), "
+                     f"8 vector accumulators, one core; hot loops "
+                     + ("checked vectorised" if vector_check.get("ok") else
+                        "NOT checked" if not vector_check.get("checked") else "FAILED the vectorisation check"))
         else:
             l2, l1 = numpy_bandwidth(kib), None
             probe = "numpy dot (no C++ compiler found): includes call overhead, an under-estimate"
+    sane = l1 is not None and l1 >= L1_OVER_L2_MIN * l2
+    if not sane:
+        log(f"bench limits: WARNING bandwidth probe implausible: L1 {l1 or 0:.1f} GB/s is not >= "
+            f"{L1_OVER_L2_MIN}x L2 {l2:.1f} GB/s (a spilling or non-vectorised loop reads the same at every size)")
     one = per_threads[1]
     two = per_threads.get(2)
+    gemm_peak = max(g["gflops"] for g in one["gemm"])
     limits = {
-        "peak_gflops": max(g["gflops"] for g in one["gemm"]),
+        # the roof: the best of the libraries' sgemm and the probe's own FMA loop (a floor must be a
+        # lower bound, so the higher peak is the one it uses)
+        "peak_gflops": max(gemm_peak, fma or 0.0),
+        "gemm_peak_gflops": gemm_peak,
+        "fma_peak_gflops": fma,
         "peak_gflops_2t": max(g["gflops"] for g in two["gemm"]) if two else None,
         "peak_int8_gops": max(r["gops"] for r in one["int8"]),
         "peak_int8_gops_2t": max(r["gops"] for r in two["int8"]) if two else None,
@@ -334,6 +461,9 @@ def measure_limits(cpus: str = "0,1", quick: bool = False, window: int = 80, cha
         "ort_node_us": one["ort_call"]["node_us"],
         "caches": caches,
         "l2_probe_kib": kib,
+        "bandwidth_by_size": per_size,
+        "bandwidth_sane": sane,
+        "vector_check": vector_check if exe is not None else None,
         "bandwidth_probe": probe,
         "gemm": [g for t in threads for g in per_threads[t]["gemm"]],
         "int8": [r for t in threads for r in per_threads[t]["int8"]],
@@ -349,7 +479,8 @@ def measure_limits(cpus: str = "0,1", quick: bool = False, window: int = 80, cha
     return limits
 
 
-BEST_OF = ("peak_gflops", "peak_gflops_2t", "peak_int8_gops", "peak_int8_gops_2t", "s8s8_int8_gops", "l2_gbps",
+BEST_OF = ("peak_gflops", "gemm_peak_gflops", "fma_peak_gflops", "peak_gflops_2t", "peak_int8_gops",
+           "peak_int8_gops_2t", "s8s8_int8_gops", "l2_gbps",
            "l1_gbps")
 LEAST_OF = ("ort_call_us", "ort_node_us")
 
@@ -368,6 +499,8 @@ def merge_limits(passes: list[dict]) -> dict:
     for key in LEAST_OF:
         vals = [p[key] for p in passes if p.get(key) is not None]
         out[key] = min(vals) if vals else None
+    l1, l2 = out.get("l1_gbps"), out.get("l2_gbps")
+    out["bandwidth_sane"] = bool(l1 is not None and l2 and l1 >= L1_OVER_L2_MIN * l2)
     out["gemm"] = [{**g, "pass": i} for i, p in enumerate(passes) for g in p["gemm"]]
     out["int8"] = [{**r, "pass": i} for i, p in enumerate(passes) for r in p["int8"]]
     out["passes"] = [{k: p.get(k) for k in (*BEST_OF, *LEAST_OF, "seconds")} for p in passes]

@@ -22,7 +22,8 @@ from core.rundir import RunDir
 from export.calibrate import WindowReader, collect_ranges, select_windows
 from export.coverage import compare, coverage, fp32_constants, markdown
 from export.graph import IR_VERSION, Built
-from export.manifest import MODEL_KINDS, artifact_names, build_manifest, write_manifest
+from export.manifest import MODEL_KINDS, artifact_names, build_manifest, encoding_of, write_manifest
+from export.quantize import weight_qmax
 from export.onnx_cnode import CnodeParams, CnodeQuant, build_cnode, calibration_probes, cnode_params, quantize_cnode
 from export.onnx_gru import (CALIBRATION_PROBES, GruParams, GruQuant, build_gru_fp32, build_gru_int8, gru_params,
                              quantize_gru)
@@ -144,7 +145,9 @@ def export_run(run: RunDir, cfg: Config, log: Callable[[str], None] = print) -> 
         ds=ds, config=cfg.to_dict(), checkpoints={"cnode": cblob, "gru": gblob}, window=int(cnode.window),
         steps=steps, opset=opset, ir_version=IR_VERSION, stage_times=cp.times, files=files, coverage=cov,
         calib_windows=len(calib_idx), interp_exact=cq.interp_exact, verification=verification,
-        metrics=metrics, reference_index=ref_idx, reference_labels=test_w.y[ref_idx])
+        metrics=metrics, reference_index=ref_idx, reference_labels=test_w.y[ref_idx],
+        encoding={"cnode": encoding_of(cq.act, weight_qmax(cq.act), graphs.cnode_int8.model),
+                  "gru": encoding_of(gq.act, weight_qmax(gq.act), graphs.gru_int8.model)})
     out = ensure_dir(run.export)
     for name, data in files.items():
         write_bytes(out / name, data)

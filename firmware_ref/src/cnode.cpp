@@ -152,7 +152,7 @@ Status infer(const CnodeI8& m, const float* x, float* logits, CnodeWorkspace& ws
   if (!all_finite(x, W * C)) return Status::kNonFiniteInput;
   if (tr != nullptr && tr->x_norm != nullptr) trace_x_norm(x, m.mean, m.std, W, C, tr->x_norm);
 
-  // U = interp_q @ quantize(x_norm, s_x[c]) in int32, u = (f32(acc) * s_P[s]) * s_x[c], then
+  // U = interp_q @ quantize(x_norm, s_x[c]) in int32, u = f32(acc) * f32(s_P[s] * s_x[c]), then
   // quantized per channel with s_u[c]. x_norm is requantized where a sample feeds two rows (the
   // same numbers both times), so no (W, C) buffer is needed.
   std::int32_t acc[kMaxChannels];
@@ -166,7 +166,7 @@ Status infer(const CnodeI8& m, const float* x, float* logits, CnodeWorkspace& ws
       for (int c = 0; c < C; ++c) acc[c] += p * quantize(normalise(xw[c], m.mean[c], m.std[c]), m.s_x[c]);
     }
     for (int c = 0; c < C; ++c) {
-      const float u = (static_cast<float>(acc[c]) * m.interp.scale[s]) * m.s_x[c];
+      const float u = rescale_i32(acc[c], m.interp.scale[s], m.s_x[c]);
       if (tr != nullptr && tr->u != nullptr) tr->u[s * C + c] = u;
       ws.uq[s * C + c] = quantize(u, m.s_u[c]);
     }

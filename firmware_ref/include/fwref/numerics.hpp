@@ -118,17 +118,29 @@ inline std::int32_t dot_i8(const std::int8_t* a, const std::int8_t* b, int n) {
 }
 #endif
 
-// Pattern A (per-tensor activation scale s_a): y[o] = ((f32(acc[o]) * s_a) * s_w[o]) + b[o].
+// The one int32 -> float rescale order (docs/formats.md, "int8 arithmetic"), ONNX Runtime's
+// com.microsoft.MatMulIntegerToFloat: f32(acc) * f32(s_a * s_w), the multiplier formed first.
+inline float rescale_i32(std::int32_t acc, float s_a, float s_w) {
+  const float m = s_a * s_w;
+  return static_cast<float>(acc) * m;
+}
+
+// Pattern A (per-tensor activation scale s_a): y[o] = (f32(acc[o]) * f32(s_a * s_w[o])) + b[o], the
+// order of ONNX Runtime's com.microsoft.MatMulIntegerToFloat (the multiplier f32(s_a * s_w[o]) is
+// formed first, then one multiply and one add, no FMA). The multiplier is one float32 product,
+// so forming it here per row gives the same bits as precomputing it at load.
 // ``w`` is (rows, cols) int8 row-major, ``s_w`` (rows,), ``bias`` (rows,), ``x`` (cols,) int8.
+// uint8 activations with zero point 128 (the GRU's graph) reach here as their int8 codes q - 128:
+// the integer sum is the same.
 inline void linear_i8_tensor(const std::int8_t* w, const float* s_w, int rows, int cols, const std::int8_t* x,
                              float s_a, const float* bias, float* y) {
   for (int o = 0; o < rows; ++o) {
-    const float acc = static_cast<float>(dot_i8(w + o * cols, x, cols));
-    y[o] = ((acc * s_a) * s_w[o]) + bias[o];
+    y[o] = rescale_i32(dot_i8(w + o * cols, x, cols), s_a, s_w[o]) + bias[o];
   }
 }
 
-// Pattern B (per-channel activation scales folded into the weight): y[o] = (f32(acc[o]) * s_w'[o]) + b[o].
+// Pattern B (per-channel activation scales folded into the weight): y[o] = (f32(acc[o]) * s_w'[o]) + b[o]
+// (MatMulIntegerToFloat with s_a = 1: f32(1 * s_w') = s_w').
 inline void linear_i8_folded(const std::int8_t* w, const float* s_w, int rows, int cols, const std::int8_t* x,
                              const float* bias, float* y) {
   for (int o = 0; o < rows; ++o) {
