@@ -243,19 +243,10 @@ def calibration_probes(p: CnodeParams) -> dict[str, str]:
     return out
 
 
-def build_cnode(p: CnodeParams, opset: int, q: CnodeQuant | None = None) -> Built:
-    """The fp32 graph (``q`` None) or the int8 graph of ``p`` with N = p.steps RK4 steps.
-
-    Batch-first 2-D tensors from the control path on: the state is (B, L), each stage's row of V
-    (B, H) comes out of one Reshape and one Split, so that every fp32 product is a Gemm with its
-    bias or row of V folded in, and every int8 product one MatMulIntegerToFloat."""
-    W, C, L, K, S, H = p.window, p.n_channels, p.latent, p.n_classes, len(p.times), p.hidden
-    g = Graph(f"cnode_rk4_{p.steps}" + ("_int8" if q else ""))
-    xn = g.op("Div", g.op("Sub", "telemetry", g.const("norm.mean", p.mean)), g.const("norm.std", p.std), name="x_norm")
-    g.probe("x_norm", xn, [BATCH, W, C])
-    row0 = g.const("gather.row0", np.int64(0), np.int64)
-    v_shape = g.const("reshape.v", [0, S * H], np.int64)
-
+def _control_path(g: Graph, p: CnodeParams, q: CnodeQuant | None, xn: str, row0: str) -> tuple[str, str, str]:
+    """u = P @ x_norm (B, S, C), z0 = tanh(E u[:, 0] + b) (B, L) and V = u W1u^T + b1 (B, S, H): the
+    part of the CNODE computed once per window, fp32 or int8."""
+    C = p.n_channels
     if q is None:
         u = g.op("MatMul", g.const("interp", p.interp), xn, name="u")  # (B, S, C)
         u0 = g.op("Gather", u, row0, axis=1)  # (B, C) = x_norm[:, 0]: P's row 0 is sample 0
@@ -281,6 +272,34 @@ def build_cnode(p: CnodeParams, opset: int, q: CnodeQuant | None = None) -> Buil
                                       g.const("encoder.bias", p.encoder_b), q.act), name="z0")
         w1u, s_w1u = int8_weight(g, "lin1_u", q.lin1_u)
         v = int8_matmul(g, uq, None, w1u, s_w1u, g.const("lin1.bias", p.lin1_b), q.act)
+    return u, z0, v
+
+
+def _head(g: Graph, p: CnodeParams, q: CnodeQuant | None, z: str) -> None:
+    """logits = head(z1), fp32 Gemm or one int8 product."""
+    if q is None:
+        g.op("Gemm", z, g.const("head.weight", p.head_w), g.const("head.bias", p.head_b), transB=1, name="logits")
+    else:
+        wh, s_wh = int8_weight(g, "head", q.head)
+        s_z1 = g.const("act.z1.scale", q.s_z1)
+        int8_matmul(g, quantize(g, z, s_z1, q.act), s_z1, wh, s_wh, g.const("head.bias", p.head_b), q.act,
+                    name="logits")
+
+
+def build_cnode(p: CnodeParams, opset: int, q: CnodeQuant | None = None) -> Built:
+    """The fp32 graph (``q`` None) or the int8 graph of ``p`` with N = p.steps RK4 steps.
+
+    Batch-first 2-D tensors from the control path on: the state is (B, L), each stage's row of V
+    (B, H) comes out of one Reshape and one Split, so that every fp32 product is a Gemm with its
+    bias or row of V folded in, and every int8 product one MatMulIntegerToFloat."""
+    W, C, L, K, S, H = p.window, p.n_channels, p.latent, p.n_classes, len(p.times), p.hidden
+    g = Graph(f"cnode_rk4_{p.steps}" + ("_int8" if q else ""))
+    xn = g.op("Div", g.op("Sub", "telemetry", g.const("norm.mean", p.mean)), g.const("norm.std", p.std), name="x_norm")
+    g.probe("x_norm", xn, [BATCH, W, C])
+    row0 = g.const("gather.row0", np.int64(0), np.int64)
+    v_shape = g.const("reshape.v", [0, S * H], np.int64)
+
+    u, z0, v = _control_path(g, p, q, xn, row0)
     g.probe("u", u, [BATCH, S, C])
     g.probe("z0", z0, [BATCH, L])
     # (B, S, H) -> (B, S*H) -> S rows (B, H): one Reshape and one Split for the whole integration.
@@ -334,13 +353,7 @@ def build_cnode(p: CnodeParams, opset: int, q: CnodeQuant | None = None) -> Buil
     z = z.unit()
     g.probe("z1", z, [BATCH, L])
 
-    if q is None:
-        g.op("Gemm", z, g.const("head.weight", p.head_w), g.const("head.bias", p.head_b), transB=1, name="logits")
-    else:
-        wh, s_wh = int8_weight(g, "head", q.head)
-        s_z1 = g.const("act.z1.scale", q.s_z1)
-        int8_matmul(g, quantize(g, z, s_z1, q.act), s_z1, wh, s_wh, g.const("head.bias", p.head_b), q.act,
-                    name="logits")
+    _head(g, p, q, z)
     g.op("Softmax", "logits", name="proba", axis=-1)
     doc = (f"quadfdi CNODE, classic RK4 unrolled over N={p.steps} steps, "
            f"{'int8 (int8 activations, MatMulIntegerToFloat, static scales)' if q else 'fp32'}; "

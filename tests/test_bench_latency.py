@@ -236,7 +236,7 @@ def test_bandwidth_probe_hot_loops_are_vectorised(tmp_path):
     and no stack slot (the 64-byte vectors of the old probe spilled on AVX2); L1 reads faster than L2."""
     import shutil
 
-    from bench.limits import L1_OVER_L2_MIN, VECTOR_REG, bandwidth, build_checked_probe, fma_peak, host_vector_bytes
+    from bench.probes import L1_OVER_L2_MIN, VECTOR_REG, bandwidth, build_checked_probe, fma_peak, host_vector_bytes
 
     if shutil.which("g++") is None or shutil.which("objdump") is None:
         pytest.skip("needs g++ and objdump")
@@ -251,7 +251,7 @@ def test_bandwidth_probe_hot_loops_are_vectorised(tmp_path):
 
 
 def test_hot_loop_finds_the_loop_not_the_tail():
-    from bench.limits import hot_loop
+    from bench.probes import hot_loop
 
     text = """0000000000001000 <k>:
     1000:	xor    %eax,%eax
