@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Any, get_args, get_origin, get_type_hints
 
 from core.errors import QuadfdiError
-
+from core.limits import FIRMWARE_MAX_STEPS, MAX_THREADS, available_memory, DATASET_BYTES_PER_SAMPLE
 
 
 @dataclass(frozen=True)
@@ -42,6 +42,9 @@ class SimConfig:
 
     def validate(self) -> None:
         _positive(self, "n_traj", "duration_s", "sample_dt_s", "sim_dt_s", "window", "stride", "chunk")
+        _not_negative(self, "seed")
+        if self.window < 2:
+            raise QuadfdiError(f"sim.window must be 2 samples or more (the models need a time step), found {self.window}")
         if not 0.0 <= self.fault_ratio <= 1.0:
             raise QuadfdiError(f"sim.fault_ratio must be in [0, 1], found {self.fault_ratio}")
         for name in ("onset_frac", "ramp_frac", "severity_max"):
@@ -55,6 +58,7 @@ class SimConfig:
             )
         if abs(sum(self.split) - 1.0) > 1e-9 or min(self.split) < 0:
             raise QuadfdiError(f"sim.split must be three non-negative shares summing to 1, found {list(self.split)}")
+        self.check_memory()
         ratio = self.sample_dt_s / self.sim_dt_s
         if abs(ratio - round(ratio)) > 1e-9:
             raise QuadfdiError(
@@ -73,6 +77,18 @@ class SimConfig:
                 f"sim: a fault may become detectable at {t_det_worst:.2f} s, later than one stride before the "
                 f"last sample ({last_end:.2f} s); lower sim.severity_threshold or raise sim.severity_max"
             )
+
+    def check_memory(self) -> None:
+        """Refuse a dataset that cannot fit in memory before simulating a single trajectory."""
+        need = 2 * self.estimated_bytes
+        avail = available_memory()
+        if avail is not None and need > avail:
+            raise QuadfdiError(f"sim.n_traj={self.n_traj} x {self.n_samples} samples needs about {need / 1e9:.1f} GB of "
+                               f"memory, {avail / 1e9:.1f} GB are available: lower sim.n_traj or sim.duration_s")
+
+    @property
+    def estimated_bytes(self) -> int:
+        return self.n_traj * self.n_samples * DATASET_BYTES_PER_SAMPLE
 
     @property
     def n_samples(self) -> int:
@@ -110,6 +126,10 @@ class TrainConfig:
 
     def validate(self) -> None:
         _positive(self, "epochs", "batch_size", "lr", "latent", "hidden", "gru_hidden", "steps", "rtol", "atol", "threads", "gru_lr")
+        _not_negative(self, "seed")
+        if min(self.seeds, default=0) < 0:
+            raise QuadfdiError(f"train.seeds must not be negative, found {list(self.seeds)}")
+        _at_most(self, MAX_THREADS, "threads")
         _choice(self, "model", ("cnode", "gru", "both"))
         _choice(self, "lr_schedule", ("constant", "cosine"))
         _choice(self, "solver", ("dopri5", "bosh3", "rk4", "euler", "midpoint"))
@@ -126,6 +146,7 @@ class ExportConfig:
 
     def validate(self) -> None:
         _positive(self, "steps", "opset", "calib_windows", "reference_windows")
+        _at_most(self, FIRMWARE_MAX_STEPS, "steps")
         if self.opset < 17:
             raise QuadfdiError(f"export.opset must be 17 or newer, found {self.opset}")
 
@@ -167,6 +188,7 @@ class SolversConfig:
             raise QuadfdiError("solvers.steps must be positive integers and solvers.rtols positive numbers")
         _choice(self, "jump", ("both", "on", "off"))
         _positive(self, "ref_rtol", "threads", "matrix_batch")
+        _at_most(self, MAX_THREADS, "threads", "matrix_threads")
         for name in ("sample", "sample_seed", "f1_tol", "break_tol", "matrix_epochs", "matrix_max_train_windows",
                      "matrix_threads"):
             if getattr(self, name) < 0:
@@ -198,8 +220,8 @@ class BenchConfig:
                   "callgrind_windows", "worker_timeout_s")
         if self.warmup < 0:
             raise QuadfdiError(f"bench.warmup must be 0 or more, found {self.warmup}")
-        if not self.threads or min(self.threads) < 1:
-            raise QuadfdiError(f"bench.threads must be a non-empty list of positive counts, found {list(self.threads)}")
+        if not self.threads or min(self.threads) < 1 or max(self.threads) > MAX_THREADS:
+            raise QuadfdiError(f"bench.threads must be a non-empty list of counts in 1..{MAX_THREADS}, found {list(self.threads)}")
         parts = [c.strip() for c in self.cpus.split(",")]
         if not all(c.isdigit() for c in parts):
             raise QuadfdiError(f"bench.cpus must be a comma-separated list of CPU numbers, found {self.cpus!r}")
@@ -230,6 +252,20 @@ def _positive(section: Any, *names: str) -> None:
         value = getattr(section, name)
         if not value > 0:
             raise QuadfdiError(f"{_section_name(section)}.{name} must be positive, found {value}")
+
+
+def _not_negative(section: Any, *names: str) -> None:
+    for name in names:
+        value = getattr(section, name)
+        if value < 0:
+            raise QuadfdiError(f"{_section_name(section)}.{name} must not be negative, found {value}")
+
+
+def _at_most(section: Any, limit: int, *names: str) -> None:
+    for name in names:
+        value = getattr(section, name)
+        if value > limit:
+            raise QuadfdiError(f"{_section_name(section)}.{name} must be at most {limit}, found {value}")
 
 
 def _choice(section: Any, name: str, allowed: tuple[str, ...]) -> None:

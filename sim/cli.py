@@ -33,15 +33,24 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def generate_into(run: RunDir, cfg: Config, show_progress: bool = True) -> Path:
-    """Simulate ``cfg.sim`` and write ``run.dataset`` (atomically); return its path."""
+    """Simulate ``cfg.sim`` and publish ``dataset.npz`` with ``config.toml`` as one stage; return the
+    dataset's path. The config is written only after the simulation succeeded (core.stage)."""
     from tqdm import tqdm
 
+    from core.atomic import write_text
+    from core.config import dumps_toml
+    from core.stage import stage
     from sim.dataset import dataset_arrays, write_npz
+    from sim.params import get_vehicle
     from sim.simulate import generate
 
-    with tqdm(total=cfg.sim.n_traj, unit="traj", desc="sim", disable=not show_progress) as bar:
-        arrays = generate(cfg.sim, progress=bar.update)
-    write_npz(run.dataset, dataset_arrays(arrays, cfg))
+    get_vehicle(cfg.sim.vehicle)  # an unknown vehicle is refused before anything is staged
+    with stage(run.root, "sim", {"sim": cfg.to_dict()["sim"]}, targets=("dataset.npz", "config.toml"),
+               need_bytes=cfg.sim.estimated_bytes) as st:
+        with tqdm(total=cfg.sim.n_traj, unit="traj", desc="sim", disable=not show_progress) as bar:
+            arrays = generate(cfg.sim, progress=bar.update)
+        write_npz(st.path("dataset.npz"), dataset_arrays(arrays, cfg))
+        write_text(st.path("config.toml"), dumps_toml(cfg))
     return run.dataset
 
 
