@@ -74,7 +74,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     except OSError as exc:  # full disk, file-size limit, permissions: the file and the reason
         where = f"{exc.filename}: " if exc.filename else ""
-        print(f"quadfdi {args.stage}: error: {where}{exc.strerror or _one_line(exc)}; nothing was published",
+        print(f"quadfdi {args.stage}: error: {where}{exc.strerror or _one_line(exc)}",
               file=sys.stderr)
         return 2
     except MemoryError:
