@@ -14,9 +14,9 @@ A crash before 1 leaves the old state untouched (the next command deletes the or
 folder); a crash after 1 is rolled forward by the next command (core.records.recover). So a run
 folder is always in its old or its new published state, never a mix.
 
-``QUADFDI_FAULT_POINT=<stage>:<point>[:TERM]`` kills the process at a named point (staged,
-before-publish, mid-publish, after-publish): the fault-injection tests use it because a signal at
-a named point is deterministic and a timer is not.
+``QUADFDI_FAULT_POINT=<stage>:<point>[:TERM|:STOP]`` sends SIGKILL (or SIGTERM, SIGSTOP) to the
+process at a named point (staged, before-publish, mid-publish, after-publish): the fault-injection
+tests use it because a signal at a named point is deterministic and a timer is not.
 """
 
 from __future__ import annotations
@@ -43,10 +43,9 @@ def fault_point(stage: str, point: str) -> None:
     want = os.environ.get("QUADFDI_FAULT_POINT", "")
     parts = want.split(":")
     if len(parts) >= 2 and parts[0] == stage and parts[1] == point:
-        sig = signal.SIGTERM if parts[2:] == ["TERM"] else signal.SIGKILL
+        sig = {"TERM": signal.SIGTERM, "STOP": signal.SIGSTOP}.get((parts[2:] or ["KILL"])[0], signal.SIGKILL)
         sys.stdout.flush()
-        os.kill(os.getpid(), sig)
-        signal.pause() if hasattr(signal, "pause") else None
+        os.kill(os.getpid(), sig)  # STOP: the process holds its lock until the test kills it
 
 
 def check_target(path: Path) -> None:

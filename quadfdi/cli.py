@@ -25,6 +25,7 @@ STAGES = {
     "ingest": "ingest.cli",
     "realism": "realism.cli",
     "report": "quadfdi.report",
+    "check": "quadfdi.check",
     "readme": "quadfdi.readme",
     "run": "quadfdi.pipeline",
 }
