@@ -101,7 +101,7 @@ def verify_input(root: Path, rel: str, config: dict[str, dict] | None = None,
     if got != entry["sha256"]:
         raise QuadfdiError(f"{path}: sha256 {got[:16]}... differs from {entry['sha256'][:16]}... recorded in "
                            f".stages/{stage}.json (changed after it was published): re-run quadfdi {stage}")
-    _check_upstream(root, stage, rec)
+    check_upstream(root, stage, rec)
     for section in sections:
         if config is None or section not in rec.get("config", {}):
             continue
@@ -113,7 +113,7 @@ def verify_input(root: Path, rel: str, config: dict[str, dict] | None = None,
     return {"path": rel, "sha256": got, "stage": stage}
 
 
-def _check_upstream(root: Path, stage: str, rec: dict) -> None:
+def check_upstream(root: Path, stage: str, rec: dict) -> None:
     """A published file is stale when an input it was made from has been republished since."""
     for inp in rec.get("inputs", []):
         now = producer_of(root, inp["path"])
@@ -142,13 +142,15 @@ def roll_forward(root: Path, stage: str, fault=lambda point: None) -> None:
     for entry in (old or {}).get("outputs", []):
         if entry["path"] not in keep:  # e.g. the ONNX files of an earlier --steps
             _remove_file(root / entry["path"])
-    for i, entry in enumerate(new["outputs"]):
+    moved = 0
+    for entry in new["outputs"]:
         src = pub / entry["path"]
-        if src.is_file():
+        if src.is_file():  # absent: moved before an interruption, or carried forward in place
             dst = root / entry["path"]
             dst.parent.mkdir(parents=True, exist_ok=True)
             os.replace(src, dst)
-            if i == 0:
+            moved += 1
+            if moved == 1:
                 fault("mid-publish")
     if (pub / RECORD).is_file():
         (root / STAGES).mkdir(exist_ok=True)

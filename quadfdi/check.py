@@ -25,9 +25,17 @@ def check_run(root: Path) -> list[str]:
         raise QuadfdiError(f"{root} has no published stage ({root / records.STAGES} is empty): run quadfdi sim first")
     for stage, rec in recs.items():
         for entry in rec["outputs"]:
-            records.verify_input(root, entry["path"])
+            path = root / entry["path"]
+            if not path.is_file() or records.sha256_file(path) != entry["sha256"]:
+                raise QuadfdiError(f"{path} is missing or differs from the sha256 recorded in .stages/{stage}.json: "
+                                   f"re-run quadfdi {stage}")
+        try:  # stale is a consistent state (a stage upstream was re-run): the next stage refuses it
+            records.check_upstream(root, stage, rec)
+            note = ""
+        except QuadfdiError as exc:
+            note = f"; stale: {exc}"
         lines.append(f"{stage}: {len(rec['outputs'])} files match .stages/{stage}.json "
-                     f"(published {rec.get('published_utc', '?')})")
+                     f"(published {rec.get('published_utc', '?')}){note}")
     return lines
 
 
