@@ -29,3 +29,38 @@ def small_run(tmp_path_factory) -> Path:
     res = quadfdi("sim", "--config", str(ROOT / "configs/paper.toml"), "--out", str(out), *SMALL_SIM)
     assert res.returncode == 0, res.stderr
     return out
+
+
+# ---- the fault-injection suite's runs (tests/test_faults*.py)
+
+
+@pytest.fixture(scope="session")
+def fault_sims(tmp_path_factory) -> dict[str, Path]:
+    """A tiny simulated run (seed 0) and the same simulated with seed 1: the old and the new state."""
+    from tests import faultkit
+
+    base = tmp_path_factory.mktemp("faults")
+    runs = {"old": base / "old", "new": base / "new"}
+    for seed, (name, out) in enumerate(runs.items()):
+        res = faultkit.cli(*faultkit.sim_cmd(out, seed))
+        assert res.returncode == 0, res.stderr[-2000:]
+    return runs
+
+
+@pytest.fixture(scope="session")
+def fault_exported(small_run, tmp_path_factory) -> Path:
+    """The session's small run, trained (1 epoch, small models) and exported (N = 2) in process."""
+    import train.figures
+    from core.rundir import open_run
+    from tests import faultkit
+    from export.run import export_run
+    from train.run import train_run
+
+    run_dir = faultkit.copy_run(small_run, tmp_path_factory.mktemp("faults_train") / "run")
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(train.figures, "draw_all", lambda run, ds, result: [])
+        run, cfg = open_run(run_dir, ["train.epochs=1", "train.latent=8", "train.hidden=16", "train.gru_hidden=8",
+                                      "export.steps=2", "export.calib_windows=64"])
+        train_run(run, cfg, "both", log=lambda s: None)
+        export_run(run, cfg, log=lambda s: None)
+    return run_dir

@@ -19,6 +19,10 @@ TINY_SIM = ["--set", "sim.n_traj=4", "--set", "sim.duration_s=8.0", "--set", "si
             "--set", "sim.ramp_frac=[0.2, 0.4]"]
 
 
+def sim_cmd(out: Path, seed: int) -> list[str]:
+    return ["sim", "--config", str(ROOT / "configs/paper.toml"), "--out", str(out), *TINY_SIM, "--set", f"sim.seed={seed}"]
+
+
 def cli(*args: str, fault: str | None = None, fsize: int | None = None, env: dict | None = None,
         wait: bool = True) -> subprocess.CompletedProcess | subprocess.Popen:
     """``quadfdi ARGS`` in a subprocess; ``fault`` sets QUADFDI_FAULT_POINT, ``fsize`` caps the file
@@ -53,8 +57,11 @@ def snapshot(root: Path) -> dict[str, str]:
         if rel.split("/")[0] in HIDDEN or not p.is_file():
             continue
         if rel.startswith(".stages/"):
-            rec = json.loads(p.read_text())
-            out[rel] = json.dumps([rec["outputs"], rec["inputs"]], sort_keys=True)
+            try:
+                rec = json.loads(p.read_text())
+                out[rel] = json.dumps([rec["outputs"], rec["inputs"]], sort_keys=True)
+            except (ValueError, KeyError, TypeError):  # a corrupt record, as a test case makes it
+                out[rel] = sha(p)
         else:
             out[rel] = sha(p)
     return out

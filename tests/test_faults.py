@@ -13,52 +13,37 @@ from pathlib import Path
 import pytest
 
 from tests.conftest import ROOT
-from tests.faultkit import TINY_SIM, assert_published, cli, copy_run, one_line_error, snapshot
+from tests.faultkit import TINY_SIM, assert_published, cli, copy_run, one_line_error, sim_cmd, snapshot
 
 PAPER = str(ROOT / "configs/paper.toml")
-
-
-def sim_cmd(out: Path, seed: int) -> list[str]:
-    return ["sim", "--config", PAPER, "--out", str(out), *TINY_SIM, "--set", f"sim.seed={seed}"]
-
-
-@pytest.fixture(scope="module")
-def tiny(tmp_path_factory) -> dict[str, Path]:
-    """A tiny simulated run (seed 0) and the same simulated with seed 1: the old and the new state."""
-    base = tmp_path_factory.mktemp("faults")
-    runs = {"old": base / "old", "new": base / "new"}
-    for seed, (name, out) in enumerate(runs.items()):
-        res = cli(*sim_cmd(out, seed))
-        assert res.returncode == 0, res.stderr[-2000:]
-    return runs
 
 
 @pytest.mark.parametrize("point,sig,expect", [
     ("staged", "TERM", "old"), ("before-publish", "KILL", "old"), ("mid-publish", "KILL", "new"),
     ("after-publish", "KILL", "new")])
-def test_sim_killed_at_a_named_point(tiny, tmp_path, point, sig, expect):
-    run = copy_run(tiny["old"], tmp_path / "run")
+def test_sim_killed_at_a_named_point(fault_sims, tmp_path, point, sig, expect):
+    run = copy_run(fault_sims["old"], tmp_path / "run")
     res = cli(*sim_cmd(run, 1), fault=f"sim:{point}:{sig}")
     if sig == "TERM":
         one_line_error(res)
         assert res.returncode == 143 and "terminated" in res.stderr
     else:
         assert res.returncode == -signal.SIGKILL
-    states = {"old": snapshot(tiny["old"]), "new": snapshot(tiny["new"])}
+    states = {"old": snapshot(fault_sims["old"]), "new": snapshot(fault_sims["new"])}
     assert assert_published(run) == states[expect]
 
 
-def test_failed_resimulation_keeps_the_old_config(tiny, tmp_path):
-    run = copy_run(tiny["old"], tmp_path / "run")
+def test_failed_resimulation_keeps_the_old_config(fault_sims, tmp_path):
+    run = copy_run(fault_sims["old"], tmp_path / "run")
     before = snapshot(run)
     res = cli("sim", "--config", PAPER, "--out", str(run), *TINY_SIM, "--set", "sim.vehicle=unknown")
     one_line_error(res)
     assert assert_published(run, before)
 
 
-def test_a_second_writer_waits_then_refuses_naming_the_holder(tiny, tmp_path):
+def test_a_second_writer_waits_then_refuses_naming_the_holder(fault_sims, tmp_path):
     """The first sim stops (SIGSTOP) just before its publish, holding the lock; a second one refuses."""
-    run = copy_run(tiny["old"], tmp_path / "run")
+    run = copy_run(fault_sims["old"], tmp_path / "run")
     before = snapshot(run)
     first = cli(*sim_cmd(run, 1), fault="sim:before-publish:STOP", wait=False)
     try:
@@ -75,15 +60,15 @@ def test_a_second_writer_waits_then_refuses_naming_the_holder(tiny, tmp_path):
     assert assert_published(run, before)
 
 
-def test_a_stale_lock_file_of_a_dead_process_does_not_block(tiny, tmp_path):
-    run = copy_run(tiny["old"], tmp_path / "run")
+def test_a_stale_lock_file_of_a_dead_process_does_not_block(fault_sims, tmp_path):
+    run = copy_run(fault_sims["old"], tmp_path / "run")
     (run / ".lock").write_text("pid 999999, command 'quadfdi sim', started long ago\n")
     res = cli("check", "--run", str(run))
     assert res.returncode == 0, res.stderr
 
 
-def test_lock_held_by_another_process(tiny, tmp_path):
-    run = copy_run(tiny["old"], tmp_path / "run")
+def test_lock_held_by_another_process(fault_sims, tmp_path):
+    run = copy_run(fault_sims["old"], tmp_path / "run")
     with open(run / ".lock", "a+") as fh:
         fcntl.flock(fh, fcntl.LOCK_EX)
         fh.write("pid 1, command 'quadfdi export', started now\n")
@@ -93,8 +78,8 @@ def test_lock_held_by_another_process(tiny, tmp_path):
     assert "quadfdi export" in res.stderr
 
 
-def test_full_disk_during_sim_leaves_the_old_state(tiny, tmp_path):
-    run = copy_run(tiny["old"], tmp_path / "run")
+def test_full_disk_during_sim_leaves_the_old_state(fault_sims, tmp_path):
+    run = copy_run(fault_sims["old"], tmp_path / "run")
     before = snapshot(run)
     res = cli(*sim_cmd(run, 1), fsize=64_000)
     one_line_error(res)
@@ -102,8 +87,8 @@ def test_full_disk_during_sim_leaves_the_old_state(tiny, tmp_path):
     assert assert_published(run, before)
 
 
-def test_orphans_of_a_killed_run_are_removed(tiny, tmp_path):
-    run = copy_run(tiny["old"], tmp_path / "run")
+def test_orphans_of_a_killed_run_are_removed(fault_sims, tmp_path):
+    run = copy_run(fault_sims["old"], tmp_path / "run")
     before = snapshot(run)
     (run / ".staging" / "sim.abc").mkdir(parents=True)
     (run / ".staging" / "sim.abc" / "dataset.npz").write_bytes(b"half")
@@ -113,8 +98,8 @@ def test_orphans_of_a_killed_run_are_removed(tiny, tmp_path):
 
 @pytest.mark.parametrize("target,kind", [("config.toml", "symlink"), ("dataset.npz", "fifo"),
                                          ("dataset.npz", "folder")])
-def test_sim_refuses_to_replace_a_non_regular_output(tiny, tmp_path, target, kind):
-    run = copy_run(tiny["old"], tmp_path / "run")
+def test_sim_refuses_to_replace_a_non_regular_output(fault_sims, tmp_path, target, kind):
+    run = copy_run(fault_sims["old"], tmp_path / "run")
     path = run / target
     keep = tmp_path / "precious"
     keep.write_text("user data\n")
@@ -127,32 +112,13 @@ def test_sim_refuses_to_replace_a_non_regular_output(tiny, tmp_path, target, kin
     assert path.is_symlink() or path.exists()
 
 
-# ---- train and export: on the session's small run, trained (1 epoch) and exported (N = 2) in process
-
-
-@pytest.fixture(scope="module")
-def exported(small_run, tmp_path_factory) -> Path:
-    import train.figures
-    from core.rundir import open_run
-    from export.run import export_run
-    from train.run import train_run
-
-    run_dir = copy_run(small_run, tmp_path_factory.mktemp("faults_train") / "run")
-    with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(train.figures, "draw_all", lambda run, ds, result: [])
-        run, cfg = open_run(run_dir, ["train.epochs=1", "train.latent=8", "train.hidden=16", "train.gru_hidden=8",
-                                      "export.steps=2", "export.calib_windows=64"])
-        train_run(run, cfg, "both", log=lambda s: None)
-        export_run(run, cfg, log=lambda s: None)
-    return run_dir
-
-
+# ---- train and export: on the session's small run, trained (1 epoch) and fault_exported (N = 2) in process
 TRAIN = ["--model", "gru", "--set", "train.epochs=1", "--set", "train.gru_hidden=8"]
 
 
 @pytest.mark.parametrize("point,expect", [("before-publish", "old"), ("mid-publish", "new")])
-def test_train_killed_at_a_named_point(exported, tmp_path, point, expect):
-    run = copy_run(exported, tmp_path / "run")
+def test_train_killed_at_a_named_point(fault_exported, tmp_path, point, expect):
+    run = copy_run(fault_exported, tmp_path / "run")
     before = snapshot(run)
     res = cli("train", "--run", str(run), *TRAIN, fault=f"train:{point}")
     assert res.returncode == -signal.SIGKILL, res.stderr[-2000:]
@@ -165,8 +131,8 @@ def test_train_killed_at_a_named_point(exported, tmp_path, point, expect):
 
 
 @pytest.mark.parametrize("point,expect", [("before-publish", "old"), ("mid-publish", "new")])
-def test_export_killed_at_a_named_point(exported, tmp_path, point, expect):
-    run = copy_run(exported, tmp_path / "run")
+def test_export_killed_at_a_named_point(fault_exported, tmp_path, point, expect):
+    run = copy_run(fault_exported, tmp_path / "run")
     before = snapshot(run)
     res = cli("export", "--run", str(run), "--steps", "1", "--set", "export.calib_windows=64",
               fault=f"export:{point}")
@@ -177,16 +143,16 @@ def test_export_killed_at_a_named_point(exported, tmp_path, point, expect):
         assert "export/cnode_rk4_1.onnx" in after and "export/cnode_rk4_2.onnx" not in after
 
 
-def test_full_disk_during_export_leaves_the_old_state(exported, tmp_path):
-    run = copy_run(exported, tmp_path / "run")
+def test_full_disk_during_export_leaves_the_old_state(fault_exported, tmp_path):
+    run = copy_run(fault_exported, tmp_path / "run")
     before = snapshot(run)
     res = cli("export", "--run", str(run), "--steps", "1", "--set", "export.calib_windows=64", fsize=20_000)
     one_line_error(res)
     assert assert_published(run, before)
 
 
-def test_metrics_json_that_is_a_folder_is_refused_before_training(exported, tmp_path):
-    run = copy_run(exported, tmp_path / "run")
+def test_metrics_json_that_is_a_folder_is_refused_before_training(fault_exported, tmp_path):
+    run = copy_run(fault_exported, tmp_path / "run")
     (run / "metrics.json").unlink()
     (run / "metrics.json").mkdir()
     res = cli("train", "--run", str(run), *TRAIN)
