@@ -91,8 +91,8 @@ def verify_input(root: Path, rel: str, config: dict[str, dict] | None = None,
     path = root / rel
     found = producer_of(root, rel)
     if found is None:
-        raise QuadfdiError(f"{path} is not a published output of any stage (no record in {root / STAGES}): "
-                           f"run the stage that writes it")
+        state = "does not exist" if not path.exists() else "is not a published output of any stage"
+        raise QuadfdiError(f"{path} {state} (no record in {root / STAGES} lists it): run the stage that writes it")
     stage, rec, entry = found
     if not path.is_file() or path.is_symlink():
         raise QuadfdiError(f"{path} is missing or not a regular file, but .stages/{stage}.json lists it: "

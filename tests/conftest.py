@@ -23,6 +23,30 @@ def quadfdi(*args: str, check: bool = False, cwd: Path = ROOT) -> subprocess.Com
                           cwd=cwd, env=env, check=check, timeout=900)
 
 
+def copy_sim(src: Path, dst: Path) -> Path:
+    """A new run folder holding the published sim stage of ``src`` (dataset, config, its record)."""
+    import shutil
+
+    (dst / ".stages").mkdir(parents=True)
+    for name in ("config.toml", "dataset.npz", ".stages/sim.json"):
+        shutil.copy(src / name, dst / name)
+    return dst
+
+
+def publish_checkpoints(run: Path, models: dict, channel_names: list[str], config: dict | None = None) -> None:
+    """Publish ``models`` ({kind: model}) as the run's train stage (core.stage), as ``quadfdi train``
+    would: the export and parity stages read only published checkpoints."""
+    from core.config import load_config
+    from core.stage import stage
+    from train.checkpoint import save_checkpoint
+
+    sim = load_config(run / "config.toml").to_dict()["sim"]
+    with stage(run, "train", {"sim": sim}) as st:
+        st.consume("dataset.npz", ("sim",))
+        for kind, model in models.items():
+            save_checkpoint(st.path(f"{kind}.pt"), model, config or {}, channel_names)
+
+
 @pytest.fixture(scope="session")
 def small_run(tmp_path_factory) -> Path:
     out = tmp_path_factory.mktemp("run") / "small"

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.conftest import ROOT, quadfdi
+from tests.conftest import ROOT, copy_sim, publish_checkpoints, quadfdi
 
 FWREF = ROOT / "firmware_ref" / "build" / "fwref_infer"
 LATENCY_KEYS = {"model", "runtime", "precision", "solver", "threads", "spinning", "batch", "p50_us", "p90_us",
@@ -42,20 +42,17 @@ def exported_run(small_run, tmp_path_factory) -> Path:
     from core.config import replace_section
     from core.rundir import open_run
     from sim.dataset import load_dataset
-    from train.checkpoint import save_checkpoint
     from train.data import fit_normalisation
     from train.models import CNODE, GRUClassifier
 
-    out = tmp_path_factory.mktemp("bench") / "run"
-    out.mkdir()
-    for name in ("config.toml", "dataset.npz"):
-        shutil.copy(small_run / name, out / name)
+    out = copy_sim(small_run, tmp_path_factory.mktemp("bench") / "run")
     ds = load_dataset(out / "dataset.npz")
     mean, std = fit_normalisation(ds)
     torch.manual_seed(0)
-    for kind, model in (("cnode", CNODE(ds.n_channels)), ("gru", GRUClassifier(ds.n_channels))):
+    models = {"cnode": CNODE(ds.n_channels), "gru": GRUClassifier(ds.n_channels)}
+    for model in models.values():
         model.set_normalisation(mean, std)
-        save_checkpoint(out / f"{kind}.pt", model, {}, ds.channel_names)
+    publish_checkpoints(out, models, ds.channel_names)
     run, cfg = open_run(out)
     export_run(run, replace_section(cfg, "export", steps=2, calib_windows=64), log=lambda s: None)
     return out

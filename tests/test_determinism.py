@@ -6,10 +6,11 @@ figures are skipped: they are not what is compared, and they cost most of the ti
 
 from __future__ import annotations
 
-import shutil
 from pathlib import Path
 
 import pytest
+
+from tests.conftest import copy_sim
 
 from core.rundir import open_run
 
@@ -20,9 +21,7 @@ def _train(small_run: Path, out: Path, seed: int, monkeypatch: pytest.MonkeyPatc
     import train.figures
     from train.run import train_run
 
-    out.mkdir(parents=True)
-    for name in ("config.toml", "dataset.npz"):
-        shutil.copy(small_run / name, out / name)
+    copy_sim(small_run, out)
     monkeypatch.setattr(train.figures, "draw_all", lambda run, ds, result: [])
     run, cfg = open_run(out, ["train.epochs=1", "train.batch_size=48"], need=("dataset",))
     train_run(run, cfg, "both", seed, log=lambda s: None)

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import shutil
 import subprocess
 from pathlib import Path
 
@@ -16,8 +15,7 @@ from export.manifest import ARTIFACT_KEYS, check_files, load_manifest
 from export.reference_bin import read_reference
 from export.weights_bin import read_weights
 from sim.dataset import load_dataset, make_windows
-from tests.conftest import quadfdi
-from train.checkpoint import save_checkpoint
+from tests.conftest import copy_sim, publish_checkpoints, quadfdi
 from train.data import fit_normalisation
 from train.models import CNODE, GRUClassifier
 
@@ -27,16 +25,15 @@ def quadfdi_export(*args: str) -> subprocess.CompletedProcess:
 
 def make_run(small_run: Path, out: Path, kinds=("cnode", "gru")) -> Path:
     """A copy of the simulated run with random-weight checkpoints (normalised on its training split)."""
-    out.mkdir(parents=True)
-    for name in ("config.toml", "dataset.npz"):
-        shutil.copy(small_run / name, out / name)
+    copy_sim(small_run, out)
     ds = load_dataset(out / "dataset.npz")
     mean, std = fit_normalisation(ds)
     torch.manual_seed(0)
+    models = {}
     for kind in kinds:
-        model = CNODE(ds.n_channels) if kind == "cnode" else GRUClassifier(ds.n_channels)
-        model.set_normalisation(mean, std)
-        save_checkpoint(out / f"{kind}.pt", model, {}, ds.channel_names)
+        models[kind] = CNODE(ds.n_channels) if kind == "cnode" else GRUClassifier(ds.n_channels)
+        models[kind].set_normalisation(mean, std)
+    publish_checkpoints(out, models, ds.channel_names)
     return out
 
 

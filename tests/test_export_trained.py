@@ -4,7 +4,6 @@ check the written graphs against PyTorch independently of the export's own verif
 
 from __future__ import annotations
 
-import shutil
 from pathlib import Path
 
 import numpy as np
@@ -15,7 +14,7 @@ import torch
 from core.contracts import CLASS_LABELS
 from export.manifest import check_files, load_manifest
 from sim.dataset import load_dataset, make_windows
-from tests.conftest import quadfdi
+from tests.conftest import copy_sim, quadfdi
 from train.checkpoint import load_checkpoint
 from train.models import SolverSpec
 
@@ -34,9 +33,7 @@ MIN_TRAINED_MACRO_F1 = 0.4
 @pytest.fixture(scope="module")
 def trained_export(small_run, tmp_path_factory) -> Path:
     run = tmp_path_factory.mktemp("trained_export") / "run"
-    run.mkdir()
-    for name in ("config.toml", "dataset.npz"):
-        shutil.copy(small_run / name, run / name)
+    copy_sim(small_run, run)
     res = quadfdi("train", "--run", str(run), "--set", "train.epochs=2", "--set", "train.batch_size=48")
     assert res.returncode == 0, res.stderr
     res = quadfdi("export", "--run", str(run))

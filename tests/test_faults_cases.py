@@ -107,7 +107,7 @@ SIM_CASES = [  # (case, mutation of the sim-only run, command after --run/--out 
     ("export.steps=65", None, ["export", "--set", "export.steps=65"], "export.steps must be at most 64"),
     ("export --steps 65", None, ["export", "--steps", "65"], "export.steps must be at most 64"),
     ("unknown key", None, ["sim", "--set", "sim.n_trajs=4"], "unknown key sim.n_trajs"),
-    ("export before train", None, ["export"], "cnode.pt is not a published output"),
+    ("export before train", None, ["export"], "cnode.pt does not exist"),
 ]
 
 TRAINED_CASES = [
