@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Any, get_args, get_origin, get_type_hints
 
 from core.errors import QuadfdiError
-from core.limits import FIRMWARE_MAX_STEPS, MAX_THREADS, available_memory, DATASET_BYTES_PER_SAMPLE
+from core.limits import FIRMWARE_MAX_STEPS, MAX_THREADS, check_dataset_memory, dataset_bytes
 
 
 @dataclass(frozen=True)
@@ -58,7 +58,7 @@ class SimConfig:
             )
         if abs(sum(self.split) - 1.0) > 1e-9 or min(self.split) < 0:
             raise QuadfdiError(f"sim.split must be three non-negative shares summing to 1, found {list(self.split)}")
-        self.check_memory()
+        check_dataset_memory(self.n_traj, self.n_samples)
         ratio = self.sample_dt_s / self.sim_dt_s
         if abs(ratio - round(ratio)) > 1e-9:
             raise QuadfdiError(
@@ -78,17 +78,9 @@ class SimConfig:
                 f"last sample ({last_end:.2f} s); lower sim.severity_threshold or raise sim.severity_max"
             )
 
-    def check_memory(self) -> None:
-        """Refuse a dataset that cannot fit in memory before simulating a single trajectory."""
-        need = 2 * self.estimated_bytes
-        avail = available_memory()
-        if avail is not None and need > avail:
-            raise QuadfdiError(f"sim.n_traj={self.n_traj} x {self.n_samples} samples needs about {need / 1e9:.1f} GB of "
-                               f"memory, {avail / 1e9:.1f} GB are available: lower sim.n_traj or sim.duration_s")
-
     @property
     def estimated_bytes(self) -> int:
-        return self.n_traj * self.n_samples * DATASET_BYTES_PER_SAMPLE
+        return dataset_bytes(self.n_traj, self.n_samples)
 
     @property
     def n_samples(self) -> int:
