@@ -93,6 +93,17 @@ class StageWriter:
             self._carried = [e for e in prev["outputs"] if (self.root / e["path"]).is_file()]
         return same
 
+    def redo_previous(self) -> None:
+        """Rewrite some outputs of the previous record from the published ones (``quadfdi report``
+        redraws the bench figures from bench.json): its inputs and other outputs stay as they are."""
+        if self.previous is None:
+            raise QuadfdiError(f"{self.root} has no published {self.name} stage to redo (.stages/{self.name}.json)")
+        for entry in self.previous["outputs"]:
+            self.consume(entry["path"])
+        self.inputs = {i["path"]: i for i in self.previous.get("inputs", [])}
+        self.config = self.previous.get("config", {})
+        self._carried = list(self.previous["outputs"])
+
     def _outputs(self) -> list[dict[str, Any]]:
         outs = {}
         for dirpath, _, files in os.walk(self.out):

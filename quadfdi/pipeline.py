@@ -32,13 +32,9 @@ def _sim(run: RunDir, cfg: Config) -> None:
 
 
 def _plots(run: RunDir, cfg: Config) -> None:
-    from sim.cli import default_plot_rows
-    from sim.dataset import load_dataset
-    from sim.plot import plot_trajectory
+    from sim.cli import plots_into
 
-    ds = load_dataset(run.dataset)
-    for row in default_plot_rows(ds):
-        plot_trajectory(ds, row, run.figures / f"sim_traj{row}.png")
+    plots_into(run, cfg)
 
 
 def _train(run: RunDir, cfg: Config) -> None:
