@@ -279,20 +279,17 @@ def test_ott_and_control_findings_on_hand_made_matrix():
 def tiny_run(small_run, tmp_path_factory) -> Path:
     """A copy of the session's small run with a random-weight (untrained) CNODE checkpoint."""
     from sim.dataset import load_dataset
-    from train.checkpoint import save_checkpoint
+    from tests.conftest import copy_sim, publish_checkpoints
     from train.data import fit_normalisation
     from train.models import build_model
 
-    run = tmp_path_factory.mktemp("solvers") / "run"
-    run.mkdir()
-    for name in ("dataset.npz", "config.toml"):
-        shutil.copy(small_run / name, run / name)
+    run = copy_sim(small_run, tmp_path_factory.mktemp("solvers") / "run")
     ds = load_dataset(run / "dataset.npz")
     cfg = load_config(run / "config.toml")
     torch.manual_seed(0)
     model = build_model("cnode", ds.n_channels, cfg.train, window=cfg.sim.window)
     model.set_normalisation(*fit_normalisation(ds))
-    save_checkpoint(run / "cnode.pt", model, cfg.to_dict(), ds.channel_names)
+    publish_checkpoints(run, {"cnode": model}, ds.channel_names, cfg.to_dict())
     return run
 
 
