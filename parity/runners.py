@@ -51,6 +51,9 @@ def ort_logits(onnx_path: Path, x: np.ndarray) -> np.ndarray:
         sess = session(Path(onnx_path).read_bytes())
     except OSError as exc:
         raise QuadfdiError(f"cannot read {onnx_path}: {exc.strerror}") from None
+    except Exception as exc:  # onnxruntime's own exception types: a truncated or foreign graph
+        first = (str(exc).splitlines() or [type(exc).__name__])[0]
+        raise QuadfdiError(f"{onnx_path} is not a loadable ONNX graph (truncated or foreign file?): {first}") from None
     out = [sess.run(["logits"], {"telemetry": x[i:i + 1]})[0][0] for i in range(len(x))]
     return np.stack(out).astype(np.float32) if out else np.zeros((0, 0), np.float32)
 
