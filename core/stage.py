@@ -93,16 +93,18 @@ class StageWriter:
             self._carried = [e for e in prev["outputs"] if (self.root / e["path"]).is_file()]
         return same
 
-    def redo_previous(self) -> None:
-        """Rewrite some outputs of the previous record from the published ones (``quadfdi report``
-        redraws the bench figures from bench.json): its inputs and other outputs stay as they are."""
+    def redo_previous(self, reads: tuple[str, ...]) -> None:
+        """Rewrite some outputs of the previous record from its published ``reads`` (``quadfdi report``
+        redraws the bench figures from bench.json): its inputs and config stay, and so do its other
+        outputs that are still intact (a deleted figure is redrawn or drops out of the record)."""
         if self.previous is None:
             raise QuadfdiError(f"{self.root} has no published {self.name} stage to redo (.stages/{self.name}.json)")
-        for entry in self.previous["outputs"]:
-            self.consume(entry["path"])
+        for rel in reads:
+            self.consume(rel)
         self.inputs = {i["path"]: i for i in self.previous.get("inputs", [])}
         self.config = self.previous.get("config", {})
-        self._carried = list(self.previous["outputs"])
+        self._carried = [e for e in self.previous["outputs"] if (self.root / e["path"]).is_file()
+                         and records.sha256_file(self.root / e["path"]) == e["sha256"]]
 
     def _outputs(self) -> list[dict[str, Any]]:
         outs = {}

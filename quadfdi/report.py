@@ -88,7 +88,7 @@ def run_report(args: argparse.Namespace) -> int:
         from core.stage import stage
 
         with stage(root, "bench", {}) as st:
-            st.redo_previous()
+            st.redo_previous(("bench.json",))
             for f in redraw_figures(root, st.out):
                 print(f"wrote {root / f.relative_to(st.out)}")
     write_run_report(root, log=print)

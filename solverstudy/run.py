@@ -206,7 +206,7 @@ def render(run_root: str | Path, cfg: Config, log: Log = print) -> list[Path]:
     written: list[Path] = []
     if study is not None:  # republished as the stage that made the files (core.stage redo)
         with stage(files.root, "solvers", {}) as st:
-            st.redo_previous()
+            st.redo_previous((files.rel(files.study_json),))
             staged, sc = SolverFiles(st.out), cfg.solvers
             study.update(matched_tables(study["solvers"], sc.f1_tol, sc.f1_two_sided))
             study["meta"].update(f1_tol=float(sc.f1_tol), f1_two_sided=bool(sc.f1_two_sided))
@@ -216,7 +216,7 @@ def render(run_root: str | Path, cfg: Config, log: Log = print) -> list[Path]:
         written += [files.study_json, files.study_md]
     if matrix is not None:
         with stage(files.root, "solver-matrix", {}) as st:
-            st.redo_previous()
+            st.redo_previous((files.rel(files.matrix_json),))
             staged = SolverFiles(st.out)
             written += [files.root / staged.rel(f) for f in draw_matrix(matrix, staged.figures)]
             write_text(staged.matrix_md, matrix_markdown(matrix, matrix["meta"].get("command")))

@@ -85,6 +85,17 @@ def truncate_with_manifest(run: Path) -> None:
     (run / "export" / "manifest.json").write_text(json.dumps(man))
 
 
+_OTHER_SIM: list[Path] = []  # the fault_sims "new" run, set by the test that uses it
+
+
+def republish_sim(run: Path) -> None:
+    """Another dataset published under the trained models (as `quadfdi sim` with another config)."""
+    import shutil
+
+    for name in ("config.toml", "dataset.npz", ".stages/sim.json"):
+        shutil.copy(_OTHER_SIM[0] / name, run / name)
+
+
 SIM_CASES = [  # (case, mutation of the sim-only run, command after --run/--out RUN, words of the error)
     ("empty config.toml", lambda r: (r / "config.toml").write_text(""), ["train"], "is empty"),
     ("config.toml not TOML", lambda r: (r / "config.toml").write_text("[sim\n"), ["train"], "not valid TOML"),
@@ -121,6 +132,7 @@ TRAINED_CASES = [
     ("weights.bin edited", lambda r: flip_byte(r / "export/weights.bin"), ["parity", "--no-mcu"], "sha256"),
     ("history.json a symlink", lambda r: relink(r / "history.json"), ["train", "--set", "train.epochs=1"],
      "refusing to replace"),
+    ("checkpoints of an older dataset", republish_sim, ["export"], "re-run quadfdi train"),
     ("diverging training", None, ["train", "--model", "cnode", "--set", "train.epochs=1", "--set", "train.lr=1e30"],
      "lower train.lr"),
 ]
@@ -145,5 +157,6 @@ def test_sim_run_case(fault_sims, tmp_path, case, mutate, command, words):
 
 
 @pytest.mark.parametrize("case,mutate,command,words", TRAINED_CASES, ids=[c[0] for c in TRAINED_CASES])
-def test_trained_run_case(fault_exported, tmp_path, case, mutate, command, words):
+def test_trained_run_case(fault_exported, fault_sims, tmp_path, case, mutate, command, words):
+    _OTHER_SIM[:] = [fault_sims["new"]]
     _check_case(copy_run(fault_exported, tmp_path / "run"), mutate, command, words)
