@@ -13,7 +13,6 @@ A reader must check ``schema_version`` first: ``load_manifest`` refuses any othe
 from __future__ import annotations
 
 import hashlib
-import json
 from pathlib import Path
 from typing import Any
 
@@ -21,7 +20,7 @@ import numpy as np
 
 from core.contracts import CLASS_NAMES
 from core.errors import QuadfdiError
-from core.jsonio import write_json
+from core.jsonio import read_json, write_json
 
 SCHEMA_VERSION = 1
 ARTIFACT_KEYS = ("cnode_fp32", "cnode_int8", "gru_fp32", "gru_int8")
@@ -113,14 +112,9 @@ def write_manifest(path: str | Path, manifest: dict) -> None:
 def load_manifest(path: str | Path) -> dict:
     """Read manifest.json; one-line QuadfdiError if missing, not JSON, or of another schema version."""
     p = Path(path)
-    try:
-        data = json.loads(p.read_text())
-    except FileNotFoundError:
-        raise QuadfdiError(f"manifest {p} does not exist (run `quadfdi export` first)") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise QuadfdiError(f"cannot read manifest {p}: {exc}") from None
-    except json.JSONDecodeError as exc:
-        raise QuadfdiError(f"manifest {p} is not valid JSON (truncated or foreign file?): {exc}") from None
+    if not p.exists():
+        raise QuadfdiError(f"manifest {p} does not exist (run `quadfdi export` first)")
+    data = read_json(p, "manifest")
     if not isinstance(data, dict) or "schema_version" not in data:
         raise QuadfdiError(f"manifest {p} has no schema_version: not a quadfdi export manifest")
     if data["schema_version"] != SCHEMA_VERSION:

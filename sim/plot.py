@@ -21,6 +21,17 @@ def _series(ds, row: int, name: str) -> np.ndarray | None:
     return None
 
 
+def plot_groups(axes, ds, row: int, groups, t: np.ndarray) -> None:
+    """One panel per (title, channel names, scale) group of trajectory ``row``, on ``axes`` in order."""
+    for ax, (title, names, scale) in zip(axes, groups):
+        for name in names:
+            y = _series(ds, row, name)
+            if y is not None:
+                ax.plot(t, y * scale, lw=1, label=name)
+        ax.set_title(title, fontsize=10)
+        ax.legend(fontsize=7, loc="best")
+
+
 def plot_trajectory(ds, row: int, out: str | Path) -> Path:
     """Draw trajectory ``row`` of dataset ``ds`` into the PNG ``out`` (atomic write)."""
     plt = pyplot()
@@ -38,13 +49,7 @@ def plot_trajectory(ds, row: int, out: str | Path) -> Path:
     ]
     fig, axes = plt.subplots(3, 3, figsize=(15, 10), sharex=True)
     axes = axes.ravel()
-    for ax, (title, names, scale) in zip(axes, panels):
-        for name in names:
-            y = _series(ds, row, name)
-            if y is not None:
-                ax.plot(t, y * scale, lw=1, label=name)
-        ax.set_title(title, fontsize=10)
-        ax.legend(fontsize=7, loc="best")
+    plot_groups(axes, ds, row, panels, t)
     ax = axes[len(panels)]
     if "effectiveness" in ds.arrays:
         for m in range(4):

@@ -18,12 +18,11 @@ whole computation: an interrupted run leaves the previous outputs as they were.
 
 from __future__ import annotations
 
-import contextlib
 import hashlib
 import re
 import time
 from pathlib import Path
-from typing import Callable, Iterator
+from typing import Callable
 
 from core.atomic import write_text
 from core.config import Config
@@ -32,23 +31,11 @@ from core.jsonio import write_json
 from core.rundir import RunDir
 from solverstudy.files import SolverFiles
 from core.stage import stage
+from train.threads import torch_threads
 from solverstudy.matching import matched_tables
 from solverstudy.report import study_headline, matrix_markdown, ott_sentence, read_outputs, study_markdown
 
 Log = Callable[[str], None]
-
-
-@contextlib.contextmanager
-def _threads(n: int) -> Iterator[None]:
-    """torch intra-op threads set to ``n`` for the block, then put back (the pipeline goes on)."""
-    import torch
-
-    before = torch.get_num_threads()
-    torch.set_num_threads(n)
-    try:
-        yield
-    finally:
-        torch.set_num_threads(before)
 
 
 def _test_windows(run: RunDir, cfg: Config, model_blob: dict | None = None):
@@ -96,7 +83,7 @@ def study_run(run: RunDir, cfg: Config, log: Log = print, checkpoint: str | Path
         ckpt = Path(checkpoint) if checkpoint else run.checkpoint("cnode")
         model, blob = load_checkpoint(ckpt, "cnode")
         _, test = _test_windows(run, cfg, blob)
-        with _threads(cfg.solvers.threads):
+        with torch_threads(cfg.solvers.threads):
             study = run_study(model, test.x, test.y, cfg.solvers, log=log)
         study["meta"].update(checkpoint=str(ckpt), trained_with=_trained_with(blob),
                              command=command or f"quadfdi solvers study --run {run.root}")
@@ -180,7 +167,7 @@ def _matrix_into(run: RunDir, cfg: Config, ds, staged: SolverFiles, specs, deplo
                         extra={"matrix_info": info})
 
     t0 = time.perf_counter()
-    with _threads(cfg.solvers.matrix_threads or cfg.train.threads):
+    with torch_threads(cfg.solvers.matrix_threads or cfg.train.threads):
         matrix = run_matrix(ds, cfg, specs, deploys, models=models, on_trained=save, log=log)
     matrix["meta"].update(command=command or f"quadfdi solvers matrix --run {run.root}", reused=reused,
                           seconds=time.perf_counter() - t0)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -23,12 +24,13 @@ def quadfdi(*args: str, check: bool = False, cwd: Path = ROOT) -> subprocess.Com
                           cwd=cwd, env=env, check=check, timeout=900)
 
 
-def copy_sim(src: Path, dst: Path) -> Path:
-    """A new run folder holding the published sim stage of ``src`` (dataset, config, its record)."""
-    import shutil
-
-    (dst / ".stages").mkdir(parents=True)
-    for name in ("config.toml", "dataset.npz", ".stages/sim.json"):
+def copy_run(src: Path, dst: Path,
+             names: tuple[str, ...] = ("config.toml", "dataset.npz", ".stages/sim.json")) -> Path:
+    """A new run folder ``dst`` holding copies of ``names`` from the run folder ``src`` (by default
+    its published sim stage: the dataset, the config and the stage record that vouches for them)."""
+    dst.mkdir(parents=True, exist_ok=True)
+    for name in names:
+        (dst / name).parent.mkdir(parents=True, exist_ok=True)
         shutil.copy(src / name, dst / name)
     return dst
 
@@ -45,6 +47,28 @@ def publish_checkpoints(run: Path, models: dict, channel_names: list[str], confi
         st.consume("dataset.npz", ("sim",))
         for kind, model in models.items():
             save_checkpoint(st.path(f"{kind}.pt"), model, config or {}, channel_names)
+
+
+def random_weight_run(src: Path, out: Path, kinds: tuple[str, ...] = ("cnode", "gru"), config: dict | None = None) -> Path:
+    """A copy of the run ``src`` with random-weight (untrained, seed 0) checkpoints, normalised on its
+    training split and published as its train stage: what export, bench and the solver study need,
+    without the cost of training."""
+    import torch
+
+    from sim.dataset import load_dataset
+    from train.data import fit_normalisation
+    from train.models import CNODE, GRUClassifier
+
+    copy_run(src, out)
+    ds = load_dataset(out / "dataset.npz")
+    mean, std = fit_normalisation(ds)
+    torch.manual_seed(0)
+    models = {}
+    for kind in kinds:
+        models[kind] = CNODE(ds.n_channels) if kind == "cnode" else GRUClassifier(ds.n_channels)
+        models[kind].set_normalisation(mean, std)
+    publish_checkpoints(out, models, ds.channel_names, config)
+    return out
 
 
 @pytest.fixture(scope="session")

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.conftest import ROOT, copy_sim, publish_checkpoints, quadfdi
+from tests.conftest import ROOT, copy_run, quadfdi, random_weight_run
 
 FWREF = ROOT / "firmware_ref" / "build" / "fwref_infer"
 LATENCY_KEYS = {"model", "runtime", "precision", "solver", "threads", "spinning", "batch", "p50_us", "p90_us",
@@ -36,23 +36,11 @@ def quadfdi_bench(*args: str) -> subprocess.CompletedProcess:
 @pytest.fixture(scope="module")
 def exported_run(small_run, tmp_path_factory) -> Path:
     """The session's simulated run + random-weight checkpoints, exported with N = 2 (in process)."""
-    import torch
-
-    from export.run import export_run
     from core.config import replace_section
     from core.rundir import open_run
-    from sim.dataset import load_dataset
-    from train.data import fit_normalisation
-    from train.models import CNODE, GRUClassifier
+    from export.run import export_run
 
-    out = copy_sim(small_run, tmp_path_factory.mktemp("bench") / "run")
-    ds = load_dataset(out / "dataset.npz")
-    mean, std = fit_normalisation(ds)
-    torch.manual_seed(0)
-    models = {"cnode": CNODE(ds.n_channels), "gru": GRUClassifier(ds.n_channels)}
-    for model in models.values():
-        model.set_normalisation(mean, std)
-    publish_checkpoints(out, models, ds.channel_names)
+    out = random_weight_run(small_run, tmp_path_factory.mktemp("bench") / "run")
     run, cfg = open_run(out)
     export_run(run, replace_section(cfg, "export", steps=2, calib_windows=64), log=lambda s: None)
     return out
@@ -134,9 +122,7 @@ def test_report_of_a_run_with_only_a_dataset(small_run, tmp_path):
     from quadfdi.report import write_run_report
 
     run = tmp_path / "simonly"
-    run.mkdir()
-    for name in ("config.toml", "dataset.npz"):
-        shutil.copy(small_run / name, run / name)
+    copy_run(small_run, run)
     text = write_run_report(run).read_text()
     assert "## Simulation" in text and "Not run: no dataset.npz" not in text
     for heading, file in (("## Bench: latency, memory, limits", "bench.json"), ("## Export", "export/manifest.json"),
@@ -179,9 +165,7 @@ def test_a_corrupt_stage_file_is_a_one_line_error(small_run, tmp_path, stage_fil
     from quadfdi.report import run_report_markdown
 
     run = tmp_path / "corrupt"
-    run.mkdir()
-    for name in ("config.toml", "dataset.npz"):
-        shutil.copy(small_run / name, run / name)
+    copy_run(small_run, run)
     if stage_file == "history.json":  # read with the training section, which needs metrics.json
         (run / "metrics.json").write_text(json.dumps({"gru": {"macro_f1": 0.5}}))
     (run / stage_file).parent.mkdir(parents=True, exist_ok=True)

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.conftest import copy_sim
+from tests.conftest import copy_run
 
 from core.rundir import open_run
 
@@ -21,7 +21,7 @@ def _train(small_run: Path, out: Path, seed: int, monkeypatch: pytest.MonkeyPatc
     import train.figures
     from train.run import train_run
 
-    copy_sim(small_run, out)
+    copy_run(small_run, out)
     monkeypatch.setattr(train.figures, "draw_all", lambda run, ds, result: [])
     run, cfg = open_run(out, ["train.epochs=1", "train.batch_size=48"], need=("dataset",))
     train_run(run, cfg, "both", seed, log=lambda s: None)

@@ -15,6 +15,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+
+from tests.conftest import random_weight_run
 import torch
 
 from core.config import SolversConfig, load_config
@@ -277,19 +279,8 @@ def test_ott_and_control_findings_on_hand_made_matrix():
 @pytest.fixture(scope="module")
 def tiny_run(small_run, tmp_path_factory) -> Path:
     """A copy of the session's small run with a random-weight (untrained) CNODE checkpoint."""
-    from sim.dataset import load_dataset
-    from tests.conftest import copy_sim, publish_checkpoints
-    from train.data import fit_normalisation
-    from train.models import build_model
-
-    run = copy_sim(small_run, tmp_path_factory.mktemp("solvers") / "run")
-    ds = load_dataset(run / "dataset.npz")
-    cfg = load_config(run / "config.toml")
-    torch.manual_seed(0)
-    model = build_model("cnode", ds.n_channels, cfg.train, window=cfg.sim.window)
-    model.set_normalisation(*fit_normalisation(ds))
-    publish_checkpoints(run, {"cnode": model}, ds.channel_names, cfg.to_dict())
-    return run
+    return random_weight_run(small_run, tmp_path_factory.mktemp("solvers") / "run", ("cnode",),
+                             load_config(small_run / "config.toml").to_dict())
 
 
 def _set(**kw) -> list[str]:

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.conftest import ROOT, quadfdi
+from tests.conftest import ROOT, copy_run, quadfdi
 from train.study import README_END, README_START
 
 TINY = ("--set", "train.epochs=1", "--set", "train.batch_size=48")
@@ -25,9 +25,7 @@ def _split(data: bytes) -> tuple[bytes, bytes, bytes]:
 
 
 def _run_copy(small_run: Path, out: Path) -> Path:
-    out.mkdir(parents=True)
-    for name in ("config.toml", "dataset.npz"):
-        shutil.copy(small_run / name, out / name)
+    copy_run(small_run, out)
     return out
 
 

@@ -83,7 +83,7 @@ def draw_roc(y: np.ndarray, probas: dict, metrics: dict, out: Path) -> None:
 def draw_trajectory_detection(ds, test, probas: dict, row: int, out: Path) -> None:
     """Position, attitude, battery, temperature, effectiveness, severity and the any-fault
     probability of each model at each window end, for dataset row ``row`` (Figs. 12-27)."""
-    from sim.plot import _series
+    from sim.plot import plot_groups
 
     plt = _plt()
     t = ds["time"]
@@ -93,13 +93,7 @@ def draw_trajectory_detection(ds, test, probas: dict, row: int, out: Path) -> No
     groups = [("position [m]", ["x", "y", "z"], 1.0), ("attitude [deg]", ["roll", "pitch", "yaw"], 180 / np.pi),
               ("state of charge [-]", ["SoC"], 1.0), ("bus voltage [V] / current [A]", ["V_b", "I_b"], 1.0),
               ("motor temperature [°C]", ["T1", "T2", "T3", "T4"], 1.0)]
-    for ax, (title, names, scale) in zip(axes, groups):
-        for name in names:
-            y = _series(ds, row, name)
-            if y is not None:
-                ax.plot(t, y * scale, lw=1, label=name)
-        ax.set_title(title, fontsize=10)
-        ax.legend(fontsize=7)
+    plot_groups(axes, ds, row, groups, t)
     ax = axes[5]
     if "effectiveness" in ds.arrays:
         for m in range(4):

@@ -352,24 +352,12 @@ def model_signature(model: nn.Module) -> dict[str, int | str]:
     representation is (``control``: "point", or "average" for ``train.variants.AverageControlCNODE``):
     the same weights driven by another control are another model.
     """
-    if isinstance(model, CNODE):
-        return {
-            "kind": "cnode",
-            "n_channels": model.n_channels,
-            "window": model.window,
-            "latent": model.latent,
-            "hidden": model.hidden,
-            "n_classes": model.n_classes,
-            "control": model.control,
-        }
-    if isinstance(model, GRUClassifier):
-        return {
-            "kind": "gru",
-            "n_channels": model.n_channels,
-            "window": model.window,
-            "hidden": model.hidden,
-            "n_classes": model.n_classes,
-        }
+    if isinstance(model, (CNODE, GRUClassifier)):
+        kind = "cnode" if isinstance(model, CNODE) else "gru"
+        sig = {"kind": kind, "n_channels": model.n_channels, "window": model.window}
+        sizes = {"latent": model.latent, "hidden": model.hidden} if kind == "cnode" else {"hidden": model.hidden}
+        extra = {"control": model.control} if kind == "cnode" else {}
+        return {**sig, **sizes, "n_classes": model.n_classes, **extra}
     raise TypeError(f"not a quadfdi model: {type(model).__name__}")
 
 

@@ -33,7 +33,7 @@ def torch_runtime(args) -> tuple[Callable, Callable, dict]:
     info: dict = {"torch": torch.__version__}
     if args.model == "cnode":
         if method in ("dopri5", "bosh3"):
-            # atol = rtol / 10, the solver study's convention (bench/solvers.py ATOL_RATIO); jump_t on.
+            # atol = rtol / 10, the solver study's convention (solverstudy.settings); jump_t on.
             model.solver = SolverSpec(method, rtol=float(value), atol=float(value) / 10, jump_t=True)
         else:
             model.solver = SolverSpec(method, steps=int(value))
