@@ -33,6 +33,9 @@ def cpp_logits(build_dir: Path, weights: Path, model: str, int8: bool, x: np.nda
         src, dst = Path(tmp) / "windows.f32", Path(tmp) / "logits.f32"
         np.ascontiguousarray(x, dtype="<f4").tofile(src)
         cmd = [str(exe), "--weights", str(weights), "--model", model, "--in", str(src), "--out", str(dst)]
+        manifest = Path(weights).parent / "manifest.json"
+        if manifest.is_file():  # the C++ side checks weights.bin against the manifest's sha256 itself
+            cmd += ["--manifest", str(manifest)]
         if int8:
             cmd.append("--int8")
         res = subprocess.run(cmd, capture_output=True, text=True, timeout=CPP_TIMEOUT_S)
