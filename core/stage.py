@@ -32,7 +32,7 @@ from pathlib import Path
 from typing import Any, Iterator
 
 from core import records
-from core.atomic import ensure_dir
+from core.atomic import ensure_dir, write_text
 from core.errors import QuadfdiError
 from core.jsonio import dumps_json
 from core.runlock import run_lock
@@ -60,6 +60,12 @@ def check_free_space(root: Path, need_bytes: int, what: str) -> None:
     if need_bytes > free:
         raise QuadfdiError(f"{root}: {what} needs about {need_bytes / 1e6:.0f} MB, the file system has "
                            f"{free / 1e6:.0f} MB free")
+
+
+def _intact(root: Path, entries: list[dict]) -> list[dict]:
+    """The recorded outputs still in place with their recorded sha256 (the ones a stage may carry)."""
+    return [e for e in entries if (root / e["path"]).is_file() and not (root / e["path"]).is_symlink()
+            and records.sha256_file(root / e["path"]) == e["sha256"]]
 
 
 class StageWriter:
@@ -90,7 +96,7 @@ class StageWriter:
         same = {(i["path"], i["sha256"]) for i in prev.get("inputs", [])} == \
                {(i["path"], i["sha256"]) for i in self.inputs.values()}
         if same:
-            self._carried = [e for e in prev["outputs"] if (self.root / e["path"]).is_file()]
+            self._carried = _intact(self.root, prev["outputs"])
         return same
 
     def redo_previous(self, reads: tuple[str, ...]) -> None:
@@ -103,8 +109,7 @@ class StageWriter:
             self.consume(rel)
         self.inputs = {i["path"]: i for i in self.previous.get("inputs", [])}
         self.config = self.previous.get("config", {})
-        self._carried = [e for e in self.previous["outputs"] if (self.root / e["path"]).is_file()
-                         and records.sha256_file(self.root / e["path"]) == e["sha256"]]
+        self._carried = _intact(self.root, self.previous["outputs"])
 
     def _outputs(self) -> list[dict[str, Any]]:
         outs = {}
@@ -126,7 +131,7 @@ class StageWriter:
                "inputs": [self.inputs[k] for k in sorted(self.inputs)], "config": self.config,
                "command": self.command,
                "published_utc": _dt.datetime.now(_dt.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")}
-        (self.out / records.RECORD).write_text(dumps_json(rec))
+        write_text(self.out / records.RECORD, dumps_json(rec))  # fsynced, like every output
         fault_point(self.name, "before-publish")
         pub = self.root / records.PUBLISH / self.name
         pub.parent.mkdir(exist_ok=True)
