@@ -149,12 +149,3 @@ def test_full_disk_during_export_leaves_the_old_state(fault_exported, tmp_path):
     res = cli("export", "--run", str(run), "--steps", "1", "--set", "export.calib_windows=64", fsize=20_000)
     one_line_error(res)
     assert assert_published(run, before)
-
-
-def test_metrics_json_that_is_a_folder_is_refused_before_training(fault_exported, tmp_path):
-    run = copy_run(fault_exported, tmp_path / "run")
-    (run / "metrics.json").unlink()
-    (run / "metrics.json").mkdir()
-    res = cli("train", "--run", str(run), *TRAIN)
-    one_line_error(res)
-    assert "metrics.json" in res.stderr

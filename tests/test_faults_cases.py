@@ -130,6 +130,8 @@ TRAINED_CASES = [
     ("cnode.pt replaced", lambda r: (r / "cnode.pt").write_bytes((r / "gru.pt").read_bytes()), ["export"], "sha256"),
     ("truncated ONNX, manifest sha updated", truncate_with_manifest, ["parity", "--no-mcu"], "sha256"),
     ("weights.bin edited", lambda r: flip_byte(r / "export/weights.bin"), ["parity", "--no-mcu"], "sha256"),
+    ("metrics.json a folder", lambda r: ((r / "metrics.json").unlink(), (r / "metrics.json").mkdir()),
+     ["train", "--set", "train.epochs=1"], "metrics.json is a folder"),
     ("history.json a symlink", lambda r: relink(r / "history.json"), ["train", "--set", "train.epochs=1"],
      "refusing to replace"),
     ("checkpoints of an older dataset", republish_sim, ["export"], "re-run quadfdi train"),
