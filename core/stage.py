@@ -14,7 +14,8 @@ A crash before 1 leaves the old state untouched (the next command deletes the or
 folder); a crash after 1 is rolled forward by the next command (core.records.recover). So a run
 folder is always in its old or its new published state, never a mix.
 
-``QUADFDI_FAULT_POINT=<stage>:<point>[:TERM|:STOP]`` sends SIGKILL (or SIGTERM, SIGSTOP) to the
+``QUADFDI_FAULT_POINT=<stage>:<point>[:TERM|:INT|:STOP]`` sends SIGKILL (or SIGTERM, SIGINT as
+Ctrl-C does, SIGSTOP) to the
 process at a named point (staged, before-publish, mid-publish, after-publish): the fault-injection
 tests use it because a signal at a named point is deterministic and a timer is not.
 """
@@ -43,7 +44,8 @@ def fault_point(stage: str, point: str) -> None:
     want = os.environ.get("QUADFDI_FAULT_POINT", "")
     parts = want.split(":")
     if len(parts) >= 2 and parts[0] == stage and parts[1] == point:
-        sig = {"TERM": signal.SIGTERM, "STOP": signal.SIGSTOP}.get((parts[2:] or ["KILL"])[0], signal.SIGKILL)
+        sig = {"TERM": signal.SIGTERM, "STOP": signal.SIGSTOP, "INT": signal.SIGINT}.get((parts[2:] or ["KILL"])[0],
+                                                                                         signal.SIGKILL)
         sys.stdout.flush()
         os.kill(os.getpid(), sig)  # STOP: the process holds its lock until the test kills it
 

@@ -130,6 +130,17 @@ def test_train_killed_at_a_named_point(fault_exported, tmp_path, point, expect):
         assert "figures/train_curves.png" not in after
 
 
+def test_ctrl_c_after_the_checkpoints_are_written_keeps_the_old_training(fault_exported, tmp_path):
+    """SIGINT once every training output is staged (cnode.pt, metrics.json, ...): one line, exit 130,
+    and the previous checkpoints and metrics stay published together."""
+    run = copy_run(fault_exported, tmp_path / "run")
+    before = snapshot(run)
+    res = cli("train", "--run", str(run), *TRAIN, fault="train:before-publish:INT")
+    one_line_error(res)
+    assert res.returncode == 130 and "interrupted" in res.stderr
+    assert assert_published(run, before)
+
+
 @pytest.mark.parametrize("point,expect", [("before-publish", "old"), ("mid-publish", "new")])
 def test_export_killed_at_a_named_point(fault_exported, tmp_path, point, expect):
     run = copy_run(fault_exported, tmp_path / "run")
