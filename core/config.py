@@ -17,6 +17,7 @@ from pathlib import Path
 from typing import Any, get_args, get_origin, get_type_hints
 
 from core.errors import QuadfdiError
+from core.tomlio import dumps_toml  # noqa: F401 (re-exported: the run folder writes it)
 from core.limits import FIRMWARE_MAX_STEPS, MAX_THREADS, check_dataset_memory, dataset_bytes
 
 
@@ -39,12 +40,18 @@ class SimConfig:
     window: int = 80
     stride: int = 10
     chunk: int = 240  # trajectories integrated together (vectorised batch)
+    # --- realistic suite (docs/realistic.md); the defaults are the paper's and leave its dataset byte for byte ---
+    scenario: str = "paper"  # paper: Eqs. 1-9 as published | realistic: sim/realistic*.py
+    classes: tuple[str, ...] = ("Healthy", "BatteryFault", "MotorFault", "OverheatFault")  # label order
+    ood_traj: int = 0  # realistic: flights per out-of-distribution test set (4 sets), on top of n_traj
 
     def validate(self) -> None:
         _positive(self, "n_traj", "duration_s", "sample_dt_s", "sim_dt_s", "window", "stride", "chunk")
         _not_negative(self, "seed")
         if self.window < 2:
             raise QuadfdiError(f"sim.window must be 2 samples or more (the models need a time step), found {self.window}")
+        _choice(self, "scenario", ("paper", "realistic"))
+        self._validate_classes()
         if not 0.0 <= self.fault_ratio <= 1.0:
             raise QuadfdiError(f"sim.fault_ratio must be in [0, 1], found {self.fault_ratio}")
         for name in ("onset_frac", "ramp_frac", "severity_max"):
@@ -77,6 +84,22 @@ class SimConfig:
                 f"sim: a fault may become detectable at {t_det_worst:.2f} s, later than one stride before the "
                 f"last sample ({last_end:.2f} s); lower sim.severity_threshold or raise sim.severity_max"
             )
+
+    def _validate_classes(self) -> None:
+        paper = SimConfig.classes
+        known = (*paper, "PropellerFault")  # sim/realistic_faults.py simulates these
+        if self.scenario == "paper" and (self.classes != paper or self.ood_traj):
+            raise QuadfdiError(f"sim.scenario='paper' simulates exactly the classes {list(paper)} and no "
+                               f"out-of-distribution sets (sim.ood_traj = 0); use sim.scenario='realistic'")
+        bad = [c for c in self.classes if c not in known]
+        if bad or len(set(self.classes)) != len(self.classes) or self.classes[:1] != ("Healthy",) or len(self.classes) < 2:
+            raise QuadfdiError(f"sim.classes must start with Healthy and list distinct classes of {list(known)}, "
+                               f"found {list(self.classes)}")
+        if self.scenario == "realistic" and self.vehicle != "f450_3s":
+            raise QuadfdiError("sim.scenario='realistic' draws its vehicles around the nominal f450_3s "
+                               f"(sim/realistic_params.py); sim.vehicle must be 'f450_3s', found {self.vehicle!r}")
+        if self.ood_traj < 0:
+            raise QuadfdiError(f"sim.ood_traj must not be negative, found {self.ood_traj}")
 
     @property
     def estimated_bytes(self) -> int:
@@ -362,28 +385,6 @@ def load_config(path: str | Path | None, overrides: list[str] | tuple[str, ...] 
         except tomllib.TOMLDecodeError as exc:
             raise QuadfdiError(f"config file {p} is not valid TOML: {exc}") from None
     return build_config(data, overrides, source)
-
-
-def _toml_value(value: Any) -> str:
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, (int, float)):
-        return repr(value)
-    if isinstance(value, str):
-        return '"' + value.replace("\\", "\\\\").replace('"', '\\"') + '"'
-    if isinstance(value, (list, tuple)):
-        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
-    raise TypeError(f"cannot write {value!r} as TOML")
-
-
-def dumps_toml(cfg: Config) -> str:
-    """The config as TOML text that ``load_config`` reads back to an equal Config."""
-    lines = []
-    for section, body in cfg.to_dict().items():
-        lines.append(f"[{section}]")
-        lines.extend(f"{k} = {_toml_value(v)}" for k, v in body.items())
-        lines.append("")
-    return "\n".join(lines)
 
 
 def replace_section(cfg: Config, section: str, **changes: Any) -> Config:

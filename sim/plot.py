@@ -7,7 +7,6 @@ from pathlib import Path
 import numpy as np
 
 from core.plotting import pyplot, save_png
-from core.contracts import CLASS_NAMES
 
 
 def _series(ds, row: int, name: str) -> np.ndarray | None:
@@ -54,7 +53,12 @@ def plot_trajectory(ds, row: int, out: str | Path) -> Path:
     if "effectiveness" in ds.arrays:
         for m in range(4):
             ax.plot(t, ds["effectiveness"][row, :, m], lw=1, label=f"motor {m + 1}")
-    ax.set_title("effectiveness c_i d_m [-]", fontsize=10)
+        ax.set_title("effectiveness c_i d_m [-]", fontsize=10)
+    else:  # the realistic suite logs vibration metrics instead of recording effectiveness
+        for name in ("vib_px4", "vib_ap"):
+            if name in ds.channel_names:
+                ax.plot(t, ds["telemetry"][row, :, ds.channel_names.index(name)], lw=1, label=name)
+        ax.set_title("vibration metrics [m/s^2]", fontsize=10)
     ax.legend(fontsize=7)
     ax = axes[len(panels) + 1]
     ax.plot(t, ds["severity"][row], color="k", lw=1.2, label="severity s_k")
@@ -73,6 +77,8 @@ def plot_trajectory(ds, row: int, out: str | Path) -> Path:
     extra = f", motor {motor + 1}" if motor >= 0 else ""
     det_txt = f", detectable {det:.2f} s" if np.isfinite(det) else ""
     on_txt = f", onset {onset:.2f} s" if cls else ""
-    fig.suptitle(f"trajectory {row}: {CLASS_NAMES[cls]}{extra}{on_txt}{det_txt} (dotted: onset, dashed: detectable)")
+    from sim.dataset import class_names
+
+    fig.suptitle(f"trajectory {row}: {class_names(ds.arrays)[cls]}{extra}{on_txt}{det_txt} (dotted: onset, dashed: detectable)")
     fig.tight_layout()
     return save_png(fig, out)

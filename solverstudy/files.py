@@ -10,49 +10,22 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from pathlib import Path
 
 STUDY_FIGURES = ("solver_error_vs_nfe.png", "solver_f1_vs_latency.png")
 MATRIX_FIGURES = ("solver_matrix_f1.png", "solver_controls.png")
 
 
-@dataclass(frozen=True)
 class SolverFiles:
-    """The solver study's files of the run folder ``root``."""
+    """The solver study's files of the run folder ``root`` (paths as in the module docstring)."""
 
-    root: Path
-
-    def __post_init__(self) -> None:
-        object.__setattr__(self, "root", Path(self.root))
-
-    @property
-    def dir(self) -> Path:
-        return self.root / "solvers"
-
-    @property
-    def study_json(self) -> Path:
-        return self.dir / "solvers.json"
-
-    @property
-    def study_md(self) -> Path:
-        return self.dir / "solvers.md"
-
-    @property
-    def matrix_json(self) -> Path:
-        return self.dir / "solver_matrix.json"
-
-    @property
-    def matrix_md(self) -> Path:
-        return self.dir / "solver_matrix.md"
-
-    @property
-    def matrix_models(self) -> Path:
-        return self.dir / "matrix_models"
-
-    @property
-    def figures(self) -> Path:
-        return self.root / "figures"
+    def __init__(self, root: str | Path) -> None:
+        self.root = Path(root)
+        self.dir = self.root / "solvers"
+        self.study_json, self.study_md = self.dir / "solvers.json", self.dir / "solvers.md"
+        self.matrix_json, self.matrix_md = self.dir / "solver_matrix.json", self.dir / "solver_matrix.md"
+        self.matrix_models = self.dir / "matrix_models"  # the matrix's trained CNODEs (reused with --reuse)
+        self.figures = self.root / "figures"  # beside every other stage's
 
     def rel(self, path: Path) -> str:
         """``path`` relative to the run folder, for messages and reports (``solvers/solvers.json``)."""

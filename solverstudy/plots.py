@@ -60,6 +60,11 @@ def plot_error_vs_nfe(study: dict, path: Path) -> Path:
     ax.set(xscale="log", yscale="log", xlabel="vector-field evaluations per window",
            ylabel="max |logit - reference logit|")
     ax.set_title(f"solver error vs cost\n{study['meta']['sample']}", fontsize=10)
+    return _finish(fig, ax, path)
+
+
+def _finish(fig, ax, path: Path) -> Path:
+    """Log-grid, legend, tight layout, atomic PNG: how every study figure ends."""
     ax.grid(alpha=0.3, which="both")
     ax.legend(fontsize=8)
     fig.tight_layout()
@@ -77,10 +82,7 @@ def plot_f1_vs_latency(study: dict, path: Path) -> Path:
     ax.axhline(ref["macro_f1"], color="k", lw=0.8, ls="--", label=f"reference ({ref['macro_f1']:.4f})")
     ax.set(xscale="log", xlabel="batch-1 latency per window, ms (PyTorch eager, this process)",
            ylabel=f"macro F1 ({study['meta']['n_windows']} windows)", title="macro F1 vs latency")
-    ax.grid(alpha=0.3, which="both")
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    return _save(fig, path)
+    return _finish(fig, ax, path)
 
 
 def plot_matrix(matrix: dict, path: Path) -> Path:

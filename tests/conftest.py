@@ -17,11 +17,11 @@ SMALL_SIM = ["--set", "sim.n_traj=24", "--set", "sim.duration_s=8.0", "--set", "
              "--set", "sim.ramp_frac=[0.2, 0.4]"]
 
 
-def quadfdi(*args: str, check: bool = False, cwd: Path = ROOT) -> subprocess.CompletedProcess:
+def quadfdi(*args: str, check: bool = False, cwd: Path = ROOT, timeout: float = 900) -> subprocess.CompletedProcess:
     """Run the real console entry point in a subprocess (what a user types)."""
     env = dict(os.environ, PYTHONPATH=str(ROOT))
     return subprocess.run([sys.executable, "-m", "quadfdi.cli", *args], capture_output=True, text=True,
-                          cwd=cwd, env=env, check=check, timeout=900)
+                          cwd=cwd, env=env, check=check, timeout=timeout)
 
 
 def copy_run(src: Path, dst: Path,
