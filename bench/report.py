@@ -314,7 +314,8 @@ def report_section(run_root: Path) -> list[str]:
     return bench_section(bench, "figures", root)
 
 
-def redraw_figures(run_root: Path) -> list[Path]:
-    """Redraw figures/bench_*.png from bench.json ([] when bench has not run)."""
+def redraw_figures(run_root: Path, out_root: Path | None = None) -> list[Path]:
+    """Redraw figures/bench_*.png from bench.json ([] when bench has not run) into ``out_root``
+    (default: the run folder; the report stage gives its staging folder)."""
     bench = load_bench(run_root)
-    return draw_bench_figures(bench, Path(run_root) / "figures") if bench else []
+    return draw_bench_figures(bench, Path(out_root or run_root) / "figures") if bench else []

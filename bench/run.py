@@ -244,6 +244,19 @@ def bench_run(run: RunDir, cfg: Config, log: Callable[[str], None] = print, *, q
     from bench.latency import check_cpus
 
     cpus = check_cpus(cpus or cfg.bench.cpus)  # before the heavy imports: a typo fails at once
+
+    from core.records import load_record
+    from core.stage import stage
+
+    with stage(run.root, "bench", {"bench": cfg.to_dict()["bench"]}, targets=("bench.json",)) as st:
+        for entry in (load_record(run.root, "export") or {"outputs": [{"path": "export/manifest.json"}]})["outputs"]:
+            st.consume(entry["path"])
+        st.consume("dataset.npz")
+        return _bench_into(run, cfg, RunDir(st.out), log, quick, skip_cpp, cpus, fwref, command)
+
+
+def _bench_into(run: RunDir, cfg: Config, dest: RunDir, log: Callable[[str], None], quick: bool, skip_cpp: bool,
+                cpus: str, fwref: str | None, command: str | None) -> dict:
     from bench.latency import find_fwref
     from bench.figures import draw_bench_figures
     from core.jsonio import to_jsonable, write_json
@@ -265,8 +278,8 @@ def bench_run(run: RunDir, cfg: Config, log: Callable[[str], None] = print, *, q
     timing["total"] = time.perf_counter() - t_start
     bench = to_jsonable(_bench_dict(run, manifest, m, machine, fwref_found, command or _command(run, quick, skip_cpp),
                                     quick))
-    write_json(bench_json_path(run), bench, indent=1)
-    figs = draw_bench_figures(bench, run.figures)
+    write_json(bench_json_path(dest), bench, indent=1)
+    figs = draw_bench_figures(bench, dest.figures)
     log(f"bench: wrote {bench_json_path(run)} and {len(figs)} figures in {timing['total']:.0f} s "
         f"(limits {timing['limits']:.0f} s, latency {timing['latency']:.0f} s, profiles {timing['profiles']:.0f} s); "
         f"`quadfdi report --run {run.root}` rewrites report.md")

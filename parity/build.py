@@ -112,6 +112,9 @@ def build_mcu(cpu: str, weights: Path, reference: Path, build_dir: Path | None =
     options = {"CMAKE_TOOLCHAIN_FILE": str(FW_ROOT / "mcu" / "toolchain-arm-none-eabi.cmake"), "FWREF_CPU": cpu,
                "FWREF_WEIGHTS": str(Path(weights).resolve()), "FWREF_REFERENCE": str(Path(reference).resolve()),
                "Python3_EXECUTABLE": sys.executable}
+    manifest = Path(weights).resolve().parent / "manifest.json"
+    # the generator checks weights.bin and reference.bin against the export's manifest; "" = no check
+    options["FWREF_MANIFEST"] = str(manifest) if manifest.is_file() else ""
     _configure_and_build(FW_ROOT / "mcu", build_dir, options, f"the {cpu} images")
     log(f"parity: {cpu} images built in {build_dir}")
     return build_dir

@@ -33,15 +33,24 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def generate_into(run: RunDir, cfg: Config, show_progress: bool = True) -> Path:
-    """Simulate ``cfg.sim`` and write ``run.dataset`` (atomically); return its path."""
+    """Simulate ``cfg.sim`` and publish ``dataset.npz`` with ``config.toml`` as one stage; return the
+    dataset's path. The config is written only after the simulation succeeded (core.stage)."""
     from tqdm import tqdm
 
+    from core.atomic import write_text
+    from core.config import dumps_toml
+    from core.stage import stage
     from sim.dataset import dataset_arrays, write_npz
+    from sim.params import get_vehicle
     from sim.simulate import generate
 
-    with tqdm(total=cfg.sim.n_traj, unit="traj", desc="sim", disable=not show_progress) as bar:
-        arrays = generate(cfg.sim, progress=bar.update)
-    write_npz(run.dataset, dataset_arrays(arrays, cfg))
+    get_vehicle(cfg.sim.vehicle)  # an unknown vehicle is refused before anything is staged
+    with stage(run.root, "sim", {"sim": cfg.to_dict()["sim"]}, targets=("dataset.npz", "config.toml"),
+               need_bytes=cfg.sim.estimated_bytes) as st:
+        with tqdm(total=cfg.sim.n_traj, unit="traj", desc="sim", disable=not show_progress) as bar:
+            arrays = generate(cfg.sim, progress=bar.update)
+        write_npz(st.path("dataset.npz"), dataset_arrays(arrays, cfg))
+        write_text(st.path("config.toml"), dumps_toml(cfg))
     return run.dataset
 
 
@@ -73,20 +82,48 @@ def run_plot(args: argparse.Namespace) -> int:
     from sim.dataset import load_dataset
     from sim.plot import plot_trajectory
 
-    run, _ = open_run(args.run, need=("dataset",))
-    ds = load_dataset(run.dataset)
-    rows = args.traj or default_plot_rows(ds)
+    run, cfg = open_run(args.run, need=("dataset",))
+    if args.out is not None:  # a file outside the run's published state
+        from core.stage import check_target
+
+        if Path(args.out).resolve() == run.dataset.resolve():
+            raise QuadfdiError(f"--out {args.out} is the input dataset: refusing to write over it")
+        check_target(Path(args.out))
+        ds = load_dataset(run.dataset)
+        rows = _plot_rows(ds, args.traj)
+        if len(rows) > 1:
+            raise QuadfdiError("--out names one file: give exactly one --traj with it")
+        plot_trajectory(ds, rows[0], Path(args.out))
+        print(f"wrote {args.out}")
+        return 0
+    for out in plots_into(run, cfg, args.traj):
+        print(f"wrote {out}")
+    return 0
+
+
+def _plot_rows(ds, traj: list[int] | None) -> list[int]:
+    rows = traj or default_plot_rows(ds)
     n = ds["telemetry"].shape[0]
     for row in rows:
         if not 0 <= row < n:
             raise QuadfdiError(f"--traj {row} is out of range: the dataset holds trajectories 0..{n - 1}")
-    if args.out is not None and len(rows) > 1:
-        raise QuadfdiError("--out names one file: give exactly one --traj with it")
-    for row in rows:
-        out = Path(args.out) if args.out else run.figures / f"sim_traj{row}.png"
-        plot_trajectory(ds, row, out)
-        print(f"wrote {out}")
-    return 0
+    return rows
+
+
+def plots_into(run: RunDir, cfg: Config, traj: list[int] | None = None) -> list[Path]:
+    """Draw trajectories of the published dataset as the ``plots`` stage (figures/sim_traj<i>.png);
+    the figures of an earlier ``sim plot`` of the same dataset are kept."""
+    from core.stage import stage
+    from sim.dataset import load_dataset
+    from sim.plot import plot_trajectory
+
+    with stage(run.root, "plots", {"sim": cfg.to_dict()["sim"]}) as st:
+        ds = load_dataset(st.consume("dataset.npz", ("sim",)))
+        rows = _plot_rows(ds, traj)
+        st.carry_previous()
+        for row in rows:
+            plot_trajectory(ds, row, st.path(f"figures/sim_traj{row}.png"))
+    return [run.figures / f"sim_traj{row}.png" for row in rows]
 
 
 def run_bench(args: argparse.Namespace) -> int:

@@ -8,22 +8,19 @@ building twice for the two modules.
 
 from __future__ import annotations
 
-import shutil
 from pathlib import Path
 
 import pytest
 
 from parity.build import ASAN_BUILD, HOST_BUILD, build_host
-from tests.conftest import quadfdi
+from tests.conftest import copy_run, quadfdi
 
 _CACHE: dict[str, object] = {}
 
 
 def _exported_run(small_run: Path, root: Path) -> Path:
     run = root / "run"
-    run.mkdir(parents=True)
-    for name in ("config.toml", "dataset.npz"):
-        shutil.copy(small_run / name, run / name)
+    copy_run(small_run, run)
     res = quadfdi("train", "--run", str(run), "--set", "train.epochs=1", "--set", "train.threads=1")
     assert res.returncode == 0, res.stderr
     res = quadfdi("export", "--run", str(run))

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import shutil
+import tomllib
 from pathlib import Path
 
 import pytest
@@ -45,7 +46,8 @@ def test_run_writes_every_stage_file_and_report_section(whole_run):
     positions = [text.index(s) for s in SECTIONS]
     assert positions[:5] == sorted(positions[:5])  # the pipeline's order; the solver study comes last
     assert "Not run" not in text
-    assert "bench.windows = 6" in (whole_run / "config.toml").read_text()  # the overrides are stored
+    stored = tomllib.loads((whole_run / "config.toml").read_text())  # the overrides are stored
+    assert stored["bench"]["windows"] == 6 and stored["train"]["epochs"] == 1
 
 
 def test_readme_block_is_rewritten_from_the_run(whole_run, tmp_path):

@@ -90,9 +90,18 @@ def update_readme(readme: Path, table: str) -> None:
 
 
 def run_study(run: RunDir, cfg: Config, seeds: list[int], command: str, log: Callable[[str], None] = print) -> dict:
+    from core.stage import stage
+
+    sections = cfg.to_dict()
+    with stage(run.root, "study", {"sim": sections["sim"], "train": sections["train"]},
+               targets=("seeds.json", "results.md")) as st:
+        ds = load_dataset(st.consume("dataset.npz", ("sim",)))
+        return _study_into(RunDir(st.out), ds, cfg, seeds, command, log)
+
+
+def _study_into(out: RunDir, ds, cfg: Config, seeds: list[int], command: str, log: Callable[[str], None]) -> dict:
     from train.run import train_all
 
-    ds = load_dataset(run.dataset)
     per_seed, timings = [], []
     for seed in seeds:
         t0 = time.perf_counter()
@@ -104,7 +113,7 @@ def run_study(run: RunDir, cfg: Config, seeds: list[int], command: str, log: Cal
     seeds_json = to_jsonable(by_model)
     seeds_json["seeds"] = list(seeds)
     seeds_json["seconds_per_seed"] = timings
-    write_json(run.root / "seeds.json", seeds_json, indent=2)
+    write_json(out.root / "seeds.json", seeds_json, indent=2)
     table = results_table(by_model, seeds, command)
-    write_text(run.root / "results.md", table)
+    write_text(out.root / "results.md", table)
     return {"seeds": seeds_json, "table": table}
