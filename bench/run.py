@@ -252,7 +252,14 @@ def bench_run(run: RunDir, cfg: Config, log: Callable[[str], None] = print, *, q
         for entry in (load_record(run.root, "export") or {"outputs": [{"path": "export/manifest.json"}]})["outputs"]:
             st.consume(entry["path"])
         st.consume("dataset.npz")
-        return _bench_into(run, cfg, RunDir(st.out), log, quick, skip_cpp, cpus, fwref, command)
+        bench = _bench_into(run, cfg, RunDir(st.out), log, quick, skip_cpp, cpus, fwref, command)
+    # Published first: bench.json says which floors failed, and the report shows FLOOR INVALID.
+    if bench["floor_violations"] and cfg.bench.fail_below_floor:
+        raise QuadfdiError("bench: measured below the floor after re-measuring the limits, so the floors are not lower "
+                           f"bounds on this machine ({bench['floor_violations']}); peak "
+                           f"{bench['limits']['peak_gflops']:.1f} GFLOP/s, L2 {bench['limits']['l2_gbps']:.1f} GB/s, "
+                           f"bandwidth probe sane: {bench['limits'].get('bandwidth_sane')}; bench.json written")
+    return bench
 
 
 def _bench_into(run: RunDir, cfg: Config, dest: RunDir, log: Callable[[str], None], quick: bool, skip_cpp: bool,
@@ -283,9 +290,4 @@ def _bench_into(run: RunDir, cfg: Config, dest: RunDir, log: Callable[[str], Non
     log(f"bench: wrote {bench_json_path(run)} and {len(figs)} figures in {timing['total']:.0f} s "
         f"(limits {timing['limits']:.0f} s, latency {timing['latency']:.0f} s, profiles {timing['profiles']:.0f} s); "
         f"`quadfdi report --run {run.root}` rewrites report.md")
-    if bench["floor_violations"]:
-        raise QuadfdiError("bench: measured below the floor after re-measuring the limits, so the floors are not lower "
-                           f"bounds on this machine ({bench['floor_violations']}); peak "
-                           f"{bench['limits']['peak_gflops']:.1f} GFLOP/s, L2 {bench['limits']['l2_gbps']:.1f} GB/s, "
-                           f"bandwidth probe sane: {bench['limits'].get('bandwidth_sane')}; bench.json written")
     return bench

@@ -21,7 +21,9 @@ TINY = [*SMALL_SIM, "--set", "train.epochs=1",
         "--set", "bench.windows=6", "--set", "bench.warmup=1", "--set", "bench.warmup_s=0.05",
         "--set", "bench.batch=8", "--set", "bench.batches=2", "--set", "bench.budget_s=0.5",
         "--set", "bench.min_samples=2", "--set", "bench.threads=[1]", "--set", "bench.profile_windows=4",
-        "--set", "bench.callgrind_windows=1"]
+        "--set", "bench.callgrind_windows=1",
+        # timings on a test machine are not under test: a floor violation is reported, not fatal here
+        "--set", "bench.fail_below_floor=false"]
 
 FILES = ("config.toml", "dataset.npz", "cnode.pt", "gru.pt", "metrics.json", "export/manifest.json",
          "export/weights.bin", "parity/parity.json", "parity/mcu.json", "solvers/solvers.json", "bench.json",
