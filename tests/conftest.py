@@ -71,6 +71,17 @@ def random_weight_run(src: Path, out: Path, kinds: tuple[str, ...] = ("cnode", "
     return out
 
 
+def trained_export_run(src: Path, out: Path, *train_sets: str) -> Path:
+    """A copy of the run ``src`` trained through the real CLI (``--set`` values ``train_sets``) and
+    exported: the files that parity, the firmware and export checks on a trained model need."""
+    copy_run(src, out)
+    res = quadfdi("train", "--run", str(out), *[a for v in train_sets for a in ("--set", v)])
+    assert res.returncode == 0, res.stderr
+    res = quadfdi("export", "--run", str(out))
+    assert res.returncode == 0, res.stderr
+    return out
+
+
 @pytest.fixture(scope="session")
 def small_run(tmp_path_factory) -> Path:
     out = tmp_path_factory.mktemp("run") / "small"
