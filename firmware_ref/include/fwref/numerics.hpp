@@ -11,6 +11,8 @@
 #include <cstdint>
 #include <cstring>
 
+#include "fwref/kernels_i8.hpp"
+
 #if defined(__ARM_FEATURE_SIMD32)
 #include <arm_acle.h>
 #endif
@@ -118,22 +120,36 @@ inline std::int32_t dot_i8(const std::int8_t* a, const std::int8_t* b, int n) {
 }
 #endif
 
+// The linear layers below take the int32 accumulators from gemv_i8 (fwref/kernels_i8.hpp: the
+// SIMD kernels, several rows per pass) in blocks of kGemvRowBlock rows, then rescale them here.
+constexpr int kGemvRowBlock = 64;
+
 // Pattern A (per-tensor activation scale s_a): y[o] = ((f32(acc[o]) * s_a) * s_w[o]) + b[o].
 // ``w`` is (rows, cols) int8 row-major, ``s_w`` (rows,), ``bias`` (rows,), ``x`` (cols,) int8.
 inline void linear_i8_tensor(const std::int8_t* w, const float* s_w, int rows, int cols, const std::int8_t* x,
                              float s_a, const float* bias, float* y) {
-  for (int o = 0; o < rows; ++o) {
-    const float acc = static_cast<float>(dot_i8(w + o * cols, x, cols));
+  std::int32_t acc_i[kGemvRowBlock];
+  for (int o0 = 0; o0 < rows; o0 += kGemvRowBlock) {
+    const int o1 = rows - o0 < kGemvRowBlock ? rows : o0 + kGemvRowBlock;
+    gemv_i8(w + o0 * cols, o1 - o0, cols, x, acc_i);  // int32 accumulators (fwref/kernels_i8.hpp)
+  for (int o = o0; o < o1; ++o) {
+    const float acc = static_cast<float>(acc_i[o - o0]);
     y[o] = ((acc * s_a) * s_w[o]) + bias[o];
+  }
   }
 }
 
 // Pattern B (per-channel activation scales folded into the weight): y[o] = (f32(acc[o]) * s_w'[o]) + b[o].
 inline void linear_i8_folded(const std::int8_t* w, const float* s_w, int rows, int cols, const std::int8_t* x,
                              const float* bias, float* y) {
-  for (int o = 0; o < rows; ++o) {
-    const float acc = static_cast<float>(dot_i8(w + o * cols, x, cols));
+  std::int32_t acc_i[kGemvRowBlock];
+  for (int o0 = 0; o0 < rows; o0 += kGemvRowBlock) {
+    const int o1 = rows - o0 < kGemvRowBlock ? rows : o0 + kGemvRowBlock;
+    gemv_i8(w + o0 * cols, o1 - o0, cols, x, acc_i);  // int32 accumulators (fwref/kernels_i8.hpp)
+  for (int o = o0; o < o1; ++o) {
+    const float acc = static_cast<float>(acc_i[o - o0]);
     y[o] = (acc * s_w[o]) + bias[o];
+  }
   }
 }
 

@@ -1,0 +1,149 @@
+// fwref/kernels_i8.hpp -- scope: the int8 matrix-vector kernels: the int32 accumulators
+// acc[o] = sum_i W[o, i] * x[i] of a (rows, cols) row-major int8 matrix and an int8 vector. They
+// produce integers only; the float rescale of the accumulators stays in fwref/numerics.hpp
+// (linear_i8_tensor / linear_i8_folded), in one place.
+//
+// Every kernel computes the same integers: the sum is exact in int32 (|acc| < 2^24, fwref/config.hpp),
+// so the order of the additions does not matter. The kernels:
+//   portable    the scalar loop, the reference (tests compare every other kernel with it);
+//   avx2        x86-64 AVX2, 4 rows per pass, 32 columns per step: |x| (vpabsb, u8 <= 128) times
+//               sign(x) * w (vpsignb, s8: exact because weights are in [-127, 127], docs/formats.md,
+//               checked at load) with vpmaddubsw; each pair sum is at most 2 * 128 * 127 = 32512 <
+//               32767, so its 16-bit saturation never triggers; vpmaddwd widens to int32;
+//   avx512vnni  x86-64 AVX-512 VNNI (+VL), the same operands with vpdpbusd (u8 x s8, four products
+//               summed into int32 without saturation) on 256-bit vectors (the rows are short);
+//   cortex-m    ARMv7E-M DSP (Cortex-M4/M7), 4 rows per pass: x sign-extended once per call into
+//               int16 pairs (SXTB16), then per row and 4 columns one LDR, two SXTB16 and two SMLAD
+//               (CMSIS-NN's arm_nn_vec_mat_mult_t_s8 loop shape, written for this code base).
+// On x86-64 the kernel is chosen at run time (cpuid through __builtin_cpu_supports, once):
+// the best one the CPU runs, or the one named by the environment variable FWREF_I8_KERNEL
+// (portable, avx2, avx512vnni) when the CPU runs it. Elsewhere the portable loop (or the Cortex-M one).
+#pragma once
+
+#include <cstdint>
+#include <cstring>
+
+#include "fwref/config.hpp"
+
+#if defined(__ARM_FEATURE_SIMD32)
+#include <arm_acle.h>
+#endif
+
+namespace fwref {
+
+// The reference: one row at a time, one product at a time.
+inline void gemv_i8_portable(const std::int8_t* w, int rows, int cols, const std::int8_t* x, std::int32_t* acc) {
+  for (int o = 0; o < rows; ++o) {
+    const std::int8_t* row = w + o * cols;
+    std::int32_t s = 0;
+    for (int i = 0; i < cols; ++i) s += static_cast<std::int32_t>(row[i]) * static_cast<std::int32_t>(x[i]);
+    acc[o] = s;
+  }
+}
+
+// The longest row any gemv_i8 call has (the int8 products' inner dimensions; interp's rows are
+// summed sparsely in cnode.cpp, not here).
+constexpr int max_of(int a, int b) { return a > b ? a : b; }
+constexpr int kMaxGemvCols = max_of(max_of(kMaxChannels, kMaxLatent), max_of(kMaxCnodeHidden, kMaxGruHidden));
+
+#if defined(__ARM_FEATURE_SIMD32)
+
+namespace detail {
+inline std::uint32_t sxtb16_ror8(std::uint32_t v) {
+  std::uint32_t r;
+  __asm__("sxtb16 %0, %1, ror #8" : "=r"(r) : "r"(v));
+  return r;
+}
+inline std::uint32_t load_u32(const std::int8_t* p) {
+  std::uint32_t v;
+  std::memcpy(&v, p, 4);  // an unaligned LDR (allowed on ARMv7-M)
+  return v;
+}
+}  // namespace detail
+
+// Cortex-M4/M7. xe holds x as int16 pairs: xe[2k] = (x[4k], x[4k+2]), xe[2k+1] = (x[4k+1], x[4k+3]),
+// which is what SXTB16 and SXTB16 ROR #8 make of a weight word; so a weight word costs
+// LDR + 2 SXTB16 + 2 SMLAD for 4 products, and the x words are loaded once for 4 rows.
+inline void gemv_i8(const std::int8_t* w, int rows, int cols, const std::int8_t* x, std::int32_t* acc) {
+  const int c4 = cols & ~3;
+  std::uint32_t xe[kMaxGemvCols / 2 + 2];
+  for (int i = 0; i < c4; i += 4) {
+    const std::uint32_t v = detail::load_u32(x + i);
+    xe[i / 2] = __sxtb16(v);
+    xe[i / 2 + 1] = detail::sxtb16_ror8(v);
+  }
+  int o = 0;
+  for (; o + 4 <= rows; o += 4) {
+    const std::int8_t* r0 = w + o * cols;
+    const std::int8_t* r1 = r0 + cols;
+    const std::int8_t* r2 = r1 + cols;
+    const std::int8_t* r3 = r2 + cols;
+    std::int32_t a0 = 0, a1 = 0, a2 = 0, a3 = 0;
+    const std::uint32_t* xp = xe;
+    for (int i = 0; i < c4; i += 4, xp += 2) {
+      const std::uint32_t xa = xp[0], xb = xp[1];
+      std::uint32_t v = detail::load_u32(r0 + i);
+      a0 = __smlad(__sxtb16(v), xa, a0);
+      a0 = __smlad(detail::sxtb16_ror8(v), xb, a0);
+      v = detail::load_u32(r1 + i);
+      a1 = __smlad(__sxtb16(v), xa, a1);
+      a1 = __smlad(detail::sxtb16_ror8(v), xb, a1);
+      v = detail::load_u32(r2 + i);
+      a2 = __smlad(__sxtb16(v), xa, a2);
+      a2 = __smlad(detail::sxtb16_ror8(v), xb, a2);
+      v = detail::load_u32(r3 + i);
+      a3 = __smlad(__sxtb16(v), xa, a3);
+      a3 = __smlad(detail::sxtb16_ror8(v), xb, a3);
+    }
+    for (int i = c4; i < cols; ++i) {
+      const std::int32_t xi = x[i];
+      a0 += r0[i] * xi, a1 += r1[i] * xi, a2 += r2[i] * xi, a3 += r3[i] * xi;
+    }
+    acc[o] = a0, acc[o + 1] = a1, acc[o + 2] = a2, acc[o + 3] = a3;
+  }
+  for (; o < rows; ++o) {
+    const std::int8_t* r0 = w + o * cols;
+    std::int32_t a0 = 0;
+    const std::uint32_t* xp = xe;
+    for (int i = 0; i < c4; i += 4, xp += 2) {
+      const std::uint32_t v = detail::load_u32(r0 + i);
+      a0 = __smlad(__sxtb16(v), xp[0], a0);
+      a0 = __smlad(detail::sxtb16_ror8(v), xp[1], a0);
+    }
+    for (int i = c4; i < cols; ++i) a0 += r0[i] * static_cast<std::int32_t>(x[i]);
+    acc[o] = a0;
+  }
+}
+inline const char* gemv_i8_kernel_name() { return "cortex-m-dsp-4row"; }
+
+#elif defined(__x86_64__) && !defined(FWREF_PORTABLE_KERNELS)
+
+// x86-64: run-time dispatch (src/kernels_i8.cpp).
+using GemvI8Fn = void (*)(const std::int8_t* w, int rows, int cols, const std::int8_t* x, std::int32_t* acc);
+extern GemvI8Fn g_gemv_i8;
+inline void gemv_i8(const std::int8_t* w, int rows, int cols, const std::int8_t* x, std::int32_t* acc) {
+  g_gemv_i8(w, rows, cols, x, acc);
+}
+// The kernels this build has, and whether the CPU runs each (index 0 is the portable one).
+struct GemvI8Kernel {
+  const char* name;
+  GemvI8Fn fn;
+  bool cpu_runs;
+};
+int gemv_i8_kernels(const GemvI8Kernel** out);
+const char* gemv_i8_kernel_name();
+// Select by name; false (and no change) when unknown or when this CPU cannot run it.
+bool gemv_i8_select(const char* name);
+// The instruction sets the fp32 code was compiled for (e.g. "avx2 fma"), from the compiler's macros.
+const char* fp32_build_isa();
+
+#else
+
+inline void gemv_i8(const std::int8_t* w, int rows, int cols, const std::int8_t* x, std::int32_t* acc) {
+  gemv_i8_portable(w, rows, cols, x, acc);
+}
+inline const char* gemv_i8_kernel_name() { return "portable"; }
+
+#endif
+
+}  // namespace fwref
