@@ -16,7 +16,8 @@ namespace {
 
 // One body, two products: DOT(acc, ax, sw) adds the products of |x| (u8) and sign(x) * w (s8).
 // Columns go 32 at a time, then one 16- and one 8-column step with the upper part of the vector
-// zero (zero products), then the last < 8 columns in scalar code; no load reads past a row.
+// zero (zero products), then the last 1..7 columns as the row's last 8 bytes against x with the
+// already counted lanes zeroed (scalar code only for rows shorter than 8); no load reads past a row.
 // Rows go 4 at a time, so each x vector (and its |x|) serves 4 rows.
 #define FWREF_GEMV_BODY(DOT)                                                                       \
   int o = 0;                                                                                       \
@@ -52,6 +53,19 @@ namespace {
       a2 = DOT(a2, ax, _mm256_sign_epi8(_mm256_zextsi128_si256(_mm_loadl_epi64(reinterpret_cast<const __m128i*>(r2 + i))), xv)); \
       a3 = DOT(a3, ax, _mm256_sign_epi8(_mm256_zextsi128_si256(_mm_loadl_epi64(reinterpret_cast<const __m128i*>(r3 + i))), xv)); \
       i += 8;                                                                                      \
+    }                                                                                              \
+    if (i < cols && cols >= 8) { /* the last 1..7 columns: the row's last 8 bytes, x's first lanes zeroed */ \
+      const int keep = cols - i;                                                                   \
+      std::uint64_t xq;                                                                            \
+      std::memcpy(&xq, x + cols - 8, 8);                                                           \
+      xq &= ~std::uint64_t(0) << (8 * (8 - keep));                                                 \
+      const __m256i xv = _mm256_zextsi128_si256(_mm_cvtsi64_si128(static_cast<long long>(xq)));   \
+      const __m256i ax = _mm256_abs_epi8(xv);                                                      \
+      a0 = DOT(a0, ax, _mm256_sign_epi8(_mm256_zextsi128_si256(_mm_loadl_epi64(reinterpret_cast<const __m128i*>(r0 + cols - 8))), xv)); \
+      a1 = DOT(a1, ax, _mm256_sign_epi8(_mm256_zextsi128_si256(_mm_loadl_epi64(reinterpret_cast<const __m128i*>(r1 + cols - 8))), xv)); \
+      a2 = DOT(a2, ax, _mm256_sign_epi8(_mm256_zextsi128_si256(_mm_loadl_epi64(reinterpret_cast<const __m128i*>(r2 + cols - 8))), xv)); \
+      a3 = DOT(a3, ax, _mm256_sign_epi8(_mm256_zextsi128_si256(_mm_loadl_epi64(reinterpret_cast<const __m128i*>(r3 + cols - 8))), xv)); \
+      i = cols;                                                                                    \
     }                                                                                              \
     /* [a0 a1 a2 a3] lane sums: two rounds of hadd, then the two 128-bit halves */                 \
     const __m256i h = _mm256_hadd_epi32(_mm256_hadd_epi32(a0, a1), _mm256_hadd_epi32(a2, a3));     \
