@@ -62,10 +62,34 @@ inline std::uint32_t load_u32(const std::int8_t* p) {
 }  // namespace detail
 
 // Cortex-M4/M7. xe holds x as int16 pairs: xe[2k] = (x[4k], x[4k+2]), xe[2k+1] = (x[4k+1], x[4k+3]),
-// which is what SXTB16 and SXTB16 ROR #8 make of a weight word; so a weight word costs
-// LDR + 2 SXTB16 + 2 SMLAD for 4 products, and the x words are loaded once for 4 rows.
+// which is what SXTB16 and SXTB16 ROR #8 make of a weight word; so 4 products of a row cost one LDR,
+// two SXTB16 and two SMLAD, and one LDRD of xe serves 4 rows. The 4-row loop is assembly (8 columns
+// per iteration: 44 instructions for 32 products) so that the 13 live values stay in registers:
+// rows o and o+1 through p0 and p0 + cols, rows o+2 and o+3 through p2 and p2 + cols.
+#define FWREF_M_ROWS4_STEP                                                                          \
+  "ldrd   %[xa], %[xb], [%[xp]], #8\n\t"                                                            \
+  "ldr    %[t], [%[p0], %[c]]\n\t"                                                                  \
+  "sxtb16 %[u], %[t]\n\t"                                                                           \
+  "smlad  %[a1], %[u], %[xa], %[a1]\n\t"                                                            \
+  "sxtb16 %[t], %[t], ror #8\n\t"                                                                   \
+  "smlad  %[a1], %[t], %[xb], %[a1]\n\t"                                                            \
+  "ldr    %[t], [%[p2], %[c]]\n\t"                                                                  \
+  "sxtb16 %[u], %[t]\n\t"                                                                           \
+  "smlad  %[a3], %[u], %[xa], %[a3]\n\t"                                                            \
+  "sxtb16 %[t], %[t], ror #8\n\t"                                                                   \
+  "smlad  %[a3], %[t], %[xb], %[a3]\n\t"                                                            \
+  "ldr    %[t], [%[p2]], #4\n\t"                                                                    \
+  "sxtb16 %[u], %[t]\n\t"                                                                           \
+  "smlad  %[a2], %[u], %[xa], %[a2]\n\t"                                                            \
+  "sxtb16 %[t], %[t], ror #8\n\t"                                                                   \
+  "smlad  %[a2], %[t], %[xb], %[a2]\n\t"                                                            \
+  "ldr    %[t], [%[p0]], #4\n\t"                                                                    \
+  "sxtb16 %[u], %[t]\n\t"                                                                           \
+  "smlad  %[a0], %[u], %[xa], %[a0]\n\t"                                                            \
+  "sxtb16 %[t], %[t], ror #8\n\t"                                                                   \
+  "smlad  %[a0], %[t], %[xb], %[a0]\n\t"
 inline void gemv_i8(const std::int8_t* w, int rows, int cols, const std::int8_t* x, std::int32_t* acc) {
-  const int c4 = cols & ~3;
+  const int c4 = cols & ~3, c8 = cols & ~7;
   std::uint32_t xe[kMaxGemvCols / 2 + 2];
   for (int i = 0; i < c4; i += 4) {
     const std::uint32_t v = detail::load_u32(x + i);
@@ -74,30 +98,31 @@ inline void gemv_i8(const std::int8_t* w, int rows, int cols, const std::int8_t*
   }
   int o = 0;
   for (; o + 4 <= rows; o += 4) {
-    const std::int8_t* r0 = w + o * cols;
-    const std::int8_t* r1 = r0 + cols;
-    const std::int8_t* r2 = r1 + cols;
-    const std::int8_t* r3 = r2 + cols;
-    std::int32_t a0 = 0, a1 = 0, a2 = 0, a3 = 0;
+    const std::int8_t* p0 = w + o * cols;
+    const std::int8_t* p2 = p0 + 2 * cols;
+    const std::int8_t* const end8 = p0 + c8;
     const std::uint32_t* xp = xe;
-    for (int i = 0; i < c4; i += 4, xp += 2) {
-      const std::uint32_t xa = xp[0], xb = xp[1];
-      std::uint32_t v = detail::load_u32(r0 + i);
-      a0 = __smlad(__sxtb16(v), xa, a0);
-      a0 = __smlad(detail::sxtb16_ror8(v), xb, a0);
-      v = detail::load_u32(r1 + i);
-      a1 = __smlad(__sxtb16(v), xa, a1);
-      a1 = __smlad(detail::sxtb16_ror8(v), xb, a1);
-      v = detail::load_u32(r2 + i);
-      a2 = __smlad(__sxtb16(v), xa, a2);
-      a2 = __smlad(detail::sxtb16_ror8(v), xb, a2);
-      v = detail::load_u32(r3 + i);
-      a3 = __smlad(__sxtb16(v), xa, a3);
-      a3 = __smlad(detail::sxtb16_ror8(v), xb, a3);
+    std::int32_t a0 = 0, a1 = 0, a2 = 0, a3 = 0;
+    std::uint32_t xa, xb, t, u;
+    if (c8 > 0) {
+      __asm__ volatile("1:\n\t" FWREF_M_ROWS4_STEP FWREF_M_ROWS4_STEP
+                       "cmp    %[p0], %[end]\n\t"
+                       "bne    1b\n\t"
+                       : [a0] "+r"(a0), [a1] "+r"(a1), [a2] "+r"(a2), [a3] "+r"(a3), [p0] "+r"(p0), [p2] "+r"(p2),
+                         [xp] "+r"(xp), [xa] "=&r"(xa), [xb] "=&r"(xb), [t] "=&r"(t), [u] "=&r"(u)
+                       : [c] "r"(cols), [end] "r"(end8)
+                       : "cc", "memory");
     }
-    for (int i = c4; i < cols; ++i) {
+    if (c4 > c8) {
+      __asm__ volatile(FWREF_M_ROWS4_STEP
+                       : [a0] "+r"(a0), [a1] "+r"(a1), [a2] "+r"(a2), [a3] "+r"(a3), [p0] "+r"(p0), [p2] "+r"(p2),
+                         [xp] "+r"(xp), [xa] "=&r"(xa), [xb] "=&r"(xb), [t] "=&r"(t), [u] "=&r"(u)
+                       : [c] "r"(cols)
+                       : "memory");
+    }
+    for (int i = c4; i < cols; ++i, ++p0, ++p2) {  // p0, p2 now point at column c4 of rows o, o + 2
       const std::int32_t xi = x[i];
-      a0 += r0[i] * xi, a1 += r1[i] * xi, a2 += r2[i] * xi, a3 += r3[i] * xi;
+      a0 += p0[0] * xi, a1 += p0[cols] * xi, a2 += p2[0] * xi, a3 += p2[cols] * xi;
     }
     acc[o] = a0, acc[o + 1] = a1, acc[o + 2] = a2, acc[o + 3] = a3;
   }
@@ -114,6 +139,7 @@ inline void gemv_i8(const std::int8_t* w, int rows, int cols, const std::int8_t*
     acc[o] = a0;
   }
 }
+#undef FWREF_M_ROWS4_STEP
 inline const char* gemv_i8_kernel_name() { return "cortex-m-dsp-4row"; }
 
 #elif defined(__x86_64__) && !defined(FWREF_PORTABLE_KERNELS)
