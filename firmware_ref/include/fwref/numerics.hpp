@@ -13,7 +13,7 @@
 
 #include "fwref/kernels_i8.hpp"
 
-#if defined(__ARM_FEATURE_SIMD32)
+#if defined(__ARM_FEATURE_SIMD32) || defined(__ARM_FEATURE_SAT)
 #include <arm_acle.h>
 #endif
 
@@ -83,6 +83,22 @@ inline float logistic_approx(float x) {
 // nearest-even) mode; no libm call and no VRINT needed, identical on x86 and Cortex-M. A NaN maps
 // to 0 so that the conversion to int is always defined (inputs are checked finite; this only
 // guards the int conversion).
+#if defined(__ARM_FEATURE_SAT) && defined(__ARM_FP) && !defined(FWREF_PORTABLE_KERNELS)
+// Cortex-M4F/M7: the same integer in four instructions. VCVTR.S32.F32 rounds in the FPSCR's mode,
+// round to nearest even (the reset value; nothing here changes it), exactly for every float (no
+// 2^22 limit), maps NaN to 0 and saturates out-of-range values to the int32 range; SSAT then
+// clamps to [-128, 127]. Rounding then clamping equals clamping then rounding because the bounds
+// are integers and rounding is monotonic, so q = clamp(rne(x / s), -128, 127) as below, NaN -> 0.
+// The division stays a float32 division (x * (1/s) differs at ties).
+inline std::int8_t quantize(float x, float scale) {
+  const float v = x / scale;
+  float r;
+  __asm__("vcvtr.s32.f32 %0, %1" : "=t"(r) : "t"(v));
+  std::int32_t i;
+  std::memcpy(&i, &r, 4);
+  return static_cast<std::int8_t>(__ssat(i, 8));
+}
+#else
 inline std::int8_t quantize(float x, float scale) {
   float v = x / scale;
   if (!(v == v)) v = 0.0f;
@@ -92,6 +108,7 @@ inline std::int8_t quantize(float x, float scale) {
   v = (v + magic) - magic;
   return static_cast<std::int8_t>(static_cast<int>(v));
 }
+#endif
 
 // sum_i a[i] * b[i] over int8 in int32 (exact: |sum| < 2^24 by fwref/config.hpp's limits, so the
 // order of the additions does not matter and every variant below gives the same integer).
