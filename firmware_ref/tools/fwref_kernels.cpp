@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "fwref/kernels_i8.hpp"
+#include "kernel_info.hpp"
 
 namespace {
 
@@ -25,31 +26,6 @@ constexpr bool kDispatch = true;
 #else
 constexpr bool kDispatch = false;
 #endif
-
-void print_info() {
-#if defined(__x86_64__)
-  __builtin_cpu_init();
-  std::printf("cpu_flags: sse4.2=%d avx=%d avx2=%d fma=%d avx512f=%d avx512vl=%d avx512vnni=%d\n",
-              __builtin_cpu_supports("sse4.2") ? 1 : 0, __builtin_cpu_supports("avx") ? 1 : 0,
-              __builtin_cpu_supports("avx2") ? 1 : 0, __builtin_cpu_supports("fma") ? 1 : 0,
-              __builtin_cpu_supports("avx512f") ? 1 : 0, __builtin_cpu_supports("avx512vl") ? 1 : 0,
-              __builtin_cpu_supports("avx512vnni") ? 1 : 0);
-#else
-  std::printf("cpu_flags: (not x86-64)\n");
-#endif
-#if defined(__x86_64__) && !defined(FWREF_PORTABLE_KERNELS)
-  std::printf("fp32_build: %s\n", fwref::fp32_build_isa());
-  std::printf("int8_kernel: %s\n", fwref::gemv_i8_kernel_name());
-  const fwref::GemvI8Kernel* ks = nullptr;
-  const int n = fwref::gemv_i8_kernels(&ks);
-  std::printf("int8_kernels:");
-  for (int k = 0; k < n; ++k) std::printf(" %s=%s", ks[k].name, ks[k].cpu_runs ? "runs" : "no");
-  std::printf("\n");
-#else
-  std::printf("fp32_build: generic\nint8_kernel: %s\nint8_kernels: %s=runs\n", fwref::gemv_i8_kernel_name(),
-              fwref::gemv_i8_kernel_name());
-#endif
-}
 
 using Fn = void (*)(const std::int8_t*, int, int, const std::int8_t*, std::int32_t*);
 
@@ -116,7 +92,7 @@ int main(int argc, char** argv) {
     }
   }
   if (!info && !check) info = true;
-  if (info) print_info();
+  if (info) fwref::host::print_kernel_info(stdout);
   if (!check) return 0;
   int failed = 0, ran = 0;
 #if defined(__x86_64__) && !defined(FWREF_PORTABLE_KERNELS)
