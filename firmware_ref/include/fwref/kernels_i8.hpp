@@ -96,6 +96,15 @@ inline void gemv_i8(const std::int8_t* w, int rows, int cols, const std::int8_t*
     xe[i / 2] = __sxtb16(v);
     xe[i / 2 + 1] = detail::sxtb16_ror8(v);
   }
+  // The last 1..3 columns (when cols >= 4): the row's last word against x's last word with the
+  // lanes already counted zeroed, one more step of the loop body.
+  const int rem = cols - c4;
+  std::uint32_t xt[2] = {0, 0};
+  if (rem != 0 && cols >= 4) {
+    const std::uint32_t v = detail::load_u32(x + cols - 4) & (~0u << (8 * (4 - rem)));
+    xt[0] = __sxtb16(v);
+    xt[1] = detail::sxtb16_ror8(v);
+  }
   int o = 0;
   for (; o + 4 <= rows; o += 4) {
     const std::int8_t* p0 = w + o * cols;
@@ -120,9 +129,20 @@ inline void gemv_i8(const std::int8_t* w, int rows, int cols, const std::int8_t*
                        : [c] "r"(cols)
                        : "memory");
     }
-    for (int i = c4; i < cols; ++i, ++p0, ++p2) {  // p0, p2 now point at column c4 of rows o, o + 2
-      const std::int32_t xi = x[i];
-      a0 += p0[0] * xi, a1 += p0[cols] * xi, a2 += p2[0] * xi, a3 += p2[cols] * xi;
+    if (rem != 0 && cols >= 4) {
+      p0 = w + o * cols + cols - 4;
+      p2 = p0 + 2 * cols;
+      xp = xt;
+      __asm__ volatile(FWREF_M_ROWS4_STEP
+                       : [a0] "+r"(a0), [a1] "+r"(a1), [a2] "+r"(a2), [a3] "+r"(a3), [p0] "+r"(p0), [p2] "+r"(p2),
+                         [xp] "+r"(xp), [xa] "=&r"(xa), [xb] "=&r"(xb), [t] "=&r"(t), [u] "=&r"(u)
+                       : [c] "r"(cols)
+                       : "memory");
+    } else {
+      for (int i = c4; i < cols; ++i, ++p0, ++p2) {  // p0, p2 now point at column c4 of rows o, o + 2
+        const std::int32_t xi = x[i];
+        a0 += p0[0] * xi, a1 += p0[cols] * xi, a2 += p2[0] * xi, a3 += p2[cols] * xi;
+      }
     }
     acc[o] = a0, acc[o + 1] = a1, acc[o + 2] = a2, acc[o + 3] = a3;
   }
