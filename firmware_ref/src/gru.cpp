@@ -115,6 +115,14 @@ Status infer(const GruI8& m, const float* x, float* logits, GruWorkspace& ws, Gr
   ws.h.setZero(H);
   ws.gx.resize(3 * H);
   ws.gh.resize(3 * H);
+  const std::int16_t* whh16 = nullptr;
+#if defined(FWREF_GRU_WHH_INT16)
+  if (ws.whh16_of != m.w_hh.q) {
+    expand_i8_to_i16(m.w_hh.q, long(3 * H) * H, ws.whh16);
+    ws.whh16_of = m.w_hh.q;
+  }
+  whh16 = ws.whh16;
+#endif
   for (int t = 0; t < W; ++t) {
     for (int c = 0; c < C; ++c) {
       const float xn = normalise(x[t * C + c], m.mean[c], m.std[c]);
@@ -124,7 +132,7 @@ Status infer(const GruI8& m, const float* x, float* logits, GruWorkspace& ws, Gr
     // GX row t = B(xq, W_ih') + b_ih (s_x folded into W_ih'); gh = A(quantize(h, s_h), W_hh, s_h) + b_hh
     linear_i8_folded(m.w_ih.q, m.w_ih.scale, 3 * H, C, ws.xq, m.b_ih, ws.gx.data());
     quantize_all(ws.h.data(), H, m.s_h, ws.hq);
-    linear_i8_tensor(m.w_hh.q, m.w_hh.scale, 3 * H, H, ws.hq, m.s_h, m.b_hh, ws.gh.data());
+    linear_i8_tensor(m.w_hh.q, m.w_hh.scale, 3 * H, H, ws.hq, m.s_h, m.b_hh, ws.gh.data(), whh16);
     gru_cell(ws.gx, ws.gh, H, ws.h);
     if (tr != nullptr) trace_row(ws.h, H, tr->h == nullptr ? nullptr : tr->h + t * H);
   }

@@ -67,6 +67,13 @@ struct GruWorkspace {
   In xn;
   std::int8_t xq[kMaxChannels];
   std::int8_t hq[kMaxGruHidden];
+#if defined(FWREF_GRU_WHH_INT16)
+  // Cortex-M option (firmware_ref/mcu, FWREF_GRU_WHH_INT16=ON): W_hh sign-extended to int16 in RAM,
+  // made by the first int8 inference of a model (whh16_of records which weights it holds), so the
+  // recurrent product runs on LDRD + SMLAD (fwref/kernels_i8.hpp): 2 * 3H * H bytes of RAM for speed.
+  alignas(8) std::int16_t whh16[kMaxGruGates * kMaxGruHidden];  // LDRD needs word alignment
+  const std::int8_t* whh16_of = nullptr;
+#endif
 };
 
 Status check(const GruF32& m);

@@ -65,7 +65,9 @@ inline std::uint32_t load_u32(const std::int8_t* p) {
 // which is what SXTB16 and SXTB16 ROR #8 make of a weight word; so 4 products of a row cost one LDR,
 // two SXTB16 and two SMLAD, and one LDRD of xe serves 4 rows. The 4-row loop is assembly (8 columns
 // per iteration: 44 instructions for 32 products) so that the 13 live values stay in registers:
-// rows o and o+1 through p0 and p0 + cols, rows o+2 and o+3 through p2 and p2 + cols.
+// rows o and o+1 through p0 and p0 + cols, rows o+2 and o+3 through p2 and p2 + cols. Every
+// read-write operand is early-clobber ("+&r"): otherwise GCC may give an input of equal value (the
+// end pointer, equal to the next row's start) the same register.
 #define FWREF_M_ROWS4_STEP                                                                          \
   "ldrd   %[xa], %[xb], [%[xp]], #8\n\t"                                                            \
   "ldr    %[t], [%[p0], %[c]]\n\t"                                                                  \
@@ -117,15 +119,15 @@ inline void gemv_i8(const std::int8_t* w, int rows, int cols, const std::int8_t*
       __asm__ volatile("1:\n\t" FWREF_M_ROWS4_STEP FWREF_M_ROWS4_STEP
                        "cmp    %[p0], %[end]\n\t"
                        "bne    1b\n\t"
-                       : [a0] "+r"(a0), [a1] "+r"(a1), [a2] "+r"(a2), [a3] "+r"(a3), [p0] "+r"(p0), [p2] "+r"(p2),
-                         [xp] "+r"(xp), [xa] "=&r"(xa), [xb] "=&r"(xb), [t] "=&r"(t), [u] "=&r"(u)
+                       : [a0] "+&r"(a0), [a1] "+&r"(a1), [a2] "+&r"(a2), [a3] "+&r"(a3), [p0] "+&r"(p0), [p2] "+&r"(p2),
+                         [xp] "+&r"(xp), [xa] "=&r"(xa), [xb] "=&r"(xb), [t] "=&r"(t), [u] "=&r"(u)
                        : [c] "r"(cols), [end] "r"(end8)
                        : "cc", "memory");
     }
     if (c4 > c8) {
       __asm__ volatile(FWREF_M_ROWS4_STEP
-                       : [a0] "+r"(a0), [a1] "+r"(a1), [a2] "+r"(a2), [a3] "+r"(a3), [p0] "+r"(p0), [p2] "+r"(p2),
-                         [xp] "+r"(xp), [xa] "=&r"(xa), [xb] "=&r"(xb), [t] "=&r"(t), [u] "=&r"(u)
+                       : [a0] "+&r"(a0), [a1] "+&r"(a1), [a2] "+&r"(a2), [a3] "+&r"(a3), [p0] "+&r"(p0), [p2] "+&r"(p2),
+                         [xp] "+&r"(xp), [xa] "=&r"(xa), [xb] "=&r"(xb), [t] "=&r"(t), [u] "=&r"(u)
                        : [c] "r"(cols)
                        : "memory");
     }
@@ -134,8 +136,8 @@ inline void gemv_i8(const std::int8_t* w, int rows, int cols, const std::int8_t*
       p2 = p0 + 2 * cols;
       xp = xt;
       __asm__ volatile(FWREF_M_ROWS4_STEP
-                       : [a0] "+r"(a0), [a1] "+r"(a1), [a2] "+r"(a2), [a3] "+r"(a3), [p0] "+r"(p0), [p2] "+r"(p2),
-                         [xp] "+r"(xp), [xa] "=&r"(xa), [xb] "=&r"(xb), [t] "=&r"(t), [u] "=&r"(u)
+                       : [a0] "+&r"(a0), [a1] "+&r"(a1), [a2] "+&r"(a2), [a3] "+&r"(a3), [p0] "+&r"(p0), [p2] "+&r"(p2),
+                         [xp] "+&r"(xp), [xa] "=&r"(xa), [xb] "=&r"(xb), [t] "=&r"(t), [u] "=&r"(u)
                        : [c] "r"(cols)
                        : "memory");
     } else {
@@ -160,6 +162,56 @@ inline void gemv_i8(const std::int8_t* w, int rows, int cols, const std::int8_t*
   }
 }
 #undef FWREF_M_ROWS4_STEP
+
+#if defined(FWREF_GRU_WHH_INT16)
+#define FWREF_HAS_W16_KERNEL 1
+// The same products with the weights already sign-extended to int16 (a copy in RAM made once at
+// load by expand_i8_to_i16; weights.bin and flash keep int8): 4 products of a row are one LDRD and
+// two SMLAD, one LDRD of x (as plain int16 pairs) serves 4 rows: 26 instructions for 32 products
+// plus the loop's 2. ``cols`` must be a multiple of 8 (the caller checks; else gemv_i8).
+#define FWREF_M_ROWS4_W16_STEP(R, A)                                                                \
+  "ldrd   %[t], %[u], [%[" R "]], #8\n\t"                                                          \
+  "smlad  %[" A "], %[t], %[xa], %[" A "]\n\t"                                                      \
+  "smlad  %[" A "], %[u], %[xb], %[" A "]\n\t"
+#define FWREF_M_ROWS4_W16_COLS4                                                                     \
+  "ldrd   %[xa], %[xb], [%[xp]], #8\n\t" FWREF_M_ROWS4_W16_STEP("p0", "a0")                         \
+  FWREF_M_ROWS4_W16_STEP("p1", "a1") FWREF_M_ROWS4_W16_STEP("p2", "a2") FWREF_M_ROWS4_W16_STEP("p3", "a3")
+inline void expand_i8_to_i16(const std::int8_t* q, long n, std::int16_t* out) {
+  for (long i = 0; i < n; ++i) out[i] = q[i];
+}
+inline void gemv_i8w16(const std::int16_t* w, int rows, int cols, const std::int8_t* x, std::int32_t* acc) {
+  alignas(8) std::int16_t x16[kMaxGemvCols + 8];  // LDRD needs word alignment
+  for (int i = 0; i < cols; ++i) x16[i] = x[i];
+  int o = 0;
+  for (; o + 4 <= rows; o += 4) {
+    const std::int16_t* p0 = w + o * cols;
+    const std::int16_t* p1 = p0 + cols;
+    const std::int16_t* p2 = p1 + cols;
+    const std::int16_t* p3 = p2 + cols;
+    const std::int16_t* const end = p0 + cols;
+    const std::int16_t* xp = x16;
+    std::int32_t a0 = 0, a1 = 0, a2 = 0, a3 = 0;
+    std::uint32_t xa, xb, t, u;
+    __asm__ volatile("1:\n\t" FWREF_M_ROWS4_W16_COLS4 FWREF_M_ROWS4_W16_COLS4
+                     "cmp    %[p0], %[end]\n\t"
+                     "bne    1b\n\t"
+                     : [a0] "+&r"(a0), [a1] "+&r"(a1), [a2] "+&r"(a2), [a3] "+&r"(a3), [p0] "+&r"(p0), [p1] "+&r"(p1),
+                       [p2] "+&r"(p2), [p3] "+&r"(p3), [xp] "+&r"(xp), [xa] "=&r"(xa), [xb] "=&r"(xb), [t] "=&r"(t),
+                       [u] "=&r"(u)
+                     : [end] "r"(end)
+                     : "cc", "memory");
+    acc[o] = a0, acc[o + 1] = a1, acc[o + 2] = a2, acc[o + 3] = a3;
+  }
+  for (; o < rows; ++o) {
+    const std::int16_t* r = w + o * cols;
+    std::int32_t s = 0;
+    for (int i = 0; i < cols; ++i) s += std::int32_t(r[i]) * x16[i];
+    acc[o] = s;
+  }
+}
+#undef FWREF_M_ROWS4_W16_COLS4
+#undef FWREF_M_ROWS4_W16_STEP
+#endif
 inline const char* gemv_i8_kernel_name() { return "cortex-m-dsp-4row"; }
 
 #elif defined(__x86_64__) && !defined(FWREF_PORTABLE_KERNELS)
@@ -191,5 +243,20 @@ inline void gemv_i8(const std::int8_t* w, int rows, int cols, const std::int8_t*
 inline const char* gemv_i8_kernel_name() { return "portable"; }
 
 #endif
+
+// Rows [o0, o0 + rows) of the matrix: from its int16 copy ``w16`` when there is one and the kernel
+// for it is built (Cortex-M, FWREF_GRU_WHH_INT16), else from the int8 ``w``.
+inline void gemv_i8_any(const std::int8_t* w, const std::int16_t* w16, int o0, int rows, int cols,
+                        const std::int8_t* x, std::int32_t* acc) {
+#if defined(FWREF_HAS_W16_KERNEL)
+  if (w16 != nullptr && cols % 8 == 0) {
+    gemv_i8w16(w16 + o0 * cols, rows, cols, x, acc);
+    return;
+  }
+#else
+  (void)w16;
+#endif
+  gemv_i8(w + o0 * cols, rows, cols, x, acc);
+}
 
 }  // namespace fwref

@@ -143,12 +143,14 @@ constexpr int kGemvRowBlock = 64;
 
 // Pattern A (per-tensor activation scale s_a): y[o] = ((f32(acc[o]) * s_a) * s_w[o]) + b[o].
 // ``w`` is (rows, cols) int8 row-major, ``s_w`` (rows,), ``bias`` (rows,), ``x`` (cols,) int8.
+// ``w16``: optionally the same weights sign-extended to int16 (Cortex-M builds with
+// FWREF_GRU_WHH_INT16, fwref/kernels_i8.hpp), the same accumulators from a faster kernel.
 inline void linear_i8_tensor(const std::int8_t* w, const float* s_w, int rows, int cols, const std::int8_t* x,
-                             float s_a, const float* bias, float* y) {
+                             float s_a, const float* bias, float* y, const std::int16_t* w16 = nullptr) {
   std::int32_t acc_i[kGemvRowBlock];
   for (int o0 = 0; o0 < rows; o0 += kGemvRowBlock) {
     const int o1 = rows - o0 < kGemvRowBlock ? rows : o0 + kGemvRowBlock;
-    gemv_i8(w + o0 * cols, o1 - o0, cols, x, acc_i);  // int32 accumulators (fwref/kernels_i8.hpp)
+    gemv_i8_any(w, w16, o0, o1 - o0, cols, x, acc_i);  // int32 accumulators (fwref/kernels_i8.hpp)
   for (int o = o0; o < o1; ++o) {
     const float acc = static_cast<float>(acc_i[o - o0]);
     y[o] = ((acc * s_a) * s_w[o]) + bias[o];
