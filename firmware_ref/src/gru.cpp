@@ -115,13 +115,15 @@ Status infer(const GruI8& m, const float* x, float* logits, GruWorkspace& ws, Gr
   ws.h.setZero(H);
   ws.gx.resize(3 * H);
   ws.gh.resize(3 * H);
-  const std::int16_t* whh16 = nullptr;
+  const std::int16_t *whh16 = nullptr, *wih16 = nullptr;
 #if defined(FWREF_GRU_WHH_INT16)
-  if (ws.whh16_of != m.w_hh.q) {
-    expand_i8_to_i16(m.w_hh.q, long(3 * H) * H, ws.whh16);
-    ws.whh16_of = m.w_hh.q;
+  if (ws.w16_of != m.w_hh.q) {
+    expand_i8_to_i16(m.w_hh.q, 3 * H, H, ws.whh16);
+    expand_i8_to_i16(m.w_ih.q, 3 * H, C, ws.wih16);
+    ws.w16_of = m.w_hh.q;
   }
   whh16 = ws.whh16;
+  wih16 = ws.wih16;
 #endif
   for (int t = 0; t < W; ++t) {
     for (int c = 0; c < C; ++c) {
@@ -130,7 +132,7 @@ Status infer(const GruI8& m, const float* x, float* logits, GruWorkspace& ws, Gr
       ws.xq[c] = quantize(xn, m.s_x[c]);
     }
     // GX row t = B(xq, W_ih') + b_ih (s_x folded into W_ih'); gh = A(quantize(h, s_h), W_hh, s_h) + b_hh
-    linear_i8_folded(m.w_ih.q, m.w_ih.scale, 3 * H, C, ws.xq, m.b_ih, ws.gx.data());
+    linear_i8_folded(m.w_ih.q, m.w_ih.scale, 3 * H, C, ws.xq, m.b_ih, ws.gx.data(), wih16);
     quantize_all(ws.h.data(), H, m.s_h, ws.hq);
     linear_i8_tensor(m.w_hh.q, m.w_hh.scale, 3 * H, H, ws.hq, m.s_h, m.b_hh, ws.gh.data(), whh16);
     gru_cell(ws.gx, ws.gh, H, ws.h);

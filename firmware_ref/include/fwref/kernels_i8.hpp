@@ -168,7 +168,7 @@ inline void gemv_i8(const std::int8_t* w, int rows, int cols, const std::int8_t*
 // The same products with the weights already sign-extended to int16 (a copy in RAM made once at
 // load by expand_i8_to_i16; weights.bin and flash keep int8): 4 products of a row are one LDRD and
 // two SMLAD, one LDRD of x (as plain int16 pairs) serves 4 rows: 26 instructions for 32 products
-// plus the loop's 2. ``cols`` must be a multiple of 8 (the caller checks; else gemv_i8).
+// plus the loop's 2. Rows are padded with zeros to a multiple of 8 columns.
 #define FWREF_M_ROWS4_W16_STEP(R, A)                                                                \
   "ldrd   %[t], %[u], [%[" R "]], #8\n\t"                                                          \
   "smlad  %[" A "], %[t], %[xa], %[" A "]\n\t"                                                      \
@@ -176,29 +176,40 @@ inline void gemv_i8(const std::int8_t* w, int rows, int cols, const std::int8_t*
 #define FWREF_M_ROWS4_W16_COLS4                                                                     \
   "ldrd   %[xa], %[xb], [%[xp]], #8\n\t" FWREF_M_ROWS4_W16_STEP("p0", "a0")                         \
   FWREF_M_ROWS4_W16_STEP("p1", "a1") FWREF_M_ROWS4_W16_STEP("p2", "a2") FWREF_M_ROWS4_W16_STEP("p3", "a3")
-inline void expand_i8_to_i16(const std::int8_t* q, long n, std::int16_t* out) {
-  for (long i = 0; i < n; ++i) out[i] = q[i];
+// Row stride of the int16 copies: cols rounded up to 8, the tail zero (x's copy is zero there too).
+constexpr int w16_stride(int cols) { return (cols + 7) & ~7; }
+// (rows, cols) int8 -> (rows, w16_stride(cols)) int16, the padding zero.
+inline void expand_i8_to_i16(const std::int8_t* q, int rows, int cols, std::int16_t* out) {
+  const int stride = w16_stride(cols);
+  for (int o = 0; o < rows; ++o) {
+    for (int i = 0; i < stride; ++i) out[o * stride + i] = i < cols ? q[o * cols + i] : 0;
+  }
 }
+// ``w``: the int16 copy (stride w16_stride(cols)).
 inline void gemv_i8w16(const std::int16_t* w, int rows, int cols, const std::int8_t* x, std::int32_t* acc) {
-  alignas(8) std::int16_t x16[kMaxGemvCols + 8];  // LDRD needs word alignment
+  const int stride = w16_stride(cols);
+  alignas(8) std::int16_t x16[w16_stride(kMaxGemvCols)];  // LDRD needs word alignment
   for (int i = 0; i < cols; ++i) x16[i] = x[i];
+  for (int i = cols; i < stride; ++i) x16[i] = 0;
+  cols = stride;
   int o = 0;
   for (; o + 4 <= rows; o += 4) {
     const std::int16_t* p0 = w + o * cols;
     const std::int16_t* p1 = p0 + cols;
     const std::int16_t* p2 = p1 + cols;
     const std::int16_t* p3 = p2 + cols;
-    const std::int16_t* const end = p0 + cols;
+    const std::int16_t* volatile end = p0 + cols;  // a stack slot (see the asm)
     const std::int16_t* xp = x16;
     std::int32_t a0 = 0, a1 = 0, a2 = 0, a3 = 0;
     std::uint32_t xa, xb, t, u;
     __asm__ volatile("1:\n\t" FWREF_M_ROWS4_W16_COLS4 FWREF_M_ROWS4_W16_COLS4
-                     "cmp    %[p0], %[end]\n\t"
+                     "ldr    %[t], %[end]\n\t"  // from memory: all 14 allocatable registers are in use
+                     "cmp    %[p0], %[t]\n\t"
                      "bne    1b\n\t"
                      : [a0] "+&r"(a0), [a1] "+&r"(a1), [a2] "+&r"(a2), [a3] "+&r"(a3), [p0] "+&r"(p0), [p1] "+&r"(p1),
                        [p2] "+&r"(p2), [p3] "+&r"(p3), [xp] "+&r"(xp), [xa] "=&r"(xa), [xb] "=&r"(xb), [t] "=&r"(t),
                        [u] "=&r"(u)
-                     : [end] "r"(end)
+                     : [end] "m"(end)
                      : "cc", "memory");
     acc[o] = a0, acc[o + 1] = a1, acc[o + 2] = a2, acc[o + 3] = a3;
   }
@@ -249,8 +260,8 @@ inline const char* gemv_i8_kernel_name() { return "portable"; }
 inline void gemv_i8_any(const std::int8_t* w, const std::int16_t* w16, int o0, int rows, int cols,
                         const std::int8_t* x, std::int32_t* acc) {
 #if defined(FWREF_HAS_W16_KERNEL)
-  if (w16 != nullptr && cols % 8 == 0) {
-    gemv_i8w16(w16 + o0 * cols, rows, cols, x, acc);
+  if (w16 != nullptr) {
+    gemv_i8w16(w16 + o0 * w16_stride(cols), rows, cols, x, acc);
     return;
   }
 #else

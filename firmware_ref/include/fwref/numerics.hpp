@@ -160,11 +160,11 @@ inline void linear_i8_tensor(const std::int8_t* w, const float* s_w, int rows, i
 
 // Pattern B (per-channel activation scales folded into the weight): y[o] = (f32(acc[o]) * s_w'[o]) + b[o].
 inline void linear_i8_folded(const std::int8_t* w, const float* s_w, int rows, int cols, const std::int8_t* x,
-                             const float* bias, float* y) {
+                             const float* bias, float* y, const std::int16_t* w16 = nullptr) {
   std::int32_t acc_i[kGemvRowBlock];
   for (int o0 = 0; o0 < rows; o0 += kGemvRowBlock) {
     const int o1 = rows - o0 < kGemvRowBlock ? rows : o0 + kGemvRowBlock;
-    gemv_i8(w + o0 * cols, o1 - o0, cols, x, acc_i);  // int32 accumulators (fwref/kernels_i8.hpp)
+    gemv_i8_any(w, w16, o0, o1 - o0, cols, x, acc_i);  // int32 accumulators (fwref/kernels_i8.hpp)
   for (int o = o0; o < o1; ++o) {
     const float acc = static_cast<float>(acc_i[o - o0]);
     y[o] = (acc * s_w[o]) + bias[o];
