@@ -61,6 +61,16 @@ void trace_x_norm(const float* x, const float* mean, const float* std_, int wind
   }
 }
 
+// q[i] = quantize(x[i], s) and q[i] = quantize(tanh(x[i]), s) through plain pointers: an int8 store
+// may alias anything, so loops over Eigen vectors would reload their data pointer and size per element.
+void quantize_all(const float* x, int n, float s, std::int8_t* q) {
+  for (int i = 0; i < n; ++i) q[i] = quantize(x[i], s);
+}
+
+void tanh_quantize_all(const float* x, int n, float s, std::int8_t* q) {
+  for (int i = 0; i < n; ++i) q[i] = quantize(tanh_approx(x[i]), s);
+}
+
 template <class Vec>
 void tanh_inplace(Vec& v) {
   for (Eigen::Index i = 0; i < v.size(); ++i) v[i] = tanh_approx(v[i]);
@@ -183,9 +193,9 @@ Status infer(const CnodeI8& m, const float* x, float* logits, CnodeWorkspace& ws
   ws.a.resize(H);
   auto field = [&](int e, const CnodeWorkspace::Lat& z, CnodeWorkspace::Lat& k) {
     const float s_z = m.s_stage[e];
-    for (int i = 0; i < L; ++i) ws.q_lat[i] = quantize(z[i], s_z);
+    quantize_all(z.data(), L, s_z, ws.q_lat);
     linear_i8_tensor(m.lin1_z.q, m.lin1_z.scale, H, L, ws.q_lat, s_z, ws.v + m.stage_index[e] * H, ws.a.data());
-    for (int j = 0; j < H; ++j) ws.q_hid[j] = quantize(tanh_approx(ws.a[j]), m.s_hidden);
+    tanh_quantize_all(ws.a.data(), H, m.s_hidden, ws.q_hid);
     k.resize(L);
     linear_i8_tensor(m.lin2_w.q, m.lin2_w.scale, L, H, ws.q_hid, m.s_hidden, m.lin2_b, k.data());
   };
@@ -193,7 +203,7 @@ Status infer(const CnodeI8& m, const float* x, float* logits, CnodeWorkspace& ws
                         tr != nullptr ? tr->stages : nullptr);
   if (tr != nullptr) copy_out(ws.z, tr->z1);
 
-  for (int i = 0; i < L; ++i) ws.q_lat[i] = quantize(ws.z[i], m.s_z1);
+  quantize_all(ws.z.data(), L, m.s_z1, ws.q_lat);
   linear_i8_tensor(m.head_w.q, m.head_w.scale, K, L, ws.q_lat, m.s_z1, m.head_b, logits);
   return all_finite(logits, K) ? Status::kOk : Status::kNonFiniteOutput;
 }
