@@ -38,14 +38,16 @@ def bench_json_path(run: RunDir) -> Path:
 
 
 def _machine(cpus: str) -> dict:
+    """The machine this bench measured (core.machine: CPU model and vector ISA read at run time)."""
+    import datetime
+
     import numpy
     import onnxruntime
     import torch
 
-    cpuinfo = Path("/proc/cpuinfo")  # Linux; elsewhere platform.processor() names the CPU
-    lines = cpuinfo.read_text().splitlines() if cpuinfo.is_file() else []
-    model = next((ln.split(":", 1)[1].strip() for ln in lines if ln.startswith("model name")), "")
-    return {"cpu": model or platform.processor(), "logical_cpus": os.cpu_count(), "pinned_cpus": cpus,
+    from core.machine import cpu_facts
+
+    return {**cpu_facts(), "pinned_cpus": cpus, "date": datetime.date.today().isoformat(),
             "python": platform.python_version(), "torch": torch.__version__, "onnxruntime": onnxruntime.__version__,
             "numpy": numpy.__version__, "load_average_start": list(os.getloadavg())}
 

@@ -54,9 +54,12 @@ def machine_sentence(bench: dict) -> str:
     m = bench.get("machine", {})
     facts = {"cpu": m.get("cpu", "unknown CPU"), "isa": m.get("isa", []), "logical_cpus": m.get("logical_cpus")}
     when = m.get("date") or dt.date.today().isoformat()
+    load = m.get("load_average_start")
+    busy = (f"; load average {load[0]:.1f} when the bench started (above 0.5 the machine was shared: timings "
+            "are noisy, compare within a table)") if load else ""
     return (f"Measured on {facts['cpu']} ({isa_summary(facts)}, {facts['logical_cpus']} logical CPUs, pinned to "
             f"{m.get('pinned_cpus', '?')}), {when}; onnxruntime {m.get('onnxruntime', '?')}, torch "
-            f"{m.get('torch', '?')}. Another CPU gives other numbers: compare within a table.")
+            f"{m.get('torch', '?')}{busy}. Another CPU gives other numbers.")
 
 
 def precision_table(manifest: dict, parity: dict) -> list[str]:
