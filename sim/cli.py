@@ -10,6 +10,7 @@ from pathlib import Path
 from core.cliargs import add_config_args
 from core.config import Config, load_config
 from core.errors import QuadfdiError
+from core.executor import SERIAL, ExecSettings, add_executor_args
 from core.rundir import RunDir, create_run, open_run
 
 
@@ -18,6 +19,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                        description="Simulate the paper's dataset into <out>/dataset.npz.")
     add_config_args(p)
     p.add_argument("--out", default=None, help="run folder to write (e.g. runs/paper)")
+    add_executor_args(p)
     p.set_defaults(func=run_generate)
     acts = p.add_subparsers(dest="action", metavar="{plot,bench}")
     pp = acts.add_parser("plot", help="draw one trajectory of a run's dataset")
@@ -32,25 +34,22 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     pb.set_defaults(func=run_bench)
 
 
-def generate_into(run: RunDir, cfg: Config, show_progress: bool = True) -> Path:
-    """Simulate ``cfg.sim`` and write ``run.dataset`` (atomically); return its path."""
-    from tqdm import tqdm
+def generate_into(run: RunDir, cfg: Config, show_progress: bool = True, settings: ExecSettings = SERIAL) -> Path:
+    """Simulate ``cfg.sim`` in shards of ``sim.chunk`` trajectories on ``settings``' executor and write
+    ``run.dataset`` (atomically); finished shards stay cached in ``<run>/cache/sim/``, so an
+    interrupted run resumes. Return the dataset's path."""
+    from sim.shards import generate_sharded
 
-    from sim.dataset import dataset_arrays, write_npz
-    from sim.simulate import generate
-
-    with tqdm(total=cfg.sim.n_traj, unit="traj", desc="sim", disable=not show_progress) as bar:
-        arrays = generate(cfg.sim, progress=bar.update)
-    write_npz(run.dataset, dataset_arrays(arrays, cfg))
-    return run.dataset
+    return generate_sharded(run, cfg, settings, progress=show_progress)
 
 
 def run_generate(args: argparse.Namespace) -> int:
     if args.out is None:
         raise QuadfdiError("quadfdi sim needs --out <run folder>")
+    settings = ExecSettings.from_args(args)
     cfg = load_config(args.config, args.overrides)
     run = create_run(args.out, cfg)
-    path = generate_into(run, cfg)
+    path = generate_into(run, cfg, settings=settings)
     print(f"wrote {path}")
     return 0
 

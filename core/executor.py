@@ -1,0 +1,239 @@
+"""One executor for every sweep: jobs keyed by content, cached in the run folder, run here or on Dask.
+
+A stage turns its work into ``Job``s (a module-level function, its arguments, the cache file named
+by ``core.jobcache.job_key``) and calls ``run_jobs(jobs, settings)``. Jobs whose result file is
+already there are not run again (resume); the others run
+
+- in this process, one after the other, when there is one worker (``--workers 1``) or one job: no
+  Dask import, no cluster start, the same files;
+- on Dask otherwise (``core.executor_dask``): a LocalCluster of one single-threaded worker process
+  per core (``--scheduler local``), or an existing cluster (``--scheduler tcp://HOST:8786``).
+
+A job is attempted ``ATTEMPTS`` times; one that still fails becomes a failed ``JobResult`` with a
+one-line error instead of stopping the others. The scheduler and the number of workers are
+execution settings: command-line flags, never part of a config, a key or a result file.
+
+Every worker computes ``canary()``, a fixed small numpy (and torch) computation hashed to 12 hex
+digits. Results are promised byte-identical for one numpy/torch build and CPU instruction set; a
+cluster whose workers disagree on the canary is refused with each worker named.
+"""
+
+from __future__ import annotations
+
+import argparse
+import functools
+import hashlib
+import os
+import platform
+import socket
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from core.errors import QuadfdiError
+from core.jobcache import is_cached, remove_partial, write_result
+
+ATTEMPTS = 3  # a job failing this many times becomes a failed row
+
+
+def add_executor_args(p: argparse.ArgumentParser) -> None:
+    """``--scheduler`` and ``--workers``: where the jobs of a sweep run (never part of a result)."""
+    p.add_argument("--scheduler", default="local", metavar="local|tcp://HOST:8786",
+                   help="'local': a cluster of single-threaded worker processes on this machine (default); "
+                        "tcp://HOST:PORT: an existing Dask cluster (see docs/distributed.md)")
+    p.add_argument("--workers", type=int, default=None, metavar="N",
+                   help="worker processes of the local cluster (default: one per core; 1 runs the jobs in "
+                        "this process without Dask)")
+
+
+@dataclass(frozen=True)
+class ExecSettings:
+    scheduler: str = "local"
+    workers: int | None = None  # local only; None: one per core
+
+    @classmethod
+    def from_args(cls, args: argparse.Namespace) -> "ExecSettings":
+        s = cls(getattr(args, "scheduler", "local"), getattr(args, "workers", None))
+        s.validate()
+        return s
+
+    def validate(self) -> None:
+        if self.scheduler != "local" and not self.scheduler.startswith(("tcp://", "tls://")):
+            raise QuadfdiError(f"--scheduler must be 'local' or tcp://HOST:PORT (or tls://), not {self.scheduler!r}")
+        if self.workers is not None and self.workers < 1:
+            raise QuadfdiError(f"--workers must be at least 1, found {self.workers}")
+        if self.workers is not None and self.scheduler != "local":
+            raise QuadfdiError("--workers sets the size of the local cluster; an existing cluster has its own")
+
+    @property
+    def n_local(self) -> int:
+        return self.workers or len(os.sched_getaffinity(0))
+
+    def in_process(self, n_jobs: int) -> bool:
+        """Run here without Dask: a single local worker, or a single job on the local cluster."""
+        return self.scheduler == "local" and (self.n_local == 1 or n_jobs <= 1)
+
+
+SERIAL = ExecSettings(workers=1)
+
+
+@dataclass(frozen=True)
+class Job:
+    """One unit of a sweep. ``fn(*args)`` returns a dict of arrays (out: .npz) or a JSON-able value
+    (out: .json); ``fn`` must be a module-level function so that workers import it by name."""
+
+    kind: str
+    key: str
+    fn: Callable[..., Any]
+    args: tuple
+    out: Path
+    label: str = ""
+    torch: bool = False  # the job imports torch: the canary checks torch too
+
+
+@dataclass
+class JobResult:
+    job: Job
+    status: str  # 'ran' | 'cached' | 'failed'
+    error: str | None = None
+    seconds: float = 0.0  # timing: never part of a result file
+    worker: str = ""
+    info: dict = field(default_factory=dict)
+
+    @property
+    def ok(self) -> bool:
+        return self.status != "failed"
+
+
+def one_line(exc: BaseException) -> str:
+    text = str(exc).strip().splitlines()
+    msg = text[0] if text else ""
+    return msg if isinstance(exc, QuadfdiError) else f"{type(exc).__name__}: {msg}".rstrip(": ")
+
+
+@functools.lru_cache(maxsize=2)
+def canary(with_torch: bool = False) -> dict[str, Any]:
+    """A fixed small computation's hash and the build that made it. Two processes with the same hash
+    computed the same BLAS products and transcendental functions to the last bit."""
+    import numpy as np
+
+    rng = np.random.default_rng(20261201)
+    a = rng.standard_normal((48, 48))
+    m = a @ a.T + 48.0 * np.eye(48)
+    parts = [np.linalg.solve(m, rng.standard_normal(48)), np.exp(np.sin(a)).sum(axis=0), np.tanh(a @ a).ravel(),
+             np.log1p(np.abs(a)).cumsum()]
+    info: dict[str, Any] = {"numpy": np.__version__, "torch": None}
+    if with_torch:
+        import torch
+
+        g = torch.Generator().manual_seed(7)
+        w = torch.randn(32, 32, generator=g, dtype=torch.float32)
+        parts.append((torch.tanh(w @ w) @ torch.sigmoid(w)).numpy().astype(np.float64))
+        info["torch"] = torch.__version__
+    h = hashlib.sha256(b"".join(p.tobytes() for p in parts)).hexdigest()[:12]
+    return {"canary": h, **info, "python": platform.python_version(), "machine": platform.machine(),
+            "cpu": _cpu_model(), "host": socket.gethostname()}
+
+
+def _cpu_model() -> str:
+    try:
+        with open("/proc/cpuinfo") as fh:
+            for line in fh:
+                if line.startswith("model name"):
+                    return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or "unknown"
+
+
+def describe(name: str, info: dict) -> str:
+    torch = f", torch {info['torch']}" if info.get("torch") else ""
+    return f"{name} canary {info['canary']} (numpy {info['numpy']}{torch}, {info['machine']} {info['cpu']})"
+
+
+def check_canaries(infos: dict[str, dict]) -> str:
+    """The one canary every worker shares, or a one-line error naming who differs from whom."""
+    groups: dict[str, list[str]] = {}
+    for name, info in sorted(infos.items()):
+        groups.setdefault(info["canary"], []).append(name)
+    if len(groups) <= 1:
+        return next(iter(groups), "")
+    parts = [describe(f"{len(names)} worker(s) {', '.join(names)}:", infos[names[0]]) for names in groups.values()]
+    raise QuadfdiError("mixed cluster: the workers compute different bits, results would not be reproducible; "
+                       "install one numpy/torch build on one CPU type per cluster. " + "; ".join(parts))
+
+
+def execute_job(fn: Callable[..., Any], args: tuple, out: str, with_torch: bool = False) -> dict:
+    """Run one job where it lands (a worker, or this process) and write its result file atomically.
+
+    A result already there (another attempt of the same job finished first) is not recomputed; a
+    job that does run writes the same bytes under the same name, so a duplicate is harmless."""
+    t0 = time.perf_counter()
+    if not is_cached(out):
+        write_result(out, fn(*args))
+    return {"seconds": time.perf_counter() - t0, "canary": canary(with_torch)["canary"],
+            "worker": f"{socket.gethostname()}:{os.getpid()}"}
+
+
+def _run_here(todo: Sequence[Job], done: Callable[[JobResult], None]) -> None:
+    for job in todo:
+        err: BaseException | None = None
+        for _ in range(ATTEMPTS):  # as Dask's retries: every error is tried again
+            try:
+                rec = execute_job(job.fn, job.args, str(job.out), job.torch)
+            except Exception as exc:  # noqa: BLE001 - any job error becomes a failed row
+                err = exc
+                continue
+            done(JobResult(job, "ran", seconds=rec["seconds"], worker=rec["worker"]))
+            break
+        else:
+            done(JobResult(job, "failed", error=one_line(err) if err else "failed"))
+
+
+def run_jobs(jobs: Sequence[Job], settings: ExecSettings = SERIAL, desc: str = "jobs", progress: bool = True,
+             log: Callable[[str], None] = print) -> list[JobResult]:
+    """Run every job not yet cached; one ``JobResult`` per job, in the order of ``jobs``.
+
+    Failed jobs are rows with ``status == 'failed'`` (the caller decides what a failure means);
+    nothing is raised for them. Temp files of writers killed mid-write are removed at the end."""
+    from tqdm import tqdm
+
+    settings.validate()
+    results: dict[int, JobResult] = {}
+    todo: list[Job] = []
+    first: dict[Path, int] = {}  # a grid may name one job twice: run it once
+    for i, job in enumerate(jobs):
+        if is_cached(job.out):
+            results[i] = JobResult(job, "cached")
+        elif job.out not in first:
+            todo.append(job)
+        first.setdefault(job.out, i)
+    index = {id(j): first[j.out] for j in todo}
+    n_failed = 0
+    with tqdm(total=len(results) + len(todo), initial=len(results), desc=desc, unit="job", disable=not progress) as bar:
+        def done(r: JobResult) -> None:
+            nonlocal n_failed
+            results[index[id(r.job)]] = r
+            n_failed += not r.ok
+            bar.set_postfix(failed=n_failed, refresh=False)
+            bar.update(1)
+
+        if todo and settings.in_process(len(todo)):
+            _run_here(todo, done)
+        elif todo:
+            from core.executor_dask import run_on_dask
+
+            run_on_dask(todo, settings, done, log)
+    for folder in {j.out.parent for j in jobs}:
+        remove_partial(folder)
+    return [results.get(i) or _same(results[first[j.out]], j) for i, j in enumerate(jobs)]
+
+
+def _same(r: JobResult, job: Job) -> JobResult:
+    return JobResult(job, r.status, r.error, r.seconds, r.worker, dict(r.info))
+
+
+def failures(results: Sequence[JobResult]) -> list[JobResult]:
+    return [r for r in results if not r.ok]
