@@ -48,14 +48,18 @@ def _has_bokeh() -> bool:
     return True
 
 
+def start_local_cluster(n_workers: int) -> LocalCluster:
+    """``n_workers`` worker processes of one thread each on this machine (dashboard on a free port)."""
+    return LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True, dashboard_address=":0",
+                        silence_logs=logging.ERROR, env=_worker_env())
+
+
 @contextlib.contextmanager
 def open_client(settings: ExecSettings, log: Callable[[str], None]) -> Iterator[Client]:
     """A client on a new LocalCluster or on the scheduler named by ``--scheduler``; closed on exit."""
     cluster = None
     if settings.scheduler == "local":
-        cluster = LocalCluster(n_workers=settings.n_local, threads_per_worker=1, processes=True,
-                               dashboard_address=":0", silence_logs=logging.ERROR,
-                               env=_worker_env())
+        cluster = start_local_cluster(settings.n_local)
         client = Client(cluster)
     else:
         try:
@@ -82,7 +86,12 @@ def open_client(settings: ExecSettings, log: Callable[[str], None]) -> Iterator[
 
 def cluster_canary(client: Client, with_torch: bool, log: Callable[[str], None]) -> str:
     """The workers' common canary (error if they differ); a note when this machine differs."""
-    ref = check_canaries(client.run(canary, with_torch))
+    # A worker that is restarting (killed, then its nanny starts a new one) does not answer; its
+    # results carry its canary and are checked as they come.
+    infos = {w: i for w, i in client.run(canary, with_torch, on_error="return").items() if isinstance(i, dict)}
+    if not infos:
+        raise QuadfdiError("no Dask worker answered the canary check: is the cluster up?")
+    ref = check_canaries(infos)
     mine = canary(with_torch)
     if mine["canary"] != ref:
         log("note: " + describe("this machine's", mine) + f" differs from the cluster's {ref}: "
