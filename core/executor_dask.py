@@ -14,7 +14,7 @@ from distributed import Client, LocalCluster, as_completed
 from distributed.diagnostics.plugin import WorkerPlugin
 
 from core.errors import QuadfdiError
-from core.executor import ATTEMPTS, ExecSettings, Job, JobResult, canary, check_canaries, describe, execute_job, one_line
+from core.jobs import ATTEMPTS, Job, JobResult, canary, check_canaries, describe, execute_job, one_line
 from core.jobcache import ROOT
 
 # One job per worker process, one core per job: BLAS/OpenMP pools of one thread each, or two
@@ -55,7 +55,7 @@ def start_local_cluster(n_workers: int) -> LocalCluster:
 
 
 @contextlib.contextmanager
-def open_client(settings: ExecSettings, log: Callable[[str], None]) -> Iterator[Client]:
+def open_client(settings: "ExecSettings", log: Callable[[str], None]) -> Iterator[Client]:
     """A client on a new LocalCluster or on the scheduler named by ``--scheduler``; closed on exit."""
     cluster = None
     if settings.scheduler == "local":
@@ -99,7 +99,7 @@ def cluster_canary(client: Client, with_torch: bool, log: Callable[[str], None])
     return ref
 
 
-def run_on_dask(todo: Sequence[Job], settings: ExecSettings, done: Callable[[JobResult], None],
+def run_on_dask(todo: Sequence[Job], settings: "ExecSettings", done: Callable[[JobResult], None],
                 log: Callable[[str], None]) -> None:
     """Submit every job (``ATTEMPTS`` tries each; a killed worker's jobs go to another) and report
     each as it completes. A result from a worker whose canary differs is deleted and failed."""
