@@ -21,8 +21,9 @@ cluster whose workers disagree on the canary is refused with each worker named.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -128,6 +129,20 @@ def run_jobs(jobs: Sequence[Job], settings: ExecSettings = SERIAL, desc: str = "
 
 def _same(r: JobResult, job: Job) -> JobResult:
     return JobResult(job, r.status, r.error, r.seconds, r.worker, dict(r.info))
+
+
+@contextlib.contextmanager
+def session(settings: ExecSettings, log: Callable[[str], None] = print) -> Iterator[None]:
+    """Keep one Dask client (and local cluster) open across the ``run_jobs`` calls inside, so a
+    sweep of several steps starts its cluster once. Opens nothing when the jobs run in-process."""
+    settings.validate()
+    if settings.scheduler == "local" and settings.n_local == 1:
+        yield
+        return
+    from core.executor_dask import held_client
+
+    with held_client(settings, log):
+        yield
 
 
 def failures(results: Sequence[JobResult]) -> list[JobResult]:

@@ -99,12 +99,35 @@ def cluster_canary(client: Client, with_torch: bool, log: Callable[[str], None])
     return ref
 
 
+_HELD: list[Client] = []  # the client of an open ``core.executor.session``, if any
+
+
+@contextlib.contextmanager
+def held_client(settings: "ExecSettings", log: Callable[[str], None]) -> Iterator[Client]:
+    """One client for several sweeps (``core.executor.session``): the cluster starts once."""
+    with open_client(settings, log) as client:
+        _HELD.append(client)
+        try:
+            yield client
+        finally:
+            _HELD.remove(client)
+
+
+@contextlib.contextmanager
+def _client(settings: "ExecSettings", log: Callable[[str], None]) -> Iterator[Client]:
+    if _HELD:
+        yield _HELD[-1]
+    else:
+        with open_client(settings, log) as client:
+            yield client
+
+
 def run_on_dask(todo: Sequence[Job], settings: "ExecSettings", done: Callable[[JobResult], None],
                 log: Callable[[str], None]) -> None:
     """Submit every job (``ATTEMPTS`` tries each; a killed worker's jobs go to another) and report
     each as it completes. A result from a worker whose canary differs is deleted and failed."""
     with_torch = any(j.torch for j in todo)
-    with open_client(settings, log) as client:
+    with _client(settings, log) as client:
         ref = cluster_canary(client, with_torch, log)
         futures = [client.submit(execute_job, j.fn, j.args, str(j.out), with_torch, key=f"{j.kind}-{j.key}",
                                  retries=ATTEMPTS - 1, pure=False) for j in todo]

@@ -6,7 +6,8 @@ hash of the source files of the packages the job runs, so an uncommitted edit to
 the key of a simulation job while an edit to ``train/`` does not. Execution settings (scheduler,
 number of workers) are never part of a key: the same job gives the same bytes on any executor.
 
-Results live in ``<run>/cache/<kind>/<key>.npz`` (arrays) or ``<key>.json`` (metrics), written
+Results live in ``<run>/cache/<kind>/<key>.npz`` (arrays), ``<key>.json`` (metrics) or ``<key>.bin``
+(opaque bytes, e.g. a saved model), written
 atomically, so a job that ran twice (a worker presumed dead, then a retry) writes the same bytes
 twice under the same name and a reader never sees half a file.
 """
@@ -100,8 +101,8 @@ def _jsonable(o: Any) -> Any:
 
 def cache_path(run_root: str | os.PathLike, kind: str, key: str, ext: str) -> Path:
     """Where job ``key`` of ``kind`` keeps its result (``ext``: 'npz' for arrays, 'json' for metrics)."""
-    if ext not in ("npz", "json"):
-        raise ValueError(f"cache_path: ext must be 'npz' or 'json', not {ext!r}")
+    if ext not in ("npz", "json", "bin"):
+        raise ValueError(f"cache_path: ext must be 'npz', 'json' or 'bin', not {ext!r}")
     return Path(run_root) / CACHE_DIR / kind / f"{key}.{ext}"
 
 
@@ -116,8 +117,14 @@ def write_result(path: str | os.PathLike, value: Any) -> None:
     from core.jsonio import write_json
     from core.npzio import write_npz
 
+    from core.atomic import write_bytes
+
     p = Path(path)
-    if p.suffix == ".npz":
+    if p.suffix == ".bin":  # opaque bytes, e.g. a torch.save of a trained model
+        if not isinstance(value, bytes):
+            raise TypeError(f"a job cached as .bin must return bytes, not {type(value).__name__}")
+        write_bytes(p, value)
+    elif p.suffix == ".npz":
         if not isinstance(value, dict):
             raise TypeError(f"a job cached as .npz must return a dict of arrays, not {type(value).__name__}")
         write_npz(p, value)
@@ -130,6 +137,8 @@ def read_result(path: str | os.PathLike) -> Any:
     from core.npzio import read_npz
 
     p = Path(path)
+    if p.suffix == ".bin":
+        return p.read_bytes()
     return read_npz(p, "cached job result") if p.suffix == ".npz" else read_json(p, "cached job result")
 
 
