@@ -42,6 +42,19 @@ def add_executor_args(p: argparse.ArgumentParser) -> None:
                         "this process without Dask)")
 
 
+def strip_executor_args(argv: list[str]) -> list[str]:
+    """``argv`` without ``--scheduler``/``--workers``: a command line fit to be written into a result."""
+    out, skip = [], False
+    for a in argv:
+        if skip:
+            skip = False
+        elif a in ("--scheduler", "--workers"):
+            skip = True
+        elif not a.startswith(("--scheduler=", "--workers=")):
+            out.append(a)
+    return out
+
+
 @dataclass(frozen=True)
 class ExecSettings:
     scheduler: str = "local"

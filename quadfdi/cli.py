@@ -21,6 +21,7 @@ STAGES = {
     "parity": "parity.cli",
     "bench": "bench.cli",
     "run": "quadfdi.pipeline",
+    "sweep": "quadfdi.sweep",
 }
 
 

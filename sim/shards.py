@@ -42,13 +42,16 @@ def simulate_shard(cfg: SimConfig, start: int, stop: int) -> dict[str, np.ndarra
     return generate(cfg, indices=range(start, stop))
 
 
-def shard_jobs(run: RunDir, cfg: Config) -> list[Job]:
+def shard_jobs(run: RunDir, cfg: Config, cache_root: Path | None = None) -> list[Job]:
+    """One job per shard; results under ``cache_root`` (default: the run folder). A shard's key
+    depends on the [sim] section only, so runs that share a cache share their shards."""
     sim = cfg.sim
+    root = run.root if cache_root is None else Path(cache_root)
     conf = dataclasses.asdict(sim)
     jobs = []
     for start, stop in shard_ranges(sim.n_traj, sim.chunk):
         key = job_key(KIND, conf, {"start": start, "stop": stop}, packages=("sim",))
-        jobs.append(Job(KIND, key, simulate_shard, (sim, start, stop), cache_path(run.root, KIND, key, "npz"),
+        jobs.append(Job(KIND, key, simulate_shard, (sim, start, stop), cache_path(root, KIND, key, "npz"),
                         label=f"trajectories {start}-{stop - 1}"))
     return jobs
 
@@ -61,12 +64,14 @@ def join_shards(paths: list[Path]) -> dict[str, np.ndarray]:
     return out
 
 
-def generate_sharded(run: RunDir, cfg: Config, settings: ExecSettings = SERIAL, progress: bool = True) -> Path:
-    """Simulate ``cfg.sim`` shard by shard on ``settings``' executor; write ``run.dataset``."""
+def generate_sharded(run: RunDir, cfg: Config, settings: ExecSettings = SERIAL, progress: bool = True,
+                     cache_root: Path | None = None) -> Path:
+    """Simulate ``cfg.sim`` shard by shard on ``settings``' executor; write ``run.dataset``.
+    ``cache_root``: where the shards are kept (default: the run folder)."""
     from sim.dataset import dataset_arrays, write_npz
 
     cfg.sim.validate()
-    jobs = shard_jobs(run, cfg)
+    jobs = shard_jobs(run, cfg, cache_root)
     results = run_jobs(jobs, settings, desc="sim shards", progress=progress)
     bad = failures(results)
     if bad:

@@ -185,3 +185,57 @@ def test_cluster_started_with_the_dask_command(serial_bytes, tmp_path):
             p.terminate()
         for p in procs:
             p.wait(timeout=60)
+
+
+# A study that trains in seconds: 2 seeds x 2 models, one epoch of small models.
+STUDY = ["train.epochs=1", "train.batch_size=48", "train.latent=8", "train.hidden=16", "train.gru_hidden=16"]
+
+
+def _copy_run(src: Path, dst: Path) -> Path:
+    dst.mkdir(parents=True)
+    for name in ("config.toml", "dataset.npz"):
+        shutil.copy(src / name, dst / name)
+    return dst
+
+
+def test_study_metrics_serial_equal_distributed(cluster, small_run, tmp_path):
+    import json
+
+    from core.executor import SERIAL
+    from core.rundir import open_run
+    from train.study import run_study
+
+    out = {}
+    for name, settings in (("serial", SERIAL), ("dask", ExecSettings(cluster[0]))):
+        run, cfg = open_run(_copy_run(small_run, tmp_path / name), STUDY)
+        run_study(run, cfg, [0, 1], "quadfdi train study", log=lambda _: None, settings=settings)
+        seeds = json.loads((run.root / "seeds.json").read_text())
+        seeds.pop("seconds_per_seed")  # timing: not part of the comparison
+        out[name] = (seeds, (run.root / "results.md").read_text())
+        assert len(list((run.root / "cache" / "study").glob("*.json"))) == 4
+    assert out["serial"] == out["dask"]
+    assert "failed" not in out["serial"][0] and len(out["serial"][0]["cnode"]["macro_f1"]) == 2
+
+
+def test_sweep_writes_its_table_and_figure_and_resumes(cluster, tmp_path):
+    import json
+
+    out = tmp_path / "sweep"
+    args = ["sweep", "--config", str(ROOT / "configs/paper.toml"), *CLI_TINY, "--set", "sim.n_traj=16",
+            *[a for kv in STUDY for a in ("--set", kv)], "--grid", "train.latent=4,8", "--grid", "train.seed=0,1",
+            "--stages", "sim,train", "--metrics", "train.cnode.macro_f1,train.gru.accuracy", "--out", str(out),
+            "--scheduler", cluster[0]]
+    res = quadfdi(*args)
+    assert res.returncode == 0, res.stderr
+    table = json.loads((out / "sweep.json").read_text())
+    assert [r["values"] for r in table["rows"]] == [{"train.latent": a, "train.seed": b}
+                                                     for a in ("4", "8") for b in ("0", "1")]
+    assert all(r["status"] == "done" and r["metrics"]["train.cnode.macro_f1"] is not None for r in table["rows"])
+    assert (out / "figures" / "sweep.png").stat().st_size > 1000
+    assert "| train.latent | train.seed | train.cnode.macro_f1 |" in (out / "sweep.md").read_text()
+    assert len(list((out / "cache" / "sim").glob("*.npz"))) == 8  # one simulation shared by the 4 points
+    stamps = {p: p.stat().st_mtime_ns for p in (out / "cache").rglob("*.json")}
+    res = quadfdi(*args)  # everything cached: nothing runs again, the same table
+    assert res.returncode == 0, res.stderr
+    assert {p: p.stat().st_mtime_ns for p in (out / "cache").rglob("*.json")} == stamps
+    assert json.loads((out / "sweep.json").read_text()) == table

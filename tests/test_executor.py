@@ -124,3 +124,10 @@ def test_sim_shard_keys_follow_the_sim_section_only(tmp_path):
     assert keys == [j.key for j in shard_jobs(RunDir(tmp_path), other_train)]
     other_seed = load_config(ROOT / "configs/paper.toml", ["sim.n_traj=10", "sim.chunk=4", "sim.seed=1"])
     assert not set(keys) & {j.key for j in shard_jobs(RunDir(tmp_path), other_seed)}
+
+
+def test_executor_flags_never_reach_a_result_command_line():
+    from core.executor import strip_executor_args
+
+    argv = ["train", "study", "--run", "r", "--workers", "2", "--scheduler=tcp://h:1", "--seeds", "0,1"]
+    assert strip_executor_args(argv) == ["train", "study", "--run", "r", "--seeds", "0,1"]

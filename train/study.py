@@ -5,17 +5,15 @@ from __future__ import annotations
 
 import json
 import re
-import time
 from pathlib import Path
 from typing import Callable
 
 import numpy as np
 
 from core.atomic import write_text
-from core.config import Config, replace_section
+from core.config import Config
 from core.contracts import CLASS_NAMES
 from core.rundir import RunDir
-from sim.dataset import load_dataset
 from core.jsonio import to_jsonable, write_json
 from train.metrics import summarize_seeds
 
@@ -77,21 +75,39 @@ def update_readme(readme: Path, table: str) -> bool:
     return True
 
 
-def run_study(run: RunDir, cfg: Config, seeds: list[int], command: str, log: Callable[[str], None] = print) -> dict:
-    from train.run import train_all
+def run_study(run: RunDir, cfg: Config, seeds: list[int], command: str, log: Callable[[str], None] = print,
+              settings=None) -> dict:
+    """One job per seed x model on ``settings``' executor (``core.executor``; default: this process),
+    cached in ``<run>/cache/study/``; a job that failed 3 times is listed under ``failed`` and left
+    out of its model's summary."""
+    from core.executor import SERIAL, run_jobs
+    from core.jobcache import read_result
+    from train.study_jobs import MODELS, seed_model_jobs
 
-    ds = load_dataset(run.dataset)
-    per_seed, timings = [], []
-    for seed in seeds:
-        t0 = time.perf_counter()
-        result = train_all(ds, replace_section(cfg, "train", seed=seed), ["cnode", "gru"], log)
-        per_seed.append(result["metrics"])
-        timings.append(time.perf_counter() - t0)
-        log(f"seed {seed}: done in {timings[-1]:.0f} s")
-    by_model = {model: summarize_seeds([m[model] for m in per_seed]) for model in per_seed[0]}
+    jobs = seed_model_jobs(run, cfg, seeds)
+    results = run_jobs(jobs, settings or SERIAL, desc="study", log=log)
+    per_seed: dict[int, dict] = {s: {} for s in seeds}
+    seconds = {s: 0.0 for s in seeds}
+    failed = []
+    for r in results:
+        seed, kind = r.job.args[1].train.seed, r.job.args[2]
+        seconds[seed] += r.seconds
+        if not r.ok:
+            failed.append({"seed": seed, "model": kind, "error": r.error})
+            continue
+        got = read_result(r.job.out)
+        per_seed[seed][kind] = got[kind]
+        per_seed[seed].setdefault("baseline", got["baseline"])  # the same fit in every job of a seed
+    by_model = {}
+    for model in (*MODELS, "baseline"):
+        ok = [per_seed[s][model] for s in seeds if model in per_seed[s]]
+        if ok:
+            by_model[model] = summarize_seeds(ok)
     seeds_json = to_jsonable(by_model)
     seeds_json["seeds"] = list(seeds)
-    seeds_json["seconds_per_seed"] = timings
+    seeds_json["seconds_per_seed"] = [seconds[s] for s in seeds]  # job time; 0 for cached jobs
+    if failed:
+        seeds_json["failed"] = failed
     write_json(run.root / "seeds.json", seeds_json, indent=2)
     table = results_table(by_model, seeds, command)
     write_text(run.root / "results.md", table)
