@@ -129,14 +129,16 @@ def run_jobs(jobs: Sequence[Job], settings: ExecSettings = SERIAL, desc: str = "
             bar.set_postfix(failed=n_failed, refresh=False)
             bar.update(1)
 
-        if todo and settings.in_process(len(todo)):
-            _run_here(todo, done)
-        elif todo:
-            from core.executor_dask import run_on_dask
+        try:
+            if todo and settings.in_process(len(todo)):
+                _run_here(todo, done)
+            elif todo:
+                from core.executor_dask import run_on_dask
 
-            run_on_dask(todo, settings, done, log)
-    for folder in {j.out.parent for j in jobs}:
-        remove_partial(folder)
+                run_on_dask(todo, settings, done, log)
+        finally:  # also when interrupted: the local workers are gone, their temp files go too
+            for folder in {j.out.parent for j in jobs}:
+                remove_partial(folder)
     return [results.get(i) or _same(results[first[j.out]], j) for i, j in enumerate(jobs)]
 
 
