@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import pickle
 import shutil
 import subprocess
 import sys
@@ -112,11 +113,12 @@ def _timed(jobs: list[Job], settings: ExecSettings) -> tuple[float, list[float]]
     return wall, [r.seconds for r in res]
 
 
-def by_hand(args: argparse.Namespace, name: str, root: Path, parts: list[list[int]]) -> float:
-    """Two independent processes, started together, each running its share in-process."""
-    cmd = [sys.executable, "-m", "quadfdi.cli", "sweep", "bench", "--config", args.config,
-           *[a for o in args.overrides for a in ("--set", o)], "--workloads", name, "--n-traj", str(args.n_traj),
-           "--cache", str(root)]
+def by_hand(jobs: list[Job], root: Path, parts: list[list[int]]) -> float:
+    """Two independent processes, started together, each running its share in-process. They get
+    the jobs pickled, not rebuilt: a key rebuilt after an edit or a commit would name other files."""
+    with open(root / "jobs.pkl", "wb") as fh:
+        pickle.dump(jobs, fh)
+    cmd = [sys.executable, "-m", "quadfdi.cli", "sweep", "bench", "--cache", str(root / "jobs.pkl")]
     env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]),
                OMP_NUM_THREADS="1", MKL_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")
     t0 = time.perf_counter()
@@ -136,7 +138,7 @@ def measure(args: argparse.Namespace, name: str, cfg: Config, out: Path, client_
     jobs = {k: workload_jobs(name, cfg, r, args.n_traj) for k, r in roots.items()}
     t1, secs = _timed(jobs["serial"], SERIAL)
     parts = balance(secs)
-    t_hand = by_hand(args, name, roots["hand"], parts)
+    t_hand = by_hand(jobs["hand"], roots["hand"], parts)
     t2, secs2 = _timed(jobs["dask"], ExecSettings(client_address))
     return {"jobs": len(secs), "serial_s": t1, "hand_2proc_s": t_hand, "dask_2workers_s": t2,
             "job_seconds_serial": sum(secs), "job_seconds_dask": sum(secs2),
@@ -155,12 +157,13 @@ def scheduler_cost(out: Path, n: int, client_address: str) -> dict:
 def run_bench_cmd(args: argparse.Namespace) -> int:
     from quadfdi.sweep_bench_report import write_bench
 
-    cfg = load_config(args.config, args.overrides)
-    names = [w.strip() for w in args.workloads.split(",") if w.strip()]
     if args.part is not None:  # one of the hand-started processes
-        jobs = workload_jobs(names[0], cfg, Path(args.cache), args.n_traj)
+        with open(args.cache, "rb") as fh:
+            jobs = pickle.load(fh)
         _timed([jobs[int(i)] for i in args.part.split(",")], SERIAL)
         return 0
+    cfg = load_config(args.config, args.overrides)
+    names = [w.strip() for w in args.workloads.split(",") if w.strip()]
     from distributed import Client
 
     from core.executor_dask import OneThread, start_local_cluster
