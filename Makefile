@@ -25,10 +25,10 @@ study: setup
 	$(PY) -m quadfdi.cli train study --run $(RUN) --readme README.md
 
 solvers: setup
-	$(PY) -m quadfdi.cli bench solvers --run $(RUN)
+	$(PY) -m quadfdi.cli solvers study --run $(RUN) --set solvers.sample=128
 
 solver-matrix: setup
-	$(PY) -m quadfdi.cli bench solver-matrix --run $(RUN)
+	$(PY) -m quadfdi.cli solvers matrix --run $(RUN)
 
 clean:
 	rm -rf runs/test-* .pytest_cache

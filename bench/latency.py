@@ -35,6 +35,7 @@ from typing import Callable
 import numpy as np
 
 from bench.limits import cpu_prefix, run_json, worker_env
+from core.config import BenchConfig
 from core.errors import QuadfdiError
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -43,18 +44,23 @@ DEFAULT_FWREF = ROOT / "firmware_ref" / "build" / "fwref_infer"
 
 @dataclass(frozen=True)
 class Counts:
-    """How much each worker measures."""
+    """How much each worker measures: the [bench] config section, or tiny counts for ``--quick``."""
 
-    n: int = 300  # batch-1 windows, each timed once
-    warmup: int = 30
-    batches: int = 10  # batch-96 calls timed
-    batch: int = 96
-    budget_s: float = 8.0  # per timed loop; dopri5 is the one that hits it
-    min_samples: int = 5  # the budget never cuts a loop below this
+    n: int  # batch-1 windows, each timed once
+    warmup: int
+    warmup_s: float
+    batches: int  # batched calls timed
+    batch: int
+    budget_s: float  # per timed loop; dopri5 is the one that hits it
+    min_samples: int  # the budget never cuts a loop below this
 
     @staticmethod
-    def of(quick: bool) -> "Counts":
-        return Counts(n=20, warmup=3, batches=2, budget_s=0.5, min_samples=2) if quick else Counts()
+    def of(bench: BenchConfig, quick: bool) -> "Counts":
+        if quick:
+            return Counts(n=20, warmup=3, warmup_s=bench.warmup_s, batches=2, batch=bench.batch, budget_s=0.5,
+                          min_samples=2)
+        return Counts(n=bench.windows, warmup=bench.warmup, warmup_s=bench.warmup_s, batches=bench.batches,
+                      batch=bench.batch, budget_s=bench.budget_s, min_samples=bench.min_samples)
 
 
 @dataclass(frozen=True)
@@ -85,10 +91,11 @@ def rtol_label(rtol: float) -> str:
 
 def plan(run_root: Path, manifest: dict, rtol: float, quick: bool, fwref: str | None,
          threads: tuple[int, ...] | None = None) -> list[Spec]:
-    """Every setting to measure, in order (torch, then ort, then cpp)."""
+    """Every setting to measure, in order (torch, then ort, then cpp); ``threads``: the intra-op
+    thread counts (default: [bench] threads, or 1 alone with ``quick``)."""
     export = run_root / "export"
     steps = int(manifest["solver"]["steps"])
-    threads = threads or ((1,) if quick else (1, 2))
+    threads = threads or ((1,) if quick else BenchConfig().threads)
     spins = ("off",) if quick else ("off", "on")
     rk4, dopri = f"rk4-{steps}", f"dopri5-{rtol_label(rtol)}"
     specs = []
@@ -167,14 +174,14 @@ def worker_cmd(spec: Spec, windows: Path, counts: Counts, cpus: str, time_exe: s
            "--threads", str(spec.threads), "--spinning", spec.spinning, "--windows", str(windows),
            "--artifact", spec.artifact, "--n", str(counts.n), "--warmup", str(counts.warmup),
            "--batch", str(counts.batch), "--batches", str(counts.batches), "--budget-s", str(counts.budget_s),
-           "--min-samples", str(counts.min_samples), "--cpus", cpus, *spec.extra]
+           "--min-samples", str(counts.min_samples), "--warmup-s", str(counts.warmup_s), "--cpus", cpus, *spec.extra]
     if spec.runtime == "cpp" and time_exe:
         cmd += ["--time-exe", time_exe]
     return cmd
 
 
-def measure_latency(run_root: Path, manifest: dict, test_x: np.ndarray, rtol: float, *, cpus: str = "0,1",
-                    quick: bool = False, fwref: str | None = None, threads: tuple[int, ...] | None = None,
+def measure_latency(run_root: Path, manifest: dict, test_x: np.ndarray, rtol: float, bench: BenchConfig, *,
+                    cpus: str = BenchConfig.cpus, quick: bool = False, fwref: str | None = None,
                     log: Callable[[str], None] = print) -> dict:
     """Run every worker of ``plan``; return {latency, runtime_memory, workers, skipped, windows, ...}.
 
@@ -182,9 +189,9 @@ def measure_latency(run_root: Path, manifest: dict, test_x: np.ndarray, rtol: fl
     ``skipped``). A worker that fails raises a one-line QuadfdiError naming its setting.
     """
     cpus = check_cpus(cpus)
-    counts = Counts.of(quick)
+    counts = Counts.of(bench, quick)
     time_exe = "/usr/bin/time" if Path("/usr/bin/time").is_file() else None  # GNU time, for the C++ peak RSS
-    specs = plan(run_root, manifest, rtol, quick, fwref, threads)
+    specs = plan(run_root, manifest, rtol, quick, fwref, (1,) if quick else bench.threads)
     records, memory, workers = [], [], []
     t_all = time.perf_counter()
     with tempfile.TemporaryDirectory(prefix="quadfdi-bench-") as tmp:
@@ -193,7 +200,7 @@ def measure_latency(run_root: Path, manifest: dict, test_x: np.ndarray, rtol: fl
         for spec in specs:
             t0 = time.perf_counter()
             out = run_json(worker_cmd(spec, windows, counts, cpus, time_exe), worker_env(spec.threads),
-                           f"latency worker {spec.label}", 900)
+                           f"latency worker {spec.label}", bench.worker_timeout_s)
             dt = time.perf_counter() - t0
             records += out["records"]
             memory.append(out["memory"])

@@ -106,14 +106,9 @@ def gemm_rates(threads: int, quick: bool) -> list[dict]:
 
 
 def _ort_session(model_bytes: bytes, threads: int):
-    import onnxruntime as ort
+    from export.ort_session import session
 
-    so = ort.SessionOptions()
-    so.intra_op_num_threads = threads
-    so.inter_op_num_threads = 1
-    so.execution_mode = ort.ExecutionMode.ORT_SEQUENTIAL
-    so.add_session_config_entry("session.intra_op.allow_spinning", "0")
-    return ort.InferenceSession(model_bytes, so, providers=["CPUExecutionProvider"])
+    return session(model_bytes, threads, spinning=False)
 
 
 def int8_rate(threads: int, quick: bool) -> list[dict]:

@@ -23,10 +23,10 @@ one). Items:
 
 from __future__ import annotations
 
-import json
 import shutil
-import subprocess
 from pathlib import Path
+
+from core.reportmd import optional_json
 
 MCU_ITEMS = ("flash_bytes", "weights_bytes", "static_ram_bytes", "stack_peak_bytes")
 
@@ -83,28 +83,15 @@ def rss_records(runtime_memory: list[dict]) -> list[dict]:
     return out
 
 
-def section_sizes(binary: str) -> dict[str, int] | None:
-    """``size -A -d``: section -> bytes; None when ``size`` is missing or fails."""
-    exe = shutil.which("size")
-    if exe is None:
-        return None
-    res = subprocess.run([exe, "-A", "-d", binary], capture_output=True, text=True)
-    if res.returncode != 0:
-        return None
-    out = {}
-    for line in res.stdout.splitlines():
-        parts = line.split()
-        if len(parts) == 3 and parts[0].startswith(".") and parts[1].isdigit():
-            out[parts[0]] = int(parts[1])
-    return out
-
-
 def static_ram_records(fwref: str | None) -> list[dict]:
     if not fwref:
         return []
-    s = section_sizes(fwref)
-    if s is None:
-        return []
+    exe = shutil.which("size")
+    if exe is None:
+        return []  # no binutils: the host program's static RAM is not reported
+    from parity.mcu import section_sizes
+
+    s = section_sizes(fwref, exe)
     data = s.get(".data", 0) + s.get(".tdata", 0)
     bss = s.get(".bss", 0) + s.get(".tbss", 0)
     src = "size -A fwref_infer"
@@ -116,12 +103,8 @@ def static_ram_records(fwref: str | None) -> list[dict]:
 
 def mcu_records(run_root: Path) -> tuple[list[dict], dict | None]:
     """Cortex-M flash / RAM / stack records from parity/mcu.json, and the file's content (None if absent)."""
-    path = run_root / "parity" / "mcu.json"
-    if not path.is_file():
-        return [], None
-    try:
-        mcu = json.loads(path.read_text())
-    except (OSError, json.JSONDecodeError):
+    mcu = optional_json(run_root / "parity" / "mcu.json", "Cortex-M results")
+    if mcu is None:
         return [], None
     out = []
     for cpu, r in (mcu.get("cpus") or {}).items():

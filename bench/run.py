@@ -1,22 +1,22 @@
-"""The bench stage: limits, latency, floors, memory, profiles, the solver study -> bench.json + report.md.
+"""The bench stage: the deployed runtimes timed -> bench.json and the bench figures.
 
 ``bench_run(run, cfg)`` reads ``runs/<name>/`` (dataset.npz for the test windows, cnode.pt and
 gru.pt, export/manifest.json and the files it lists, firmware_ref/build/fwref_infer, and
-parity/mcu.json when present) and writes:
+parity/mcu.json when present), measures with the settings of ``cfg.bench`` (the ``[bench]``
+config section; ``quick`` replaces the counts with tiny ones) and writes:
 
 - ``runs/<name>/bench.json`` (docs/bench.md), atomically, after everything was measured;
-- ``runs/<name>/figures/bench_*.png`` and ``runs/<name>/report.md`` (the whole run's report,
-  ``bench.report.write_run_report``);
-- the solver study's own files (``runs/<name>/bench/solvers.json``, ``solvers.md``, figures) through
-  ``bench.cli_solvers.run_solvers``, unless ``skip_solvers``; its records become bench.json's
-  ``solvers`` list (an earlier solvers.json is picked up when the study is skipped).
+- ``runs/<name>/figures/bench_*.png`` (``bench.figures.draw_bench_figures``).
+
+It measures limits, latency, floors, memory and profiles; it solves no ODE and trains nothing.
+The solver study is its own stage (package ``solverstudy``): bench.json's ``solvers`` list copies
+the study's records when ``runs/<name>/solvers/solvers.json`` exists, and ``solvers_meta`` says so
+either way. report.md is the app layer's (``quadfdi report``, ``quadfdi run``).
 """
 
 from __future__ import annotations
 
-import argparse
 import hashlib
-import json
 import os
 import platform
 import shutil
@@ -25,14 +25,12 @@ import time
 from pathlib import Path
 from typing import Callable
 
-from core.atomic import write_text
-from core.config import Config
+from core.config import BenchConfig, Config
 from core.errors import QuadfdiError
 from core.rundir import RunDir
 
 SCHEMA_VERSION = 1
-QUICK_SOLVER_ARGS = ["--sample", "4", "--steps", "1,4,8", "--rtols", "1e-2,1e-3", "--jump", "on",
-                     "--fixed-methods", "euler,rk4", "--adaptive-methods", "dopri5"]
+SOLVERS_JSON = Path("solvers") / "solvers.json"  # written by solverstudy.run.study_run
 
 
 def bench_json_path(run: RunDir) -> Path:
@@ -44,53 +42,16 @@ def _machine(cpus: str) -> dict:
     import onnxruntime
     import torch
 
-    model = ""
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                model = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
+    cpuinfo = Path("/proc/cpuinfo")  # Linux; elsewhere platform.processor() names the CPU
+    lines = cpuinfo.read_text().splitlines() if cpuinfo.is_file() else []
+    model = next((ln.split(":", 1)[1].strip() for ln in lines if ln.startswith("model name")), "")
     return {"cpu": model or platform.processor(), "logical_cpus": os.cpu_count(), "pinned_cpus": cpus,
             "python": platform.python_version(), "torch": torch.__version__, "onnxruntime": onnxruntime.__version__,
             "numpy": numpy.__version__, "load_average_start": list(os.getloadavg())}
 
 
-def _solver_study(run: RunDir, quick: bool, skip: bool, extra: list[str] | None,
-                  log: Callable[[str], None]) -> tuple[list, dict]:
-    """Run the other engineer's solver study (bench.cli_solvers) unless skipped; its records."""
-    meta: dict = {}
-    path = run.root / "bench" / "solvers.json"
-    if not skip:
-        try:
-            from bench.cli_solvers import add_solver_args, run_solvers
-        except ImportError as exc:
-            meta["skipped"] = f"solver study not available: {exc}"
-        else:
-            p = argparse.ArgumentParser(prog="quadfdi bench")
-            add_solver_args(p)
-            argv = ["--run", str(run.root)] + (QUICK_SOLVER_ARGS if quick else []) + list(extra or [])
-            t0 = time.perf_counter()
-            run_solvers(p.parse_args(argv))
-            meta["seconds"] = time.perf_counter() - t0
-            meta["argv"] = argv
-    elif path.is_file():
-        meta["note"] = "study skipped (--skip-solvers); records from the existing bench/solvers.json"
-    else:
-        meta["skipped"] = "--skip-solvers and no bench/solvers.json"
-    if path.is_file():
-        try:
-            study = json.loads(path.read_text())
-            return list(study.get("solvers", [])), {**meta, "file": "bench/solvers.json",
-                                                    "command": study.get("meta", {}).get("command")}
-        except (OSError, json.JSONDecodeError) as exc:
-            raise QuadfdiError(f"{path} cannot be read as JSON: {exc}") from None
-    return [], meta
-
-
 def _profiles(run: RunDir, manifest: dict, test_x, fwref: str | None, fw_flags: dict | None, cpus: str,
-              quick: bool, latency: list[dict], log: Callable[[str], None]) -> dict:
+              quick: bool, latency: list[dict], bc: BenchConfig, log: Callable[[str], None]) -> dict:
     """ORT per-op profiles and C++ callgrind counts (bench.profile), keyed 'model_precision'."""
     import numpy as np
 
@@ -103,9 +64,9 @@ def _profiles(run: RunDir, manifest: dict, test_x, fwref: str | None, fw_flags: 
     steps = int(manifest["solver"]["steps"])
     with tempfile.TemporaryDirectory(prefix="quadfdi-prof-") as tmp:
         tmpd = Path(tmp)
-        x = sample_windows(test_x, 20 if quick else 100, seed=1)
+        x = sample_windows(test_x, 20 if quick else bc.profile_windows, seed=1)
         np.save(tmpd / "w.npy", x)
-        n_cg = 2 if quick else 5
+        n_cg = min(len(x), 2 if quick else bc.callgrind_windows)
         np.ascontiguousarray(x[:n_cg], dtype="<f4").tofile(tmpd / "w.f32")
         for model in ("cnode", "gru"):
             for precision in ("fp32",) if quick else ("fp32", "int8"):
@@ -135,105 +96,154 @@ def _profiles(run: RunDir, manifest: dict, test_x, fwref: str | None, fw_flags: 
     return out
 
 
-def bench_run(run: RunDir, cfg: Config, log: Callable[[str], None] = print, *, quick: bool = False,
-              skip_solvers: bool = False, skip_cpp: bool = False, cpus: str = "0,1", fwref: str | None = None,
-              solver_args: list[str] | None = None, command: str | None = None) -> dict:
-    """The whole bench stage (module doc); returns the bench.json dict."""
-    from bench.latency import check_cpus
+def solver_records(run_root: Path) -> tuple[list, dict]:
+    """The solver study's records for bench.json's ``solvers`` list, and a note on where they came from.
 
-    cpus = check_cpus(cpus)  # before the heavy imports: a typo fails at once
-    from bench.floors import attach_distance, floors, targets
-    from bench.latency import find_fwref, measure_latency
-    from bench.limits import measure_limits, merge_limits
-    from bench.memory import mcu_records, memory_records
-    from bench.report import draw_bench_figures, write_run_report
-    from export.manifest import check_files, load_manifest
+    No ``solvers/solvers.json`` means the study did not run in this folder: an empty list and a note
+    saying so. An existing file is read by the study's own reader (a bad file is its one-line error).
+    """
+    path = run_root / SOLVERS_JSON
+    if not path.is_file():
+        return [], {"note": f"no solver study in this run ({SOLVERS_JSON} absent; the solvers stage of "
+                            "`quadfdi run` writes it)"}
+    from solverstudy.report import load_records
+
+    return list(load_records(run_root)), {"file": str(SOLVERS_JSON)}
+
+
+def _test_windows(run: RunDir, manifest: dict):
+    """The run's test windows, checked against the export and the checkpoints."""
     from sim.dataset import load_dataset, make_windows
-    from core.jsonio import to_jsonable, write_json
 
-    t_start = time.perf_counter()
-    timing: dict[str, float] = {}
-    manifest = load_manifest(run.export / "manifest.json")
-    check_files(manifest, run.export)
     for kind in ("cnode", "gru"):
         if not run.checkpoint(kind).is_file():
             raise QuadfdiError(f"{run.checkpoint(kind)} is missing: run `quadfdi train --run {run.root}` first")
-    ds = load_dataset(run.dataset)
-    test = make_windows(ds, "test")
+    test = make_windows(load_dataset(run.dataset), "test")
     if len(test) == 0:
         raise QuadfdiError(f"{run.dataset} has no test windows to time")
     if test.x.shape[1:] != (manifest["window"], manifest["n_channels"]):
         raise QuadfdiError(f"{run.dataset}: windows are {test.x.shape[1:]}, the export expects "
                            f"({manifest['window']}, {manifest['n_channels']}): re-run `quadfdi export`")
-    machine = _machine(cpus)
-    fwref_path, fwref_note = (None, "C++ reference not measured: --skip-cpp") if skip_cpp else find_fwref(fwref, log)
-    skipped = [] if fwref_path else [fwref_note]
+    return test
+
+
+def _private_fwref(fwref_path: str | None, tmp: Path) -> tuple[str | None, dict | None]:
+    """Copy fwref_infer into ``tmp`` (a rebuild of firmware_ref/build while timing cannot change
+    the copy); (copy path, its build flags and sha256), or (None, None)."""
     if not fwref_path:
-        log(f"bench: {fwref_note}")
+        return None, None
+    from bench.profile import build_flags
 
-    with tempfile.TemporaryDirectory(prefix="quadfdi-fwref-copy-") as tmp:
-        # Time a private copy: a rebuild of firmware_ref/build during the benchmark cannot change it.
-        fw_copy, fw_flags = None, None
-        if fwref_path:
-            from bench.profile import build_flags
+    fw_copy = str(tmp / "fwref_infer")
+    shutil.copy2(fwref_path, fw_copy)
+    fw_flags = build_flags(fwref_path)  # the flags of the binary just copied
+    fw_flags["sha256"] = hashlib.sha256(Path(fw_copy).read_bytes()).hexdigest()
+    return fw_copy, fw_flags
 
-            fw_copy = str(Path(tmp) / "fwref_infer")
-            shutil.copy2(fwref_path, fw_copy)
-            fw_flags = build_flags(fwref_path)  # the flags of the binary just copied
-            fw_flags["sha256"] = hashlib.sha256(Path(fw_copy).read_bytes()).hexdigest()
-        t0 = time.perf_counter()
-        limits = measure_limits(cpus, quick, manifest["window"], manifest["n_channels"], log=log)
-        timing["limits"] = time.perf_counter() - t0
-        t0 = time.perf_counter()
-        lat = measure_latency(run.root, manifest, test.x, cfg.train.rtol, cpus=cpus, quick=quick, fwref=fw_copy,
-                              log=log)
-        timing["latency"] = time.perf_counter() - t0
-        t0 = time.perf_counter()
-        after = measure_limits(cpus, quick, manifest["window"], manifest["n_channels"], log=log, threads=(1,))
-        limits = merge_limits([limits, after])
-        timing["limits"] += time.perf_counter() - t0
-        steps = int(manifest["solver"]["steps"])
-        floor_list = floors(manifest["models"], steps, limits)
-        attach_distance(lat["latency"], floor_list)
-        t0 = time.perf_counter()
-        profiles = _profiles(run, manifest, test.x, fw_copy, fw_flags, cpus, quick, lat["latency"], log)
-        timing["profiles"] = time.perf_counter() - t0
-        memory = memory_records(run.root, manifest, lat["runtime_memory"], fw_copy)
+
+def _measure(run: RunDir, cfg: Config, manifest: dict, test_x, fw_copy: str | None, fw_flags: dict | None,
+             cpus: str, quick: bool, log: Callable[[str], None]) -> dict:
+    """Limits (before and after), latency, floors, profiles and memory, each timed."""
+    from bench.floors import attach_distance, floors
+    from bench.latency import measure_latency
+    from bench.limits import measure_limits, merge_limits
+    from bench.memory import memory_records
+
+    timing: dict[str, float] = {}
+    window, channels = manifest["window"], manifest["n_channels"]
     t0 = time.perf_counter()
-    solvers, solver_meta = _solver_study(run, quick, skip_solvers, solver_args, log)
-    timing["solvers"] = time.perf_counter() - t0
-    machine["load_average_end"] = list(os.getloadavg())
-    timing["total"] = time.perf_counter() - t_start
-    bench = {
+    limits = measure_limits(cpus, quick, window, channels, log=log)
+    timing["limits"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    lat = measure_latency(run.root, manifest, test_x, cfg.train.rtol, cfg.bench, cpus=cpus, quick=quick,
+                          fwref=fw_copy, log=log)
+    timing["latency"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    after = measure_limits(cpus, quick, window, channels, log=log, threads=(1,))
+    limits = merge_limits([limits, after])
+    timing["limits"] += time.perf_counter() - t0
+    floor_list = floors(manifest["models"], int(manifest["solver"]["steps"]), limits)
+    attach_distance(lat["latency"], floor_list)
+    t0 = time.perf_counter()
+    profiles = _profiles(run, manifest, test_x, fw_copy, fw_flags, cpus, quick, lat["latency"], cfg.bench, log)
+    timing["profiles"] = time.perf_counter() - t0
+    memory = memory_records(run.root, manifest, lat["runtime_memory"], fw_copy)
+    return {"limits": limits, "lat": lat, "floors": floor_list, "profiles": profiles, "memory": memory,
+            "timing": timing}
+
+
+def _command(run: RunDir, quick: bool, skip_cpp: bool) -> str:
+    return f"quadfdi bench --run {run.root}" + (" --quick" if quick else "") + (" --skip-cpp" if skip_cpp else "")
+
+
+def _bench_dict(run: RunDir, manifest: dict, m: dict, machine: dict, fwref: tuple[str | None, str],
+                command: str, quick: bool) -> dict:
+    """bench.json's content (docs/bench.md) from the measurements ``m`` of ``_measure``."""
+    from bench.floors import targets
+    from bench.memory import mcu_records
+
+    solvers, solver_meta = solver_records(run.root)
+    fwref_path, fwref_note = fwref
+    steps = int(manifest["solver"]["steps"])
+    lat = m["lat"]
+    return {
         "schema_version": SCHEMA_VERSION,
         "producer": "quadfdi bench",
-        "command": command or f"quadfdi bench --run {run.root}" + (" --quick" if quick else "")
-        + (" --skip-solvers" if skip_solvers else "") + (" --skip-cpp" if skip_cpp else ""),
+        "command": command,
         "quick": quick,
         "machine": machine,
-        "limits": limits,
+        "limits": m["limits"],
         "models": {k: {**v, "export_steps": steps} for k, v in manifest["models"].items()},
         "latency": lat["latency"],
-        "floors": floor_list,
-        "targets": targets(lat["latency"], floor_list),
-        "memory": memory,
+        "floors": m["floors"],
+        "targets": targets(lat["latency"], m["floors"]),
+        "memory": m["memory"],
         "mcu": mcu_records(run.root)[1],
         "solvers": solvers,
         "solvers_meta": solver_meta,
-        "profiles": profiles,
+        "profiles": m["profiles"],
         "windows": lat["windows"],
         "counts": lat["counts"],
         "workers": lat["workers"],
         "fwref": {"path": fwref_path, "how": fwref_note,
-                  "sha256": (profiles.get("cpp_build") or {}).get("sha256") if fwref_path else None},
-        "skipped": skipped,
-        "timing_s": timing,
+                  "sha256": (m["profiles"].get("cpp_build") or {}).get("sha256") if fwref_path else None},
+        "skipped": [] if fwref_path else [fwref_note],
+        "timing_s": m["timing"],
     }
-    bench = to_jsonable(bench)
+
+
+def bench_run(run: RunDir, cfg: Config, log: Callable[[str], None] = print, *, quick: bool = False,
+              skip_cpp: bool = False, cpus: str | None = None, fwref: str | None = None,
+              command: str | None = None) -> dict:
+    """The whole bench stage (module doc); returns the bench.json dict. ``cpus`` defaults to
+    ``cfg.bench.cpus``; ``quick``, ``skip_cpp`` and ``fwref`` are how to run, not what to measure."""
+    from bench.latency import check_cpus
+
+    cpus = check_cpus(cpus or cfg.bench.cpus)  # before the heavy imports: a typo fails at once
+    from bench.latency import find_fwref
+    from bench.figures import draw_bench_figures
+    from core.jsonio import to_jsonable, write_json
+    from export.manifest import check_files, load_manifest
+
+    t_start = time.perf_counter()
+    manifest = load_manifest(run.export / "manifest.json")
+    check_files(manifest, run.export)
+    test = _test_windows(run, manifest)
+    machine = _machine(cpus)
+    fwref_found = (None, "C++ reference not measured: --skip-cpp") if skip_cpp else find_fwref(fwref, log)
+    if not fwref_found[0]:
+        log(f"bench: {fwref_found[1]}")
+    with tempfile.TemporaryDirectory(prefix="quadfdi-fwref-copy-") as tmp:
+        fw_copy, fw_flags = _private_fwref(fwref_found[0], Path(tmp))
+        m = _measure(run, cfg, manifest, test.x, fw_copy, fw_flags, cpus, quick, log)
+    machine["load_average_end"] = list(os.getloadavg())
+    timing = m["timing"]
+    timing["total"] = time.perf_counter() - t_start
+    bench = to_jsonable(_bench_dict(run, manifest, m, machine, fwref_found, command or _command(run, quick, skip_cpp),
+                                    quick))
     write_json(bench_json_path(run), bench, indent=1)
     figs = draw_bench_figures(bench, run.figures)
-    report = write_run_report(run.root)
-    log(f"bench: wrote {bench_json_path(run)}, {len(figs)} figures and {report} in {timing['total']:.0f} s "
-        f"(limits {timing['limits']:.0f} s, latency {timing['latency']:.0f} s, profiles {timing['profiles']:.0f} s, "
-        f"solvers {timing['solvers']:.0f} s)")
+    log(f"bench: wrote {bench_json_path(run)} and {len(figs)} figures in {timing['total']:.0f} s "
+        f"(limits {timing['limits']:.0f} s, latency {timing['latency']:.0f} s, profiles {timing['profiles']:.0f} s); "
+        f"`quadfdi report --run {run.root}` rewrites report.md")
     return bench

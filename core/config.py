@@ -39,9 +39,15 @@ class SimConfig:
     window: int = 80
     stride: int = 10
     chunk: int = 240  # trajectories integrated together (vectorised batch)
+    # --- realistic suite (docs/realistic.md); the defaults are the paper's and leave its dataset byte for byte ---
+    scenario: str = "paper"  # paper: Eqs. 1-9 as published | realistic: sim/realistic*.py
+    classes: tuple[str, ...] = ("Healthy", "BatteryFault", "MotorFault", "OverheatFault")  # label order
+    ood_traj: int = 0  # realistic: flights per out-of-distribution test set (4 sets), on top of n_traj
 
     def validate(self) -> None:
         _positive(self, "n_traj", "duration_s", "sample_dt_s", "sim_dt_s", "window", "stride", "chunk")
+        _choice(self, "scenario", ("paper", "realistic"))
+        self._validate_classes()
         if not 0.0 <= self.fault_ratio <= 1.0:
             raise QuadfdiError(f"sim.fault_ratio must be in [0, 1], found {self.fault_ratio}")
         for name in ("onset_frac", "ramp_frac", "severity_max"):
@@ -73,6 +79,22 @@ class SimConfig:
                 f"sim: a fault may become detectable at {t_det_worst:.2f} s, later than one stride before the "
                 f"last sample ({last_end:.2f} s); lower sim.severity_threshold or raise sim.severity_max"
             )
+
+    def _validate_classes(self) -> None:
+        paper = SimConfig.classes
+        known = (*paper, "PropellerFault")  # sim/realistic_faults.py simulates these
+        if self.scenario == "paper" and (self.classes != paper or self.ood_traj):
+            raise QuadfdiError(f"sim.scenario='paper' simulates exactly the classes {list(paper)} and no "
+                               f"out-of-distribution sets (sim.ood_traj = 0); use sim.scenario='realistic'")
+        bad = [c for c in self.classes if c not in known]
+        if bad or len(set(self.classes)) != len(self.classes) or self.classes[:1] != ("Healthy",) or len(self.classes) < 2:
+            raise QuadfdiError(f"sim.classes must start with Healthy and list distinct classes of {list(known)}, "
+                               f"found {list(self.classes)}")
+        if self.scenario == "realistic" and self.vehicle != "f450_3s":
+            raise QuadfdiError("sim.scenario='realistic' draws its vehicles around the nominal f450_3s "
+                               f"(sim/realistic_params.py); sim.vehicle must be 'f450_3s', found {self.vehicle!r}")
+        if self.ood_traj < 0:
+            raise QuadfdiError(f"sim.ood_traj must not be negative, found {self.ood_traj}")
 
     @property
     def n_samples(self) -> int:
@@ -131,10 +153,87 @@ class ExportConfig:
 
 
 @dataclass(frozen=True)
+class SolversConfig:
+    """The ODE-solver study of a trained CNODE and the train-by-deploy matrix (docs/solvers.md)."""
+
+    sample: int = 64  # test windows solved one by one (seeded sample); 0 = the whole test split
+    sample_seed: int = 0
+    fixed_methods: tuple[str, ...] = ("euler", "midpoint", "rk4")
+    steps: tuple[int, ...] = (1, 2, 4, 8, 16, 32, 79)  # N of the fixed-step settings
+    adaptive_methods: tuple[str, ...] = ("dopri5", "bosh3")
+    rtols: tuple[float, ...] = (1e-2, 1e-3, 1e-4, 1e-5, 1e-6)  # adaptive settings, atol = rtol / 10
+    jump: str = "both"  # adaptive settings told the knots as jump_t: both | on | off
+    controls: tuple[str, ...] = ("point", "average")  # control representations of the fixed steps
+    ref_rtol: float = 1e-9  # the float64 dopri5 reference, restarted at every knot
+    f1_tol: float = 0.002  # "matches": macro F1 at most this far below the adaptive setting's
+    f1_two_sided: bool = False  # ... or within f1_tol on either side
+    threads: int = 1  # torch intra-op threads of the study (its latencies depend on it)
+    matrix_train: tuple[str, ...] = ("dopri5", "rk4:1", "rk4:2", "rk4:8", "rk4:32", "rk4:1:avg", "rk4:2:avg", "rk4:8:avg")
+    matrix_deploy: tuple[str, ...] = ("dopri5:1e-3", "rk4:1", "rk4:2", "rk4:8", "rk4:32", "rk4:1:avg", "rk4:2:avg",
+                                      "rk4:8:avg", "ref")
+    matrix_epochs: int = 0  # training epochs of every matrix model; 0 = train.epochs
+    matrix_max_train_windows: int = 0  # seeded subset of the training windows; 0 = all
+    matrix_batch: int = 96  # windows per deploy solve
+    matrix_threads: int = 0  # 0 = train.threads
+    break_tol: float = 0.02  # a model "breaks" when the reference's macro F1 is this far below its own solver's
+
+    def validate(self) -> None:
+        for name, valid in (("fixed_methods", ("euler", "midpoint", "rk4")), ("adaptive_methods", ("dopri5", "bosh3")),
+                            ("controls", ("point", "average"))):
+            bad = [v for v in getattr(self, name) if v not in valid]
+            if bad or len(set(getattr(self, name))) != len(getattr(self, name)):
+                raise QuadfdiError(f"solvers.{name}: unknown or repeated value {(bad or [''])[0]!r}; valid: {', '.join(valid)}")
+        if not self.controls or not (self.fixed_methods or self.adaptive_methods):
+            raise QuadfdiError("solvers: the study needs at least one control and one method")
+        if any(n < 1 for n in self.steps) or any(not r > 0 for r in self.rtols):
+            raise QuadfdiError("solvers.steps must be positive integers and solvers.rtols positive numbers")
+        _choice(self, "jump", ("both", "on", "off"))
+        _positive(self, "ref_rtol", "threads", "matrix_batch")
+        for name in ("sample", "sample_seed", "f1_tol", "break_tol", "matrix_epochs", "matrix_max_train_windows",
+                     "matrix_threads"):
+            if getattr(self, name) < 0:
+                raise QuadfdiError(f"solvers.{name} must not be negative, found {getattr(self, name)}")
+        if not self.matrix_train or not self.matrix_deploy:
+            raise QuadfdiError("solvers.matrix_train and solvers.matrix_deploy need at least one setting each")
+
+
+@dataclass(frozen=True)
+class BenchConfig:
+    """Latency measurement settings of ``quadfdi bench`` (docs/bench.md); ``--quick`` replaces the
+    counts with tiny ones and the thread counts with (1,)."""
+
+    cpus: str = "0,1"  # CPUs every benchmark process is pinned to (taskset); --cpus overrides
+    threads: tuple[int, ...] = (1, 2)  # intra-op thread counts timed (torch, ort)
+    windows: int = 300  # batch-1 windows per setting, each timed once
+    warmup: int = 30  # warm-up calls before each timed loop ...
+    warmup_s: float = 1.0  # ... or this many seconds, whichever ends first
+    batch: int = 96  # the batched setting's batch size
+    batches: int = 10  # batched calls timed per setting
+    budget_s: float = 8.0  # time budget of each timed loop (dopri5 is the one that hits it)
+    min_samples: int = 5  # the budget never cuts a loop below this many calls
+    profile_windows: int = 100  # windows run under the ORT per-node profiler
+    callgrind_windows: int = 5  # windows run under valgrind callgrind (C++)
+    worker_timeout_s: float = 900.0  # one worker process may take this long
+
+    def validate(self) -> None:
+        _positive(self, "windows", "warmup_s", "batch", "batches", "budget_s", "min_samples", "profile_windows",
+                  "callgrind_windows", "worker_timeout_s")
+        if self.warmup < 0:
+            raise QuadfdiError(f"bench.warmup must be 0 or more, found {self.warmup}")
+        if not self.threads or min(self.threads) < 1:
+            raise QuadfdiError(f"bench.threads must be a non-empty list of positive counts, found {list(self.threads)}")
+        parts = [c.strip() for c in self.cpus.split(",")]
+        if not all(c.isdigit() for c in parts):
+            raise QuadfdiError(f"bench.cpus must be a comma-separated list of CPU numbers, found {self.cpus!r}")
+
+
+@dataclass(frozen=True)
 class Config:
     sim: SimConfig = field(default_factory=SimConfig)
     train: TrainConfig = field(default_factory=TrainConfig)
     export: ExportConfig = field(default_factory=ExportConfig)
+    solvers: SolversConfig = field(default_factory=SolversConfig)
+    bench: BenchConfig = field(default_factory=BenchConfig)
 
     def validate(self) -> None:
         for f in fields(self):

@@ -215,8 +215,11 @@ def _unpack_tensor(cur: _Cursor, what: str) -> Tensor:
     name_b, code, ndim, *rest = TENSOR_HEADER.unpack(raw)
     shape4, axis, n_scales, nbytes = rest[:4], rest[4], rest[5], rest[6]
     name = name_b.split(b"\0", 1)[0].decode("ascii", "replace")
-    if code not in DTYPES or ndim > MAX_NDIM or axis not in (-1, 0):
-        raise QuadfdiError(f"{cur.where}: {what} ({name!r}) has a bad header (dtype {code}, ndim {ndim}, axis {axis})")
+    # A writer sets unused shape entries to 0 and the axis of an unquantized tensor to -1.
+    unused_zero = ndim <= MAX_NDIM and not any(shape4[ndim:])
+    if code not in DTYPES or ndim > MAX_NDIM or axis not in (-1, 0) or (code != 2 and axis != -1) or not unused_zero:
+        raise QuadfdiError(f"{cur.where}: {what} ({name!r}) has a bad header (dtype {code}, ndim {ndim}, axis {axis}"
+                           f"{'' if unused_zero else ', unused shape entries not 0'})")
     shape = tuple(shape4[:ndim])
     dt = DTYPES[code]
     if nbytes != int(np.prod(shape, dtype=np.int64)) * dt.itemsize:

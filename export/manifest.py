@@ -1,26 +1,38 @@
 """manifest.json: what the export folder holds and how it was checked (docs/formats.md).
 
-Top-level keys: ``schema_version``, ``producer``, ``channels`` (name, unit), ``window``,
-``sample_dt_s``, ``class_names``, ``normalisation`` (per model: mean, std), ``solver``
-(classic RK4, N, stage times), ``opset``, ``ir_version``, ``artifacts`` (cnode_fp32, cnode_int8,
-gru_fp32, gru_int8 -> file names relative to the export folder), ``files`` (name -> sha256,
-bytes), ``models`` (architecture, MACs), ``quantization`` (scheme, calibration, coverage),
-``verification``, ``metrics`` (test split, per artifact), ``config``.
+Top-level keys, in this order: ``schema_version``, ``producer``, ``channels`` (name, unit),
+``n_channels``, ``window``, ``sample_dt_s``, ``class_names``, ``normalisation`` (per model: mean,
+std), ``solver`` (classic RK4, N, stage times), ``opset``, ``ir_version``, ``io`` (input and output
+tensors), ``artifacts`` (cnode_fp32, cnode_int8, gru_fp32, gru_int8 -> file names relative to the
+export folder), ``files`` (name -> sha256, bytes), ``models`` (architecture, MACs),
+``quantization`` (scheme, calibration, coverage), ``verification``, ``metrics`` (test split, per
+artifact), ``reference`` (the test windows in reference.bin), ``config``.
 A reader must check ``schema_version`` first: ``load_manifest`` refuses any other version.
 """
 
 from __future__ import annotations
 
 import hashlib
-import json
 from pathlib import Path
+from typing import Any
 
-from core.atomic import write_text
+import numpy as np
+
+from core.contracts import CLASS_NAMES
 from core.errors import QuadfdiError
-from core.jsonio import write_json
+from core.jsonio import read_json, write_json
 
 SCHEMA_VERSION = 1
 ARTIFACT_KEYS = ("cnode_fp32", "cnode_int8", "gru_fp32", "gru_int8")
+MODEL_KINDS = ("cnode", "gru")
+
+INT8_SCHEME = (
+    "weights int8 symmetric per output channel (zero point 0, [-127, 127]); activations int8 symmetric "
+    "(zero point 0, saturated to [-128, 127]) with static scales: max|x|/127 over calibration windows of the "
+    "training split (normalised telemetry per channel, control path, latent state per RK4 stage, z1), 1/127 "
+    "for tanh outputs and the GRU hidden state; QuantizeLinear (x / s, round half to even) -> MatMulInteger "
+    "(int32) -> Cast -> Mul(s_activation) -> Mul(s_weight[out]) -> Add(bias); elementwise ops in float32"
+)
 
 
 def artifact_names(steps: int) -> dict[str, str]:
@@ -33,6 +45,66 @@ def file_entry(data: bytes) -> dict:
     return {"sha256": hashlib.sha256(data).hexdigest(), "bytes": len(data)}
 
 
+def _io(window: int, n_channels: int) -> dict:
+    n_classes = len(CLASS_NAMES)
+    return {"input": {"name": "telemetry", "dtype": "float32", "shape": ["batch", window, n_channels],
+                      "units": "raw (as the dataset's channel units)"},
+            "outputs": [{"name": "logits", "dtype": "float32", "shape": ["batch", n_classes]},
+                        {"name": "proba", "dtype": "float32", "shape": ["batch", n_classes]}]}
+
+
+def _quantization(coverage: dict[str, dict], calib_windows: int, interp_exact: bool) -> dict:
+    return {
+        "scheme": INT8_SCHEME,
+        "calibration": {"split": "train", "windows": int(calib_windows), "method": "max |x| (MinMax)",
+                        "reader": "export.calibrate.WindowReader (onnxruntime CalibrationDataReader)"},
+        "cnode_interp_exact": bool(interp_exact),
+        "coverage": {m: {"summary": c["summary"], "int8_ops": c["int8"]["ops"], "fp32_ops": c["fp32"]["ops"],
+                         "int8_nodes": c["int8"]["nodes"], "fp32_nodes": c["fp32"]["nodes"],
+                         "int8_initializer_bytes": c["int8"]["initializer_bytes"],
+                         "fp32_initializer_bytes": c["fp32"]["initializer_bytes"]} for m, c in coverage.items()},
+    }
+
+
+def build_manifest(*, ds: Any, config: dict, checkpoints: dict[str, dict], window: int, steps: int, opset: int,
+                   ir_version: int, stage_times: np.ndarray, files: dict[str, bytes],
+                   coverage: dict[str, dict], calib_windows: int, interp_exact: bool, verification: dict,
+                   metrics: dict, reference_index: np.ndarray, reference_labels: np.ndarray) -> dict:
+    """The manifest of one export (the keys listed in this module's docstring, in that order).
+
+    ``ds``: the run's ``sim.dataset.Dataset``; ``checkpoints``: "cnode"/"gru" -> checkpoint blob
+    (architecture, normalisation); ``coverage``: per model {"fp32", "int8", "summary"} of
+    ``export.coverage``; ``files``: every file written beside the manifest, name -> bytes.
+    """
+    return {
+        "schema_version": SCHEMA_VERSION,
+        "producer": "quadfdi export",
+        "channels": [{"name": n, "unit": str(u)} for n, u in zip(ds.channel_names, ds["channel_units"])],
+        "n_channels": ds.n_channels,
+        "window": int(window),
+        "sample_dt_s": ds.config.sim.sample_dt_s,
+        "class_names": list(CLASS_NAMES),
+        "normalisation": {"formula": "x_norm = (x - mean) / std, per channel, inside every graph",
+                          **{k: checkpoints[k]["normalisation"] for k in MODEL_KINDS}},
+        "solver": {"method": "rk4", "scheme": "classic RK4 (stages 0, h/2, h/2, h; weights 1/6, 2/6, 2/6, 1/6)",
+                   "steps": steps, "t_span": [0.0, 1.0], "stage_times": np.asarray(stage_times).tolist(),
+                   "control": "U = interp @ x_norm, one constant (2N+1, W) linear-interpolation matrix"},
+        "opset": opset,
+        "ir_version": ir_version,
+        "io": _io(int(window), ds.n_channels),
+        "artifacts": artifact_names(steps),
+        "files": {name: file_entry(data) for name, data in files.items()},
+        "models": {k: {**checkpoints[k]["architecture"], "macs_per_window": coverage[k]["fp32"]["macs_per_window"]}
+                   for k in MODEL_KINDS},
+        "quantization": _quantization(coverage, calib_windows, interp_exact),
+        "verification": verification,
+        "metrics": metrics,
+        "reference": {"test_index": np.asarray(reference_index).tolist(),
+                      "labels": np.asarray(reference_labels).tolist()},
+        "config": config,
+    }
+
+
 def write_manifest(path: str | Path, manifest: dict) -> None:
     write_json(path, manifest, indent=2)
 
@@ -40,14 +112,9 @@ def write_manifest(path: str | Path, manifest: dict) -> None:
 def load_manifest(path: str | Path) -> dict:
     """Read manifest.json; one-line QuadfdiError if missing, not JSON, or of another schema version."""
     p = Path(path)
-    try:
-        data = json.loads(p.read_text())
-    except FileNotFoundError:
-        raise QuadfdiError(f"manifest {p} does not exist (run `quadfdi export` first)") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise QuadfdiError(f"cannot read manifest {p}: {exc}") from None
-    except json.JSONDecodeError as exc:
-        raise QuadfdiError(f"manifest {p} is not valid JSON (truncated or foreign file?): {exc}") from None
+    if not p.exists():
+        raise QuadfdiError(f"manifest {p} does not exist (run `quadfdi export` first)")
+    data = read_json(p, "manifest")
     if not isinstance(data, dict) or "schema_version" not in data:
         raise QuadfdiError(f"manifest {p} has no schema_version: not a quadfdi export manifest")
     if data["schema_version"] != SCHEMA_VERSION:

@@ -8,7 +8,7 @@ S = 2N + 1 stage times, K classes):
     z0     = tanh(U[:, 0:1] @ We^T + be)                               (B, 1, L)   P's row 0 is sample 0
     V      = U @ W1u^T + b1                                            (B, S, H)   u-part of lin1, all stages
     f_e(z) = lin2(tanh(z @ W1z^T + V[:, idx(e)]))                      (B, 1, L)
-    z1     = N classic RK4 steps of f over [0, 1] (train.solvers.rk4_step's arithmetic)
+    z1     = N classic RK4 steps of f over [0, 1] (core.rk4.rk4_step run on graph values)
     logits = z1 @ Wh^T + bh,  proba = softmax(logits)                  (B, K)
 
 P = train.control.interp_matrix(train.solvers.stage_times("rk4", N)): the control path at every
@@ -28,6 +28,7 @@ import numpy as np
 import torch
 from onnx import TensorProto
 
+from core.rk4 import RK4_CONSTANT_NAMES, rk4_constants, rk4_step
 from export.graph import BATCH, Built, Graph, class_outputs, telemetry_input
 from export.quantize import (BOUND_SCALE, QWeight, act_scale, int8_linear, int8_matmul, int8_weight,
                              quantize_channels, quantize_interp)
@@ -80,6 +81,27 @@ class CnodeParams:
     @property
     def n_stages(self) -> int:
         return STAGES_PER_STEP * self.steps
+
+
+@dataclass(frozen=True)
+class GraphValue:
+    """A tensor of a graph under construction that core.rk4.rk4_step can compute with: ``+`` emits an
+    Add node, ``*`` by a float a Mul node whose second input is the float32 constant of that value
+    (``consts``: value -> initializer name). Evaluating rk4_step on it writes RK4_PROGRAM into the
+    graph operation by operation, in the program's order."""
+
+    g: Graph
+    name: str
+    consts: dict
+
+    def __add__(self, other: "GraphValue") -> "GraphValue":
+        return GraphValue(self.g, self.g.op("Add", self.name, other.name), self.consts)
+
+    def __mul__(self, c: float) -> "GraphValue":
+        name = self.consts.get(float(np.float32(c)))
+        if name is None:
+            raise ValueError(f"RK4 constant {c!r} is not one of rk4_constants (h)")
+        return GraphValue(self.g, self.g.op("Mul", self.name, name), self.consts)
 
 
 def rk4_stage_index(times: np.ndarray, steps: int) -> np.ndarray:
@@ -193,19 +215,22 @@ def build_cnode(p: CnodeParams, opset: int, q: CnodeQuant | None = None) -> Buil
         hid = g.op("Tanh", a)
         return int8_linear(g, hid, g.const("act.hidden.scale", q.s_hid), "lin2", q.lin2, g.const("lin2.bias", p.lin2_b))
 
-    # train.solvers.rk4_step, expression by expression (float32 constants as PyTorch uses them).
+    # core.rk4.rk4_step evaluated on graph values: the graph is RK4_PROGRAM by construction, with
+    # its float32 constants as initializers named after RK4_CONSTANT_NAMES.
     h = 1.0 / p.steps
-    half, hh, two, h6 = (g.const(n, np.float32(v)) for n, v in
-                         (("rk4.half_h", 0.5 * h), ("rk4.h", h), ("rk4.two", 2.0), ("rk4.h_over_6", h / 6.0)))
-    z = z0
-    idx = iter(p.stage_index.tolist())
-    for _ in range(p.steps):
-        k1 = f(z, next(idx))
-        k2 = f(g.op("Add", z, g.op("Mul", k1, half)), next(idx))
-        k3 = f(g.op("Add", z, g.op("Mul", k2, half)), next(idx))
-        k4 = f(g.op("Add", z, g.op("Mul", k3, hh)), next(idx))
-        acc = g.op("Add", g.op("Add", g.op("Add", k1, g.op("Mul", k2, two)), g.op("Mul", k3, two)), k4)
-        z = g.op("Add", z, g.op("Mul", acc, h6))
+    consts = {float(v): g.const(f"rk4.{n}", v) for n, v in zip(RK4_CONSTANT_NAMES, rk4_constants(h))}
+    rows = iter(p.stage_index.tolist())
+
+    def field(t: float, z: GraphValue) -> GraphValue:
+        row = next(rows)
+        if abs(p.times[row] - t) > 1e-9:  # stage_index must follow rk4_step's calls
+            raise ValueError(f"stage_index row {row} is time {p.times[row]}, rk4_step evaluates at {t}")
+        return GraphValue(g, f(z.name, row), consts)
+
+    z = GraphValue(g, z0, consts)
+    for k in range(p.steps):
+        z = rk4_step(field, k * h, z, h)
+    z = z.name
     g.probe("z1", z, [BATCH, 1, L])
 
     if q is None:

@@ -22,19 +22,22 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
-import torch
 
 from export.binfmt import Section, pack, read_file
-from export.graph import Built
-from export.onnx_cnode import CnodeParams
-from export.onnx_gru import GruParams
-from export.verify import session, torch_threads
 from export.weights_bin import cnode_dims, gru_dims
+from export.weights_layout import REFERENCE_MAGIC, REFERENCE_VERSION
 
-MAGIC = b"QFDIREF\0"
-VERSION = 1
+if TYPE_CHECKING:  # the reader needs neither torch nor onnx (firmware_ref/tools/gen_weights.py uses it)
+    import torch
+
+    from export.graph import Built
+    from export.onnx_cnode import CnodeParams
+    from export.onnx_gru import GruParams
+
+MAGIC, VERSION = REFERENCE_MAGIC, REFERENCE_VERSION  # export/weights_layout.py
 
 
 def pick_windows(y: np.ndarray, n: int) -> np.ndarray:
@@ -51,6 +54,8 @@ def _softmax(z: np.ndarray) -> np.ndarray:
 
 
 def _run_probes(built: Built, keys: list[str], x: np.ndarray) -> dict[str, np.ndarray]:
+    from export.verify import session
+
     sess = session(built.with_probes(keys).SerializeToString())
     outs = sess.run(["logits", "proba"] + [built.probes[k][0] for k in keys], {"telemetry": x})
     return dict(zip(["logits", "proba"] + keys, outs))
@@ -58,6 +63,10 @@ def _run_probes(built: Built, keys: list[str], x: np.ndarray) -> dict[str, np.nd
 
 def cnode_fp32_tensors(model: torch.nn.Module, x: np.ndarray) -> dict[str, np.ndarray]:
     """PyTorch's trace of the CNODE (its solver must be classic RK4 with the graph's N)."""
+    import torch
+
+    from export.verify import torch_threads
+
     with torch_threads():
         tr = model.trace(torch.from_numpy(x))
     st = tr["stages"]  # (N, 4, B, L)
@@ -77,6 +86,10 @@ def cnode_int8_tensors(built: Built, p: CnodeParams, x: np.ndarray) -> dict[str,
 
 
 def gru_fp32_tensors(model: torch.nn.Module, x: np.ndarray) -> dict[str, np.ndarray]:
+    import torch
+
+    from export.verify import torch_threads
+
     with torch_threads():
         tr = model.trace(torch.from_numpy(x))
     return {"x_norm": tr["x_norm"].numpy(), "h": tr["h"].numpy(), "logits": tr["logits"].numpy(),

@@ -12,28 +12,18 @@
 
 from __future__ import annotations
 
-import contextlib
-from typing import Iterator
-
 import numpy as np
 import onnxruntime as ort
 import torch
 from sklearn.metrics import f1_score
 
-# One thread for both runtimes: the graphs are small, and on a shared 2-core machine a second
-# thread made PyTorch's GRU 50x slower (OpenMP spin-waiting against other processes).
-THREADS = 1
-FP32_REL_TOL = 1e-5
+from core.contracts import CLASS_LABELS, FP32_ORT_VS_TORCH_REL_TOL
+from export.ort_session import THREADS, session  # noqa: F401  (session: the export's callers import it here)
+from train.threads import torch_threads as _torch_threads
+
+FP32_REL_TOL = FP32_ORT_VS_TORCH_REL_TOL  # ONNX Runtime against PyTorch (core/contracts.py)
 F1_DROP_TARGET_POINTS = 0.5
 CHUNK = 512
-
-
-def session(model_bytes: bytes, threads: int = THREADS) -> ort.InferenceSession:
-    opts = ort.SessionOptions()
-    opts.log_severity_level = 3
-    opts.intra_op_num_threads = threads
-    opts.inter_op_num_threads = 1
-    return ort.InferenceSession(model_bytes, opts, providers=["CPUExecutionProvider"])
 
 
 def ort_outputs(sess: ort.InferenceSession, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -42,14 +32,9 @@ def ort_outputs(sess: ort.InferenceSession, x: np.ndarray) -> tuple[np.ndarray, 
     return np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
 
 
-@contextlib.contextmanager
-def torch_threads(n: int = THREADS) -> Iterator[None]:
-    before = torch.get_num_threads()
-    torch.set_num_threads(n)
-    try:
-        yield
-    finally:
-        torch.set_num_threads(before)
+def torch_threads(n: int = THREADS):
+    """``train.threads.torch_threads`` at the export's thread count by default."""
+    return _torch_threads(n)
 
 
 @torch.no_grad()
@@ -69,7 +54,7 @@ def parity(logits: np.ndarray, reference: np.ndarray, rel: float = FP32_REL_TOL)
 
 def int8_vs_fp32(int8_logits: np.ndarray, fp32_logits: np.ndarray, y: np.ndarray) -> dict:
     """Argmax agreement, logit difference and macro-F1 change (points) of int8 against fp32."""
-    labels = [0, 1, 2, 3]
+    labels = list(CLASS_LABELS)
     f1_fp32 = 100 * f1_score(y, fp32_logits.argmax(1), labels=labels, average="macro", zero_division=0)
     f1_int8 = 100 * f1_score(y, int8_logits.argmax(1), labels=labels, average="macro", zero_division=0)
     drop = f1_fp32 - f1_int8

@@ -86,12 +86,12 @@ def _cache_line(cache: str, key: str) -> str:
 
 
 def build_host(build_dir: Path = HOST_BUILD, sanitize: bool = False, log: Callable[[str], None] = print) -> Path:
-    """Build fwref_infer and fwref_parity (Release; with ``sanitize`` ASan + UBSan, assertions on)."""
+    """Build fwref_infer, fwref_parity and fwref_contracts (Release; with ``sanitize`` ASan + UBSan, assertions on)."""
     require("c++", "it compiles firmware_ref")
     options = {"CMAKE_BUILD_TYPE": "Debug" if sanitize else "Release", "FWREF_SANITIZE": "ON" if sanitize else "OFF"}
     with locked(build_dir):
         _configure_and_build(FW_ROOT, build_dir, options, f"firmware_ref ({'sanitizer' if sanitize else 'host'})")
-    for name in ("fwref_infer", "fwref_parity"):
+    for name in ("fwref_infer", "fwref_parity", "fwref_contracts"):
         if not (build_dir / name).is_file():
             raise QuadfdiError(f"the firmware_ref build did not produce {build_dir / name}")
     log(f"parity: firmware_ref built in {build_dir}{' (ASan + UBSan)' if sanitize else ''}")

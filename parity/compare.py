@@ -1,7 +1,9 @@
 """Pair metrics of two logit arrays, int8 quantisation steps, and the parity targets.
 
-Tolerances mirror firmware_ref/include/fwref/parity.hpp (docs/firmware.md explains them):
-- fp32: C++ against ONNX Runtime, max |diff| <= FP32_REL_TOL * max(1, max |logit|), argmax 100 %.
+Tolerances are core/contracts.py's (the C++ side has them from the generated
+fwref/contracts_gen.hpp; docs/firmware.md explains them):
+- fp32: C++ against ONNX Runtime, max |diff| <= FP32_REL_TOL * max(1, max |logit|), argmax 100 %
+  (FP32_REL_TOL is contracts.FP32_CPP_REL_TOL).
 - int8: C++ against ONNX Runtime, argmax agreement >= INT8_ARGMAX_MIN and max |diff| <=
   INT8_TOL_STEPS logit steps, where class o's step is 127 * s_in * s_w[o] = s_in * max_i |W_head[o, i]|,
   the largest change one quantisation step of one head input can make.
@@ -11,11 +13,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from core.contracts import FP32_CPP_REL_TOL as FP32_REL_TOL
+from core.contracts import INT8_ARGMAX_MIN, INT8_TOL_STEPS
 from export.weights_bin import WeightsFile
-
-FP32_REL_TOL = 1e-4
-INT8_ARGMAX_MIN = 0.999
-INT8_TOL_STEPS = 8.0
 HEAD_INPUT_SCALE = {"cnode": "act.z1.scale", "gru": "act.h.scale"}
 
 
@@ -51,7 +51,8 @@ def logit_steps(weights: WeightsFile, model: str) -> np.ndarray:
 def fp32_target(m: dict) -> dict:
     bound = FP32_REL_TOL * max(1.0, m["max_abs_logit_ref"])
     passed = m["max_abs_diff"] <= bound and m["argmax_agreement"] == 1.0
-    return {"bound": bound, "rule": "max|diff| <= 1e-4 * max(1, max|logit|) and argmax 100 %", "passed": bool(passed)}
+    return {"bound": bound, "rule": f"max|diff| <= {FP32_REL_TOL:g} * max(1, max|logit|) and argmax 100 %",
+            "passed": bool(passed)}
 
 
 def int8_target(a: np.ndarray, b: np.ndarray, steps: np.ndarray, m: dict) -> dict:

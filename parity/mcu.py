@@ -45,11 +45,11 @@ def tools_missing() -> str | None:
     return ", ".join(missing) + " not found (`make setup` installs them)" if missing else None
 
 
-def section_sizes(elf: Path) -> dict[str, int]:
-    """arm-none-eabi-size -A: section name -> bytes."""
-    res = subprocess.run(["arm-none-eabi-size", "-A", "-d", str(elf)], capture_output=True, text=True)
+def section_sizes(binary: str | Path, tool: str = "arm-none-eabi-size") -> dict[str, int]:
+    """``<tool> -A -d binary``: section name -> bytes (the one ``size -A`` parser: parity and bench)."""
+    res = subprocess.run([tool, "-A", "-d", str(binary)], capture_output=True, text=True)
     if res.returncode != 0:
-        raise QuadfdiError(f"arm-none-eabi-size failed on {elf}: {res.stderr.strip()}")
+        raise QuadfdiError(f"{Path(tool).name} failed on {binary}: {res.stderr.strip()}")
     out = {}
     for line in res.stdout.splitlines():
         parts = line.split()

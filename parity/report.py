@@ -1,6 +1,11 @@
-"""parity.md: the parity report in markdown, from the dict that parity.json holds."""
+"""parity.md: the parity report in markdown, from the dict that parity.json holds; and parity's
+section of the run's report.md (``report_section``)."""
 
 from __future__ import annotations
+
+from pathlib import Path
+
+from core.reportmd import demote, not_run, optional_json
 
 PAIR_TITLES = {
     "cpp_fp32_vs_ort_fp32": "C++ fp32 vs ONNX Runtime fp32",
@@ -85,3 +90,18 @@ def markdown(report: dict) -> str:
     out += [f"Stage time: {report['timing_s']['total']:.1f} s "
             f"({', '.join(f'{k} {v:.1f} s' for k, v in report['timing_s'].items() if k != 'total')}).", ""]
     return "\n".join(out)
+
+
+def report_section(run_root: Path) -> list[str]:
+    """Parity's section of the run's report.md: parity/parity.md (headings one level down), else a
+    short summary of parity/parity.json."""
+    root = Path(run_root)
+    md = root / "parity" / "parity.md"
+    if md.is_file():
+        return ["## Parity (C++ reference vs ONNX Runtime and PyTorch; Cortex-M)", ""] + demote(md.read_text(), 2)
+    p = optional_json(root / "parity" / "parity.json", "parity results")
+    if p is None:
+        return not_run("## Parity", f"no parity/parity.json in this run (`quadfdi parity --run {root}` writes it)")
+    verdict = "pass" if p.get("passed") else "FAIL"
+    return ["## Parity", "", f"Made by `{p.get('command', 'quadfdi parity')}`: **{verdict}**"
+            + ("" if p.get("passed") else ": " + "; ".join(p.get("problems", []))) + ".", ""]

@@ -16,7 +16,8 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from export.verify import session, torch_logits
+from export.ort_session import session
+from export.verify import torch_logits
 from core.errors import QuadfdiError
 from core.rundir import RunDir
 from train.checkpoint import load_checkpoint

@@ -19,14 +19,21 @@ STAGES = {
     "train": "train.cli",
     "export": "export.cli",
     "parity": "parity.cli",
+    "solvers": "solverstudy.cli",
     "bench": "bench.cli",
+    "ingest": "ingest.cli",
+    "realism": "realism.cli",
+    "report": "quadfdi.report",
+    "readme": "quadfdi.readme",
     "run": "quadfdi.pipeline",
     "sweep": "quadfdi.sweep",
 }
+DESCRIPTION = ("quadfdi: quadrotor fault diagnosis, from the physics simulator to the firmware reference; "
+               "one subcommand per stage (quadfdi run: all of them into one run folder).")
 
 
 def build_parser(argv: list[str]) -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="quadfdi", description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(prog="quadfdi", description=DESCRIPTION)
     sub = parser.add_subparsers(dest="stage", required=True, metavar="{" + ",".join(STAGES) + "}")
     # Only import the stage that was asked for (``--help`` imports them all).
     wanted = [a for a in argv[:1] if a in STAGES] or list(STAGES)

@@ -1,59 +1,101 @@
-"""``quadfdi run``: every stage, in order, into one run folder, with each stage's time."""
+"""``quadfdi run``: every stage, in order, into one run folder, with each stage's time.
+
+sim, plots, train, export, parity, solvers (the solver study, ``solverstudy.run.study_run``),
+bench, report: each a library call with the run folder and its config; no command lines are built.
+The solver study's settings are the config's ``[solvers]`` section, bench's its ``[bench]`` section.
+"""
 
 from __future__ import annotations
 
 import argparse
 import time
+from typing import Callable
 
 from core.cliargs import add_config_args
-from core.config import load_config
-from core.rundir import create_run
-
-PIPELINE_SOLVER_ARGS = ("--sample", "64")
+from core.config import Config, load_config
+from core.rundir import RunDir, create_run
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("run", help="run the whole pipeline (sim, train, export, parity, bench) into one run folder")
+    p = sub.add_parser("run", help="run the whole pipeline (sim, train, export, parity, solvers, bench, report) "
+                                   "into one run folder")
     add_config_args(p)
     p.add_argument("--out", default="runs/paper", help="run folder (default: %(default)s)")
     p.set_defaults(func=run_all)
 
 
-def run_all(args: argparse.Namespace) -> int:
-    from sim.cli import default_plot_rows, generate_into
+def _sim(run: RunDir, cfg: Config) -> None:
+    from sim.cli import generate_into
+
+    generate_into(run, cfg)
+
+
+def _plots(run: RunDir, cfg: Config) -> None:
+    from sim.cli import default_plot_rows
     from sim.dataset import load_dataset
     from sim.plot import plot_trajectory
-    from bench.report import write_run_report
-    from bench.run import bench_run
-    from export.run import export_run
-    from parity.run import parity_run
-    from train.run import train_run
 
-    cfg = load_config(args.config, args.overrides)
-    run = create_run(args.out, cfg)
-    timings = {}
-    t0 = time.perf_counter()
-    generate_into(run, cfg)
     ds = load_dataset(run.dataset)
     for row in default_plot_rows(ds):
         plot_trajectory(ds, row, run.figures / f"sim_traj{row}.png")
-    timings["sim"] = time.perf_counter() - t0
-    t0 = time.perf_counter()
+
+
+def _train(run: RunDir, cfg: Config) -> None:
+    from train.run import train_run
+
     train_run(run, cfg, cfg.train.model)
-    timings["train"] = time.perf_counter() - t0
-    t0 = time.perf_counter()
+
+
+def _export(run: RunDir, cfg: Config) -> None:
+    from export.run import export_run
+
     export_run(run, cfg)
-    timings["export"] = time.perf_counter() - t0
-    t0 = time.perf_counter()
+
+
+def _parity(run: RunDir, cfg: Config) -> None:
+    from parity.run import parity_run
+
     parity_run(run, cfg)
-    timings["parity"] = time.perf_counter() - t0
-    t0 = time.perf_counter()
-    # The solver study on 64 sampled test windows keeps the whole run inside ~20 minutes on
-    # 2 cores; `make solvers` runs it on 128 (about 11 minutes by itself).
-    bench_run(run, cfg, solver_args=list(PIPELINE_SOLVER_ARGS))
-    timings["bench"] = time.perf_counter() - t0
-    report = write_run_report(run.root)
-    print("stage times: " + ", ".join(f"{k} {v:.1f} s" for k, v in timings.items())
-          + f"; total {sum(timings.values()):.0f} s")
-    print(f"report: {report}")
+
+
+def _solvers(run: RunDir, cfg: Config) -> None:
+    from solverstudy.run import study_run
+
+    study_run(run, cfg)
+
+
+def _bench(run: RunDir, cfg: Config) -> None:
+    from bench.run import bench_run
+
+    bench_run(run, cfg)
+
+
+def _report(run: RunDir, cfg: Config) -> None:
+    from quadfdi.report import write_run_report
+
+    write_run_report(run.root, log=print)
+
+
+STAGES: tuple[tuple[str, Callable[[RunDir, Config], None]], ...] = (
+    ("sim", _sim), ("plots", _plots), ("train", _train), ("export", _export), ("parity", _parity),
+    ("solvers", _solvers), ("bench", _bench), ("report", _report))
+
+
+def run_stages(run: RunDir, cfg: Config, stages=STAGES, log: Callable[[str], None] = print) -> dict[str, float]:
+    """Run ``stages`` in order on ``run``; seconds per stage."""
+    timings = {}
+    for name, stage in stages:
+        t0 = time.perf_counter()
+        stage(run, cfg)
+        timings[name] = time.perf_counter() - t0
+    log("stage times: " + ", ".join(f"{k} {v:.1f} s" for k, v in timings.items())
+        + f"; total {sum(timings.values()):.0f} s")
+    return timings
+
+
+def run_all(args: argparse.Namespace) -> int:
+    cfg = load_config(args.config, args.overrides)
+    run = create_run(args.out, cfg)
+    run_stages(run, cfg)
+    print(f"report: {run.root / 'report.md'}")
     return 0

@@ -14,6 +14,7 @@ row per point; a point that failed 3 times is a row with its error.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import itertools
 from pathlib import Path
 
@@ -25,9 +26,10 @@ from core.jobcache import cache_path, job_key
 from core.jsonio import read_json, write_json
 from core.rundir import RunDir, create_run
 
-STAGE_ORDER = ("sim", "train", "export", "parity", "bench")
-PACKAGES = {"sim": ("sim",), "train": ("sim", "train"), "export": ("sim", "train", "export"),
-            "parity": ("export", "parity"), "bench": ("bench", "train", "export")}
+# The packages whose source a stage runs (hashed into a point's key; core always is).
+PACKAGES = {"sim": ("sim",), "plots": ("sim",), "train": ("sim", "train"), "export": ("sim", "train", "export"),
+            "parity": ("sim", "train", "export", "parity"), "solvers": ("sim", "train", "solverstudy"),
+            "bench": ("sim", "train", "export", "bench"), "report": ("quadfdi",)}
 DEFAULT_METRICS = ("train.cnode.macro_f1", "train.gru.macro_f1",
                    "export.verification.cnode_int8_vs_fp32.macro_f1_int8_points",
                    "export.models.cnode.macs_per_window")
@@ -41,7 +43,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--grid", action="append", default=[], metavar="SECTION.KEY=V1,V2",
                    help="values of one config key; repeat for a cartesian product")
     p.add_argument("--stages", default="sim,train,export", help="stages run at each point, in pipeline order "
-                   f"(from {','.join(STAGE_ORDER)}; default: %(default)s)")
+                   "(those of quadfdi run; default: %(default)s)")
     p.add_argument("--metrics", default=",".join(DEFAULT_METRICS),
                    help="dotted paths into each point's results (train.<metrics.json>, export.<manifest.json>, "
                         "parity.<parity.json>, bench.<bench.json>); the first is drawn (default: %(default)s)")
@@ -96,42 +98,38 @@ def grid_points(config: str, overrides: list[str], grid: list[tuple[str, list[st
 
 
 def parse_stages(text: str) -> tuple[str, ...]:
+    order = stage_order()
     stages = tuple(s.strip() for s in text.split(",") if s.strip())
-    bad = [s for s in stages if s not in STAGE_ORDER]
+    bad = [s for s in stages if s not in order]
     if bad or not stages:
-        raise QuadfdiError(f"--stages: unknown stage {bad[0] if bad else text!r}; valid: {', '.join(STAGE_ORDER)}")
-    return tuple(s for s in STAGE_ORDER if s in stages)
+        raise QuadfdiError(f"--stages: unknown stage {bad[0] if bad else text!r}; valid: {', '.join(order)}")
+    return tuple(s for s in order if s in stages)
 
 
 def point_name(values: dict) -> str:
     return "_".join(f"{k.split('.')[-1]}-{v}" for k, v in values.items()).replace("/", "-").replace(" ", "")
 
 
-def _quiet(_: str) -> None:
-    """Stages log through this on workers: their lines would interleave in the sweep's terminal."""
+def stage_order() -> tuple[str, ...]:
+    from quadfdi.pipeline import STAGES
+
+    return tuple(name for name, _ in STAGES)
 
 
-def _run_stage(stage: str, run: RunDir, cfg: Config, cache_root: Path) -> None:
-    if stage == "sim":
-        from sim.shards import generate_sharded
+def _run_stages(stages: tuple[str, ...], run: RunDir, cfg: Config, cache_root: Path) -> None:
+    """The pipeline's own stage functions (``quadfdi.pipeline.STAGES``), except sim, which joins the
+    shards the sweep's first step cached in ``cache_root``. Their printout goes to the point's
+    log.txt: on workers it would interleave in the sweep's terminal."""
+    from quadfdi.pipeline import STAGES
+    from sim.shards import generate_sharded
 
-        generate_sharded(run, cfg, progress=False, cache_root=cache_root)  # shards cached by the pre-step
-    elif stage == "train":
-        from train.run import train_run
-
-        train_run(run, cfg, cfg.train.model, log=_quiet)
-    elif stage == "export":
-        from export.run import export_run
-
-        export_run(run, cfg, log=_quiet)
-    elif stage == "parity":
-        from parity.run import parity_run
-
-        parity_run(run, cfg, log=_quiet)
-    elif stage == "bench":
-        from bench.run import bench_run
-
-        bench_run(run, cfg, log=_quiet, solver_args=["--sample", "64"])
+    funcs = dict(STAGES)
+    with open(run.root / "log.txt", "w") as fh, contextlib.redirect_stdout(fh):
+        for stage in stages:
+            if stage == "sim":
+                generate_sharded(run, cfg, progress=False, cache_root=cache_root)
+            else:
+                funcs[stage](run, cfg)
 
 
 def flatten(d, prefix: str = "") -> dict:
@@ -148,7 +146,7 @@ def flatten(d, prefix: str = "") -> dict:
 
 def point_metrics(run: RunDir) -> dict:
     files = {"train": run.metrics, "export": run.export / "manifest.json", "parity": run.root / "parity" / "parity.json",
-             "bench": run.root / "bench.json"}
+             "solvers": run.root / "solvers" / "solvers.json", "bench": run.root / "bench.json"}
     out = {}
     for name, path in files.items():
         if path.is_file():
@@ -159,8 +157,7 @@ def point_metrics(run: RunDir) -> dict:
 def run_point(point_dir: str, cfg: Config, stages: tuple[str, ...], cache_root: str) -> dict:
     """One grid point (a job): run ``stages`` into ``point_dir``; return every numeric result."""
     run = create_run(point_dir, cfg)
-    for stage in stages:
-        _run_stage(stage, run, cfg, Path(cache_root))
+    _run_stages(stages, run, cfg, Path(cache_root))
     return point_metrics(run)
 
 

@@ -36,11 +36,11 @@ def round_half_up(x: float) -> int:
     return int(np.floor(x + 0.5 + 1e-9))
 
 
-def class_counts(n_traj: int, fault_ratio: float) -> np.ndarray:
-    """Trajectories per class (Healthy, Battery, Motor, Overheat), (4,) int64."""
+def class_counts(n_traj: int, fault_ratio: float, n_classes: int = N_CLASSES) -> np.ndarray:
+    """Trajectories per class (Healthy, then the fault classes), (n_classes,) int64."""
     n_fault = round_half_up(fault_ratio * n_traj)
-    base, rem = divmod(n_fault, N_FAULT_CLASSES)
-    faults = [base + (1 if k < rem else 0) for k in range(N_FAULT_CLASSES)]
+    base, rem = divmod(n_fault, n_classes - 1)
+    faults = [base + (1 if k < rem else 0) for k in range(n_classes - 1)]
     return np.array([n_traj - n_fault, *faults], dtype=np.int64)
 
 
@@ -56,8 +56,9 @@ def split_counts(count: int, split: Sequence[float]) -> tuple[int, int, int]:
     return count - n_val - n_test, n_val, n_test
 
 
-def assign(seed: int, n_traj: int, fault_ratio: float, split: Sequence[float]) -> tuple[np.ndarray, np.ndarray]:
-    """Fault class (n_traj,) int8 (0 Healthy, 1 Battery, 2 Motor, 3 Overheat) and split
+def assign(seed: int, n_traj: int, fault_ratio: float, split: Sequence[float], n_classes: int = N_CLASSES,
+           spawn_key: tuple[int, ...] = ASSIGN_SPAWN_KEY) -> tuple[np.ndarray, np.ndarray]:
+    """Fault class (n_traj,) int8 (0 Healthy, 1 Battery, 2 Motor, 3 Overheat[, 4 ...]) and split
     (n_traj,) int8 (0 train, 1 validation, 2 test) of every trajectory; see the module docstring."""
     if n_traj <= 0:
         raise QuadfdiError(f"sim.n_traj must be positive, found {n_traj}")
@@ -66,11 +67,11 @@ def assign(seed: int, n_traj: int, fault_ratio: float, split: Sequence[float]) -
     if len(split) != 3 or min(split) < 0 or abs(sum(split) - 1.0) > 1e-9:
         raise QuadfdiError(f"sim.split must be three non-negative shares summing to 1, found {list(split)}")
     labels_cls, labels_split = [], []
-    for cls, count in enumerate(class_counts(n_traj, fault_ratio)):
+    for cls, count in enumerate(class_counts(n_traj, fault_ratio, n_classes)):
         for code, k in zip((SPLIT_TRAIN, SPLIT_VALIDATION, SPLIT_TEST), split_counts(int(count), split)):
             labels_cls += [cls] * k
             labels_split += [code] * k
-    perm = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=ASSIGN_SPAWN_KEY)).permutation(n_traj)
+    perm = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=spawn_key)).permutation(n_traj)
     fault_class = np.empty(n_traj, dtype=np.int8)
     split_code = np.empty(n_traj, dtype=np.int8)
     fault_class[perm] = np.array(labels_cls, dtype=np.int8)

@@ -77,6 +77,15 @@ def command(
     sensitivity (used only with ``vp.v_comp``); dt: controller period [s].
     Returns F_cmd (batch, 4) [N] in [0, F_max], and the new CtrlState.
     """
+    T, tau, cs_new = thrust_torque(x, ref, cs, kappa, vp, dt)
+    return mix_desaturate(T, tau, vp), cs_new
+
+
+def thrust_torque(
+    x: np.ndarray, ref: tuple[np.ndarray, ...], cs: CtrlState, kappa: np.ndarray, vp: VehicleParams, dt: float
+) -> tuple[np.ndarray, np.ndarray, CtrlState]:
+    """``command`` before the mixer: collective thrust T (batch,) [N], torques tau (batch, 3) [N m]
+    and the new CtrlState (the realistic suite mixes them for its own frame, sim/realistic_control.py)."""
     p_ref, v_ref, a_ref, psi_ref, psi_dot_ref = ref
     g = vp.g
     e_p = p_ref - x[:, 0:3]  # (batch, 3)
@@ -131,9 +140,7 @@ def command(
         inv = 1.0 / kappa
         T = T * inv
         tau = tau * inv[:, None]
-
-    F = mix_desaturate(T, tau, vp)
-    return F, CtrlState(i_z=i_z, i_rate=i_rate)
+    return T, tau, CtrlState(i_z=i_z, i_rate=i_rate)
 
 
 def mix_desaturate(T: np.ndarray, tau: np.ndarray, vp: VehicleParams) -> np.ndarray:

@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from core.contracts import SPLITS
+from core.contracts import CLASS_NAMES, SPLITS
 from core.npzio import read_npz, write_npz  # noqa: F401  (re-exported: the dataset's own I/O)
 from core.config import Config, build_config
 from core.errors import QuadfdiError
@@ -71,10 +71,42 @@ class Dataset:
 
 
 def dataset_arrays(arrays: dict[str, np.ndarray], cfg: Config) -> dict[str, np.ndarray]:
-    """The simulator's arrays plus the config (JSON) that made them: what the file holds."""
+    """The simulator's arrays plus the config (JSON) that made them: what the file holds.
+
+    Only the ``[sim]`` section: it alone decides these bytes, so a change to a later stage's
+    settings (or a new config section) neither changes the dataset nor makes it look stale.
+    """
     out = dict(arrays)
-    out["config"] = np.array(json.dumps(cfg.to_dict(), sort_keys=True))
+    sim = cfg.to_dict()["sim"]
+    defaults = _section_dict_defaults()
+    for key in LATER_SIM_KEYS:  # absent = default: the paper dataset keeps the bytes it had before they existed
+        if sim[key] == defaults[key]:
+            del sim[key]
+    out["config"] = np.array(json.dumps({"sim": sim}, sort_keys=True))
     return out
+
+
+# [sim] keys added after the paper dataset was fixed (the realistic suite); embedded only when not default.
+LATER_SIM_KEYS = ("scenario", "classes", "ood_traj")
+
+
+def _section_dict_defaults() -> dict[str, Any]:
+    return Config().to_dict()["sim"]
+
+
+def class_names(arrays: dict[str, np.ndarray]) -> tuple[str, ...]:
+    """The dataset's class names in label order: its ``class_names`` key, or the paper's four classes
+    for a dataset without one (every paper-scenario dataset: that key would change its bytes)."""
+    if "class_names" in arrays:
+        return tuple(str(c) for c in arrays["class_names"])
+    return CLASS_NAMES
+
+
+def split_names(arrays: dict[str, np.ndarray]) -> tuple[str, ...]:
+    """Split names by code (code i = name i): the ``split_names`` key, or train/validation/test."""
+    if "split_names" in arrays:
+        return tuple(str(c) for c in arrays["split_names"])
+    return tuple(SPLITS)
 
 
 def validate_arrays(arrays: dict[str, Any], where: str) -> None:
@@ -145,9 +177,10 @@ def make_windows(ds: Dataset, split: str | None = None, window: int | None = Non
     tel, sev, time = ds["telemetry"], ds["severity"], ds["time"]
     rows = np.arange(tel.shape[0])
     if split is not None:
-        if split not in SPLITS:
-            raise QuadfdiError(f"unknown split {split!r}; valid: {', '.join(SPLITS)}")
-        rows = rows[ds["split"] == SPLITS[split]]
+        names = split_names(ds.arrays)
+        if split not in names:
+            raise QuadfdiError(f"unknown split {split!r}; valid: {', '.join(names)}")
+        rows = rows[ds["split"] == names.index(split)]
     starts = window_starts(tel.shape[1], window, stride)
     traj = np.repeat(rows, len(starts))
     start = np.tile(starts, len(rows))

@@ -7,7 +7,6 @@ from pathlib import Path
 import numpy as np
 
 from core.plotting import pyplot, save_png
-from core.contracts import CLASS_NAMES
 
 
 def _series(ds, row: int, name: str) -> np.ndarray | None:
@@ -19,6 +18,17 @@ def _series(ds, row: int, name: str) -> np.ndarray | None:
     if name in chans:
         return ds["telemetry"][row, :, chans.index(name)]
     return None
+
+
+def plot_groups(axes, ds, row: int, groups, t: np.ndarray) -> None:
+    """One panel per (title, channel names, scale) group of trajectory ``row``, on ``axes`` in order."""
+    for ax, (title, names, scale) in zip(axes, groups):
+        for name in names:
+            y = _series(ds, row, name)
+            if y is not None:
+                ax.plot(t, y * scale, lw=1, label=name)
+        ax.set_title(title, fontsize=10)
+        ax.legend(fontsize=7, loc="best")
 
 
 def plot_trajectory(ds, row: int, out: str | Path) -> Path:
@@ -38,18 +48,17 @@ def plot_trajectory(ds, row: int, out: str | Path) -> Path:
     ]
     fig, axes = plt.subplots(3, 3, figsize=(15, 10), sharex=True)
     axes = axes.ravel()
-    for ax, (title, names, scale) in zip(axes, panels):
-        for name in names:
-            y = _series(ds, row, name)
-            if y is not None:
-                ax.plot(t, y * scale, lw=1, label=name)
-        ax.set_title(title, fontsize=10)
-        ax.legend(fontsize=7, loc="best")
+    plot_groups(axes, ds, row, panels, t)
     ax = axes[len(panels)]
     if "effectiveness" in ds.arrays:
         for m in range(4):
             ax.plot(t, ds["effectiveness"][row, :, m], lw=1, label=f"motor {m + 1}")
-    ax.set_title("effectiveness c_i d_m [-]", fontsize=10)
+        ax.set_title("effectiveness c_i d_m [-]", fontsize=10)
+    else:  # the realistic suite logs vibration metrics instead of recording effectiveness
+        for name in ("vib_px4", "vib_ap"):
+            if name in ds.channel_names:
+                ax.plot(t, ds["telemetry"][row, :, ds.channel_names.index(name)], lw=1, label=name)
+        ax.set_title("vibration metrics [m/s^2]", fontsize=10)
     ax.legend(fontsize=7)
     ax = axes[len(panels) + 1]
     ax.plot(t, ds["severity"][row], color="k", lw=1.2, label="severity s_k")
@@ -68,6 +77,8 @@ def plot_trajectory(ds, row: int, out: str | Path) -> Path:
     extra = f", motor {motor + 1}" if motor >= 0 else ""
     det_txt = f", detectable {det:.2f} s" if np.isfinite(det) else ""
     on_txt = f", onset {onset:.2f} s" if cls else ""
-    fig.suptitle(f"trajectory {row}: {CLASS_NAMES[cls]}{extra}{on_txt}{det_txt} (dotted: onset, dashed: detectable)")
+    from sim.dataset import class_names
+
+    fig.suptitle(f"trajectory {row}: {class_names(ds.arrays)[cls]}{extra}{on_txt}{det_txt} (dotted: onset, dashed: detectable)")
     fig.tight_layout()
     return save_png(fig, out)

@@ -165,6 +165,10 @@ def generate(cfg: SimConfig, indices: Sequence[int] | None = None,
       t_amb (n,) float64 [degC];  battery_limited (n,) int32 steps at the battery clamp
     """
     cfg.validate()
+    if cfg.scenario == "realistic":  # the realistic suite (docs/realistic.md); the paper path below is untouched
+        from sim.realistic import generate as generate_realistic
+
+        return generate_realistic(cfg, indices, progress)
     vp = get_vehicle(cfg.vehicle)
     idx = _indices(cfg, indices)
     cls_all, split_all = assign(cfg.seed, cfg.n_traj, cfg.fault_ratio, cfg.split)

@@ -12,7 +12,8 @@ import pytest
 
 from bench.floors import attach_distance, cnode_macs, floor_of, floors, targets, weight_traffic
 from bench.latency import plan, rtol_label, sample_windows
-from bench.latency_worker import parse_solver, percentile, summarise, time_calls
+from bench.runtimes.common import percentile, summarise, time_calls
+from bench.runtimes.torch_rt import parse_solver
 from tests.conftest import ROOT
 
 # ----------------------------------------------------------------------------- statistics

@@ -1,5 +1,6 @@
 """`quadfdi bench --quick` end to end on a tiny exported run: bench.json holds every field of its
-contract (docs/bench.md), report.md assembles every stage present, bad input is one line.
+contract (docs/bench.md); `quadfdi report` assembles report.md from every stage's own section
+(absent stages say "Not run", a corrupt stage file is a one-line error); bad input is one line.
 No timing assertions."""
 
 from __future__ import annotations
@@ -11,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.conftest import ROOT, quadfdi
+from tests.conftest import ROOT, copy_run, quadfdi, random_weight_run
 
 FWREF = ROOT / "firmware_ref" / "build" / "fwref_infer"
 LATENCY_KEYS = {"model", "runtime", "precision", "solver", "threads", "spinning", "batch", "p50_us", "p90_us",
@@ -22,6 +23,11 @@ TOP_KEYS = {"schema_version", "producer", "command", "machine", "limits", "model
             "memory", "solvers", "profiles", "windows", "counts", "timing_s"}
 
 
+def quadfdi_report(run: Path) -> subprocess.CompletedProcess:
+    """``quadfdi report --run RUN`` through the real dispatcher."""
+    return quadfdi("report", "--run", str(run))
+
+
 def quadfdi_bench(*args: str) -> subprocess.CompletedProcess:
     """``quadfdi bench ...`` through the real dispatcher."""
     return quadfdi("bench", *args)
@@ -30,26 +36,11 @@ def quadfdi_bench(*args: str) -> subprocess.CompletedProcess:
 @pytest.fixture(scope="module")
 def exported_run(small_run, tmp_path_factory) -> Path:
     """The session's simulated run + random-weight checkpoints, exported with N = 2 (in process)."""
-    import torch
-
-    from export.run import export_run
     from core.config import replace_section
     from core.rundir import open_run
-    from sim.dataset import load_dataset
-    from train.checkpoint import save_checkpoint
-    from train.data import fit_normalisation
-    from train.models import CNODE, GRUClassifier
+    from export.run import export_run
 
-    out = tmp_path_factory.mktemp("bench") / "run"
-    out.mkdir()
-    for name in ("config.toml", "dataset.npz"):
-        shutil.copy(small_run / name, out / name)
-    ds = load_dataset(out / "dataset.npz")
-    mean, std = fit_normalisation(ds)
-    torch.manual_seed(0)
-    for kind, model in (("cnode", CNODE(ds.n_channels)), ("gru", GRUClassifier(ds.n_channels))):
-        model.set_normalisation(mean, std)
-        save_checkpoint(out / f"{kind}.pt", model, {}, ds.channel_names)
+    out = random_weight_run(small_run, tmp_path_factory.mktemp("bench") / "run")
     run, cfg = open_run(out)
     export_run(run, replace_section(cfg, "export", steps=2, calib_windows=64), log=lambda s: None)
     return out
@@ -57,10 +48,13 @@ def exported_run(small_run, tmp_path_factory) -> Path:
 
 @pytest.fixture(scope="module")
 def benched(exported_run) -> Path:
-    args = ["--run", str(exported_run), "--quick", "--skip-solvers"] + ([] if FWREF.is_file() else ["--skip-cpp"])
+    args = ["--run", str(exported_run), "--quick"] + ([] if FWREF.is_file() else ["--skip-cpp"])
     res = quadfdi_bench(*args)
     assert res.returncode == 0, res.stderr[-3000:]
     assert "bench: wrote" in res.stdout
+    assert not (exported_run / "report.md").exists()  # report.md is the app layer's, not bench's
+    res = quadfdi_report(exported_run)
+    assert res.returncode == 0, res.stderr[-3000:]
     return exported_run
 
 
@@ -96,7 +90,7 @@ def test_bench_json_holds_every_field(benched):
     assert ("parameters", None) in items and ("file_bytes", "ort") in items
     assert ("peak_rss_above_baseline_batch1_bytes", "ort") in items
     assert ("peak_rss_above_baseline_batch1_bytes", "torch") in items
-    assert isinstance(bench["solvers"], list)
+    assert bench["solvers"] == [] and "no solver study" in bench["solvers_meta"]["note"]  # no solvers/solvers.json
     if FWREF.is_file():
         assert ("static_ram_bytes", "cpp") in items
         assert {t["model"] for t in bench["targets"]} == {"cnode", "gru"}
@@ -108,28 +102,33 @@ def test_report_assembles_every_stage_present(benched):
     for heading in ("# quadfdi run report", "## Simulation", "## Export", "## Bench: latency, memory, limits",
                     "### Floors", "### Machine limits", "### Memory"):
         assert heading in text, heading
-    assert "## Training" not in text  # this run has no metrics.json
+    assert "## Training and test metrics\n\nNot run: no metrics.json" in text  # this run has no metrics.json
+    assert "## Parity\n\nNot run:" in text
     for fig in ("bench_latency.png", "bench_throughput.png"):
         assert (benched / "figures" / fig).is_file()
         assert f"figures/{fig}" in text
 
 
-def test_bench_report_command_rewrites_from_the_files(benched):
+def test_report_command_rewrites_from_the_files(benched):
     (benched / "report.md").unlink()
-    res = quadfdi_bench("report", "--run", str(benched))
+    (benched / "figures" / "bench_latency.png").unlink()
+    res = quadfdi_report(benched)
     assert res.returncode == 0, res.stderr
+    assert (benched / "figures" / "bench_latency.png").is_file()  # redrawn from bench.json
     assert (benched / "report.md").is_file() and "## Bench" in (benched / "report.md").read_text()
 
 
 def test_report_of_a_run_with_only_a_dataset(small_run, tmp_path):
-    from bench.report import write_run_report
+    from quadfdi.report import write_run_report
 
     run = tmp_path / "simonly"
-    run.mkdir()
-    for name in ("config.toml", "dataset.npz"):
-        shutil.copy(small_run / name, run / name)
+    copy_run(small_run, run)
     text = write_run_report(run).read_text()
-    assert "## Simulation" in text and "## Bench" not in text and "## Export" not in text
+    assert "## Simulation" in text and "Not run: no dataset.npz" not in text
+    for heading, file in (("## Bench: latency, memory, limits", "bench.json"), ("## Export", "export/manifest.json"),
+                          ("## Training and test metrics", "metrics.json"), ("## Parity", "parity/parity.json")):
+        assert f"{heading}\n\nNot run: no {file} in this run" in text, heading
+    assert "## Headline" not in text  # no stage with headline numbers has run
 
 
 def test_bad_input_is_one_line(exported_run, tmp_path):
@@ -149,8 +148,40 @@ def test_bad_input_is_one_line(exported_run, tmp_path):
     bad = tmp_path / "badbench"
     bad.mkdir()
     (bad / "bench.json").write_text("{truncated")
-    res = quadfdi_bench("report", "--run", str(bad))
-    assert res.returncode == 2 and "bench.json" in res.stderr and len(res.stderr.strip().splitlines()) == 1
+    res = quadfdi_report(bad)
+    assert res.returncode == 2 and res.stderr.startswith("quadfdi report: error:") and "bench.json" in res.stderr
+    assert len(res.stderr.strip().splitlines()) == 1
+    res = quadfdi_report(tmp_path / "nope")
+    assert res.returncode == 2 and len(res.stderr.strip().splitlines()) == 1
+    res = quadfdi_bench("solvers", "--run", str(exported_run))  # the solver study is no longer bench's
+    assert res.returncode == 2
+
+
+@pytest.mark.parametrize("stage_file", ["metrics.json", "history.json", "export/manifest.json", "parity/parity.json",
+                                        "bench.json", "dataset.npz"])
+def test_a_corrupt_stage_file_is_a_one_line_error(small_run, tmp_path, stage_file):
+    """Report assembly never swallows: a truncated file of any stage stops it with one line naming the file."""
+    from core.errors import QuadfdiError
+    from quadfdi.report import run_report_markdown
+
+    run = tmp_path / "corrupt"
+    copy_run(small_run, run)
+    if stage_file == "history.json":  # read with the training section, which needs metrics.json
+        (run / "metrics.json").write_text(json.dumps({"gru": {"macro_f1": 0.5}}))
+    (run / stage_file).parent.mkdir(parents=True, exist_ok=True)
+    (run / stage_file).write_text("{truncated")
+    with pytest.raises(QuadfdiError) as err:
+        run_report_markdown(run)
+    assert Path(stage_file).name in str(err.value) and len(str(err.value).splitlines()) == 1
+
+
+def test_a_foreign_bench_json_is_a_one_line_error(tmp_path):
+    from bench.report import report_section
+    from core.errors import QuadfdiError
+
+    (tmp_path / "bench.json").write_text(json.dumps({"schema_version": 7}))
+    with pytest.raises(QuadfdiError, match="schema version 1"):
+        report_section(tmp_path)
 
 
 def test_cortex_m_numbers_come_from_mcu_json(tmp_path):
@@ -168,3 +199,64 @@ def test_cortex_m_numbers_come_from_mcu_json(tmp_path):
     assert got[("cortex-m4", "gru", "fp32", "static_ram_bytes")] == 3000
     assert len(recs) == 8  # flash, weights, static RAM, stack for each of the two models
     assert mcu_records(tmp_path / "nothing") == ([], None)
+
+
+def test_solver_records_of_a_run_without_the_study(tmp_path):
+    from bench.run import solver_records
+
+    records, meta = solver_records(tmp_path)
+    assert records == [] and "solvers/solvers.json absent" in meta["note"]
+
+
+def test_report_sections_in_stage_order(small_run, tmp_path):
+    """The real stage modules, in the pipeline's order; a stage that has not run says so."""
+    from quadfdi.report import run_report_markdown
+
+    run = tmp_path / "nostudy"
+    run.mkdir()
+    shutil.copy(small_run / "config.toml", run / "config.toml")
+    text = run_report_markdown(run)
+    order = [text.index(h) for h in ("## Simulation", "## Training", "## Export", "## Parity", "## Bench",
+                                     "## Solvers\n\nNot run: no solvers/solvers.json")]
+    assert order == sorted(order)
+
+
+def test_pipeline_runs_every_stage_in_order(tmp_path):
+    from core.config import load_config
+    from core.rundir import create_run
+    from quadfdi.pipeline import STAGES, run_stages
+
+    assert [name for name, _ in STAGES] == ["sim", "plots", "train", "export", "parity", "solvers", "bench",
+                                            "report"]
+    calls = []
+    fake = tuple((name, lambda run, cfg, name=name: calls.append((name, run.root))) for name, _ in STAGES)
+    run = create_run(tmp_path / "r", load_config(None))
+    timings = run_stages(run, load_config(None), fake, log=lambda s: None)
+    assert [c[0] for c in calls] == [name for name, _ in STAGES] and set(timings) == {n for n, _ in STAGES}
+
+
+def test_help_prints_no_rest_markup():
+    res = quadfdi("--help")
+    assert res.returncode == 0 and "``" not in res.stdout and "report" in res.stdout
+
+
+def test_bench_config_section(tmp_path):
+    from core.config import load_config
+    from core.errors import QuadfdiError
+
+    cfg = load_config(ROOT / "configs" / "paper.toml", ["bench.windows=50", "bench.threads=[1]"])
+    assert (cfg.bench.windows, cfg.bench.threads, cfg.bench.batch, cfg.bench.cpus) == (50, (1,), 96, "0,1")
+    for bad, word in (("bench.threads=[]", "bench.threads"), ("bench.windows=0", "bench.windows"),
+                      ("bench.cpus='a,b'", "bench.cpus"), ("bench.warmups=3", "unknown key bench.warmups")):
+        with pytest.raises(QuadfdiError, match=word):
+            load_config(None, [bad])
+
+
+def test_counts_follow_the_config():
+    from bench.latency import Counts
+    from core.config import BenchConfig
+
+    c = Counts.of(BenchConfig(windows=40, warmup=4, batch=8, batches=3, budget_s=2.0, min_samples=3), quick=False)
+    assert (c.n, c.warmup, c.batch, c.batches, c.budget_s, c.min_samples) == (40, 4, 8, 3, 2.0, 3)
+    q = Counts.of(BenchConfig(batch=8), quick=True)
+    assert (q.n, q.batch) == (20, 8)

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import shutil
 import subprocess
 from pathlib import Path
 
@@ -10,39 +9,20 @@ import numpy as np
 import onnx
 import onnxruntime as ort
 import pytest
-import torch
 
 from export.manifest import ARTIFACT_KEYS, check_files, load_manifest
 from export.reference_bin import read_reference
 from export.weights_bin import read_weights
 from sim.dataset import load_dataset, make_windows
-from tests.conftest import quadfdi
-from train.checkpoint import save_checkpoint
-from train.data import fit_normalisation
-from train.models import CNODE, GRUClassifier
+from tests.conftest import quadfdi, random_weight_run
 
 def quadfdi_export(*args: str) -> subprocess.CompletedProcess:
     return quadfdi("export", *args)
 
 
-def make_run(small_run: Path, out: Path, kinds=("cnode", "gru")) -> Path:
-    """A copy of the simulated run with random-weight checkpoints (normalised on its training split)."""
-    out.mkdir(parents=True)
-    for name in ("config.toml", "dataset.npz"):
-        shutil.copy(small_run / name, out / name)
-    ds = load_dataset(out / "dataset.npz")
-    mean, std = fit_normalisation(ds)
-    torch.manual_seed(0)
-    for kind in kinds:
-        model = CNODE(ds.n_channels) if kind == "cnode" else GRUClassifier(ds.n_channels)
-        model.set_normalisation(mean, std)
-        save_checkpoint(out / f"{kind}.pt", model, {}, ds.channel_names)
-    return out
-
-
 @pytest.fixture(scope="module")
 def exported(small_run, tmp_path_factory) -> Path:
-    run = make_run(small_run, tmp_path_factory.mktemp("export") / "run")
+    run = random_weight_run(small_run, tmp_path_factory.mktemp("export") / "run")
     res = quadfdi_export("--run", str(run), "--steps", "2")
     assert res.returncode == 0, res.stderr
     assert "verification passed" in res.stdout
@@ -81,7 +61,7 @@ def test_export_writes_every_file_and_a_passing_manifest(exported):
 
 
 def test_missing_checkpoint_is_a_one_line_error_and_writes_nothing(small_run, tmp_path):
-    run = make_run(small_run, tmp_path / "run", kinds=("cnode",))
+    run = random_weight_run(small_run, tmp_path / "run", kinds=("cnode",))
     res = quadfdi_export("--run", str(run))
     assert res.returncode == 2
     lines = res.stderr.strip().splitlines()
@@ -90,7 +70,7 @@ def test_missing_checkpoint_is_a_one_line_error_and_writes_nothing(small_run, tm
 
 
 def test_bad_steps_is_a_one_line_error(small_run, tmp_path):
-    run = make_run(small_run, tmp_path / "run")
+    run = random_weight_run(small_run, tmp_path / "run")
     res = quadfdi_export("--run", str(run), "--steps", "0")
     assert res.returncode == 2 and "export.steps must be positive" in res.stderr
     assert len(res.stderr.strip().splitlines()) == 1
@@ -104,7 +84,7 @@ def test_a_wrong_gru_graph_stops_the_export_before_anything_is_written(small_run
     from core.errors import QuadfdiError
     from core.rundir import open_run
 
-    run_dir = make_run(small_run, tmp_path / "run")
+    run_dir = random_weight_run(small_run, tmp_path / "run")
     wrong = functools.partial(export_run_module.build_gru_fp32, linear_before_reset=0)
     monkeypatch.setattr(export_run_module, "build_gru_fp32", wrong)
     run, cfg = open_run(run_dir, ["export.steps=1", "export.calib_windows=64"])

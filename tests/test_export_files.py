@@ -88,6 +88,44 @@ def test_truncated_foreign_and_corrupted_weights(weights_file, tmp_path):
     _one_line_error(tmp_path / "missing.bin", "does not exist")
 
 
+def test_reader_refuses_files_that_differ_from_the_layout(weights_file, tmp_path):
+    """A well-formed container whose sections or tensors are not export/weights_layout.py's."""
+    from export.weights_layout import SECTION_ORDER
+
+    def variant(edit):
+        w = read_weights(weights_file)
+        edit(w.sections)
+        path = tmp_path / "w.bin"
+        path.write_bytes(pack(MAGIC, 1, w.sections))
+        return path
+
+    def reorder(secs):
+        t = secs[0].tensors
+        t["norm.std"] = t.pop("norm.mean")
+
+    def reshape(secs):
+        t = secs[2].tensors["gru.bias_ih"]
+        secs[2].tensors["gru.bias_ih"] = type(t)("gru.bias_ih", t.array[:-1].copy())
+
+    def int8_as_float(secs):
+        t = secs[3].tensors["head.weight"]
+        secs[3].tensors["head.weight"] = type(t)("head.weight", t.dequant())
+
+    def extra(secs):
+        secs[1].add("extra", np.zeros(2, np.float32))
+
+    def stage_times(secs):
+        secs[0].dims = secs[0].dims[:6] + (secs[0].dims[6] + 2, 0)
+
+    cases = [(lambda secs: secs.reverse(), "holds sections"),
+             (lambda secs: secs[1].tensors.pop("act.z1.scale"), "holds tensors"),
+             (reorder, "holds tensors"), (reshape, r"expected float32 \(18,\) \('3H',\)"),
+             (int8_as_float, "expected int8"), (extra, "holds tensors"), (stage_times, "expected 2N \\+ 1")]
+    for edit, match in cases:
+        _one_line_error(variant(edit), match)
+    assert [(s.model, s.precision) for s in read_weights(weights_file).sections] == list(SECTION_ORDER)
+
+
 def test_section_sizes_are_checked_even_with_a_valid_crc(tmp_path):
     """A writer bug (a tensor claiming more bytes than it has) is caught by the size checks."""
     s = Section("gru", "fp32", (1, 2, 3))

@@ -171,6 +171,32 @@ def test_gru_structure():
     assert weights_q == {"gru.ih.weight_q", "gru.hh.weight_q", "head.weight_q"}
 
 
+def test_cnode_graph_is_the_rk4_program(tiny):
+    """The unrolled graph is core.rk4.rk4_step evaluated on graph values: its RK4 constants are
+    rk4_constants(1/N) under RK4_CONSTANT_NAMES, multiplied in RK4_PROGRAM's order every step."""
+    from core.rk4 import RK4_CONSTANT_NAMES, rk4_constants
+
+    names = {f"rk4.{n}": n for n in RK4_CONSTANT_NAMES}
+    for built in (tiny.cnode_fp32, tiny.cnode_int8):
+        init = inits(built.model)
+        consts = [init[f"rk4.{n}"] for n in RK4_CONSTANT_NAMES]
+        assert all(c.dtype == np.float32 and c.shape == () for c in consts)
+        assert np.array_equal(np.array(consts), rk4_constants(1.0 / tiny.steps))
+        muls = [names[n.input[1]] for n in built.model.graph.node if n.op_type == "Mul" and n.input[1] in names]
+        assert muls == ["half_h", "half_h", "h", "two", "two", "h_over_6"] * tiny.steps
+
+
+def test_weights_bin_rk4_constants_are_the_graphs(tiny, tmp_path):
+    from core.rk4 import RK4_CONSTANT_NAMES
+    from export.weights_bin import read_weights, write_weights
+
+    write_weights(tmp_path / "w.bin", tiny.cp, tiny.cq, tiny.gp, tiny.gq)
+    w = read_weights(tmp_path / "w.bin")
+    for prec, built in (("fp32", tiny.cnode_fp32), ("int8", tiny.cnode_int8)):
+        init = inits(built.model)
+        assert np.array_equal(w.section("cnode", prec)["rk4.consts"], [init[f"rk4.{n}"] for n in RK4_CONSTANT_NAMES])
+
+
 # ----------------------------------------------------------------------------- numbers
 
 

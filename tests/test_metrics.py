@@ -8,19 +8,9 @@ import warnings
 
 import numpy as np
 import pytest
-from sklearn.metrics import (
-    accuracy_score,
-    average_precision_score,
-    balanced_accuracy_score,
-    brier_score_loss,
-    confusion_matrix,
-    f1_score,
-    matthews_corrcoef,
-    precision_recall_fscore_support,
-    roc_auc_score,
-)
+from sklearn import metrics as skm  # the independent reference every metric is checked against
 
-from core.contracts import CLASS_NAMES
+from core.contracts import CLASS_LABELS, CLASS_NAMES
 from core.jsonio import to_jsonable
 from train.metrics import (
     METRIC_KEYS,
@@ -32,7 +22,7 @@ from train.metrics import (
     summarize_seeds,
 )
 
-LABELS = [0, 1, 2, 3]
+LABELS = list(CLASS_LABELS)
 
 # the scikit-learn reference calls below warn on the degenerate cases; train.metrics does not
 pytestmark = pytest.mark.filterwarnings("ignore:y_pred contains classes not in y_true:UserWarning")
@@ -55,7 +45,7 @@ def random_case(seed: int, n: int = 300, classes=(0, 1, 2, 3)):
 
 
 def hand_specificity(y, y_pred):
-    cm = confusion_matrix(y, y_pred, labels=LABELS)
+    cm = skm.confusion_matrix(y, y_pred, labels=LABELS)
     vals = []
     for k in LABELS:
         tp = cm[k, k]
@@ -73,22 +63,22 @@ def test_classification_equals_sklearn_all_classes(seed):
     m = classification_metrics(y, p)
     pd = as_f64(p)
     yp = pd.argmax(axis=1)
-    prec, rec, f1, _ = precision_recall_fscore_support(y, yp, labels=LABELS, zero_division=0)
-    assert m["accuracy"] == pytest.approx(accuracy_score(y, yp), abs=1e-12)
-    assert m["balanced_accuracy"] == pytest.approx(balanced_accuracy_score(y, yp), abs=1e-12)
+    prec, rec, f1, _ = skm.precision_recall_fscore_support(y, yp, labels=LABELS, zero_division=0)
+    assert m["accuracy"] == pytest.approx(skm.accuracy_score(y, yp), abs=1e-12)
+    assert m["balanced_accuracy"] == pytest.approx(skm.balanced_accuracy_score(y, yp), abs=1e-12)
     assert m["macro_precision"] == pytest.approx(prec.mean(), abs=1e-12)
     assert m["macro_recall"] == pytest.approx(rec.mean(), abs=1e-12)
-    assert m["macro_f1"] == pytest.approx(f1_score(y, yp, average="macro"), abs=1e-12)
-    assert m["weighted_f1"] == pytest.approx(f1_score(y, yp, average="weighted"), abs=1e-12)
-    assert m["mcc"] == pytest.approx(matthews_corrcoef(y, yp), abs=1e-12)
+    assert m["macro_f1"] == pytest.approx(skm.f1_score(y, yp, average="macro"), abs=1e-12)
+    assert m["weighted_f1"] == pytest.approx(skm.f1_score(y, yp, average="weighted"), abs=1e-12)
+    assert m["mcc"] == pytest.approx(skm.matthews_corrcoef(y, yp), abs=1e-12)
     assert m["macro_specificity"] == pytest.approx(hand_specificity(y, yp), abs=1e-12)
     # the one-call multiclass forms of scikit-learn
-    assert m["roc_auc_ovr"] == pytest.approx(roc_auc_score(y, pd, multi_class="ovr", average="macro"), abs=1e-12)
-    assert m["pr_auc_ovr"] == pytest.approx(average_precision_score(y, pd, average="macro"), abs=1e-12)
-    assert m["brier"] == pytest.approx(brier_score_loss(y, pd, labels=LABELS), abs=1e-12)
+    assert m["roc_auc_ovr"] == pytest.approx(skm.roc_auc_score(y, pd, multi_class="ovr", average="macro"), abs=1e-12)
+    assert m["pr_auc_ovr"] == pytest.approx(skm.average_precision_score(y, pd, average="macro"), abs=1e-12)
+    assert m["brier"] == pytest.approx(skm.brier_score_loss(y, pd, labels=LABELS), abs=1e-12)
     score = 1.0 - pd[:, 0]
-    assert m["any_fault_f1"] == pytest.approx(f1_score(y != 0, score > 0.5), abs=1e-12)
-    assert m["any_fault_roc_auc"] == pytest.approx(roc_auc_score(y != 0, score), abs=1e-12)
+    assert m["any_fault_f1"] == pytest.approx(skm.f1_score(y != 0, score > 0.5), abs=1e-12)
+    assert m["any_fault_roc_auc"] == pytest.approx(skm.roc_auc_score(y != 0, score), abs=1e-12)
     for k, name in enumerate(CLASS_NAMES):
         assert m["per_class"][name] == pytest.approx({"precision": prec[k], "recall": rec[k], "f1": f1[k]}, abs=1e-12)
     assert all(math.isfinite(v) for k, v in m.items() if k != "per_class")
@@ -99,7 +89,7 @@ def test_brier_is_sum_of_per_class_eq13():
     for seed in range(3):
         y, p = random_case(seed)
         pd = as_f64(p)
-        per_class = [brier_score_loss(y == k, pd[:, k]) for k in LABELS]
+        per_class = [skm.brier_score_loss(y == k, pd[:, k]) for k in LABELS]
         by_hand = np.mean(np.sum((pd - np.eye(4)[y]) ** 2, axis=1))
         m = classification_metrics(y, p)
         assert m["brier"] == pytest.approx(sum(per_class), abs=1e-12)
@@ -120,23 +110,23 @@ def test_class_absent_from_y_true(seed, absent):
     yp = pd.argmax(axis=1)
     assert (yp == absent).any()  # the absent class is still predicted sometimes
     present = list(classes)
-    roc = np.mean([roc_auc_score(y == k, pd[:, k]) for k in present])
-    ap = np.mean([average_precision_score(y == k, pd[:, k]) for k in present])
+    roc = np.mean([skm.roc_auc_score(y == k, pd[:, k]) for k in present])
+    ap = np.mean([skm.average_precision_score(y == k, pd[:, k]) for k in present])
     assert m["roc_auc_ovr"] == pytest.approx(roc, abs=1e-12)
     assert m["pr_auc_ovr"] == pytest.approx(ap, abs=1e-12)
-    prec, rec, f1, _ = precision_recall_fscore_support(y, yp, labels=LABELS, zero_division=0)
+    prec, rec, f1, _ = skm.precision_recall_fscore_support(y, yp, labels=LABELS, zero_division=0)
     assert m["macro_recall"] == pytest.approx(rec.mean(), abs=1e-12)
     assert m["per_class"][CLASS_NAMES[absent]]["recall"] == 0.0
     assert m["macro_f1"] == pytest.approx(f1.mean(), abs=1e-12)
-    assert m["balanced_accuracy"] == pytest.approx(balanced_accuracy_score(y, yp), abs=1e-12)
-    assert m["mcc"] == pytest.approx(matthews_corrcoef(y, yp), abs=1e-12)
+    assert m["balanced_accuracy"] == pytest.approx(skm.balanced_accuracy_score(y, yp), abs=1e-12)
+    assert m["mcc"] == pytest.approx(skm.matthews_corrcoef(y, yp), abs=1e-12)
     assert m["macro_specificity"] == pytest.approx(hand_specificity(y, yp), abs=1e-12)
-    assert m["brier"] == pytest.approx(brier_score_loss(y, pd, labels=LABELS), abs=1e-12)
+    assert m["brier"] == pytest.approx(skm.brier_score_loss(y, pd, labels=LABELS), abs=1e-12)
     if absent == 0:  # all windows faulty: any-fault ROC-AUC undefined, any-fault F1 defined
         assert math.isnan(m["any_fault_roc_auc"])
-        assert m["any_fault_f1"] == pytest.approx(f1_score(y != 0, 1 - pd[:, 0] > 0.5), abs=1e-12)
+        assert m["any_fault_f1"] == pytest.approx(skm.f1_score(y != 0, 1 - pd[:, 0] > 0.5), abs=1e-12)
     else:
-        assert m["any_fault_roc_auc"] == pytest.approx(roc_auc_score(y != 0, 1 - pd[:, 0]), abs=1e-12)
+        assert m["any_fault_roc_auc"] == pytest.approx(skm.roc_auc_score(y != 0, 1 - pd[:, 0]), abs=1e-12)
     assert all(math.isfinite(v) for k, v in m.items() if k not in ("per_class", "any_fault_roc_auc"))
 
 
@@ -151,12 +141,12 @@ def test_single_class_y_true(only):
     assert math.isnan(m["roc_auc_ovr"]) and math.isnan(m["pr_auc_ovr"])
     assert math.isnan(m["any_fault_roc_auc"])
     # defined: finite and equal to scikit-learn
-    assert m["accuracy"] == pytest.approx(accuracy_score(y, yp))
-    assert m["balanced_accuracy"] == pytest.approx(balanced_accuracy_score(y, yp))
-    assert m["mcc"] == pytest.approx(matthews_corrcoef(y, yp))
-    assert m["brier"] == pytest.approx(brier_score_loss(y, pd, labels=LABELS))
-    assert m["macro_f1"] == pytest.approx(f1_score(y, yp, labels=LABELS, average="macro", zero_division=0))
-    assert m["any_fault_f1"] == pytest.approx(f1_score(y != 0, 1 - pd[:, 0] > 0.5, zero_division=0))
+    assert m["accuracy"] == pytest.approx(skm.accuracy_score(y, yp))
+    assert m["balanced_accuracy"] == pytest.approx(skm.balanced_accuracy_score(y, yp))
+    assert m["mcc"] == pytest.approx(skm.matthews_corrcoef(y, yp))
+    assert m["brier"] == pytest.approx(skm.brier_score_loss(y, pd, labels=LABELS))
+    assert m["macro_f1"] == pytest.approx(skm.f1_score(y, yp, labels=LABELS, average="macro", zero_division=0))
+    assert m["any_fault_f1"] == pytest.approx(skm.f1_score(y != 0, 1 - pd[:, 0] > 0.5, zero_division=0))
     assert m["macro_specificity"] == pytest.approx(hand_specificity(y, yp))
     assert math.isfinite(m["macro_specificity"])
     json.dumps(to_jsonable(m), allow_nan=False)

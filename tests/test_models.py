@@ -58,6 +58,14 @@ def _normalised(model, x):
     return model
 
 
+def _seeded_model(kind: str, batch: int):
+    """A model of ``kind`` (seed 0, default sizes) normalised on ``batch`` raw windows, and those windows."""
+    torch.manual_seed(0)
+    model = build_model(kind, C, TrainConfig())
+    x = _raw(batch)
+    return _normalised(model, x), x
+
+
 @pytest.fixture
 def cnode() -> CNODE:
     torch.manual_seed(0)
@@ -99,10 +107,7 @@ def test_gru_logits_shape_and_gradients():
 
 @pytest.mark.parametrize("kind", MODEL_KINDS)
 def test_normalisation_is_inside_the_model(kind):
-    torch.manual_seed(0)
-    model = build_model(kind, C, TrainConfig())
-    x = _raw(5)
-    _normalised(model, x)
+    model, x = _seeded_model(kind, 5)
     identity = build_model(kind, C, TrainConfig())
     identity.load_state_dict(model.state_dict())
     identity.set_normalisation(np.zeros(C), np.ones(C))
@@ -398,10 +403,7 @@ def test_build_model_follows_train_config():
 
 @pytest.mark.parametrize("kind", MODEL_KINDS)
 def test_signature_rebuilds_the_model_and_checkpoint_loads_weights_only(kind):
-    torch.manual_seed(0)
-    model = build_model(kind, C, TrainConfig())
-    x = _raw(2)
-    _normalised(model, x)
+    model, x = _seeded_model(kind, 2)
     sig = model_signature(model)
     assert sig["kind"] == kind and all(type(v) in (int, str) for v in sig.values())
     buf = io.BytesIO()

@@ -5,7 +5,7 @@
 - torchdiffeq: our euler and midpoint equal its 'euler' and 'midpoint'; its 'rk4' is the 3/8 rule
   (reimplemented here) and differs from our classic RK4, each matching its own error theory.
 - Evaluation counts and traces; stage times.
-- interp_matrix against np.interp; LinearPath against interp_matrix; increment_matrix.
+- interp_matrix against np.interp; LinearPath against interp_matrix.
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ import scipy.linalg
 import torch
 from torchdiffeq import odeint
 
-from train.control import LinearPath, increment_matrix, interp_matrix, knots, sample_times
+from train.control import LinearPath, interp_matrix, knots, sample_times
 from train.solvers import (
     FIXED_METHODS,
     SolverSpec,
@@ -328,18 +328,3 @@ def test_knots_are_the_interior_samples():
     assert k.shape == (78,) and k.dtype == np.float64
     assert (k > 0).all() and (k < 1).all() and (np.diff(k) > 0).all()
     np.testing.assert_allclose(k, np.arange(1, 79) / 79)
-
-
-def test_increment_matrix_gives_mean_slope_per_step():
-    rng = np.random.default_rng(2)
-    x = rng.normal(size=(80, 3))
-    for n in (1, 8, 79):
-        d = increment_matrix(n, 80)
-        assert d.shape == (n, 80)
-        grid = np.linspace(0, 1, n + 1)
-        values = np.stack([np.interp(grid, sample_times(80), x[:, c]) for c in range(3)], axis=1)
-        np.testing.assert_allclose(d @ x, np.diff(values, axis=0) * n, atol=1e-11)
-    # on a straight line a + b t every row gives the slope b
-    t = sample_times(80)[:, None]
-    line = 0.5 + np.array([[2.0, -3.0]]) * t
-    np.testing.assert_allclose(increment_matrix(8, 80) @ line, np.tile([[2.0, -3.0]], (8, 1)), atol=1e-12)

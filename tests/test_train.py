@@ -9,6 +9,7 @@ import pytest
 import torch
 
 from core.config import load_config, replace_section
+from core.contracts import CLASS_NAMES, N_CLASSES, SPLIT_TEST, SPLIT_TRAIN
 from core.errors import QuadfdiError
 from sim.dataset import load_dataset
 from tests.conftest import quadfdi
@@ -48,7 +49,7 @@ def test_same_batches_for_both_models():
 def test_normalisation_from_training_split_only(small_run):
     ds = load_dataset(small_run / "dataset.npz")
     mean, _ = fit_normalisation(ds)
-    train_tel = ds["telemetry"][ds["split"] == 0]
+    train_tel = ds["telemetry"][ds["split"] == SPLIT_TRAIN]
     assert np.allclose(mean, train_tel.reshape(-1, train_tel.shape[-1]).mean(0), rtol=1e-5, atol=1e-5)
 
 
@@ -88,13 +89,13 @@ def test_train_artifacts(trained_run):
     assert set(metrics) == {"cnode", "gru", "baseline"}
     for m in metrics.values():
         assert set(m) == METRIC_KEYS
-        assert set(m["per_class"]) == {"Healthy", "BatteryFault", "MotorFault", "OverheatFault"}
+        assert set(m["per_class"]) == set(CLASS_NAMES)
     ds = load_dataset(trained_run / "dataset.npz")
     for kind in ("cnode", "gru"):
         with np.load(trained_run / f"predictions_{kind}.npz", allow_pickle=False) as z:
             assert set(z.files) == {"y_true", "proba", "traj", "t_end"}
-            assert z["proba"].shape == (len(z["y_true"]), 4) and np.allclose(z["proba"].sum(1), 1.0)
-            assert set(ds["split"][z["traj"]]) == {2}
+            assert z["proba"].shape == (len(z["y_true"]), N_CLASSES) and np.allclose(z["proba"].sum(1), 1.0)
+            assert set(ds["split"][z["traj"]]) == {SPLIT_TEST}
         blob = torch.load(trained_run / f"{kind}.pt", weights_only=True)  # no pickled classes
         assert blob["architecture"]["kind"] == kind
     for fig in ("train_curves.png", "confusion_cnode.png", "confusion_gru.png", "per_class_f1.png", "any_fault_roc.png"):

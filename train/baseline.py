@@ -1,6 +1,6 @@
 """A simple non-neural baseline on the same windows: logistic regression on window statistics.
 
-It shows what the neural models add (issue 3, "Figures and results"). For each window
+It shows what the neural models add over plain window statistics. For each window
 (W samples x C channels) the telemetry is first normalised per channel with the mean and
 standard deviation of the TRAINING windows (all their samples), then three features per
 channel are taken: the mean, the least-squares slope against the window's normalised time

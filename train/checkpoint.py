@@ -15,6 +15,7 @@ import torch
 from core.atomic import atomic_path
 from core.errors import QuadfdiError
 from train.models import model_from_signature, model_signature
+from train.variants import CNODE_CLASSES
 
 CHECKPOINT_VERSION = 1
 
@@ -38,7 +39,11 @@ def save_checkpoint(path: str | Path, model: torch.nn.Module, config: dict, chan
 
 
 def load_checkpoint(path: str | Path, kind: str | None = None) -> tuple[torch.nn.Module, dict[str, Any]]:
-    """Rebuild the model of checkpoint ``path``; ``kind`` ('cnode'/'gru') is checked when given."""
+    """Rebuild the model of checkpoint ``path``; ``kind`` ('cnode'/'gru') is checked when given.
+
+    A CNODE comes back in the class of its control representation (``train.variants.CNODE_CLASSES``),
+    so a step-average model loads like any other.
+    """
     p = Path(path)
     if not p.is_file():
         raise QuadfdiError(f"checkpoint {p} does not exist (run `quadfdi train` first)")
@@ -52,7 +57,7 @@ def load_checkpoint(path: str | Path, kind: str | None = None) -> tuple[torch.nn
     if kind is not None and arch.get("kind") != kind:
         raise QuadfdiError(f"checkpoint {p} holds a {arch.get('kind')!r} model, expected {kind!r}")
     try:
-        model = model_from_signature(arch)
+        model = model_from_signature(arch, cnode_classes=CNODE_CLASSES)
     except (ValueError, TypeError, KeyError) as exc:
         raise QuadfdiError(f"checkpoint {p} has an invalid architecture: {exc}") from None
     try:

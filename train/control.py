@@ -74,20 +74,6 @@ def interp_matrix(times: np.ndarray, window: int = 80) -> np.ndarray:
     return m
 
 
-def increment_matrix(n_steps: int, window: int = 80) -> np.ndarray:
-    """Per-step mean slope of the path, as a constant (n_steps, W) matrix D (float64).
-
-    Row k of D @ X is (X(t_{k+1}) - X(t_k)) / h with t_k = k h, h = 1 / n_steps: the path's
-    increment over step k (its depth-1 log-signature) divided by the step length, i.e. the
-    average of du/dt over the step. A depth-1 log-ODE scheme (Morrill et al., 2021) drives step k
-    with this one constant instead of sampling u at the stage times; kept for the solver study.
-    """
-    if isinstance(n_steps, bool) or int(n_steps) != n_steps or n_steps < 1:
-        raise ValueError(f"n_steps must be a positive integer, found {n_steps!r}")
-    grid = interp_matrix(np.arange(n_steps + 1, dtype=np.float64) / n_steps, window)
-    return (grid[1:] - grid[:-1]) * float(n_steps)
-
-
 class LinearPath:
     """u(t) for adaptive solvers: the window's samples, linearly interpolated, in torch.
 

@@ -10,10 +10,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from core.contracts import N_CLASSES
-
+from core.contracts import N_CLASSES, SPLIT_TRAIN, SPLITS
 from sim.dataset import Dataset, Windows, make_windows
-
 
 
 @dataclass(frozen=True)
@@ -24,12 +22,12 @@ class Splits:
 
 
 def split_windows(ds: Dataset) -> Splits:
-    return Splits(*(make_windows(ds, s) for s in ("train", "validation", "test")))
+    return Splits(**{name: make_windows(ds, name) for name in SPLITS})
 
 
 def fit_normalisation(ds: Dataset) -> tuple[np.ndarray, np.ndarray]:
     """Per-channel mean and std (C,) over every sample of the training trajectories."""
-    tel = ds["telemetry"][ds["split"] == 0].astype(np.float64)  # (n_train, T, C)
+    tel = ds["telemetry"][ds["split"] == SPLIT_TRAIN].astype(np.float64)  # (n_train, T, C)
     flat = tel.reshape(-1, tel.shape[-1])
     return flat.mean(axis=0).astype(np.float32), flat.std(axis=0).astype(np.float32)
 

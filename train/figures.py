@@ -9,11 +9,12 @@ from pathlib import Path
 import numpy as np
 from sklearn.metrics import confusion_matrix, roc_curve
 
+from core.contracts import CLASS_LABELS, CLASS_NAMES, HEALTHY, N_CLASSES
 from core.plotting import pyplot as _plt
 from core.plotting import save_png as _save
-from core.contracts import CLASS_LABELS, CLASS_NAMES
 
-SHORT = ("Healthy", "Battery", "Motor", "Overheat")
+SHORT = tuple(name.removesuffix("Fault") for name in CLASS_NAMES)  # Healthy, Battery, Motor, Overheat
+FAULT_CLASSES = tuple(c for c in CLASS_LABELS if c != HEALTHY)
 LABEL = {"cnode": "Neural ODE", "gru": "GRU", "baseline": "LogReg baseline"}
 
 
@@ -38,10 +39,10 @@ def draw_confusion(y: np.ndarray, proba: np.ndarray, title: str, out: Path) -> N
     cm = confusion_matrix(y, proba.argmax(1), labels=list(CLASS_LABELS))
     fig, ax = plt.subplots(figsize=(5, 4.3))
     ax.imshow(cm, cmap="Blues")
-    for i in range(4):
-        for j in range(4):
+    for i in range(N_CLASSES):
+        for j in range(N_CLASSES):
             ax.text(j, i, str(cm[i, j]), ha="center", va="center", color="white" if cm[i, j] > cm.max() / 2 else "black")
-    ax.set(xticks=range(4), yticks=range(4), xticklabels=SHORT, yticklabels=SHORT, xlabel="predicted", ylabel="true",
+    ax.set(xticks=range(N_CLASSES), yticks=range(N_CLASSES), xticklabels=SHORT, yticklabels=SHORT, xlabel="predicted", ylabel="true",
            title=title)
     fig.tight_layout()
     _save(fig, out)
@@ -54,8 +55,8 @@ def draw_per_class_f1(metrics: dict, out: Path) -> None:
     width = 0.8 / len(kinds)
     for n, kind in enumerate(kinds):
         vals = [metrics[kind]["per_class"][c]["f1"] for c in CLASS_NAMES]
-        ax.bar(np.arange(4) + n * width, vals, width, label=LABEL.get(kind, kind))
-    ax.set(xticks=np.arange(4) + width * (len(kinds) - 1) / 2, xticklabels=SHORT, ylabel="F1", ylim=(0, 1.05),
+        ax.bar(np.arange(N_CLASSES) + n * width, vals, width, label=LABEL.get(kind, kind))
+    ax.set(xticks=np.arange(N_CLASSES) + width * (len(kinds) - 1) / 2, xticklabels=SHORT, ylabel="F1", ylim=(0, 1.05),
            title="per-class F1 (test)")
     ax.legend()
     ax.grid(alpha=0.3, axis="y")
@@ -67,7 +68,7 @@ def draw_roc(y: np.ndarray, probas: dict, metrics: dict, out: Path) -> None:
     plt = _plt()
     fig, ax = plt.subplots(figsize=(5, 4.5))
     for kind, p in probas.items():
-        fpr, tpr, _ = roc_curve(y != 0, 1.0 - p[:, 0])
+        fpr, tpr, _ = roc_curve(y != HEALTHY, 1.0 - p[:, HEALTHY])
         auc = metrics[kind]["any_fault_roc_auc"]
         auc_txt = "n/a" if auc is None or not np.isfinite(auc) else f"{auc:.4f}"
         ax.plot(fpr, tpr, label=f"{LABEL.get(kind, kind)} (AUC {auc_txt})")
@@ -82,7 +83,7 @@ def draw_roc(y: np.ndarray, probas: dict, metrics: dict, out: Path) -> None:
 def draw_trajectory_detection(ds, test, probas: dict, row: int, out: Path) -> None:
     """Position, attitude, battery, temperature, effectiveness, severity and the any-fault
     probability of each model at each window end, for dataset row ``row`` (Figs. 12-27)."""
-    from sim.plot import _series
+    from sim.plot import plot_groups
 
     plt = _plt()
     t = ds["time"]
@@ -92,13 +93,7 @@ def draw_trajectory_detection(ds, test, probas: dict, row: int, out: Path) -> No
     groups = [("position [m]", ["x", "y", "z"], 1.0), ("attitude [deg]", ["roll", "pitch", "yaw"], 180 / np.pi),
               ("state of charge [-]", ["SoC"], 1.0), ("bus voltage [V] / current [A]", ["V_b", "I_b"], 1.0),
               ("motor temperature [°C]", ["T1", "T2", "T3", "T4"], 1.0)]
-    for ax, (title, names, scale) in zip(axes, groups):
-        for name in names:
-            y = _series(ds, row, name)
-            if y is not None:
-                ax.plot(t, y * scale, lw=1, label=name)
-        ax.set_title(title, fontsize=10)
-        ax.legend(fontsize=7)
+    plot_groups(axes, ds, row, groups, t)
     ax = axes[5]
     if "effectiveness" in ds.arrays:
         for m in range(4):
@@ -112,7 +107,7 @@ def draw_trajectory_detection(ds, test, probas: dict, row: int, out: Path) -> No
     ax = axes[7]
     sel = test.traj == row
     for kind, p in probas.items():
-        ax.plot(test.t_end[sel], 1.0 - p[sel, 0], marker=".", label=LABEL.get(kind, kind))
+        ax.plot(test.t_end[sel], 1.0 - p[sel, HEALTHY], marker=".", label=LABEL.get(kind, kind))
     ax.axhline(0.5, color="r", ls=":", lw=1)
     ax.set(title="any-fault probability 1 - p(Healthy) at window end", ylim=(-0.05, 1.05))
     ax.legend(fontsize=7)
@@ -145,7 +140,7 @@ def draw_all(run, ds, result: dict) -> list[Path]:
     draw_roc(test.y, result["proba"], result["metrics"], figs / "any_fault_roc.png")
     written += [figs / "per_class_f1.png", figs / "any_fault_roc.png"]
     neural = {k: v for k, v in result["proba"].items() if k != "baseline"}
-    for cls in (1, 2, 3):
+    for cls in FAULT_CLASSES:
         rows = [r for r in np.unique(test.traj) if ds["fault_class"][r] == cls]
         if rows:
             path = figs / f"detection_{SHORT[cls].lower()}_traj{rows[0]}.png"

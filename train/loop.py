@@ -16,8 +16,8 @@ import numpy as np
 import torch
 from sklearn.metrics import f1_score
 
-from core.contracts import CLASS_LABELS
 from core.config import TrainConfig
+from core.contracts import CLASS_LABELS, N_CLASSES
 from sim.dataset import Windows
 from train.data import batch_order
 from train.models import GRUClassifier
@@ -32,13 +32,13 @@ def weighted_cross_entropy(logits: torch.Tensor, y: torch.Tensor, weights: torch
 
 @torch.no_grad()
 def predict_proba(model: torch.nn.Module, x: np.ndarray, batch_size: int = 512) -> np.ndarray:
-    """Class probabilities (n, 4) float64 for raw windows x (n, W, C)."""
+    """Class probabilities (n, N_CLASSES) float64 for raw windows x (n, W, C)."""
     model.eval()
     out = []
     for i in range(0, len(x), batch_size):
         logits = model(torch.from_numpy(np.ascontiguousarray(x[i:i + batch_size])))
         out.append(torch.softmax(logits.double(), dim=1).numpy())
-    return np.concatenate(out) if out else np.zeros((0, 4))
+    return np.concatenate(out) if out else np.zeros((0, N_CLASSES))
 
 
 @dataclass
@@ -49,9 +49,15 @@ class History:
     nfe_per_forward: list[float] = field(default_factory=list)  # CNODE only
     best_epoch: int = -1
 
-    def to_dict(self) -> dict:
-        return {"loss": self.loss, "val_macro_f1": self.val_macro_f1, "epoch_s": self.epoch_s,
-                "nfe_per_forward": self.nfe_per_forward, "best_epoch": self.best_epoch}
+    def to_dict(self, times: bool = True) -> dict:
+        """The history as plain lists; ``times=False`` leaves out the wall-clock ``epoch_s``, which
+        differs from run to run, so that what is stored in a checkpoint depends on data, config and
+        seed alone (same seed, same checkpoint bytes)."""
+        out = {"loss": self.loss, "val_macro_f1": self.val_macro_f1, "epoch_s": self.epoch_s,
+               "nfe_per_forward": self.nfe_per_forward, "best_epoch": self.best_epoch}
+        if not times:
+            del out["epoch_s"]
+        return out
 
 
 def learning_rate(model: torch.nn.Module, cfg: TrainConfig) -> float:

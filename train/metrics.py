@@ -1,6 +1,6 @@
-"""Test-set metrics of a window classifier (SPEC.md section 3, paper Eq. 13, issue 3 contract).
+"""Test-set metrics of a window classifier (paper Eq. 13; ``metrics.json`` in docs/formats.md).
 
-Inputs are the columns of ``predictions_<model>.npz``: ``y_true`` (n,) int labels in 0..3,
+Inputs are the columns of ``predictions_<model>.npz``: ``y_true`` (n,) int labels in ``CLASS_LABELS`` (0..3),
 ``proba`` (n, 4) class probabilities (columns in ``CLASS_NAMES`` order, rows summing to 1
 within 1e-4; they are renormalised in float64 so that a float32 softmax passes scikit-learn's
 sum-to-one check -- a change of order 1e-7 that leaves every arg-max and ranking unchanged),
@@ -15,11 +15,11 @@ defines a metric, its value is scikit-learn's (computed by calling it, not re-de
   arg-max decision. Balanced accuracy averages the recall of the classes present in ``y_true``
   (scikit-learn's definition; a class absent from ``y_true`` is left out, not scored 0).
 - ``macro_precision``, ``macro_recall``, ``macro_f1``, ``per_class``:
-  ``precision_recall_fscore_support(labels=[0, 1, 2, 3], zero_division=0)``, so a class with no
+  ``precision_recall_fscore_support(labels=CLASS_LABELS, zero_division=0)``, so a class with no
   predicted (precision) or no true (recall) window scores 0 and still counts in the macro mean.
 - ``weighted_f1``: ``f1_score(average="weighted")``, same labels and ``zero_division``.
 - ``mcc``: ``matthews_corrcoef`` (multiclass); scikit-learn returns 0.0 when it is 0/0.
-- ``macro_specificity`` (no scikit-learn function): from ``confusion_matrix(labels=[0..3])``,
+- ``macro_specificity`` (no scikit-learn function): from ``confusion_matrix(labels=CLASS_LABELS)``,
   specificity_k = TN_k / (TN_k + FP_k) where TN_k + FP_k is the number of windows whose true
   class is not k. A class with no negatives (every window is of class k) has 0/0 and is skipped;
   the macro value is the mean over the remaining classes (NaN if none remains).
@@ -32,7 +32,7 @@ defines a metric, its value is scikit-learn's (computed by calling it, not re-de
   ``roc_auc_score(y_true, proba, multi_class="ovr", average="macro")`` and
   ``average_precision_score(y_true, proba, average="macro")``.
 - ``brier``: scikit-learn's multiclass Brier score,
-  ``brier_score_loss(y_true, proba, labels=[0, 1, 2, 3])`` = mean over windows of the sum over
+  ``brier_score_loss(y_true, proba, labels=CLASS_LABELS)`` = mean over windows of the sum over
   the K = 4 classes of (p_k - onehot_k)^2, range [0, 2]. Relative to the paper's per-class
   Eq. 13 this is the SUM over classes of Brier_k (Brier_k = ``brier_score_loss(y_true == k,
   proba[:, k])``), not their mean: divide by 4 for the mean per-class Brier score. This
@@ -85,9 +85,9 @@ from sklearn.metrics import (
 )
 from sklearn.preprocessing import label_binarize
 
-from core.contracts import CLASS_NAMES, N_CLASSES
+from core.contracts import CLASS_LABELS, CLASS_NAMES, HEALTHY, N_CLASSES
 
-LABELS = list(range(len(CLASS_NAMES)))
+LABELS = list(CLASS_LABELS)
 THRESHOLD = 0.5  # any-fault decision: 1 - p(Healthy) > THRESHOLD
 T_TOL_S = 1e-6  # tolerance of "window ending at or after t_det"
 
@@ -167,7 +167,7 @@ class _quiet_sklearn(warnings.catch_warnings):
 def any_fault_score(proba: Any) -> np.ndarray:
     """1 - p(Healthy) per window: the summed probability of the three fault classes."""
     p = _check_proba(proba)
-    return 1.0 - p[:, 0]
+    return 1.0 - p[:, HEALTHY]
 
 
 def any_fault_decision(proba: Any) -> np.ndarray:
@@ -214,8 +214,8 @@ def classification_metrics(y_true: Any, proba: Any) -> dict:
             y, y_pred, labels=LABELS, average="macro", zero_division=0
         )
         roc, ap = _ovr_auc(y, p)
-        score = 1.0 - p[:, 0]
-        is_fault = y != 0
+        score = 1.0 - p[:, HEALTHY]
+        is_fault = y != HEALTHY
         decision = score > THRESHOLD
         out = {
             "accuracy": float(accuracy_score(y, y_pred)),
@@ -268,7 +268,7 @@ def detection_metrics(
         raise ValueError(f"traj must hold integer trajectory indices, found dtype {tr.dtype}")
     if not np.all(np.isfinite(te)):
         raise ValueError("t_end contains NaN or inf")
-    decision = 1.0 - p[:, 0] > THRESHOLD
+    decision = 1.0 - p[:, HEALTHY] > THRESHOLD
 
     delays: list[float] = []
     missed = 0
@@ -282,11 +282,11 @@ def detection_metrics(
         except (KeyError, IndexError) as e:
             raise ValueError(f"trajectory {i} has no fault class / detectable time in the per-trajectory data") from e
         mine = tr == i
-        if cls == 0:
+        if cls == HEALTHY:
             n_healthy += 1
             n_alarmed += bool(decision[mine].any())
             continue
-        if not 0 < cls < N_CLASSES:
+        if not 0 <= cls < N_CLASSES:  # a label, and not Healthy (handled above)
             raise ValueError(f"trajectory {i} has fault class {cls}, expected 0..{N_CLASSES - 1}")
         if not math.isfinite(t_det):
             raise ValueError(f"fault trajectory {i} (class {cls}) has no finite detectable time: {t_det}")

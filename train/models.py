@@ -10,7 +10,7 @@ Parameter names are a contract: export/ and firmware_ref/ read ``encoder``, ``fi
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Mapping
 
 import numpy as np
 import torch
@@ -151,7 +151,11 @@ class CNODE(_Normalised):
     (dopri5, bosh3) run torchdiffeq.odeint over a LinearPath, with ``options={"jump_t": knots}``
     when ``solver.jump_t`` (torchdiffeq 0.2.5's option; ``grid_points`` is gone).
     ``nfe`` counts vector-field evaluations of the last forward/trace.
+    ``control`` names the control representation ("point": u at the stage times); variants with
+    another one (``train.variants``) override it, and ``model_signature`` records it.
     """
+
+    control = "point"
 
     def __init__(
         self,
@@ -344,38 +348,39 @@ def build_model(kind: str, n_channels: int, cfg: TrainConfig, window: int = 80) 
 def model_signature(model: nn.Module) -> dict[str, int | str]:
     """The architecture hyper-parameters (plain ints and strings) that rebuild ``model``.
 
-    The solver is not part of it: a CNODE's weights are valid under any solver.
+    The solver is not part of it: a CNODE's weights are valid under any solver. Its control
+    representation is (``control``: "point", or "average" for ``train.variants.AverageControlCNODE``):
+    the same weights driven by another control are another model.
     """
-    if isinstance(model, CNODE):
-        return {
-            "kind": "cnode",
-            "n_channels": model.n_channels,
-            "window": model.window,
-            "latent": model.latent,
-            "hidden": model.hidden,
-            "n_classes": model.n_classes,
-        }
-    if isinstance(model, GRUClassifier):
-        return {
-            "kind": "gru",
-            "n_channels": model.n_channels,
-            "window": model.window,
-            "hidden": model.hidden,
-            "n_classes": model.n_classes,
-        }
+    if isinstance(model, (CNODE, GRUClassifier)):
+        kind = "cnode" if isinstance(model, CNODE) else "gru"
+        sig = {"kind": kind, "n_channels": model.n_channels, "window": model.window}
+        sizes = {"latent": model.latent, "hidden": model.hidden} if kind == "cnode" else {"hidden": model.hidden}
+        extra = {"control": model.control} if kind == "cnode" else {}
+        return {**sig, **sizes, "n_classes": model.n_classes, **extra}
     raise TypeError(f"not a quadfdi model: {type(model).__name__}")
 
 
-def model_from_signature(sig: dict[str, Any], solver: SolverSpec | None = None) -> nn.Module:
-    """The (untrained) model that ``model_signature`` describes; ValueError on a bad signature."""
+def model_from_signature(sig: dict[str, Any], solver: SolverSpec | None = None,
+                         cnode_classes: Mapping[str, type] | None = None) -> nn.Module:
+    """The (untrained) model that ``model_signature`` describes; ValueError on a bad signature.
+
+    ``cnode_classes`` maps a CNODE's ``control`` to its class (``train.variants.CNODE_CLASSES``,
+    which ``train.checkpoint`` passes); by default only the point control is known here. A
+    signature without ``control`` (checkpoints written before it was recorded) is a point CNODE.
+    """
     sig = dict(sig)
     kind = sig.pop("kind", None)
     keys = {"cnode": {"n_channels", "window", "latent", "hidden", "n_classes"},
             "gru": {"n_channels", "window", "hidden", "n_classes"}}
     if kind not in keys:
         raise ValueError(f"model signature kind must be one of {', '.join(MODEL_KINDS)}, found {kind!r}")
+    control = sig.pop("control", "point") if kind == "cnode" else None
     if set(sig) != keys[kind] or not all(isinstance(v, int) and not isinstance(v, bool) for v in sig.values()):
         raise ValueError(f"{kind} signature must hold integer {', '.join(sorted(keys[kind]))}; found {sig}")
     if kind == "cnode":
-        return CNODE(solver=solver, **sig)
+        classes = {"point": CNODE, **(cnode_classes or {})}
+        if control not in classes:
+            raise ValueError(f"cnode signature control must be one of {', '.join(classes)}, found {control!r}")
+        return classes[control](solver=solver, **sig)
     return GRUClassifier(**sig)

@@ -6,24 +6,23 @@ Writes into the run folder: ``<kind>.pt`` checkpoints, ``predictions_<kind>.npz`
 
 from __future__ import annotations
 
-import json
 import time
 from typing import Callable
 
 import numpy as np
 import torch
 
-from core.atomic import write_text
 from core.config import Config, replace_section
+from core.contracts import SPLITS
 from core.errors import QuadfdiError
-from core.rundir import RunDir
+from core.jsonio import read_json, write_json
 from core.npzio import write_npz
+from core.rundir import RunDir
 from sim.dataset import Dataset, Windows, load_dataset
 from train.baseline import fit_baseline, predict_proba_baseline
 from train.checkpoint import save_checkpoint
 from train.data import class_weights, fit_normalisation, split_windows
 from train.loop import predict_proba, train_model
-from core.jsonio import write_json
 from train.metrics import compute_metrics
 from train.models import build_model
 
@@ -40,7 +39,7 @@ def train_all(ds: Dataset, cfg: Config, kinds: list[str], log: Callable[[str], N
     """Train ``kinds`` and the baseline on ``ds``; return models, histories, probabilities, metrics."""
     torch.set_num_threads(cfg.train.threads)
     splits = split_windows(ds)
-    for name in ("train", "validation", "test"):
+    for name in SPLITS:
         if len(getattr(splits, name)) == 0:
             raise QuadfdiError(f"the dataset has no {name} windows: raise sim.n_traj or sim.duration_s")
     mean, std = fit_normalisation(ds)
@@ -70,18 +69,16 @@ def write_outputs(run: RunDir, ds: Dataset, cfg: Config, result: dict) -> None:
     test = result["splits"].test
     for kind, model in result["models"].items():
         save_checkpoint(run.checkpoint(kind), model, cfg.to_dict(), ds.channel_names,
-                        extra={"history": result["history"][kind].to_dict()})
+                        extra={"history": result["history"][kind].to_dict(times=False)})
         write_npz(run.predictions(kind), {"y_true": test.y, "proba": result["proba"][kind],
                                           "traj": test.traj, "t_end": test.t_end})
-    metrics = {}
-    if run.metrics.is_file():
-        metrics = json.loads(run.metrics.read_text())
+    metrics = read_json(run.metrics, "metrics") if run.metrics.is_file() else {}
     metrics.update(result["metrics"])
     write_json(run.metrics, metrics, indent=2)
     hist_path = run.root / "history.json"
-    hist = json.loads(hist_path.read_text()) if hist_path.is_file() else {}
+    hist = read_json(hist_path, "training history") if hist_path.is_file() else {}
     hist.update({k: h.to_dict() for k, h in result["history"].items()})
-    write_text(hist_path, json.dumps(hist, indent=2))
+    write_json(hist_path, hist, indent=2)
     draw_all(run, ds, result)
 
 

@@ -1,10 +1,10 @@
 """Fixed-step Runge-Kutta solvers, each a small declared thing (torchdiffeq style).
 
-One step function per scheme, reused by training (``train.models``) and the tests; classic RK4's
-lives in ``core.rk4`` (the program the simulator, the ONNX unrolling and the C++ reference share): ``step(f, t, z, h) -> z_next`` with ``f(t, z)`` the
-vector field, ``t`` and ``h`` Python floats and ``z`` a torch tensor or a numpy array (the steps
-are pure arithmetic, so they work on both and keep the dtype of ``z``). ``integrate_fixed`` owns
-the grid loop.
+One step function per scheme, reused by training (``train.models``) and the tests; classic
+RK4's lives in ``core.rk4`` (the program the simulator, the ONNX unrolling and the C++ reference
+share). Each is ``step(f, t, z, h) -> z_next`` with ``f(t, z)`` the vector field, ``t`` and ``h``
+Python floats and ``z`` a torch tensor or a numpy array (the steps are pure arithmetic, so they
+work on both and keep the dtype of ``z``). ``integrate_fixed`` owns the grid loop.
 
 ``"rk4"`` here is *classic* RK4 (stages at 0, h/2, h/2, h; weights 1/6, 2/6, 2/6, 1/6), chosen on
 purpose: its stage times are a subset of the half-step grid, so the control path needs only

@@ -3,7 +3,6 @@ table side by side with the paper's Tables 3 and 4 (mean ± std over the seeds).
 
 from __future__ import annotations
 
-import json
 import re
 from pathlib import Path
 from typing import Callable
@@ -13,8 +12,10 @@ import numpy as np
 from core.atomic import write_text
 from core.config import Config
 from core.contracts import CLASS_NAMES
-from core.rundir import RunDir
+from core.errors import QuadfdiError
 from core.jsonio import to_jsonable, write_json
+from core.rundir import RunDir
+from train.figures import SHORT
 from train.metrics import summarize_seeds
 
 # The paper's Tables 3 and 4 (seed paper, Section IV-B).
@@ -54,7 +55,8 @@ def results_table(seeds: dict, seed_list: list[int], command: str) -> str:
         if model in seeds:
             cells = [_fmt(seeds[model][k], 2 if k == "missed_faults" else 4) for k in TABLE3_KEYS]
             lines.append(f"| {name} | " + " | ".join(cells) + " |")
-    lines += ["", "**Table 4 (per-class F1, test split)**", "", "| Model | Healthy | Battery | Motor | Overheat |", "|---|---|---|---|---|"]
+    lines += ["", "**Table 4 (per-class F1, test split)**", "", "| Model | " + " | ".join(SHORT) + " |",
+              "|---" * (len(SHORT) + 1) + "|"]
     for name, row in PAPER_TABLE4.items():
         lines.append(f"| {name} | " + " | ".join(f"{v:.4f}" for v in row) + " |")
     for model, name in OURS.items():
@@ -63,16 +65,26 @@ def results_table(seeds: dict, seed_list: list[int], command: str) -> str:
     return "\n".join(lines) + "\n"
 
 
-def update_readme(readme: Path, table: str) -> bool:
-    """Replace the text between the results markers of README.md; False when there are none."""
+_RESULTS = re.compile(re.escape(README_START) + ".*?" + re.escape(README_END), re.S)
+
+
+def check_readme(readme: Path) -> str:
+    """The text of ``readme``; a one-line error when it is missing or has no results markers.
+
+    Called before the study trains anything, so a wrong ``--readme`` costs seconds, not the study.
+    """
     if not readme.is_file():
-        return False
+        raise QuadfdiError(f"{readme} does not exist: --readme needs a README with the results markers")
     text = readme.read_text()
-    pattern = re.compile(re.escape(README_START) + ".*?" + re.escape(README_END), re.S)
-    if not pattern.search(text):
-        return False
-    write_text(readme, pattern.sub(lambda _: f"{README_START}\n{table}{README_END}", text))
-    return True
+    if not _RESULTS.search(text):
+        raise QuadfdiError(f"{readme} has no results markers to replace ({README_START} ... {README_END})")
+    return text
+
+
+def update_readme(readme: Path, table: str) -> None:
+    """Replace the text between the results markers of ``readme`` with ``table``; the rest is kept byte for byte."""
+    text = check_readme(readme)
+    write_text(readme, _RESULTS.sub(lambda _: f"{README_START}\n{table}{README_END}", text, count=1))
 
 
 def run_study(run: RunDir, cfg: Config, seeds: list[int], command: str, log: Callable[[str], None] = print,

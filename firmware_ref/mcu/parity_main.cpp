@@ -1,7 +1,7 @@
 // mcu/parity_main.cpp -- scope: the QEMU parity harness. It runs the four compiled-in models
 // (fwref_weights_*.cpp, generated from weights.bin) on the compiled-in reference windows
 // (fwref_reference.cpp, from reference.bin), one at a time, compares every intermediate tensor with
-// the reference under the tolerances of fwref/parity.hpp, measures instructions per inference
+// the reference under the rule of fwref/parity.hpp, measures instructions per inference
 // (SysTick under -icount) and peak stack (painting), prints one line per result over semihosting
 // and exits QEMU with 0 (all OK), 1 (a tensor NOT OK) or 2 (a model fails its check).
 //
@@ -93,15 +93,15 @@ const fwref_ref::Tensor* find(const char* model, const char* prec, const char* n
   return nullptr;
 }
 
-// Running maximum of one tensor over the windows.
+// Running comparison of one tensor over the windows (the rule: fwref/parity.hpp).
 struct Acc {
   const char* name;
   int per_window;  // elements per window
-  double max_diff = 0, max_ref = 0, max_steps = 0;
+  fwref::TensorDiff diff;
   bool missing = false;
 };
 
-// step(i) of element i within a window; null for fp32
+// step(i) of element i within a window (0 for fp32)
 template <class StepFn>
 void accumulate(Acc& a, const char* model, const char* prec, int window, const float* ours, StepFn step) {
   const fwref_ref::Tensor* t = find(model, prec, a.name);
@@ -110,33 +110,18 @@ void accumulate(Acc& a, const char* model, const char* prec, int window, const f
     return;
   }
   const float* want = t->data + window * a.per_window;
-  for (int i = 0; i < a.per_window; ++i) {
-    const double d = std::fabs(double(ours[i]) - double(want[i]));
-    if (std::isnan(d)) {
-      a.max_diff = INFINITY;  // a NaN is the largest difference there is
-    } else if (d > a.max_diff) {
-      a.max_diff = d;
-    }
-    if (std::fabs(double(want[i])) > a.max_ref) a.max_ref = std::fabs(double(want[i]));
-    const double st = step(i);
-    if (st > 0 && d / st > a.max_steps) a.max_steps = d / st;
-  }
+  for (int i = 0; i < a.per_window; ++i) a.diff.add(ours[i], want[i], step(i));
 }
 
 void report(const Acc& a, const char* model, const char* prec, bool int8) {
   Line l;
   l.s("TENSOR ").s(model).s(" ").s(prec).s(" ").s(a.name).s(" ");
-  bool ok;
+  const bool ok = !a.missing && a.diff.ok(int8);
   if (a.missing) {
     l.s("missing-from-reference");
-    ok = false;
-  } else if (int8) {
-    ok = a.max_steps <= fwref::kI8TolSteps;
-    l.s("maxdiff=").e(a.max_diff).s(" tol=").e(fwref::kI8TolSteps).s(" steps=").f3(a.max_steps);
   } else {
-    const double tol = fwref::kF32RelTol * (a.max_ref > 1.0 ? a.max_ref : 1.0);
-    ok = a.max_diff <= tol;
-    l.s("maxdiff=").e(a.max_diff).s(" tol=").e(tol);
+    l.s("maxdiff=").e(a.diff.max_diff).s(" tol=").e(a.diff.tol(int8));
+    if (int8) l.s(" steps=").f3(a.diff.max_steps);
   }
   l.s(ok ? " OK" : " NOT_OK").out();
   ++g_checked;
@@ -169,62 +154,46 @@ float g_stages[fwref::kMaxEvals * fwref::kMaxLatent];
 float g_h[kMaxWindow * fwref::kMaxGruHidden];
 float g_logits[fwref::kMaxClasses];
 
-double logit_step(const fwref::MatQ& head, float s_in, int o) { return 127.0 * double(s_in) * double(head.scale[o]); }
-
+// ``q`` is the model itself when it is the int8 one (its scales give the steps), null for fp32.
 template <class Model>
-bool run_cnode(const Model& m, const char* prec, bool int8, const fwref::CnodeI8* q) {
+bool run_cnode(const Model& m, const char* prec, const fwref::CnodeI8* q) {
   const fwref::CnodeDims& d = m.dims;
   const int C = d.channels, W = d.window, L = d.latent, E = d.evals();
   Acc x_norm{"x_norm", W * C}, u{"u", d.stage_times * C}, z0{"z0", L}, stages{"stages", E * L}, z1{"z1", L},
       logits{"logits", d.classes};
-  auto none = [](int) { return 0.0; };
   for (int k = 0; k < fwref_ref::kWindows; ++k) {
     const float* x = fwref_ref::kTelemetry + k * W * C;
     if (timed(m, x, g_logits, g_cnode_ws, "cnode", prec, k) != fwref::Status::kOk) return false;
     fwref::CnodeTrace tr{g_x_norm, g_u, g_z0, g_stages, g_z1};
     if (fwref::infer(m, x, g_logits, g_cnode_ws, &tr) != fwref::Status::kOk) return false;
-    if (!int8) {
-      accumulate(x_norm, "cnode", prec, k, g_x_norm, none);
-      accumulate(u, "cnode", prec, k, g_u, none);
-      accumulate(z0, "cnode", prec, k, g_z0, none);
-      accumulate(stages, "cnode", prec, k, g_stages, none);
-      accumulate(z1, "cnode", prec, k, g_z1, none);
-      accumulate(logits, "cnode", prec, k, g_logits, none);
-    } else {
-      accumulate(x_norm, "cnode", prec, k, g_x_norm, [&](int i) { return double(q->s_x[i % C]); });
-      accumulate(u, "cnode", prec, k, g_u, [&](int i) { return double(q->s_u[i % C]); });
-      accumulate(z0, "cnode", prec, k, g_z0, [&](int) { return double(q->s_stage[0]); });
-      accumulate(stages, "cnode", prec, k, g_stages, [&](int i) { return double(q->s_stage[i / L]); });
-      accumulate(z1, "cnode", prec, k, g_z1, [&](int) { return double(q->s_z1); });
-      accumulate(logits, "cnode", prec, k, g_logits, [&](int o) { return logit_step(q->head_w, q->s_z1, o); });
-    }
+    accumulate(x_norm, "cnode", prec, k, g_x_norm, [&](int i) { return q ? double(q->s_x[i % C]) : 0.0; });
+    accumulate(u, "cnode", prec, k, g_u, [&](int i) { return q ? double(q->s_u[i % C]) : 0.0; });
+    accumulate(z0, "cnode", prec, k, g_z0, [&](int) { return q ? double(q->s_stage[0]) : 0.0; });
+    accumulate(stages, "cnode", prec, k, g_stages, [&](int i) { return q ? double(q->s_stage[i / L]) : 0.0; });
+    accumulate(z1, "cnode", prec, k, g_z1, [&](int) { return q ? double(q->s_z1) : 0.0; });
+    accumulate(logits, "cnode", prec, k, g_logits,
+               [&](int o) { return q ? fwref::logit_step(q->head_w.scale, q->s_z1, o) : 0.0; });
   }
-  for (const Acc* a : {&x_norm, &u, &z0, &stages, &z1, &logits}) report(*a, "cnode", prec, int8);
+  for (const Acc* a : {&x_norm, &u, &z0, &stages, &z1, &logits}) report(*a, "cnode", prec, q != nullptr);
   return true;
 }
 
 template <class Model>
-bool run_gru(const Model& m, const char* prec, bool int8, const fwref::GruI8* q) {
+bool run_gru(const Model& m, const char* prec, const fwref::GruI8* q) {
   const fwref::GruDims& d = m.dims;
   const int C = d.channels, W = d.window, H = d.hidden;
   Acc x_norm{"x_norm", W * C}, h{"h", W * H}, logits{"logits", d.classes};
-  auto none = [](int) { return 0.0; };
   for (int k = 0; k < fwref_ref::kWindows; ++k) {
     const float* x = fwref_ref::kTelemetry + k * W * C;
     if (timed(m, x, g_logits, g_gru_ws, "gru", prec, k) != fwref::Status::kOk) return false;
     fwref::GruTrace tr{g_x_norm, g_h};
     if (fwref::infer(m, x, g_logits, g_gru_ws, &tr) != fwref::Status::kOk) return false;
-    if (!int8) {
-      accumulate(x_norm, "gru", prec, k, g_x_norm, none);
-      accumulate(h, "gru", prec, k, g_h, none);
-      accumulate(logits, "gru", prec, k, g_logits, none);
-    } else {
-      accumulate(x_norm, "gru", prec, k, g_x_norm, [&](int i) { return double(q->s_x[i % C]); });
-      accumulate(h, "gru", prec, k, g_h, [&](int) { return double(q->s_h); });
-      accumulate(logits, "gru", prec, k, g_logits, [&](int o) { return logit_step(q->head_w, q->s_h, o); });
-    }
+    accumulate(x_norm, "gru", prec, k, g_x_norm, [&](int i) { return q ? double(q->s_x[i % C]) : 0.0; });
+    accumulate(h, "gru", prec, k, g_h, [&](int) { return q ? double(q->s_h) : 0.0; });
+    accumulate(logits, "gru", prec, k, g_logits,
+               [&](int o) { return q ? fwref::logit_step(q->head_w.scale, q->s_h, o) : 0.0; });
   }
-  for (const Acc* a : {&x_norm, &h, &logits}) report(*a, "gru", prec, int8);
+  for (const Acc* a : {&x_norm, &h, &logits}) report(*a, "gru", prec, q != nullptr);
   return true;
 }
 
@@ -248,8 +217,8 @@ int main() {
       return 2;
     }
   }
-  const bool ran = run_cnode(kCnodeF32, "fp32", false, nullptr) && run_cnode(kCnodeI8, "int8", true, &kCnodeI8) &&
-                   run_gru(kGruF32, "fp32", false, nullptr) && run_gru(kGruI8, "int8", true, &kGruI8);
+  const bool ran = run_cnode(kCnodeF32, "fp32", nullptr) && run_cnode(kCnodeI8, "int8", &kCnodeI8) &&
+                   run_gru(kGruF32, "fp32", nullptr) && run_gru(kGruI8, "int8", &kGruI8);
   if (!ran) {
     Line().s("RESULT FAIL inference returned an error").out();
     return 2;

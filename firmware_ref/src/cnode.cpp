@@ -81,28 +81,25 @@ bool shapes_ok(const Model& m) {
          view_ok(m.lin2_w, d.latent, d.hidden) && view_ok(m.head_w, d.classes, d.latent);
 }
 
+bool scales_ok(const CnodeF32&) { return true; }
+
+bool scales_ok(const CnodeI8& m) {
+  const CnodeDims& d = m.dims;
+  return all_positive_finite(m.s_x, d.channels) && all_positive_finite(m.s_u, d.channels) &&
+         all_positive_finite(m.s_stage, d.evals()) && all_positive_finite(&m.s_hidden, 1) &&
+         all_positive_finite(&m.s_z1, 1);
+}
+
+template <class Model>
+Status check_any(const Model& m) {
+  return detail::check_model(check_dims(m.dims), [&] { return shapes_ok(m); },
+                             [&] { return scales_ok(m) ? check_common(m) : Status::kBadWeights; });
+}
+
 }  // namespace
 
-Status check(const CnodeF32& m) {
-  const CnodeDims& d = m.dims;
-  Status s = check_dims(d);
-  if (s != Status::kOk) return s;
-  if (!shapes_ok(m)) return Status::kBadShape;
-  return check_common(m);
-}
-
-Status check(const CnodeI8& m) {
-  const CnodeDims& d = m.dims;
-  Status s = check_dims(d);
-  if (s != Status::kOk) return s;
-  if (!shapes_ok(m)) return Status::kBadShape;
-  if (!all_positive_finite(m.s_x, d.channels) || !all_positive_finite(m.s_u, d.channels) ||
-      !all_positive_finite(m.s_stage, d.evals()) || !all_positive_finite(&m.s_hidden, 1) ||
-      !all_positive_finite(&m.s_z1, 1)) {
-    return Status::kBadWeights;
-  }
-  return check_common(m);
-}
+Status check(const CnodeF32& m) { return check_any(m); }
+Status check(const CnodeI8& m) { return check_any(m); }
 
 Status infer(const CnodeF32& m, const float* x, float* logits, CnodeWorkspace& ws, CnodeTrace* tr) {
   if (x == nullptr || logits == nullptr) return Status::kNullArgument;

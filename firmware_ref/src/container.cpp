@@ -24,16 +24,6 @@ std::uint32_t u32_at(const unsigned char* p) {
 
 std::uint64_t u64_at(const unsigned char* p) { return std::uint64_t(u32_at(p)) | (std::uint64_t(u32_at(p + 4)) << 32); }
 
-std::string fmt(const char* f, ...) __attribute__((format(printf, 1, 2)));
-std::string fmt(const char* f, ...) {
-  char buf[512];
-  va_list ap;
-  va_start(ap, f);
-  std::vsnprintf(buf, sizeof buf, f, ap);
-  va_end(ap);
-  return buf;
-}
-
 // A magic as Python prints bytes: b'QFDIWTS\x00'.
 std::string bytes_repr(const unsigned char* p, std::size_t n) {
   std::string out = "b'";
@@ -51,6 +41,15 @@ std::string bytes_repr(const unsigned char* p, std::size_t n) {
 std::size_t dtype_size(std::uint32_t code) { return code == 2 ? 1 : 4; }
 
 }  // namespace
+
+std::string fmt(const char* f, ...) {
+  char buf[512];
+  va_list ap;
+  va_start(ap, f);
+  std::vsnprintf(buf, sizeof buf, f, ap);
+  va_end(ap);
+  return buf;
+}
 
 const char* dtype_name(DType t) {
   switch (t) {
@@ -255,9 +254,13 @@ Status Container::parse_tensor(std::size_t& pos, std::size_t end, const std::str
   const std::uint32_t code = u32_at(h + 48), ndim = u32_at(h + 52);
   const std::int32_t axis = static_cast<std::int32_t>(u32_at(h + 72));
   const std::uint32_t n_scales = u32_at(h + 76), nbytes = u32_at(h + 80);
-  if (code < 1 || code > 3 || ndim > 4 || (axis != -1 && axis != 0)) {
-    *error = fmt("%s: %s ('%s') has a bad header (dtype %u, ndim %u, axis %d)", where_.c_str(), what.c_str(),
-                 t->name.c_str(), code, ndim, axis);
+  // A writer sets unused shape entries to 0 and the axis of an unquantized tensor to -1; any other
+  // value there is a corrupted header, refused like the rest.
+  bool unused_zero = ndim <= 4;
+  for (std::uint32_t i = ndim; i < 4 && unused_zero; ++i) unused_zero = u32_at(h + 56 + 4 * i) == 0;
+  if (code < 1 || code > 3 || ndim > 4 || (axis != -1 && axis != 0) || (code != 2 && axis != -1) || !unused_zero) {
+    *error = fmt("%s: %s ('%s') has a bad header (dtype %u, ndim %u, axis %d%s)", where_.c_str(), what.c_str(),
+                 t->name.c_str(), code, ndim, axis, unused_zero ? "" : ", unused shape entries not 0");
     return Status::kBadHeader;
   }
   t->dtype = static_cast<DType>(code);

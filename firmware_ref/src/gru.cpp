@@ -60,24 +60,19 @@ bool shapes_ok(const Model& m) {
          view_ok(m.head_w, d.classes, d.hidden);
 }
 
+bool scales_ok(const GruF32&) { return true; }
+bool scales_ok(const GruI8& m) { return all_positive_finite(m.s_x, m.dims.channels) && all_positive_finite(&m.s_h, 1); }
+
+template <class Model>
+Status check_any(const Model& m) {
+  return detail::check_model(check_dims(m.dims), [&] { return shapes_ok(m); },
+                             [&] { return scales_ok(m) ? check_common(m) : Status::kBadWeights; });
+}
+
 }  // namespace
 
-Status check(const GruF32& m) {
-  const GruDims& d = m.dims;
-  Status s = check_dims(d);
-  if (s != Status::kOk) return s;
-  if (!shapes_ok(m)) return Status::kBadShape;
-  return check_common(m);
-}
-
-Status check(const GruI8& m) {
-  const GruDims& d = m.dims;
-  Status s = check_dims(d);
-  if (s != Status::kOk) return s;
-  if (!shapes_ok(m)) return Status::kBadShape;
-  if (!all_positive_finite(m.s_x, d.channels) || !all_positive_finite(&m.s_h, 1)) return Status::kBadWeights;
-  return check_common(m);
-}
+Status check(const GruF32& m) { return check_any(m); }
+Status check(const GruI8& m) { return check_any(m); }
 
 Status infer(const GruF32& m, const float* x, float* logits, GruWorkspace& ws, GruTrace* tr) {
   if (x == nullptr || logits == nullptr) return Status::kNullArgument;

@@ -2,16 +2,17 @@
 // reference.bin (llm.c's test_gpt2 in spirit): for every model and precision the file holds, run
 // its windows one at a time with every intermediate traced, and print per tensor the largest
 // absolute difference and OK or NOT OK. Exit 0 when all pass, 1 when any fails, 2 when a file is
-// unusable. Tolerances: fwref/parity.hpp.
+// unusable. The rule and its tolerances: fwref/parity.hpp.
 //
 //   fwref_parity --weights <weights.bin> --reference <reference.bin>
-#include <algorithm>
-#include <cmath>
 #include <cstdio>
+#include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "fwref/parity.hpp"
+#include "fwref/weights_layout_gen.hpp"
 #include "host_common.hpp"
 
 namespace {
@@ -21,8 +22,6 @@ using fwref::SectionInfo;
 using fwref::Status;
 using fwref::TensorInfo;
 
-constexpr char kReferenceMagic[9] = "QFDIREF";
-constexpr std::uint32_t kReferenceVersion = 1;
 
 int fail(const std::string& message) {
   std::fprintf(stderr, "fwref_parity: error: %s\n", message.c_str());
@@ -30,159 +29,145 @@ int fail(const std::string& message) {
 }
 
 
+// One traced tensor over all windows: ``per_window`` values per window and, for int8, the
+// quantisation step of each of them (empty for fp32).
+struct Traced {
+  Traced(const char* name_, std::size_t per_window_, std::vector<double> steps_ = {})
+      : name(name_), per_window(per_window_), steps(std::move(steps_)) {}
+  const char* name;
+  std::size_t per_window;
+  std::vector<double> steps;
+  std::vector<float> data;
+  float* at(int k) { return &data[std::size_t(k) * per_window]; }
+};
+
 struct Compare {
   int checked = 0;
   int failed = 0;
 
-  // ``ours`` and the reference tensor ``name`` of ``sec``; ``step`` null for fp32.
-  bool tensor(const Container& ref, const SectionInfo& sec, const char* name, const std::vector<float>& ours,
-              const std::vector<double>* steps, std::size_t step_period) {
-    const TensorInfo* t = sec.find(name);
-    if (t == nullptr || t->dtype != fwref::DType::kF32 || t->count != ours.size()) {
+  void tensor(const Container& ref, const SectionInfo& sec, const Traced& ours) {
+    const bool int8 = !ours.steps.empty();
+    const TensorInfo* t = sec.find(ours.name);
+    if (t == nullptr || t->dtype != fwref::DType::kF32 || t->count != ours.data.size()) {
       std::printf("%-6s %-5s %-8s missing or of another shape in the reference file        NOT OK\n",
-                  fwref::model_name(sec.model), fwref::precision_name(sec.precision), name);
+                  fwref::model_name(sec.model), fwref::precision_name(sec.precision), ours.name);
       ++checked, ++failed;
-      return false;
+      return;
     }
     std::vector<float> want(t->count);
     ref.copy_f32(*t, want.data());
-    double max_diff = 0.0, max_ref = 0.0, max_steps = 0.0;
+    fwref::TensorDiff diff;
     for (std::size_t i = 0; i < want.size(); ++i) {
-      const double d = std::fabs(double(ours[i]) - double(want[i]));
-      max_diff = std::max(max_diff, std::isnan(d) ? INFINITY : d);
-      max_ref = std::max(max_ref, std::fabs(double(want[i])));
-      if (steps != nullptr) max_steps = std::max(max_steps, d / (*steps)[i % step_period]);
+      diff.add(ours.data[i], want[i], int8 ? ours.steps[i % ours.per_window] : 0.0);
     }
-    bool ok;
+    const bool ok = diff.ok(int8);
     char verdict[128];
-    if (steps == nullptr) {
-      const double tol = fwref::kF32RelTol * std::max(1.0, max_ref);
-      ok = max_diff <= tol;
-      std::snprintf(verdict, sizeof verdict, "tol %.2e (1e-4 x max(1, %.3g))", tol, max_ref);
+    if (int8) {
+      std::snprintf(verdict, sizeof verdict, "= %.3f steps, tol %.1f steps", diff.max_steps, diff.tol(true));
     } else {
-      ok = max_steps <= fwref::kI8TolSteps;
-      std::snprintf(verdict, sizeof verdict, "= %.3f steps, tol %.1f steps", max_steps, fwref::kI8TolSteps);
+      std::snprintf(verdict, sizeof verdict, "tol %.2e (%g x max(1, %.3g))", diff.tol(false), fwref::kF32RelTol,
+                    diff.max_ref);
     }
     std::printf("%-6s %-5s %-8s %-14s max abs diff %.3e %-36s %s\n", fwref::model_name(sec.model),
-                fwref::precision_name(sec.precision), name, t->shape_text().c_str(), max_diff, verdict,
+                fwref::precision_name(sec.precision), ours.name, t->shape_text().c_str(), diff.max_diff, verdict,
                 ok ? "OK" : "NOT OK");
     ++checked;
     failed += ok ? 0 : 1;
-    return ok;
   }
 };
 
-std::vector<double> repeat_steps(const float* s, int n, double factor = 1.0) {
+// ``n`` steps, element i's the scale s[i / every % period]: a per-channel scale repeats every
+// ``period`` elements, a per-stage scale holds for ``every`` consecutive elements.
+std::vector<double> steps_of(const float* s, std::size_t n, std::size_t period, std::size_t every = 1) {
   std::vector<double> out(n);
-  for (int i = 0; i < n; ++i) out[i] = factor * s[i];
+  for (std::size_t i = 0; i < n; ++i) out[i] = s[(i / every) % period];
   return out;
 }
 
-// logit step of class o: 127 * s_in * s_w[o] (the largest change one head-input step can make)
 std::vector<double> logit_steps(const fwref::MatQ& head, float s_in) {
   std::vector<double> out(head.rows);
-  for (int o = 0; o < head.rows; ++o) out[o] = 127.0 * double(s_in) * double(head.scale[o]);
+  for (int o = 0; o < head.rows; ++o) out[o] = fwref::logit_step(head.scale, s_in, o);
   return out;
 }
 
-template <class M>
-bool dims_match(const M& m, const SectionInfo& sec, int n) {
-  return sec.dims[0] == std::uint32_t(m.dims.channels) && sec.dims[1] == std::uint32_t(m.dims.window) &&
-         sec.dims[7] == std::uint32_t(n);
+// The tensors each model traces, in the order of its Trace struct (logits last), with the steps
+// of the int8 model (q) or none (fp32: q null).
+std::vector<Traced> traced(const fwref::CnodeDims& d, const fwref::CnodeI8* q) {
+  const std::size_t C = d.channels, W = d.window, S = d.stage_times, L = d.latent, E = d.evals(), K = d.classes;
+  if (q == nullptr) return {{"x_norm", W * C}, {"u", S * C}, {"z0", L}, {"stages", E * L}, {"z1", L}, {"logits", K}};
+  return {{"x_norm", W * C, steps_of(q->s_x, W * C, C)}, {"u", S * C, steps_of(q->s_u, S * C, C)},
+          {"z0", L, steps_of(q->s_stage, L, 1)}, {"stages", E * L, steps_of(q->s_stage, E * L, E, L)},
+          {"z1", L, steps_of(&q->s_z1, L, 1)}, {"logits", K, logit_steps(q->head_w, q->s_z1)}};
 }
 
-int run_cnode(fwref::WeightsFile& wf, const Container& ref, const SectionInfo& sec, const std::vector<float>& x,
-              int n, Compare& cmp, std::string* error) {
-  const bool int8 = sec.precision == fwref::kPrecI8;
-  fwref::CnodeF32 mf{};
-  fwref::CnodeI8 mq{};
-  Status s = int8 ? wf.bind(&mq, error) : wf.bind(&mf, error);
-  if (s != Status::kOk) return 2;
-  const fwref::CnodeDims d = int8 ? mq.dims : mf.dims;
-  if (!(int8 ? dims_match(mq, sec, n) : dims_match(mf, sec, n)) || sec.dims[5] != std::uint32_t(d.steps)) {
-    *error = "reference file section " + sec.label() + " describes another model (dims differ from the weights)";
-    return 2;
-  }
-  const int W = d.window, C = d.channels, S = d.stage_times, L = d.latent, K = d.classes, E = d.evals();
-  std::vector<float> x_norm(std::size_t(n) * W * C), u(std::size_t(n) * S * C), z0(std::size_t(n) * L),
-      stages(std::size_t(n) * E * L), z1(std::size_t(n) * L), logits(std::size_t(n) * K);
-  std::unique_ptr<fwref::CnodeWorkspace> ws(new fwref::CnodeWorkspace());
-  for (int k = 0; k < n; ++k) {
-    fwref::CnodeTrace tr{&x_norm[std::size_t(k) * W * C], &u[std::size_t(k) * S * C], &z0[std::size_t(k) * L],
-                         &stages[std::size_t(k) * E * L], &z1[std::size_t(k) * L]};
-    {
-      fwref::host::NoHeapGuard guard;
-      s = int8 ? fwref::infer(mq, &x[std::size_t(k) * W * C], &logits[std::size_t(k) * K], *ws, &tr)
-               : fwref::infer(mf, &x[std::size_t(k) * W * C], &logits[std::size_t(k) * K], *ws, &tr);
-    }
-    if (s != Status::kOk) {
-      *error = "cnode " + std::string(int8 ? "int8" : "fp32") + " window " + std::to_string(k) + ": " +
-               fwref::status_name(s);
+std::vector<Traced> traced(const fwref::GruDims& d, const fwref::GruI8* q) {
+  const std::size_t C = d.channels, W = d.window, H = d.hidden, K = d.classes;
+  if (q == nullptr) return {{"x_norm", W * C}, {"h", W * H}, {"logits", K}};
+  return {{"x_norm", W * C, steps_of(q->s_x, W * C, C)}, {"h", W * H, steps_of(&q->s_h, W * H, 1)},
+          {"logits", K, logit_steps(q->head_w, q->s_h)}};
+}
+
+fwref::CnodeTrace trace_at(std::vector<Traced>& t, int k, const fwref::CnodeDims&) {
+  return {t[0].at(k), t[1].at(k), t[2].at(k), t[3].at(k), t[4].at(k)};
+}
+fwref::GruTrace trace_at(std::vector<Traced>& t, int k, const fwref::GruDims&) { return {t[0].at(k), t[1].at(k)}; }
+
+std::unique_ptr<fwref::CnodeWorkspace> workspace(const fwref::CnodeDims&) {
+  return std::unique_ptr<fwref::CnodeWorkspace>(new fwref::CnodeWorkspace());
+}
+std::unique_ptr<fwref::GruWorkspace> workspace(const fwref::GruDims&) {
+  return std::unique_ptr<fwref::GruWorkspace>(new fwref::GruWorkspace());
+}
+
+const fwref::CnodeI8* int8_of(const fwref::CnodeF32&) { return nullptr; }
+const fwref::CnodeI8* int8_of(const fwref::CnodeI8& m) { return &m; }
+const fwref::GruI8* int8_of(const fwref::GruF32&) { return nullptr; }
+const fwref::GruI8* int8_of(const fwref::GruI8& m) { return &m; }
+
+// Bind the model of ``sec`` from the weights, run the reference windows one at a time with every
+// intermediate traced, and compare each traced tensor with the reference.
+template <class Model>
+int run_model(fwref::WeightsFile& wf, const Container& ref, const SectionInfo& sec, const std::vector<float>& x, int n,
+              Compare& cmp, std::string* error) {
+  Model m{};
+  if (wf.bind(&m, error) != Status::kOk) return 2;
+  const auto& d = m.dims;
+  for (int i = 0; i < 8; ++i) {
+    const std::uint32_t mine = i == 7 ? std::uint32_t(n) : wf.container().find(sec.model, sec.precision)->dims[i];
+    if (sec.dims[i] != mine) {
+      *error = "reference file section " + sec.label() + " describes another model (dims differ from the weights)";
       return 2;
     }
   }
-  if (!int8) {
-    cmp.tensor(ref, sec, "x_norm", x_norm, nullptr, 1);
-    cmp.tensor(ref, sec, "u", u, nullptr, 1);
-    cmp.tensor(ref, sec, "z0", z0, nullptr, 1);
-    cmp.tensor(ref, sec, "stages", stages, nullptr, 1);
-    cmp.tensor(ref, sec, "z1", z1, nullptr, 1);
-    cmp.tensor(ref, sec, "logits", logits, nullptr, 1);
-    return 0;
-  }
-  const std::vector<double> sx = repeat_steps(mq.s_x, C), su = repeat_steps(mq.s_u, C);
-  const std::vector<double> s0(L, mq.s_stage[0]), s1(L, mq.s_z1);
-  std::vector<double> se(std::size_t(E) * L);
-  for (int e = 0; e < E; ++e) std::fill(se.begin() + std::size_t(e) * L, se.begin() + std::size_t(e + 1) * L, mq.s_stage[e]);
-  const std::vector<double> sl = logit_steps(mq.head_w, mq.s_z1);
-  cmp.tensor(ref, sec, "x_norm", x_norm, &sx, C);
-  cmp.tensor(ref, sec, "u", u, &su, C);
-  cmp.tensor(ref, sec, "z0", z0, &s0, L);
-  cmp.tensor(ref, sec, "stages", stages, &se, se.size());
-  cmp.tensor(ref, sec, "z1", z1, &s1, L);
-  cmp.tensor(ref, sec, "logits", logits, &sl, K);
-  return 0;
-}
-
-int run_gru(fwref::WeightsFile& wf, const Container& ref, const SectionInfo& sec, const std::vector<float>& x, int n,
-            Compare& cmp, std::string* error) {
-  const bool int8 = sec.precision == fwref::kPrecI8;
-  fwref::GruF32 mf{};
-  fwref::GruI8 mq{};
-  Status s = int8 ? wf.bind(&mq, error) : wf.bind(&mf, error);
-  if (s != Status::kOk) return 2;
-  const fwref::GruDims d = int8 ? mq.dims : mf.dims;
-  if (!(int8 ? dims_match(mq, sec, n) : dims_match(mf, sec, n)) || sec.dims[3] != std::uint32_t(d.hidden)) {
-    *error = "reference file section " + sec.label() + " describes another model (dims differ from the weights)";
-    return 2;
-  }
-  const int W = d.window, C = d.channels, H = d.hidden, K = d.classes;
-  std::vector<float> x_norm(std::size_t(n) * W * C), h(std::size_t(n) * W * H), logits(std::size_t(n) * K);
-  std::unique_ptr<fwref::GruWorkspace> ws(new fwref::GruWorkspace());
+  std::vector<Traced> t = traced(d, int8_of(m));
+  for (Traced& tr : t) tr.data.resize(tr.per_window * std::size_t(n));
+  auto ws = workspace(d);
+  const std::size_t window = std::size_t(d.window) * d.channels;
   for (int k = 0; k < n; ++k) {
-    fwref::GruTrace tr{&x_norm[std::size_t(k) * W * C], &h[std::size_t(k) * W * H]};
+    auto tr = trace_at(t, k, d);
+    Status s;
     {
       fwref::host::NoHeapGuard guard;
-      s = int8 ? fwref::infer(mq, &x[std::size_t(k) * W * C], &logits[std::size_t(k) * K], *ws, &tr)
-               : fwref::infer(mf, &x[std::size_t(k) * W * C], &logits[std::size_t(k) * K], *ws, &tr);
+      s = fwref::infer(m, &x[std::size_t(k) * window], t.back().at(k), *ws, &tr);
     }
     if (s != Status::kOk) {
-      *error = "gru " + std::string(int8 ? "int8" : "fp32") + " window " + std::to_string(k) + ": " +
-               fwref::status_name(s);
+      *error = sec.label() + " window " + std::to_string(k) + ": " + fwref::status_name(s);
       return 2;
     }
   }
-  if (!int8) {
-    cmp.tensor(ref, sec, "x_norm", x_norm, nullptr, 1);
-    cmp.tensor(ref, sec, "h", h, nullptr, 1);
-    cmp.tensor(ref, sec, "logits", logits, nullptr, 1);
-    return 0;
-  }
-  const std::vector<double> sx = repeat_steps(mq.s_x, C), sh(H, mq.s_h), sl = logit_steps(mq.head_w, mq.s_h);
-  cmp.tensor(ref, sec, "x_norm", x_norm, &sx, C);
-  cmp.tensor(ref, sec, "h", h, &sh, H);
-  cmp.tensor(ref, sec, "logits", logits, &sl, K);
+  for (const Traced& tr : t) cmp.tensor(ref, sec, tr);
   return 0;
+}
+
+int run_section(fwref::WeightsFile& wf, const Container& ref, const SectionInfo& sec, const std::vector<float>& x,
+                int n, Compare& cmp, std::string* error) {
+  const bool int8 = sec.precision == fwref::kPrecI8;
+  if (sec.model == fwref::kModelCnode) {
+    return int8 ? run_model<fwref::CnodeI8>(wf, ref, sec, x, n, cmp, error)
+                : run_model<fwref::CnodeF32>(wf, ref, sec, x, n, cmp, error);
+  }
+  return int8 ? run_model<fwref::GruI8>(wf, ref, sec, x, n, cmp, error)
+              : run_model<fwref::GruF32>(wf, ref, sec, x, n, cmp, error);
 }
 
 }  // namespace
@@ -211,7 +196,10 @@ int main(int argc, char** argv) {
   fwref::WeightsFile wf;
   if (wf.load(weights, &error) != Status::kOk) return fail(error);
   Container ref;
-  if (ref.load(reference, kReferenceMagic, kReferenceVersion, "reference file", &error) != Status::kOk) return fail(error);
+  if (ref.load(reference, fwref::layout::kReferenceMagic, fwref::layout::kReferenceVersion, "reference file",
+               &error) != Status::kOk) {
+    return fail(error);
+  }
   const SectionInfo* inputs = ref.find(fwref::kModelNone, fwref::kPrecNone);
   const TensorInfo* tel = inputs ? inputs->find("telemetry") : nullptr;
   if (tel == nullptr || tel->dtype != fwref::DType::kF32 || tel->ndim != 3) {
@@ -229,8 +217,7 @@ int main(int argc, char** argv) {
     if (sec.dims[1] != std::uint32_t(tel->shape[1]) || sec.dims[0] != std::uint32_t(tel->shape[2])) {
       return fail(ref.where() + ": section " + sec.label() + " disagrees with the inputs' (W, C)");
     }
-    const int rc = sec.model == fwref::kModelCnode ? run_cnode(wf, ref, sec, x, n, cmp, &error)
-                                                   : run_gru(wf, ref, sec, x, n, cmp, &error);
+    const int rc = run_section(wf, ref, sec, x, n, cmp, &error);
     if (rc != 0) return fail(error);
     ++sections;
   }

@@ -12,102 +12,34 @@ Writes into <folder>:
   fwref_reference.hpp/.cpp    (with --reference) the reference windows and every expected tensor,
                               for the QEMU parity harness (mcu/parity_main.cpp).
 
-Standard library only (struct, zlib), so any python3 can run it at build time. It checks the
-container like export/binfmt.py (magic, version, size, CRCs, every size field) and exits 2 with one
-line on stderr if the file is unusable. Floats are written as C++17 hexadecimal literals: exact.
-A file is rewritten only when its text changes, so an unchanged weights.bin rebuilds nothing.
+The files are read with the project's own readers (export.weights_bin.read_weights,
+export.reference_bin.read_reference: every container and layout check), and each model struct is
+initialised in the order of the layout table export/weights_layout.py, which the generated header
+fwref/weights_layout_gen.hpp pins to the structs' member order. An unusable file exits 2 with one
+line on stderr. Floats are written as C++17 hexadecimal literals: exact. A file is rewritten only
+when its text changes, so an unchanged weights.bin rebuilds nothing.
 """
 
 from __future__ import annotations
 
 import argparse
 import os
-import struct
 import sys
 import tempfile
-import zlib
 from pathlib import Path
 
-FILE_HEADER = struct.Struct("<8sIIQ")
-SECTION_HEADER = struct.Struct("<4sIII8II")
-TENSOR_HEADER = struct.Struct("<48sII4IiII")
-DTYPES = {1: ("f", 4, "float"), 2: ("b", 1, "std::int8_t"), 3: ("i", 4, "std::int32_t")}
-MODELS = {0: "none", 1: "cnode", 2: "gru"}
-PRECISIONS = {0: "none", 1: "fp32", 2: "int8"}
-WEIGHTS_MAGIC, REFERENCE_MAGIC = b"QFDIWTS\0", b"QFDIREF\0"
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # the repository root: core/, export/
+
+from core.errors import QuadfdiError  # noqa: E402
+from export.reference_bin import read_reference  # noqa: E402
+from export.weights_bin import read_weights  # noqa: E402
+from export.weights_layout import MODELS, SECTION_ORDER, dtype_of  # noqa: E402
+
+CTYPES = {"float32": "float", "int8": "std::int8_t", "int32": "std::int32_t"}
 
 
 class FileError(Exception):
     """An unusable input file; printed as one line."""
-
-
-class Tensor:
-    def __init__(self, name, dtype, shape, values, scales):
-        self.name, self.dtype, self.shape, self.values, self.scales = name, dtype, shape, values, scales
-
-
-def parse(path: Path, magic: bytes, what: str) -> list[tuple[str, str, tuple[int, ...], dict[str, Tensor]]]:
-    """Sections of a weights.bin / reference.bin as (model, precision, dims, {name: Tensor})."""
-    where = f"{what} {path}"
-    try:
-        data = path.read_bytes()
-    except OSError as exc:
-        raise FileError(f"cannot read {where}: {exc.strerror}") from None
-    if len(data) < FILE_HEADER.size or data[:8] != magic:
-        raise FileError(f"{where} is not a quadfdi {what} or is truncated (magic {data[:8]!r}, expected {magic!r})")
-    _, version, n_sections, size = FILE_HEADER.unpack_from(data)
-    if version != 1:
-        raise FileError(f"{where} has format version {version}, this generator reads version 1")
-    if size != len(data) or size < FILE_HEADER.size + 4:
-        raise FileError(f"{where} is truncated (or has trailing bytes): its header says {size} bytes, the file has {len(data)}")
-    if zlib.crc32(data[:-4]) != struct.unpack_from("<I", data, size - 4)[0]:
-        raise FileError(f"{where} fails its file CRC-32 check")
-    end, pos, sections = size - 4, FILE_HEADER.size, []
-    for index in range(n_sections):
-        if end - pos < SECTION_HEADER.size:
-            raise FileError(f"{where}: section {index} is truncated")
-        tag, ssize, model, prec, *rest = SECTION_HEADER.unpack_from(data, pos)
-        dims, n_tensors = tuple(rest[:8]), rest[8]
-        if tag != b"SECT" or model not in MODELS or prec not in PRECISIONS or ssize < SECTION_HEADER.size + 4 \
-                or pos + ssize > end:
-            raise FileError(f"{where}: section {index} has a bad header")
-        if zlib.crc32(data[pos:pos + ssize - 4]) != struct.unpack_from("<I", data, pos + ssize - 4)[0]:
-            raise FileError(f"{where}: section {index} fails its CRC-32 check")
-        tensors, p, send = {}, pos + SECTION_HEADER.size, pos + ssize - 4
-        for k in range(n_tensors):
-            if send - p < TENSOR_HEADER.size:
-                raise FileError(f"{where}: section {index} tensor {k} is truncated")
-            name_b, code, ndim, *r = TENSOR_HEADER.unpack_from(data, p)
-            shape4, axis, n_scales, nbytes = r[:4], r[4], r[5], r[6]
-            name = name_b.split(b"\0", 1)[0].decode("ascii", "replace")
-            if code not in DTYPES or ndim > 4 or axis not in (-1, 0):
-                raise FileError(f"{where}: tensor {name!r} has a bad header")
-            shape = tuple(shape4[:ndim])
-            count = 1
-            for d in shape:
-                count *= d
-            fmt_char, itemsize, _ = DTYPES[code]
-            want_scales = 0 if code != 2 else (1 if axis == -1 else (shape[0] if ndim else -1))
-            pad = (-nbytes) % 4
-            if nbytes != count * itemsize or n_scales != want_scales or p + TENSOR_HEADER.size + nbytes + pad \
-                    + 8 * n_scales > send:
-                raise FileError(f"{where}: tensor {name!r} has inconsistent sizes")
-            p += TENSOR_HEADER.size
-            values = struct.unpack_from(f"<{count}{fmt_char}", data, p)
-            p += nbytes + pad
-            scales = struct.unpack_from(f"<{n_scales}f", data, p) if n_scales else ()
-            zps = struct.unpack_from(f"<{n_scales}i", data, p + 4 * n_scales) if n_scales else ()
-            if any(zps):
-                raise FileError(f"{where}: tensor {name!r} has a non-zero zero point")
-            p += 8 * n_scales
-            tensors[name] = Tensor(name, code, shape, values, scales)
-        if p != send:
-            raise FileError(f"{where}: section {index} has bytes beyond its tensors")
-        sections.append((MODELS[model], PRECISIONS[prec], dims, tensors))
-        pos += ssize
-    if pos != end:
-        raise FileError(f"{where} has unexpected bytes after its sections")
-    return sections
 
 
 def c_float(v: float) -> str:
@@ -133,105 +65,62 @@ def ident(*parts: str) -> str:
     return "_".join(p.replace(".", "_") for p in parts)
 
 
-class Unit:
-    """One generated .cpp: the arrays of one section and the model struct that points at them."""
-
-    def __init__(self, model: str, precision: str, tensors: dict[str, Tensor]):
-        self.prefix = f"{model}_{'f32' if precision == 'fp32' else 'i8'}"
-        self.tensors, self.parts = tensors, []
-
-    def need(self, name: str) -> Tensor:
-        t = self.tensors.get(name)
-        if t is None:
-            raise FileError(f"section {self.prefix} lacks tensor {name!r}")
-        return t
-
-    def arr(self, name: str) -> str:
-        t = self.need(name)
-        cname = ident(self.prefix, name)
-        self.parts.append(c_array(DTYPES[t.dtype][2], cname, t.values))
-        return cname
-
-    def matf(self, name: str) -> str:
-        t = self.need(name)
-        return f"{{{self.arr(name)}, {t.shape[0]}, {t.shape[1]}}}"
-
-    def matq(self, name: str) -> str:
-        t = self.need(name)
-        q = self.arr(name)
-        s = ident(self.prefix, name, "scale")
-        self.parts.append(c_array("float", s, t.scales))
-        return f"{{{q}, {s}, {t.shape[0]}, {t.shape[1]}}}"
-
-    def scalar(self, name: str) -> str:
-        return c_float(self.need(name).values[0])
-
-
-def cnode_unit(precision: str, dims, tensors) -> tuple[str, str]:
-    u = Unit("cnode", precision, tensors)
-    q = precision == "int8"
-    mat = u.matq if q else u.matf
-    d = f"{{{dims[0]}, {dims[1]}, {dims[2]}, {dims[3]}, {dims[4]}, {dims[5]}, {dims[6]}}}"
-    fields = [d, u.arr("norm.mean"), u.arr("norm.std"), mat("interp"), u.arr("stage_index"), u.arr("rk4.consts"),
-              mat("encoder.weight"), u.arr("encoder.bias"), mat("lin1_z.weight"), mat("lin1_u.weight"),
-              u.arr("lin1.bias"), mat("lin2.weight"), u.arr("lin2.bias"), mat("head.weight"), u.arr("head.bias")]
-    if q:
-        fields += [u.arr("act.x_norm.scale"), u.arr("act.u.scale"), u.arr("act.stage.scale"),
-                   u.scalar("act.hidden.scale"), u.scalar("act.z1.scale")]
-    typ, var = ("CnodeI8", "kCnodeI8") if q else ("CnodeF32", "kCnodeF32")
-    return var, struct_unit(u, typ, var, fields)
-
-
-def gru_unit(precision: str, dims, tensors) -> tuple[str, str]:
-    u = Unit("gru", precision, tensors)
-    q = precision == "int8"
-    mat = u.matq if q else u.matf
-    d = f"{{{dims[0]}, {dims[1]}, {dims[2]}, {dims[3]}}}"
-    fields = [d, u.arr("norm.mean"), u.arr("norm.std"), mat("gru.weight_ih"), mat("gru.weight_hh"),
-              u.arr("gru.bias_ih"), u.arr("gru.bias_hh"), mat("head.weight"), u.arr("head.bias")]
-    if q:
-        fields += [u.arr("act.x_norm.scale"), u.scalar("act.h.scale")]
-    typ, var = ("GruI8", "kGruI8") if q else ("GruF32", "kGruF32")
-    return var, struct_unit(u, typ, var, fields)
+def section_unit(model: str, precision: str, section) -> str:
+    """One generated .cpp: the arrays of one section and the model struct that points at them,
+    initialised in the layout table's order (dims first)."""
+    layout = MODELS[model]
+    prefix = f"{model}_{'f32' if precision == 'fp32' else 'i8'}"
+    parts, fields = [], ["{" + ", ".join(str(section.dims[d.index]) for d in layout.dims) + "}"]
+    for spec in layout.specs(precision):
+        if spec.field is None:
+            continue
+        t = section.tensors[spec.name]
+        cname = ident(prefix, spec.name)
+        if spec.kind == "scalar":
+            fields.append(c_float(float(t.array.reshape(-1)[0])))
+            continue
+        parts.append(c_array(CTYPES[dtype_of(spec, precision).name], cname, t.array.ravel().tolist()))
+        if spec.kind != "mat":
+            fields.append(cname)
+        elif precision == "int8":
+            parts.append(c_array("float", cname + "_scale", t.scales.tolist()))
+            fields.append(f"{{{cname}, {cname}_scale, {t.array.shape[0]}, {t.array.shape[1]}}}")
+        else:
+            fields.append(f"{{{cname}, {t.array.shape[0]}, {t.array.shape[1]}}}")
+    typ = layout.cpp_types[precision]
+    var = "k" + typ
+    init = ",\n    ".join(fields)
+    return (f'#include "fwref_weights.hpp"\n\nnamespace fwref_data {{\nnamespace {{\n'
+            f'{"".join(parts)}}}  // namespace\n\n'
+            f"const fwref::{typ} {var} = {{\n    {init}\n}};\n\n"
+            f"}}  // namespace fwref_data\n")
 
 
 HEADER = "// GENERATED by firmware_ref/tools/gen_weights.py from {src}; do not edit.\n"
 
 
-def struct_unit(u: Unit, typ: str, var: str, fields: list[str]) -> str:
-    body = "".join(u.parts)
-    init = ",\n    ".join(fields)
-    return (f'#include "fwref_weights.hpp"\n\nnamespace fwref_data {{\nnamespace {{\n{body}}}  // namespace\n\n'
-            f"const fwref::{typ} {var} = {{\n    {init}\n}};\n\n"
-            f"}}  // namespace fwref_data\n")
+def limits_header(weights) -> str:
+    """Every FWREF_MAX_* macro of the layout's dims set to the largest value this file holds."""
+    macros: dict[str, int] = {}
+    for model, layout in MODELS.items():
+        fp32 = weights.section(model, "fp32").dims
+        if weights.section(model, "int8").dims != fp32:
+            raise FileError(f"{model} fp32 and int8 sections have different dimensions")
+        for d in layout.dims:
+            if d.macro:
+                macros[d.macro] = max(macros.get(d.macro, 0), int(fp32[d.index]))
+    return ("// The model's own dimensions as the build's maxima: no buffer holds more than this model needs.\n"
+            "#pragma once\n" + "".join(f"#define {k} {v}\n" for k, v in macros.items()))
 
 
-def limits_header(sections) -> str:
-    by = {(m, p): dims for m, p, dims, _ in sections}
-    c, w, k, h, lat, n, s = by[("cnode", "fp32")][:7]
-    gc, gw, gk, gh = by[("gru", "fp32")][:4]
-    for key, dims in by.items():
-        ref = by[(key[0], "fp32")]
-        if dims != ref:
-            raise FileError(f"{key[0]} fp32 and int8 sections have different dimensions")
-    return (f"// The model's own dimensions as the build's maxima: no buffer holds more than this model needs.\n"
-            f"#pragma once\n#define FWREF_MAX_CHANNELS {max(c, gc)}\n#define FWREF_MAX_WINDOW {max(w, gw)}\n"
-            f"#define FWREF_MAX_CLASSES {max(k, gk)}\n#define FWREF_MAX_LATENT {lat}\n"
-            f"#define FWREF_MAX_CNODE_HIDDEN {h}\n#define FWREF_MAX_STEPS {n}\n#define FWREF_MAX_GRU_HIDDEN {gh}\n")
+def weights_header() -> str:
+    decls = "".join(f"extern const fwref::{t} k{t};\n" for m, p in SECTION_ORDER for t in [MODELS[m].cpp_types[p]])
+    return ("#pragma once\n// The four models of weights.bin as constant structs in flash (one .cpp per section).\n"
+            '#include "fwref/cnode.hpp"\n#include "fwref/gru.hpp"\n'
+            '#include "fwref/weights_layout_gen.hpp"  // pins the member order used below\n\n'
+            "namespace fwref_data {\n" + decls +
+            "}  // namespace fwref_data\n")
 
-
-WEIGHTS_HPP = """#pragma once
-// The four models of weights.bin as constant structs in flash (one .cpp per section).
-#include "fwref/cnode.hpp"
-#include "fwref/gru.hpp"
-
-namespace fwref_data {
-extern const fwref::CnodeF32 kCnodeF32;
-extern const fwref::CnodeI8 kCnodeI8;
-extern const fwref::GruF32 kGruF32;
-extern const fwref::GruI8 kGruI8;
-}  // namespace fwref_data
-"""
 
 REFERENCE_HPP = """#pragma once
 // reference.bin compiled in: the windows and every expected tensor (fp32 from PyTorch, int8 from
@@ -256,23 +145,24 @@ extern const int kTensorCount;
 def reference_unit(sections) -> str:
     """The windows and labels (external linkage: the header declares them) and each expected tensor
     (internal, reached through the kTensors table)."""
-    inputs = next((t for m, _, _, t in sections if m == "none"), None)
+    inputs = next((s.tensors for s in sections if s.model == "none"), None)
     if inputs is None or "telemetry" not in inputs or "label" not in inputs:
         raise FileError("reference file has no inputs section with 'telemetry' and 'label'")
-    tel = inputs["telemetry"]
+    tel = inputs["telemetry"].array
     private, rows = [], []
-    for model, prec, _, tensors in sections:
-        if model == "none":
+    for sec in sections:
+        if sec.model == "none":
             continue
         for name in ("x_norm", "u", "z0", "stages", "z1", "h", "logits"):
-            if name in tensors:
-                cname = ident("ref", model, prec, name)
-                private.append(c_array("float", cname, tensors[name].values))
-                rows.append(f'{{"{model}", "{prec}", "{name}", {cname}, {len(tensors[name].values)}}}')
-    labels = ", ".join(map(str, inputs["label"].values))
+            if name in sec.tensors:
+                values = sec.tensors[name].array.ravel().tolist()
+                cname = ident("ref", sec.model, sec.precision, name)
+                private.append(c_array("float", cname, values))
+                rows.append(f'{{"{sec.model}", "{sec.precision}", "{name}", {cname}, {len(values)}}}')
+    labels = ", ".join(map(str, inputs["label"].array.tolist()))
     table = ",\n    ".join(rows)
     return ('#include "fwref_reference.hpp"\n\nnamespace fwref_ref {\nnamespace {\n' + "".join(private) +
-            "}  // namespace\n\n" + c_array("float", "kTelemetry", tel.values) +
+            "}  // namespace\n\n" + c_array("float", "kTelemetry", tel.ravel().tolist()) +
             f"alignas(4) const int kLabels[{tel.shape[0]}] = {{{labels}}};\n"
             f"const int kWindows = {tel.shape[0]};\nconst int kTensorCount = {len(rows)};\n"
             f"const Tensor kTensors[] = {{\n    {table}\n}};\n}}  // namespace fwref_ref\n")
@@ -289,20 +179,18 @@ def write_if_changed(path: Path, text: str) -> None:
 
 
 def generate(weights: Path, reference: Path | None, out: Path) -> list[Path]:
-    sections = parse(weights, WEIGHTS_MAGIC, "weights file")
-    have = {(m, p): (dims, t) for m, p, dims, t in sections}
-    for key in (("cnode", "fp32"), ("cnode", "int8"), ("gru", "fp32"), ("gru", "int8")):
-        if key not in have:
-            raise FileError(f"weights file {weights} holds no {key[0]} {key[1]} section")
+    try:
+        w = read_weights(weights)
+        ref = read_reference(reference).sections if reference is not None else None
+    except QuadfdiError as exc:
+        raise FileError(str(exc)) from None
     out.mkdir(parents=True, exist_ok=True)
-    files = {"fwref_limits.h": HEADER.format(src=weights.name) + limits_header(sections),
-             "fwref_weights.hpp": HEADER.format(src=weights.name) + WEIGHTS_HPP}
-    for model, prec in have:
-        dims, tensors = have[(model, prec)]
-        _, text = (cnode_unit if model == "cnode" else gru_unit)(prec, dims, tensors)
-        files[f"fwref_weights_{model}_{'f32' if prec == 'fp32' else 'i8'}.cpp"] = HEADER.format(src=weights.name) + text
-    if reference is not None:
-        ref = parse(reference, REFERENCE_MAGIC, "reference file")
+    head = HEADER.format(src=weights.name)
+    files = {"fwref_limits.h": head + limits_header(w), "fwref_weights.hpp": head + weights_header()}
+    for model, prec in SECTION_ORDER:
+        name = f"fwref_weights_{model}_{'f32' if prec == 'fp32' else 'i8'}.cpp"
+        files[name] = head + section_unit(model, prec, w.section(model, prec))
+    if ref is not None:
         files["fwref_reference.hpp"] = HEADER.format(src=reference.name) + REFERENCE_HPP
         files["fwref_reference.cpp"] = HEADER.format(src=reference.name) + reference_unit(ref)
     for name, text in files.items():

@@ -1,6 +1,6 @@
 // fwref/cnode.hpp -- scope: the controlled Neural ODE classifier (paper Eq. 10) as deployed:
 // normalisation inside, the control path as one constant interpolation matrix, classic RK4 with
-// N fixed steps, fp32 and int8 (docs/formats_export.md "CNODE graph" and "int8 arithmetic").
+// N fixed steps, fp32 and int8 (docs/formats.md "CNODE graph" and "int8 arithmetic").
 //
 //   x_norm = (x - mean) / std                           (W, C)    raw telemetry in
 //   U      = interp @ x_norm                            (S, C)    S = 2N + 1 stage times

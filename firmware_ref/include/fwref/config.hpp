@@ -9,6 +9,8 @@
 
 #include <cstdint>
 
+#include "fwref/contracts_gen.hpp"
+
 #ifdef FWREF_LIMITS_HEADER
 #include FWREF_LIMITS_HEADER
 #endif
@@ -44,15 +46,14 @@ constexpr int kMaxLatent = FWREF_MAX_LATENT;            // L, CNODE latent state
 constexpr int kMaxCnodeHidden = FWREF_MAX_CNODE_HIDDEN; // H, width of the CNODE vector field
 constexpr int kMaxSteps = FWREF_MAX_STEPS;              // N, classic RK4 steps
 constexpr int kMaxStageTimes = 2 * kMaxSteps + 1;       // S = 2N + 1 distinct stage times
-constexpr int kMaxEvals = 4 * kMaxSteps;                // 4N field evaluations
+constexpr int kRk4StagesPerStep = contracts::kRk4StagesPerStep;  // field evaluations per step
+constexpr int kRk4Consts = contracts::kRk4NumConsts;              // weights.bin's rk4.consts
+constexpr int kMaxEvals = kRk4StagesPerStep * kMaxSteps; // 4N field evaluations
 constexpr int kMaxGruHidden = FWREF_MAX_GRU_HIDDEN;     // GRU hidden state
 constexpr int kMaxGruGates = 3 * kMaxGruHidden;         // r, z, n rows
 
-constexpr int kRk4StagesPerStep = 4;
-constexpr int kRk4Consts = 4;  // [h/2, h, 2, h/6], as the graphs use them
-
 // int8 products accumulate sum_i q[i] * Wq[o, i] in int32 with |q| <= 128 and |Wq| <= 127. The
-// rescale converts the sum to float32, which is exact only below 2^24 (docs/formats_export.md):
+// rescale converts the sum to float32, which is exact only below 2^24 (docs/formats.md):
 // every inner dimension must keep |acc| < 2^24, i.e. at most 1031 terms.
 constexpr long kExactFloatInt = 1L << 24;
 constexpr long max_abs_acc(int terms) { return long(terms) * 127L * 128L; }

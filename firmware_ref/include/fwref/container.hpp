@@ -1,5 +1,5 @@
 // fwref/container.hpp -- scope: the host-side reader of the tensor-record container that
-// weights.bin and reference.bin share (export/binfmt.py, docs/formats_export.md). It checks the
+// weights.bin and reference.bin share (export/binfmt.py, docs/formats.md). It checks the
 // magic, the version, the file size against the real size, the file and section CRC-32s, and every
 // size field against the bytes left before it reads them; each failure is a Status plus a one-line
 // message naming the file. Host only (std::vector, std::string): the microcontroller build has its
@@ -44,6 +44,9 @@ struct SectionInfo {
   const TensorInfo* find(const std::string& name) const;
   std::string label() const;             // "cnode int8"
 };
+
+// printf into a std::string (one line of an error message; at most 511 characters).
+std::string fmt(const char* f, ...) __attribute__((format(printf, 1, 2)));
 
 // zlib's CRC-32 (polynomial 0xEDB88320), as Python's zlib.crc32.
 std::uint32_t crc32(const unsigned char* data, std::size_t n, std::uint32_t crc = 0);

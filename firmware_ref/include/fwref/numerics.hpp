@@ -2,7 +2,7 @@
 // Runtime's CPU kernels operation by operation: tanh and the logistic sigmoid (MLAS's rational
 // approximations), QuantizeLinear (float32 division, round half to even, saturation), and the int8
 // products with int32 accumulation and the documented float rescale order
-// (docs/formats_export.md, "int8 arithmetic"). Compile with -ffp-contract=off: every expression
+// (docs/formats.md, "int8 arithmetic"). Compile with -ffp-contract=off: every expression
 // below is one IEEE float32 operation per operator, in the order written; the only fused
 // multiply-adds are the explicit std::fma calls, which are what MLAS's FMA3 kernels execute.
 #pragma once

@@ -1,7 +1,8 @@
 // fwref/weights_file.hpp -- scope: weights.bin on the host: read and check the file
 // (fwref/container.hpp), then bind one section to a model struct (fwref/cnode.hpp, fwref/gru.hpp)
 // after checking that every tensor the model needs is present with the dtype, shape and scales its
-// section's dimensions imply, and that the dimensions fit this build's compile-time maxima. The
+// section's dimensions imply, and that the dimensions fit this build's compile-time maxima. Which
+// tensors, with which shapes, is the generated table fwref/weights_layout_gen.hpp. The
 // values are copied once into typed storage owned by the WeightsFile (no aliasing or alignment
 // assumptions about the file's bytes); the bound model points into it.
 #pragma once
@@ -18,9 +19,6 @@
 
 namespace fwref {
 
-constexpr char kWeightsMagic[9] = "QFDIWTS";  // + the terminating NUL: 8 bytes "QFDIWTS\0"
-constexpr std::uint32_t kWeightsVersion = 1;
-
 class WeightsFile {
  public:
   Status load(const std::string& path, std::string* error);
@@ -35,6 +33,8 @@ class WeightsFile {
 
  private:
   friend class Binder;
+  template <class Model>
+  Status bind_section(Model* out, std::string* error);
   Container file_;
   std::deque<std::vector<float>> f32_;
   std::deque<std::vector<std::int8_t>> i8_;

@@ -2,12 +2,23 @@
 
 Every sentence here is computed from the numbers it describes (nothing hand-written about the
 results), so a rerun at another scale rewrites its own conclusions. Inputs are the dicts of
-``bench.solvers.run_study`` and ``bench.solver_matrix.run_matrix`` (or their JSON files).
+``solverstudy.study.run_study`` and ``solverstudy.matrix.run_matrix`` (or their JSON files).
+
+What other stages read (from the run folder's files alone, no torch imported):
+``report_section(run_root)`` (the run report's solver section), ``headline(run_root)``
+and ``load_records(run_root)`` (the study's records, bench.json's ``solvers`` list).
 """
 
 from __future__ import annotations
 
-from bench.solvers import F1_TOL
+from pathlib import Path
+
+from core.errors import QuadfdiError
+from core.jsonio import read_json
+from core.reportmd import not_run
+from core.tables import md_table
+from solverstudy.files import SolverFiles
+from solverstudy.settings import F1_TOL
 
 
 def _e(x: float | None) -> str:
@@ -25,8 +36,7 @@ def _n(x: float | None) -> str:
 
 
 def _table(head: list[str], rows: list[list[str]]) -> list[str]:
-    return ["| " + " | ".join(head) + " |", "|" + "|".join("---" for _ in head) + "|",
-            *("| " + " | ".join(r) + " |" for r in rows)]
+    return md_table(head, rows)[:-1]  # the callers place their own blank lines
 
 
 def _rule(meta: dict) -> str:
@@ -36,7 +46,7 @@ def _rule(meta: dict) -> str:
     return f"at most {tol:.1f} point below it (a higher F1 is at least as accurate)"
 
 
-def headline(study: dict, adaptive: str = "dopri5 rtol=1e-3 jump") -> str:
+def study_headline(study: dict, adaptive: str = "dopri5 rtol=1e-3 jump") -> str:
     """One sentence on the cheapest fixed setting that matches ``adaptive`` (issue 6's target)."""
     row = next((m for m in study["matched"] if m["adaptive"] == adaptive), None)
     if row is None:
@@ -84,7 +94,7 @@ def study_markdown(study: dict, command: str | None = None, figures: str = "../f
            f"{_e(meta['reference_check']['max_abs_logit_diff'])} in a logit on {meta['reference_check']['n_windows']} "
            "windows." if meta.get("reference_check") else ""),
         "",
-        f"**{headline(study)}**",
+        f"**{study_headline(study)}**",
         "",
         "### Matched accuracy",
         "",
@@ -261,3 +271,47 @@ def matrix_markdown(matrix: dict, command: str | None = None, figures: str = "..
     if matrix.get("controls"):
         lines += [f"![control representations]({figures}/solver_controls.png)"]
     return "\n".join(lines) + "\n"
+
+
+# ----------------------------------------------------------------- what other stages read
+
+
+def read_outputs(run_root: str | Path) -> tuple[dict | None, dict | None]:
+    """The study's and the matrix's JSON of ``run_root`` (None for a file that is not there)."""
+    files = SolverFiles(Path(run_root))
+    return tuple(read_json(p, "solver file") if p.is_file() else None  # type: ignore[return-value]
+                 for p in (files.study_json, files.matrix_json))
+
+
+def load_records(run_root: str | Path) -> list[dict]:
+    """The study's records (``solvers/solvers.json``'s ``solvers`` list; [] when it has not run)."""
+    study, _ = read_outputs(run_root)
+    if study is None:
+        return []
+    if not isinstance(study.get("solvers"), list):
+        raise QuadfdiError(f"{SolverFiles(Path(run_root)).study_json} holds no list of solver records")
+    return study["solvers"]
+
+
+def report_section(run_root: str | Path) -> list[str]:
+    """Markdown lines of the run report's solver section (figure links relative to the run
+    folder); a "Not run" section when neither the study nor the matrix has run."""
+    study, matrix = read_outputs(run_root)
+    if not study and not matrix:
+        return not_run("## Solvers", f"no solvers/solvers.json in this run (`quadfdi solvers study --run {run_root}` "
+                                     "writes it)")
+    parts = []
+    if study:
+        parts.append(study_markdown(study, study["meta"].get("command"), figures="figures"))
+    if matrix:
+        parts.append(matrix_markdown(matrix, matrix["meta"].get("command"), figures="figures"))
+    text = "\n".join(parts)
+    return text.splitlines() + [""] if text.strip() else []
+
+
+def headline(run_root: str | Path) -> list[str]:
+    """The run report's headline bullet of the study (issue 6's question), or []."""
+    study, _ = read_outputs(run_root)
+    if not study or not study.get("matched"):
+        return []
+    return [f"- Solvers (solvers/solvers.json): {study_headline(study)}"]

@@ -8,44 +8,38 @@ same initial weights and the same batches, differing only in the training solver
   larger than a critical size stops being a proper ODE model -- it breaks when solved another
   way. The matrix shows whether ours do: each model is deployed with each solver and against
   its own float64 reference (dopri5, rtol 1e-9, restarted at every knot).
-- ``rk4`` at N with the step-average control (``bench.solvers.AverageControlCNODE``), where
+- ``rk4`` at N with the step-average control (``train.variants.AverageControlCNODE``), where
   even a coarse grid sees every sample. That changes the model, so it is trained that way and
   compared with the point-sampled model trained at the same N, at equal evaluations (4N).
 
 Deploy solves run on the whole test split in batches (``batch`` windows; an adaptive solver's
 steps are shared by a batch, which the record says). The point is accuracy, not cost: the
-per-window costs are in the solver study (``bench.solvers.run_study``).
+per-window costs are in the solver study (``solverstudy.study.run_study``).
 
-Library only; ``bench.cli_solvers`` writes the files.
+What is trained and deployed, the epochs, the training subset, the batch and the break tolerance
+come from the config's [solvers] section (``matrix_*``, ``break_tol``). Library only;
+``solverstudy.run.matrix_run`` writes the files and keeps the trained models.
 """
 
 from __future__ import annotations
 
 import time
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Callable, Sequence
 
 import numpy as np
 import torch
 
-from bench.solvers import (
-    AverageControlCNODE,
-    Setting,
-    compare,
-    reference_setting,
-    solve_batched,
-    with_setting,
-)
-from core.config import Config, replace_section
+from core.config import Config, SolversConfig, replace_section
+from core.errors import QuadfdiError
 from sim.dataset import Windows
+from solverstudy.settings import Setting, parse_settings, reference_setting
+from solverstudy.study import compare, solve_batched, with_setting
 from train.data import class_weights, fit_normalisation, split_windows
 from train.loop import train_model
 from train.models import CNODE, build_model
 
-DEFAULT_TRAIN = ("dopri5", "rk4:1", "rk4:2", "rk4:8", "rk4:32", "rk4:1:avg", "rk4:2:avg", "rk4:8:avg")
-DEFAULT_DEPLOY = ("dopri5:1e-3", "rk4:1", "rk4:2", "rk4:8", "rk4:32", "rk4:1:avg", "rk4:2:avg", "rk4:8:avg", "ref")
-BREAK_TOL = 0.02  # a model "breaks" when the reference's macro F1 is this far below its own solver's
+BREAK_TOL = SolversConfig.break_tol  # a model "breaks" when the reference's macro F1 is this far below its own solver's
 
 
 @dataclass(frozen=True)
@@ -73,6 +67,22 @@ class TrainSpec:
         if s.reference:
             raise ValueError("the reference is a deploy setting, not a training solver")
         return TrainSpec(s)
+
+
+def matrix_plan(cfg: Config) -> tuple[list[TrainSpec], list[Setting]]:
+    """The training specs and deploy settings of ``cfg.solvers``; QuadfdiError on a bad or repeated one."""
+    try:
+        specs = [TrainSpec.parse(t, cfg) for t in cfg.solvers.matrix_train]
+    except ValueError as exc:
+        raise QuadfdiError(f"solvers.matrix_train: {exc}") from None
+    if len({s.label for s in specs}) != len(specs):
+        raise QuadfdiError("solvers.matrix_train must not repeat a setting")
+    return specs, parse_settings(cfg.solvers.matrix_deploy, "solvers.matrix_deploy")
+
+
+def matrix_epochs(cfg: Config) -> int:
+    """``solvers.matrix_epochs``, or ``train.epochs`` when it is 0."""
+    return cfg.solvers.matrix_epochs or cfg.train.epochs
 
 
 def subsample(w: Windows, n: int, seed: int = 0) -> Windows:
@@ -139,21 +149,22 @@ def evaluate_cells(model: CNODE, label: str, deploys: Sequence[Setting], test: W
     return cells
 
 
-def run_matrix(ds, cfg: Config, train_specs: Sequence[TrainSpec], deploys: Sequence[Setting], epochs: int,
-               max_train_windows: int = 0, batch: int = 96, models: dict | None = None,
-               on_trained: Callable[[TrainSpec, CNODE, dict], None] | None = None,
+def run_matrix(ds, cfg: Config, train_specs: Sequence[TrainSpec], deploys: Sequence[Setting],
+               models: dict | None = None, on_trained: Callable[[TrainSpec, CNODE, dict], None] | None = None,
                log: Callable[[str], None] = print) -> dict:
     """Train every spec (unless ``models`` already holds its label: (model, info)) and deploy each
-    with each setting. Returns ``{"train": [...], "deploy": [...], "cells": [...], "ott": [...],
-    "controls": [...], "meta": {...}}``; ``models`` (if given) is filled with the trained models.
-    ``on_trained(spec, model, info)`` runs right after each training (the CLI saves the model
-    there, so an interrupted matrix resumes with ``--reuse``)."""
+    with each setting; epochs, training subset, batch and break tolerance from ``cfg.solvers``.
+    Returns ``{"train": [...], "deploy": [...], "cells": [...], "ott": [...], "controls": [...],
+    "meta": {...}}``; ``models`` (if given) is filled with the trained models.
+    ``on_trained(spec, model, info)`` runs right after each training (``matrix_run`` saves the
+    model there, so an interrupted matrix resumes with ``reuse``)."""
     t_start = time.perf_counter()
+    sc, epochs = cfg.solvers, matrix_epochs(cfg)
     deploys = list(deploys)
     if not any(d.reference for d in deploys):
         deploys.append(reference_setting())
     splits = split_windows(ds)
-    train = subsample(splits.train, max_train_windows, cfg.train.seed)
+    train = subsample(splits.train, sc.matrix_max_train_windows, cfg.train.seed)
     models = {} if models is None else models
     infos, cells = [], []
     for spec in train_specs:
@@ -163,7 +174,7 @@ def run_matrix(ds, cfg: Config, train_specs: Sequence[TrainSpec], deploys: Seque
                 on_trained(spec, *models[spec.label])
         model, info = models[spec.label]
         infos.append(info)
-        cells += evaluate_cells(model, spec.label, deploys, splits.test, batch, log)
+        cells += evaluate_cells(model, spec.label, deploys, splits.test, sc.matrix_batch, log)
     out = {
         "train": infos,
         "deploy": [d.to_dict() for d in deploys],
@@ -172,14 +183,14 @@ def run_matrix(ds, cfg: Config, train_specs: Sequence[TrainSpec], deploys: Seque
             "epochs": int(epochs),
             "n_train_windows": int(len(train)),
             "n_test_windows": int(len(splits.test)),
-            "batch": int(batch),
-            "break_tol": BREAK_TOL,
+            "batch": int(sc.matrix_batch),
+            "break_tol": float(sc.break_tol),
             "threads": int(torch.get_num_threads()),
             "seconds": time.perf_counter() - t_start,
             "train_seconds": float(sum(i["train_seconds"] for i in infos)),
         },
     }
-    out["ott"] = ott_findings(out)
+    out["ott"] = ott_findings(out, sc.break_tol)
     out["controls"] = control_findings(out)
     return out
 
@@ -253,33 +264,3 @@ def control_findings(matrix: dict) -> list[dict]:
                 row["nfe_per_window"] = c["nfe_per_window"]
         out.append(row)
     return out
-
-
-# ------------------------------------------------------------------------- checkpoints
-
-
-def save_variant(path: Path, model: CNODE, info: dict, cfg: Config, channel_names: list[str]) -> None:
-    """A matrix model as a quadfdi checkpoint plus ``matrix_info`` (its control and training record)."""
-    from train.checkpoint import save_checkpoint
-
-    save_checkpoint(path, model, cfg.to_dict(), channel_names, extra={"matrix_info": info})
-
-
-def load_variant(path: Path) -> tuple[CNODE, dict] | None:
-    """A model saved by ``save_variant`` (in its control's class) and its info; None if unusable."""
-    from core.errors import QuadfdiError
-    from train.checkpoint import load_checkpoint
-
-    try:
-        model, blob = load_checkpoint(path, "cnode")
-    except QuadfdiError:
-        return None
-    info = blob.get("matrix_info")
-    if not isinstance(info, dict):
-        return None
-    if info.get("control") == "average":
-        avg = AverageControlCNODE(**{k: v for k, v in blob["architecture"].items() if k != "kind"}, solver=model.solver)
-        avg.load_state_dict(model.state_dict())
-        avg.eval()
-        model = avg
-    return model, info

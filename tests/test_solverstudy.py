@@ -1,37 +1,32 @@
-"""The solver study (bench/solvers.py), the train-by-deploy matrix and their commands.
+"""The solver study (solverstudy/), its model variants (train/variants.py) and ``quadfdi solvers``.
 
 Numbers are checked against independent computations: evaluation counts against the schemes'
 stage counts, the step-average control against the closed-form mean of a linear path and a fine
 quadrature of a piecewise-linear one, the average-control CNODE against a hand-written Euler loop.
-The commands run on tiny configurations; no timing is asserted.
+The commands run through the real dispatcher (``quadfdi.cli.main``) on tiny configurations
+(``--set solvers.key=value``); no timing is asserted.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import json
-import shutil
 from pathlib import Path
 
 import numpy as np
 import pytest
+
+from tests.conftest import random_weight_run
 import torch
 
-from bench.cli_solvers import main as cli_main
-from bench.solver_matrix import TrainSpec, control_findings, ott_findings
-from bench.solvers import (
-    AverageControlCNODE,
-    Setting,
-    average_matrix,
-    default_settings,
-    matched_table,
-    reference_setting,
-    run_study,
-    sample_indices,
-    solve_each,
-    with_setting,
-)
-from core.config import load_config
+from core.config import SolversConfig, load_config
+from quadfdi.cli import main as quadfdi_main
+from solverstudy.matching import matched_table
+from solverstudy.matrix import TrainSpec, control_findings, ott_findings
+from solverstudy.settings import Setting, default_settings, reference_setting
+from solverstudy.study import run_study, sample_indices, solve_each, with_setting
 from train.models import CNODE
+from train.variants import AverageControlCNODE, average_matrix
 
 C, W = 5, 80
 RECORD_FIELDS = {
@@ -65,7 +60,7 @@ def test_setting_parse_and_labels():
     assert Setting.parse("bosh3:1e-4:nojump").jump_t is False
     assert Setting.parse("ref") == reference_setting()
     assert Setting.parse("dopri5:1e-3:restart").label == "dopri5 rtol=1e-3 restart"
-    labels = [s.label for s in default_settings()]
+    labels = [s.label for s in default_settings(SolversConfig(controls=("point",)))]
     assert len(labels) == len(set(labels)) == 3 * 7 + 2 * 5 * 2
     for bad in ("rk4", "rk4:0", "dopri5:x", "heun:4", "dopri5:1e-3:avg", "rk4:8:mean"):
         with pytest.raises(ValueError):
@@ -151,6 +146,25 @@ def test_average_control_cnode_is_a_hand_written_euler_loop():
     assert all(torch.equal(a, b) for a, b in zip(point.state_dict().values(), avg.state_dict().values()))
 
 
+def test_signature_records_the_control_and_a_checkpoint_loads_either(tmp_path):
+    from train.checkpoint import load_checkpoint, save_checkpoint
+    from train.models import model_from_signature, model_signature
+
+    avg = with_setting(_model(5), Setting("rk4", steps=2, control="average"))
+    sig = model_signature(avg)
+    assert sig["control"] == "average" and model_signature(_model())["control"] == "point"
+    save_checkpoint(tmp_path / "avg.pt", avg, {}, [f"c{i}" for i in range(C)])
+    back, blob = load_checkpoint(tmp_path / "avg.pt", "cnode")
+    assert type(back) is AverageControlCNODE and back.solver == avg.solver
+    x = torch.from_numpy(_windows(2))
+    with torch.no_grad():
+        torch.testing.assert_close(back(x), avg(x), rtol=0, atol=0)
+    with pytest.raises(ValueError, match="control"):  # train.models alone knows the point control only
+        model_from_signature(sig)
+    old = {k: v for k, v in sig.items() if k != "control"}  # checkpoints written before the control was recorded
+    assert type(model_from_signature(old)) is CNODE
+
+
 # ---------------------------------------------------------------------------- the study
 
 
@@ -176,7 +190,7 @@ def test_knot_restart_matches_jump_t_where_jump_t_works():
 def test_study_reference_agrees_with_itself_and_records_hold_every_field():
     x, y = _windows(6), np.array([0, 1, 2, 3, 0, 1])
     settings = [Setting.parse(s) for s in ("euler:2", "rk4:1", "rk4:79", "dopri5:1e-2", "dopri5:1e-2:nojump")]
-    out = run_study(_model(), x, y, settings, sample=4, seed=0, log=lambda s: None)
+    out = run_study(_model(), x, y, SolversConfig(sample=4, sample_seed=0), settings, log=lambda s: None)
     ref = out["solvers"][0]
     assert ref["reference"] and ref is out["reference"]
     assert ref["max_logit_err"] == 0 and ref["mean_logit_err"] == 0 and ref["argmax_agreement"] == 1
@@ -253,7 +267,7 @@ def test_ott_and_control_findings_on_hand_made_matrix():
     assert ctl == [{"method": "rk4", "steps": 2, "nfe_per_window": 8, "average": "rk4 N=2 avg", "point": "rk4 N=2",
                     "average_macro_f1": 0.905, "average_max_logit_err": 0.1, "point_macro_f1": 0.85,
                     "point_max_logit_err": 0.1}]
-    from bench.solver_report import f1_match_sentence, ott_sentence
+    from solverstudy.report import f1_match_sentence, ott_sentence
 
     assert "between h = 1/8 and h = 1/2" in ott_sentence({**m, "ott": list(ott.values())})
     assert "rk4 N=2 avg" in f1_match_sentence({**m, "ott": list(ott.values())})
@@ -265,29 +279,24 @@ def test_ott_and_control_findings_on_hand_made_matrix():
 @pytest.fixture(scope="module")
 def tiny_run(small_run, tmp_path_factory) -> Path:
     """A copy of the session's small run with a random-weight (untrained) CNODE checkpoint."""
-    from sim.dataset import load_dataset
-    from train.checkpoint import save_checkpoint
-    from train.data import fit_normalisation
-    from train.models import build_model
+    return random_weight_run(small_run, tmp_path_factory.mktemp("solvers") / "run", ("cnode",),
+                             load_config(small_run / "config.toml").to_dict())
 
-    run = tmp_path_factory.mktemp("solvers") / "run"
-    run.mkdir()
-    for name in ("dataset.npz", "config.toml"):
-        shutil.copy(small_run / name, run / name)
-    ds = load_dataset(run / "dataset.npz")
-    cfg = load_config(run / "config.toml")
-    torch.manual_seed(0)
-    model = build_model("cnode", ds.n_channels, cfg.train, window=cfg.sim.window)
-    model.set_normalisation(*fit_normalisation(ds))
-    save_checkpoint(run / "cnode.pt", model, cfg.to_dict(), ds.channel_names)
-    return run
+
+def _set(**kw) -> list[str]:
+    """``--set solvers.key=value`` arguments (TOML values)."""
+    out = []
+    for k, v in kw.items():
+        out += ["--set", f"solvers.{k}={json.dumps(list(v) if isinstance(v, tuple) else v)}"]
+    return out
 
 
 def test_solvers_command_writes_every_field(tiny_run):
-    rc = cli_main(["solvers", "--run", str(tiny_run), "--sample", "3", "--steps", "1,2", "--fixed-methods",
-                   "euler,rk4", "--adaptive-methods", "dopri5,bosh3", "--rtols", "1e-2", "--jump", "both"])
+    rc = quadfdi_main(["solvers", "study", "--run", str(tiny_run),
+                       *_set(sample=3, steps=(1, 2), fixed_methods=("euler", "rk4"),
+                             adaptive_methods=("dopri5", "bosh3"), rtols=(1e-2,), jump="both")])
     assert rc == 0
-    out = json.loads((tiny_run / "bench" / "solvers.json").read_text())
+    out = json.loads((tiny_run / "solvers" / "solvers.json").read_text())
     assert set(out) == {"solvers", "matched", "matched_any_control", "reference", "meta"}
     assert len(out["solvers"]) == 1 + 2 * 4 + 4  # reference, fixed x (point, average), adaptive
     assert "rk4 N=2 avg" in {r["label"] for r in out["solvers"]}
@@ -298,18 +307,43 @@ def test_solvers_command_writes_every_field(tiny_run):
         assert {"adaptive", "adaptive_nfe", "fixed", "fixed_nfe", "ratio"} <= set(m)
     assert {"sample", "n_windows", "n_test_windows", "sample_indices", "threads", "latency_note", "checkpoint",
             "command", "seconds"} <= set(out["meta"])
-    md = (tiny_run / "bench" / "solvers.md").read_text()
+    assert out["meta"]["command"].startswith("quadfdi solvers study --run ")
+    assert "solvers.sample=3" in out["meta"]["command"]
+    md = (tiny_run / "solvers" / "solvers.md").read_text()
     assert "### Matched accuracy" in md and "rk4 N=2" in md
     for f in ("solver_error_vs_nfe.png", "solver_f1_vs_latency.png"):
         assert (tiny_run / "figures" / f).read_bytes()[:4] == b"\x89PNG"
+    # what bench and the run report read, from the files alone
+    from solverstudy.report import headline, load_records, report_section
+
+    assert load_records(tiny_run) == out["solvers"]
+    section = report_section(tiny_run)
+    assert section[0] == "## Solvers: fixed against adaptive steps"
+    assert "![logit error vs evaluations](figures/solver_error_vs_nfe.png)" in section
+    assert headline(tiny_run)[0].startswith("- Solvers (solvers/solvers.json): ")
+
+
+def test_render_recomputes_the_matched_table_from_the_json(tiny_run, capsys):
+    study = tiny_run / "solvers" / "solvers.json"
+    if not study.is_file():  # the study test writes it; alone, make a tiny one
+        assert quadfdi_main(["solvers", "study", "--run", str(tiny_run),
+                             *_set(sample=2, steps=(1,), fixed_methods=("rk4",), adaptive_methods=("dopri5",),
+                                   rtols=(1e-2,), jump="on", controls=("point",))]) == 0
+    before = json.loads(study.read_text())
+    assert quadfdi_main(["solvers", "render", "--run", str(tiny_run), *_set(f1_two_sided=True)]) == 0
+    after = json.loads(study.read_text())
+    assert after["meta"]["f1_two_sided"] is True and after["solvers"] == before["solvers"]
+    assert after["matched"] == matched_table(before["solvers"], before["meta"]["f1_tol"], two_sided=True)
+    assert "solvers.md" in capsys.readouterr().out
 
 
 def test_matrix_command_writes_every_field_and_reuses_models(tiny_run, capsys):
-    args = ["matrix", "--run", str(tiny_run), "--epochs", "1", "--max-train-windows", "96",
-            "--train", "dopri5,rk4:1,rk4:1:avg", "--deploy", "dopri5:1e-2:nojump,rk4:1,rk4:2,rk4:1:avg,ref",
+    args = ["solvers", "matrix", "--run", str(tiny_run),
+            *_set(matrix_epochs=1, matrix_max_train_windows=96, matrix_train=("dopri5", "rk4:1", "rk4:1:avg"),
+                  matrix_deploy=("dopri5:1e-2:nojump", "rk4:1", "rk4:2", "rk4:1:avg", "ref")),
             "--set", "train.rtol=1e-2", "--set", "train.atol=1e-3", "--set", "train.jump_t=false"]
-    assert cli_main(args) == 0
-    out = json.loads((tiny_run / "bench" / "solver_matrix.json").read_text())
+    assert quadfdi_main(args) == 0
+    out = json.loads((tiny_run / "solvers" / "solver_matrix.json").read_text())
     assert set(out) == {"train", "deploy", "cells", "ott", "controls", "meta"}
     assert [i["label"] for i in out["train"]] == ["dopri5 nojump", "rk4 N=1", "rk4 N=1 avg"]
     for i in out["train"]:
@@ -326,24 +360,46 @@ def test_matrix_command_writes_every_field_and_reuses_models(tiny_run, capsys):
     assert {"seconds", "train_seconds", "epochs", "n_test_windows"} <= set(out["meta"])
     assert (tiny_run / "figures" / "solver_matrix_f1.png").is_file()
     assert (tiny_run / "figures" / "solver_controls.png").is_file()
-    assert "Ott et al." in (tiny_run / "bench" / "solver_matrix.md").read_text()
+    assert "Ott et al." in (tiny_run / "solvers" / "solver_matrix.md").read_text()
+    # a step-average model loads back in its own class, no special case
+    from train.checkpoint import load_checkpoint
+
+    avg, _ = load_checkpoint(tiny_run / "solvers" / "matrix_models" / "rk4_N_1_avg.pt")
+    assert isinstance(avg, AverageControlCNODE)
     first = {c["train"] + c["deploy"]: c["macro_f1"] for c in out["cells"]}
     capsys.readouterr()
-    assert args[8] == "dopri5,rk4:1,rk4:1:avg"
-    assert cli_main([*args[:8], "rk4:1:avg", *args[9:], "--reuse"]) == 0
+    i = args.index('solvers.matrix_train=["dopri5", "rk4:1", "rk4:1:avg"]')
+    assert quadfdi_main([*args[:i], 'solvers.matrix_train=["rk4:1:avg"]', *args[i + 1:], "--reuse"]) == 0
     assert "reuse rk4 N=1 avg" in capsys.readouterr().out
-    again = json.loads((tiny_run / "bench" / "solver_matrix.json").read_text())
+    again = json.loads((tiny_run / "solvers" / "solver_matrix.json").read_text())
     assert {c["train"] + c["deploy"]: c["macro_f1"] for c in again["cells"]} == \
         {k: v for k, v in first.items() if k.startswith("rk4 N=1 avg")}
+    assert again["meta"]["reused"] == ["rk4 N=1 avg"]
 
 
 def test_commands_fail_with_one_line_errors(tiny_run, tmp_path, capsys):
-    assert cli_main(["solvers", "--run", str(tiny_run), "--checkpoint", str(tmp_path / "none.pt")]) == 2
+    assert quadfdi_main(["solvers", "study", "--run", str(tiny_run), "--checkpoint", str(tmp_path / "none.pt")]) == 2
     err = capsys.readouterr().err.strip()
     assert err.count("\n") == 0 and "does not exist" in err
-    assert cli_main(["matrix", "--run", str(tiny_run), "--train", "rk4:0"]) == 2
+    assert quadfdi_main(["solvers", "matrix", "--run", str(tiny_run), *_set(matrix_train=("rk4:0",))]) == 2
     assert "bad solver setting 'rk4:0'" in capsys.readouterr().err
-    assert cli_main(["solvers", "--run", str(tiny_run), "--fixed-methods", "heun"]) == 2
-    assert "unknown method 'heun'" in capsys.readouterr().err
-    assert cli_main(["matrix", "--run", str(tmp_path / "nothing")]) == 2
+    assert quadfdi_main(["solvers", "study", "--run", str(tiny_run), *_set(fixed_methods=("heun",))]) == 2
+    assert "unknown or repeated value 'heun'" in capsys.readouterr().err
+    assert quadfdi_main(["solvers", "study", "--run", str(tiny_run), "--set", "solvers.nope=1"]) == 2
+    assert "valid keys of [solvers]" in capsys.readouterr().err
+    assert quadfdi_main(["solvers", "matrix", "--run", str(tmp_path / "nothing")]) == 2
+    assert quadfdi_main(["solvers", "render", "--run", str(tmp_path / "nothing")]) == 2
     assert TrainSpec.parse("dopri5", load_config(tiny_run / "config.toml")).setting.rtol == 1e-3
+
+
+def test_config_section_is_the_studys_grid():
+    cfg = SolversConfig()
+    assert len(default_settings(cfg)) == 3 * 7 * 2 + 2 * 5 * 2  # fixed x N x control, adaptive x jump x rtol
+    quick = dataclasses.replace(cfg, steps=(1, 4), fixed_methods=("rk4",), adaptive_methods=("dopri5",),
+                                rtols=(1e-2,), jump="off", controls=("point",))
+    assert [s.label for s in default_settings(quick)] == ["rk4 N=1", "rk4 N=4", "dopri5 rtol=1e-2 nojump"]
+    from solverstudy.settings import QUICK, quick_config
+
+    small = quick_config(load_config(None))
+    assert all(getattr(small.solvers, k) == v for k, v in QUICK.items())
+    assert load_config(None).solvers.sample == 64  # what `make run` measures (configs/paper.toml)

@@ -8,7 +8,7 @@
 - ``solver_controls.png``: point-sampled vs step-average control, trained and deployed at N:
   macro F1 and logit error vs evaluations.
 
-Each takes the dict that ``bench.solvers.run_study`` / ``bench.solver_matrix.run_matrix``
+Each takes the dict that ``solverstudy.study.run_study`` / ``solverstudy.matrix.run_matrix``
 returns (or its JSON), so a figure is redrawn from the JSON alone.
 """
 
@@ -20,12 +20,11 @@ import numpy as np
 
 from core.plotting import pyplot as _plt
 from core.plotting import save_png as _save
+from solverstudy.files import MATRIX_FIGURES, STUDY_FIGURES
 
 MARKERS = {"euler": "o", "midpoint": "s", "rk4": "^", "dopri5": "D", "bosh3": "v"}
 COLORS = {"euler": "tab:blue", "midpoint": "tab:orange", "rk4": "tab:green", "dopri5": "tab:red", "bosh3": "tab:purple"}
 ERR_FLOOR = 1e-12  # a zero error cannot sit on a log axis
-
-
 
 
 def _families(records: list[dict]) -> dict[tuple, list[dict]]:
@@ -61,6 +60,11 @@ def plot_error_vs_nfe(study: dict, path: Path) -> Path:
     ax.set(xscale="log", yscale="log", xlabel="vector-field evaluations per window",
            ylabel="max |logit - reference logit|")
     ax.set_title(f"solver error vs cost\n{study['meta']['sample']}", fontsize=10)
+    return _finish(fig, ax, path)
+
+
+def _finish(fig, ax, path: Path) -> Path:
+    """Log-grid, legend, tight layout, atomic PNG: how every study figure ends."""
     ax.grid(alpha=0.3, which="both")
     ax.legend(fontsize=8)
     fig.tight_layout()
@@ -78,10 +82,7 @@ def plot_f1_vs_latency(study: dict, path: Path) -> Path:
     ax.axhline(ref["macro_f1"], color="k", lw=0.8, ls="--", label=f"reference ({ref['macro_f1']:.4f})")
     ax.set(xscale="log", xlabel="batch-1 latency per window, ms (PyTorch eager, this process)",
            ylabel=f"macro F1 ({study['meta']['n_windows']} windows)", title="macro F1 vs latency")
-    ax.grid(alpha=0.3, which="both")
-    ax.legend(fontsize=8)
-    fig.tight_layout()
-    return _save(fig, path)
+    return _finish(fig, ax, path)
 
 
 def plot_matrix(matrix: dict, path: Path) -> Path:
@@ -139,12 +140,11 @@ def plot_controls(matrix: dict, path: Path) -> Path:
 
 
 def draw_study(study: dict, figures: Path) -> list[Path]:
-    return [plot_error_vs_nfe(study, figures / "solver_error_vs_nfe.png"),
-            plot_f1_vs_latency(study, figures / "solver_f1_vs_latency.png")]
+    return [plot_error_vs_nfe(study, figures / STUDY_FIGURES[0]), plot_f1_vs_latency(study, figures / STUDY_FIGURES[1])]
 
 
 def draw_matrix(matrix: dict, figures: Path) -> list[Path]:
-    out = [plot_matrix(matrix, figures / "solver_matrix_f1.png")]
+    out = [plot_matrix(matrix, figures / MATRIX_FIGURES[0])]
     if matrix.get("controls"):
-        out.append(plot_controls(matrix, figures / "solver_controls.png"))
+        out.append(plot_controls(matrix, figures / MATRIX_FIGURES[1]))
     return out

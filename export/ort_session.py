@@ -1,0 +1,37 @@
+"""The one ONNX Runtime session builder of the tree (export checks, parity, bench workers and probes).
+
+Imports only onnxruntime, so that a bench worker process that times ONNX Runtime does not load
+torch into its memory baseline.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import onnxruntime as ort
+
+# One thread by default: the graphs are small, and on a shared 2-core machine a second thread
+# made PyTorch's GRU 50x slower (OpenMP spin-waiting against other processes).
+THREADS = 1
+
+
+def session(model: bytes | str | Path, threads: int = THREADS, *, spinning: bool | None = None,
+            profile_prefix: str | None = None) -> ort.InferenceSession:
+    """A CPU session of ``model`` (serialized bytes or a file path): ``threads`` intra-op threads,
+    one inter-op thread, sequential execution, warnings off.
+
+    ``spinning`` sets ``session.intra_op.allow_spinning`` (None: ONNX Runtime's default);
+    ``profile_prefix`` turns the per-node profiler on, writing to files with that prefix.
+    """
+    opts = ort.SessionOptions()
+    opts.log_severity_level = 3
+    opts.intra_op_num_threads = threads
+    opts.inter_op_num_threads = 1
+    opts.execution_mode = ort.ExecutionMode.ORT_SEQUENTIAL
+    if spinning is not None:
+        opts.add_session_config_entry("session.intra_op.allow_spinning", "1" if spinning else "0")
+    if profile_prefix:
+        opts.enable_profiling = True
+        opts.profile_file_prefix = profile_prefix
+    source = str(model) if isinstance(model, Path) else model
+    return ort.InferenceSession(source, opts, providers=["CPUExecutionProvider"])

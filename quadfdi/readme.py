@@ -1,0 +1,138 @@
+"""``quadfdi readme --run R --readme README.md``: the README's deployment tables, from a run.
+
+Rewrites the ``<!-- deployment:start -->`` ... ``<!-- deployment:end -->`` block of the README
+from the run's own files (export/manifest.json, parity/parity.json, parity/mcu.json, bench.json,
+solvers/solvers.json) and names the machine that measured them (CPU model, vector ISA, date from
+bench.json), because these numbers move with the CPU. Nothing is typed in by hand; a missing file
+is a one-line error naming the command that writes it.
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime as dt
+from pathlib import Path
+
+from core.errors import QuadfdiError
+from core.jsonio import read_json
+from core.machine import isa_summary
+from core.mdblock import rewrite_file_block
+from core.tables import md_table
+
+BLOCK = "deployment"
+MODELS = (("cnode", "CNODE"), ("gru", "GRU"))
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("readme", help="rewrite the README's deployment tables from a run's files",
+                       description="Rewrite the README's deployment block from a run's files.")
+    p.add_argument("--run", required=True, help="run folder made by quadfdi run")
+    p.add_argument("--readme", default="README.md", help="markdown file with the block (default: %(default)s)")
+    p.set_defaults(func=_cli)
+
+
+def _cli(args: argparse.Namespace) -> int:
+    path = rewrite_file_block(args.readme, BLOCK, deployment_block(Path(args.run)))
+    print(f"wrote the {BLOCK} block of {path}")
+    return 0
+
+
+def _need(root: Path, rel: str, command: str) -> dict:
+    path = root / rel
+    if not path.is_file():
+        raise QuadfdiError(f"{path} is missing: run `{command}` first")
+    return read_json(path, rel)
+
+
+def _us(x: float | None) -> str:
+    if x is None:
+        return "—"
+    return f"{x / 1000:.2f} ms" if x >= 1000 else f"{x:.1f} us"
+
+
+def machine_sentence(bench: dict) -> str:
+    m = bench.get("machine", {})
+    facts = {"cpu": m.get("cpu", "unknown CPU"), "isa": m.get("isa", []), "logical_cpus": m.get("logical_cpus")}
+    when = m.get("date") or dt.date.today().isoformat()
+    return (f"Measured on {facts['cpu']} ({isa_summary(facts)}, {facts['logical_cpus']} logical CPUs, pinned to "
+            f"{m.get('pinned_cpus', '?')}), {when}; onnxruntime {m.get('onnxruntime', '?')}, torch "
+            f"{m.get('torch', '?')}. Another CPU gives other numbers: compare within a table.")
+
+
+def precision_table(manifest: dict, parity: dict) -> list[str]:
+    rows = []
+    for key, label in MODELS:
+        v = manifest["verification"][f"{key}_int8_vs_fp32"]
+        cov = manifest["quantization"]["coverage"][key]["summary"]
+        pm = parity["models"][key]
+        f32 = pm["cpp_fp32_vs_ort_fp32"]
+        i8 = pm["cpp_int8_vs_ort_int8"]
+        steps = i8["target"]["max_diff_steps"]
+        same = (f"bit-identical ({i8['bitwise_identical_windows']}/{i8['windows']} windows)"
+                if i8["bitwise_identical_windows"] == i8["windows"] else f"max {steps:.2f} logit steps")
+        rows.append([label, f"{v['macro_f1_fp32_points']:.2f} -> {v['macro_f1_int8_points']:.2f}",
+                     f"{100 * cov['int8_mac_share']:.0f} %", f"{100 * cov['initializer_bytes_ratio']:.1f} %",
+                     f"{f32['max_abs_diff']:.1e}", same])
+    return md_table(["model", "int8 vs fp32 macro F1 (points)", "int8 share of MACs", "int8 / fp32 initializer bytes",
+                     "C++ fp32 vs ONNX Runtime, max abs logit diff", "C++ int8 vs ONNX Runtime int8"], rows)
+
+
+def _p50(records: list[dict], **match) -> float | None:
+    hits = [r for r in records if all(r.get(k) == v for k, v in match.items()) and r.get("p50_us") is not None]
+    return min(r["p50_us"] for r in hits) if hits else None
+
+
+def latency_table(bench: dict) -> list[str]:
+    lat, rows = bench["latency"], []
+    floors = {(f["model"], f["precision"]): f for f in bench.get("floors", [])}
+    for key, label in MODELS:
+        f32 = floors.get((key, "fp32"), {})
+        row = [label, f"{_us(f32.get('floor_us'))} ({f32.get('bound', '?')})" if f32 else "—"]
+        for runtime in ("cpp", "ort"):
+            for precision in ("fp32", "int8"):
+                p = _p50(lat, runtime=runtime, model=key, precision=precision, batch=1, threads=1)
+                fl = floors.get((key, precision), {}).get("floor_us")
+                ratio = f" ({p / fl:.1f}x floor)" if runtime == "cpp" and p and fl else ""
+                row.append(_us(p) + ratio)
+        torch_p = [_us(_p50(lat, runtime="torch", model=key, batch=1, threads=1, solver=s))
+                   for s in sorted({r.get("solver") for r in lat if r.get("runtime") == "torch" and r.get("model") == key}
+                                   - {None})]
+        row.append(" / ".join(torch_p) or "—")
+        rows.append(row)
+    return md_table(["model", "fp32 floor", "C++ fp32", "C++ int8", "ONNX Runtime fp32", "ONNX Runtime int8",
+                     "PyTorch"], rows)
+
+
+def mcu_table(mcu: dict) -> list[str]:
+    cpus = mcu.get("cpus") or {}
+    m4, m7 = cpus.get("cortex-m4", {}).get("models", {}), cpus.get("cortex-m7", {}).get("models", {})
+    rows = []
+    for key in ("cnode_int8", "cnode_fp32", "gru_int8", "gru_fp32"):
+        a, b = m4.get(key), m7.get(key)
+        if not a:
+            continue
+        flash = f"{a['flash_bytes']:,} B (M4)" + (f" / {b['flash_bytes']:,} B (M7)" if b else "")
+        rows.append([key.replace("_", " ").upper().replace("FP32", "fp32").replace("INT8", "int8"), flash,
+                     f"{a['static_ram_bytes']:,} B", f"{a['instructions_per_inference']:,}"])
+    return md_table(["model", "flash", "static RAM", "instructions / inference (M4, QEMU -icount)"], rows)
+
+
+def deployment_block(root: Path) -> str:
+    """The markdown of the block: machine, command, and the four deployment tables."""
+    manifest = _need(root, "export/manifest.json", f"quadfdi export --run {root}")
+    parity = _need(root, "parity/parity.json", f"quadfdi parity --run {root}")
+    mcu = _need(root, "parity/mcu.json", f"quadfdi parity --run {root}")
+    bench = _need(root, "bench.json", f"quadfdi bench --run {root}")
+    lines = [f"Made by `quadfdi readme --run {root}` from the files of `quadfdi run --out {root}`. "
+             + machine_sentence(bench), "",
+             f"**Precision and runtime** (test split, {parity['test_windows']} windows; "
+             "`export/manifest.json`, `parity/parity.json`):", "", *precision_table(manifest, parity),
+             "**Latency, batch 1, p50, 1 thread** (`bench.json`; floor = max(compute at the measured peak, "
+             "weights at the measured L2 bandwidth)):", "", *latency_table(bench),
+             "**Cortex-M** (`parity/mcu.json`, minimal images, `arm-none-eabi-size`):", "", *mcu_table(mcu)]
+    solvers = root / "solvers" / "solvers.json"
+    if solvers.is_file():
+        from solverstudy.report import headline
+
+        lines += ["**Solvers** (`solvers/solvers.md`):", "", *headline(root), ""]
+    return "\n".join(lines)

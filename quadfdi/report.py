@@ -1,0 +1,87 @@
+"""report.md: one markdown report of a whole run, assembled from every stage's own section.
+
+    quadfdi report --run runs/<name>     redraw the bench figures, rewrite report.md (no measuring)
+
+Each stage owns its section and reads only its own files: ``report_section(run_root) -> list[str]``
+in sim.report, train.report, export.report, parity.report, bench.report and solverstudy.report,
+in that order, after a headline made of the bullets of ``headline(run_root)`` (train, export, bench
+and solverstudy). A stage whose files are absent says "Not run" under its
+heading; a file that is there but unreadable stops the report with a one-line QuadfdiError.
+Figures that no section links come last, under "Other figures".
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+from pathlib import Path
+from typing import Callable
+
+from core.atomic import write_text
+from core.errors import QuadfdiError
+from core.reportmd import figure_links
+
+SECTIONS = ("sim.report", "train.report", "export.report", "parity.report", "bench.report", "solverstudy.report")
+HEADLINES = ("train.report", "export.report", "bench.report", "solverstudy.report")
+
+
+def headline(root: Path) -> list[str]:
+    out = []
+    for name in HEADLINES:
+        out += importlib.import_module(name).headline(root)
+    return (["## Headline", ""] + out + [""]) if out else []
+
+
+def sections(root: Path) -> list[str]:
+    out = []
+    for name in SECTIONS:
+        out += importlib.import_module(name).report_section(root)
+    return out
+
+
+def run_report_markdown(run_root: str | Path) -> str:
+    root = Path(run_root)
+    if not root.is_dir():
+        raise QuadfdiError(f"run folder {root} does not exist")
+    lines = [f"# quadfdi run report: {root.name}", "",
+             f"Assembled by `quadfdi report` from the files in `{root}` (regenerate with "
+             f"`quadfdi report --run {root}`): one section per stage, written by that stage.", ""]
+    lines += headline(root)
+    lines += sections(root)
+    text = "\n".join(lines)
+    fig_dir = root / "figures"
+    unlinked = sorted(p.name for p in fig_dir.glob("*.png") if f"figures/{p.name}" not in text) \
+        if fig_dir.is_dir() else []
+    if unlinked:
+        lines += ["## Other figures", ""] + figure_links(root, unlinked)
+    return "\n".join(lines).rstrip() + "\n"
+
+
+def write_run_report(run_root: str | Path, log: Callable[[str], None] | None = None) -> Path:
+    """Write ``runs/<name>/report.md`` (atomically) from the run folder's files; return its path."""
+    root = Path(run_root)
+    text = run_report_markdown(root)
+    path = root / "report.md"
+    write_text(path, text)
+    if log:
+        log(f"wrote {path}")
+    return path
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("report", help="rewrite a run's report.md from its files (and redraw the bench figures)",
+                       description="Rewrite a run's report.md from the files its stages wrote; no measuring.")
+    p.add_argument("--run", required=True, help="run folder (e.g. runs/paper)")
+    p.set_defaults(func=run_report)
+
+
+def run_report(args: argparse.Namespace) -> int:
+    from bench.report import redraw_figures
+
+    root = Path(args.run)
+    if not root.is_dir():
+        raise QuadfdiError(f"run folder {root} does not exist")
+    for f in redraw_figures(root):
+        print(f"wrote {f}")
+    write_run_report(root, log=print)
+    return 0

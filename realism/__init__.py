@@ -1,0 +1,1 @@
+"""``quadfdi realism``: hold the simulator's telemetry against real flights on steady segments."""

@@ -1,0 +1,105 @@
+"""What a flight controller logs, from the realistic suite's 50 Hz record, through the ingest resampler.
+
+Channel by channel (the paper's 23 plus the two vibration metrics), each at its PX4 default logger
+rate (sim.realistic_params.LOG_HZ): position and velocity of the estimate (vehicle_local_position,
+10 Hz), attitude of the estimate (vehicle_attitude, 20 Hz, yaw wrapped to (-pi, pi]), body rates
+(vehicle_angular_velocity, 50 Hz), V_b, I_b and SoC (battery_status, 5 Hz), motor temperatures
+(esc_status, 5 Hz), motor outputs u (actuator_outputs, 10 Hz), vib_px4 (vehicle_imu_status, 1 Hz),
+vib_ap (ArduPilot VIBE, 10 Hz). A log sample at rate r is the record sample nearest k / r (the
+logger writes the latest message: up to 10 ms of timestamp jitter at 20 Hz, as in real logs).
+Every channel then goes through ``ingest.resample.resample`` onto the 25 Hz grid, the function
+real PX4/ArduPilot logs go through (anti-alias low-pass for channels above 25 Hz, linear
+interpolation otherwise), so simulated and real flights reach the models the same way.
+
+SoC is the flight controller's coulomb counter, as PX4's battery estimator does it: a voltage-based
+guess at boot (the rest voltage per cell, inverted through the cell OCV curve), minus the integrated
+measured current over the pack's LABEL capacity. It does not know the capacity fade of an aged or
+faulty pack: that shows as voltage falling faster than the counted SoC says.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.signal import lfilter
+
+from ingest.frames import wrap
+from ingest.resample import resample
+from sim import battery, propeller, sensors
+from sim import realistic_params as P
+
+CHANNEL_NAMES = sensors.CHANNEL_NAMES + ("vib_px4", "vib_ap")
+CHANNEL_UNITS = sensors.CHANNEL_UNITS + ("m/s^2", "m/s^2")
+RATE_OF = {**{c: "pos" for c in ("x", "y", "z", "vx", "vy", "vz")}, **{c: "att" for c in ("roll", "pitch", "yaw")},
+           **{c: "rate" for c in ("p", "q", "r")}, "V_b": "batt", "I_b": "batt", "SoC": "batt",
+           **{f"T{i}": "esc" for i in range(1, 5)}, **{f"thr{i}": "act" for i in range(1, 5)},
+           "vib_px4": "vib_px4", "vib_ap": "vib_ap"}
+SENSOR_SPAWN = 4  # spawn_key (4, i): flight i's ADC/thermistor noise
+
+
+def sensor_noise(seed: int, idx: np.ndarray, n_rec: int) -> np.ndarray:
+    """(n_rec, B, 16) standard normals per flight: 8 white noises (V, I, T1-4, vib_px4, vib_ap), 8 walk increments."""
+    return np.stack([np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(SENSOR_SPAWN, int(i))))
+                     .standard_normal((n_rec, 16)) for i in idx], axis=1)
+
+
+def _lag(x: np.ndarray, tau: float, dt: float) -> np.ndarray:
+    """First-order low-pass along axis 0 (time), started at its first value."""
+    a = np.exp(-dt / tau)
+    y, _ = lfilter([1 - a], [1, -a], x, axis=0, zi=a * x[:1])
+    return y
+
+
+def soc_inverse(v_cell: np.ndarray) -> np.ndarray:
+    """SoC of a rest voltage per cell (the OCV curve inverted; it is strictly increasing)."""
+    xp, fp = np.array(P.NOMINAL.ocv_soc), np.array(P.NOMINAL.ocv_volt) / 3.0
+    return np.interp(v_cell, fp, xp)
+
+
+def coulomb_soc(I_meas: np.ndarray, E_boot: np.ndarray, cells: np.ndarray, C_label: np.ndarray,
+                dt: float) -> np.ndarray:
+    """SoC estimate (n_rec, B): soc_inverse(E_boot / cells) - int I dt / (3600 C_label)."""
+    boot = soc_inverse(E_boot / cells)
+    used = np.concatenate([np.zeros((1, I_meas.shape[1])), np.cumsum(I_meas[:-1] * dt, axis=0)])
+    return boot - used / (3600.0 * C_label)
+
+
+def vibration(F: np.ndarray, cut: np.ndarray, residual_g: np.ndarray, mass: np.ndarray, floor: np.ndarray,
+              dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """Logged-metric values (n_rec, B) of vib_px4 and vib_ap before their sampling noise: the closed forms
+    of sim.propeller, through PX4's EMA (time constant 1 / (alpha f_integ) = 0.5 s) and ArduPilot's
+    2 Hz low-pass of the squared deviation."""
+    rT = propeller.thrust_factor(cut)
+    A, f = propeller.accel_amplitude(F, rT, propeller.imbalance_kgm(cut, residual_g), mass[..., None])
+    px4, ap = propeller.metrics(A, f, floor)
+    px4 = _lag(px4, 1.0 / (P.PX4_VIB_ALPHA * P.IMU_INTEG_HZ), dt)
+    ap = np.sqrt(_lag(ap * ap, 1.0 / (2 * np.pi * P.AP_VIBE_HZ), dt))
+    return px4, ap
+
+
+def log_indices(n_rec: int, rate_hz: float) -> np.ndarray:
+    """Record indices of a channel logged at rate_hz: nearest record sample to k / rate_hz."""
+    k = np.arange(int(np.floor((n_rec - 1) / P.RECORD_HZ * rate_hz + 1e-9)) + 1)
+    return np.floor(k * P.RECORD_HZ / rate_hz + 0.5).astype(np.int64)
+
+
+def to_grid(series: dict[str, np.ndarray], grid: np.ndarray) -> np.ndarray:
+    """Every channel (name -> (n_rec, B) at RECORD_HZ) logged at its rate and resampled onto grid:
+    (B, len(grid), n_channels) float64. Each flight's channel is one ``resample`` call (the ingest
+    API is per channel); NaN where the resampler masks (none when the record covers the grid)."""
+    n_rec, B = next(iter(series.values())).shape
+    out = np.empty((B, len(grid), len(CHANNEL_NAMES)))
+    for c, name in enumerate(CHANNEL_NAMES):
+        idx = log_indices(n_rec, P.LOG_HZ[RATE_OF[name]])
+        t = idx / P.RECORD_HZ
+        v = series[name][idx]
+        if name == "yaw":
+            v = wrap(v)
+        for b in range(B):
+            out[b, :, c] = resample(t, v[:, b], grid, angle=name == "yaw")[0]
+    return out
+
+
+def battery_rest_voltage(soc0: np.ndarray, cells: np.ndarray, delta0: np.ndarray) -> np.ndarray:
+    """Open-circuit pack voltage at boot (weak cell delta0 of SoC below the others)."""
+    vc = battery.ocv(soc0, P.NOMINAL) / 3.0
+    return cells * vc - (vc - battery.ocv(soc0 - delta0, P.NOMINAL) / 3.0)

@@ -1,0 +1,186 @@
+"""The solver study as a stage: read a run folder, write ``runs/<name>/solvers/`` and the figures.
+
+    study_run(run, cfg, log, checkpoint=None, command=None) -> dict
+        reads dataset.npz and cnode.pt; writes solvers/solvers.json, solvers/solvers.md,
+        figures/solver_error_vs_nfe.png and figures/solver_f1_vs_latency.png
+    matrix_run(run, cfg, log, reuse=False, command=None) -> dict
+        reads dataset.npz, trains its own CNODEs (solvers/matrix_models/*.pt); writes
+        solvers/solver_matrix.json, solvers/solver_matrix.md, figures/solver_matrix_f1.png and
+        figures/solver_controls.png
+    render(run_root, cfg, log) -> list[Path]
+        redraws the markdown and figures from the JSON files alone (matched table recomputed
+        with cfg.solvers.f1_tol and f1_two_sided)
+
+What is measured comes from ``cfg.solvers`` (the [solvers] config section, docs/solvers.md); the
+arguments here only say where and how to execute. Every file is written atomically after the
+whole computation: an interrupted run leaves the previous outputs as they were.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import re
+import time
+from pathlib import Path
+from typing import Callable
+
+from core.atomic import write_text
+from core.config import Config
+from core.errors import QuadfdiError
+from core.jsonio import write_json
+from core.rundir import RunDir
+from solverstudy.files import SolverFiles
+from train.threads import torch_threads
+from solverstudy.matching import matched_tables
+from solverstudy.report import study_headline, matrix_markdown, ott_sentence, read_outputs, study_markdown
+
+Log = Callable[[str], None]
+
+
+def _test_windows(run: RunDir, cfg: Config, model_blob: dict | None = None):
+    from sim.dataset import load_dataset, make_windows
+    from train.checkpoint import check_dataset_matches
+    from train.models import check_windows
+
+    if not run.dataset.is_file():
+        raise QuadfdiError(f"{run.dataset} is missing: run `quadfdi sim --out {run.root}` first")
+    ds = load_dataset(run.dataset)
+    if model_blob is not None:
+        check_dataset_matches(model_blob, ds.channel_names, str(run.dataset))
+    test = make_windows(ds, "test")
+    if len(test) == 0:
+        raise QuadfdiError(f"{run.dataset} has no test windows: raise sim.n_traj or sim.duration_s")
+    try:
+        check_windows(test.x, ds.n_channels, cfg.sim.window)
+    except ValueError as exc:
+        raise QuadfdiError(f"{run.dataset}: {exc}") from None
+    return ds, test
+
+
+def _trained_with(blob: dict) -> str:
+    from train.solvers import FIXED_METHODS
+
+    solver = blob.get("solver", {})
+    if solver.get("method") in FIXED_METHODS:
+        return f"trained with {solver.get('method')} N={solver.get('steps')}"
+    return f"trained with {solver.get('method')} rtol={solver.get('rtol')}"
+
+
+def study_run(run: RunDir, cfg: Config, log: Log = print, checkpoint: str | Path | None = None,
+              command: str | None = None) -> dict:
+    """The fixed-vs-adaptive study of the run's CNODE (or ``checkpoint``); returns solvers.json's dict."""
+    from solverstudy.plots import draw_study
+    from solverstudy.study import run_study
+    from train.checkpoint import load_checkpoint
+
+    ckpt = Path(checkpoint) if checkpoint else run.checkpoint("cnode")
+    model, blob = load_checkpoint(ckpt, "cnode")
+    _, test = _test_windows(run, cfg, blob)
+    with torch_threads(cfg.solvers.threads):
+        study = run_study(model, test.x, test.y, cfg.solvers, log=log)
+    study["meta"].update(checkpoint=str(ckpt), trained_with=_trained_with(blob),
+                         command=command or f"quadfdi solvers study --run {run.root}")
+    files = SolverFiles(run.root)
+    _write(files.study_json, files.study_md, study, study_markdown, draw_study(study, files.figures), log)
+    log(study_headline(study))
+    return study
+
+
+def _write(json_path: Path, md_path: Path, result: dict, markdown: Callable, figs: list, log: Log) -> None:
+    """A study's JSON and markdown (its figures are drawn already), and one line saying so."""
+    write_json(json_path, result, indent=2)
+    write_text(md_path, markdown(result, result["meta"]["command"]))
+    log(f"wrote {json_path}, {md_path} and {', '.join(str(f) for f in figs)} in {result['meta']['seconds']:.0f} s")
+
+
+def _sha256(path: Path) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def _slug(label: str) -> str:
+    return re.sub(r"[^A-Za-z0-9.]+", "_", label).strip("_")
+
+
+def _reused(files: SolverFiles, specs: list, fingerprint: dict, log: Log) -> dict:
+    """Matrix models saved earlier with the same label and fingerprint: {label: (model, info)}."""
+    from train.checkpoint import load_checkpoint
+
+    models = {}
+    for spec in specs:
+        path = files.matrix_models / f"{_slug(spec.label)}.pt"
+        try:
+            model, blob = load_checkpoint(path, "cnode")
+        except QuadfdiError:
+            continue
+        info = blob.get("matrix_info")
+        if (isinstance(info, dict) and info.get("label") == spec.label and info.get("fingerprint") == fingerprint
+                and info.get("control") == model.control):
+            models[spec.label] = (model, info)
+            log(f"reuse {spec.label} from {files.matrix_models}")
+    return models
+
+
+def matrix_run(run: RunDir, cfg: Config, log: Log = print, reuse: bool = False, command: str | None = None) -> dict:
+    """Train the CNODEs of ``solvers.matrix_train``, deploy each with each of ``solvers.matrix_deploy``;
+    with ``reuse``, models kept from an earlier matrix of the same data and settings are not retrained."""
+    from sim.dataset import load_dataset
+    from solverstudy.matrix import matrix_epochs, matrix_plan, run_matrix
+    from solverstudy.plots import draw_matrix
+    from train.checkpoint import save_checkpoint
+
+    specs, deploys = matrix_plan(cfg)
+    if not run.dataset.is_file():
+        raise QuadfdiError(f"{run.dataset} is missing: run `quadfdi sim --out {run.root}` first")
+    ds = load_dataset(run.dataset)
+    files = SolverFiles(run.root)
+    # what a reused model must share with this run besides its solver: data, windows, training
+    fingerprint = {"dataset_sha256": _sha256(run.dataset), "epochs": matrix_epochs(cfg),
+                   "max_train_windows": cfg.solvers.matrix_max_train_windows,
+                   **{k: getattr(cfg.train, k) for k in ("seed", "lr", "batch_size", "latent", "hidden", "log_eps")}}
+    models = _reused(files, specs, fingerprint, log) if reuse else {}
+    reused = sorted(models)
+
+    def save(spec, model, info) -> None:
+        info["fingerprint"] = fingerprint
+        save_checkpoint(files.matrix_models / f"{_slug(spec.label)}.pt", model, cfg.to_dict(), ds.channel_names,
+                        extra={"matrix_info": info})
+
+    t0 = time.perf_counter()
+    with torch_threads(cfg.solvers.matrix_threads or cfg.train.threads):
+        matrix = run_matrix(ds, cfg, specs, deploys, models=models, on_trained=save, log=log)
+    matrix["meta"].update(command=command or f"quadfdi solvers matrix --run {run.root}", reused=reused,
+                          seconds=time.perf_counter() - t0)
+    _write(files.matrix_json, files.matrix_md, matrix, matrix_markdown, draw_matrix(matrix, files.figures), log)
+    log(ott_sentence(matrix))
+    return matrix
+
+
+def render(run_root: str | Path, cfg: Config, log: Log = print) -> list[Path]:
+    """Redraw the solver figures and markdown from the JSON files alone (no solving, no training);
+    the study's matched tables are recomputed with ``cfg.solvers.f1_tol`` and ``f1_two_sided``."""
+    from solverstudy.plots import draw_matrix, draw_study
+
+    files = SolverFiles(Path(run_root))
+    study, matrix = read_outputs(files.root)
+    if study is None and matrix is None:
+        raise QuadfdiError(f"{files.dir} holds neither solvers.json nor solver_matrix.json: "
+                           "run `quadfdi solvers study` or `quadfdi solvers matrix` first")
+    written: list[Path] = []
+    if study is not None:
+        sc = cfg.solvers
+        study.update(matched_tables(study["solvers"], sc.f1_tol, sc.f1_two_sided))
+        study["meta"].update(f1_tol=float(sc.f1_tol), f1_two_sided=bool(sc.f1_two_sided))
+        write_json(files.study_json, study, indent=2)
+        written += draw_study(study, files.figures)
+        write_text(files.study_md, study_markdown(study, study["meta"].get("command")))
+        written += [files.study_json, files.study_md]
+    if matrix is not None:
+        written += draw_matrix(matrix, files.figures)
+        write_text(files.matrix_md, matrix_markdown(matrix, matrix["meta"].get("command")))
+        written.append(files.matrix_md)
+    log("wrote " + ", ".join(str(w) for w in written))
+    return written

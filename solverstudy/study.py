@@ -1,0 +1,251 @@
+"""The fixed-vs-adaptive solver study of one trained CNODE (SPEC section 6, issue 6 "Solvers").
+
+Every solver setting is run on the SAME windows, one window per solve, and compared against a
+float64 dopri5 reference at rtol 1e-9 restarted at every knot of the path:
+
+- fixed steps (our ``train.solvers``: euler, midpoint, classic rk4) at N steps over [0, 1], with
+  the point control (the model's own) and the step-average one (``train.variants``);
+- adaptive torchdiffeq solvers (dopri5, bosh3) at several rtol (atol = rtol / 10), with and
+  without the knots as ``jump_t``.
+
+Why one window per solve: an adaptive solver's step sizes come from an error norm over the whole
+state tensor, batch included, so a window's evaluation count (and its logits) depend on which
+other windows share its batch. A deployed classifier sees one window at a time. Solving windows
+one by one is slow (a few hundred ms each with ``jump_t``), so the study runs on a fixed seeded
+sample of test windows (``solvers.sample``; 0 takes the whole split), and every record says
+which. Fixed-step results do not depend on the batch, so their macro F1 on the whole test split is
+also given (``split_macro_f1``, batched).
+
+"Matches": ``solverstudy.matching``. Library only: returns dicts; ``solverstudy.run`` writes the files.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import Callable, Sequence
+
+import numpy as np
+import torch
+from sklearn.metrics import f1_score
+
+from core.config import SolversConfig
+from solverstudy.matching import matched_tables
+from solverstudy.settings import ATOL_RATIO, LABELS, Setting, default_settings, reference_setting
+from train.models import CNODE
+from train.variants import rebuild
+
+
+def with_setting(model: CNODE, setting: Setting) -> CNODE:
+    """A copy of ``model``'s weights in the class, dtype and solver of ``setting`` (model untouched)."""
+    dtype = torch.float64 if setting.dtype == "float64" else torch.float32
+    return rebuild(model, setting.spec(), setting.control, setting.restart, dtype)
+
+
+# ------------------------------------------------------------------------------ running
+
+
+def sample_indices(n: int, size: int, seed: int = 0) -> np.ndarray:
+    """A fixed, sorted sample of ``size`` of ``n`` windows drawn from ``seed``; all when size <= 0 or >= n."""
+    if size <= 0 or size >= n:
+        return np.arange(n)
+    rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(0x501F,)))
+    return np.sort(rng.choice(n, size=size, replace=False))
+
+
+@dataclass
+class Solves:
+    """One window per solve: logits (n, K) float64, evaluations (n,) and seconds (n,) per window."""
+
+    logits: np.ndarray
+    nfe: np.ndarray
+    seconds: np.ndarray
+
+
+@torch.no_grad()
+def solve_each(model: CNODE, setting: Setting, x: np.ndarray, warmup: int = 1) -> Solves:
+    """Solve every window of ``x`` (n, W, C) raw on its own with ``setting``; time each solve.
+
+    The timing is PyTorch eager at batch 1 in this process (whatever torch's thread count is):
+    the cost of a solver here, not of a deployed runtime.
+    """
+    m = with_setting(model, setting)
+    dt = torch.float64 if setting.dtype == "float64" else torch.float32
+    xt = torch.from_numpy(np.ascontiguousarray(x)).to(dt)
+    for i in range(min(warmup, len(xt))):
+        m(xt[i:i + 1])
+    logits = np.zeros((len(xt), m.n_classes))
+    nfe = np.zeros(len(xt), dtype=np.int64)
+    secs = np.zeros(len(xt))
+    for i in range(len(xt)):
+        t0 = time.perf_counter()
+        out = m(xt[i:i + 1])
+        secs[i] = time.perf_counter() - t0
+        logits[i] = out[0].double().numpy()
+        nfe[i] = m.nfe
+    return Solves(logits, nfe, secs)
+
+
+@torch.no_grad()
+def solve_batched(model: CNODE, setting: Setting, x: np.ndarray, batch: int = 256) -> tuple[np.ndarray, float]:
+    """Logits (n, K) float64 of ``x`` solved ``batch`` windows at a time, and the mean NFE per solve.
+
+    Exact per window for fixed steps; for adaptive ones the steps are shared by each batch.
+    """
+    m = with_setting(model, setting)
+    dt = torch.float64 if setting.dtype == "float64" else torch.float32
+    outs, nfes = [], []
+    for i in range(0, len(x), batch):
+        outs.append(m(torch.from_numpy(np.ascontiguousarray(x[i:i + batch])).to(dt)).double().numpy())
+        nfes.append(m.nfe)
+    return (np.concatenate(outs) if outs else np.zeros((0, m.n_classes))), float(np.mean(nfes) if nfes else 0.0)
+
+
+def macro_f1(y: np.ndarray, logits: np.ndarray) -> float:
+    """Macro F1 over the four classes (as train.metrics: labels 0..3, zero_division 0)."""
+    return float(f1_score(y, np.asarray(logits).argmax(1), labels=LABELS, average="macro", zero_division=0))
+
+
+def compare(logits: np.ndarray, ref: np.ndarray, y: np.ndarray) -> dict:
+    """Accuracy of ``logits`` (n, K) on labels y and their distance to the reference logits (n, K)."""
+    logits, ref = np.asarray(logits, np.float64), np.asarray(ref, np.float64)
+    if logits.shape != ref.shape:
+        raise ValueError(f"logits {logits.shape} and reference {ref.shape} differ in shape")
+    err = np.abs(logits - ref)
+    return {
+        "macro_f1": macro_f1(y, logits),
+        "argmax_agreement": float(np.mean(logits.argmax(1) == ref.argmax(1))),
+        "max_logit_err": float(err.max()) if err.size else 0.0,
+        "mean_logit_err": float(err.mean()) if err.size else 0.0,
+    }
+
+
+def record(setting: Setting, solves: Solves, ref: np.ndarray, y: np.ndarray, sample_note: str,
+           model: CNODE | None = None) -> dict:
+    """The JSON record of one setting (see docs/solvers.md for every field)."""
+    nfe_mean = float(solves.nfe.mean())
+    out = {
+        **setting.to_dict(),
+        **compare(solves.logits, ref, y),
+        "nfe_per_window": nfe_mean,
+        "nfe_min": int(solves.nfe.min()),
+        "nfe_max": int(solves.nfe.max()),
+        "latency_us": float(np.median(solves.seconds) * 1e6),
+        "n_windows": int(len(y)),
+        "sample": sample_note,
+        "split_macro_f1": None,
+        "split_n_windows": None,
+    }
+    if model is not None:
+        out["macs_per_window"] = int(round(model.macs_per_window(evals=nfe_mean)))
+    return out
+
+
+def _sample(x: np.ndarray, y: np.ndarray, size: int, seed: int) -> tuple[np.ndarray, str]:
+    idx = sample_indices(len(y), size, seed)
+    note = (f"all {len(y)} test windows, one window per solve" if len(idx) == len(y) else
+            f"{len(idx)} of {len(y)} test windows (seeded sample, seed {seed}), one window per solve")
+    return idx, note
+
+
+def _reference(model: CNODE, x: np.ndarray, y: np.ndarray, idx: np.ndarray, note: str, cfg: SolversConfig,
+               split_f1: bool, check_windows: int, log: Callable[[str], None]) -> tuple[dict, np.ndarray, dict | None]:
+    """The reference's record, its logits on the sample and its check against an independent solve."""
+    ref_setting = reference_setting(cfg.ref_rtol)
+    t0 = time.perf_counter()
+    ref_solves = solve_each(model, ref_setting, x[idx])
+    ref = ref_solves.logits
+    ref_rec = record(ref_setting, ref_solves, ref, y[idx], note, model)
+    log(f"  {ref_setting.label}: {ref_rec['nfe_per_window']:.0f} NFE/window, {time.perf_counter() - t0:.1f} s")
+    check = reference_check(model, x[idx][:check_windows], ref[:check_windows]) if check_windows > 0 else None
+    if check:
+        log(f"  reference vs {check['against']}: max logit difference {check['max_abs_logit_diff']:.1e} "
+            f"on {check['n_windows']} windows")
+    if split_f1:
+        ref_split, _ = solve_batched(model, ref_setting, x)
+        ref_rec["split_macro_f1"] = macro_f1(y, ref_split)
+        ref_rec["split_n_windows"] = int(len(y))
+    return ref_rec, ref, check
+
+
+def _meta(model: CNODE, cfg: SolversConfig, y: np.ndarray, idx: np.ndarray, note: str, check: dict | None,
+          t_start: float) -> dict:
+    threads = torch.get_num_threads()
+    return {
+        "reference_check": check,
+        "n_test_windows": int(len(y)),
+        "n_windows": int(len(idx)),
+        "sample_seed": int(cfg.sample_seed),
+        "sample": note,
+        "sample_indices": [int(i) for i in idx],
+        "atol_rule": f"atol = rtol * {ATOL_RATIO:g}",
+        "f1_tol": float(cfg.f1_tol),
+        "f1_two_sided": bool(cfg.f1_two_sided),
+        "control": getattr(model, "control", "point"),
+        "threads": int(threads),
+        "latency_note": ("PyTorch eager, batch 1, median over the sample's one-window solves, measured in "
+                         f"this process with {threads} intra-op thread(s); a solver's cost "
+                         "here, not a deployed runtime's (see the latency table for those)"),
+        "versions": _versions(),
+        "seconds": time.perf_counter() - t_start,
+    }
+
+
+def run_study(model: CNODE, x: np.ndarray, y: np.ndarray, cfg: SolversConfig | None = None,
+              settings: Sequence[Setting] | None = None, split_f1: bool = True, check_windows: int = 8,
+              log: Callable[[str], None] = print) -> dict:
+    """The solver study of one CNODE on test windows x (n, W, C) raw with labels y (n,).
+
+    ``cfg`` ([solvers], default its defaults) gives the sample, the reference tolerance and the
+    matching rule, and the grid unless ``settings`` is given. Returns ``{"solvers": [record, ...],
+    "matched": [...], "matched_any_control": [...] or None, "reference": record, "meta": {...}}``;
+    the reference's own record comes first in ``solvers`` (error 0 by definition).
+    """
+    cfg = SolversConfig() if cfg is None else cfg
+    x, y = np.asarray(x), np.asarray(y)
+    if x.ndim != 3 or len(x) != len(y) or len(y) == 0:
+        raise ValueError(f"need windows (n, W, C) and labels (n,), found {x.shape} and {y.shape}")
+    settings = list(default_settings(cfg) if settings is None else settings)
+    t_start = time.perf_counter()
+    idx, note = _sample(x, y, cfg.sample, cfg.sample_seed)
+    log(f"solver study: {len(settings)} settings on {note}")
+    ref_rec, ref, check = _reference(model, x, y, idx, note, cfg, split_f1, check_windows, log)
+    records = [ref_rec]
+    for s in settings:
+        t0 = time.perf_counter()
+        rec = record(s, solve_each(model, s, x[idx]), ref, y[idx], note, model)
+        if split_f1 and s.is_fixed:  # fixed steps: batching changes nothing, so the whole split is cheap
+            logits, _ = solve_batched(model, s, x)
+            rec["split_macro_f1"] = macro_f1(y, logits)
+            rec["split_n_windows"] = int(len(y))
+        records.append(rec)
+        log(f"  {s.label:28s} F1 {rec['macro_f1']:.4f}  max err {rec['max_logit_err']:.2e}  "
+            f"{rec['nfe_per_window']:7.1f} NFE  {rec['latency_us'] / 1e3:8.2f} ms  ({time.perf_counter() - t0:.1f} s)")
+    return {
+        "solvers": records,
+        **matched_tables(records, cfg.f1_tol, cfg.f1_two_sided),
+        "reference": ref_rec,
+        "meta": _meta(model, cfg, y, idx, note, check, t_start),
+    }
+
+
+def reference_check(model: CNODE, x: np.ndarray, ref: np.ndarray) -> dict:
+    """How far the reference is from an independent one: float64 classic RK4 with 8 steps per segment.
+
+    RK4 at N = 8 (W - 1) puts its stage times on the knots, so on each linear piece of the path
+    it is a plain 4th-order solve of a smooth ODE (error ~1e-10 here), with no step control
+    and no torchdiffeq involved. The study's errors are only meaningful well above this value.
+    """
+    window = model.window
+    s = Setting("rk4", steps=8 * (window - 1), dtype="float64")
+    logits = solve_each(model, s, x, warmup=0).logits
+    return {"against": s.label, "n_windows": int(len(x)),
+            "max_abs_logit_diff": float(np.abs(logits - ref).max()) if len(x) else 0.0}
+
+
+def _versions() -> dict:
+    import torchdiffeq
+
+    return {"torch": torch.__version__, "torchdiffeq": getattr(torchdiffeq, "__version__", "?")}
+
+

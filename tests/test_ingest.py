@@ -1,0 +1,127 @@
+"""quadfdi ingest on every shared real log: each ingests with its documented channels and rates, or
+is refused with one line, exit 2 and no output (docs/ingest.md)."""
+
+from __future__ import annotations
+
+import os
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from conftest import ROOT, quadfdi
+
+# CI places shared/ beside the clone; a git worktree elsewhere points QUADFDI_FLIGHTLOGS at it.
+LOGS = Path(os.environ.get("QUADFDI_FLIGHTLOGS", ROOT.parent / "shared" / "data" / "flightlogs"))
+pytestmark = pytest.mark.skipif(not LOGS.is_dir(), reason=f"shared flight logs not found at {LOGS} "
+                                "(CI places shared/ beside the clone)")
+
+CORE = ["z", "vz", "roll", "pitch", "yaw", "p", "q", "r", "thr1", "thr2", "thr3", "thr4", "vib_acc"]
+# log -> (channels that must be "ok", channels that must not be, {channel: documented rate in Hz})
+INGESTS = {
+    "px4_fmuv5_quad_real_short.ulg": (CORE + ["V_b", "I_b"], ["x", "vx", "rpm1", "T1"],
+                                      {"z": 10, "roll": 20, "p": 50, "V_b": 5, "thr1": 10}),
+    "px4_sitl_quad_esc.ulg": (CORE + ["x", "V_b", "rpm1", "esc_temp4"], ["I_b"],
+                              {"roll": 20, "p": 50, "thr1": 10, "V_b": 5, "rpm1": 4, "vib_acc": 1}),
+    "px4_quad_6s_vibration_tipover.ulg": (CORE + ["x", "y", "V_b", "I_b", "rpm1", "rpm4"], ["T1"],
+                                          {"roll": 20, "p": 50, "thr1": 10, "V_b": 5, "rpm1": 4, "vib_acc": 1}),
+    "px4_quad_6s_gps_interference.ulg": (CORE + ["x", "V_b"], ["I_b", "rpm1"],
+                                         {"roll": 20, "p": 50, "thr1": 10, "V_b": 5, "vib_acc": 1}),
+    "px4_quad_6s_uavcan_mission.ulg": (CORE + ["x", "V_b", "I_b", "rpm1", "esc_temp1"], ["T1"],
+                                       {"roll": 28, "V_b": 1.8, "thr1": 9, "rpm1": 3}),
+    "px4_quad_battery_monitor_disconnected.ulg": (CORE + ["x"], ["V_b", "I_b", "SoC"],
+                                                  {"roll": 20, "p": 50, "thr1": 10, "vib_acc": 1}),
+}
+REFUSALS = {
+    "px4_cubeorange_vtol_real.ulg": "not a multirotor",
+    "ardupilot_plane_1s.BIN": "not a multirotor: ArduPlane",
+    "ardupilot_copter_quadx_ground.BIN": "never airborne",
+}
+
+
+@pytest.fixture(scope="module")
+def ingested(tmp_path_factory) -> dict[str, Path]:
+    """Every ingestible log through the real CLI, once."""
+    out = {}
+    for name in INGESTS:
+        d = tmp_path_factory.mktemp("ing") / name
+        res = quadfdi("ingest", str(LOGS / name), "--out", str(d))
+        assert res.returncode == 0, res.stderr
+        out[name] = d
+    return out
+
+
+def _load(d: Path) -> dict:
+    from ingest.flight import load_flight
+
+    return load_flight(d / "flight.npz")
+
+
+def test_every_shared_log_is_covered():
+    assert {p.name for p in LOGS.iterdir() if p.suffix in (".ulg", ".BIN")} == set(INGESTS) | set(REFUSALS)
+
+
+@pytest.mark.parametrize("name", sorted(REFUSALS))
+def test_refusals_are_one_line_exit_2_no_output(name, tmp_path):
+    out = tmp_path / "out"
+    res = quadfdi("ingest", str(LOGS / name), "--out", str(out))
+    assert res.returncode == 2
+    lines = res.stderr.strip().splitlines()
+    assert len(lines) == 1 and REFUSALS[name] in lines[0] and name in lines[0], res.stderr
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("name", sorted(INGESTS))
+def test_channels_and_rates(name, ingested):
+    a = _load(ingested[name])
+    must, must_not, rates = INGESTS[name]
+    status = dict(zip(map(str, a["channel_names"]), map(str, a["channel_status"])))
+    rate = dict(zip(map(str, a["channel_names"]), a["channel_rates_hz"]))
+    for ch in must:
+        assert status[ch] == "ok", (ch, status[ch])
+    for ch in must_not:
+        assert status[ch] != "ok", ch
+        j = list(a["channel_names"]).index(ch)
+        assert not a["mask"][:, j].any() and np.isnan(a["telemetry"][:, j]).all()
+    for ch, hz in rates.items():
+        assert abs(rate[ch] - hz) < 0.15 * hz, (ch, rate[ch], hz)
+    # the grid is the simulator's 25 Hz and masked values are NaN, unmasked finite
+    assert np.allclose(np.diff(a["time"]), 0.04)
+    assert np.isfinite(a["telemetry"][a["mask"]]).all() and np.isnan(a["telemetry"][~a["mask"]]).all()
+    assert len(str(a["log_sha256"])) == 64 and a["airborne"].any()
+    summary = json.loads((ingested[name] / "ingest.json").read_text())
+    assert summary["vehicle"]["motor_map"] and summary["vehicle"]["battery"]["cells"] in (4, 6)
+
+
+def test_six_s_quads_fly_long_enough(ingested):
+    for name, lo in (("px4_quad_6s_vibration_tipover.ulg", 70), ("px4_quad_6s_gps_interference.ulg", 50),
+                     ("px4_quad_6s_uavcan_mission.ulg", 35)):
+        a = _load(ingested[name])
+        air = a["airborne_segments"]
+        assert lo < float(np.sum(air[:, 1] - air[:, 0])) < 80
+        assert json.loads(str(a["vehicle"]))["battery"]["cells"] == 6
+
+
+def test_deterministic_bytes(ingested, tmp_path):
+    name = "px4_sitl_quad_esc.ulg"
+    res = quadfdi("ingest", str(LOGS / name), "--out", str(tmp_path))
+    assert res.returncode == 0
+    assert (tmp_path / "flight.npz").read_bytes() == (ingested[name] / "flight.npz").read_bytes()
+
+
+def test_bench_prints_seconds_per_flight_hour():
+    res = quadfdi("ingest", "bench", str(LOGS / "px4_sitl_quad_esc.ulg"), "--repeat", "1")
+    assert res.returncode == 0, res.stderr
+    data = json.loads(res.stdout)
+    assert data["s_per_flight_hour"] > 0 and data["logs"][0]["log_span_s"] > 30 and "extrapolated" in data["method"]
+
+
+def test_usage_errors_are_one_line(tmp_path):
+    res = quadfdi("ingest", str(LOGS / "px4_sitl_quad_esc.ulg"))
+    assert res.returncode == 2 and "needs --out" in res.stderr
+    foreign = tmp_path / "x.ulg"
+    foreign.write_bytes(b"not a log at all")
+    res = quadfdi("ingest", str(foreign), "--out", str(tmp_path / "o"))
+    assert res.returncode == 2 and "neither a PX4 ULog nor an ArduPilot DataFlash" in res.stderr
+    assert not (tmp_path / "o").exists()

@@ -1,0 +1,95 @@
+"""Realistic suite, end to end on a small config: contract, classes, splits, determinism per seed,
+shard regeneration, fault signatures; and the suite's counts in configs/realistic.toml."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from core.config import load_config
+from sim.dataset import class_names, dataset_arrays, load_dataset, make_windows, split_names, write_npz
+from sim.realistic import SPLIT_NAMES, labels, n_flights
+from sim.simulate import generate
+from tests.conftest import ROOT
+
+CONFIG = ROOT / "configs/realistic.toml"
+SMALL = ["sim.n_traj=20", "sim.ood_traj=2", "sim.duration_s=12.0", "sim.chunk=14", "sim.window=40"]
+
+
+@pytest.fixture(scope="module")
+def cfg():
+    return load_config(CONFIG, SMALL)
+
+
+@pytest.fixture(scope="module")
+def ds(cfg):
+    return generate(cfg.sim)
+
+
+def test_suite_counts_meet_the_issue():
+    sim = load_config(CONFIG).sim
+    cls, split, group = labels(sim)
+    test = split >= 2
+    assert test.sum() >= 300
+    healthy_test = (cls == 0) & test
+    assert healthy_test.sum() >= 100 and healthy_test.sum() * sim.duration_s >= 2 * 3600
+    in_dist_healthy_test = (cls == 0) & (split == 2)
+    assert in_dist_healthy_test.sum() >= 100
+    assert set(np.unique(split)) == set(range(len(SPLIT_NAMES)))
+    assert sim.classes == ("Healthy", "BatteryFault", "MotorFault", "OverheatFault", "PropellerFault")
+    for g in range(1, 5):  # every out-of-distribution set is test only and holds every class
+        assert np.all(split[group == g] == 2 + g) and set(cls[group == g]) == set(range(5))
+    assert np.all(group[split <= 2] == 0)
+
+
+def test_contract_classes_and_splits(ds, cfg, tmp_path):
+    n = n_flights(cfg.sim)
+    assert ds["telemetry"].shape == (n, cfg.sim.n_samples, 25) and np.isfinite(ds["telemetry"]).all()
+    assert list(ds["channel_names"][-2:]) == ["vib_px4", "vib_ap"]
+    path = tmp_path / "dataset.npz"
+    write_npz(path, dataset_arrays(ds, cfg))
+    loaded = load_dataset(path)
+    assert class_names(loaded.arrays) == cfg.sim.classes and split_names(loaded.arrays) == SPLIT_NAMES
+    assert loaded.config == cfg  # the embedded [sim] section rebuilds the config, new keys included
+    assert json.loads(str(loaded["config"]))["sim"]["scenario"] == "realistic"
+    w = make_windows(loaded, "test_ood_wind")
+    assert len(w) > 0 and set(loaded["split"][w.traj]) == {5}
+    assert set(make_windows(loaded, "train").y) <= set(range(5))
+    rotor = np.isin(ds["fault_class"], (2, 3, 4))
+    assert np.all(ds["fault_motor"][rotor] >= 0) and np.all(ds["fault_motor"][~rotor] == -1)
+
+
+def test_per_flight_parameters_recorded(ds):
+    n = ds["telemetry"].shape[0]
+    for key in ("mass_kg", "payload_kg", "pack_capacity_ah", "pack_age", "t_amb", "wind_ms", "soc0"):
+        assert ds[key].shape == (n,) and np.isfinite(ds[key]).all()
+    assert ds["cg_offset_m"].shape == (n, 2) and ds["thrust_coef_factor"].shape == (n, 4)
+    vehicle_ood = ds["test_group"] == 2
+    assert np.all(ds["pack_cells"][vehicle_ood] == 6) and np.all(ds["pack_cells"][~vehicle_ood] <= 5)
+    assert np.all(ds["wind_ms"][ds["test_group"] == 3] >= 6.0)
+    assert np.all(ds["mission_type"][ds["test_group"] == 1] == 3)
+
+
+def test_deterministic_per_seed_and_shard_regeneration(ds, cfg):
+    rows = [1, 5, 21]  # two in distribution, one out-of-distribution flight
+    again = generate(cfg.sim, indices=rows)
+    for key in ("telemetry", "states", "severity", "mass_kg", "fault_class", "split"):
+        assert np.array_equal(again[key], ds[key][rows]), key
+    other = generate(load_config(CONFIG, SMALL + ["sim.seed=1"]).sim, indices=[1])
+    assert not np.array_equal(other["telemetry"][0], ds["telemetry"][1])
+
+
+def test_flights_are_sane_and_faults_show(ds):
+    names = list(ds["channel_names"])
+    tel, cls = ds["telemetry"], ds["fault_class"]
+    z_ref_dev = np.abs(ds["states"][..., 2] - ds["states"][:, :1, 2]).max()
+    assert z_ref_dev < 40.0  # nobody fell out of the sky
+    assert np.abs(ds["states"][..., 6:8]).max() < np.radians(60)
+    vib = tel[..., names.index("vib_ap")]
+    prop = cls == 4
+    late = vib[:, -50:].mean(axis=1)
+    assert late[prop].mean() > 1.3 * late[cls == 0].mean()  # a cut prop shakes the vehicle
+    soc = tel[..., names.index("SoC")]
+    assert np.all(soc[:, -1] < soc[:, 0])  # the coulomb counter counts down
