@@ -124,23 +124,25 @@ def _reused(files: SolverFiles, specs: list, fingerprint: dict, log: Log) -> dic
     return models
 
 
-def matrix_run(run: RunDir, cfg: Config, log: Log = print, reuse: bool = False, command: str | None = None) -> dict:
+def matrix_run(run: RunDir, cfg: Config, log: Log = print, reuse: bool = False, command: str | None = None,
+               settings=None) -> dict:
     """Train the CNODEs of ``solvers.matrix_train``, deploy each with each of ``solvers.matrix_deploy``;
-    with ``reuse``, models kept from an earlier matrix of the same data and settings are not retrained."""
+    with ``reuse``, models kept from an earlier matrix of the same data and settings are not retrained.
+    With ``settings`` (a ``core.executor.ExecSettings``), the matrix runs as jobs on that executor
+    (``solverstudy.jobs``: one per model, reference and cell), cached in ``<run>/cache/matrix-*/``."""
     from sim.dataset import load_dataset
-    from solverstudy.matrix import matrix_epochs, matrix_plan, run_matrix
+    from solverstudy.matrix import matrix_plan, run_matrix
     from solverstudy.plots import draw_matrix
     from train.checkpoint import save_checkpoint
 
     specs, deploys = matrix_plan(cfg)
     if not run.dataset.is_file():
         raise QuadfdiError(f"{run.dataset} is missing: run `quadfdi sim --out {run.root}` first")
+    if settings is not None:
+        return _matrix_on_executor(run, cfg, specs, deploys, settings, log, command)
     ds = load_dataset(run.dataset)
     files = SolverFiles(run.root)
-    # what a reused model must share with this run besides its solver: data, windows, training
-    fingerprint = {"dataset_sha256": _sha256(run.dataset), "epochs": matrix_epochs(cfg),
-                   "max_train_windows": cfg.solvers.matrix_max_train_windows,
-                   **{k: getattr(cfg.train, k) for k in ("seed", "lr", "batch_size", "latent", "hidden", "log_eps")}}
+    fingerprint = _fingerprint(run, cfg)
     models = _reused(files, specs, fingerprint, log) if reuse else {}
     reused = sorted(models)
 
@@ -154,6 +156,33 @@ def matrix_run(run: RunDir, cfg: Config, log: Log = print, reuse: bool = False, 
         matrix = run_matrix(ds, cfg, specs, deploys, models=models, on_trained=save, log=log)
     matrix["meta"].update(command=command or f"quadfdi solvers matrix --run {run.root}", reused=reused,
                           seconds=time.perf_counter() - t0)
+    _write(files.matrix_json, files.matrix_md, matrix, matrix_markdown, draw_matrix(matrix, files.figures), log)
+    log(ott_sentence(matrix))
+    return matrix
+
+
+def _fingerprint(run: RunDir, cfg: Config) -> dict:
+    """What a reused model must share with this run besides its solver: data, windows, training."""
+    from solverstudy.matrix import matrix_epochs
+
+    return {"dataset_sha256": _sha256(run.dataset), "epochs": matrix_epochs(cfg),
+            "max_train_windows": cfg.solvers.matrix_max_train_windows,
+            **{k: getattr(cfg.train, k) for k in ("seed", "lr", "batch_size", "latent", "hidden", "log_eps")}}
+
+
+def _matrix_on_executor(run: RunDir, cfg: Config, specs, deploys, settings, log: Log, command: str | None) -> dict:
+    from core.atomic import write_bytes
+    from solverstudy.jobs import matrix_jobs_run
+    from solverstudy.plots import draw_matrix
+
+    files = SolverFiles(run.root)
+    matrix, models = matrix_jobs_run(run, cfg, specs, deploys, settings, log)
+    fingerprint = _fingerprint(run, cfg)
+    for info in matrix["train"]:
+        info["fingerprint"] = fingerprint  # as the in-process path records it
+    for label, path in models.items():  # where --reuse and a reader of the run expect the models
+        write_bytes(files.matrix_models / f"{_slug(label)}.pt", path.read_bytes())
+    matrix["meta"]["command"] = command or f"quadfdi solvers matrix --run {run.root}"
     _write(files.matrix_json, files.matrix_md, matrix, matrix_markdown, draw_matrix(matrix, files.figures), log)
     log(ott_sentence(matrix))
     return matrix

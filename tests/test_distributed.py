@@ -239,3 +239,33 @@ def test_sweep_writes_its_table_and_figure_and_resumes(cluster, tmp_path):
     assert res.returncode == 0, res.stderr
     assert {p: p.stat().st_mtime_ns for p in (out / "cache").rglob("*.json")} == stamps
     assert json.loads((out / "sweep.json").read_text()) == table
+
+
+MATRIX = [*STUDY, 'solvers.matrix_train=["rk4:1", "rk4:2:avg"]', 'solvers.matrix_deploy=["rk4:1", "rk4:2"]',
+          "solvers.matrix_epochs=1", "solvers.matrix_max_train_windows=96"]
+TIMING = {"seconds", "train_seconds", "epoch_seconds", "reused", "command"}
+
+
+def _no_timing(d):
+    if isinstance(d, dict):
+        return {k: _no_timing(v) for k, v in d.items() if k not in TIMING}
+    if isinstance(d, list):
+        return [_no_timing(v) for v in d]
+    return d
+
+
+def test_solver_matrix_cells_on_two_workers_equal_in_process(cluster, small_run, tmp_path):
+    """One job per model, reference and cell on the cluster: the in-process matrix's numbers."""
+    from core.rundir import open_run
+    from solverstudy.run import matrix_run
+
+    out = {}
+    for name, settings in (("here", None), ("dask", ExecSettings(cluster[0]))):
+        run, cfg = open_run(_copy_run(small_run, tmp_path / name), MATRIX)
+        out[name] = matrix_run(run, cfg, log=lambda _: None, settings=settings)
+    assert _no_timing(out["here"]) == _no_timing(out["dask"])
+    assert len(out["dask"]["cells"]) == 2 * 3  # 2 models x (2 deploys + the reference)
+    cache = tmp_path / "dask" / "cache"
+    assert [len(list((cache / k).iterdir())) for k in ("matrix-train", "matrix-ref", "matrix-cell")] == [2, 2, 6]
+    assert sorted(p.name for p in (tmp_path / "dask" / "solvers" / "matrix_models").iterdir()) == \
+        sorted(p.name for p in (tmp_path / "here" / "solvers" / "matrix_models").iterdir())
