@@ -171,9 +171,9 @@ def _fingerprint(run: RunDir, cfg: Config) -> dict:
 
 
 def _matrix_on_executor(run: RunDir, cfg: Config, specs, deploys, settings, log: Log, command: str | None) -> dict:
-    from core.atomic import write_bytes
     from solverstudy.jobs import matrix_jobs_run
     from solverstudy.plots import draw_matrix
+    from train.checkpoint import load_checkpoint, save_checkpoint
 
     files = SolverFiles(run.root)
     matrix, models = matrix_jobs_run(run, cfg, specs, deploys, settings, log)
@@ -181,7 +181,9 @@ def _matrix_on_executor(run: RunDir, cfg: Config, specs, deploys, settings, log:
     for info in matrix["train"]:
         info["fingerprint"] = fingerprint  # as the in-process path records it
     for label, path in models.items():  # where --reuse and a reader of the run expect the models
-        write_bytes(files.matrix_models / f"{_slug(label)}.pt", path.read_bytes())
+        model, blob = load_checkpoint(path, "cnode")
+        save_checkpoint(files.matrix_models / f"{_slug(label)}.pt", model, blob["config"], blob["channel_names"],
+                        extra={"matrix_info": {**blob["matrix_info"], "fingerprint": fingerprint}})
     matrix["meta"]["command"] = command or f"quadfdi solvers matrix --run {run.root}"
     _write(files.matrix_json, files.matrix_md, matrix, matrix_markdown, draw_matrix(matrix, files.figures), log)
     log(ott_sentence(matrix))
