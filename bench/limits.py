@@ -10,9 +10,12 @@ shared machine interference only ever slows a trial down, so the fastest trial i
   (8-bit x int8 -> int32, MLAS, VNNI where the CPU has it) at a large size, one core, the faster of
   uint8 and int8 activations: the compute half of the int8 floors (``s8s8_int8_gops``: int8
   activations, the type of quadfdi's graphs).
-- ``l2_gbps``: read bandwidth of one core from a buffer that fits its L2 but not its L1
-  (``bench/cpp/l2bw.cpp``, compiled here with g++ -O2 -march=native; numpy's ``dot`` when no
-  compiler is found, which is call-overhead bound and therefore an under-estimate, flagged as such).
+- ``l1_gbps``, ``l2_gbps``: read bandwidth of one core from buffers of 1/4 and 1/2 of L1d and of
+  L2 (``bench/cpp/l2bw.cpp``, compiled here per ISA with g++ -O2 -march=native -DVEC_BYTES=64|32|16,
+  the host's widest variant whose hot loops pass ``check_vectorised``: objdump shows vector
+  registers of that width and no stack access); best trial, best size. Sanity: L1 >= 1.5x L2
+  (``bandwidth_sane``). ``fma_peak_gflops``: the same probe's FMA loop, part of ``peak_gflops``.
+  numpy's ``dot`` when no compiler is found (call-overhead bound, an under-estimate, flagged).
 - ``ort_call_us``: ONNX Runtime's fixed cost per ``run()`` call: the median of an Identity model on
   one (1, W, C) window, one intra-op thread; ``ort_node_us``: its cost per extra small node (a
   chain of 256 Add nodes on a (1, 64) tensor, minus the call, over 256).
@@ -37,11 +40,14 @@ import time
 from pathlib import Path
 from typing import Callable
 
+from bench.probes import (L1_OVER_L2_MIN, bandwidth, build_checked_probe, cache_sizes, fma_peak, l2_probe_kib,
+                          numpy_bandwidth, probe_sizes_kib, time_call)
 from core.errors import QuadfdiError
 
 # (label, M, K, N): the models' products at batch 1 and 96, plus a large one that reaches the peak.
 #   cnode field lin1 (z and u concatenated: L + C = 63 -> H = 64), lin2 (64 -> 40);
 #   gru input and recurrent products (C = 23 or H = 80 -> 3H = 240).
+
 GEMM_SIZES = (
     ("cnode lin1 b1", 1, 63, 64),
     ("cnode lin1 b96", 96, 63, 64),
@@ -53,27 +59,9 @@ GEMM_SIZES = (
 QUICK_SIZES = (GEMM_SIZES[1], ("large 256", 256, 256, 256))
 INT8_SIZE = 1024
 NODE_CHAIN = 256  # Add nodes in the ORT per-node cost probe
-L2_PROBE_KIB_DEFAULT = 512
-L2BW_SOURCE = Path(__file__).resolve().parent / "cpp" / "l2bw.cpp"
 
 
 # ----------------------------------------------------------------------------- timing helpers
-
-
-def time_call(fn: Callable[[], object], min_s: float, trials: int) -> float:
-    """Best per-call seconds of ``fn`` over ``trials`` trials of at least ``min_s`` each."""
-    fn()
-    best = float("inf")
-    for _ in range(trials):
-        reps, t0 = 0, time.perf_counter()
-        while True:
-            fn()
-            reps += 1
-            elapsed = time.perf_counter() - t0
-            if elapsed >= min_s:
-                break
-        best = min(best, elapsed / reps)
-    return best
 
 
 def gemm_rates(threads: int, quick: bool) -> list[dict]:
@@ -201,66 +189,6 @@ def worker_main(argv: list[str] | None = None) -> int:
 # ----------------------------------------------------------------------------- cache and bandwidth
 
 
-def cache_sizes() -> dict[str, int]:
-    """Per-core data cache sizes in bytes from sysfs: {'L1d': ..., 'L2': ..., 'L3': ...} (missing: absent)."""
-    out: dict[str, int] = {}
-    base = Path("/sys/devices/system/cpu/cpu0/cache")
-    for idx in sorted(base.glob("index*")) if base.is_dir() else []:
-        try:
-            level = (idx / "level").read_text().strip()
-            kind = (idx / "type").read_text().strip()
-            size = (idx / "size").read_text().strip()
-        except OSError:
-            continue
-        if kind == "Instruction":
-            continue
-        mult = {"K": 1024, "M": 1024 ** 2, "G": 1024 ** 3}.get(size[-1], 1)
-        value = int(size[:-1] if size[-1] in "KMG" else size) * mult
-        out["L1d" if level == "1" else f"L{level}"] = value
-    return out
-
-
-def l2_probe_kib(caches: dict[str, int]) -> int:
-    """A buffer size that fits L2 with room to spare but is at least 4 times L1d."""
-    l1, l2 = caches.get("L1d", 32 * 1024), caches.get("L2", 1024 * 1024)
-    kib = max(4 * l1, l2 // 2) // 1024
-    return int(kib) if kib * 1024 < l2 else L2_PROBE_KIB_DEFAULT
-
-
-def build_l2bw(workdir: Path) -> Path | None:
-    """Compile bench/cpp/l2bw.cpp into ``workdir``; None when no g++ is available or it fails."""
-    cxx = shutil.which("g++") or shutil.which("c++")
-    if cxx is None:
-        return None
-    exe = workdir / "l2bw"
-    res = subprocess.run([cxx, "-O2", "-march=native", "-o", str(exe), str(L2BW_SOURCE)], capture_output=True,
-                         text=True)
-    return exe if res.returncode == 0 else None
-
-
-def bandwidth(exe: Path, kib: int, cpu_prefix: list[str], trials: int, min_s: float) -> float:
-    """Best GB/s of the l2bw probe reading a ``kib`` KiB buffer."""
-    res = subprocess.run([*cpu_prefix, str(exe), str(kib), str(trials), str(min_s)], capture_output=True,
-                         text=True, timeout=120)
-    if res.returncode != 0:
-        raise QuadfdiError(f"bandwidth probe {exe} failed: {res.stderr.strip() or res.returncode}")
-    rates = [float(b) / float(s) / 1e9 for b, s in (line.split() for line in res.stdout.split("\n") if line.strip())]
-    return max(rates)
-
-
-def numpy_bandwidth(kib: int) -> float:
-    """Fallback probe: best GB/s of numpy dot over two buffers of kib/2 each (call overhead included)."""
-    import numpy as np
-
-    n = kib * 1024 // 8
-    a, b = np.ones(n, dtype=np.float32), np.ones(n, dtype=np.float32)
-    s = time_call(lambda: np.dot(a, b), 0.05, 5)
-    return 2 * n * 4 / s / 1e9
-
-
-# ----------------------------------------------------------------------------- orchestration
-
-
 def cpu_prefix(cpus: str) -> list[str]:
     """``taskset -c <cpus>`` when taskset exists, else nothing (workers also pin themselves)."""
     exe = shutil.which("taskset")
@@ -310,20 +238,39 @@ def measure_limits(cpus: str = "0,1", quick: bool = False, window: int = 80, cha
     caches = cache_sizes()
     kib = l2_probe_kib(caches)
     trials, min_s = (2, 0.01) if quick else (7, 0.08)
+    sizes = probe_sizes_kib(caches)
+    per_size: dict[str, float] = {}
+    fma = None
     with tempfile.TemporaryDirectory(prefix="quadfdi-l2bw-") as tmp:
-        exe = build_l2bw(Path(tmp))
+        exe, vector_check = build_checked_probe(Path(tmp))
         pin_one = prefix[:2] + [cpus.split(",")[0]] if prefix else []
         if exe is not None:
-            l2 = bandwidth(exe, kib, pin_one, trials, min_s)
-            l1 = bandwidth(exe, max(4, caches.get("L1d", 32768) // 2048), pin_one, trials, min_s)
-            probe = "bench/cpp/l2bw.cpp (g++ -O2 -march=native), 8 vector accumulators, one core"
+            for level in ("L1", "L2"):
+                for k in sizes[level]:
+                    per_size[f"{level} {k} KiB"] = bandwidth(exe, k, pin_one, trials, min_s)
+            l1 = max(v for n, v in per_size.items() if n.startswith("L1"))
+            l2 = max(v for n, v in per_size.items() if n.startswith("L2"))
+            fma = fma_peak(exe, pin_one, trials, min_s)
+            probe = (f"bench/cpp/l2bw.cpp (g++ -O2 -march=native -DVEC_BYTES={vector_check.get('vec_bytes')}), "
+                     f"8 vector accumulators, one core; hot loops "
+                     + ("checked vectorised" if vector_check.get("ok") else
+                        "NOT checked" if not vector_check.get("checked") else "FAILED the vectorisation check"))
         else:
             l2, l1 = numpy_bandwidth(kib), None
             probe = "numpy dot (no C++ compiler found): includes call overhead, an under-estimate"
+    sane = l1 is not None and l1 >= L1_OVER_L2_MIN * l2
+    if not sane:
+        log(f"bench limits: WARNING bandwidth probe implausible: L1 {l1 or 0:.1f} GB/s is not >= "
+            f"{L1_OVER_L2_MIN}x L2 {l2:.1f} GB/s (a spilling or non-vectorised loop reads the same at every size)")
     one = per_threads[1]
     two = per_threads.get(2)
+    gemm_peak = max(g["gflops"] for g in one["gemm"])
     limits = {
-        "peak_gflops": max(g["gflops"] for g in one["gemm"]),
+        # the roof: the best of the libraries' sgemm and the probe's own FMA loop (a floor must be a
+        # lower bound, so the higher peak is the one it uses)
+        "peak_gflops": max(gemm_peak, fma or 0.0),
+        "gemm_peak_gflops": gemm_peak,
+        "fma_peak_gflops": fma,
         "peak_gflops_2t": max(g["gflops"] for g in two["gemm"]) if two else None,
         "peak_int8_gops": max(r["gops"] for r in one["int8"]),
         "peak_int8_gops_2t": max(r["gops"] for r in two["int8"]) if two else None,
@@ -334,6 +281,9 @@ def measure_limits(cpus: str = "0,1", quick: bool = False, window: int = 80, cha
         "ort_node_us": one["ort_call"]["node_us"],
         "caches": caches,
         "l2_probe_kib": kib,
+        "bandwidth_by_size": per_size,
+        "bandwidth_sane": sane,
+        "vector_check": vector_check if exe is not None else None,
         "bandwidth_probe": probe,
         "gemm": [g for t in threads for g in per_threads[t]["gemm"]],
         "int8": [r for t in threads for r in per_threads[t]["int8"]],
@@ -349,7 +299,8 @@ def measure_limits(cpus: str = "0,1", quick: bool = False, window: int = 80, cha
     return limits
 
 
-BEST_OF = ("peak_gflops", "peak_gflops_2t", "peak_int8_gops", "peak_int8_gops_2t", "s8s8_int8_gops", "l2_gbps",
+BEST_OF = ("peak_gflops", "gemm_peak_gflops", "fma_peak_gflops", "peak_gflops_2t", "peak_int8_gops",
+           "peak_int8_gops_2t", "s8s8_int8_gops", "l2_gbps",
            "l1_gbps")
 LEAST_OF = ("ort_call_us", "ort_node_us")
 
@@ -368,6 +319,8 @@ def merge_limits(passes: list[dict]) -> dict:
     for key in LEAST_OF:
         vals = [p[key] for p in passes if p.get(key) is not None]
         out[key] = min(vals) if vals else None
+    l1, l2 = out.get("l1_gbps"), out.get("l2_gbps")
+    out["bandwidth_sane"] = bool(l1 is not None and l2 and l1 >= L1_OVER_L2_MIN * l2)
     out["gemm"] = [{**g, "pass": i} for i, p in enumerate(passes) for g in p["gemm"]]
     out["int8"] = [{**r, "pass": i} for i, p in enumerate(passes) for r in p["int8"]]
     out["passes"] = [{k: p.get(k) for k in (*BEST_OF, *LEAST_OF, "seconds")} for p in passes]

@@ -49,6 +49,41 @@ def _latency_rows(bench: dict) -> list[list[str]]:
     return rows
 
 
+def speedup_rows(recs: list[dict]) -> list[list[str]]:
+    """int8 / fp32 speed-up (fp32 p50 over int8 p50) per model, runtime, setting and batch."""
+    key = lambda r: (r["model"], r["runtime"], r["solver"], r["threads"], r.get("spinning"), r["batch"])  # noqa: E731
+    fp32 = {key(r): r for r in recs if r["precision"] == "fp32" and r.get("p50_us")}
+    rows = []
+    for r in sorted((r for r in recs if r["precision"] == "int8" and r.get("p50_us") and key(r) in fp32),
+                    key=lambda r: (r["model"], RUNTIME_ORDER.get(r["runtime"], 9), r["batch"], r["threads"])):
+        f = fp32[key(r)]
+        x = f["p50_us"] / r["p50_us"]
+        rows.append([r["model"], RUNTIME_NAME.get(r["runtime"], r["runtime"]), setting(r), str(r["batch"]),
+                     us(f["p50_us"]), us(r["p50_us"]), f"{x:.2f}x" + ("" if x >= 1 else " (int8 slower)")])
+    return rows
+
+
+def _speedup_section(bench: dict) -> list[str]:
+    rows = speedup_rows(bench["latency"])
+    if not rows:
+        return []
+    return (["### int8 against fp32", "", "Speed-up = fp32 p50 / int8 p50, same runtime, setting and batch.", ""]
+            + md_table(["model", "runtime", "setting", "batch", "fp32 p50 (us)", "int8 p50 (us)", "int8 speed-up"],
+                       rows))
+
+
+def _graphs_section(bench: dict) -> list[str]:
+    g = bench.get("graphs") or {}
+    if not g:
+        return []
+    rows = [[k, str(v["nodes"]), str(v["ort_nodes"]),
+             ", ".join(f"{op} {n}" for op, n in sorted(v["ort_ops"].items(), key=lambda kv: -kv[1])[:6])]
+            for k, v in g.items()]
+    return (["### ONNX graphs", "", "Nodes as exported and after ONNX Runtime's optimizer (ORT_ENABLE_ALL, CPU; "
+             "`SessionOptions.optimized_model_filepath`, counted): each costs ~0.4 us of dispatch per call.", ""]
+            + md_table(["graph", "nodes", "nodes after ORT optimizer", "largest op counts"], rows))
+
+
 def _floors_section(bench: dict) -> list[str]:
     lim = bench["limits"]
     rows = [[f["model"], f["precision"], f"{f['macs_per_window']:,}", nbytes(f["weight_bytes_per_window"]),
@@ -70,14 +105,22 @@ def _limits_section(bench: dict) -> list[str]:
     out = ["### Machine limits", "",
            f"Measured in the same run, pinned to CPUs {lim.get('cpus')}; {lim.get('method')}.", ""]
     out += md_table(["limit", "value", "how"], [
-        ["peak fp32, 1 thread", f"{lim['peak_gflops']:.1f} GFLOP/s", "numpy (OpenBLAS) / torch (MKL) sgemm, best size"],
+        ["peak fp32, 1 thread", f"{lim['peak_gflops']:.1f} GFLOP/s",
+         "best of numpy (OpenBLAS) / torch (MKL) sgemm (best size)"
+         + (f" {lim['gemm_peak_gflops']:.1f} and the probe's FMA loop {lim['fma_peak_gflops']:.1f}"
+            if lim.get("fma_peak_gflops") else "")],
         ["peak fp32, 2 threads", f"{lim['peak_gflops_2t']:.1f} GFLOP/s", "same"],
-        ["peak int8, 1 thread", f"{lim['peak_int8_gops']:.0f} GOP/s", "ORT MatMulInteger, uint8 x int8 (MLAS)"],
+        ["peak int8, 1 thread", f"{lim['peak_int8_gops']:.0f} GOP/s",
+         "ORT MatMulInteger, uint8 x int8 (MLAS): the exported graphs' products (7-bit weights)"],
         ["int8 x int8, 1 thread", f"{lim.get('s8s8_int8_gops', float('nan')):.0f} GOP/s",
-         "ORT MatMulInteger, int8 activations (the exported graphs' type)"],
+         "ORT MatMulInteger, int8 activations (only the CNODE's P @ x_norm product uses it)"],
         ["L2 read bandwidth, 1 core", f"{lim['l2_gbps']:.0f} GB/s",
          f"{lim.get('l2_probe_kib')} KiB buffer; {lim.get('bandwidth_probe')}"],
-        ["L1 read bandwidth, 1 core", f"{num(lim.get('l1_gbps'), 0)} GB/s", "same probe, half of L1d"],
+        *([["L1 read bandwidth, 1 core",
+            f"{lim['l1_gbps']:.0f} GB/s (L1 / L2 {lim['l1_gbps'] / lim['l2_gbps']:.1f}x, sane >= 1.5x)",
+            "best of sizes " + ", ".join(f"{k}: {v:.0f}" for k, v in (lim.get("bandwidth_by_size") or {}).items())
+            + ("" if lim.get("bandwidth_sane", True) else "; IMPLAUSIBLE: L1 < 1.5x L2")]]
+          if lim.get("l1_gbps") else []),
         ["ORT fixed cost per call", f"{us(lim['ort_call_us'])} us", "Identity model, one (1, W, C) window, median"],
         ["ORT cost per node", f"{lim.get('ort_node_us', 0):.2f} us",
          "256-node Add chain on (1, 64), minus the call, / 256"],
@@ -218,12 +261,16 @@ def bench_section(bench: dict, figures: str = "figures", run_root: Path | None =
     if run_root is not None:
         out += figure_links(run_root, ["bench_latency.png", "bench_throughput.png"], figures)
     below = [r for r in bench["latency"] if r["batch"] == 1 and r.get("x_floor") is not None and r["x_floor"] < 1]
-    if below:
+    if bench.get("floor_violations"):
+        out += ["**FLOORS INVALID (the bench failed):** still below the floor after re-measuring the limits: "
+                + bench["floor_violations"] + ". No floor target counts as met.", ""]
+    elif below:
         out += ["**Below the floor:** " + "; ".join(
             f"{RUNTIME_NAME.get(r['runtime'], r['runtime'])} {r['model']} {r['precision']} ({setting(r)}) at "
             f"{r['x_floor']:.2f}x" for r in below) + ". A measured time under the floor means the limits were "
             "measured low (another user of the shared machine slowed the peak or bandwidth probe) or the floor's "
             "traffic model is too pessimistic for that runtime; treat the floor as approximate here.", ""]
+    out += _speedup_section(bench) + _graphs_section(bench)
     out += _floors_section(bench) + targets_section(bench) + _limits_section(bench) + _memory_section(bench)
     out += _profiles_section(bench)
     note = bench.get("solvers_meta", {}).get("note") or bench.get("solvers_meta", {}).get("skipped")
@@ -267,7 +314,8 @@ def report_section(run_root: Path) -> list[str]:
     return bench_section(bench, "figures", root)
 
 
-def redraw_figures(run_root: Path) -> list[Path]:
-    """Redraw figures/bench_*.png from bench.json ([] when bench has not run)."""
+def redraw_figures(run_root: Path, out_root: Path | None = None) -> list[Path]:
+    """Redraw figures/bench_*.png from bench.json ([] when bench has not run) into ``out_root``
+    (default: the run folder; the report stage gives its staging folder)."""
     bench = load_bench(run_root)
-    return draw_bench_figures(bench, Path(run_root) / "figures") if bench else []
+    return draw_bench_figures(bench, Path(out_root or run_root) / "figures") if bench else []

@@ -144,7 +144,7 @@ def _private_fwref(fwref_path: str | None, tmp: Path) -> tuple[str | None, dict 
 def _measure(run: RunDir, cfg: Config, manifest: dict, test_x, fw_copy: str | None, fw_flags: dict | None,
              cpus: str, quick: bool, log: Callable[[str], None]) -> dict:
     """Limits (before and after), latency, floors, profiles and memory, each timed."""
-    from bench.floors import attach_distance, floors
+    from bench.floors import attach_distance, below_floor, floors, violation_text
     from bench.latency import measure_latency
     from bench.limits import measure_limits, merge_limits
     from bench.memory import memory_records
@@ -164,6 +164,13 @@ def _measure(run: RunDir, cfg: Config, manifest: dict, test_x, fw_copy: str | No
     timing["limits"] += time.perf_counter() - t0
     floor_list = floors(manifest["models"], int(manifest["solver"]["steps"]), limits)
     attach_distance(lat["latency"], floor_list)
+    if below_floor(lat["latency"]):  # re-measure once: a probe slowed by another user reads the machine low
+        log(f"bench: below the floor, re-measuring the limits: {violation_text(below_floor(lat['latency']))}")
+        t0 = time.perf_counter()
+        limits = merge_limits([limits, measure_limits(cpus, quick, window, channels, log=log, threads=(1,))])
+        timing["limits"] += time.perf_counter() - t0
+        floor_list = floors(manifest["models"], int(manifest["solver"]["steps"]), limits)
+        attach_distance(lat["latency"], floor_list)
     t0 = time.perf_counter()
     profiles = _profiles(run, manifest, test_x, fw_copy, fw_flags, cpus, quick, lat["latency"], cfg.bench, log)
     timing["profiles"] = time.perf_counter() - t0
@@ -176,10 +183,25 @@ def _command(run: RunDir, quick: bool, skip_cpp: bool) -> str:
     return f"quadfdi bench --run {run.root}" + (" --quick" if quick else "") + (" --skip-cpp" if skip_cpp else "")
 
 
+def graph_nodes(run: RunDir, manifest: dict) -> dict:
+    """Per exported ONNX graph: nodes as written and after ONNX Runtime's optimizer (with op counts)."""
+    import onnx
+
+    from export.ort_session import optimized_nodes
+
+    out = {}
+    for key, name in manifest["artifacts"].items():
+        path = run.export / name
+        ort_ops = optimized_nodes(path)
+        out[key] = {"file": name, "nodes": len(onnx.load(str(path)).graph.node), "ort_nodes": ort_ops.pop("total"),
+                    "ort_ops": ort_ops}
+    return out
+
+
 def _bench_dict(run: RunDir, manifest: dict, m: dict, machine: dict, fwref: tuple[str | None, str],
                 command: str, quick: bool) -> dict:
     """bench.json's content (docs/bench.md) from the measurements ``m`` of ``_measure``."""
-    from bench.floors import targets
+    from bench.floors import below_floor, targets, violation_text
     from bench.memory import mcu_records
 
     solvers, solver_meta = solver_records(run.root)
@@ -197,6 +219,8 @@ def _bench_dict(run: RunDir, manifest: dict, m: dict, machine: dict, fwref: tupl
         "latency": lat["latency"],
         "floors": m["floors"],
         "targets": targets(lat["latency"], m["floors"]),
+        "floor_violations": violation_text(below_floor(lat["latency"])),
+        "graphs": graph_nodes(run, manifest),
         "memory": m["memory"],
         "mcu": mcu_records(run.root)[1],
         "solvers": solvers,
@@ -220,6 +244,26 @@ def bench_run(run: RunDir, cfg: Config, log: Callable[[str], None] = print, *, q
     from bench.latency import check_cpus
 
     cpus = check_cpus(cpus or cfg.bench.cpus)  # before the heavy imports: a typo fails at once
+
+    from core.records import load_record
+    from core.stage import stage
+
+    with stage(run.root, "bench", {"bench": cfg.to_dict()["bench"]}, targets=("bench.json",)) as st:
+        for entry in (load_record(run.root, "export") or {"outputs": [{"path": "export/manifest.json"}]})["outputs"]:
+            st.consume(entry["path"])
+        st.consume("dataset.npz")
+        bench = _bench_into(run, cfg, RunDir(st.out), log, quick, skip_cpp, cpus, fwref, command)
+    # Published first: bench.json says which floors failed, and the report shows FLOOR INVALID.
+    if bench["floor_violations"] and cfg.bench.fail_below_floor:
+        raise QuadfdiError("bench: measured below the floor after re-measuring the limits, so the floors are not lower "
+                           f"bounds on this machine ({bench['floor_violations']}); peak "
+                           f"{bench['limits']['peak_gflops']:.1f} GFLOP/s, L2 {bench['limits']['l2_gbps']:.1f} GB/s, "
+                           f"bandwidth probe sane: {bench['limits'].get('bandwidth_sane')}; bench.json written")
+    return bench
+
+
+def _bench_into(run: RunDir, cfg: Config, dest: RunDir, log: Callable[[str], None], quick: bool, skip_cpp: bool,
+                cpus: str, fwref: str | None, command: str | None) -> dict:
     from bench.latency import find_fwref
     from bench.figures import draw_bench_figures
     from core.jsonio import to_jsonable, write_json
@@ -241,8 +285,8 @@ def bench_run(run: RunDir, cfg: Config, log: Callable[[str], None] = print, *, q
     timing["total"] = time.perf_counter() - t_start
     bench = to_jsonable(_bench_dict(run, manifest, m, machine, fwref_found, command or _command(run, quick, skip_cpp),
                                     quick))
-    write_json(bench_json_path(run), bench, indent=1)
-    figs = draw_bench_figures(bench, run.figures)
+    write_json(bench_json_path(dest), bench, indent=1)
+    figs = draw_bench_figures(bench, dest.figures)
     log(f"bench: wrote {bench_json_path(run)} and {len(figs)} figures in {timing['total']:.0f} s "
         f"(limits {timing['limits']:.0f} s, latency {timing['latency']:.0f} s, profiles {timing['profiles']:.0f} s); "
         f"`quadfdi report --run {run.root}` rewrites report.md")

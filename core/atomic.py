@@ -27,6 +27,13 @@ def ensure_dir(path: str | os.PathLike) -> Path:
     return p
 
 
+def current_umask() -> int:
+    """The process umask (read by setting and restoring it: there is no getter)."""
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
 @contextlib.contextmanager
 def atomic_path(path: str | os.PathLike, mode: str = "wb") -> Iterator:
     """Yield an open temp file beside ``path``; rename it onto ``path`` only on success."""
@@ -37,7 +44,7 @@ def atomic_path(path: str | os.PathLike, mode: str = "wb") -> Iterator:
     except OSError as exc:
         raise QuadfdiError(f"cannot write {final}: {exc.strerror}") from None
     try:
-        os.fchmod(fd, 0o644)  # mkstemp makes 0600; artifacts are meant to be shared
+        os.fchmod(fd, 0o666 & ~current_umask())  # mkstemp makes 0600; honour the user's umask instead
         with os.fdopen(fd, mode) as fh:
             yield fh
             fh.flush()

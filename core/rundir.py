@@ -8,9 +8,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-from core.atomic import ensure_dir, write_text
-from core.config import Config, dumps_toml, load_config
+from core.atomic import ensure_dir
+from core.config import Config, load_config
 from core.errors import QuadfdiError
+from core.stage import recover_run
 
 
 @dataclass(frozen=True)
@@ -45,9 +46,11 @@ class RunDir:
 
 
 def create_run(out: str | Path, cfg: Config) -> RunDir:
-    """Make the run folder and store the config used (TOML, no paths or times)."""
+    """Make the run folder (and recover it). config.toml is not written here: the sim stage
+    publishes it with the dataset, after the simulation succeeded, so a failed or killed
+    re-simulation never leaves a new config beside the old dataset."""
     run = RunDir(ensure_dir(out))
-    write_text(run.config, dumps_toml(cfg))
+    recover_run(run.root)
     return run
 
 
@@ -56,8 +59,12 @@ def open_run(path: str | Path, overrides: list[str] | tuple[str, ...] = (), need
     run = RunDir(Path(path))
     if not run.root.is_dir():
         raise QuadfdiError(f"run folder {run.root} does not exist (run `quadfdi sim --out {run.root}` first)")
-    if not run.config.is_file():
-        raise QuadfdiError(f"{run.config} is missing: {run.root} is not a quadfdi run folder")
+    recover_run(run.root)
+    if not run.config.is_file() or run.config.is_symlink():
+        raise QuadfdiError(f"{run.config} is missing or not a regular file: {run.root} is not a quadfdi run folder")
+    if not run.config.read_bytes().strip():
+        raise QuadfdiError(f"{run.config} is empty (expected the [sim] ... sections `quadfdi sim` writes): "
+                           f"re-run quadfdi sim --out {run.root}")
     for attr in need:
         p = getattr(run, attr)
         if not p.exists():

@@ -13,7 +13,7 @@ from collections import defaultdict
 
 import numpy as np
 import onnx
-from onnx import TensorProto, numpy_helper
+from onnx import TensorProto, helper, numpy_helper
 
 from export.graph import BATCH
 
@@ -38,8 +38,28 @@ FP32_REASONS = (
 )
 
 
+def _standard_only(model: onnx.ModelProto) -> onnx.ModelProto:
+    """A copy for ONNX's shape inference, which knows no contrib operator: each
+    com.microsoft.MatMulIntegerToFloat becomes MatMulInteger -> Cast(float), same output name."""
+    m = onnx.ModelProto()
+    m.CopyFrom(model)
+    nodes = []
+    for n in m.graph.node:
+        if n.op_type != "MatMulIntegerToFloat":
+            nodes.append(n)
+            continue
+        tmp = n.output[0] + ".acc"
+        nodes += [helper.make_node("MatMulInteger", list(n.input[:2]), [tmp]),
+                  helper.make_node("Cast", [tmp], list(n.output), to=TensorProto.FLOAT)]
+    del m.graph.node[:]
+    m.graph.node.extend(nodes)
+    del m.opset_import[:]
+    m.opset_import.extend([o for o in model.opset_import if o.domain in ("", "ai.onnx")])
+    return m
+
+
 def _shapes(model: onnx.ModelProto) -> dict[str, tuple[int, list]]:
-    inferred = onnx.shape_inference.infer_shapes(model, strict_mode=True)
+    inferred = onnx.shape_inference.infer_shapes(_standard_only(model), strict_mode=True)
     out: dict[str, tuple[int, list]] = {}
     for vi in list(inferred.graph.value_info) + list(inferred.graph.input) + list(inferred.graph.output):
         t = vi.type.tensor_type
@@ -61,7 +81,7 @@ def _per_window(dims: list) -> int:
 
 
 def node_macs(node: onnx.NodeProto, shapes: dict) -> int:
-    if node.op_type in ("MatMul", "MatMulInteger"):
+    if node.op_type in ("MatMul", "MatMulInteger", "MatMulIntegerToFloat", "Gemm"):
         k = shapes[node.input[0]][1][-1]
         return int(k) * _per_window(shapes[node.output[0]][1])
     if node.op_type == "GRU":
@@ -76,7 +96,7 @@ def node_precision(node: onnx.NodeProto, shapes: dict) -> str:
     first = _TYPE.get(shapes.get(node.input[0], (0, []))[0], "?") if node.input else "?"
     if node.op_type == "QuantizeLinear":
         return "fp32->int8"
-    if node.op_type == "MatMulInteger":
+    if node.op_type in ("MatMulInteger", "MatMulIntegerToFloat"):
         return "int8"
     if node.op_type == "Cast":
         return f"{first}->{_TYPE.get(next(a.i for a in node.attribute if a.name == 'to'), '?')}"

@@ -18,8 +18,10 @@ from onnx import TensorProto, helper, numpy_helper
 
 IR_VERSION = 10  # ONNX Runtime 1.2x/1.3x read <= 13; 10 is what opset 18-21 graphs need
 BATCH = "batch"  # the dynamic batch axis
+MS_DOMAIN = "com.microsoft"  # ONNX Runtime's contrib operators (MatMulIntegerToFloat), opset 1
 
 _ELEM = {np.dtype(np.float32): TensorProto.FLOAT, np.dtype(np.int8): TensorProto.INT8,
+         np.dtype(np.uint8): TensorProto.UINT8,
          np.dtype(np.int32): TensorProto.INT32, np.dtype(np.int64): TensorProto.INT64}
 
 
@@ -43,17 +45,19 @@ class Graph:
         self.inits[name] = arr
         return name
 
-    def node(self, op: str, inputs: list[str], n_out: int = 1, out: list[str] | None = None, **attrs) -> list[str]:
-        """Add one node; returns its output names (generated from the op type unless given)."""
+    def node(self, op: str, inputs: list[str], n_out: int = 1, out: list[str] | None = None,
+             domain: str = "", **attrs) -> list[str]:
+        """Add one node; returns its output names (generated from the op type unless given).
+        ``domain`` MS_DOMAIN for ONNX Runtime's contrib operators (MatMulIntegerToFloat)."""
         k = self._count.get(op, 0)
         self._count[op] = k + 1
         outs = out or [f"{op.lower()}_{k}" + (f"_{i}" if n_out > 1 else "") for i in range(n_out)]
-        self.nodes.append(helper.make_node(op, inputs, outs, name=f"{op}_{k}", **attrs))
+        self.nodes.append(helper.make_node(op, inputs, outs, name=f"{op}_{k}", domain=domain or None, **attrs))
         return outs
 
-    def op(self, op: str, *inputs: str, name: str | None = None, **attrs) -> str:
+    def op(self, op: str, *inputs: str, name: str | None = None, domain: str = "", **attrs) -> str:
         """Add a single-output node; ``name`` names its output tensor."""
-        return self.node(op, list(inputs), out=[name] if name else None, **attrs)[0]
+        return self.node(op, list(inputs), out=[name] if name else None, domain=domain, **attrs)[0]
 
     def probe(self, key: str, tensor: str, shape: list, elem: int = TensorProto.FLOAT) -> None:
         """Remember an intermediate tensor that calibration or reference.bin may read."""
@@ -63,7 +67,10 @@ class Graph:
         """The ModelProto (IR version set) and the probes recorded while building it."""
         inits = [numpy_helper.from_array(v, k) for k, v in self.inits.items()]
         g = helper.make_graph(self.nodes, self.name, inputs, outputs, inits)
-        model = helper.make_model(g, opset_imports=[helper.make_opsetid("", opset)],
+        opsets = [helper.make_opsetid("", opset)]
+        if any(n.domain == MS_DOMAIN for n in self.nodes):
+            opsets.append(helper.make_opsetid(MS_DOMAIN, 1))
+        model = helper.make_model(g, opset_imports=opsets,
                                   producer_name="quadfdi.export", doc_string=doc)
         model.ir_version = IR_VERSION
         return Built(model, dict(self.probes))
@@ -102,3 +109,8 @@ def class_outputs(n_classes: int) -> list:
     """Outputs ``logits`` and ``proba``: float32 (batch, n_classes)."""
     return [helper.make_tensor_value_info(n, TensorProto.FLOAT, [BATCH, n_classes]) for n in ("logits", "proba")]
 
+
+
+def contrib_ops(model: onnx.ModelProto) -> list[str]:
+    """Sorted op types of ``model`` outside the default ONNX domain (for the manifest)."""
+    return sorted({f"{n.domain}.{n.op_type}" for n in model.graph.node if n.domain not in ("", "ai.onnx")})

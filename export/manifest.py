@@ -27,12 +27,24 @@ ARTIFACT_KEYS = ("cnode_fp32", "cnode_int8", "gru_fp32", "gru_int8")
 MODEL_KINDS = ("cnode", "gru")
 
 INT8_SCHEME = (
-    "weights int8 symmetric per output channel (zero point 0, [-127, 127]); activations int8 symmetric "
-    "(zero point 0, saturated to [-128, 127]) with static scales: max|x|/127 over calibration windows of the "
+    "weights int8 symmetric per output channel (zero point 0; [-127, 127], or [-63, 63] (7 bits) beside uint8 "
+    "activations); activations symmetric with static scales, int8 (zero point 0) or uint8 (zero point 128, the "
+    "same integer sums) per model (quantization.encoding): max|x|/127 over calibration windows of the "
     "training split (normalised telemetry per channel, control path, latent state per RK4 stage, z1), 1/127 "
-    "for tanh outputs and the GRU hidden state; QuantizeLinear (x / s, round half to even) -> MatMulInteger "
-    "(int32) -> Cast -> Mul(s_activation) -> Mul(s_weight[out]) -> Add(bias); elementwise ops in float32"
+    "for tanh outputs and the GRU hidden state; QuantizeLinear (x / s, round half to even) -> "
+    "com.microsoft.MatMulIntegerToFloat: y = f32(acc) * f32(s_activation * s_weight[out]) + bias; "
+    "elementwise ops in float32"
 )
+
+
+def encoding_of(act: str, weight_qmax: int, model) -> dict:
+    """quantization.encoding.<model>: the activation type and zero point, the weights' range, and
+    the operators outside the ONNX domain that the int8 graph uses."""
+    from export.graph import contrib_ops
+
+    return {"activations": act, "activation_zero_point": 128 if act == "uint8" else 0,
+            "weight_bits": 7 if weight_qmax == 63 else 8, "weight_range": [-int(weight_qmax), int(weight_qmax)],
+            "contrib_ops": contrib_ops(model)}
 
 
 def artifact_names(steps: int) -> dict[str, str]:
@@ -53,9 +65,11 @@ def _io(window: int, n_channels: int) -> dict:
                         {"name": "proba", "dtype": "float32", "shape": ["batch", n_classes]}]}
 
 
-def _quantization(coverage: dict[str, dict], calib_windows: int, interp_exact: bool) -> dict:
+def _quantization(coverage: dict[str, dict], calib_windows: int, interp_exact: bool,
+                  encoding: dict | None = None) -> dict:
     return {
         "scheme": INT8_SCHEME,
+        "encoding": encoding or {},
         "calibration": {"split": "train", "windows": int(calib_windows), "method": "max |x| (MinMax)",
                         "reader": "export.calibrate.WindowReader (onnxruntime CalibrationDataReader)"},
         "cnode_interp_exact": bool(interp_exact),
@@ -69,12 +83,14 @@ def _quantization(coverage: dict[str, dict], calib_windows: int, interp_exact: b
 def build_manifest(*, ds: Any, config: dict, checkpoints: dict[str, dict], window: int, steps: int, opset: int,
                    ir_version: int, stage_times: np.ndarray, files: dict[str, bytes],
                    coverage: dict[str, dict], calib_windows: int, interp_exact: bool, verification: dict,
-                   metrics: dict, reference_index: np.ndarray, reference_labels: np.ndarray) -> dict:
+                   metrics: dict, reference_index: np.ndarray, reference_labels: np.ndarray,
+                   encoding: dict | None = None) -> dict:
     """The manifest of one export (the keys listed in this module's docstring, in that order).
 
     ``ds``: the run's ``sim.dataset.Dataset``; ``checkpoints``: "cnode"/"gru" -> checkpoint blob
     (architecture, normalisation); ``coverage``: per model {"fp32", "int8", "summary"} of
-    ``export.coverage``; ``files``: every file written beside the manifest, name -> bytes.
+    ``export.coverage``; ``files``: every file written beside the manifest, name -> bytes;
+    ``encoding``: per model ``encoding_of`` (activation type, weight bits, contrib ops).
     """
     return {
         "schema_version": SCHEMA_VERSION,
@@ -96,7 +112,7 @@ def build_manifest(*, ds: Any, config: dict, checkpoints: dict[str, dict], windo
         "files": {name: file_entry(data) for name, data in files.items()},
         "models": {k: {**checkpoints[k]["architecture"], "macs_per_window": coverage[k]["fp32"]["macs_per_window"]}
                    for k in MODEL_KINDS},
-        "quantization": _quantization(coverage, calib_windows, interp_exact),
+        "quantization": _quantization(coverage, calib_windows, interp_exact, encoding),
         "verification": verification,
         "metrics": metrics,
         "reference": {"test_index": np.asarray(reference_index).tolist(),

@@ -5,9 +5,9 @@ S = 2N + 1 stage times, K classes):
 
     x_norm = (telemetry - mean) / std                                  (B, W, C)
     U      = P @ x_norm                                                (B, S, C)   one constant matrix
-    z0     = tanh(U[:, 0:1] @ We^T + be)                               (B, 1, L)   P's row 0 is sample 0
+    z0     = tanh(U[:, 0] @ We^T + be)                                 (B, L)      P's row 0 is sample 0
     V      = U @ W1u^T + b1                                            (B, S, H)   u-part of lin1, all stages
-    f_e(z) = lin2(tanh(z @ W1z^T + V[:, idx(e)]))                      (B, 1, L)
+    f_e(z) = lin2(tanh(z @ W1z^T + V[:, idx(e)]))                      (B, L)      Gemm, Tanh, Gemm
     z1     = N classic RK4 steps of f over [0, 1] (core.rk4.rk4_step run on graph values)
     logits = z1 @ Wh^T + bh,  proba = softmax(logits)                  (B, K)
 
@@ -16,12 +16,17 @@ stage time is one constant linear map of the window, so there is no Loop, If or 
 indexing. Because f's first layer is linear in [z; u], its u-part for all S stage times is one
 (B, S, C) x (C, H) product computed before the loop; each of the 4N stages then multiplies only
 the latent state (L x H) and adds its precomputed row of V. Every weight is one initializer that
-all 4N stages share. The int8 graph has the same topology with each product on MatMulInteger
-(export/quantize.py), the RK4 combination and the state kept in float32.
+all 4N stages share. The int8 graph has the same topology with each product one
+com.microsoft.MatMulIntegerToFloat on int8 activations (export/quantize.py; the row of V a separate
+Add), the RK4 combination and the state kept in float32. Per RK4 step the combination is 9 nodes:
+three stage inputs (Mul, Add), one Sum ((k1 + 2 k2) + 2 k3) + k4, a Mul by h/6 and an Add; the
+scaling of the field outputs lives in lin2's scales (exact, see GraphValue and field_scales); when
+N is a power of two the combination is 7 nodes per step.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -29,13 +34,18 @@ import torch
 from onnx import TensorProto
 
 from core.rk4 import RK4_CONSTANT_NAMES, rk4_constants, rk4_step
-from export.graph import BATCH, Built, Graph, class_outputs, telemetry_input
-from export.quantize import (BOUND_SCALE, QWeight, act_scale, int8_linear, int8_matmul, int8_weight,
-                             quantize_channels, quantize_interp)
+from export.graph import BATCH, MS_DOMAIN, Built, Graph, class_outputs, telemetry_input
+from export.quantize import (BOUND_SCALE, UINT8, QWeight, act_scale, int8_matmul, int8_weight, quantize,
+                             quantize_channels, quantize_interp, weight_qmax)
 from train.control import interp_matrix
 from train.solvers import fixed_method, nearest_index, stage_times
 
 STAGES_PER_STEP = fixed_method("rk4").evals_per_step  # 4
+# Activation encoding of the int8 CNODE after the control path: uint8 (zero point 128) with 7-bit
+# weights, ONNX Runtime's u8 x s8 kernel. Measured on the trained paper-scale run (1188 test windows):
+# macro-F1 drop 0.17 point (int8 / 8-bit: 0.09), target 0.5; batch-96 latency halved against int8
+# activations (docs/formats.md, "Activation encoding"). x_norm and the exact P @ x_norm stay int8.
+CNODE_ACT = UINT8
 
 
 @dataclass(frozen=True)
@@ -83,25 +93,87 @@ class CnodeParams:
         return STAGES_PER_STEP * self.steps
 
 
-@dataclass(frozen=True)
-class GraphValue:
-    """A tensor of a graph under construction that core.rk4.rk4_step can compute with: ``+`` emits an
-    Add node, ``*`` by a float a Mul node whose second input is the float32 constant of that value
-    (``consts``: value -> initializer name). Evaluating rk4_step on it writes RK4_PROGRAM into the
-    graph operation by operation, in the program's order."""
+def is_pow2(x: float) -> bool:
+    """x > 0 is a power of two (multiplying by it is exact in float32, barring under/overflow)."""
+    return x > 0 and math.frexp(x)[0] == 0.5
 
-    g: Graph
-    name: str
-    consts: dict
+
+class GraphValue:
+    """A tensor of a graph under construction that core.rk4.rk4_step can compute with, so that the
+    graph is RK4_PROGRAM evaluated operation by operation, in the program's order. How a value is
+    represented may differ from the program's text, never its float32 results:
+
+    - ``scale``: the tensor holds ``scale * value`` with ``scale`` a power of two (the field's lin2
+      multiplied its scales and bias by a power of two, which is exact in float32).
+    - ``value * c``: when c is a power of two the product is exact, so the same tensor is the
+      result with scale ``scale / c`` (no node: ``k2 * two``, and ``k1 * half_h`` when N is a power
+      of two); otherwise ``Mul(tensor, c / scale)`` (``c / scale`` exact) gives
+      ``f32(scale v * c/scale) == f32(v * c)`` bit for bit, at scale 1.
+    - ``a + b`` is kept pending and chained sums become ONE ``Sum`` node when the value is used
+      (ONNX Runtime's Sum adds its inputs left to right: ``((k1 + two*k2) + two*k3) + k4`` exactly);
+      a two-term sum is an ``Add``. Terms of one common scale are added as they are (a sum of
+      values all scaled by the same power of two is that power times the sum, exactly), else each
+      is brought to scale 1 first.
+    - constants are float32 initializers (``consts``: value -> name; a constant divided by a
+      scale is added under ``<name>/<scale>``).
+    Exactness assumes no result underflows to a subnormal (|k| > 1e-37 or 0), as in any float32 run.
+    """
+
+    def __init__(self, g: Graph, consts: dict, name: str | None = None, terms: tuple = (), scale: float = 1.0):
+        self.g, self.consts, self._name, self.terms, self.scale = g, consts, name, terms, scale
+        if terms:
+            same = all(t.scale == terms[0].scale for t in terms)
+            self.scale = terms[0].scale if same else 1.0
+
+    @property
+    def name(self) -> str:
+        """The tensor (materialising a pending sum once), holding ``scale * value``."""
+        if self._name is None:
+            op = "Add" if len(self.terms) == 2 else "Sum"
+            same = all(t.scale == self.scale for t in self.terms)
+            self._name = self.g.op(op, *((t.name if same else t.unit()) for t in self.terms))
+            self.terms = ()
+        return self._name
+
+    def _const(self, value: float, label: str) -> str:
+        v32 = float(np.float32(value))
+        name = self.consts.get(v32) or self.g.const(label, np.float32(v32))
+        self.consts.setdefault(v32, name)
+        return name
+
+    def unit(self) -> str:
+        """A tensor holding the value itself (scale 1)."""
+        if self.scale == 1.0:
+            return self.name
+        return self.g.op("Mul", self.name, self._const(1.0 / self.scale, f"rk4.unscale_{self.scale:g}"))
 
     def __add__(self, other: "GraphValue") -> "GraphValue":
-        return GraphValue(self.g, self.g.op("Add", self.name, other.name), self.consts)
+        left = self.terms if self._name is None else (self,)
+        return GraphValue(self.g, self.consts, terms=left + (other,))
 
     def __mul__(self, c: float) -> "GraphValue":
-        name = self.consts.get(float(np.float32(c)))
+        c32 = float(np.float32(c))
+        name = self.consts.get(c32)
         if name is None:
             raise ValueError(f"RK4 constant {c!r} is not one of rk4_constants (h)")
-        return GraphValue(self.g, self.g.op("Mul", self.name, name), self.consts)
+        if is_pow2(c32):  # v * c is exact: the same tensor, read at scale / c
+            return GraphValue(self.g, self.consts, self.name, scale=self.scale / c32)
+        if self.scale != 1.0:
+            name = self._const(c32 / self.scale, f"{name}/{self.scale:g}")  # exact: the scale is a power of two
+        return GraphValue(self.g, self.consts, self.g.op("Mul", self.name, name))
+
+
+def field_scales(h: float) -> tuple[float, ...]:
+    """The power of two each of a step's 4 field outputs is held at (lin2's scales and bias times it).
+
+    rk4_step uses k1 as ``k1 * half_h`` and ``k1``, k2 as ``k2 * half_h`` and ``k2 * two``, k3 as
+    ``k3 * h`` and ``k3 * two``, k4 as ``k4``. When h = 1/N is a power of two, holding (half_h k1,
+    h k2, h k3, half_h k4) makes every one of these uses but ``k2 * half_h`` a free view, and the Sum
+    of (k1, 2 k2, 2 k3, k4) is held at half_h: 7 nodes per step. Otherwise (k1, 2 k2, 2 k3, k4): 9."""
+    half, full = (float(v) for v in rk4_constants(h)[:2])
+    if is_pow2(half) and is_pow2(full):
+        return (half, full, full, half)
+    return (1.0, 2.0, 2.0, 1.0)
 
 
 def rk4_stage_index(times: np.ndarray, steps: int) -> np.ndarray:
@@ -144,15 +216,20 @@ class CnodeQuant:
     s_z: np.ndarray  # (4N,) the latent state entering each stage
     s_hid: np.ndarray  # () tanh output of the field's hidden layer: bound 1/127
     s_z1: np.ndarray  # () z1 entering the head
+    act: str = CNODE_ACT  # activations after the control path: "int8" (zp 0) or "uint8" (zp 128, 7-bit weights)
 
 
-def quantize_cnode(p: CnodeParams, ranges: dict[str, np.ndarray]) -> CnodeQuant:
-    """int8 weights of ``p`` and activation scales from calibrated ``ranges`` (max |x|)."""
+def quantize_cnode(p: CnodeParams, ranges: dict[str, np.ndarray], act: str = "") -> CnodeQuant:
+    """int8 weights of ``p`` and activation scales from calibrated ``ranges`` (max |x|); ``act`` the
+    activation encoding of the products after the control path (CNODE_ACT by default)."""
+    act = act or CNODE_ACT
     pq, ps, exact = quantize_interp(interp_matrix(p.times, p.window))  # float64: exactness is decidable
     s_u = act_scale(ranges["u"])
+    qm = weight_qmax(act)
     return CnodeQuant(
-        encoder=QWeight.folded(p.encoder_w, s_u), lin1_z=QWeight.of(p.lin1_wz), lin1_u=QWeight.folded(p.lin1_wu, s_u),
-        lin2=QWeight.of(p.lin2_w), head=QWeight.of(p.head_w), interp_q=pq, interp_scale=ps, interp_exact=exact,
+        encoder=QWeight.folded(p.encoder_w, s_u, qm), lin1_z=QWeight.of(p.lin1_wz, qm),
+        lin1_u=QWeight.folded(p.lin1_wu, s_u, qm), act=act,
+        lin2=QWeight.of(p.lin2_w, qm), head=QWeight.of(p.head_w, qm), interp_q=pq, interp_scale=ps, interp_exact=exact,
         s_x=act_scale(ranges["x_norm"]), s_u=s_u,
         s_z=act_scale(np.array([ranges[f"stage{e}"] for e in range(p.n_stages)])),
         s_hid=np.asarray(BOUND_SCALE), s_z1=act_scale(ranges["z1"]),
@@ -166,54 +243,96 @@ def calibration_probes(p: CnodeParams) -> dict[str, str]:
     return out
 
 
+def _control_path(g: Graph, p: CnodeParams, q: CnodeQuant | None, xn: str, row0: str) -> tuple[str, str, str]:
+    """u = P @ x_norm (B, S, C), z0 = tanh(E u[:, 0] + b) (B, L) and V = u W1u^T + b1 (B, S, H): the
+    part of the CNODE computed once per window, fp32 or int8."""
+    C = p.n_channels
+    if q is None:
+        u = g.op("MatMul", g.const("interp", p.interp), xn, name="u")  # (B, S, C)
+        u0 = g.op("Gather", u, row0, axis=1)  # (B, C) = x_norm[:, 0]: P's row 0 is sample 0
+        z0 = g.op("Tanh", g.op("Gemm", u0, g.const("encoder.weight", p.encoder_w), g.const("encoder.bias", p.encoder_b),
+                               transB=1), name="z0")
+        v = g.op("Add", g.op("MatMul", u, g.const("lin1_u.weight_t", p.lin1_wu.T)), g.const("lin1.bias", p.lin1_b))
+    else:
+        # x_norm per channel -> int8; u[s, c] = f32(acc) * f32(s_P[s] * s_x[c]) (exact P when D <= 127):
+        # one MatMulIntegerToFloat when s_P is one number (A = P_q, B = xq, per-column scale s_x).
+        xq = quantize_channels(g, xn, g.const("act.x_norm.scale", q.s_x), C)
+        pq = g.const("interp.q", q.interp_q, np.int8)
+        if np.all(q.interp_scale == q.interp_scale[0]):
+            u = g.op("MatMulIntegerToFloat", pq, xq, g.const("interp.scale", q.interp_scale[0]),
+                     "act.x_norm.scale", domain=MS_DOMAIN, name="u")
+        else:
+            mult = (q.interp_scale[:, None] * q.s_x[None, :]).astype(np.float32)  # f32(s_P[s] * s_x[c])
+            acc = g.op("MatMulInteger", pq, xq)  # (B, S, C) int32
+            u = g.op("Mul", g.op("Cast", acc, to=TensorProto.FLOAT), g.const("interp.multiplier", mult), name="u")
+        # U per channel -> int8, shared by the encoder and lin1_u (their weights carry s_u, folded)
+        uq = quantize_channels(g, u, g.const("act.u.scale", q.s_u), C, q.act)
+        enc_wq, enc_s = int8_weight(g, "encoder", q.encoder)
+        z0 = g.op("Tanh", int8_matmul(g, g.op("Gather", uq, row0, axis=1), None, enc_wq, enc_s,
+                                      g.const("encoder.bias", p.encoder_b), q.act), name="z0")
+        w1u, s_w1u = int8_weight(g, "lin1_u", q.lin1_u)
+        v = int8_matmul(g, uq, None, w1u, s_w1u, g.const("lin1.bias", p.lin1_b), q.act)
+    return u, z0, v
+
+
+def _head(g: Graph, p: CnodeParams, q: CnodeQuant | None, z: str) -> None:
+    """logits = head(z1), fp32 Gemm or one int8 product."""
+    if q is None:
+        g.op("Gemm", z, g.const("head.weight", p.head_w), g.const("head.bias", p.head_b), transB=1, name="logits")
+    else:
+        wh, s_wh = int8_weight(g, "head", q.head)
+        s_z1 = g.const("act.z1.scale", q.s_z1)
+        int8_matmul(g, quantize(g, z, s_z1, q.act), s_z1, wh, s_wh, g.const("head.bias", p.head_b), q.act,
+                    name="logits")
+
+
 def build_cnode(p: CnodeParams, opset: int, q: CnodeQuant | None = None) -> Built:
-    """The fp32 graph (``q`` None) or the int8 graph of ``p`` with N = p.steps RK4 steps."""
-    W, C, L, K, S = p.window, p.n_channels, p.latent, p.n_classes, len(p.times)
+    """The fp32 graph (``q`` None) or the int8 graph of ``p`` with N = p.steps RK4 steps.
+
+    Batch-first 2-D tensors from the control path on: the state is (B, L), each stage's row of V
+    (B, H) comes out of one Reshape and one Split, so that every fp32 product is a Gemm with its
+    bias or row of V folded in, and every int8 product one MatMulIntegerToFloat."""
+    W, C, L, K, S, H = p.window, p.n_channels, p.latent, p.n_classes, len(p.times), p.hidden
     g = Graph(f"cnode_rk4_{p.steps}" + ("_int8" if q else ""))
     xn = g.op("Div", g.op("Sub", "telemetry", g.const("norm.mean", p.mean)), g.const("norm.std", p.std), name="x_norm")
     g.probe("x_norm", xn, [BATCH, W, C])
-    first = [g.const("slice.start0", [0], np.int64), g.const("slice.end1", [1], np.int64),
-             g.const("axis1", [1], np.int64)]
+    row0 = g.const("gather.row0", np.int64(0), np.int64)
+    v_shape = g.const("reshape.v", [0, S * H], np.int64)
 
-    if q is None:
-        u = g.op("MatMul", g.const("interp", p.interp), xn, name="u")  # (B, S, C)
-        u0 = g.op("Slice", u, *first)  # (B, 1, C) = x_norm[:, 0:1]: P's row 0 is sample 0
-        z0 = g.op("Tanh", g.op("Add", g.op("MatMul", u0, g.const("encoder.weight_t", p.encoder_w.T)),
-                                g.const("encoder.bias", p.encoder_b)), name="z0")
-        v = g.op("Add", g.op("MatMul", u, g.const("lin1_u.weight_t", p.lin1_wu.T)), g.const("lin1.bias", p.lin1_b))
-    else:
-        # x_norm per channel -> int8; U = (float(Pq @ xq) * s_P[s]) * s_x[c]  (exact P when D <= 127)
-        xq = quantize_channels(g, xn, g.const("act.x_norm.scale", q.s_x), C)
-        acc = g.op("MatMulInteger", g.const("interp.q", q.interp_q, np.int8), xq)  # (B, S, C) int32
-        u = g.op("Cast", acc, to=TensorProto.FLOAT)
-        u = g.op("Mul", u, g.const("interp.scale", q.interp_scale[:, None]))
-        u = g.op("Mul", u, "act.x_norm.scale", name="u")
-        # U per channel -> int8, shared by the encoder and lin1_u (their weights carry s_u, folded)
-        uq = quantize_channels(g, u, g.const("act.u.scale", q.s_u), C)
-        enc_wq, enc_s = int8_weight(g, "encoder", q.encoder)
-        z0 = g.op("Tanh", int8_matmul(g, g.op("Slice", uq, *first), None, enc_wq, enc_s,
-                                      g.const("encoder.bias", p.encoder_b)), name="z0")
-        w1u, s_w1u = int8_weight(g, "lin1_u", q.lin1_u)
-        v = int8_matmul(g, uq, None, w1u, s_w1u, g.const("lin1.bias", p.lin1_b))
+    u, z0, v = _control_path(g, p, q, xn, row0)
     g.probe("u", u, [BATCH, S, C])
-    g.probe("z0", z0, [BATCH, 1, L])
-    # One Split gives the S rows of V as (B, 1, H) tensors; the state stays (B, 1, L) throughout.
-    v_rows = g.node("Split", [v, g.const("split.ones", np.ones(S, np.int64), np.int64)], n_out=S, axis=1)
+    g.probe("z0", z0, [BATCH, L])
+    # (B, S, H) -> (B, S*H) -> S rows (B, H): one Reshape and one Split for the whole integration.
+    v_rows = g.node("Split", [g.op("Reshape", v, v_shape), g.const("split.rows", np.full(S, H, np.int64), np.int64)],
+                    n_out=S, axis=1)
+    if q is not None:
+        w1z, s_w1z = int8_weight(g, "lin1_z", q.lin1_z)
+        w2, s_w2 = int8_weight(g, "lin2", q.lin2)
+        s_hid = g.const("act.hidden.scale", q.s_hid)
+    scales = field_scales(1.0 / p.steps)
 
     stage = [0]
 
-    def f(z: str, row: int) -> str:
+    def f(z: str, row: int) -> tuple[str, float]:
         e = stage[0]
         stage[0] += 1
-        g.probe(f"stage{e}", z, [BATCH, 1, L])
+        scale = scales[e % STAGES_PER_STEP]
+        g.probe(f"stage{e}", z, [BATCH, L])
         if q is None:
-            a = g.op("Add", g.op("MatMul", z, g.const("lin1_z.weight_t", p.lin1_wz.T)), v_rows[row])
+            a = g.op("Gemm", z, g.const("lin1_z.weight", p.lin1_wz), v_rows[row], transB=1)
             hid = g.op("Tanh", a)
-            k = g.op("MatMul", hid, g.const("lin2.weight_t", p.lin2_w.T))
-            return g.op("Add", k, g.const("lin2.bias", p.lin2_b))
-        a = int8_linear(g, z, g.const(f"act.stage{e}.scale", q.s_z[e]), "lin1_z", q.lin1_z, v_rows[row])
-        hid = g.op("Tanh", a)
-        return int8_linear(g, hid, g.const("act.hidden.scale", q.s_hid), "lin2", q.lin2, g.const("lin2.bias", p.lin2_b))
+            b2 = g.const("lin2.bias", p.lin2_b) if scale == 1.0 else g.const(f"lin2.bias_x{scale:g}",
+                                                                              p.lin2_b * np.float32(scale))
+            return g.op("Gemm", hid, g.const("lin2.weight", p.lin2_w), b2, transB=1, alpha=scale), scale
+        s_z = g.const(f"act.stage{e}.scale", q.s_z[e])
+        a = g.op("Add", int8_matmul(g, quantize(g, z, s_z, q.act), s_z, w1z, s_w1z, None, q.act), v_rows[row])
+        hid_q = quantize(g, g.op("Tanh", a), s_hid, q.act)
+        if scale == 1.0:
+            return int8_matmul(g, hid_q, s_hid, w2, s_w2, g.const("lin2.bias", p.lin2_b), q.act), scale
+        # f32(acc) * f32(s_hid * (c s_w)) + c b == c (f32(acc) * f32(s_hid * s_w) + b) for a power of two c
+        s_w2c = g.const(f"lin2.weight_scale_x{scale:g}", q.lin2.scale * np.float32(scale))
+        b2c = g.const(f"lin2.bias_x{scale:g}", p.lin2_b * np.float32(scale))
+        return int8_matmul(g, hid_q, s_hid, w2, s_w2c, b2c, q.act), scale
 
     # core.rk4.rk4_step evaluated on graph values: the graph is RK4_PROGRAM by construction, with
     # its float32 constants as initializers named after RK4_CONSTANT_NAMES.
@@ -225,20 +344,18 @@ def build_cnode(p: CnodeParams, opset: int, q: CnodeQuant | None = None) -> Buil
         row = next(rows)
         if abs(p.times[row] - t) > 1e-9:  # stage_index must follow rk4_step's calls
             raise ValueError(f"stage_index row {row} is time {p.times[row]}, rk4_step evaluates at {t}")
-        return GraphValue(g, f(z.name, row), consts)
+        k, scale = f(z.unit(), row)
+        return GraphValue(g, consts, k, scale=scale)
 
-    z = GraphValue(g, z0, consts)
+    z = GraphValue(g, consts, z0)
     for k in range(p.steps):
         z = rk4_step(field, k * h, z, h)
-    z = z.name
-    g.probe("z1", z, [BATCH, 1, L])
+    z = z.unit()
+    g.probe("z1", z, [BATCH, L])
 
-    if q is None:
-        out = g.op("Add", g.op("MatMul", z, g.const("head.weight_t", p.head_w.T)), g.const("head.bias", p.head_b))
-    else:
-        out = int8_linear(g, z, g.const("act.z1.scale", q.s_z1), "head", q.head, g.const("head.bias", p.head_b))
-    logits = g.op("Squeeze", out, "axis1", name="logits")
-    g.op("Softmax", logits, name="proba", axis=-1)
+    _head(g, p, q, z)
+    g.op("Softmax", "logits", name="proba", axis=-1)
     doc = (f"quadfdi CNODE, classic RK4 unrolled over N={p.steps} steps, "
-           f"{'int8 (MatMulInteger, static scales)' if q else 'fp32'}; input raw telemetry (batch, {W}, {C})")
+           f"{'int8 (int8 activations, MatMulIntegerToFloat, static scales)' if q else 'fp32'}; "
+           f"input raw telemetry (batch, {W}, {C})")
     return g.finish([telemetry_input(W, C)], class_outputs(K), opset, doc)

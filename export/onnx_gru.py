@@ -9,14 +9,15 @@ ONNX orders the gates z, r, h where PyTorch orders them r, z, n: the rows are pe
 int8: ONNX Runtime has no quantized GRU operator (a ``GRU`` node stays fp32 whatever a quantizer
 is told), so the int8 graph unrolls the W = 80 steps into operators that quantize:
 
-    GX = int8(x_norm) @ W_ih^T (one MatMulInteger for all steps) + b_ih        (B, W, 3H)
+    GX = int8(x_norm) @ W_ih^T + b_ih (one MatMulIntegerToFloat for all steps)  (B, W, 3H)
          (x_norm quantized per channel, the channel scales folded into W_ih)
-    step t:  gh = int8(h) @ W_hh^T (MatMulInteger, W_hh stored once) + b_hh     (B, 1, 3H)
-             r = sigmoid(gx_r + gh_r),  z = sigmoid(gx_z + gh_z)
+    step t:  gh = int8(h) @ W_hh^T + b_hh (MatMulIntegerToFloat, W_hh stored once) (B, 1, 3H)
+             [r, z] = sigmoid(gx_rz + gh_rz)   (one Add, one Sigmoid over 2H, one Split)
              n = tanh(gx_n + r * gh_n),  h' = (h - n) * z + n     (PyTorch's GRU cell, in that order)
 
-h starts at 0 and is a convex combination of tanh outputs, so |h| < 1: its scale is the bound
-1/127, no calibration needed; only x_norm's scales are calibrated.
+Activations are uint8 with zero point 128 and 7-bit weights (GRU_ACT; the integer sums equal the
+int8 ones, see export/quantize.py). h starts at 0 and is a convex combination of tanh outputs, so
+|h| < 1: its scale is the bound 1/127, no calibration needed; only x_norm's scales are calibrated.
 """
 
 from __future__ import annotations
@@ -27,8 +28,12 @@ import numpy as np
 import torch
 
 from export.graph import BATCH, Built, Graph, class_outputs, telemetry_input
-from export.quantize import (BOUND_SCALE, QWeight, act_scale, int8_linear, int8_matmul, int8_weight, quantize,
-                             quantize_channels)
+from export.quantize import (BOUND_SCALE, UINT8, QWeight, act_scale, int8_linear, int8_matmul, int8_weight, quantize,
+                             quantize_channels, weight_qmax)
+
+# Activation encoding of the int8 GRU: uint8 (zero point 128) with 7-bit weights takes ONNX Runtime's
+# u8 x s8 kernel; measured on the trained paper-scale GRU (docs/formats.md, "int8 arithmetic").
+GRU_ACT = UINT8
 
 
 @dataclass(frozen=True)
@@ -75,12 +80,14 @@ class GruQuant:
     head: QWeight
     s_x: np.ndarray  # (C,) x_norm per channel, calibrated, folded into w_ih
     s_h: np.ndarray  # () the hidden state, bound 1/127
+    act: str = GRU_ACT  # activation encoding: "uint8" (zp 128, 7-bit weights) or "int8" (zp 0)
 
 
-def quantize_gru(p: GruParams, ranges: dict[str, np.ndarray]) -> GruQuant:
+def quantize_gru(p: GruParams, ranges: dict[str, np.ndarray], act: str = GRU_ACT) -> GruQuant:
     s_x = act_scale(ranges["x_norm"])
-    return GruQuant(w_ih=QWeight.folded(p.w_ih, s_x), w_hh=QWeight.of(p.w_hh), head=QWeight.of(p.head_w),
-                    s_x=s_x, s_h=np.asarray(BOUND_SCALE))
+    qmax = weight_qmax(act)
+    return GruQuant(w_ih=QWeight.folded(p.w_ih, s_x, qmax), w_hh=QWeight.of(p.w_hh, qmax),
+                    head=QWeight.of(p.head_w, qmax), s_x=s_x, s_h=np.asarray(BOUND_SCALE), act=act)
 
 
 CALIBRATION_PROBES = {"x_norm": "channel"}
@@ -120,34 +127,42 @@ def build_gru_fp32(p: GruParams, opset: int, linear_before_reset: int = 1) -> Bu
 
 
 def build_gru_int8(p: GruParams, q: GruQuant, opset: int) -> Built:
-    """int8 graph: the recurrence unrolled over the window, every product on MatMulInteger."""
+    """int8 graph: the recurrence unrolled over the window, every product one MatMulIntegerToFloat.
+
+    One step is 12 nodes: QuantizeLinear(h), MatMulIntegerToFloat (+ b_hh), Split(gh -> rz | n),
+    Add and Sigmoid over the r and z gates together, Split(r | z), Mul, Add, Tanh, Sub, Mul, Add."""
     W, C, H, K = p.window, p.n_channels, p.hidden, p.n_classes
     g = Graph("gru_int8")
     xn = _normalise(g, p)
-    # x_norm per channel -> int8; its scales are folded into W_ih, so one Mul rescales the sum
-    xq = quantize_channels(g, xn, g.const("act.x_norm.scale", q.s_x), C)
-    wih, s_wih = int8_weight(g, "gru.ih", q.w_ih)
-    gx = int8_matmul(g, xq, None, wih, s_wih, g.const("gru.bias_ih", p.b_ih))
-    thirds = g.const("split.gates", [H, H, H], np.int64)
+    # x_norm per channel -> int8, time-major (W, B, C) so that each step's slice is contiguous; its
+    # scales are folded into W_ih (pattern B, s_a = 1). Two products (rows r,z and rows n) give the
+    # gates' input parts without a gate Split.
+    xq = quantize_channels(g, g.op("Transpose", xn, perm=[1, 0, 2]), g.const("act.x_norm.scale", q.s_x), C, q.act)
+    rz_n = g.const("split.rz_n", [2 * H, H], np.int64)
+    r_z = g.const("split.r_z", [H, H], np.int64)
     ones = g.const("split.steps", np.ones(W, np.int64), np.int64)
-    gx_r, gx_z, gx_n = g.node("Split", [gx, thirds], n_out=3, axis=2)  # (B, W, H) each
-    # Each gate's input part, one (B, 1, H) tensor per step: three Split nodes for the whole window.
-    xr, xz, xnn = (g.node("Split", [t, ones], n_out=W, axis=1) for t in (gx_r, gx_z, gx_n))
+    wih_rz, wih_n = (g.const(f"gru.ih_{k}.weight_q", np.ascontiguousarray(q.w_ih.q[sl].T), np.int8)
+                     for k, sl in (("rz", slice(0, 2 * H)), ("n", slice(2 * H, 3 * H))))
+    gx_rz = int8_matmul(g, xq, None, wih_rz, g.const("gru.ih_rz.weight_scale", q.w_ih.scale[:2 * H]),
+                        g.const("gru.bias_ih_rz", p.b_ih[:2 * H]), q.act)  # (W, B, 2H)
+    gx_n = int8_matmul(g, xq, None, wih_n, g.const("gru.ih_n.weight_scale", q.w_ih.scale[2 * H:]),
+                       g.const("gru.bias_ih_n", p.b_ih[2 * H:]), q.act)  # (W, B, H)
+    # Each step's input part: two Split nodes for the whole window, (1, B, 2H) and (1, B, H) per step.
+    x_rz, x_n = (g.node("Split", [t, ones], n_out=W, axis=0) for t in (gx_rz, gx_n))
     s_h = g.const("act.h.scale", q.s_h)
     whh, s_whh = int8_weight(g, "gru.hh", q.w_hh)
     b_hh = g.const("gru.bias_hh", p.b_hh)
-    h = g.const("gru.h0", np.zeros((1, 1, H), np.float32))  # broadcasts against (B, 1, H)
+    h = g.const("gru.h0", np.zeros((1, 1, H), np.float32))  # broadcasts against (1, B, H)
     for t in range(W):
-        gh = int8_matmul(g, quantize(g, h, s_h), s_h, whh, s_whh, b_hh)
-        hr, hz, hn = g.node("Split", [gh, thirds], n_out=3, axis=2)
-        r = g.op("Sigmoid", g.op("Add", xr[t], hr))
-        z = g.op("Sigmoid", g.op("Add", xz[t], hz))
-        n = g.op("Tanh", g.op("Add", xnn[t], g.op("Mul", hn, r)))
+        gh = int8_matmul(g, quantize(g, h, s_h, q.act), s_h, whh, s_whh, b_hh, q.act)
+        gh_rz, gh_n = g.node("Split", [gh, rz_n], n_out=2, axis=2)
+        r, z = g.node("Split", [g.op("Sigmoid", g.op("Add", x_rz[t], gh_rz)), r_z], n_out=2, axis=2)
+        n = g.op("Tanh", g.op("Add", x_n[t], g.op("Mul", gh_n, r)))
         h = g.op("Add", g.op("Mul", g.op("Sub", h, n), z), n, name=f"h{t}")
-        g.probe(f"h{t}", h, [BATCH, 1, H])
-    out = int8_linear(g, h, s_h, "head", q.head, g.const("head.bias", p.head_b))
-    g.op("Squeeze", out, g.const("axis1", [1], np.int64), name="logits")
+        g.probe(f"h{t}", h, [1, BATCH, H])
+    out = int8_linear(g, h, s_h, "head", q.head, g.const("head.bias", p.head_b), q.act)
+    g.op("Squeeze", out, g.const("axis0", [0], np.int64), name="logits")
     g.op("Softmax", "logits", name="proba", axis=-1)
-    doc = (f"quadfdi GRU (hidden {H}), int8 (MatMulInteger, static scales), unrolled over {W} steps; "
-           f"raw telemetry (batch, {W}, {C})")
+    doc = (f"quadfdi GRU (hidden {H}), int8 ({q.act} activations, MatMulIntegerToFloat, static scales), "
+           f"unrolled over {W} steps; raw telemetry (batch, {W}, {C})")
     return g.finish([telemetry_input(W, C)], class_outputs(K), opset, doc)

@@ -35,3 +35,25 @@ def session(model: bytes | str | Path, threads: int = THREADS, *, spinning: bool
         opts.profile_file_prefix = profile_prefix
     source = str(model) if isinstance(model, Path) else model
     return ort.InferenceSession(source, opts, providers=["CPUExecutionProvider"])
+
+
+def optimized_nodes(model: bytes | str | Path) -> dict[str, int]:
+    """Node count of ``model`` after ONNX Runtime's graph optimizer (the default level, ORT_ENABLE_ALL,
+    on the CPU provider): the session writes its optimized graph (``optimized_model_filepath``) and
+    the nodes of that file are counted, in total and per op type (``"total"`` key)."""
+    import tempfile
+    from collections import Counter
+
+    import onnx
+
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "optimized.onnx"
+        opts = ort.SessionOptions()
+        opts.log_severity_level = 3
+        opts.intra_op_num_threads = 1
+        opts.optimized_model_filepath = str(out)
+        source = str(model) if isinstance(model, Path) else model
+        ort.InferenceSession(source, opts, providers=["CPUExecutionProvider"])
+        nodes = onnx.load(str(out), load_external_data=False).graph.node
+    counts = Counter(n.op_type for n in nodes)
+    return {"total": len(nodes), **dict(sorted(counts.items()))}

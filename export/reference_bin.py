@@ -80,9 +80,10 @@ def cnode_fp32_tensors(model: torch.nn.Module, x: np.ndarray) -> dict[str, np.nd
 def cnode_int8_tensors(built: Built, p: CnodeParams, x: np.ndarray) -> dict[str, np.ndarray]:
     keys = ["x_norm", "u", "z0", "z1"] + [f"stage{e}" for e in range(p.n_stages)]
     r = _run_probes(built, keys, x)
-    return {"x_norm": r["x_norm"], "u": r["u"], "z0": r["z0"][:, 0],
-            "stages": np.stack([r[f"stage{e}"][:, 0] for e in range(p.n_stages)], axis=1),
-            "z1": r["z1"][:, 0], "logits": r["logits"], "proba": r["proba"]}
+    flat = lambda a: a.reshape(a.shape[0], -1)  # noqa: E731  (B, L) whether the probe is (B, L) or (B, 1, L)
+    return {"x_norm": r["x_norm"], "u": r["u"], "z0": flat(r["z0"]),
+            "stages": np.stack([flat(r[f"stage{e}"]) for e in range(p.n_stages)], axis=1),
+            "z1": flat(r["z1"]), "logits": r["logits"], "proba": r["proba"]}
 
 
 def gru_fp32_tensors(model: torch.nn.Module, x: np.ndarray) -> dict[str, np.ndarray]:
@@ -99,7 +100,8 @@ def gru_fp32_tensors(model: torch.nn.Module, x: np.ndarray) -> dict[str, np.ndar
 def gru_int8_tensors(built: Built, p: GruParams, x: np.ndarray) -> dict[str, np.ndarray]:
     keys = ["x_norm"] + [f"h{t}" for t in range(p.window)]
     r = _run_probes(built, keys, x)
-    return {"x_norm": r["x_norm"], "h": np.stack([r[f"h{t}"][:, 0] for t in range(p.window)], axis=1),
+    flat = lambda a: a.reshape(-1, a.shape[-1])  # noqa: E731  (B, H) from (B, 1, H) or (1, B, H)
+    return {"x_norm": r["x_norm"], "h": np.stack([flat(r[f"h{t}"]) for t in range(p.window)], axis=1),
             "logits": r["logits"], "proba": r["proba"]}
 
 

@@ -1,8 +1,8 @@
 """The export stage: checkpoints + dataset of a run -> runs/<name>/export/.
 
 Everything is built and verified in memory first; only when the fp32 graphs match PyTorch are
-the files written (each atomically), manifest.json last, so a failed export never leaves a
-manifest that describes files it did not check.
+the files staged, and they are published as one unit with the stage record (core.stage), so a
+failed, killed or overlapping export never leaves a manifest beside files it does not describe.
 """
 
 from __future__ import annotations
@@ -19,10 +19,12 @@ from core.atomic import ensure_dir, write_bytes
 from core.config import Config
 from core.errors import QuadfdiError
 from core.rundir import RunDir
+from core.stage import stage
 from export.calibrate import WindowReader, collect_ranges, select_windows
 from export.coverage import compare, coverage, fp32_constants, markdown
 from export.graph import IR_VERSION, Built
-from export.manifest import MODEL_KINDS, artifact_names, build_manifest, write_manifest
+from export.manifest import MODEL_KINDS, artifact_names, build_manifest, encoding_of, write_manifest
+from export.quantize import weight_qmax
 from export.onnx_cnode import CnodeParams, CnodeQuant, build_cnode, calibration_probes, cnode_params, quantize_cnode
 from export.onnx_gru import (CALIBRATION_PROBES, GruParams, GruQuant, build_gru_fp32, build_gru_int8, gru_params,
                              quantize_gru)
@@ -110,7 +112,19 @@ def coverage_of(graphs: Graphs, log: Callable[[str], None]) -> dict[str, dict]:
 
 
 def export_run(run: RunDir, cfg: Config, log: Callable[[str], None] = print) -> dict:
-    """Build, calibrate, verify and write every export artifact of ``run``; return the manifest."""
+    """Build, calibrate, verify and publish every export artifact of ``run`` as one stage
+    (core.stage: staged, then moved into export/ with the stage record); return the manifest.
+    Files of an earlier export the new one does not have (another --steps) are removed."""
+    sections = cfg.to_dict()
+    with stage(run.root, "export", {"sim": sections["sim"], "export": sections["export"]},
+               targets=("export/manifest.json", "export/weights.bin", "export/reference.bin")) as st:
+        st.consume("dataset.npz", ("sim",))
+        for kind in MODEL_KINDS:
+            st.consume(f"{kind}.pt", ("sim",))
+        return _export_into(run, cfg, RunDir(st.out), log)
+
+
+def _export_into(run: RunDir, cfg: Config, dest: RunDir, log: Callable[[str], None]) -> dict:
     t0 = time.perf_counter()
     ecfg = cfg.export
     steps, opset = ecfg.steps, ecfg.opset
@@ -144,12 +158,14 @@ def export_run(run: RunDir, cfg: Config, log: Callable[[str], None] = print) -> 
         ds=ds, config=cfg.to_dict(), checkpoints={"cnode": cblob, "gru": gblob}, window=int(cnode.window),
         steps=steps, opset=opset, ir_version=IR_VERSION, stage_times=cp.times, files=files, coverage=cov,
         calib_windows=len(calib_idx), interp_exact=cq.interp_exact, verification=verification,
-        metrics=metrics, reference_index=ref_idx, reference_labels=test_w.y[ref_idx])
-    out = ensure_dir(run.export)
+        metrics=metrics, reference_index=ref_idx, reference_labels=test_w.y[ref_idx],
+        encoding={"cnode": encoding_of(cq.act, weight_qmax(cq.act), graphs.cnode_int8.model),
+                  "gru": encoding_of(gq.act, weight_qmax(gq.act), graphs.gru_int8.model)})
+    out = ensure_dir(dest.export)
     for name, data in files.items():
         write_bytes(out / name, data)
     write_manifest(out / "manifest.json", manifest)
-    log(f"export: wrote {len(files) + 1} files into {out} in {time.perf_counter() - t0:.1f} s")
+    log(f"export: wrote {len(files) + 1} files into {run.export} in {time.perf_counter() - t0:.1f} s")
     return manifest
 
 

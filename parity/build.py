@@ -86,12 +86,12 @@ def _cache_line(cache: str, key: str) -> str:
 
 
 def build_host(build_dir: Path = HOST_BUILD, sanitize: bool = False, log: Callable[[str], None] = print) -> Path:
-    """Build fwref_infer, fwref_parity and fwref_contracts (Release; with ``sanitize`` ASan + UBSan, assertions on)."""
+    """Build fwref_infer, fwref_parity, fwref_contracts and fwref_kernels (Release; with ``sanitize`` ASan + UBSan, assertions on)."""
     require("c++", "it compiles firmware_ref")
     options = {"CMAKE_BUILD_TYPE": "Debug" if sanitize else "Release", "FWREF_SANITIZE": "ON" if sanitize else "OFF"}
     with locked(build_dir):
         _configure_and_build(FW_ROOT, build_dir, options, f"firmware_ref ({'sanitizer' if sanitize else 'host'})")
-    for name in ("fwref_infer", "fwref_parity", "fwref_contracts"):
+    for name in ("fwref_infer", "fwref_parity", "fwref_contracts", "fwref_kernels"):
         if not (build_dir / name).is_file():
             raise QuadfdiError(f"the firmware_ref build did not produce {build_dir / name}")
     log(f"parity: firmware_ref built in {build_dir}{' (ASan + UBSan)' if sanitize else ''}")
@@ -112,6 +112,9 @@ def build_mcu(cpu: str, weights: Path, reference: Path, build_dir: Path | None =
     options = {"CMAKE_TOOLCHAIN_FILE": str(FW_ROOT / "mcu" / "toolchain-arm-none-eabi.cmake"), "FWREF_CPU": cpu,
                "FWREF_WEIGHTS": str(Path(weights).resolve()), "FWREF_REFERENCE": str(Path(reference).resolve()),
                "Python3_EXECUTABLE": sys.executable}
+    manifest = Path(weights).resolve().parent / "manifest.json"
+    # the generator checks weights.bin and reference.bin against the export's manifest; "" = no check
+    options["FWREF_MANIFEST"] = str(manifest) if manifest.is_file() else ""
     _configure_and_build(FW_ROOT / "mcu", build_dir, options, f"the {cpu} images")
     log(f"parity: {cpu} images built in {build_dir}")
     return build_dir

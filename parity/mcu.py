@@ -25,6 +25,9 @@ from core.errors import QuadfdiError
 QEMU_TIMEOUT_S = 600
 VARIANTS = ("cnode_f32", "cnode_i8", "gru_f32", "gru_i8")
 VARIANT_KEY = {"cnode_f32": "cnode_fp32", "cnode_i8": "cnode_int8", "gru_f32": "gru_fp32", "gru_i8": "gru_int8"}
+# Clocks of typical parts (STM32F4 Cortex-M4F at 168 MHz, STM32F7 Cortex-M7 at 216 MHz) for the
+# latency estimates: QEMU counts instructions, not cycles, so an estimate is instructions / clock.
+CLOCK_MHZ = {"cortex-m4": 168.0, "cortex-m7": 216.0}
 TARGETS = {"cnode_int8": {"flash_bytes": 64 * 1024, "static_ram_bytes": 16 * 1024}}
 FLASH_SECTIONS = (".isr_vector", ".text", ".ARM.exidx", ".init_array", ".data")  # .data's initial values live in flash
 RAM_SECTIONS = (".data", ".bss")
@@ -146,6 +149,10 @@ def run_cpu(cpu: str, weights: Path, reference: Path, log: Callable[[str], None]
             "stack_peak_bytes": max(perf["stack_bytes"]) if perf["stack_bytes"] else None,
             "instructions_per_inference": int(statistics.median(ins)) if ins else None,
             "instructions_min": min(ins) if ins else None, "instructions_max": max(ins) if ins else None,
+            "clock_mhz_assumed": CLOCK_MHZ.get(cpu),
+            "cycles_estimate": int(statistics.median(ins)) if ins else None,
+            "latency_estimate_us": round(statistics.median(ins) / CLOCK_MHZ[cpu], 1) if ins and cpu in CLOCK_MHZ
+            else None,
             "image": images[v],
         }
     failed = [t for t in harness["tensors"] if not t["ok"]]
@@ -199,5 +206,11 @@ def mcu_run(weights: Path, reference: Path, cpus: tuple[str, ...] = tuple(MCU_CP
                      "library_bytes": "bytes linked from the model library cnode.cpp/gru.cpp/status.cpp (map file)",
                      "stack_peak_bytes": "peak stack of one inference call (stack painting under QEMU)",
                      "instructions_per_inference": "median over the reference windows; SysTick under -icount "
-                                                   "shift=0, calibrated against a loop of known length"},
+                                                   "shift=0, calibrated against a loop of known length",
+                     "cycles_estimate": "ESTIMATE, not a measurement: QEMU counts instructions, not cycles; this is "
+                                        "instructions_per_inference at one cycle per instruction (not modelled: "
+                                        "flash wait states, VDIV.F32's 14 cycles, the M4's 2-cycle loads, the M7's "
+                                        "dual issue)",
+                     "latency_estimate_us": "ESTIMATE: cycles_estimate / clock_mhz_assumed (Cortex-M4 at 168 MHz, "
+                                            "Cortex-M7 at 216 MHz)"},
             "cpus": results, "problems": problems, "passed": not problems}

@@ -27,6 +27,7 @@ from core.atomic import ensure_dir, write_text
 from core.config import Config
 from core.errors import QuadfdiError
 from core.npzio import write_npz
+from core.stage import stage
 from core.rundir import RunDir
 from sim.dataset import load_dataset, make_windows
 from core.jsonio import write_json
@@ -50,7 +51,8 @@ def fwref_parity(build_dir: Path, weights: Path, reference: Path) -> dict:
             "passed": res.returncode == 0, "output": lines}
 
 
-def host_parity(run: RunDir, manifest: dict, build_dir: Path, log: Callable[[str], None]) -> tuple[dict, dict]:
+def host_parity(run: RunDir, manifest: dict, build_dir: Path, log: Callable[[str], None],
+                out_dir: Path) -> tuple[dict, dict]:
     """Logits of every runtime on the test split and the pair metrics; (models, timing). The logits
     are also written to parity/logits.npz (keys <model>_<runtime>, plus the labels ``y``)."""
     export = run.export
@@ -79,7 +81,7 @@ def host_parity(run: RunDir, manifest: dict, build_dir: Path, log: Callable[[str
         log(f"parity: {model}: {len(x)} windows through C++ ({timing[f'{model}_cpp']:.1f} s), ONNX Runtime "
             f"({timing[f'{model}_ort']:.1f} s) and PyTorch ({timing[f'{model}_torch']:.1f} s)")
 
-    write_npz(parity_dir(run) / "logits.npz",
+    write_npz(out_dir / "logits.npz",
               {"y": test.y, **{f"{m}_{k}": v for m, lg in logits.items() for k, v in lg.items()}})
     models = {}
     for model, lg in logits.items():
@@ -106,16 +108,44 @@ def parity_run(run: RunDir, cfg: Config, log: Callable[[str], None] = print, *, 
     ``mcu``: the Cortex-M part (cross-build, QEMU); skipped with a note in the report when the cross
     toolchain or QEMU is missing and ``host`` is true, an error when only the Cortex-M part was asked for.
     """
-    del cfg  # the run's export fixed everything parity needs (N, scales, files)
+    sections = cfg.to_dict()  # the run's export fixed everything else parity needs (N, scales, files)
+    with stage(run.root, "parity", {"sim": sections["sim"]}, targets=("parity/parity.json", "parity/parity.md")) as st:
+        _consume_inputs(run, st)
+        out_dir = ensure_dir(st.out / "parity")
+        if not host:
+            st.carry_previous()
+            report, problem = _mcu_only(parity_dir(run), out_dir, run.export / "weights.bin",
+                                        run.export / "reference.bin", log)
+        else:
+            report = _parity_host(run, out_dir, log, mcu, build_dir, command)
+            problem = ("parity target missed: " + "; ".join(report["problems"])
+                       + f" (report: {parity_dir(run) / 'parity.md'})") if report["problems"] else None
+    if problem:  # the report is published first: it is the evidence of what was missed
+        raise QuadfdiError(problem)
+    return report
+
+
+def _consume_inputs(run: RunDir, st) -> None:
+    """Every file of the published export (manifest, graphs, weights.bin, reference.bin), the
+    dataset and the checkpoints, each checked against its stage record (also for --mcu, so that
+    its record has the inputs of the host report it carries forward)."""
+    from core.records import load_record
+
+    st.consume("export/manifest.json")
+    for entry in (load_record(run.root, "export") or {}).get("outputs", []):
+        st.consume(entry["path"])
+    for rel in ("dataset.npz", "cnode.pt", "gru.pt"):
+        st.consume(rel, ("sim",))
+
+
+def _parity_host(run: RunDir, out_dir: Path, log: Callable[[str], None], mcu: bool, build_dir: Path,
+                 command: str | None) -> dict:
     t_start = time.perf_counter()
     export = run.export
     manifest = load_manifest(export / "manifest.json")
     check_files(manifest, export)
     weights, reference = export / "weights.bin", export / "reference.bin"
-    out_dir = ensure_dir(parity_dir(run))
     command = command or "quadfdi parity --run " + shlex.quote(str(run.root))
-    if not host:
-        return _mcu_only(out_dir, weights, reference, log)
 
     timing: dict[str, float] = {}
     t0 = time.perf_counter()
@@ -123,7 +153,7 @@ def parity_run(run: RunDir, cfg: Config, log: Callable[[str], None] = print, *, 
     timing["build"] = time.perf_counter() - t0
     fp = fwref_parity(build_dir, weights, reference)
     log(f"parity: fwref_parity on reference.bin: {'OK' if fp['passed'] else 'NOT OK'} (exit {fp['exit_code']})")
-    models, t_host = host_parity(run, manifest, build_dir, log)
+    models, t_host = host_parity(run, manifest, build_dir, log, out_dir)
     timing.update(t_host)
     mcu_report = _mcu_part(mcu, weights, reference, out_dir, timing, log)
     timing["total"] = time.perf_counter() - t_start
@@ -153,10 +183,8 @@ def parity_run(run: RunDir, cfg: Config, log: Callable[[str], None] = print, *, 
     }
     _write_json(out_dir / "parity.json", report)
     write_text(out_dir / "parity.md", markdown({**report, "mcu": mcu_report}))
-    log(f"parity: wrote {out_dir / 'parity.json'}, parity.md" + (", mcu.json" if "cpus" in mcu_report else "")
+    log(f"parity: wrote parity.json, parity.md" + (", mcu.json" if "cpus" in mcu_report else "")
         + f" in {timing['total']:.1f} s")
-    if problems:
-        raise QuadfdiError("parity target missed: " + "; ".join(problems) + f" (report: {out_dir / 'parity.md'})")
     return report
 
 
@@ -175,8 +203,10 @@ def _mcu_part(mcu: bool, weights: Path, reference: Path, out_dir: Path, timing: 
     return report
 
 
-def _mcu_only(out_dir: Path, weights: Path, reference: Path, log: Callable[[str], None]) -> dict:
-    """``quadfdi parity --mcu``: mcu.json, and parity.json/parity.md updated when a host report exists."""
+def _mcu_only(old_dir: Path, out_dir: Path, weights: Path, reference: Path,
+              log: Callable[[str], None]) -> tuple[dict, str | None]:
+    """``quadfdi parity --mcu``: mcu.json, and parity.json/parity.md updated when a host report exists
+    (read from the published ``old_dir``, written to the staging ``out_dir``); (report, problem)."""
     missing = mcu_mod.tools_missing()
     if missing:
         raise QuadfdiError(f"cannot run the Cortex-M part: {missing}")
@@ -184,7 +214,7 @@ def _mcu_only(out_dir: Path, weights: Path, reference: Path, log: Callable[[str]
     mcu_report = mcu_mod.mcu_run(weights, reference, log=log)
     mcu_report["timing_s"] = time.perf_counter() - t0
     _write_json(out_dir / "mcu.json", mcu_report)
-    report_path = out_dir / "parity.json"
+    report_path = old_dir / "parity.json"
     if report_path.is_file():
         report = json.loads(report_path.read_text())
         if report.get("schema_version") == SCHEMA_VERSION:
@@ -192,12 +222,11 @@ def _mcu_only(out_dir: Path, weights: Path, reference: Path, log: Callable[[str]
             report["problems"] = [p for p in report.get("problems", []) if not p.startswith("cortex-")]
             report["problems"] += mcu_report["problems"]
             report["passed"] = not report["problems"]
-            _write_json(report_path, report)
+            _write_json(out_dir / "parity.json", report)
             write_text(out_dir / "parity.md", markdown({**report, "mcu": mcu_report}))
-    log(f"parity: wrote {out_dir / 'mcu.json'} in {mcu_report['timing_s']:.1f} s")
-    if mcu_report["problems"]:
-        raise QuadfdiError("Cortex-M target missed: " + "; ".join(mcu_report["problems"]))
-    return {"mcu": mcu_report}
+    log(f"parity: wrote {old_dir / 'mcu.json'} in {mcu_report['timing_s']:.1f} s")
+    problem = "Cortex-M target missed: " + "; ".join(mcu_report["problems"]) if mcu_report["problems"] else None
+    return {"mcu": mcu_report}, problem
 
 
 def _mcu_summary(mcu_report: dict) -> dict:

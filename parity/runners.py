@@ -33,6 +33,9 @@ def cpp_logits(build_dir: Path, weights: Path, model: str, int8: bool, x: np.nda
         src, dst = Path(tmp) / "windows.f32", Path(tmp) / "logits.f32"
         np.ascontiguousarray(x, dtype="<f4").tofile(src)
         cmd = [str(exe), "--weights", str(weights), "--model", model, "--in", str(src), "--out", str(dst)]
+        manifest = Path(weights).parent / "manifest.json"
+        if manifest.is_file():  # the C++ side checks weights.bin against the manifest's sha256 itself
+            cmd += ["--manifest", str(manifest)]
         if int8:
             cmd.append("--int8")
         res = subprocess.run(cmd, capture_output=True, text=True, timeout=CPP_TIMEOUT_S)
@@ -51,6 +54,9 @@ def ort_logits(onnx_path: Path, x: np.ndarray) -> np.ndarray:
         sess = session(Path(onnx_path).read_bytes())
     except OSError as exc:
         raise QuadfdiError(f"cannot read {onnx_path}: {exc.strerror}") from None
+    except Exception as exc:  # onnxruntime's own exception types: a truncated or foreign graph
+        first = (str(exc).splitlines() or [type(exc).__name__])[0]
+        raise QuadfdiError(f"{onnx_path} is not a loadable ONNX graph (truncated or foreign file?): {first}") from None
     out = [sess.run(["logits"], {"telemetry": x[i:i + 1]})[0][0] for i in range(len(x))]
     return np.stack(out).astype(np.float32) if out else np.zeros((0, 0), np.float32)
 

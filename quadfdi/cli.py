@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import signal
 import sys
 
 from core.errors import QuadfdiError
@@ -24,6 +25,7 @@ STAGES = {
     "ingest": "ingest.cli",
     "realism": "realism.cli",
     "report": "quadfdi.report",
+    "check": "quadfdi.check",
     "readme": "quadfdi.readme",
     "run": "quadfdi.pipeline",
     "sweep": "quadfdi.sweep",
@@ -46,18 +48,46 @@ def build_parser(argv: list[str]) -> argparse.ArgumentParser:
     return parser
 
 
+class Terminated(BaseException):
+    """SIGTERM as an exception, so that a stage's staging folder is removed on the way out."""
+
+
+def _on_sigterm(signum, frame):  # noqa: ARG001
+    raise Terminated()
+
+
+def _one_line(exc: BaseException) -> str:
+    text = " ".join(str(exc).split())
+    return text or type(exc).__name__
+
+
 def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     parser = build_parser(argv)
     args = parser.parse_args(argv)
+    signal.signal(signal.SIGTERM, _on_sigterm)
+    # A file-size limit (ulimit -f) then fails the write with EFBIG, reported below, instead of
+    # killing the process with SIGXFSZ in the middle of a file.
+    signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
     try:
         return int(args.func(args) or 0)
     except QuadfdiError as exc:
-        print(f"quadfdi {args.stage}: error: {exc}", file=sys.stderr)
+        print(f"quadfdi {args.stage}: error: {_one_line(exc)}", file=sys.stderr)
+        return 2
+    except OSError as exc:  # full disk, file-size limit, permissions: the file and the reason
+        where = f"{exc.filename}: " if exc.filename else ""
+        print(f"quadfdi {args.stage}: error: {where}{exc.strerror or _one_line(exc)}",
+              file=sys.stderr)
+        return 2
+    except MemoryError:
+        print(f"quadfdi {args.stage}: error: out of memory; lower the sizes in the config", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print(f"quadfdi {args.stage}: interrupted", file=sys.stderr)
         return 130
+    except Terminated:
+        print(f"quadfdi {args.stage}: terminated (SIGTERM)", file=sys.stderr)
+        return 143
 
 
 if __name__ == "__main__":

@@ -14,6 +14,7 @@ from typing import Callable
 from core.cliargs import add_config_args
 from core.config import Config, load_config
 from core.rundir import RunDir, create_run
+from core.runlock import run_lock
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -31,13 +32,9 @@ def _sim(run: RunDir, cfg: Config) -> None:
 
 
 def _plots(run: RunDir, cfg: Config) -> None:
-    from sim.cli import default_plot_rows
-    from sim.dataset import load_dataset
-    from sim.plot import plot_trajectory
+    from sim.cli import plots_into
 
-    ds = load_dataset(run.dataset)
-    for row in default_plot_rows(ds):
-        plot_trajectory(ds, row, run.figures / f"sim_traj{row}.png")
+    plots_into(run, cfg)
 
 
 def _train(run: RunDir, cfg: Config) -> None:
@@ -96,6 +93,7 @@ def run_stages(run: RunDir, cfg: Config, stages=STAGES, log: Callable[[str], Non
 def run_all(args: argparse.Namespace) -> int:
     cfg = load_config(args.config, args.overrides)
     run = create_run(args.out, cfg)
-    run_stages(run, cfg)
+    with run_lock(run.root):  # one writer for the whole pipeline; each stage re-enters the lock
+        run_stages(run, cfg)
     print(f"report: {run.root / 'report.md'}")
     return 0

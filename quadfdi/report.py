@@ -59,10 +59,13 @@ def run_report_markdown(run_root: str | Path) -> str:
 
 def write_run_report(run_root: str | Path, log: Callable[[str], None] | None = None) -> Path:
     """Write ``runs/<name>/report.md`` (atomically) from the run folder's files; return its path."""
+    from core.stage import stage
+
     root = Path(run_root)
     text = run_report_markdown(root)
     path = root / "report.md"
-    write_text(path, text)
+    with stage(root, "report", {}, targets=("report.md",)) as st:  # published like every stage's output
+        write_text(st.path("report.md"), text)
     if log:
         log(f"wrote {path}")
     return path
@@ -81,7 +84,12 @@ def run_report(args: argparse.Namespace) -> int:
     root = Path(args.run)
     if not root.is_dir():
         raise QuadfdiError(f"run folder {root} does not exist")
-    for f in redraw_figures(root):
-        print(f"wrote {f}")
+    if (root / ".stages" / "bench.json").is_file():  # the figures are bench's outputs: republished as bench's
+        from core.stage import stage
+
+        with stage(root, "bench", {}) as st:
+            st.redo_previous(("bench.json",))
+            for f in redraw_figures(root, st.out):
+                print(f"wrote {root / f.relative_to(st.out)}")
     write_run_report(root, log=print)
     return 0

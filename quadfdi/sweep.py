@@ -23,7 +23,7 @@ from core.config import Config, load_config
 from core.errors import QuadfdiError
 from core.executor import ExecSettings, Job, JobResult, add_executor_args, run_jobs, session
 from core.jobcache import cache_path, job_key
-from core.jsonio import read_json, write_json
+from core.jsonio import read_json
 from core.rundir import RunDir, create_run
 
 # The packages whose source a stage runs (hashed into a point's key; core always is).
@@ -121,7 +121,7 @@ def _run_stages(stages: tuple[str, ...], run: RunDir, cfg: Config, cache_root: P
     shards the sweep's first step cached in ``cache_root``. Their printout goes to the point's
     log.txt: on workers it would interleave in the sweep's terminal."""
     from quadfdi.pipeline import STAGES
-    from sim.shards import generate_sharded
+    from sim.publish import generate_sharded
 
     funcs = dict(STAGES)
     with open(run.root / "log.txt", "w") as fh, contextlib.redirect_stdout(fh):

@@ -68,7 +68,7 @@ def sim_jobs(cfg: Config, root: Path, n_traj: int) -> list[Job]:
 def study_jobs(cfg: Config, root: Path) -> list[Job]:
     """The seed x model jobs of the study on the bench's paper-scale dataset (made once, cached)."""
     from core.rundir import RunDir, create_run
-    from sim.shards import generate_sharded
+    from sim.publish import generate_sharded
     from train.study_jobs import seed_model_jobs
 
     data = RunDir(Path(root).parent / "data")

@@ -37,14 +37,17 @@ def parse_masses(items: list[str]) -> dict[str, float]:
 
 def run(args: argparse.Namespace) -> int:
     from core.rundir import open_run
+    from core.stage import stage
     from realism.compare import compare
     from realism.report import write
 
     run_dir, _ = open_run(args.run, need=("dataset",))
-    res = compare(run_dir.dataset, args.logs, parse_masses(args.mass))
     command = "quadfdi realism " + shlex.join(sys.argv[2:] if sys.argv[1:2] == ["realism"] else ["--run", args.run, "--logs", *args.logs])
-    for path in write(res, run_dir.root / "realism", command):
-        print(f"wrote {path}")
+    with stage(run_dir.root, "realism", {}, targets=("realism/realism.json",)) as st:  # published as one unit
+        res = compare(st.consume("dataset.npz"), args.logs, parse_masses(args.mass))
+        written = write(res, st.out / "realism", command)
+    for path in written:
+        print(f"wrote {run_dir.root / path.relative_to(st.out)}")
     none = [r["log"] for r in res["real"] if not r["segments"]]
     if none:
         print(f"no qualifying steady segment: {', '.join(none)}")

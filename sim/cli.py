@@ -34,13 +34,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     pb.set_defaults(func=run_bench)
 
 
-def generate_into(run: RunDir, cfg: Config, show_progress: bool = True, settings: ExecSettings = SERIAL) -> Path:
-    """Simulate ``cfg.sim`` in shards of ``sim.chunk`` trajectories on ``settings``' executor and write
-    ``run.dataset`` (atomically); finished shards stay cached in ``<run>/cache/sim/``, so an
-    interrupted run resumes. Return the dataset's path."""
-    from sim.shards import generate_sharded
+def generate_into(run: RunDir, cfg: Config, show_progress: bool = True, settings: ExecSettings = SERIAL,
+                  cache_root: Path | None = None) -> Path:
+    """``sim.publish.publish_dataset``: simulate and publish dataset.npz with config.toml."""
+    from sim.publish import publish_dataset
 
-    return generate_sharded(run, cfg, settings, progress=show_progress)
+    return publish_dataset(run, cfg, show_progress, settings, cache_root)
 
 
 def run_generate(args: argparse.Namespace) -> int:
@@ -72,20 +71,48 @@ def run_plot(args: argparse.Namespace) -> int:
     from sim.dataset import load_dataset
     from sim.plot import plot_trajectory
 
-    run, _ = open_run(args.run, need=("dataset",))
-    ds = load_dataset(run.dataset)
-    rows = args.traj or default_plot_rows(ds)
+    run, cfg = open_run(args.run, need=("dataset",))
+    if args.out is not None:  # a file outside the run's published state
+        from core.stage import check_target
+
+        if Path(args.out).resolve() == run.dataset.resolve():
+            raise QuadfdiError(f"--out {args.out} is the input dataset: refusing to write over it")
+        check_target(Path(args.out))
+        ds = load_dataset(run.dataset)
+        rows = _plot_rows(ds, args.traj)
+        if len(rows) > 1:
+            raise QuadfdiError("--out names one file: give exactly one --traj with it")
+        plot_trajectory(ds, rows[0], Path(args.out))
+        print(f"wrote {args.out}")
+        return 0
+    for out in plots_into(run, cfg, args.traj):
+        print(f"wrote {out}")
+    return 0
+
+
+def _plot_rows(ds, traj: list[int] | None) -> list[int]:
+    rows = traj or default_plot_rows(ds)
     n = ds["telemetry"].shape[0]
     for row in rows:
         if not 0 <= row < n:
             raise QuadfdiError(f"--traj {row} is out of range: the dataset holds trajectories 0..{n - 1}")
-    if args.out is not None and len(rows) > 1:
-        raise QuadfdiError("--out names one file: give exactly one --traj with it")
-    for row in rows:
-        out = Path(args.out) if args.out else run.figures / f"sim_traj{row}.png"
-        plot_trajectory(ds, row, out)
-        print(f"wrote {out}")
-    return 0
+    return rows
+
+
+def plots_into(run: RunDir, cfg: Config, traj: list[int] | None = None) -> list[Path]:
+    """Draw trajectories of the published dataset as the ``plots`` stage (figures/sim_traj<i>.png);
+    the figures of an earlier ``sim plot`` of the same dataset are kept."""
+    from core.stage import stage
+    from sim.dataset import load_dataset
+    from sim.plot import plot_trajectory
+
+    with stage(run.root, "plots", {"sim": cfg.to_dict()["sim"]}) as st:
+        ds = load_dataset(st.consume("dataset.npz", ("sim",)))
+        rows = _plot_rows(ds, traj)
+        st.carry_previous()
+        for row in rows:
+            plot_trajectory(ds, row, st.path(f"figures/sim_traj{row}.png"))
+    return [run.figures / f"sim_traj{row}.png" for row in rows]
 
 
 def run_bench(args: argparse.Namespace) -> int:

@@ -64,12 +64,10 @@ def join_shards(paths: list[Path]) -> dict[str, np.ndarray]:
     return out
 
 
-def generate_sharded(run: RunDir, cfg: Config, settings: ExecSettings = SERIAL, progress: bool = True,
-                     cache_root: Path | None = None) -> Path:
-    """Simulate ``cfg.sim`` shard by shard on ``settings``' executor; write ``run.dataset``.
+def simulate_sharded(run: RunDir, cfg: Config, settings: ExecSettings = SERIAL, progress: bool = True,
+                     cache_root: Path | None = None) -> dict[str, np.ndarray]:
+    """Simulate ``cfg.sim`` shard by shard on ``settings``' executor; the joined arrays (generate()'s).
     ``cache_root``: where the shards are kept (default: the run folder)."""
-    from sim.dataset import dataset_arrays, write_npz
-
     cfg.sim.validate()
     jobs = shard_jobs(run, cfg, cache_root)
     results = run_jobs(jobs, settings, desc="sim shards", progress=progress)
@@ -78,5 +76,4 @@ def generate_sharded(run: RunDir, cfg: Config, settings: ExecSettings = SERIAL, 
         first = bad[0]
         raise QuadfdiError(f"{len(bad)} of {len(jobs)} shards failed ({first.job.label}: {first.error}); "
                            "the others are cached: run the same command again to resume")
-    write_npz(run.dataset, dataset_arrays(join_shards([j.out for j in jobs]), cfg))
-    return run.dataset
+    return join_shards([j.out for j in jobs])

@@ -30,6 +30,7 @@ from core.errors import QuadfdiError
 from core.jsonio import write_json
 from core.rundir import RunDir
 from solverstudy.files import SolverFiles
+from core.stage import stage
 from train.threads import torch_threads
 from solverstudy.matching import matched_tables
 from solverstudy.report import study_headline, matrix_markdown, ott_sentence, read_outputs, study_markdown
@@ -73,24 +74,28 @@ def study_run(run: RunDir, cfg: Config, log: Log = print, checkpoint: str | Path
     from solverstudy.study import run_study
     from train.checkpoint import load_checkpoint
 
-    ckpt = Path(checkpoint) if checkpoint else run.checkpoint("cnode")
-    model, blob = load_checkpoint(ckpt, "cnode")
-    _, test = _test_windows(run, cfg, blob)
-    with torch_threads(cfg.solvers.threads):
-        study = run_study(model, test.x, test.y, cfg.solvers, log=log)
-    study["meta"].update(checkpoint=str(ckpt), trained_with=_trained_with(blob),
-                         command=command or f"quadfdi solvers study --run {run.root}")
+    sections = cfg.to_dict()
+    with stage(run.root, "solvers", {"sim": sections["sim"], "solvers": sections["solvers"]},
+               targets=("solvers/solvers.json",)) as st:
+        st.consume("dataset.npz", ("sim",))
+        if checkpoint is None:
+            st.consume("cnode.pt", ("sim",))
+        ckpt = Path(checkpoint) if checkpoint else run.checkpoint("cnode")
+        model, blob = load_checkpoint(ckpt, "cnode")
+        _, test = _test_windows(run, cfg, blob)
+        with torch_threads(cfg.solvers.threads):
+            study = run_study(model, test.x, test.y, cfg.solvers, log=log)
+        study["meta"].update(checkpoint=str(ckpt), trained_with=_trained_with(blob),
+                             command=command or f"quadfdi solvers study --run {run.root}")
+        staged = SolverFiles(st.out)
+        write_json(staged.study_json, study, indent=2)
+        figs = [run.root / staged.rel(f) for f in draw_study(study, staged.figures)]
+        write_text(staged.study_md, study_markdown(study, study["meta"]["command"]))
     files = SolverFiles(run.root)
-    _write(files.study_json, files.study_md, study, study_markdown, draw_study(study, files.figures), log)
     log(study_headline(study))
+    log(f"wrote {files.study_json}, {files.study_md} and {', '.join(str(f) for f in figs)} "
+        f"in {study['meta']['seconds']:.0f} s")
     return study
-
-
-def _write(json_path: Path, md_path: Path, result: dict, markdown: Callable, figs: list, log: Log) -> None:
-    """A study's JSON and markdown (its figures are drawn already), and one line saying so."""
-    write_json(json_path, result, indent=2)
-    write_text(md_path, markdown(result, result["meta"]["command"]))
-    log(f"wrote {json_path}, {md_path} and {', '.join(str(f) for f in figs)} in {result['meta']['seconds']:.0f} s")
 
 
 def _sha256(path: Path) -> str:
@@ -131,16 +136,28 @@ def matrix_run(run: RunDir, cfg: Config, log: Log = print, reuse: bool = False, 
     With ``settings`` (a ``core.executor.ExecSettings``), the matrix runs as jobs on that executor
     (``solverstudy.jobs``: one per model, reference and cell), cached in ``<run>/cache/matrix-*/``."""
     from sim.dataset import load_dataset
-    from solverstudy.matrix import matrix_plan, run_matrix
-    from solverstudy.plots import draw_matrix
-    from train.checkpoint import save_checkpoint
+    from solverstudy.matrix import matrix_plan
 
     specs, deploys = matrix_plan(cfg)
     if not run.dataset.is_file():
         raise QuadfdiError(f"{run.dataset} is missing: run `quadfdi sim --out {run.root}` first")
-    if settings is not None:
-        return _matrix_on_executor(run, cfg, specs, deploys, settings, log, command)
-    ds = load_dataset(run.dataset)
+    sections = cfg.to_dict()
+    with stage(run.root, "solver-matrix", {k: sections[k] for k in ("sim", "train", "solvers")},
+               targets=("solvers/solver_matrix.json",)) as st:
+        ds = load_dataset(st.consume("dataset.npz", ("sim",)))
+        if settings is not None:
+            return _matrix_on_executor(run, cfg, SolverFiles(st.out), specs, deploys, settings, log, command)
+        if reuse:
+            st.carry_previous()  # the models not retrained stay published
+        return _matrix_into(run, cfg, ds, SolverFiles(st.out), specs, deploys, log, reuse, command)
+
+
+def _matrix_into(run: RunDir, cfg: Config, ds, staged: SolverFiles, specs, deploys, log: Log, reuse: bool,
+                 command: str | None) -> dict:
+    from solverstudy.matrix import run_matrix
+    from solverstudy.plots import draw_matrix
+    from train.checkpoint import save_checkpoint
+
     files = SolverFiles(run.root)
     fingerprint = _fingerprint(run, cfg)
     models = _reused(files, specs, fingerprint, log) if reuse else {}
@@ -148,7 +165,7 @@ def matrix_run(run: RunDir, cfg: Config, log: Log = print, reuse: bool = False, 
 
     def save(spec, model, info) -> None:
         info["fingerprint"] = fingerprint
-        save_checkpoint(files.matrix_models / f"{_slug(spec.label)}.pt", model, cfg.to_dict(), ds.channel_names,
+        save_checkpoint(staged.matrix_models / f"{_slug(spec.label)}.pt", model, cfg.to_dict(), ds.channel_names,
                         extra={"matrix_info": info})
 
     t0 = time.perf_counter()
@@ -156,8 +173,12 @@ def matrix_run(run: RunDir, cfg: Config, log: Log = print, reuse: bool = False, 
         matrix = run_matrix(ds, cfg, specs, deploys, models=models, on_trained=save, log=log)
     matrix["meta"].update(command=command or f"quadfdi solvers matrix --run {run.root}", reused=reused,
                           seconds=time.perf_counter() - t0)
-    _write(files.matrix_json, files.matrix_md, matrix, matrix_markdown, draw_matrix(matrix, files.figures), log)
+    write_json(staged.matrix_json, matrix, indent=2)
+    figs = [run.root / staged.rel(f) for f in draw_matrix(matrix, staged.figures)]
+    write_text(staged.matrix_md, matrix_markdown(matrix, matrix["meta"]["command"]))
     log(ott_sentence(matrix))
+    log(f"wrote {files.matrix_json}, {files.matrix_md} and {', '.join(str(f) for f in figs)} "
+        f"in {matrix['meta']['seconds']:.0f} s")
     return matrix
 
 
@@ -170,12 +191,13 @@ def _fingerprint(run: RunDir, cfg: Config) -> dict:
             **{k: getattr(cfg.train, k) for k in ("seed", "lr", "batch_size", "latent", "hidden", "log_eps")}}
 
 
-def _matrix_on_executor(run: RunDir, cfg: Config, specs, deploys, settings, log: Log, command: str | None) -> dict:
+def _matrix_on_executor(run: RunDir, cfg: Config, files: SolverFiles, specs, deploys, settings, log: Log,
+                        command: str | None) -> dict:
+    """The matrix as jobs on ``settings``' executor; ``files``: the stage's staging folder."""
     from solverstudy.jobs import matrix_jobs_run
     from solverstudy.plots import draw_matrix
     from train.checkpoint import load_checkpoint, save_checkpoint
 
-    files = SolverFiles(run.root)
     matrix, models = matrix_jobs_run(run, cfg, specs, deploys, settings, log)
     fingerprint = _fingerprint(run, cfg)
     for info in matrix["train"]:
@@ -185,7 +207,10 @@ def _matrix_on_executor(run: RunDir, cfg: Config, specs, deploys, settings, log:
         save_checkpoint(files.matrix_models / f"{_slug(label)}.pt", model, blob["config"], blob["channel_names"],
                         extra={"matrix_info": {**blob["matrix_info"], "fingerprint": fingerprint}})
     matrix["meta"]["command"] = command or f"quadfdi solvers matrix --run {run.root}"
-    _write(files.matrix_json, files.matrix_md, matrix, matrix_markdown, draw_matrix(matrix, files.figures), log)
+    write_json(files.matrix_json, matrix, indent=2)
+    figs = draw_matrix(matrix, files.figures)
+    write_text(files.matrix_md, matrix_markdown(matrix, matrix["meta"]["command"]))
+    log(f"wrote {files.matrix_json.name}, {files.matrix_md.name} and {len(figs)} figures")
     log(ott_sentence(matrix))
     return matrix
 
@@ -201,17 +226,22 @@ def render(run_root: str | Path, cfg: Config, log: Log = print) -> list[Path]:
         raise QuadfdiError(f"{files.dir} holds neither solvers.json nor solver_matrix.json: "
                            "run `quadfdi solvers study` or `quadfdi solvers matrix` first")
     written: list[Path] = []
-    if study is not None:
-        sc = cfg.solvers
-        study.update(matched_tables(study["solvers"], sc.f1_tol, sc.f1_two_sided))
-        study["meta"].update(f1_tol=float(sc.f1_tol), f1_two_sided=bool(sc.f1_two_sided))
-        write_json(files.study_json, study, indent=2)
-        written += draw_study(study, files.figures)
-        write_text(files.study_md, study_markdown(study, study["meta"].get("command")))
+    if study is not None:  # republished as the stage that made the files (core.stage redo)
+        with stage(files.root, "solvers", {}) as st:
+            st.redo_previous((files.rel(files.study_json),))
+            staged, sc = SolverFiles(st.out), cfg.solvers
+            study.update(matched_tables(study["solvers"], sc.f1_tol, sc.f1_two_sided))
+            study["meta"].update(f1_tol=float(sc.f1_tol), f1_two_sided=bool(sc.f1_two_sided))
+            write_json(staged.study_json, study, indent=2)
+            written += [files.root / staged.rel(f) for f in draw_study(study, staged.figures)]
+            write_text(staged.study_md, study_markdown(study, study["meta"].get("command")))
         written += [files.study_json, files.study_md]
     if matrix is not None:
-        written += draw_matrix(matrix, files.figures)
-        write_text(files.matrix_md, matrix_markdown(matrix, matrix["meta"].get("command")))
+        with stage(files.root, "solver-matrix", {}) as st:
+            st.redo_previous((files.rel(files.matrix_json),))
+            staged = SolverFiles(st.out)
+            written += [files.root / staged.rel(f) for f in draw_matrix(matrix, staged.figures)]
+            write_text(staged.matrix_md, matrix_markdown(matrix, matrix["meta"].get("command")))
         written.append(files.matrix_md)
     log("wrote " + ", ".join(str(w) for w in written))
     return written

@@ -24,21 +24,38 @@ def quadfdi(*args: str, check: bool = False, cwd: Path = ROOT, timeout: float = 
                           cwd=cwd, env=env, check=check, timeout=timeout)
 
 
-def copy_run(src: Path, dst: Path, names: tuple[str, ...] = ("config.toml", "dataset.npz")) -> Path:
-    """A new run folder ``dst`` holding copies of ``names`` from the run folder ``src``."""
+def copy_run(src: Path, dst: Path,
+             names: tuple[str, ...] = ("config.toml", "dataset.npz", ".stages/sim.json")) -> Path:
+    """A new run folder ``dst`` holding copies of ``names`` from the run folder ``src`` (by default
+    its published sim stage: the dataset, the config and the stage record that vouches for them)."""
     dst.mkdir(parents=True, exist_ok=True)
     for name in names:
+        (dst / name).parent.mkdir(parents=True, exist_ok=True)
         shutil.copy(src / name, dst / name)
     return dst
 
 
+def publish_checkpoints(run: Path, models: dict, channel_names: list[str], config: dict | None = None) -> None:
+    """Publish ``models`` ({kind: model}) as the run's train stage (core.stage), as ``quadfdi train``
+    would: the export and parity stages read only published checkpoints."""
+    from core.config import load_config
+    from core.stage import stage
+    from train.checkpoint import save_checkpoint
+
+    sim = load_config(run / "config.toml").to_dict()["sim"]
+    with stage(run, "train", {"sim": sim}) as st:
+        st.consume("dataset.npz", ("sim",))
+        for kind, model in models.items():
+            save_checkpoint(st.path(f"{kind}.pt"), model, config or {}, channel_names)
+
+
 def random_weight_run(src: Path, out: Path, kinds: tuple[str, ...] = ("cnode", "gru"), config: dict | None = None) -> Path:
     """A copy of the run ``src`` with random-weight (untrained, seed 0) checkpoints, normalised on its
-    training split: what export, bench and the solver study need, without the cost of training."""
+    training split and published as its train stage: what export, bench and the solver study need,
+    without the cost of training."""
     import torch
 
     from sim.dataset import load_dataset
-    from train.checkpoint import save_checkpoint
     from train.data import fit_normalisation
     from train.models import CNODE, GRUClassifier
 
@@ -46,10 +63,22 @@ def random_weight_run(src: Path, out: Path, kinds: tuple[str, ...] = ("cnode", "
     ds = load_dataset(out / "dataset.npz")
     mean, std = fit_normalisation(ds)
     torch.manual_seed(0)
+    models = {}
     for kind in kinds:
-        model = CNODE(ds.n_channels) if kind == "cnode" else GRUClassifier(ds.n_channels)
-        model.set_normalisation(mean, std)
-        save_checkpoint(out / f"{kind}.pt", model, config or {}, ds.channel_names)
+        models[kind] = CNODE(ds.n_channels) if kind == "cnode" else GRUClassifier(ds.n_channels)
+        models[kind].set_normalisation(mean, std)
+    publish_checkpoints(out, models, ds.channel_names, config)
+    return out
+
+
+def trained_export_run(src: Path, out: Path, *train_sets: str) -> Path:
+    """A copy of the run ``src`` trained through the real CLI (``--set`` values ``train_sets``) and
+    exported: the files that parity, the firmware and export checks on a trained model need."""
+    copy_run(src, out)
+    res = quadfdi("train", "--run", str(out), *[a for v in train_sets for a in ("--set", v)])
+    assert res.returncode == 0, res.stderr
+    res = quadfdi("export", "--run", str(out))
+    assert res.returncode == 0, res.stderr
     return out
 
 
@@ -59,3 +88,38 @@ def small_run(tmp_path_factory) -> Path:
     res = quadfdi("sim", "--config", str(ROOT / "configs/paper.toml"), "--out", str(out), *SMALL_SIM)
     assert res.returncode == 0, res.stderr
     return out
+
+
+# ---- the fault-injection suite's runs (tests/test_faults*.py)
+
+
+@pytest.fixture(scope="session")
+def fault_sims(tmp_path_factory) -> dict[str, Path]:
+    """A tiny simulated run (seed 0) and the same simulated with seed 1: the old and the new state."""
+    from tests import faultkit
+
+    base = tmp_path_factory.mktemp("faults")
+    runs = {"old": base / "old", "new": base / "new"}
+    for seed, (name, out) in enumerate(runs.items()):
+        res = faultkit.cli(*faultkit.sim_cmd(out, seed))
+        assert res.returncode == 0, res.stderr[-2000:]
+    return runs
+
+
+@pytest.fixture(scope="session")
+def fault_exported(small_run, tmp_path_factory) -> Path:
+    """The session's small run, trained (1 epoch, small models) and exported (N = 2) in process."""
+    import train.figures
+    from core.rundir import open_run
+    from tests import faultkit
+    from export.run import export_run
+    from train.run import train_run
+
+    run_dir = faultkit.copy_run(small_run, tmp_path_factory.mktemp("faults_train") / "run")
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(train.figures, "draw_all", lambda run, ds, result: [])
+        run, cfg = open_run(run_dir, ["train.epochs=1", "train.latent=8", "train.hidden=16", "train.gru_hidden=8",
+                                      "export.steps=2", "export.calib_windows=64"])
+        train_run(run, cfg, "both", log=lambda s: None)
+        export_run(run, cfg, log=lambda s: None)
+    return run_dir

@@ -209,3 +209,70 @@ def test_merge_limits_keeps_the_best_pass():
     assert (m["peak_gflops"], m["peak_gflops_2t"], m["l2_gbps"], m["peak_int8_gops"]) == (90.0, 60.0, 50.0, 200.0)
     assert (m["ort_call_us"], m["ort_node_us"]) == (7.0, 0.4)
     assert len(m["passes"]) == 2 and [g["pass"] for g in m["gemm"]] == [0, 1] and m["seconds"] == 2.0
+
+
+def test_a_runtime_below_its_floor_invalidates_the_floor_target():
+    """A floor that some runtime beats is not a lower bound: the C++ target against it is never
+    'met', and the record is named (bench.run re-measures, then fails the bench)."""
+    from bench.floors import below_floor, violation_text
+
+    models = {"cnode": {**{k: v for k, v in CNODE.items() if k != "kind"}, "macs_per_window": 10_000},
+              "gru": {**{k: v for k, v in GRU.items() if k != "kind"}, "macs_per_window": 50_000}}
+    fl = floors(models, 2, _limits())
+    cf = next(f for f in fl if f["model"] == "cnode" and f["precision"] == "fp32")
+    recs = [{"runtime": "cpp", "model": "cnode", "precision": "fp32", "solver": "x", "threads": 1, "spinning": None,
+             "batch": 1, "p50_us": 1.5 * cf["floor_us"]},
+            {"runtime": "ort", "model": "cnode", "precision": "fp32", "solver": "x", "threads": 1, "spinning": False,
+             "batch": 1, "p50_us": 0.5 * cf["floor_us"]}]
+    attach_distance(recs, fl)
+    assert below_floor(recs) == [recs[1]] and "ort cnode fp32" in violation_text(below_floor(recs))
+    t = next(t for t in targets(recs, fl) if "floor" in t["target"])
+    assert t["measured"] == pytest.approx(1.5) and not t["met"] and not t["floor_valid"]
+    assert "FLOOR INVALID" in t["detail"]
+
+
+def test_bandwidth_probe_hot_loops_are_vectorised(tmp_path):
+    """The probe built for this host's ISA: its read and FMA loops use full-width vector registers
+    and no stack slot (the 64-byte vectors of the old probe spilled on AVX2); L1 reads faster than L2."""
+    import shutil
+
+    from bench.probes import L1_OVER_L2_MIN, VECTOR_REG, bandwidth, build_checked_probe, fma_peak, host_vector_bytes
+
+    if shutil.which("g++") is None or shutil.which("objdump") is None:
+        pytest.skip("needs g++ and objdump")
+    exe, check = build_checked_probe(tmp_path)
+    assert exe is not None and check["checked"] and check["ok"], check
+    assert check["vec_bytes"] == host_vector_bytes() and check["register"] == VECTOR_REG[host_vector_bytes()]
+    for kernel in ("l2bw_read_pass", "l2bw_fma_kernel"):
+        assert check[kernel]["stack_accesses"] == 0 and check[kernel]["vector_ops"] >= 8
+    l1, l2 = bandwidth(exe, 16, [], 3, 0.02), bandwidth(exe, 4096, [], 3, 0.02)
+    assert l1 >= L1_OVER_L2_MIN * l2, (l1, l2)  # 4 MiB is past L2 here: a fortiori
+    assert fma_peak(exe, [], 2, 0.02) > 0
+
+
+def test_hot_loop_finds_the_loop_not_the_tail():
+    from bench.probes import hot_loop
+
+    text = """0000000000001000 <k>:
+    1000:	xor    %eax,%eax
+    1004:	vaddps (%rdi),%ymm0,%ymm0
+    1008:	vaddps 0x20(%rdi),%ymm1,%ymm1
+    100c:	vmovaps %ymm2,-0x40(%rsp)
+    1010:	cmp    %rdx,%rax
+    1014:	jl     1004 <k+0x4>
+    1018:	vaddss %xmm0,%xmm1,%xmm0
+    101c:	jmp    1000 <k>
+
+"""
+    loop = hot_loop(text, "k")
+    assert len(loop) == 5 and loop[0].startswith("vaddps") and loop[-1].startswith("jl")
+
+
+def test_speedup_rows_pair_int8_with_fp32():
+    from bench.report import speedup_rows
+
+    rec = lambda p, b, p50, rt="ort": {"runtime": rt, "model": "gru", "precision": p, "solver": "x",  # noqa: E731
+                                       "threads": 1, "spinning": False, "batch": b, "p50_us": p50}
+    rows = speedup_rows([rec("fp32", 1, 100.0), rec("int8", 1, 200.0), rec("fp32", 96, 900.0), rec("int8", 96, 300.0),
+                         rec("int8", 1, 50.0, "cpp")])
+    assert [r[3] for r in rows] == ["1", "96"] and rows[0][-1].startswith("0.50x") and rows[1][-1] == "3.00x"

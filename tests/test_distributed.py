@@ -21,7 +21,8 @@ from core.executor import ATTEMPTS, ExecSettings, Job, run_jobs
 from core.jobcache import cache_path, job_key
 from core.rundir import create_run
 from sim.dataset import dataset_arrays, write_npz
-from sim.shards import KIND, generate_sharded, shard_jobs
+from sim.publish import generate_sharded
+from sim.shards import KIND, shard_jobs
 from sim.simulate import generate
 from tests.conftest import ROOT, quadfdi
 

@@ -52,7 +52,12 @@ def test_export_writes_every_file_and_a_passing_manifest(exported):
     for model in ("cnode", "gru"):
         s = m["quantization"]["coverage"][model]["summary"]
         assert s["int8_mac_share"] >= 0.95 and s["initializer_bytes_ratio"] <= 0.35 and s["meets_targets"]
-    assert "| MatMulInteger | int8 |" in (folder / "coverage.md").read_text()
+    assert "| MatMulIntegerToFloat | int8 |" in (folder / "coverage.md").read_text()
+    enc = m["quantization"]["encoding"]  # which activation type per model, and which contrib ops
+    assert enc["cnode"]["activations"] == "uint8" and enc["cnode"]["weight_bits"] == 7
+    assert enc["gru"] == {"activations": "uint8", "activation_zero_point": 128, "weight_bits": 7,
+                          "weight_range": [-63, 63], "contrib_ops": ["com.microsoft.MatMulIntegerToFloat"]}
+    assert enc["cnode"]["contrib_ops"] == ["com.microsoft.MatMulIntegerToFloat"]
     w = read_weights(folder / "weights.bin")
     assert w.section("cnode", "int8").dims[5] == 2
     ref = read_reference(folder / "reference.bin")

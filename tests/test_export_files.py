@@ -148,12 +148,11 @@ def q8(x, s):
 
 
 def product(xq, t, s_a=None, bias=None):
-    """((float(acc) * s_a) * s_w) + b, or (float(acc) * s_w) + b for a folded activation scale."""
+    """(float(acc) * float32(s_a * s_w)) + b (MatMulIntegerToFloat's order), s_a = 1 for a folded
+    activation scale (float32(1 * s_w) = s_w)."""
     acc = xq @ t.array.astype(np.int64).T  # int32 in the graph; |acc| < 2^24, exact in float32
-    y = acc.astype(F)
-    if s_a is not None:
-        y = y * F(s_a)
-    y = y * t.scales
+    mult = (F(1) if s_a is None else F(s_a)) * t.scales  # float32 product, formed first
+    y = acc.astype(F) * mult
     return y if bias is None else y + bias
 
 
@@ -163,7 +162,7 @@ def emulate_cnode_int8(sec, x):
     xn = (x.astype(F) - a["norm.mean"]) / a["norm.std"]
     xq = q8(xn, a["act.x_norm.scale"])
     acc = np.einsum("sw,bwc->bsc", a["interp"].astype(np.int64), xq)
-    u = (acc.astype(F) * T["interp"].scales[:, None]) * a["act.x_norm.scale"]
+    u = acc.astype(F) * (T["interp"].scales[:, None] * a["act.x_norm.scale"])
     uq = q8(u, a["act.u.scale"])
     z = np.tanh(product(uq[:, 0], T["encoder.weight"], None, a["encoder.bias"]))
     v = product(uq, T["lin1_u.weight"], None, a["lin1.bias"])
@@ -254,7 +253,7 @@ def test_manifest_of_another_schema_version_is_refused(tmp_path):
         load_manifest(path)
     assert "\n" not in str(info.value)
     path.write_text('{"schema_version": 1, "artif')
-    with pytest.raises(QuadfdiError, match="not valid JSON"):
+    with pytest.raises(QuadfdiError, match="cannot be read as JSON"):
         load_manifest(path)
     with pytest.raises(QuadfdiError, match="does not exist"):
         load_manifest(tmp_path / "none.json")

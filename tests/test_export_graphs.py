@@ -125,29 +125,59 @@ def test_opset_17_works_too():
 def test_cnode_op_counts_grow_linearly_with_n(steps):
     t = make_tiny(steps=steps)
     fp32, int8 = op_counts(t.cnode_fp32.model), op_counts(t.cnode_int8.model)
-    # fp32: P@x, encoder, lin1_u (all stage times at once), head + 2 per stage (lin1_z, lin2).
-    assert fp32["MatMul"] == 8 * steps + 4
+    # fp32: P@x and lin1_u (all stage times at once) MatMul; encoder, head + 2 per stage Gemm.
+    assert fp32["MatMul"] == 2 and fp32["Gemm"] == 8 * steps + 2
     assert fp32["Tanh"] == int8["Tanh"] == 4 * steps + 1  # z0 + one per stage
     assert fp32["Split"] == int8["Split"] == 1  # V's 2N+1 rows, once
-    # int8: the same products, every one on MatMulInteger; no float product left.
-    assert int8["MatMulInteger"] == 8 * steps + 4 and int8["MatMul"] == 0 and int8["Gemm"] == 0
-    # QuantizeLinear: x_norm, U, z1 + 2 per stage (its state, its tanh output).
-    assert int8["QuantizeLinear"] == 8 * steps + 3
-    for counts in (fp32, int8):  # no control flow, no data-dependent indexing
-        assert not {"Loop", "If", "Scan", "Gather", "GatherElements", "GatherND"} & set(counts)
+    assert fp32["Sum"] == int8["Sum"] == steps  # ((k1 + 2 k2) + 2 k3) + k4, one node per step
+    # Muls per step: 3 stage inputs + h/6, 2 k2 and 2 k3 coming from lin2; when N is a power of two
+    # lin2 also folds half_h and h, leaving k2 * half_h and the h/6 (export.onnx_cnode.field_scales).
+    assert fp32["Mul"] == int8["Mul"] == (2 if steps in (1, 2, 4, 8) else 4) * steps
+    # int8: every product one MatMulIntegerToFloat (P@x too: P is exact); no float product left.
+    assert int8["MatMulIntegerToFloat"] == 8 * steps + 4
+    assert int8["MatMulInteger"] == int8["MatMul"] == int8["Gemm"] == int8["Cast"] == 0
+    assert int8["Add"] == 8 * steps  # 3 stage inputs, the new state, and the row of V per stage
+    # QuantizeLinear: x_norm, U, z1 + 2 per stage (its state, its tanh output); x_norm and U per
+    # channel as Div then QuantizeLinear with scale 1 (ORT's per-axis kernel goes element by element).
+    assert int8["QuantizeLinear"] == 8 * steps + 3 and int8["Div"] == 3
+    for model in (t.cnode_fp32.model, t.cnode_int8.model):  # no control flow, no data-dependent indexing
+        counts = op_counts(model)
+        assert not {"Loop", "If", "Scan", "GatherElements", "GatherND"} & set(counts)
+        gathers = [n for n in model.graph.node if n.op_type == "Gather"]
+        assert len(gathers) == 1 and gathers[0].input[1] in inits(model)  # row 0 of U, a constant index
+
+
+@pytest.mark.parametrize("steps", [1, 3, 8])
+def test_ort_optimized_node_counts(steps):
+    """Nodes after ONNX Runtime's optimizer (what it dispatches per call, ~0.4 us each): fp32 fuses
+    each stage's Gemm + Tanh (FusedGemm), 2 nodes per evaluation + 9 per RK4 step; int8 has 6 per
+    evaluation (QuantizeLinear, MatMulIntegerToFloat, Add row of V, Tanh, QuantizeLinear,
+    MatMulIntegerToFloat) + the same 9 (7 when N is a power of two); the int8 GRU 12 per time step."""
+    from export.ort_session import optimized_nodes
+
+    t = make_tiny(steps=steps)
+    count = {k: optimized_nodes(getattr(t, k).model.SerializeToString())["total"]
+             for k in ("cnode_fp32", "cnode_int8", "gru_fp32", "gru_int8")}
+    pow2 = steps in (1, 2, 4, 8)  # 2 nodes fewer per step (field_scales)
+    assert count["cnode_fp32"] == 11 + (15 if pow2 else 17) * steps  # N = 8: 131 (was 278)
+    assert count["cnode_int8"] == 16 + (31 if pow2 else 33) * steps  # N = 8: 264 (was 547)
+    assert count["gru_int8"] == 12 + 12 * W  # 972 (was 1,372)
+    assert count["gru_fp32"] <= 8
 
 
 def test_cnode_weights_stored_once(tiny):
     fp32, int8 = inits(tiny.cnode_fp32.model), inits(tiny.cnode_int8.model)
     names = ("encoder", "lin1_u", "lin1_z", "lin2", "head")
 
-    def constants_of(model, op):
-        return [i for n in model.graph.node if n.op_type == op for i in n.input if i in inits(model)]
+    def constants_of(model, *ops):
+        return [n.input[1] for n in model.graph.node if n.op_type in ops and n.input[1] in inits(model)]
 
     # 8N + 4 products read 6 matrices: the interpolation matrix and five weights, each stored once.
-    used = constants_of(tiny.cnode_fp32.model, "MatMul")
-    assert len(used) == 8 * tiny.steps + 4 and set(used) == {"interp"} | {f"{w}.weight_t" for w in names}
-    used = constants_of(tiny.cnode_int8.model, "MatMulInteger")
+    used = constants_of(tiny.cnode_fp32.model, "MatMul", "Gemm") + ["interp"]
+    assert len(used) == 8 * tiny.steps + 4
+    assert set(used) == {"interp", "lin1_u.weight_t"} | {f"{w}.weight" for w in names if w != "lin1_u"}
+    used = [n.input[0] if n.input[0] == "interp.q" else n.input[1] for n in tiny.cnode_int8.model.graph.node
+            if n.op_type == "MatMulIntegerToFloat"]
     assert len(used) == 8 * tiny.steps + 4 and set(used) == {"interp.q"} | {f"{w}.weight_q" for w in names}
     weights_q = {k: v for k, v in int8.items() if k.endswith(".weight_q") or k == "interp.q"}
     assert len(weights_q) == 6 and all(v.dtype == np.int8 for v in weights_q.values())
@@ -164,26 +194,40 @@ def test_gru_structure():
     (node,) = [n for n in t.gru_fp32.model.graph.node if n.op_type == "GRU"]
     assert {a.name: a.i for a in node.attribute}["linear_before_reset"] == 1
     # int8: unrolled over W steps; the input projection of all steps is one integer product.
-    assert int8["GRU"] == 0 and int8["MatMul"] == 0
-    assert int8["MatMulInteger"] == W + 2  # x projection, one per step, head
-    assert int8["Sigmoid"] == 2 * W and int8["Tanh"] == W
-    weights_q = {k for k, v in inits(t.gru_int8.model).items() if v.dtype == np.int8 and v.ndim == 2}
-    assert weights_q == {"gru.ih.weight_q", "gru.hh.weight_q", "head.weight_q"}
+    assert int8["GRU"] == 0 and int8["MatMul"] == 0 and int8["MatMulInteger"] == 0
+    assert int8["MatMulIntegerToFloat"] == W + 3  # x projection (rows r,z and rows n), one per step, head
+    assert int8["Sigmoid"] == W and int8["Tanh"] == W  # r and z in one Sigmoid per step
+    weights_q = {k: v for k, v in inits(t.gru_int8.model).items() if v.dtype == np.int8 and v.ndim == 2}
+    assert set(weights_q) == {"gru.ih_rz.weight_q", "gru.ih_n.weight_q", "gru.hh.weight_q", "head.weight_q"}
+    assert np.array_equal(np.concatenate([weights_q["gru.ih_rz.weight_q"], weights_q["gru.ih_n.weight_q"]], 1).T,
+                          t.gq.w_ih.q)  # W_ih stored once, split by rows
+    # uint8 activations (zero point 128) beside 7-bit weights: u8 x s8 sums exact on every CPU.
+    assert all(np.abs(v.astype(int)).max() <= 63 for v in weights_q.values())
+    quant = [n for n in t.gru_int8.model.graph.node if n.op_type == "QuantizeLinear"]
+    zps = inits(t.gru_int8.model)
+    assert all(len(zps[n.input[1]].shape) == 0 for n in quant)  # per-tensor: no per-axis QuantizeLinear
+    assert all(zps[n.input[2]].dtype == np.uint8 and np.all(zps[n.input[2]] == 128) for n in quant)
 
 
 def test_cnode_graph_is_the_rk4_program(tiny):
     """The unrolled graph is core.rk4.rk4_step evaluated on graph values: its RK4 constants are
-    rk4_constants(1/N) under RK4_CONSTANT_NAMES, multiplied in RK4_PROGRAM's order every step."""
+    rk4_constants(1/N) under RK4_CONSTANT_NAMES, multiplied in RK4_PROGRAM's order every step.
+    k2 and k3 are held doubled (lin2's scales and bias times 2, exact), so ``two * k`` needs no
+    node and ``half_h * k2`` multiplies 2 k2 by half_h / 2 (exact)."""
     from core.rk4 import RK4_CONSTANT_NAMES, rk4_constants
 
-    names = {f"rk4.{n}": n for n in RK4_CONSTANT_NAMES}
+    names = {f"rk4.{n}": n for n in RK4_CONSTANT_NAMES} | {"rk4.half_h/2": "half_h/2"}
     for built in (tiny.cnode_fp32, tiny.cnode_int8):
         init = inits(built.model)
         consts = [init[f"rk4.{n}"] for n in RK4_CONSTANT_NAMES]
         assert all(c.dtype == np.float32 and c.shape == () for c in consts)
         assert np.array_equal(np.array(consts), rk4_constants(1.0 / tiny.steps))
+        assert init["rk4.half_h/2"] == init["rk4.half_h"] / np.float32(2)
         muls = [names[n.input[1]] for n in built.model.graph.node if n.op_type == "Mul" and n.input[1] in names]
-        assert muls == ["half_h", "half_h", "h", "two", "two", "h_over_6"] * tiny.steps
+        assert muls == ["half_h", "half_h/2", "half_h", "h_over_6"] * tiny.steps
+    init = inits(tiny.cnode_int8.model)
+    assert np.array_equal(init["lin2.weight_scale_x2"], init["lin2.weight_scale"] * 2)
+    assert np.array_equal(init["lin2.bias_x2"], init["lin2.bias"] * 2)
 
 
 def test_weights_bin_rk4_constants_are_the_graphs(tiny, tmp_path):
@@ -252,3 +296,39 @@ def test_interp_matrix_is_exact_in_int8(tiny):
     expect = np.rint(tiny.cp.interp.astype(np.float64) * 2 * tiny.steps)
     assert np.array_equal(tiny.cq.interp_q.astype(np.int64), expect)
     assert np.allclose(tiny.cq.interp_scale, 1 / (2 * tiny.steps))
+
+
+@pytest.mark.parametrize("steps", [3, 4])
+def test_rk4_graph_representation_is_bit_exact(steps):
+    """The RK4 combination as the graph writes it (Sum nodes, field outputs held at a power of two)
+    gives the same float32 bits as RK4_PROGRAM written out in numpy, on the int8 graph's own stage
+    states: each probed stage state e+1 is recomputed from states and field outputs of the graph."""
+    from core.rk4 import rk4_constants
+
+    t = make_tiny(steps=steps)
+    sess = session(t.cnode_int8.with_probes([f"stage{e}" for e in range(4 * steps)] + ["z1"]).SerializeToString())
+    names = [t.cnode_int8.probes[f"stage{e}"][0] for e in range(4 * steps)] + [t.cnode_int8.probes["z1"][0]]
+    st = sess.run(names, {"telemetry": t.x})
+    half, h, two, h6 = (np.float32(v) for v in rk4_constants(1.0 / steps))
+    # The field outputs (lin2 of every evaluation) as the graph holds them, from a copy of the model
+    # that outputs them too; the program is then run on them in numpy.
+    lin2 = [n.output[0] for n in t.cnode_int8.model.graph.node
+            if n.op_type == "MatMulIntegerToFloat" and n.input[1] == "lin2.weight_q"]
+    assert len(lin2) == 4 * steps
+    m = onnx.ModelProto()
+    m.CopyFrom(t.cnode_int8.model)
+    for n in lin2:
+        m.graph.output.append(onnx.helper.make_tensor_value_info(n, TensorProto.FLOAT, None))
+    ks = session(m.SerializeToString()).run(lin2, {"telemetry": t.x})
+    from export.onnx_cnode import field_scales
+
+    sig = [np.float32(c) for c in field_scales(1.0 / steps)]  # lin2 holds sig[i] * k
+    z = st[0]
+    for k in range(steps):
+        k1, k2, k3, k4 = (ks[4 * k + i] / sig[i] for i in range(4))  # exact: powers of two
+        assert np.array_equal(z, st[4 * k])
+        assert np.array_equal(z + k1 * half, st[4 * k + 1])
+        assert np.array_equal(z + k2 * half, st[4 * k + 2])
+        assert np.array_equal(z + k3 * h, st[4 * k + 3])
+        z = z + (((k1 + k2 * two) + k3 * two) + k4) * h6
+    assert np.array_equal(z, st[-1])

@@ -14,7 +14,7 @@ import torch
 from core.contracts import CLASS_LABELS
 from export.manifest import check_files, load_manifest
 from sim.dataset import load_dataset, make_windows
-from tests.conftest import copy_run, quadfdi
+from tests.conftest import trained_export_run
 from train.checkpoint import load_checkpoint
 from train.models import SolverSpec
 
@@ -32,13 +32,8 @@ MIN_TRAINED_MACRO_F1 = 0.4
 
 @pytest.fixture(scope="module")
 def trained_export(small_run, tmp_path_factory) -> Path:
-    run = tmp_path_factory.mktemp("trained_export") / "run"
-    copy_run(small_run, run)
-    res = quadfdi("train", "--run", str(run), "--set", "train.epochs=2", "--set", "train.batch_size=48")
-    assert res.returncode == 0, res.stderr
-    res = quadfdi("export", "--run", str(run))
-    assert res.returncode == 0, res.stderr
-    return run
+    return trained_export_run(small_run, tmp_path_factory.mktemp("trained_export") / "run", "train.epochs=2",
+                              "train.batch_size=48")
 
 
 def _ort_logits(path: Path, x: np.ndarray) -> np.ndarray:

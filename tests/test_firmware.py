@@ -381,6 +381,80 @@ def test_timings_option(fw_run, host_build, windows_file, tmp_path):
     assert np.all(seconds > 0) and np.all(np.isfinite(seconds))
 
 
+# ------------------------------------------------------------------------------ int8 kernels
+
+
+def _cpu_flags() -> set[str]:
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("flags"):
+                return set(line.split(":", 1)[1].split())
+    except OSError:
+        pass
+    return set()
+
+
+def _kernels(build: Path, *args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([str(build / "fwref_kernels"), *args], capture_output=True, text=True, timeout=300)
+
+
+def _check_lines(res: subprocess.CompletedProcess) -> dict[str, str]:
+    return {ln.split()[1]: ln for ln in res.stdout.splitlines() if ln.startswith("CHECK ")}
+
+
+def test_every_int8_kernel_this_cpu_runs_gives_the_portable_accumulators(host_build, asan_build):
+    """fwref_kernels --check: each kernel the CPU runs (and the dispatched entry point) against the
+    portable loop on random data, every column count 1..100 and longer ones (not multiples of the
+    vector width), 1..13, 64 and 240 rows, and the extremes (x = -128 against w = +-127, x = 127, zeros).
+    Under the sanitizer build too, where the inputs are exact-size heap blocks (no read past a row)."""
+    for build in (host_build, asan_build):
+        res = _kernels(build, "--check")
+        assert res.returncode == 0, res.stdout + res.stderr
+        lines = _check_lines(res)
+        assert "portable" in lines and any(k.startswith("dispatched:") for k in lines), res.stdout
+        assert all(ln.endswith(" OK") and "mismatches=0" in ln for ln in lines.values()), res.stdout
+        if "avx2" in _cpu_flags():
+            assert "avx2" in lines, res.stdout
+        assert not any(m in res.stderr for m in SANITIZER_MARKERS), res.stderr
+
+
+def test_avx512_vnni_kernel_gives_the_portable_accumulators(host_build):
+    flags = _cpu_flags()
+    if not {"avx512f", "avx512vl", "avx512_vnni"} <= flags:
+        pytest.skip("this CPU has no AVX-512 VNNI (+VL): the vpdpbusd kernel cannot run here "
+                    "(/proc/cpuinfo flags lack avx512_vnni or avx512vl)")
+    res = _kernels(host_build, "--check", "--kernel", "avx512vnni")
+    assert res.returncode == 0 and "CHECK avx512vnni" in res.stdout and " OK" in res.stdout, res.stdout
+
+
+def test_kernel_info_names_the_cpu_flags_and_the_dispatched_kernel(host_build):
+    res = subprocess.run([str(host_build / "fwref_parity"), "--kernel-info"], capture_output=True, text=True)
+    assert res.returncode == 0, res.stderr
+    info = dict(ln.split(": ", 1) for ln in res.stdout.splitlines() if ": " in ln)
+    assert set(info) >= {"cpu_flags", "fp32_build", "int8_kernel", "int8_kernels"}, res.stdout
+    runs = {kv.split("=")[0] for kv in info["int8_kernels"].split() if kv.endswith("=runs")}
+    assert info["int8_kernel"] in runs and "portable" in runs
+    if "avx2" in _cpu_flags():
+        assert info["int8_kernel"] in ("avx2", "avx512vnni") and "avx2=1" in info["cpu_flags"]
+
+
+def test_forced_portable_kernel_gives_the_same_logits(fw_run, host_build, windows_file, tmp_path):
+    """FWREF_I8_KERNEL=portable (the reference loop) and the dispatched kernel: identical int8 logits."""
+    import os
+
+    weights = fw_run / "export" / "weights.bin"
+    for model in ("cnode", "gru"):
+        outs = []
+        for kernel in ("portable", ""):
+            out = tmp_path / f"{model}{kernel}.f32"
+            res = subprocess.run([str(host_build / "fwref_infer"), "--weights", str(weights), "--model", model, "--int8",
+                                  "--in", str(windows_file), "--out", str(out)], capture_output=True, text=True,
+                                 env=dict(os.environ, FWREF_I8_KERNEL=kernel))
+            assert res.returncode == 0, res.stderr
+            outs.append(np.fromfile(out, "<f4"))
+        assert np.array_equal(outs[0], outs[1]), model
+
+
 # ------------------------------------------------------------------------------ the generator
 
 

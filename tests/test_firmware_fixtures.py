@@ -8,34 +8,22 @@ building twice for the two modules.
 
 from __future__ import annotations
 
-import shutil
 from pathlib import Path
 
 import pytest
 
 from parity.build import ASAN_BUILD, HOST_BUILD, build_host
-from tests.conftest import quadfdi
+from tests.conftest import trained_export_run
 
 _CACHE: dict[str, object] = {}
-
-
-def _exported_run(small_run: Path, root: Path) -> Path:
-    run = root / "run"
-    run.mkdir(parents=True)
-    for name in ("config.toml", "dataset.npz"):
-        shutil.copy(small_run / name, run / name)
-    res = quadfdi("train", "--run", str(run), "--set", "train.epochs=1", "--set", "train.threads=1")
-    assert res.returncode == 0, res.stderr
-    res = quadfdi("export", "--run", str(run))
-    assert res.returncode == 0, res.stderr
-    return run
 
 
 @pytest.fixture(scope="session")
 def fw_run(small_run, tmp_path_factory) -> Path:
     """A small run (24 trajectories, 8 s), trained one epoch, exported with N = 8."""
     if "run" not in _CACHE:
-        _CACHE["run"] = _exported_run(small_run, tmp_path_factory.mktemp("fwrun"))
+        _CACHE["run"] = trained_export_run(small_run, tmp_path_factory.mktemp("fwrun") / "run", "train.epochs=1",
+                                           "train.threads=1")
     return _CACHE["run"]  # type: ignore[return-value]
 
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import shutil
+import tomllib
 from pathlib import Path
 
 import pytest
@@ -20,7 +21,9 @@ TINY = [*SMALL_SIM, "--set", "train.epochs=1",
         "--set", "bench.windows=6", "--set", "bench.warmup=1", "--set", "bench.warmup_s=0.05",
         "--set", "bench.batch=8", "--set", "bench.batches=2", "--set", "bench.budget_s=0.5",
         "--set", "bench.min_samples=2", "--set", "bench.threads=[1]", "--set", "bench.profile_windows=4",
-        "--set", "bench.callgrind_windows=1"]
+        "--set", "bench.callgrind_windows=1",
+        # timings on a test machine are not under test: a floor violation is reported, not fatal here
+        "--set", "bench.fail_below_floor=false"]
 
 FILES = ("config.toml", "dataset.npz", "cnode.pt", "gru.pt", "metrics.json", "export/manifest.json",
          "export/weights.bin", "parity/parity.json", "parity/mcu.json", "solvers/solvers.json", "bench.json",
@@ -45,7 +48,8 @@ def test_run_writes_every_stage_file_and_report_section(whole_run):
     positions = [text.index(s) for s in SECTIONS]
     assert positions[:5] == sorted(positions[:5])  # the pipeline's order; the solver study comes last
     assert "Not run" not in text
-    assert "bench.windows = 6" in (whole_run / "config.toml").read_text()  # the overrides are stored
+    stored = tomllib.loads((whole_run / "config.toml").read_text())  # the overrides are stored
+    assert stored["bench"]["windows"] == 6 and stored["train"]["epochs"] == 1
 
 
 def test_readme_block_is_rewritten_from_the_run(whole_run, tmp_path):

@@ -49,25 +49,40 @@ def load_checkpoint(path: str | Path, kind: str | None = None) -> tuple[torch.nn
         raise QuadfdiError(f"checkpoint {p} does not exist (run `quadfdi train` first)")
     try:
         blob = torch.load(p, map_location="cpu", weights_only=True)
-    except Exception as exc:  # torch raises many types for a corrupt file
-        raise QuadfdiError(f"checkpoint {p} cannot be read (truncated or foreign file?): {str(exc).splitlines()[0]}") from None
+    except Exception as exc:  # torch raises many types for a corrupt file, some with an empty message
+        first = (str(exc).splitlines() or [type(exc).__name__])[0]
+        raise QuadfdiError(f"checkpoint {p} cannot be read (truncated, empty or foreign file?): {first}") from None
     if not isinstance(blob, dict) or blob.get("version") != CHECKPOINT_VERSION or "architecture" not in blob:
         raise QuadfdiError(f"checkpoint {p} is not a quadfdi checkpoint of version {CHECKPOINT_VERSION}")
     arch = blob["architecture"]
     if kind is not None and arch.get("kind") != kind:
         raise QuadfdiError(f"checkpoint {p} holds a {arch.get('kind')!r} model, expected {kind!r}")
+    bad = [k for k, v in arch.items() if isinstance(v, int) and not isinstance(v, bool) and v < 0] \
+        if isinstance(arch, dict) else ["architecture"]
+    if bad:
+        raise QuadfdiError(f"checkpoint {p}: architecture field {bad[0]!r} must not be negative, found {arch[bad[0]]}")
     try:
         model = model_from_signature(arch, cnode_classes=CNODE_CLASSES)
-    except (ValueError, TypeError, KeyError) as exc:
-        raise QuadfdiError(f"checkpoint {p} has an invalid architecture: {exc}") from None
+    except Exception as exc:  # a forged size reaches torch, which raises RuntimeError and others
+        raise QuadfdiError(f"checkpoint {p} has an invalid architecture: {_first_line(exc)}") from None
+    state = blob.get("state_dict")
+    if not isinstance(state, dict) or not all(isinstance(v, torch.Tensor) for v in state.values()):
+        raise QuadfdiError(f"checkpoint {p}: field 'state_dict' must map names to tensors")
+    nonfinite = [k for k, v in state.items() if v.is_floating_point() and not bool(torch.isfinite(v).all())]
+    if nonfinite:
+        raise QuadfdiError(f"checkpoint {p}: weight {nonfinite[0]!r} holds NaN or Inf (expected finite values)")
     try:
-        model.load_state_dict(blob["state_dict"])
-    except RuntimeError as exc:
-        raise QuadfdiError(f"checkpoint {p} does not match its architecture: {str(exc).splitlines()[0]}") from None
+        model.load_state_dict(state)
+    except Exception as exc:
+        raise QuadfdiError(f"checkpoint {p} does not match its architecture: {_first_line(exc)}") from None
     if "solver" in blob and hasattr(model, "solver"):
         model.solver = type(model.solver)(**blob["solver"])
     model.eval()
     return model, blob
+
+
+def _first_line(exc: BaseException) -> str:
+    return (str(exc).splitlines() or [type(exc).__name__])[0]
 
 
 def check_dataset_matches(blob: dict[str, Any], channel_names: list[str], where: str) -> None:

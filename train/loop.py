@@ -18,6 +18,7 @@ from sklearn.metrics import f1_score
 
 from core.config import TrainConfig
 from core.contracts import CLASS_LABELS, N_CLASSES
+from core.errors import QuadfdiError
 from sim.dataset import Windows
 from train.data import batch_order
 from train.models import GRUClassifier
@@ -65,6 +66,15 @@ def learning_rate(model: torch.nn.Module, cfg: TrainConfig) -> float:
     return cfg.gru_lr if isinstance(model, GRUClassifier) else cfg.lr
 
 
+def _stop_if_diverged(value: torch.Tensor, model: torch.nn.Module, cfg: TrainConfig, epoch: int) -> None:
+    """A non-finite loss or output means training diverged: stop with what to change, instead of
+    a NaN that surfaces later as a traceback in the metrics."""
+    if not bool(torch.isfinite(value).all()):
+        name = "gru_lr" if isinstance(model, GRUClassifier) else "lr"
+        raise QuadfdiError(f"training of the {type(model).__name__} diverged in epoch {epoch + 1} (non-finite loss "
+                           f"or output) at train.{name}={learning_rate(model, cfg):g}: lower train.{name}")
+
+
 def train_model(model: torch.nn.Module, train: Windows, val: Windows, cfg: TrainConfig, weights: np.ndarray,
                 log: Callable[[str], None] = print) -> History:
     """Train ``model`` in place for ``cfg.epochs`` epochs; keep the best-validation weights."""
@@ -91,6 +101,7 @@ def train_model(model: torch.nn.Module, train: Windows, val: Windows, cfg: Train
             if hasattr(model, "nfe"):
                 nfes.append(float(model.nfe))
             loss = weighted_cross_entropy(logits, y_all[idx_t], w, cfg.log_eps)
+            _stop_if_diverged(loss, model, cfg, epoch)
             opt.zero_grad(set_to_none=True)
             loss.backward()
             opt.step()
@@ -101,7 +112,9 @@ def train_model(model: torch.nn.Module, train: Windows, val: Windows, cfg: Train
         hist.loss.append(float(sum(losses) / len(train)))
         if nfes:
             hist.nfe_per_forward.append(float(np.mean(nfes)))
-        val_pred = predict_proba(model, val.x).argmax(1)
+        val_proba = predict_proba(model, val.x)
+        _stop_if_diverged(torch.as_tensor(val_proba), model, cfg, epoch)
+        val_pred = val_proba.argmax(1)
         f1 = float(f1_score(val.y, val_pred, labels=list(CLASS_LABELS), average="macro", zero_division=0))
         hist.val_macro_f1.append(f1)
         if f1 > best_f1:

@@ -18,6 +18,7 @@ from core.errors import QuadfdiError
 from core.jsonio import read_json, write_json
 from core.npzio import write_npz
 from core.rundir import RunDir
+from core.stage import stage
 from sim.dataset import Dataset, Windows, load_dataset
 from train.baseline import fit_baseline, predict_proba_baseline
 from train.checkpoint import save_checkpoint
@@ -62,31 +63,51 @@ def train_all(ds: Dataset, cfg: Config, kinds: list[str], log: Callable[[str], N
     return out
 
 
-def write_outputs(run: RunDir, ds: Dataset, cfg: Config, result: dict) -> None:
-    """Checkpoints, predictions, metrics.json (merged with models not retrained), history, figures."""
+def write_outputs(out: RunDir, ds: Dataset, cfg: Config, result: dict, previous: RunDir | None = None) -> None:
+    """Checkpoints, predictions, metrics.json and history.json (merged with those of ``previous``,
+    the published run whose models were not retrained), figures; all into ``out``."""
     from train.figures import draw_all
 
     test = result["splits"].test
     for kind, model in result["models"].items():
-        save_checkpoint(run.checkpoint(kind), model, cfg.to_dict(), ds.channel_names,
+        save_checkpoint(out.checkpoint(kind), model, cfg.to_dict(), ds.channel_names,
                         extra={"history": result["history"][kind].to_dict(times=False)})
-        write_npz(run.predictions(kind), {"y_true": test.y, "proba": result["proba"][kind],
+        write_npz(out.predictions(kind), {"y_true": test.y, "proba": result["proba"][kind],
                                           "traj": test.traj, "t_end": test.t_end})
-    metrics = read_json(run.metrics, "metrics") if run.metrics.is_file() else {}
+    old_metrics, old_hist = None if previous is None else previous.metrics, None if previous is None else previous.root / "history.json"
+    metrics = read_json(old_metrics, "metrics") if old_metrics is not None and old_metrics.exists() else {}
     metrics.update(result["metrics"])
-    write_json(run.metrics, metrics, indent=2)
-    hist_path = run.root / "history.json"
-    hist = read_json(hist_path, "training history") if hist_path.is_file() else {}
+    write_json(out.metrics, metrics, indent=2)
+    hist = read_json(old_hist, "training history") if old_hist is not None and old_hist.exists() else {}
     hist.update({k: h.to_dict() for k, h in result["history"].items()})
-    write_json(hist_path, hist, indent=2)
-    draw_all(run, ds, result)
+    write_json(out.root / "history.json", hist, indent=2)
+    draw_all(out, ds, result)
 
 
 def train_run(run: RunDir, cfg: Config, model: str = "both", seed: int | None = None,
               log: Callable[[str], None] = print) -> dict:
+    """Train into a staging folder and publish every training output as one stage (core.stage):
+    a crash or Ctrl-C before the publish leaves the previous checkpoints and metrics untouched."""
     if seed is not None:
         cfg = replace_section(cfg, "train", seed=seed)
-    ds = load_dataset(run.dataset)
-    result = train_all(ds, cfg, kinds_of(model), log)
-    write_outputs(run, ds, cfg, result)
+    kinds = kinds_of(model)
+    targets = tuple(f"{k}.pt" for k in kinds) + ("metrics.json", "history.json")
+    sections = cfg.to_dict()
+    with stage(run.root, "train", {"sim": sections["sim"], "train": sections["train"]}, targets=targets) as st:
+        ds = load_dataset(st.consume("dataset.npz", ("sim",)))
+        check_config_matches(ds, cfg)
+        result = train_all(ds, cfg, kinds, log)
+        previous = run if len(kinds) < 2 and st.carry_previous() else None
+        write_outputs(RunDir(st.out), ds, cfg, result, previous)
     return result
+
+
+def check_config_matches(ds: Dataset, cfg: Config) -> None:
+    """The run's [sim] must be the one embedded in dataset.npz (an edited config.toml lies)."""
+    from core.records import first_difference
+
+    diff = first_difference(ds.config.to_dict()["sim"], cfg.to_dict()["sim"])
+    if diff is not None:
+        key, was, now = diff
+        raise QuadfdiError(f"config [sim].{key} is {now!r} but {ds.path} was simulated with {was!r}: "
+                           f"re-run quadfdi sim, or drop the change")

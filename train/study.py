@@ -89,9 +89,20 @@ def update_readme(readme: Path, table: str) -> None:
 
 def run_study(run: RunDir, cfg: Config, seeds: list[int], command: str, log: Callable[[str], None] = print,
               settings=None) -> dict:
-    """One job per seed x model on ``settings``' executor (``core.executor``; default: this process),
-    cached in ``<run>/cache/study/``; a job that failed 3 times is listed under ``failed`` and left
-    out of its model's summary."""
+    """The seed study, published as one stage (seeds.json, results.md): one job per seed x model on
+    ``settings``' executor (``core.executor``; default: this process), cached in ``<run>/cache/study/``;
+    a job that failed 3 times is listed under ``failed`` and left out of its model's summary."""
+    from core.stage import stage
+
+    sections = cfg.to_dict()
+    with stage(run.root, "study", {"sim": sections["sim"], "train": sections["train"]},
+               targets=("seeds.json", "results.md")) as st:
+        st.consume("dataset.npz", ("sim",))
+        return _study_into(run, RunDir(st.out), cfg, seeds, command, log, settings)
+
+
+def _study_into(run: RunDir, out: RunDir, cfg: Config, seeds: list[int], command: str,
+                log: Callable[[str], None], settings) -> dict:
     from core.executor import SERIAL, run_jobs
     from core.jobcache import read_result
     from train.study_jobs import MODELS, seed_model_jobs
@@ -120,7 +131,7 @@ def run_study(run: RunDir, cfg: Config, seeds: list[int], command: str, log: Cal
     seeds_json["seconds_per_seed"] = [seconds[s] for s in seeds]  # job time; 0 for cached jobs
     if failed:
         seeds_json["failed"] = failed
-    write_json(run.root / "seeds.json", seeds_json, indent=2)
+    write_json(out.root / "seeds.json", seeds_json, indent=2)
     table = results_table(by_model, seeds, command)
-    write_text(run.root / "results.md", table)
+    write_text(out.root / "results.md", table)
     return {"seeds": seeds_json, "table": table}

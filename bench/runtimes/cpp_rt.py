@@ -33,6 +33,19 @@ def run_child(cmd: list[str], time_exe: str | None = None) -> tuple[int, str, in
         return res.returncode, res.stderr, rss
 
 
+def kernel_info(fwref_infer: str) -> dict:
+    """The CPU's instruction-set flags, the fp32 build's ISA and the int8 kernel that runs, from
+    ``fwref_parity --kernel-info`` beside ``fwref_infer`` (the same build); {} if it cannot say."""
+    exe = Path(fwref_infer).with_name("fwref_parity")
+    try:
+        res = subprocess.run([str(exe), "--kernel-info"], capture_output=True, text=True, timeout=30)
+    except OSError:
+        return {}
+    if res.returncode != 0:
+        return {}
+    return dict(ln.split(": ", 1) for ln in res.stdout.splitlines() if ": " in ln)
+
+
 def cpp_measure(args, x) -> dict:
     """Time fwref_infer on the windows; return records, memory and info (see the module doc)."""
     import numpy as np
@@ -72,5 +85,6 @@ def cpp_measure(args, x) -> dict:
         "memory": {"baseline_kib": rss_base, "peak_batch1_kib": rss_peak, "peak_batch_kib": None,
                    "method": "GNU time %M: one-window run (20 repeats) minus `fwref_infer --help`"
                              if args.time_exe else "not measured: GNU time (/usr/bin/time) not found"},
-        "info": {"fwref": exe, "wall_s": wall, "note": "batch figure = consecutive single-window calls"},
+        "info": {"fwref": exe, "wall_s": wall, "note": "batch figure = consecutive single-window calls",
+                 "kernel": kernel_info(exe)},
     }

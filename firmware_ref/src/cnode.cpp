@@ -61,6 +61,16 @@ void trace_x_norm(const float* x, const float* mean, const float* std_, int wind
   }
 }
 
+// q[i] = quantize(x[i], s) and q[i] = quantize(tanh(x[i]), s) through plain pointers: an int8 store
+// may alias anything, so loops over Eigen vectors would reload their data pointer and size per element.
+void quantize_all(const float* x, int n, float s, std::int8_t* q) {
+  for (int i = 0; i < n; ++i) q[i] = quantize(x[i], s);
+}
+
+void tanh_quantize_all(const float* x, int n, float s, std::int8_t* q) {
+  for (int i = 0; i < n; ++i) q[i] = quantize(tanh_approx(x[i]), s);
+}
+
 template <class Vec>
 void tanh_inplace(Vec& v) {
   for (Eigen::Index i = 0; i < v.size(); ++i) v[i] = tanh_approx(v[i]);
@@ -152,7 +162,7 @@ Status infer(const CnodeI8& m, const float* x, float* logits, CnodeWorkspace& ws
   if (!all_finite(x, W * C)) return Status::kNonFiniteInput;
   if (tr != nullptr && tr->x_norm != nullptr) trace_x_norm(x, m.mean, m.std, W, C, tr->x_norm);
 
-  // U = interp_q @ quantize(x_norm, s_x[c]) in int32, u = (f32(acc) * s_P[s]) * s_x[c], then
+  // U = interp_q @ quantize(x_norm, s_x[c]) in int32, u = f32(acc) * f32(s_P[s] * s_x[c]), then
   // quantized per channel with s_u[c]. x_norm is requantized where a sample feeds two rows (the
   // same numbers both times), so no (W, C) buffer is needed.
   std::int32_t acc[kMaxChannels];
@@ -166,7 +176,7 @@ Status infer(const CnodeI8& m, const float* x, float* logits, CnodeWorkspace& ws
       for (int c = 0; c < C; ++c) acc[c] += p * quantize(normalise(xw[c], m.mean[c], m.std[c]), m.s_x[c]);
     }
     for (int c = 0; c < C; ++c) {
-      const float u = (static_cast<float>(acc[c]) * m.interp.scale[s]) * m.s_x[c];
+      const float u = rescale_i32(acc[c], m.interp.scale[s], m.s_x[c]);
       if (tr != nullptr && tr->u != nullptr) tr->u[s * C + c] = u;
       ws.uq[s * C + c] = quantize(u, m.s_u[c]);
     }
@@ -183,9 +193,9 @@ Status infer(const CnodeI8& m, const float* x, float* logits, CnodeWorkspace& ws
   ws.a.resize(H);
   auto field = [&](int e, const CnodeWorkspace::Lat& z, CnodeWorkspace::Lat& k) {
     const float s_z = m.s_stage[e];
-    for (int i = 0; i < L; ++i) ws.q_lat[i] = quantize(z[i], s_z);
+    quantize_all(z.data(), L, s_z, ws.q_lat);
     linear_i8_tensor(m.lin1_z.q, m.lin1_z.scale, H, L, ws.q_lat, s_z, ws.v + m.stage_index[e] * H, ws.a.data());
-    for (int j = 0; j < H; ++j) ws.q_hid[j] = quantize(tanh_approx(ws.a[j]), m.s_hidden);
+    tanh_quantize_all(ws.a.data(), H, m.s_hidden, ws.q_hid);
     k.resize(L);
     linear_i8_tensor(m.lin2_w.q, m.lin2_w.scale, L, H, ws.q_hid, m.s_hidden, m.lin2_b, k.data());
   };
@@ -193,7 +203,7 @@ Status infer(const CnodeI8& m, const float* x, float* logits, CnodeWorkspace& ws
                         tr != nullptr ? tr->stages : nullptr);
   if (tr != nullptr) copy_out(ws.z, tr->z1);
 
-  for (int i = 0; i < L; ++i) ws.q_lat[i] = quantize(ws.z[i], m.s_z1);
+  quantize_all(ws.z.data(), L, m.s_z1, ws.q_lat);
   linear_i8_tensor(m.head_w.q, m.head_w.scale, K, L, ws.q_lat, m.s_z1, m.head_b, logits);
   return all_finite(logits, K) ? Status::kOk : Status::kNonFiniteOutput;
 }

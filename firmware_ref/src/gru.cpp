@@ -37,13 +37,22 @@ Status check_common(const Model& m) {
 // n = tanh(gx_n + gh_n * r), h = (h - n) * z + n. h[j] depends on the old h[j] only (gh holds the
 // recurrent product of the old h), so the update is in place.
 template <class Hid, class Gates>
-void gru_cell(const Gates& gx, const Gates& gh, int hidden, Hid& h) {
+void gru_cell(const Gates& gx_, const Gates& gh_, int hidden, Hid& h_) {
+  const float* gx = gx_.data();
+  const float* gh = gh_.data();
+  float* h = h_.data();
   for (int j = 0; j < hidden; ++j) {
     const float r = logistic_approx(gx[j] + gh[j]);
     const float z = logistic_approx(gx[hidden + j] + gh[hidden + j]);
     const float n = tanh_approx(gx[2 * hidden + j] + gh[2 * hidden + j] * r);
     h[j] = (h[j] - n) * z + n;
   }
+}
+
+// q[j] = quantize(x[j], s) through plain pointers (an int8 store may alias anything: a loop over an
+// Eigen vector would reload its data pointer and size per element).
+void quantize_all(const float* x, int n, float s, std::int8_t* q) {
+  for (int i = 0; i < n; ++i) q[i] = quantize(x[i], s);
 }
 
 template <class Vec>
@@ -106,6 +115,16 @@ Status infer(const GruI8& m, const float* x, float* logits, GruWorkspace& ws, Gr
   ws.h.setZero(H);
   ws.gx.resize(3 * H);
   ws.gh.resize(3 * H);
+  const std::int16_t *whh16 = nullptr, *wih16 = nullptr;
+#if defined(FWREF_GRU_WHH_INT16)
+  if (ws.w16_of != m.w_hh.q) {
+    expand_i8_to_i16(m.w_hh.q, 3 * H, H, ws.whh16);
+    expand_i8_to_i16(m.w_ih.q, 3 * H, C, ws.wih16);
+    ws.w16_of = m.w_hh.q;
+  }
+  whh16 = ws.whh16;
+  wih16 = ws.wih16;
+#endif
   for (int t = 0; t < W; ++t) {
     for (int c = 0; c < C; ++c) {
       const float xn = normalise(x[t * C + c], m.mean[c], m.std[c]);
@@ -113,13 +132,13 @@ Status infer(const GruI8& m, const float* x, float* logits, GruWorkspace& ws, Gr
       ws.xq[c] = quantize(xn, m.s_x[c]);
     }
     // GX row t = B(xq, W_ih') + b_ih (s_x folded into W_ih'); gh = A(quantize(h, s_h), W_hh, s_h) + b_hh
-    linear_i8_folded(m.w_ih.q, m.w_ih.scale, 3 * H, C, ws.xq, m.b_ih, ws.gx.data());
-    for (int j = 0; j < H; ++j) ws.hq[j] = quantize(ws.h[j], m.s_h);
-    linear_i8_tensor(m.w_hh.q, m.w_hh.scale, 3 * H, H, ws.hq, m.s_h, m.b_hh, ws.gh.data());
+    linear_i8_folded(m.w_ih.q, m.w_ih.scale, 3 * H, C, ws.xq, m.b_ih, ws.gx.data(), wih16);
+    quantize_all(ws.h.data(), H, m.s_h, ws.hq);
+    linear_i8_tensor(m.w_hh.q, m.w_hh.scale, 3 * H, H, ws.hq, m.s_h, m.b_hh, ws.gh.data(), whh16);
     gru_cell(ws.gx, ws.gh, H, ws.h);
     if (tr != nullptr) trace_row(ws.h, H, tr->h == nullptr ? nullptr : tr->h + t * H);
   }
-  for (int j = 0; j < H; ++j) ws.hq[j] = quantize(ws.h[j], m.s_h);
+  quantize_all(ws.h.data(), H, m.s_h, ws.hq);
   linear_i8_tensor(m.head_w.q, m.head_w.scale, d.classes, H, ws.hq, m.s_h, m.head_b, logits);
   return all_finite(logits, d.classes) ? Status::kOk : Status::kNonFiniteOutput;
 }

@@ -33,8 +33,18 @@ inline bool view_ok(const MatF& m, int rows, int cols) {
   return m.data != nullptr && m.rows == rows && m.cols == cols;
 }
 
+// int8 weights are in [-127, 127] (docs/formats.md): the SIMD kernels' sign trick
+// (fwref/kernels_i8.hpp) is exact only then, so a -128 is refused as bad weights.
+inline bool weights_in_range(const std::int8_t* q, long n) {
+  for (long i = 0; i < n; ++i) {
+    if (q[i] == -128) return false;
+  }
+  return true;
+}
+
 inline bool view_ok(const MatQ& m, int rows, int cols) {
-  return m.q != nullptr && m.rows == rows && m.cols == cols && all_positive_finite(m.scale, rows);
+  return m.q != nullptr && m.rows == rows && m.cols == cols && all_positive_finite(m.scale, rows) &&
+         weights_in_range(m.q, long(rows) * cols);
 }
 
 // Every model check runs in this order: the dimensions first (they size everything else), then the

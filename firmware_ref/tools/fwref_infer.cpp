@@ -2,13 +2,16 @@
 // drive it, docs/firmware.md):
 //
 //   fwref_infer --weights <weights.bin> --model cnode|gru [--int8] --in <windows.f32> --out <logits.f32>
-//               [--repeat R --timings <seconds.f64>]
+//               [--repeat R --timings <seconds.f64>] [--manifest <manifest.json>]
 //
 // windows.f32: raw little-endian float32 (n, W, C), n from the file size; logits.f32: (n, K)
 // float32. Windows run one at a time (batch 1, as firmware does). A wrong input size, NaN or Inf in
 // a window, a bad or truncated weights file or a model the file does not hold: one line on stderr,
 // exit 2, no output file. A usage error: exit 1. Optional --timings writes (n, R) float64 seconds
 // per inference (steady clock around each call; R = --repeat, default 1) for benchmarks.
+// --manifest: weights.bin must have the sha256 export/manifest.json records for it. --out and
+// --timings must be absent or regular files other than the inputs (a symlink, FIFO, device or an
+// input is refused before anything runs); outputs are created with the user's umask.
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -17,12 +20,13 @@
 #include <vector>
 
 #include "host_common.hpp"
+#include "host_files.hpp"
 
 namespace {
 
 const char* const kUsage =
     "usage: fwref_infer --weights <weights.bin> --model cnode|gru [--int8] --in <windows.f32> --out <logits.f32> "
-    "[--repeat R --timings <seconds.f64>]";
+    "[--repeat R --timings <seconds.f64>] [--manifest <manifest.json>]";
 
 int usage_error(const std::string& problem) {
   std::fprintf(stderr, "fwref_infer: %s; %s\n", problem.c_str(), kUsage);
@@ -37,7 +41,7 @@ int fail(const std::string& message) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  std::string weights, model, in, out, timings;
+  std::string weights, model, in, out, timings, manifest;
   bool int8 = false;
   long repeat = 1;
   for (int i = 1; i < argc; ++i) {
@@ -53,9 +57,10 @@ int main(int argc, char** argv) {
       return 0;
     } else if (a == "--int8") {
       int8 = true;
-    } else if (a == "--weights" || a == "--model" || a == "--in" || a == "--out" || a == "--timings") {
+    } else if (a == "--weights" || a == "--model" || a == "--in" || a == "--out" || a == "--timings" ||
+               a == "--manifest") {
       std::string* dst = a == "--weights" ? &weights : a == "--model" ? &model : a == "--in" ? &in
-                                                     : a == "--out" ? &out : &timings;
+                         : a == "--out" ? &out : a == "--manifest" ? &manifest : &timings;
       if (!value(dst)) return usage_error(a + " needs a value");
     } else if (a == "--repeat") {
       char* end = nullptr;
@@ -72,6 +77,26 @@ int main(int argc, char** argv) {
   if (model != "cnode" && model != "gru") return usage_error("--model must be cnode or gru, found '" + model + "'");
 
   std::string error;
+  const std::vector<std::string> what = {"--weights file", "--in file", "--manifest file", "--timings file"};
+  if (!fwref::host::output_allowed(out, {weights, in, manifest, timings}, what, &error)) return fail(error);
+  if (!timings.empty() && (timings == out ||
+                           !fwref::host::output_allowed(timings, {weights, in, manifest, out},
+                                                        {"--weights file", "--in file", "--manifest file",
+                                                         "--out file"}, &error))) {
+    return fail(timings == out ? "refusing to write --timings " + timings + ": it is also --out" : error);
+  }
+  if (!manifest.empty()) {
+    std::vector<unsigned char> text, wbytes;
+    if (!fwref::host::read_file(manifest, "manifest", &text, &error)) return fail(error);
+    if (!fwref::host::read_file(weights, "weights", &wbytes, &error)) return fail(error);
+    const std::string expected = fwref::host::manifest_sha256(std::string(text.begin(), text.end()), "weights.bin");
+    if (expected.empty()) return fail("manifest " + manifest + " has no sha256 for weights.bin (files.weights.bin.sha256)");
+    const std::string found = fwref::host::sha256_hex(wbytes);
+    if (found != expected) {
+      return fail("weights " + weights + ": sha256 " + found.substr(0, 16) + "... differs from " +
+                  expected.substr(0, 16) + "... recorded in " + manifest + " (files.weights.bin.sha256)");
+    }
+  }
   fwref::WeightsFile wf;
   if (wf.load(weights, &error) != fwref::Status::kOk) return fail(error);
   fwref::Status status;

@@ -5,6 +5,7 @@
 // unusable. The rule and its tolerances: fwref/parity.hpp.
 //
 //   fwref_parity --weights <weights.bin> --reference <reference.bin>
+//   fwref_parity --kernel-info    the CPU's instruction-set flags and the int8 kernel that runs (exit 0)
 #include <cstdio>
 #include <memory>
 #include <string>
@@ -14,6 +15,7 @@
 #include "fwref/parity.hpp"
 #include "fwref/weights_layout_gen.hpp"
 #include "host_common.hpp"
+#include "kernel_info.hpp"
 
 namespace {
 
@@ -178,8 +180,11 @@ int main(int argc, char** argv) {
     const std::string a = argv[i];
     if ((a == "--weights" || a == "--reference") && i + 1 < argc) {
       (a == "--weights" ? weights : reference) = argv[++i];
+    } else if (a == "--kernel-info") {  // which int8 kernel runs here, the CPU's flags (tools/kernel_info.hpp)
+      fwref::host::print_kernel_info(stdout);
+      return 0;
     } else if (a == "-h" || a == "--help") {
-      std::printf("usage: fwref_parity --weights <weights.bin> --reference <reference.bin>\n");
+      std::printf("usage: fwref_parity --weights <weights.bin> --reference <reference.bin> | --kernel-info\n");
       return 0;
     } else {
       std::fprintf(stderr, "fwref_parity: unknown or incomplete argument '%s'; usage: fwref_parity --weights "

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Generate the microcontroller build's constant arrays from weights.bin (and reference.bin).
 
-    gen_weights.py --weights <weights.bin> [--reference <reference.bin>] --out <folder>
+    gen_weights.py --weights <weights.bin> [--reference <reference.bin>] [--manifest <manifest.json>] --out <folder>
 
 Writes into <folder>:
   fwref_limits.h              FWREF_MAX_* = the model's own dimensions (fwref/config.hpp reads it
@@ -17,7 +17,9 @@ export.reference_bin.read_reference: every container and layout check), and each
 initialised in the order of the layout table export/weights_layout.py, which the generated header
 fwref/weights_layout_gen.hpp pins to the structs' member order. An unusable file exits 2 with one
 line on stderr. Floats are written as C++17 hexadecimal literals: exact. A file is rewritten only
-when its text changes, so an unchanged weights.bin rebuilds nothing.
+when its text changes, so an unchanged weights.bin rebuilds nothing. With --manifest, weights.bin
+(and reference.bin) must have the sha256 export/manifest.json records for them. A generated file
+replaces only a regular file (a symlink or FIFO there is refused) and gets the user's umask.
 """
 
 from __future__ import annotations
@@ -169,16 +171,45 @@ def reference_unit(sections) -> str:
 
 
 def write_if_changed(path: Path, text: str) -> None:
+    if path.is_symlink() or (path.exists() and not path.is_file()):
+        raise FileError(f"refusing to write {path}: it is a symlink, folder or special file, not a regular file")
     if path.is_file() and path.read_text() == text:
         return
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
     with os.fdopen(fd, "w") as fh:
         fh.write(text)
-    os.chmod(tmp, 0o644)
+    mask = os.umask(0o022)  # mkstemp makes 0600: the user's umask instead (read by set and restore)
+    os.umask(mask)
+    os.chmod(tmp, 0o666 & ~mask)
     os.replace(tmp, path)
 
 
-def generate(weights: Path, reference: Path | None, out: Path) -> list[Path]:
+def check_manifest(manifest: Path, files: dict[str, Path]) -> None:
+    """Each of ``files`` ({name in the manifest: path}) must have the sha256 the manifest records."""
+    import hashlib
+
+    from core.jsonio import read_json
+
+    try:
+        listed = read_json(manifest, "manifest").get("files", {})
+    except (QuadfdiError, AttributeError) as exc:
+        raise FileError(f"manifest {manifest} cannot be read: {exc}") from None
+    for name, path in files.items():
+        want = (listed.get(name) or {}).get("sha256") if isinstance(listed, dict) else None
+        if not want:
+            raise FileError(f"manifest {manifest} has no sha256 for {name} (files.{name}.sha256)")
+        try:
+            got = hashlib.sha256(path.read_bytes()).hexdigest()
+        except OSError as exc:
+            raise FileError(f"cannot read {path}: {exc.strerror}") from None
+        if got != want:
+            raise FileError(f"{path}: sha256 {got[:16]}... differs from {want[:16]}... recorded in {manifest} "
+                            f"(files.{name}.sha256)")
+
+
+def generate(weights: Path, reference: Path | None, out: Path, manifest: Path | None = None) -> list[Path]:
+    if manifest is not None:
+        check_manifest(manifest, {"weights.bin": weights, **({"reference.bin": reference} if reference else {})})
     try:
         w = read_weights(weights)
         ref = read_reference(reference).sections if reference is not None else None
@@ -202,10 +233,11 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--weights", required=True, type=Path)
     ap.add_argument("--reference", type=Path, default=None)
+    ap.add_argument("--manifest", type=Path, default=None, help="export/manifest.json: check the files' sha256")
     ap.add_argument("--out", required=True, type=Path)
     args = ap.parse_args(argv)
     try:
-        generate(args.weights, args.reference, args.out)
+        generate(args.weights, args.reference, args.out, args.manifest)
     except FileError as exc:
         print(f"gen_weights.py: error: {exc}", file=sys.stderr)
         return 2

@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include "fwref/cnode.hpp"
@@ -115,6 +116,9 @@ inline bool write_atomic(const std::string& path, const void* data, std::size_t 
     *error = "cannot write " + path + ": " + std::strerror(errno);
     return false;
   }
+  const mode_t mask = ::umask(0);  // mkstemp makes 0600: give the file the user's umask instead
+  ::umask(mask);
+  ::fchmod(fd, 0666 & ~mask);
   const char* p = static_cast<const char*>(data);
   std::size_t left = n;
   bool ok = true;

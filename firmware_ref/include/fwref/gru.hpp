@@ -67,6 +67,15 @@ struct GruWorkspace {
   In xn;
   std::int8_t xq[kMaxChannels];
   std::int8_t hq[kMaxGruHidden];
+#if defined(FWREF_GRU_WHH_INT16)
+  // Cortex-M option (firmware_ref/mcu, FWREF_GRU_WHH_INT16=ON): W_hh and W_ih sign-extended to int16
+  // in RAM (rows padded to a multiple of 8), made by the first int8 inference of a model (w16_of
+  // records which weights they hold), so both products, run W times per window, are LDRD + SMLAD
+  // (fwref/kernels_i8.hpp): 2 * 3H * (pad8(H) + pad8(C)) bytes of RAM for speed.
+  alignas(8) std::int16_t whh16[kMaxGruGates * ((kMaxGruHidden + 7) & ~7)];  // LDRD needs word alignment
+  alignas(8) std::int16_t wih16[kMaxGruGates * ((kMaxChannels + 7) & ~7)];
+  const std::int8_t* w16_of = nullptr;
+#endif
 };
 
 Status check(const GruF32& m);

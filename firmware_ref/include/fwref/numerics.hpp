@@ -11,7 +11,9 @@
 #include <cstdint>
 #include <cstring>
 
-#if defined(__ARM_FEATURE_SIMD32)
+#include "fwref/kernels_i8.hpp"
+
+#if defined(__ARM_FEATURE_SIMD32) || defined(__ARM_FEATURE_SAT)
 #include <arm_acle.h>
 #endif
 
@@ -81,6 +83,22 @@ inline float logistic_approx(float x) {
 // nearest-even) mode; no libm call and no VRINT needed, identical on x86 and Cortex-M. A NaN maps
 // to 0 so that the conversion to int is always defined (inputs are checked finite; this only
 // guards the int conversion).
+#if defined(__ARM_FEATURE_SAT) && defined(__ARM_FP) && !defined(FWREF_PORTABLE_KERNELS)
+// Cortex-M4F/M7: the same integer in four instructions. VCVTR.S32.F32 rounds in the FPSCR's mode,
+// round to nearest even (the reset value; nothing here changes it), exactly for every float (no
+// 2^22 limit), maps NaN to 0 and saturates out-of-range values to the int32 range; SSAT then
+// clamps to [-128, 127]. Rounding then clamping equals clamping then rounding because the bounds
+// are integers and rounding is monotonic, so q = clamp(rne(x / s), -128, 127) as below, NaN -> 0.
+// The division stays a float32 division (x * (1/s) differs at ties).
+inline std::int8_t quantize(float x, float scale) {
+  const float v = x / scale;
+  float r;
+  __asm__("vcvtr.s32.f32 %0, %1" : "=t"(r) : "t"(v));
+  std::int32_t i;
+  std::memcpy(&i, &r, 4);
+  return static_cast<std::int8_t>(__ssat(i, 8));
+}
+#else
 inline std::int8_t quantize(float x, float scale) {
   float v = x / scale;
   if (!(v == v)) v = 0.0f;
@@ -90,6 +108,7 @@ inline std::int8_t quantize(float x, float scale) {
   v = (v + magic) - magic;
   return static_cast<std::int8_t>(static_cast<int>(v));
 }
+#endif
 
 // sum_i a[i] * b[i] over int8 in int32 (exact: |sum| < 2^24 by fwref/config.hpp's limits, so the
 // order of the additions does not matter and every variant below gives the same integer).
@@ -118,22 +137,49 @@ inline std::int32_t dot_i8(const std::int8_t* a, const std::int8_t* b, int n) {
 }
 #endif
 
-// Pattern A (per-tensor activation scale s_a): y[o] = ((f32(acc[o]) * s_a) * s_w[o]) + b[o].
+// The one int32 -> float rescale order (docs/formats.md, "int8 arithmetic"), ONNX Runtime's
+// com.microsoft.MatMulIntegerToFloat: f32(acc) * f32(s_a * s_w), the multiplier formed first.
+inline float rescale_i32(std::int32_t acc, float s_a, float s_w) {
+  const float m = s_a * s_w;
+  return static_cast<float>(acc) * m;
+}
+
+// The linear layers below take the int32 accumulators from gemv_i8 (fwref/kernels_i8.hpp: the
+// SIMD kernels, several rows per pass) in blocks of kGemvRowBlock rows, then rescale them here.
+constexpr int kGemvRowBlock = 64;
+
+// Pattern A (per-tensor activation scale s_a): y[o] = (f32(acc[o]) * f32(s_a * s_w[o])) + b[o], the
+// order of ONNX Runtime's com.microsoft.MatMulIntegerToFloat (the multiplier f32(s_a * s_w[o]) is
+// formed first, then one multiply and one add, no FMA). The multiplier is one float32 product,
+// so forming it here per row gives the same bits as precomputing it at load.
 // ``w`` is (rows, cols) int8 row-major, ``s_w`` (rows,), ``bias`` (rows,), ``x`` (cols,) int8.
+// uint8 activations with zero point 128 reach here as their int8 codes q - 128: the integer sum is
+// the same. ``w16``: optionally the same weights sign-extended to int16 (Cortex-M builds with
+// FWREF_GRU_WHH_INT16, fwref/kernels_i8.hpp), the same accumulators from a faster kernel.
 inline void linear_i8_tensor(const std::int8_t* w, const float* s_w, int rows, int cols, const std::int8_t* x,
-                             float s_a, const float* bias, float* y) {
-  for (int o = 0; o < rows; ++o) {
-    const float acc = static_cast<float>(dot_i8(w + o * cols, x, cols));
-    y[o] = ((acc * s_a) * s_w[o]) + bias[o];
+                             float s_a, const float* bias, float* y, const std::int16_t* w16 = nullptr) {
+  std::int32_t acc_i[kGemvRowBlock];
+  for (int o0 = 0; o0 < rows; o0 += kGemvRowBlock) {
+    const int o1 = rows - o0 < kGemvRowBlock ? rows : o0 + kGemvRowBlock;
+    gemv_i8_any(w, w16, o0, o1 - o0, cols, x, acc_i);  // int32 accumulators (fwref/kernels_i8.hpp)
+    for (int o = o0; o < o1; ++o) {
+      y[o] = rescale_i32(acc_i[o - o0], s_a, s_w[o]) + bias[o];
+    }
   }
 }
 
-// Pattern B (per-channel activation scales folded into the weight): y[o] = (f32(acc[o]) * s_w'[o]) + b[o].
+// Pattern B (per-channel activation scales folded into the weight): y[o] = (f32(acc[o]) * s_w'[o]) + b[o]
+// (MatMulIntegerToFloat with s_a = 1: f32(1 * s_w') = s_w').
 inline void linear_i8_folded(const std::int8_t* w, const float* s_w, int rows, int cols, const std::int8_t* x,
-                             const float* bias, float* y) {
-  for (int o = 0; o < rows; ++o) {
-    const float acc = static_cast<float>(dot_i8(w + o * cols, x, cols));
-    y[o] = (acc * s_w[o]) + bias[o];
+                             const float* bias, float* y, const std::int16_t* w16 = nullptr) {
+  std::int32_t acc_i[kGemvRowBlock];
+  for (int o0 = 0; o0 < rows; o0 += kGemvRowBlock) {
+    const int o1 = rows - o0 < kGemvRowBlock ? rows : o0 + kGemvRowBlock;
+    gemv_i8_any(w, w16, o0, o1 - o0, cols, x, acc_i);  // int32 accumulators (fwref/kernels_i8.hpp)
+    for (int o = o0; o < o1; ++o) {
+      const float acc = static_cast<float>(acc_i[o - o0]);
+      y[o] = (acc * s_w[o]) + bias[o];
+    }
   }
 }
 

@@ -1,0 +1,141 @@
+// tools/fwref_kernels.cpp -- scope: the int8 kernels of fwref/kernels_i8.hpp on this machine.
+//
+//   fwref_kernels --info                    which kernel runs, which ones the CPU runs, the fp32 build's ISA
+//   fwref_kernels --check [--kernel NAME]   every kernel the CPU runs (or NAME) against the portable
+//                                           loop: the same int32 accumulators on random and extreme data
+//
+// --info lines (key: value): cpu_flags, fp32_build, int8_kernel (the dispatched one), int8_kernels
+// (name=runs|no for each kernel this build has). --check prints one line per kernel,
+//   CHECK <name> cases=<n> mismatches=<m> OK|NOT_OK
+// and exits 0 when all match, 1 on a mismatch, 3 when NAME is unknown or the CPU cannot run it.
+#include <cstdint>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "fwref/kernels_i8.hpp"
+#include "kernel_info.hpp"
+
+namespace {
+
+#if defined(__x86_64__) && !defined(FWREF_PORTABLE_KERNELS)
+constexpr bool kDispatch = true;
+#else
+constexpr bool kDispatch = false;
+#endif
+
+using Fn = void (*)(const std::int8_t*, int, int, const std::int8_t*, std::int32_t*);
+
+// Random shapes (every column count 1..100 and a few long ones, row counts around the 4-row
+// blocks), uniform values, and the extremes: x = -128 everywhere against w = +-127 (the largest
+// pair sums of the sign trick), alternating signs, zeros.
+long check_kernel(Fn fn, unsigned seed, long* cases) {
+  std::mt19937 rng(seed);
+  std::uniform_int_distribution<int> ux(-128, 127), uw(-127, 127);
+  long bad = 0;
+  *cases = 0;
+  std::vector<int> col_counts;
+  for (int c = 1; c <= 100; ++c) col_counts.push_back(c);
+  for (int c : {127, 128, 129, 200, 255, 256}) {
+    if (c <= fwref::kMaxGemvCols) col_counts.push_back(c);
+  }
+  const int row_counts[] = {1, 2, 3, 4, 5, 7, 8, 9, 13, 64, 240};
+  for (int cols : col_counts) {
+    for (int rows : row_counts) {
+      for (int pattern = 0; pattern < 5; ++pattern) {
+        // exact-size allocations, so an out-of-bounds read shows under the sanitizer build
+        std::vector<std::int8_t> w(std::size_t(rows) * cols), x(cols);
+        for (int i = 0; i < cols; ++i) {
+          x[i] = std::int8_t(pattern == 0 ? ux(rng) : pattern == 1 ? -128 : pattern == 2 ? (i % 2 ? 127 : -128)
+                                                    : pattern == 3 ? 127 : (i % 3 ? 0 : -128));
+        }
+        for (std::size_t i = 0; i < w.size(); ++i) {
+          w[i] = std::int8_t(pattern == 0 ? uw(rng) : pattern == 1 ? (i % 5 == 4 ? 127 : -127)
+                                                    : pattern == 2 ? (i % 2 ? 127 : -127) : pattern == 3 ? 127 : uw(rng));
+        }
+        std::vector<std::int32_t> want(rows), got(rows, 0x5a5a5a5a);
+        fwref::gemv_i8_portable(w.data(), rows, cols, x.data(), want.data());
+        fn(w.data(), rows, cols, x.data(), got.data());
+        ++*cases;
+        if (want != got) {
+          if (bad < 5) std::fprintf(stderr, "mismatch: rows=%d cols=%d pattern=%d\n", rows, cols, pattern);
+          ++bad;
+        }
+      }
+    }
+  }
+  return bad;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  bool info = false, check = false;
+  std::string only;
+  unsigned seed = 12345;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    if (a == "--info") {
+      info = true;
+    } else if (a == "--check") {
+      check = true;
+    } else if (a == "--kernel" && i + 1 < argc) {
+      only = argv[++i];
+    } else if (a == "--seed" && i + 1 < argc) {
+      seed = unsigned(std::strtoul(argv[++i], nullptr, 10));
+    } else {
+      std::fprintf(stderr, "usage: fwref_kernels --info | --check [--kernel NAME] [--seed S]\n");
+      return 1;
+    }
+  }
+  if (!info && !check) info = true;
+  if (info) fwref::host::print_kernel_info(stdout);
+  if (!check) return 0;
+  int failed = 0, ran = 0;
+#if defined(__x86_64__) && !defined(FWREF_PORTABLE_KERNELS)
+  const fwref::GemvI8Kernel* ks = nullptr;
+  const int n = fwref::gemv_i8_kernels(&ks);
+  for (int k = 0; k < n; ++k) {
+    if (!only.empty() && only != ks[k].name) continue;
+    if (!ks[k].cpu_runs) {
+      if (!only.empty()) {
+        std::printf("CHECK %s cpu-cannot-run\n", ks[k].name);
+        return 3;
+      }
+      continue;
+    }
+    long cases = 0;
+    const long bad = check_kernel(ks[k].fn, seed, &cases);
+    std::printf("CHECK %s cases=%ld mismatches=%ld %s\n", ks[k].name, cases, bad, bad ? "NOT_OK" : "OK");
+    failed += bad ? 1 : 0;
+    ++ran;
+  }
+  // and the dispatched entry point itself
+  if (only.empty()) {
+    long cases = 0;
+    const long bad = check_kernel(fwref::gemv_i8, seed + 1, &cases);
+    std::printf("CHECK dispatched:%s cases=%ld mismatches=%ld %s\n", fwref::gemv_i8_kernel_name(), cases, bad,
+                bad ? "NOT_OK" : "OK");
+    failed += bad ? 1 : 0;
+    ++ran;
+  }
+#else
+  (void)kDispatch;
+  if (only.empty() || only == fwref::gemv_i8_kernel_name()) {
+    long cases = 0;
+    const long bad = check_kernel(fwref::gemv_i8, seed, &cases);
+    std::printf("CHECK %s cases=%ld mismatches=%ld %s\n", fwref::gemv_i8_kernel_name(), cases, bad,
+                bad ? "NOT_OK" : "OK");
+    failed += bad ? 1 : 0;
+    ++ran;
+  }
+#endif
+  if (ran == 0) {
+    std::printf("CHECK %s unknown-kernel\n", only.c_str());
+    return 3;
+  }
+  return failed ? 1 : 0;
+}

@@ -1,0 +1,42 @@
+// tools/kernel_info.hpp -- scope: the lines that say which int8 kernel runs and what the CPU and the
+// fp32 build support (fwref_kernels --info, fwref_parity --kernel-info; bench records them):
+//   cpu_flags: sse4.2=1 avx=1 avx2=1 fma=1 avx512f=0 avx512vl=0 avx512vnni=0
+//   fp32_build: x86-64 sse4.2 avx avx2 fma
+//   int8_kernel: avx2
+//   int8_kernels: portable=runs avx2=runs avx512vnni=no
+#pragma once
+
+#include <cstdio>
+
+#include "fwref/kernels_i8.hpp"
+
+namespace fwref {
+namespace host {
+
+inline void print_kernel_info(std::FILE* out) {
+#if defined(__x86_64__)
+  __builtin_cpu_init();
+  std::fprintf(out, "cpu_flags: sse4.2=%d avx=%d avx2=%d fma=%d avx512f=%d avx512vl=%d avx512vnni=%d\n",
+               __builtin_cpu_supports("sse4.2") ? 1 : 0, __builtin_cpu_supports("avx") ? 1 : 0,
+               __builtin_cpu_supports("avx2") ? 1 : 0, __builtin_cpu_supports("fma") ? 1 : 0,
+               __builtin_cpu_supports("avx512f") ? 1 : 0, __builtin_cpu_supports("avx512vl") ? 1 : 0,
+               __builtin_cpu_supports("avx512vnni") ? 1 : 0);
+#else
+  std::fprintf(out, "cpu_flags: (not x86-64)\n");
+#endif
+#if defined(__x86_64__) && !defined(FWREF_PORTABLE_KERNELS)
+  std::fprintf(out, "fp32_build: %s\n", fp32_build_isa());
+  std::fprintf(out, "int8_kernel: %s\n", gemv_i8_kernel_name());
+  const GemvI8Kernel* ks = nullptr;
+  const int n = gemv_i8_kernels(&ks);
+  std::fprintf(out, "int8_kernels:");
+  for (int k = 0; k < n; ++k) std::fprintf(out, " %s=%s", ks[k].name, ks[k].cpu_runs ? "runs" : "no");
+  std::fprintf(out, "\n");
+#else
+  std::fprintf(out, "fp32_build: generic\nint8_kernel: %s\nint8_kernels: %s=runs\n", gemv_i8_kernel_name(),
+               gemv_i8_kernel_name());
+#endif
+}
+
+}  // namespace host
+}  // namespace fwref
