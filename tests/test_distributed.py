@@ -24,7 +24,7 @@ from sim.dataset import dataset_arrays, write_npz
 from sim.publish import generate_sharded
 from sim.shards import KIND, shard_jobs
 from sim.simulate import generate
-from tests.conftest import ROOT, quadfdi
+from tests.conftest import ROOT, copy_run, quadfdi
 
 pytest.importorskip("distributed")
 # Jobs defined in this file travel by value: the workers cannot import a test module by name.
@@ -192,13 +192,6 @@ def test_cluster_started_with_the_dask_command(serial_bytes, tmp_path):
 STUDY = ["train.epochs=1", "train.batch_size=48", "train.latent=8", "train.hidden=16", "train.gru_hidden=16"]
 
 
-def _copy_run(src: Path, dst: Path) -> Path:
-    dst.mkdir(parents=True)
-    for name in ("config.toml", "dataset.npz"):
-        shutil.copy(src / name, dst / name)
-    return dst
-
-
 def test_study_metrics_serial_equal_distributed(cluster, small_run, tmp_path):
     import json
 
@@ -208,7 +201,7 @@ def test_study_metrics_serial_equal_distributed(cluster, small_run, tmp_path):
 
     out = {}
     for name, settings in (("serial", SERIAL), ("dask", ExecSettings(cluster[0]))):
-        run, cfg = open_run(_copy_run(small_run, tmp_path / name), STUDY)
+        run, cfg = open_run(copy_run(small_run, tmp_path / name), STUDY)
         run_study(run, cfg, [0, 1], "quadfdi train study", log=lambda _: None, settings=settings)
         seeds = json.loads((run.root / "seeds.json").read_text())
         seeds.pop("seconds_per_seed")  # timing: not part of the comparison
@@ -262,7 +255,7 @@ def test_solver_matrix_cells_on_two_workers_equal_in_process(cluster, small_run,
 
     out = {}
     for name, settings in (("here", None), ("dask", ExecSettings(cluster[0]))):
-        run, cfg = open_run(_copy_run(small_run, tmp_path / name), MATRIX)
+        run, cfg = open_run(copy_run(small_run, tmp_path / name), MATRIX)
         out[name] = matrix_run(run, cfg, log=lambda _: None, settings=settings)
     assert _no_timing(out["here"]) == _no_timing(out["dask"])
     assert len(out["dask"]["cells"]) == 2 * 3  # 2 models x (2 deploys + the reference)
