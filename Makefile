@@ -4,7 +4,7 @@ PY := .venv/bin/python
 RUN ?= runs/paper
 CONFIG ?= configs/paper.toml
 
-.PHONY: setup run test sim-bench study solvers solver-matrix clean
+.PHONY: setup run test sim-bench sweep-bench study solvers solver-matrix clean
 
 setup:
 	bash scripts/setup.sh
@@ -17,6 +17,9 @@ test: setup
 
 sim-bench: setup
 	$(PY) -m quadfdi.cli sim bench --config $(CONFIG)
+
+sweep-bench: setup
+	$(PY) -m quadfdi.cli sweep bench
 
 study: setup
 	$(PY) -m quadfdi.cli train study --run $(RUN) --readme README.md

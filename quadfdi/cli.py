@@ -28,6 +28,7 @@ STAGES = {
     "check": "quadfdi.check",
     "readme": "quadfdi.readme",
     "run": "quadfdi.pipeline",
+    "sweep": "quadfdi.sweep",
 }
 DESCRIPTION = ("quadfdi: quadrotor fault diagnosis, from the physics simulator to the firmware reference; "
                "one subcommand per stage (quadfdi run: all of them into one run folder).")

@@ -10,6 +10,7 @@ from pathlib import Path
 from core.cliargs import add_config_args
 from core.config import Config, load_config
 from core.errors import QuadfdiError
+from core.executor import SERIAL, ExecSettings, add_executor_args
 from core.rundir import RunDir, create_run, open_run
 
 
@@ -18,6 +19,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                        description="Simulate the paper's dataset into <out>/dataset.npz.")
     add_config_args(p)
     p.add_argument("--out", default=None, help="run folder to write (e.g. runs/paper)")
+    add_executor_args(p)
     p.set_defaults(func=run_generate)
     acts = p.add_subparsers(dest="action", metavar="{plot,bench}")
     pp = acts.add_parser("plot", help="draw one trajectory of a run's dataset")
@@ -32,34 +34,21 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     pb.set_defaults(func=run_bench)
 
 
-def generate_into(run: RunDir, cfg: Config, show_progress: bool = True) -> Path:
-    """Simulate ``cfg.sim`` and publish ``dataset.npz`` with ``config.toml`` as one stage; return the
-    dataset's path. The config is written only after the simulation succeeded (core.stage)."""
-    from tqdm import tqdm
+def generate_into(run: RunDir, cfg: Config, show_progress: bool = True, settings: ExecSettings = SERIAL,
+                  cache_root: Path | None = None) -> Path:
+    """``sim.publish.publish_dataset``: simulate and publish dataset.npz with config.toml."""
+    from sim.publish import publish_dataset
 
-    from core.atomic import write_text
-    from core.config import dumps_toml
-    from core.stage import stage
-    from sim.dataset import dataset_arrays, write_npz
-    from sim.params import get_vehicle
-    from sim.simulate import generate
-
-    get_vehicle(cfg.sim.vehicle)  # an unknown vehicle is refused before anything is staged
-    with stage(run.root, "sim", {"sim": cfg.to_dict()["sim"]}, targets=("dataset.npz", "config.toml"),
-               need_bytes=cfg.sim.estimated_bytes) as st:
-        with tqdm(total=cfg.sim.n_traj, unit="traj", desc="sim", disable=not show_progress) as bar:
-            arrays = generate(cfg.sim, progress=bar.update)
-        write_npz(st.path("dataset.npz"), dataset_arrays(arrays, cfg))
-        write_text(st.path("config.toml"), dumps_toml(cfg))
-    return run.dataset
+    return publish_dataset(run, cfg, show_progress, settings, cache_root)
 
 
 def run_generate(args: argparse.Namespace) -> int:
     if args.out is None:
         raise QuadfdiError("quadfdi sim needs --out <run folder>")
+    settings = ExecSettings.from_args(args)
     cfg = load_config(args.config, args.overrides)
     run = create_run(args.out, cfg)
-    path = generate_into(run, cfg)
+    path = generate_into(run, cfg, settings=settings)
     print(f"wrote {path}")
     return 0
 

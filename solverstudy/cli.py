@@ -15,6 +15,7 @@ import argparse
 import shlex
 
 from core.cliargs import add_config_args
+from core.executor import add_executor_args
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -26,7 +27,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     ps.add_argument("--checkpoint", default=None, help="CNODE checkpoint (default: <run>/cnode.pt)")
     pm = acts.add_parser("matrix", help="train with several solvers, deploy each with each (solvers/solver_matrix.json)")
     pm.add_argument("--reuse", action="store_true",
-                    help="reuse models in <run>/solvers/matrix_models/ trained with the same solver, data and settings")
+                    help="in this process, reuse models in <run>/solvers/matrix_models/ trained with the same solver, "
+                         "data and settings (without it, the matrix runs as cached jobs on --scheduler/--workers)")
+    add_executor_args(pm)
     pr = acts.add_parser("render", help="redraw the solver figures and markdown from their JSON files")
     for q, func in ((ps, run_study_cmd), (pm, run_matrix_cmd), (pr, run_render_cmd)):
         q.add_argument("--run", required=True, help="run folder (e.g. runs/paper)")
@@ -59,8 +62,13 @@ def run_matrix_cmd(args: argparse.Namespace) -> int:
     from core.rundir import open_run
     from solverstudy.run import matrix_run
 
+    from core.executor import ExecSettings
+
+    settings = ExecSettings.from_args(args)
     run, cfg = open_run(args.run, args.overrides, need=("dataset",))
-    matrix_run(run, cfg, reuse=args.reuse, command=_command(args))
+    # --reuse keeps the in-process path that reads matrix_models/; otherwise one job per model,
+    # reference and cell, each cached by its key (which is what makes a rerun cheap there).
+    matrix_run(run, cfg, reuse=args.reuse, command=_command(args), settings=None if args.reuse else settings)
     return 0
 
 

@@ -129,9 +129,12 @@ def _reused(files: SolverFiles, specs: list, fingerprint: dict, log: Log) -> dic
     return models
 
 
-def matrix_run(run: RunDir, cfg: Config, log: Log = print, reuse: bool = False, command: str | None = None) -> dict:
+def matrix_run(run: RunDir, cfg: Config, log: Log = print, reuse: bool = False, command: str | None = None,
+               settings=None) -> dict:
     """Train the CNODEs of ``solvers.matrix_train``, deploy each with each of ``solvers.matrix_deploy``;
-    with ``reuse``, models kept from an earlier matrix of the same data and settings are not retrained."""
+    with ``reuse``, models kept from an earlier matrix of the same data and settings are not retrained.
+    With ``settings`` (a ``core.executor.ExecSettings``), the matrix runs as jobs on that executor
+    (``solverstudy.jobs``: one per model, reference and cell), cached in ``<run>/cache/matrix-*/``."""
     from sim.dataset import load_dataset
     from solverstudy.matrix import matrix_plan
 
@@ -142,6 +145,8 @@ def matrix_run(run: RunDir, cfg: Config, log: Log = print, reuse: bool = False, 
     with stage(run.root, "solver-matrix", {k: sections[k] for k in ("sim", "train", "solvers")},
                targets=("solvers/solver_matrix.json",)) as st:
         ds = load_dataset(st.consume("dataset.npz", ("sim",)))
+        if settings is not None:
+            return _matrix_on_executor(run, cfg, SolverFiles(st.out), specs, deploys, settings, log, command)
         if reuse:
             st.carry_previous()  # the models not retrained stay published
         return _matrix_into(run, cfg, ds, SolverFiles(st.out), specs, deploys, log, reuse, command)
@@ -149,15 +154,12 @@ def matrix_run(run: RunDir, cfg: Config, log: Log = print, reuse: bool = False, 
 
 def _matrix_into(run: RunDir, cfg: Config, ds, staged: SolverFiles, specs, deploys, log: Log, reuse: bool,
                  command: str | None) -> dict:
-    from solverstudy.matrix import matrix_epochs, run_matrix
+    from solverstudy.matrix import run_matrix
     from solverstudy.plots import draw_matrix
     from train.checkpoint import save_checkpoint
 
     files = SolverFiles(run.root)
-    # what a reused model must share with this run besides its solver: data, windows, training
-    fingerprint = {"dataset_sha256": _sha256(run.dataset), "epochs": matrix_epochs(cfg),
-                   "max_train_windows": cfg.solvers.matrix_max_train_windows,
-                   **{k: getattr(cfg.train, k) for k in ("seed", "lr", "batch_size", "latent", "hidden", "log_eps")}}
+    fingerprint = _fingerprint(run, cfg)
     models = _reused(files, specs, fingerprint, log) if reuse else {}
     reused = sorted(models)
 
@@ -177,6 +179,39 @@ def _matrix_into(run: RunDir, cfg: Config, ds, staged: SolverFiles, specs, deplo
     log(ott_sentence(matrix))
     log(f"wrote {files.matrix_json}, {files.matrix_md} and {', '.join(str(f) for f in figs)} "
         f"in {matrix['meta']['seconds']:.0f} s")
+    return matrix
+
+
+def _fingerprint(run: RunDir, cfg: Config) -> dict:
+    """What a reused model must share with this run besides its solver: data, windows, training."""
+    from solverstudy.matrix import matrix_epochs
+
+    return {"dataset_sha256": _sha256(run.dataset), "epochs": matrix_epochs(cfg),
+            "max_train_windows": cfg.solvers.matrix_max_train_windows,
+            **{k: getattr(cfg.train, k) for k in ("seed", "lr", "batch_size", "latent", "hidden", "log_eps")}}
+
+
+def _matrix_on_executor(run: RunDir, cfg: Config, files: SolverFiles, specs, deploys, settings, log: Log,
+                        command: str | None) -> dict:
+    """The matrix as jobs on ``settings``' executor; ``files``: the stage's staging folder."""
+    from solverstudy.jobs import matrix_jobs_run
+    from solverstudy.plots import draw_matrix
+    from train.checkpoint import load_checkpoint, save_checkpoint
+
+    matrix, models = matrix_jobs_run(run, cfg, specs, deploys, settings, log)
+    fingerprint = _fingerprint(run, cfg)
+    for info in matrix["train"]:
+        info["fingerprint"] = fingerprint  # as the in-process path records it
+    for label, path in models.items():  # where --reuse and a reader of the run expect the models
+        model, blob = load_checkpoint(path, "cnode")
+        save_checkpoint(files.matrix_models / f"{_slug(label)}.pt", model, blob["config"], blob["channel_names"],
+                        extra={"matrix_info": {**blob["matrix_info"], "fingerprint": fingerprint}})
+    matrix["meta"]["command"] = command or f"quadfdi solvers matrix --run {run.root}"
+    write_json(files.matrix_json, matrix, indent=2)
+    figs = draw_matrix(matrix, files.figures)
+    write_text(files.matrix_md, matrix_markdown(matrix, matrix["meta"]["command"]))
+    log(f"wrote {files.matrix_json.name}, {files.matrix_md.name} and {len(figs)} figures")
+    log(ott_sentence(matrix))
     return matrix
 
 

@@ -10,6 +10,7 @@ from pathlib import Path
 
 from core.cliargs import add_config_args
 from core.errors import QuadfdiError
+from core.executor import ExecSettings, add_executor_args, strip_executor_args
 from core.rundir import open_run
 
 
@@ -27,6 +28,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     ps.add_argument("--seeds", default=None, help="comma-separated seeds (default: train.seeds)")
     ps.add_argument("--readme", default=None, help="also copy the table into this README between the results markers")
     add_config_args(ps, config=False)
+    add_executor_args(ps)
     ps.set_defaults(func=run_study_cmd)
 
 
@@ -53,8 +55,9 @@ def run_study_cmd(args: argparse.Namespace) -> int:
     readme = Path(args.readme) if args.readme else None
     if readme is not None:
         check_readme(readme)
-    command = "quadfdi " + " ".join(shlex.quote(a) for a in sys.argv[1:]) if sys.argv[1:] else "quadfdi train study"
-    out = run_study(run, cfg, seeds, command)
+    argv = strip_executor_args(sys.argv[1:])  # where it ran is not part of the result
+    command = "quadfdi " + " ".join(shlex.quote(a) for a in argv) if argv else "quadfdi train study"
+    out = run_study(run, cfg, seeds, command, settings=ExecSettings.from_args(args))
     print(out["table"])
     if readme is not None:
         update_readme(readme, out["table"])

@@ -4,19 +4,17 @@ table side by side with the paper's Tables 3 and 4 (mean ± std over the seeds).
 from __future__ import annotations
 
 import re
-import time
 from pathlib import Path
 from typing import Callable
 
 import numpy as np
 
 from core.atomic import write_text
-from core.config import Config, replace_section
+from core.config import Config
 from core.contracts import CLASS_NAMES
 from core.errors import QuadfdiError
 from core.jsonio import to_jsonable, write_json
 from core.rundir import RunDir
-from sim.dataset import load_dataset
 from train.figures import SHORT
 from train.metrics import summarize_seeds
 
@@ -89,30 +87,50 @@ def update_readme(readme: Path, table: str) -> None:
     write_text(readme, _RESULTS.sub(lambda _: f"{README_START}\n{table}{README_END}", text, count=1))
 
 
-def run_study(run: RunDir, cfg: Config, seeds: list[int], command: str, log: Callable[[str], None] = print) -> dict:
+def run_study(run: RunDir, cfg: Config, seeds: list[int], command: str, log: Callable[[str], None] = print,
+              settings=None) -> dict:
+    """The seed study, published as one stage (seeds.json, results.md): one job per seed x model on
+    ``settings``' executor (``core.executor``; default: this process), cached in ``<run>/cache/study/``;
+    a job that failed 3 times is listed under ``failed`` and left out of its model's summary."""
     from core.stage import stage
 
     sections = cfg.to_dict()
     with stage(run.root, "study", {"sim": sections["sim"], "train": sections["train"]},
                targets=("seeds.json", "results.md")) as st:
-        ds = load_dataset(st.consume("dataset.npz", ("sim",)))
-        return _study_into(RunDir(st.out), ds, cfg, seeds, command, log)
+        st.consume("dataset.npz", ("sim",))
+        return _study_into(run, RunDir(st.out), cfg, seeds, command, log, settings)
 
 
-def _study_into(out: RunDir, ds, cfg: Config, seeds: list[int], command: str, log: Callable[[str], None]) -> dict:
-    from train.run import train_all
+def _study_into(run: RunDir, out: RunDir, cfg: Config, seeds: list[int], command: str,
+                log: Callable[[str], None], settings) -> dict:
+    from core.executor import SERIAL, run_jobs
+    from core.jobcache import read_result
+    from train.study_jobs import MODELS, seed_model_jobs
 
-    per_seed, timings = [], []
-    for seed in seeds:
-        t0 = time.perf_counter()
-        result = train_all(ds, replace_section(cfg, "train", seed=seed), ["cnode", "gru"], log)
-        per_seed.append(result["metrics"])
-        timings.append(time.perf_counter() - t0)
-        log(f"seed {seed}: done in {timings[-1]:.0f} s")
-    by_model = {model: summarize_seeds([m[model] for m in per_seed]) for model in per_seed[0]}
+    jobs = seed_model_jobs(run, cfg, seeds)
+    results = run_jobs(jobs, settings or SERIAL, desc="study", log=log)
+    per_seed: dict[int, dict] = {s: {} for s in seeds}
+    seconds = {s: 0.0 for s in seeds}
+    failed = []
+    for r in results:
+        seed, kind = r.job.args[1].train.seed, r.job.args[2]
+        seconds[seed] += r.seconds
+        if not r.ok:
+            failed.append({"seed": seed, "model": kind, "error": r.error})
+            continue
+        got = read_result(r.job.out)
+        per_seed[seed][kind] = got[kind]
+        per_seed[seed].setdefault("baseline", got["baseline"])  # the same fit in every job of a seed
+    by_model = {}
+    for model in (*MODELS, "baseline"):
+        ok = [per_seed[s][model] for s in seeds if model in per_seed[s]]
+        if ok:
+            by_model[model] = summarize_seeds(ok)
     seeds_json = to_jsonable(by_model)
     seeds_json["seeds"] = list(seeds)
-    seeds_json["seconds_per_seed"] = timings
+    seeds_json["seconds_per_seed"] = [seconds[s] for s in seeds]  # job time; 0 for cached jobs
+    if failed:
+        seeds_json["failed"] = failed
     write_json(out.root / "seeds.json", seeds_json, indent=2)
     table = results_table(by_model, seeds, command)
     write_text(out.root / "results.md", table)
