@@ -97,7 +97,7 @@ def latency_table(bench: dict) -> list[str]:
                 fl = floors.get((key, precision), {}).get("floor_us")
                 ratio = f" ({p / fl:.1f}x floor)" if runtime == "cpp" and p and fl else ""
                 row.append(_us(p) + ratio)
-        torch_p = [_us(_p50(lat, runtime="torch", model=key, batch=1, threads=1, solver=s))
+        torch_p = [f"{s}: " + _us(_p50(lat, runtime="torch", model=key, batch=1, threads=1, solver=s))
                    for s in sorted({r.get("solver") for r in lat if r.get("runtime") == "torch" and r.get("model") == key}
                                    - {None})]
         row.append(" / ".join(torch_p) or "—")

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import re
 import os
 import resource
 import shutil
@@ -14,7 +15,9 @@ from pathlib import Path
 
 from tests.conftest import ROOT
 
-HIDDEN = (".lock", ".staging", ".publish")
+# Not published state: the lock, staging areas, and the executor's job cache (core.jobcache: results
+# keyed by their inputs, reused across runs; a shard there is never read as an output of a stage).
+HIDDEN = (".lock", ".staging", ".publish", "cache")
 TINY_SIM = ["--set", "sim.n_traj=4", "--set", "sim.duration_s=8.0", "--set", "sim.onset_frac=[0.1, 0.3]",
             "--set", "sim.ramp_frac=[0.2, 0.4]"]
 
@@ -67,10 +70,13 @@ def snapshot(root: Path) -> dict[str, str]:
     return out
 
 
+PROGRESS = re.compile(r"\d+/\d+ \[\d\d:\d\d")
+
+
 def one_line_error(res: subprocess.CompletedProcess) -> None:
     """Non-zero exit, exactly one line on stderr, no traceback."""
-    lines = [ln for ln in res.stderr.splitlines() if ln.strip() and "it/s]" not in ln and "traj/s]" not in ln
-             and "traj]" not in ln]
+    # tqdm progress lines ("sim: 100%|...| 4/4 [00:01<00:00, 3.1traj/s]") are not messages
+    lines = [ln for ln in res.stderr.splitlines() if ln.strip() and not PROGRESS.search(ln)]
     assert res.returncode != 0, res.stdout[-500:]
     assert "Traceback" not in res.stderr, res.stderr[-3000:]
     assert len(lines) == 1, res.stderr[-3000:]
