@@ -16,33 +16,24 @@ from core.stage import recover_run
 
 @dataclass(frozen=True)
 class RunDir:
+    """The file names of one run folder (``root``): each stage's outputs, named once here."""
+
     root: Path
 
-    @property
-    def config(self) -> Path:
-        return self.root / "config.toml"
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "root", Path(self.root))
 
-    @property
-    def dataset(self) -> Path:
-        return self.root / "dataset.npz"
-
-    @property
-    def figures(self) -> Path:
-        return self.root / "figures"
+    config = property(lambda self: self.root / "config.toml")
+    dataset = property(lambda self: self.root / "dataset.npz")
+    figures = property(lambda self: self.root / "figures")
+    metrics = property(lambda self: self.root / "metrics.json")
+    export = property(lambda self: self.root / "export")
 
     def checkpoint(self, kind: str) -> Path:
         return self.root / f"{kind}.pt"
 
     def predictions(self, kind: str) -> Path:
         return self.root / f"predictions_{kind}.npz"
-
-    @property
-    def metrics(self) -> Path:
-        return self.root / "metrics.json"
-
-    @property
-    def export(self) -> Path:
-        return self.root / "export"
 
 
 def create_run(out: str | Path, cfg: Config) -> RunDir:
