@@ -46,7 +46,11 @@ def _fmt(values: list, digits: int = 4) -> str:
 
 def results_table(seeds: dict, seed_list: list[int], command: str) -> str:
     head3 = "| Model | Accuracy | Macro F1 | Weighted F1 | MCC | Any-fault F1 | Any-fault ROC-AUC | Mean delay (s) | Missed faults | False-alarm rate |"
-    lines = [f"Made by `{command}` (seeds {', '.join(map(str, seed_list))}; mean ± std over seeds).", "",
+    from core.machine import machine_line
+
+    # The machine is part of the result: float kernels differ by CPU, and so do training trajectories.
+    lines = [f"Made by `{command}` (seeds {', '.join(map(str, seed_list))}; mean ± std over seeds) on "
+             f"{machine_line()}.", "",
              "**Table 3 (test split)**", "", head3, "|" + "---|" * 10]
     for name, row in PAPER_TABLE3.items():
         cells = [f"{row[k]:.4f}" if k != "missed_faults" else str(row[k]) for k in TABLE3_KEYS[:-1]] + ["not reported"]
