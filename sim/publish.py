@@ -32,9 +32,10 @@ def publish_dataset(run: RunDir, cfg: Config, show_progress: bool = True, settin
         if settings.workers == 1 and settings.scheduler == "local" and cache_root is None:
             from tqdm import tqdm
 
+            from sim.shards import n_rows
             from sim.simulate import generate
 
-            with tqdm(total=cfg.sim.n_traj, unit="traj", desc="sim", disable=not show_progress) as bar:
+            with tqdm(total=n_rows(cfg.sim), unit="traj", desc="sim", disable=not show_progress) as bar:
                 arrays = generate(cfg.sim, progress=bar.update)
         else:
             from sim.shards import simulate_sharded

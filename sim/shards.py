@@ -27,7 +27,20 @@ from core.rundir import RunDir
 
 KIND = "sim"
 # Arrays of generate() that do not have one row per trajectory: taken once, from the first shard.
-GLOBAL_KEYS = ("time", "channel_names", "channel_units", "state_names", "state_units", "severity_threshold")
+# The realistic suite adds its name tables (sim/realistic.py generate()).
+GLOBAL_KEYS = ("time", "channel_names", "channel_units", "state_names", "state_units", "severity_threshold",
+               "class_names", "split_names", "mission_names", "fault_mode_names", "battery_submode_names",
+               "frame_names")
+
+
+def n_rows(sim: SimConfig) -> int:
+    """Rows of the dataset: n_traj, plus the 4 x ood_traj out-of-distribution test flights of the
+    realistic suite (sim/realistic.py n_flights)."""
+    if sim.scenario == "realistic":
+        from sim.realistic import n_flights
+
+        return n_flights(sim)
+    return sim.n_traj
 
 
 def shard_ranges(n_traj: int, chunk: int) -> list[tuple[int, int]]:
@@ -49,7 +62,7 @@ def shard_jobs(run: RunDir, cfg: Config, cache_root: Path | None = None) -> list
     root = run.root if cache_root is None else Path(cache_root)
     conf = dataclasses.asdict(sim)
     jobs = []
-    for start, stop in shard_ranges(sim.n_traj, sim.chunk):
+    for start, stop in shard_ranges(n_rows(sim), sim.chunk):
         key = job_key(KIND, conf, {"start": start, "stop": stop}, packages=("sim",))
         jobs.append(Job(KIND, key, simulate_shard, (sim, start, stop), cache_path(root, KIND, key, "npz"),
                         label=f"trajectories {start}-{stop - 1}"))
@@ -60,7 +73,7 @@ def join_shards(paths: list[Path]) -> dict[str, np.ndarray]:
     """The shards' rows in order, plus the per-dataset arrays of the first: generate()'s output."""
     parts = [read_result(p) for p in paths]
     out = {k: np.concatenate([p[k] for p in parts]) for k in parts[0] if k not in GLOBAL_KEYS}
-    out.update({k: parts[0][k] for k in GLOBAL_KEYS})
+    out.update({k: parts[0][k] for k in GLOBAL_KEYS if k in parts[0]})
     return out
 
 

@@ -93,3 +93,17 @@ def test_flights_are_sane_and_faults_show(ds):
     assert late[prop].mean() > 1.3 * late[cls == 0].mean()  # a cut prop shakes the vehicle
     soc = tel[..., names.index("SoC")]
     assert np.all(soc[:, -1] < soc[:, 0])  # the coulomb counter counts down
+
+
+def test_sharded_generation_keeps_every_flight(cfg, ds, tmp_path):
+    """The shard path (quadfdi sim with workers or a cache) gives generate()'s arrays: the
+    out-of-distribution flights included, the name tables once (not one copy per shard)."""
+    from core.rundir import RunDir
+    from sim.shards import n_rows, simulate_sharded
+
+    full = load_config(CONFIG, SMALL)
+    assert n_rows(full.sim) == n_flights(full.sim) == len(ds["fault_class"])
+    got = simulate_sharded(RunDir(tmp_path), full, progress=False)
+    assert set(got) == set(ds)
+    for k in ds:
+        np.testing.assert_array_equal(got[k], ds[k], err_msg=k)
