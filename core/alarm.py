@@ -88,12 +88,14 @@ def _window_sums(x: np.ndarray, n: np.ndarray) -> np.ndarray:
 
 
 def run_alarm(proba: np.ndarray, threshold, k, n, clear_m, latch=False, *, healthy: int = 0,
-              valid: np.ndarray | None = None, motor_proba: np.ndarray | None = None) -> AlarmTrace:
+              valid: np.ndarray | None = None, motor_proba: np.ndarray | None = None,
+              classes: bool = True) -> AlarmTrace:
     """The policy above on a batch of flights.
 
     proba (F, W, K) and motor_proba (F, W, 4): windows in time order; ``valid`` (F, W) marks real
     windows (a shorter flight is padded at the end: padding never votes, raises or clears).
-    threshold, k, n, clear_m, latch: scalars or (F,) arrays (one policy per row).
+    threshold, k, n, clear_m, latch: scalars or (F,) arrays (one policy per row). ``classes=False``
+    skips the class and motor bookkeeping (cls and motor stay -1): the sweep needs only the timing.
     """
     proba = np.asarray(proba, dtype=np.float64)
     if proba.ndim != 3 or not 0 <= healthy < proba.shape[2]:
@@ -106,8 +108,8 @@ def run_alarm(proba: np.ndarray, threshold, k, n, clear_m, latch=False, *, healt
     votes = ((1.0 - proba[:, :, healthy]) >= thr[:, None]) & valid
     count = _window_sums(votes.astype(np.int64), nn)  # (F, W) votes among the last n
     vp = proba * votes[:, :, None]
-    buf = _window_sums(vp, nn)  # (F, W, K) summed proba of the voting windows among the last n
-    has_motor = motor_proba is not None
+    buf = _window_sums(vp, nn) if classes else vp  # (F, W, K) summed proba of the voting windows among the last n
+    has_motor = motor_proba is not None and classes
     mp = np.asarray(motor_proba, dtype=np.float64) * votes[:, :, None] if has_motor else None
     mbuf = _window_sums(mp, nn) if has_motor else None
     fault_cols = np.array([c for c in range(n_cls) if c != healthy])
@@ -125,13 +127,14 @@ def run_alarm(proba: np.ndarray, threshold, k, n, clear_m, latch=False, *, healt
         active = active & ~clear
         rise = ~active & v & (count[:, i] >= kk)
         cont = active & v  # already active: a voting window adds to the episode's sums
-        s = np.where(rise[:, None], buf[:, i], np.where(cont[:, None], s + vp[:, i], s))
+        if classes:
+            s = np.where(rise[:, None], buf[:, i], np.where(cont[:, None], s + vp[:, i], s))
+            cls[:, i] = np.where(active | rise, fault_cols[np.argmax(s[:, fault_cols], axis=1)], -1)
         if has_motor:
             sm = np.where(rise[:, None], mbuf[:, i], np.where(cont[:, None], sm + mp[:, i], sm))
         active = active | rise
         run = np.where(rise, 0, run)
         out["active"][:, i], out["raised"][:, i], out["cleared"][:, i] = active, rise, clear
-        cls[:, i] = np.where(active, fault_cols[np.argmax(s[:, fault_cols], axis=1)], -1)
         if has_motor:
             motor[:, i] = np.where(active, np.argmax(sm, axis=1), -1)
     return AlarmTrace(votes=votes, active=out["active"], raised=out["raised"], cleared=out["cleared"], cls=cls,

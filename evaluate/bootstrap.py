@@ -50,11 +50,15 @@ def intervals(stats: dict[str, np.ndarray], weights: np.ndarray, ci: float) -> d
     return out
 
 
-def paired(stats_a: dict[str, np.ndarray], stats_b: dict[str, np.ndarray], weights: np.ndarray, ci: float,
-           names: tuple[str, ...]) -> dict[str, dict]:
-    """Metric of a minus metric of b on the same flights and the same replicates: {"diff", "lo", "hi"}."""
-    pa, pb = metrics_from_sums(sum_flights(stats_a)), metrics_from_sums(sum_flights(stats_b))
-    ra, rb = metrics_from_sums(sum_flights(stats_a, weights)), metrics_from_sums(sum_flights(stats_b, weights))
+def point_and_replicates(stats: dict[str, np.ndarray], weights: np.ndarray) -> tuple[dict, dict]:
+    """Metrics on the flights themselves and per replicate (B,)."""
+    return metrics_from_sums(sum_flights(stats)), metrics_from_sums(sum_flights(stats, weights))
+
+
+def paired(a: tuple[dict, dict], b: tuple[dict, dict], ci: float, names: tuple[str, ...]) -> dict[str, dict]:
+    """Metric of a minus metric of b on the same flights and the same replicates: {"diff", "lo", "hi"};
+    ``a`` and ``b`` are ``point_and_replicates`` of both models under the same weights."""
+    (pa, ra), (pb, rb) = a, b
     out = {}
     for name in names:
         lo, hi = _interval(ra[name] - rb[name], ci)

@@ -51,13 +51,17 @@ def metrics_from_sums(sums: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
 
 
 def sum_flights(stats: dict[str, np.ndarray], weights: np.ndarray | None = None) -> dict[str, np.ndarray]:
-    """Sum per-flight stats (F, ...) over flights, or per replicate with weights (B, F) -> (B, ...)."""
-    out = {}
-    for key, a in stats.items():
-        if weights is None:
-            out[key] = a.sum(axis=0)
-        else:
-            out[key] = (weights @ a.reshape(a.shape[0], -1)).reshape((weights.shape[0],) + a.shape[1:])
+    """Sum per-flight stats (F, ...) over flights, or per replicate with weights (B, F) -> (B, ...)
+    (one matrix product over all the stats side by side)."""
+    if weights is None:
+        return {key: a.sum(axis=0) for key, a in stats.items()}
+    keys = list(stats)
+    flat = [stats[k].reshape(stats[k].shape[0], -1) for k in keys]
+    summed = weights @ np.concatenate(flat, axis=1)
+    out, col = {}, 0
+    for key, f in zip(keys, flat):
+        out[key] = summed[:, col:col + f.shape[1]].reshape((weights.shape[0],) + stats[key].shape[1:])
+        col += f.shape[1]
     return out
 
 

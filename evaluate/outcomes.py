@@ -47,15 +47,17 @@ def _first(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return mask.any(axis=1), mask.argmax(axis=1)
 
 
-def alarm_outcomes(fl: Flights, info: DatasetInfo, policy: dict, reps: int = 1) -> dict[str, np.ndarray]:
+def alarm_outcomes(fl: Flights, info: DatasetInfo, policy: dict, reps: int = 1, classes: bool = True
+                   ) -> dict[str, np.ndarray]:
     """The alarm rows of the table above for ``reps`` stacked copies of the flights (the sweep stacks
-    the grid: policy values may be (reps * F,) arrays); returns (reps * F,) arrays."""
+    the grid: policy values may be (reps * F,) arrays); returns (reps * F,) arrays. ``classes=False``
+    (the sweep): class_ok and motor_ok are not computed (0)."""
     a = info.arrays
     tile = (lambda x: np.concatenate([x] * reps)) if reps > 1 else (lambda x: x)
     healthy_col = fl.class_names.index("Healthy")
     tr = run_alarm(tile(fl.proba), policy["threshold"], policy["k"], policy["n"], policy["clear_m"],
                    policy.get("latch", False), healthy=healthy_col, valid=tile(fl.valid),
-                   motor_proba=None if fl.motor is None else tile(fl.motor))
+                   motor_proba=None if fl.motor is None else tile(fl.motor), classes=classes)
     t_end = tile(fl.t_end)
     cls = tile(a["fault_class"][fl.rows].astype(np.int64))
     onset = tile(np.nan_to_num(a["onset_s"][fl.rows], nan=np.inf))

@@ -48,7 +48,7 @@ def sweep(sets: list[Flights], infos: dict[str, DatasetInfo], policies: list[dic
         if f == 0:
             continue
         stacked = {key: np.repeat([pol[key] for pol in policies], f) for key in ("threshold", "k", "n", "clear_m", "latch")}
-        out = alarm_outcomes(val, info, stacked, reps=p)
+        out = alarm_outcomes(val, info, stacked, reps=p, classes=False)
         for key in SCALAR_KEYS:
             sums[key] += out[key].reshape(p, f).sum(axis=1)
     rows = []

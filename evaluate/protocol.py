@@ -15,7 +15,7 @@ import numpy as np
 
 from core.config import Config
 from evaluate import policy as pol
-from evaluate.bootstrap import draw_weights, intervals, paired
+from evaluate.bootstrap import draw_weights, intervals, paired, point_and_replicates
 from evaluate.ceiling import expected_confusion
 from evaluate.load import DatasetInfo, Flights
 from evaluate.metrics import COUNTS, garwood, macro_f1_accuracy, metrics_from_sums, sum_flights
@@ -139,20 +139,28 @@ def evaluate_sets(sets: list[Flights], infos: dict[str, DatasetInfo], cfg: Confi
 
 
 def _paired(pooled: dict, models: list[str], ev) -> list[dict]:
-    """Every pair of models on every set, on the flights both were evaluated on."""
+    """Every pair of models on every set, on the flights both were evaluated on (replicate metrics of a
+    model on a flight list are computed once and shared by all its pairs)."""
+    weights: dict[tuple, np.ndarray] = {}
+    reps: dict[tuple, tuple] = {}
+
+    def rep(model: str, name: str, common: list) -> tuple:
+        key = (model, name, tuple(common))
+        if key not in reps:
+            units, stats = pooled[(model, name)]
+            index = {u: i for i, u in enumerate(units)}
+            if tuple(common) not in weights:
+                weights[tuple(common)] = draw_weights(common, ev.bootstrap, ev.seed)
+            reps[key] = point_and_replicates(_pick(stats, np.array([index[u] for u in common])), weights[tuple(common)])
+        return reps[key]
+
     out = []
     for (a, b) in itertools.combinations(models, 2):
         for name in sorted({s for (_, s) in pooled}):
             if (a, name) not in pooled or (b, name) not in pooled:
                 continue
-            (ua, sa), (ub, sb) = pooled[(a, name)], pooled[(b, name)]
-            common = sorted(set(ua) & set(ub))
-            if not common:
-                continue
-            ia, ib = {u: i for i, u in enumerate(ua)}, {u: i for i, u in enumerate(ub)}
-            pa = _pick(sa, np.array([ia[u] for u in common]))
-            pb = _pick(sb, np.array([ib[u] for u in common]))
-            w = draw_weights(common, ev.bootstrap, ev.seed)
-            out.append({"a": a, "b": b, "set": name, "flights": len(common),
-                        "diff": paired(pa, pb, w, ev.ci, PAIRED_METRICS)})
+            common = sorted(set(pooled[(a, name)][0]) & set(pooled[(b, name)][0]))
+            if common:
+                out.append({"a": a, "b": b, "set": name, "flights": len(common),
+                            "diff": paired(rep(a, name, common), rep(b, name, common), ev.ci, PAIRED_METRICS)})
     return out

@@ -43,7 +43,8 @@ def _inputs(st, root: Path, rels: list[str]) -> list[dict]:
     out = []
     for rel in sorted(set(rels)):
         if records.producer_of(root, rel) is not None:
-            entry = st.consume(rel)
+            st.consume(rel)  # verified against the record of the stage that published it
+            entry = st.inputs[rel]
             out.append({"path": rel, "sha256": entry["sha256"], "published_by": entry["stage"]})
         else:
             out.append({"path": rel, "sha256": records.sha256_file(root / rel), "published_by": None})
