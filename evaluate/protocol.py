@@ -14,6 +14,7 @@ import itertools
 import numpy as np
 
 from core.config import Config
+from core.errors import QuadfdiError
 from evaluate import policy as pol
 from evaluate.bootstrap import draw_weights, intervals, paired, point_and_replicates
 from evaluate.ceiling import expected_confusion
@@ -67,6 +68,9 @@ def _pool(outs: list[tuple[Flights, dict]], members: set) -> tuple[list, dict[st
     for rel in sorted(by_ds):
         group = by_ds[rel]
         rows = group[0][0].rows[np.array([(rel, int(c)) in members for c in group[0][0].split])]
+        if any(not np.array_equal(fl.rows, group[0][0].rows) for fl, _ in group):
+            raise QuadfdiError(f"model {group[0][0].model}: its train seeds' prediction sets on {rel} cover different "
+                               "flights; every set of one model on one dataset must hold the same windows")
         keys = group[0][1].keys()
         parts.append({k: np.mean([st[k] for _, st in group], axis=0) for k in keys})
         units += [(rel, int(r)) for r in rows]

@@ -155,3 +155,13 @@ def test_empty_index_is_one_line_and_writes_nothing(run, tmp_path):
     assert res.returncode == 2
     assert res.stderr.count("\n") == 1 and "lists no prediction set" in res.stderr and "run a producer" in res.stderr
     assert not (other / "evaluation").exists()
+
+
+def test_report_section_and_headline_read_the_json_alone(run, tmp_path):
+    from evaluate.report import HEADING, headline, report_section
+
+    lines = report_section(run)
+    assert lines[0] == HEADING and any("label-noise ceiling" in s for s in lines)
+    assert any("evaluation/alarm_sweep.png" in s for s in lines)
+    assert headline(run)[0].startswith("- Evaluation, test: best macro F1")
+    assert "Not run" in " ".join(report_section(tmp_path)) and headline(tmp_path) == []
