@@ -55,6 +55,8 @@ def evaluate_run(root: Path, cfg: Config, command: str, log: Callable[[str], Non
     """Evaluate every indexed prediction set of the run; return the written files (final paths)."""
     root = Path(root)
     sections = {"alarm": cfg.to_dict()["alarm"], "evaluate": cfg.to_dict()["evaluate"]}
+    if not _prediction_paths(root):  # the one-line error before any staging
+        load_run(root)
     with stage(root, "evaluate", sections, targets=(str(JSON_NAME), str(MD_NAME))) as st:
         sets, infos = load_run(root)
         log(f"evaluate: {len(sets)} prediction sets of {len({s.model for s in sets})} models on {len(infos)} datasets")
