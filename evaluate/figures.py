@@ -9,8 +9,8 @@ from core.plotting import pyplot, save_png
 SWEEP_PNG = "alarm_sweep.png"
 
 
-def sweep_figure(models: dict, path: Path) -> Path:
-    """One series per model (every grid policy), its chosen policy circled."""
+def sweep_figure(models: dict, target_fa_per_h: float, path: Path) -> Path:
+    """One series per model (every grid policy), its chosen policy circled; the rule's target dashed."""
     plt = pyplot()
     fig, ax = plt.subplots(figsize=(7.5, 5.0))
     for i, (name, m) in enumerate(sorted(models.items())):
@@ -25,6 +25,9 @@ def sweep_figure(models: dict, path: Path) -> Path:
         if pick and pick[0]["delay_onset_s"] is not None:
             ax.scatter([pick[0]["delay_onset_s"]], [pick[0]["fa_per_h"]], s=120, facecolors="none", edgecolors=color,
                        linewidths=2)
+    ax.axhline(target_fa_per_h, color="k", ls="--", lw=1, label=f"target {target_fa_per_h:g} / h")
+    ax.set_yscale("symlog", linthresh=1.0)  # 0 alarms stays on the plot; the grid spans 0 to hundreds per hour
+    ax.set_ylim(bottom=0.0)
     ax.set_xlabel("mean detection delay from fault onset (s), validation flights")
     ax.set_ylabel("false alarms per healthy flight-hour, validation flights")
     ax.set_title("Alarm policy grid on validation (circled: chosen by the rule)")

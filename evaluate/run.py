@@ -72,7 +72,7 @@ def evaluate_run(root: Path, cfg: Config, command: str, log: Callable[[str], Non
         out = st.path(str(JSON_NAME)).parent
         write_json(out / JSON_NAME.name, ev)
         write_text(out / MD_NAME.name, markdown(ev) + "\n")
-        sweep_figure(ev["models"], out / SWEEP_PNG)
+        sweep_figure(ev["models"], cfg.evaluate.target_fa_per_h, out / SWEEP_PNG)
     return [root / JSON_NAME, root / MD_NAME, root / JSON_NAME.parent / SWEEP_PNG]
 
 
