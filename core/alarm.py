@@ -139,3 +139,22 @@ def run_alarm(proba: np.ndarray, threshold, k, n, clear_m, latch=False, *, healt
             motor[:, i] = np.where(active, np.argmax(sm, axis=1), -1)
     return AlarmTrace(votes=votes, active=out["active"], raised=out["raised"], cleared=out["cleared"], cls=cls,
                       motor=motor)
+
+
+def alarm_episodes(trace: AlarmTrace, t_end: np.ndarray, proba: np.ndarray, row: int = 0, healthy: int = 0) -> list[dict]:
+    """The alarms of one flight (row of the batch) as records: ``start_s`` (end time of the raising
+    window), ``end_s`` (end time of the clearing window; None if still active at the last window),
+    ``cls`` and ``motor`` (the alarm's class and motor at its last active window; motor -1 without
+    motor_proba), ``peak_p_fault`` (largest 1 - p(Healthy) while active). What ``detect`` writes."""
+    raised, cleared, active = trace.raised[row], trace.cleared[row], trace.active[row]
+    p_fault = 1.0 - np.asarray(proba, dtype=np.float64)[row, :, healthy]
+    out = []
+    for start in np.flatnonzero(raised):
+        ends = np.flatnonzero(cleared[start + 1:])
+        stop = start + 1 + int(ends[0]) if ends.size else None  # first inactive window
+        last = (stop if stop is not None else active.size) - 1
+        span = slice(start, last + 1)
+        out.append({"start_s": float(t_end[row, start]), "end_s": None if stop is None else float(t_end[row, stop]),
+                    "cls": int(trace.cls[row, last]), "motor": int(trace.motor[row, last]),
+                    "peak_p_fault": float(p_fault[span][active[span]].max())})
+    return out

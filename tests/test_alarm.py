@@ -89,3 +89,17 @@ def test_config_section_validates():
         load_config(None, ["evaluate.kn=['5/3']"])
     with pytest.raises(QuadfdiError, match="'k/n'"):
         load_config(None, ["evaluate.kn=['2-3']"])
+
+
+def test_episodes_start_end_class_and_peak():
+    from core.alarm import alarm_episodes
+
+    p = np.array([0, .9, .8, 0, 0, 0, .95, .6, .7])
+    proba = _proba(p, [1, 1, 2, 1, 1, 1, 2, 2, 2])
+    tr = run_alarm(proba, threshold=0.5, k=2, n=2, clear_m=2)
+    t = np.arange(1.0, 10.0)[None, :]
+    eps = alarm_episodes(tr, t, proba)
+    # Raised at window 2 (t=3), cleared at window 4 (t=5); raised again at 7 (t=8), active at the end.
+    assert [(e["start_s"], e["end_s"]) for e in eps] == [(3.0, 5.0), (8.0, None)]
+    assert eps[0]["cls"] == 1 and eps[0]["peak_p_fault"] == pytest.approx(0.8)  # 0.9 (cls 1) > 0.8 (cls 2)
+    assert eps[1]["cls"] == 2 and eps[1]["peak_p_fault"] == pytest.approx(0.7) and eps[1]["motor"] == -1
