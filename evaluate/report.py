@@ -75,6 +75,17 @@ def _paired_table(ev: dict) -> list[str]:
                      "Δ delay from onset s"], rows)
 
 
+def _goal_table(ev: dict) -> list[str]:
+    rows = [[g["network"], g["baseline"], g["set"], g["flights"],
+             "—" if g["macro_f1_diff"] is None else f"{100 * g['macro_f1_diff']:+.1f}",
+             "—" if g["lo"] is None else f"[{100 * g['lo']:+.1f}, {100 * g['hi']:+.1f}]",
+             "yes" if g["goal_met"] else "no"] for g in ev.get("vs_best_baseline", [])]
+    if not rows:
+        return ["No network and baseline pair to compare.", ""]
+    return md_table(["network", "best baseline", "set", "flights", "Δ macro F1 (points)", "95 % interval",
+                     "≥ 3 points, interval above 0"], rows)
+
+
 def markdown(ev: dict) -> str:
     """The whole evaluation.md."""
     p = ev["protocol"]
@@ -100,6 +111,7 @@ def markdown(ev: dict) -> str:
     for name in _set_order(ev):
         lines += _set_table(ev, name)
     lines += ["## False alarms, early alarms, missed faults", ""] + _fa_table(ev)
+    lines += ["## Networks against the best baseline (macro F1, paired)", ""] + _goal_table(ev)
     lines += ["## Paired differences (same resampled flights)", ""] + _paired_table(ev)
     return "\n".join(lines)
 

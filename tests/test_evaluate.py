@@ -165,3 +165,12 @@ def test_report_section_and_headline_read_the_json_alone(run, tmp_path):
     assert any("evaluation/alarm_sweep.png" in s for s in lines)
     assert headline(run)[0].startswith("- Evaluation, test: best macro F1")
     assert "Not run" in " ".join(report_section(tmp_path)) and headline(tmp_path) == []
+
+
+def test_network_against_best_baseline_is_network_minus_baseline(run):
+    ev = _ev(run)
+    g = next(g for g in ev["vs_best_baseline"] if g["set"] == "test_ood_all")
+    assert (g["network"], g["baseline"]) == ("lrnet", "logreg")
+    res = {r["model"]: r["metrics"]["macro_f1"]["value"] for r in ev["results"] if r["set"] == "test_ood_all"}
+    assert g["macro_f1_diff"] == pytest.approx(res["lrnet"] - res["logreg"])
+    assert g["lo"] <= g["hi"] and g["goal_met"] == (g["macro_f1_diff"] >= 0.03 and g["lo"] > 0)
