@@ -24,6 +24,7 @@ STAGES = {
     "bench": "bench.cli",
     "ingest": "ingest.cli",
     "realism": "realism.cli",
+    "evaluate": "evaluate.cli",
     "report": "quadfdi.report",
     "check": "quadfdi.check",
     "readme": "quadfdi.readme",

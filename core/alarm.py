@@ -1,0 +1,160 @@
+"""The alarm policy (issue 14 point 4), specified once: per-window class probabilities -> alarms.
+
+Inputs per flight: the windows in time order, each with class probabilities ``proba`` (K,)
+(``Healthy`` is one column, index ``healthy``) and optionally ``motor_proba`` (4,).
+
+1. **Vote.** Window i votes fault when ``p_fault_i = 1 - proba_i[healthy] >= threshold``
+   (``>=``: a probability exactly at the threshold votes).
+2. **Raise.** An inactive alarm is raised at window i when window i votes AND at least ``k`` of
+   the last ``n`` windows i-n+1..i vote (integer count; windows before the first count as not
+   voting). The vote buffer is never reset: after a clear, the next voting window re-raises at
+   once if the buffer still holds ``k`` votes.
+3. **Clear.** An active alarm counts consecutive non-voting windows (a voting window resets the
+   count to 0; the raising window starts it at 0). When the count reaches ``clear_m`` at window i
+   the alarm clears at i: window i is the first inactive one. A clearing window cannot raise
+   (it does not vote). With ``latch`` the alarm never clears.
+4. **Class.** An alarm episode keeps S (K,), the sum of ``proba`` over its voting windows: at the
+   raise, the voting windows among i-n+1..i; then every voting window while active. The alarm's
+   class at a window is the argmax of S over the fault columns (every column but ``healthy``);
+   a tie goes to the lowest class index. Likewise the motor: argmax of the summed ``motor_proba``
+   (ties: lowest motor index). Python sums in float64; a float32 mirror can differ only on
+   near-exact ties.
+
+Everything is integer logic on the vote bits except the threshold comparison and the sums, so a
+C++ mirror (firmware_ref) reproduces it exactly given the same p_fault comparisons.
+``run_alarm`` is vectorised over flights (rows of a padded (F, W) batch, each row may carry its
+own policy parameters: the validation sweep stacks the grid along rows) and loops over windows.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from core.errors import QuadfdiError
+
+
+@dataclass(frozen=True)
+class AlarmConfig:
+    """The [alarm] section: the default policy (``quadfdi evaluate`` chooses one on validation)."""
+
+    threshold: float = 0.5  # p_fault >= threshold votes fault
+    k: int = 2  # votes among ...
+    n: int = 3  # ... the last n windows raise
+    clear_m: int = 3  # consecutive non-voting windows clear
+    latch: bool = False  # never clear once raised
+
+    def validate(self) -> None:
+        check_policy(self.threshold, self.k, self.n, self.clear_m, "alarm.")
+
+
+def check_policy(threshold: float, k: int, n: int, clear_m: int, where: str = "") -> None:
+    """One-line error for parameters outside 0 < threshold <= 1, 1 <= k <= n, clear_m >= 1."""
+    if not 0.0 < threshold <= 1.0:
+        raise QuadfdiError(f"{where}threshold must be in (0, 1], found {threshold}")
+    if not 1 <= k <= n:
+        raise QuadfdiError(f"{where}k and {where}n must satisfy 1 <= k <= n, found k={k}, n={n}")
+    if clear_m < 1:
+        raise QuadfdiError(f"{where}clear_m must be at least 1, found {clear_m}")
+
+
+@dataclass
+class AlarmTrace:
+    """Per window of a (F, W) batch: ``active`` / ``raised`` / ``cleared`` (bool), ``cls`` the
+    alarm's class index (-1 where inactive), ``motor`` its motor 0..3 (-1 inactive or no
+    motor_proba), ``votes`` (bool)."""
+
+    votes: np.ndarray
+    active: np.ndarray
+    raised: np.ndarray
+    cleared: np.ndarray
+    cls: np.ndarray
+    motor: np.ndarray
+
+
+def _row_param(value, rows: int, dtype) -> np.ndarray:
+    a = np.asarray(value, dtype=dtype)
+    return np.broadcast_to(a, (rows,)) if a.ndim == 0 else a
+
+
+def _window_sums(x: np.ndarray, n: np.ndarray) -> np.ndarray:
+    """(F, W, ...) -> sums over windows i-n+1..i (per-row n), via a cumulative sum."""
+    cs = np.concatenate([np.zeros_like(x[:, :1]), np.cumsum(x, axis=1)], axis=1)
+    w = x.shape[1]
+    lo = np.maximum(np.arange(w)[None, :] + 1 - n[:, None], 0)  # (F, W)
+    lo = lo.reshape(lo.shape + (1,) * (x.ndim - 2))
+    return cs[:, 1:] - np.take_along_axis(cs, lo, axis=1)
+
+
+def run_alarm(proba: np.ndarray, threshold, k, n, clear_m, latch=False, *, healthy: int = 0,
+              valid: np.ndarray | None = None, motor_proba: np.ndarray | None = None,
+              classes: bool = True) -> AlarmTrace:
+    """The policy above on a batch of flights.
+
+    proba (F, W, K) and motor_proba (F, W, 4): windows in time order; ``valid`` (F, W) marks real
+    windows (a shorter flight is padded at the end: padding never votes, raises or clears).
+    threshold, k, n, clear_m, latch: scalars or (F,) arrays (one policy per row). ``classes=False``
+    skips the class and motor bookkeeping (cls and motor stay -1): the sweep needs only the timing.
+    """
+    proba = np.asarray(proba, dtype=np.float64)
+    if proba.ndim != 3 or not 0 <= healthy < proba.shape[2]:
+        raise ValueError(f"proba must be (flights, windows, classes) with column {healthy} Healthy, found {proba.shape}")
+    f, w, n_cls = proba.shape
+    valid = np.ones((f, w), bool) if valid is None else np.asarray(valid, bool)
+    thr, kk, nn, mm = (_row_param(threshold, f, float), _row_param(k, f, int), _row_param(n, f, int),
+                       _row_param(clear_m, f, int))
+    lt = _row_param(latch, f, bool)
+    votes = ((1.0 - proba[:, :, healthy]) >= thr[:, None]) & valid
+    count = _window_sums(votes.astype(np.int64), nn)  # (F, W) votes among the last n
+    vp = proba * votes[:, :, None]
+    buf = _window_sums(vp, nn) if classes else vp  # (F, W, K) summed proba of the voting windows among the last n
+    has_motor = motor_proba is not None and classes
+    mp = np.asarray(motor_proba, dtype=np.float64) * votes[:, :, None] if has_motor else None
+    mbuf = _window_sums(mp, nn) if has_motor else None
+    fault_cols = np.array([c for c in range(n_cls) if c != healthy])
+    active = np.zeros(f, bool)
+    run = np.zeros(f, np.int64)
+    s = np.zeros((f, n_cls))
+    sm = np.zeros((f, 4))
+    out = {key: np.zeros((f, w), bool) for key in ("active", "raised", "cleared")}
+    cls = np.full((f, w), -1, np.int64)
+    motor = np.full((f, w), -1, np.int64)
+    for i in range(w):
+        v, ok = votes[:, i], valid[:, i]
+        run = np.where(active & ok, np.where(v, 0, run + 1), run)
+        clear = active & ok & ~lt & (run >= mm)
+        active = active & ~clear
+        rise = ~active & v & (count[:, i] >= kk)
+        cont = active & v  # already active: a voting window adds to the episode's sums
+        if classes:
+            s = np.where(rise[:, None], buf[:, i], np.where(cont[:, None], s + vp[:, i], s))
+            cls[:, i] = np.where(active | rise, fault_cols[np.argmax(s[:, fault_cols], axis=1)], -1)
+        if has_motor:
+            sm = np.where(rise[:, None], mbuf[:, i], np.where(cont[:, None], sm + mp[:, i], sm))
+        active = active | rise
+        run = np.where(rise, 0, run)
+        out["active"][:, i], out["raised"][:, i], out["cleared"][:, i] = active, rise, clear
+        if has_motor:
+            motor[:, i] = np.where(active, np.argmax(sm, axis=1), -1)
+    return AlarmTrace(votes=votes, active=out["active"], raised=out["raised"], cleared=out["cleared"], cls=cls,
+                      motor=motor)
+
+
+def alarm_episodes(trace: AlarmTrace, t_end: np.ndarray, proba: np.ndarray, row: int = 0, healthy: int = 0) -> list[dict]:
+    """The alarms of one flight (row of the batch) as records: ``start_s`` (end time of the raising
+    window), ``end_s`` (end time of the clearing window; None if still active at the last window),
+    ``cls`` and ``motor`` (the alarm's class and motor at its last active window; motor -1 without
+    motor_proba), ``peak_p_fault`` (largest 1 - p(Healthy) while active). What ``detect`` writes."""
+    raised, cleared, active = trace.raised[row], trace.cleared[row], trace.active[row]
+    p_fault = 1.0 - np.asarray(proba, dtype=np.float64)[row, :, healthy]
+    out = []
+    for start in np.flatnonzero(raised):
+        ends = np.flatnonzero(cleared[start + 1:])
+        stop = start + 1 + int(ends[0]) if ends.size else None  # first inactive window
+        last = (stop if stop is not None else active.size) - 1
+        span = slice(start, last + 1)
+        out.append({"start_s": float(t_end[row, start]), "end_s": None if stop is None else float(t_end[row, stop]),
+                    "cls": int(trace.cls[row, last]), "motor": int(trace.motor[row, last]),
+                    "peak_p_fault": float(p_fault[span][active[span]].max())})
+    return out
