@@ -138,8 +138,7 @@ class TrainConfig:
     # and on a loaded 2-core machine oversubscribed OpenMP threads made the GRU ~50x slower.
     threads: int = 1
     seeds: tuple[int, ...] = (0, 1, 2)  # the multi-seed study
-    # Cap on training windows: a seeded subsample (train.data.capped_train_windows); 0 = every window.
-    max_train_windows: int = 0
+    max_train_windows: int = 0  # cap: a seeded subsample of the training windows (train.data); 0 = all
 
     def validate(self) -> None:
         _positive(self, "epochs", "batch_size", "lr", "latent", "hidden", "gru_hidden", "steps", "rtol", "atol", "threads", "gru_lr")

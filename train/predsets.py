@@ -55,6 +55,7 @@ def split_part(pred: dict[str, np.ndarray], split_code: int) -> dict[str, np.nda
 def write_prediction_set(path: str | Path, arrays: dict[str, Any]) -> Path:
     """Check ``arrays`` against the prediction-set format and write them atomically."""
     check_prediction_set(arrays, str(path))
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
     write_npz(path, arrays)
     return Path(path)
 

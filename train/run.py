@@ -63,7 +63,10 @@ def train_all(ds: Dataset, cfg: Config, kinds: list[str], log: Callable[[str], N
         log(f"  {kind}: trained in {time.perf_counter() - t0:.1f} s (best epoch {hist.best_epoch + 1})")
         proba = predict_proba(model, splits.test.x)  # as before the prediction sets: the test metrics keep their bits
         out["models"][kind], out["history"][kind], out["proba"][kind] = model, hist, proba
+        t0 = time.perf_counter()
         out["predsets"][kind] = prediction_set(model, ds)
+        log(f"  {kind}: prediction set of {len(out['predsets'][kind]['traj'])} evaluation windows in "
+            f"{time.perf_counter() - t0:.1f} s")
         out["metrics"][kind] = evaluate(ds, splits.test, proba)
     base = fit_baseline(splits.train.x, splits.train.y, cfg.train.seed, k)
     out["proba"]["baseline"] = predict_proba_baseline(base, splits.test.x)
@@ -83,9 +86,8 @@ def write_outputs(out: RunDir, ds: Dataset, cfg: Config, result: dict, previous:
                         class_names=class_names(ds.arrays))
         write_npz(out.predictions(kind), {"y_true": test.y, "proba": result["proba"][kind],
                                           "traj": test.traj, "t_end": test.t_end})
-        path = out.root / relative_prediction_path(kind, cfg.sim.seed, cfg.train.seed)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        write_prediction_set(path, result["predsets"][kind])
+        write_prediction_set(out.root / relative_prediction_path(kind, cfg.sim.seed, cfg.train.seed),
+                             result["predsets"][kind])
     old_metrics, old_hist = None if previous is None else previous.metrics, None if previous is None else previous.root / "history.json"
     metrics = read_json(old_metrics, "metrics") if old_metrics is not None and old_metrics.exists() else {}
     metrics.update(result["metrics"])
