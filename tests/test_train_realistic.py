@@ -127,3 +127,15 @@ def test_study_over_sim_seeds_reuses_the_train_stage(exported, tmp_path):
     assert seeds["sim_seeds"] == [0, 1] and len(seeds["cnode"]["macro_f1"]) == 2
     check = quadfdi("check", "--run", str(run))
     assert check.returncode == 0, check.stderr
+
+
+def test_index_entries_of_unpublished_sets_are_dropped(tmp_path):
+    from core.predindex import add_entries
+    from train.predsets import drop_missing_entries, index_entry
+
+    kept, gone = index_entry("cnode", 0, 1), index_entry("cnode", 0, 0)
+    (tmp_path / kept["predictions"]).parent.mkdir(parents=True)
+    (tmp_path / kept["predictions"]).write_bytes(b"")
+    add_entries(tmp_path, [kept, gone])
+    assert drop_missing_entries(tmp_path) == 1 and read_index(tmp_path) == [kept]
+    assert drop_missing_entries(tmp_path) == 0 and read_index(tmp_path) == [kept]

@@ -69,3 +69,17 @@ def index_entry(model: str, sim_seed: int, train_seed: int, dataset: str = "data
     """The index entry of a prediction set written at its default path; ``dataset`` relative to the run."""
     return {"model": model, "sim_seed": int(sim_seed), "train_seed": int(train_seed), "dataset": dataset,
             "predictions": relative_prediction_path(model, sim_seed, train_seed)}
+
+
+def drop_missing_entries(run_root: str | Path) -> int:
+    """Remove the index entries whose prediction set no longer exists (a stage re-run with another
+    seed unpublishes the sets of the previous one); returns how many were removed. Same format and
+    atomic write as ``core.predindex.add_entries``."""
+    from core.jsonio import write_json
+    from core.predindex import index_path, read_index
+
+    entries = read_index(run_root)
+    keep = [e for e in entries if (Path(run_root) / e["predictions"]).is_file()]
+    if len(keep) != len(entries):
+        write_json(index_path(run_root), {"entries": keep}, indent=2)
+    return len(entries) - len(keep)

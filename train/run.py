@@ -29,7 +29,8 @@ from train.data import class_weights, fit_normalisation, split_windows
 from train.loop import predict_proba, train_model
 from train.metrics import compute_metrics
 from train.models import build_model
-from train.predsets import index_entry, prediction_set, relative_prediction_path, write_prediction_set
+from train.predsets import (drop_missing_entries, index_entry, prediction_set, relative_prediction_path,
+                            write_prediction_set)
 
 
 def kinds_of(model: str) -> list[str]:
@@ -116,6 +117,7 @@ def train_run(run: RunDir, cfg: Config, model: str = "both", seed: int | None = 
     # The index is not a stage output (the study adds to it too): entries are added once the
     # prediction sets they name are published.
     add_entries(run.root, [index_entry(k, cfg.sim.seed, cfg.train.seed) for k in kinds])
+    drop_missing_entries(run.root)
     return result
 
 

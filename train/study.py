@@ -109,6 +109,7 @@ def run_study(run: RunDir, cfg: Config, seeds: list[int], command: str, log: Cal
     from core.executor import SERIAL
     from core.predindex import add_entries
     from core.stage import stage
+    from train.predsets import drop_missing_entries
     from train.study_reuse import train_stage_results
     from train.study_sims import study_datasets
 
@@ -123,6 +124,7 @@ def run_study(run: RunDir, cfg: Config, seeds: list[int], command: str, log: Cal
             st.consume(got["predictions"])
         out = _study_into(run, RunDir(st.out), cfg, seeds, command, log, settings, data, reused)
     add_entries(run.root, out.pop("entries"))
+    drop_missing_entries(run.root)
     return out
 
 
