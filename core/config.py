@@ -137,10 +137,11 @@ class TrainConfig:
     # and on a loaded 2-core machine oversubscribed OpenMP threads made the GRU ~50x slower.
     threads: int = 1
     seeds: tuple[int, ...] = (0, 1, 2)  # the multi-seed study
+    max_train_windows: int = 0  # cap: a seeded subsample of the training windows (train.data); 0 = all
 
     def validate(self) -> None:
         _positive(self, "epochs", "batch_size", "lr", "latent", "hidden", "gru_hidden", "steps", "rtol", "atol", "threads", "gru_lr")
-        _not_negative(self, "seed")
+        _not_negative(self, "seed", "max_train_windows")
         if min(self.seeds, default=0) < 0:
             raise QuadfdiError(f"train.seeds must not be negative, found {list(self.seeds)}")
         _at_most(self, MAX_THREADS, "threads")

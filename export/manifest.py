@@ -57,8 +57,13 @@ def file_entry(data: bytes) -> dict:
     return {"sha256": hashlib.sha256(data).hexdigest(), "bytes": len(data)}
 
 
-def _io(window: int, n_channels: int) -> dict:
-    n_classes = len(CLASS_NAMES)
+def manifest_class_names(checkpoints: dict[str, dict]) -> list[str]:
+    """The exported models' classes, label order: the checkpoints' ``class_names`` (the paper's four
+    for a checkpoint written before they were stored; export.run checks that both models agree)."""
+    return [str(c) for c in checkpoints["cnode"].get("class_names", CLASS_NAMES)]
+
+
+def _io(window: int, n_channels: int, n_classes: int) -> dict:
     return {"input": {"name": "telemetry", "dtype": "float32", "shape": ["batch", window, n_channels],
                       "units": "raw (as the dataset's channel units)"},
             "outputs": [{"name": "logits", "dtype": "float32", "shape": ["batch", n_classes]},
@@ -99,7 +104,7 @@ def build_manifest(*, ds: Any, config: dict, checkpoints: dict[str, dict], windo
         "n_channels": ds.n_channels,
         "window": int(window),
         "sample_dt_s": ds.config.sim.sample_dt_s,
-        "class_names": list(CLASS_NAMES),
+        "class_names": manifest_class_names(checkpoints),
         "normalisation": {"formula": "x_norm = (x - mean) / std, per channel, inside every graph",
                           **{k: checkpoints[k]["normalisation"] for k in MODEL_KINDS}},
         "solver": {"method": "rk4", "scheme": "classic RK4 (stages 0, h/2, h/2, h; weights 1/6, 2/6, 2/6, 1/6)",
@@ -107,7 +112,7 @@ def build_manifest(*, ds: Any, config: dict, checkpoints: dict[str, dict], windo
                    "control": "U = interp @ x_norm, one constant (2N+1, W) linear-interpolation matrix"},
         "opset": opset,
         "ir_version": ir_version,
-        "io": _io(int(window), ds.n_channels),
+        "io": _io(int(window), ds.n_channels, len(manifest_class_names(checkpoints))),
         "artifacts": artifact_names(steps),
         "files": {name: file_entry(data) for name, data in files.items()},
         "models": {k: {**checkpoints[k]["architecture"], "macs_per_window": coverage[k]["fp32"]["macs_per_window"]}

@@ -31,8 +31,8 @@ from export.onnx_gru import (CALIBRATION_PROBES, GruParams, GruQuant, build_gru_
 from export.reference_bin import pick_windows, reference_bytes
 from export.verify import batch_independence, int8_vs_fp32, ort_outputs, parity, session, torch_logits
 from export.weights_bin import weights_bytes
-from sim.dataset import Dataset, load_dataset, make_windows
-from train.checkpoint import check_dataset_matches, load_checkpoint
+from sim.dataset import Dataset, class_names, load_dataset, make_windows
+from train.checkpoint import check_dataset_matches, checkpoint_class_names, load_checkpoint
 from train.metrics import compute_metrics
 from train.models import SolverSpec
 
@@ -65,6 +65,9 @@ def _load_models(run: RunDir, ds: Dataset, steps: int) -> tuple[torch.nn.Module,
         path = run.checkpoint(kind)
         model, blob = load_checkpoint(path, kind)
         check_dataset_matches(blob, ds.channel_names, str(path))
+        if checkpoint_class_names(blob) != list(class_names(ds.arrays)):
+            raise QuadfdiError(f"{path}: the model's classes {checkpoint_class_names(blob)} are not the dataset's "
+                               f"{list(class_names(ds.arrays))}: re-run quadfdi train")
         if int(model.window) != ds.config.sim.window:
             raise QuadfdiError(f"{path}: the model takes windows of {model.window} samples, the dataset's are "
                                f"{ds.config.sim.window}")
@@ -190,7 +193,8 @@ def verify_all(blobs: dict[str, bytes], cnode: torch.nn.Module, gru: torch.nn.Mo
                                   and verification["gru_fp32_vs_pytorch"]["passed"])
 
     def metrics_of(p: np.ndarray) -> dict:
-        return compute_metrics(test.y, p, test.traj, test.t_end, ds["fault_class"], ds["detectable_s"])
+        return compute_metrics(test.y, p, test.traj, test.t_end, ds["fault_class"], ds["detectable_s"],
+                               class_names(ds.arrays))
 
     metrics = {key: metrics_of(proba[key]) for key in blobs}
     return verification, metrics, logits

@@ -17,7 +17,7 @@ import onnxruntime as ort
 import torch
 from sklearn.metrics import f1_score
 
-from core.contracts import CLASS_LABELS, FP32_ORT_VS_TORCH_REL_TOL
+from core.contracts import FP32_ORT_VS_TORCH_REL_TOL
 from export.ort_session import THREADS, session  # noqa: F401  (session: the export's callers import it here)
 from train.threads import torch_threads as _torch_threads
 
@@ -54,7 +54,7 @@ def parity(logits: np.ndarray, reference: np.ndarray, rel: float = FP32_REL_TOL)
 
 def int8_vs_fp32(int8_logits: np.ndarray, fp32_logits: np.ndarray, y: np.ndarray) -> dict:
     """Argmax agreement, logit difference and macro-F1 change (points) of int8 against fp32."""
-    labels = list(CLASS_LABELS)
+    labels = list(range(fp32_logits.shape[1]))  # the model's K classes
     f1_fp32 = 100 * f1_score(y, fp32_logits.argmax(1), labels=labels, average="macro", zero_division=0)
     f1_int8 = 100 * f1_score(y, int8_logits.argmax(1), labels=labels, average="macro", zero_division=0)
     drop = f1_fp32 - f1_int8

@@ -166,28 +166,55 @@ def window_starts(n_samples: int, window: int, stride: int) -> np.ndarray:
     return np.arange(0, n_samples - window + 1, stride, dtype=np.int64)
 
 
-def make_windows(ds: Dataset, split: str | None = None, window: int | None = None, stride: int | None = None) -> Windows:
-    """All windows of the trajectories in ``split`` ('train', 'validation', 'test' or None for all).
-
-    Label: the trajectory's fault class when ``severity[start + W - 1] >= severity_threshold``,
-    else 0 (Healthy) -- SPEC section 2. Order: trajectory by trajectory, windows in time order.
-    """
-    window = ds.config.sim.window if window is None else window
-    stride = ds.config.sim.stride if stride is None else stride
-    tel, sev, time = ds["telemetry"], ds["severity"], ds["time"]
-    rows = np.arange(tel.shape[0])
-    if split is not None:
-        names = split_names(ds.arrays)
+def split_rows(ds: Dataset, split: str | int | None) -> np.ndarray:
+    """Dataset rows of the flights in ``split``: a name of ``split_names`` ('train', 'validation',
+    'test', or an out-of-distribution set of the realistic suite), its code, or None for all."""
+    rows = np.arange(ds["telemetry"].shape[0])
+    if split is None:
+        return rows
+    names = split_names(ds.arrays)
+    if isinstance(split, str):
         if split not in names:
             raise QuadfdiError(f"unknown split {split!r}; valid: {', '.join(names)}")
-        rows = rows[ds["split"] == names.index(split)]
-    starts = window_starts(tel.shape[1], window, stride)
-    traj = np.repeat(rows, len(starts))
-    start = np.tile(starts, len(rows))
+        split = names.index(split)
+    if not 0 <= int(split) < len(names):
+        raise QuadfdiError(f"unknown split code {split}; valid: 0..{len(names) - 1} ({', '.join(names)})")
+    return rows[ds["split"] == int(split)]
+
+
+def window_index(ds: Dataset, rows: np.ndarray, window: int | None = None,
+                 stride: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """(traj, start) of every window of the flights ``rows``: flight by flight, windows in time order."""
+    window = ds.config.sim.window if window is None else window
+    stride = ds.config.sim.stride if stride is None else stride
+    starts = window_starts(ds["telemetry"].shape[1], window, stride)
+    rows = np.asarray(rows, dtype=np.int64)
+    return np.repeat(rows, len(starts)), np.tile(starts, len(rows))
+
+
+def gather_windows(ds: Dataset, traj: np.ndarray, start: np.ndarray, window: int | None = None) -> Windows:
+    """The windows (traj[i], start[i]) with their labels.
+
+    Label: the trajectory's fault class when ``severity[start + W - 1] >= severity_threshold``,
+    else 0 (Healthy) -- SPEC section 2.
+    """
+    window = ds.config.sim.window if window is None else window
+    tel, sev, time = ds["telemetry"], ds["severity"], ds["time"]
+    traj, start = np.asarray(traj, dtype=np.int64), np.asarray(start, dtype=np.int64)
     last = start + window - 1
     # (n_windows, W) gather via broadcasting: one fancy-index, no Python loop per window.
     x = tel[traj[:, None], start[:, None] + np.arange(window)[None, :]]
     fault = sev[traj, last] >= ds.severity_threshold
     y = np.where(fault, ds["fault_class"][traj].astype(np.int64), 0)
-    return Windows(x=np.ascontiguousarray(x, dtype=np.float32), y=y.astype(np.int64), traj=traj.astype(np.int64),
+    return Windows(x=np.ascontiguousarray(x, dtype=np.float32), y=y.astype(np.int64), traj=traj,
                    start=start, t_end=time[last].astype(np.float64))
+
+
+def make_windows(ds: Dataset, split: str | int | None = None, window: int | None = None,
+                 stride: int | None = None) -> Windows:
+    """All windows of the trajectories in ``split`` (a name or code of ``split_names``, None for all).
+
+    Order: trajectory by trajectory, windows in time order; labels as ``gather_windows``.
+    """
+    traj, start = window_index(ds, split_rows(ds, split), window, stride)
+    return gather_windows(ds, traj, start, window)

@@ -206,7 +206,7 @@ def test_study_metrics_serial_equal_distributed(cluster, small_run, tmp_path):
         seeds = json.loads((run.root / "seeds.json").read_text())
         seeds.pop("seconds_per_seed")  # timing: not part of the comparison
         out[name] = (seeds, (run.root / "results.md").read_text())
-        assert len(list((run.root / "cache" / "study").glob("*.json"))) == 4
+        assert len(list((run.root / "cache" / "study").glob("*.npz"))) == 4
     assert out["serial"] == out["dask"]
     assert "failed" not in out["serial"][0] and len(out["serial"][0]["cnode"]["macro_f1"]) == 2
 

@@ -9,8 +9,8 @@ deviation -- 3 C features. A ``StandardScaler`` and a multinomial
 ``LogisticRegression(class_weight="balanced")`` follow, all in one scikit-learn ``Pipeline``.
 
 ``fit_baseline(windows, y, seed)`` returns the fitted pipeline; ``predict_proba_baseline``
-always returns (n, 4) probabilities in ``CLASS_NAMES`` order, with zeros for a class the model
-never saw in training.
+always returns (n, K) probabilities in label order (K = ``n_classes`` given to the fit: the data's
+class count, the paper's 4 by default), with zeros for a class the model never saw in training.
 """
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ from sklearn.linear_model import LogisticRegression
 from sklearn.pipeline import Pipeline
 from sklearn.preprocessing import StandardScaler
 
-from core.contracts import CLASS_NAMES, N_CLASSES
+from core.contracts import N_CLASSES
 
 MAX_ITER = 2000
 
@@ -69,17 +69,17 @@ class WindowFeatures(TransformerMixin, BaseEstimator):
         return window_features((x - self.mean_) / self.std_)
 
 
-def fit_baseline(windows_train: Any, y_train: Any, seed: int = 0) -> Pipeline:
-    """Fit the baseline on (n, W, C) training windows and their labels in 0..3."""
+def fit_baseline(windows_train: Any, y_train: Any, seed: int = 0, n_classes: int = N_CLASSES) -> Pipeline:
+    """Fit the baseline on (n, W, C) training windows and their labels in 0..n_classes-1."""
     x = _check_windows(windows_train)
     y = np.asarray(y_train)
     if y.shape != (x.shape[0],):
         raise ValueError(f"y_train must have shape ({x.shape[0]},), found {y.shape}")
     y = y.astype(np.int64)
-    if y.min() < 0 or y.max() >= N_CLASSES:
-        raise ValueError(f"y_train labels must be in 0..{N_CLASSES - 1}, found range [{y.min()}, {y.max()}]")
+    if y.min() < 0 or y.max() >= n_classes:
+        raise ValueError(f"y_train labels must be in 0..{n_classes - 1}, found range [{y.min()}, {y.max()}]")
     if len(np.unique(y)) < 2:
-        raise ValueError(f"the baseline needs at least two classes in training, found only {CLASS_NAMES[y[0]]}")
+        raise ValueError(f"the baseline needs at least two classes in training, found only label {y[0]}")
     model = Pipeline(
         [
             ("features", WindowFeatures()),
@@ -91,13 +91,14 @@ def fit_baseline(windows_train: Any, y_train: Any, seed: int = 0) -> Pipeline:
         ]
     )
     model.fit(x, y)
+    model.quadfdi_n_classes = int(n_classes)  # the width of predict_proba_baseline's output
     return model
 
 
 def predict_proba_baseline(model: Pipeline, windows: Any) -> np.ndarray:
-    """(n, 4) class probabilities in ``CLASS_NAMES`` order (0 for a class absent from training)."""
+    """(n, K) class probabilities in label order (0 for a class absent from training)."""
     x = _check_windows(windows)
     p = model.predict_proba(x)
-    out = np.zeros((x.shape[0], N_CLASSES), dtype=np.float64)
+    out = np.zeros((x.shape[0], getattr(model, "quadfdi_n_classes", N_CLASSES)), dtype=np.float64)
     out[:, np.asarray(model.classes_, dtype=np.int64)] = p
     return out

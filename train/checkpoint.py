@@ -13,6 +13,7 @@ from typing import Any
 import torch
 
 from core.atomic import atomic_path
+from core.contracts import CLASS_NAMES
 from core.errors import QuadfdiError
 from train.models import model_from_signature, model_signature
 from train.variants import CNODE_CLASSES
@@ -21,14 +22,19 @@ CHECKPOINT_VERSION = 1
 
 
 def save_checkpoint(path: str | Path, model: torch.nn.Module, config: dict, channel_names: list[str],
-                    extra: dict[str, Any] | None = None) -> None:
-    """Write ``model`` (with its normalisation buffers) and its metadata atomically."""
+                    extra: dict[str, Any] | None = None, class_names: list[str] | tuple[str, ...] | None = None) -> None:
+    """Write ``model`` (with its normalisation buffers) and its metadata atomically; ``class_names``
+    (the data's, label order; default the paper's four) must match the model's output width."""
+    names = list(CLASS_NAMES if class_names is None else class_names)
+    if len(names) != model.n_classes:
+        raise ValueError(f"{len(names)} class names for a model with {model.n_classes} outputs")
     blob = {
         "version": CHECKPOINT_VERSION,
         "architecture": model_signature(model),
         "state_dict": {k: v.detach().cpu().clone() for k, v in model.state_dict().items()},
         "config": config,
         "channel_names": list(channel_names),
+        "class_names": names,
         "normalisation": {"mean": model.mean.tolist(), "std": model.std.tolist()},
         **(extra or {}),
     }
@@ -79,6 +85,17 @@ def load_checkpoint(path: str | Path, kind: str | None = None) -> tuple[torch.nn
         model.solver = type(model.solver)(**blob["solver"])
     model.eval()
     return model, blob
+
+
+def checkpoint_class_names(blob: dict[str, Any]) -> list[str]:
+    """The class names of a loaded checkpoint, label order: its ``class_names``, or the paper's four
+    for a checkpoint written before they were stored (only a 4-output model can be one)."""
+    if "class_names" in blob:
+        return [str(c) for c in blob["class_names"]]
+    k = int(blob["architecture"].get("n_classes", len(CLASS_NAMES)))
+    if k != len(CLASS_NAMES):
+        raise QuadfdiError(f"checkpoint with {k} outputs stores no class_names: re-run quadfdi train")
+    return list(CLASS_NAMES)
 
 
 def _first_line(exc: BaseException) -> str:

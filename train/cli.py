@@ -26,6 +26,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     ps = acts.add_parser("study", help="train with several seeds: seeds.json and results.md (Tables 3-4)")
     ps.add_argument("--run", required=True, help="run folder holding dataset.npz")
     ps.add_argument("--seeds", default=None, help="comma-separated seeds (default: train.seeds)")
+    ps.add_argument("--sim-seeds", default=None, help="comma-separated simulator seeds (default: the run's sim.seed); "
+                    "each other seed is simulated into <run>/sims/seed<S>/ first")
     ps.add_argument("--readme", default=None, help="also copy the table into this README between the results markers")
     add_config_args(ps, config=False)
     add_executor_args(ps)
@@ -48,17 +50,28 @@ def run_study_cmd(args: argparse.Namespace) -> int:
     from train.study import check_readme, run_study, update_readme
 
     run, cfg = open_run(args.run, args.overrides, need=("dataset",))
-    try:
-        seeds = [int(s) for s in args.seeds.split(",")] if args.seeds else list(cfg.train.seeds)
-    except ValueError:
-        raise QuadfdiError(f"--seeds expects comma-separated integers, found {args.seeds!r}") from None
+    seeds = _seed_list("--seeds", args.seeds, list(cfg.train.seeds))
+    sim_seeds = _seed_list("--sim-seeds", args.sim_seeds, [cfg.sim.seed])
     readme = Path(args.readme) if args.readme else None
     if readme is not None:
         check_readme(readme)
     argv = strip_executor_args(sys.argv[1:])  # where it ran is not part of the result
     command = "quadfdi " + " ".join(shlex.quote(a) for a in argv) if argv else "quadfdi train study"
-    out = run_study(run, cfg, seeds, command, settings=ExecSettings.from_args(args))
+    out = run_study(run, cfg, seeds, command, settings=ExecSettings.from_args(args), sim_seeds=sim_seeds)
     print(out["table"])
     if readme is not None:
         update_readme(readme, out["table"])
     return 0
+
+
+def _seed_list(flag: str, text: str | None, default: list[int]) -> list[int]:
+    """A comma-separated list of distinct non-negative integers (``default`` when not given)."""
+    if not text:
+        return default
+    try:
+        seeds = [int(s) for s in text.split(",")]
+    except ValueError:
+        raise QuadfdiError(f"{flag} expects comma-separated integers, found {text!r}") from None
+    if min(seeds) < 0 or len(set(seeds)) != len(seeds):
+        raise QuadfdiError(f"{flag} expects distinct non-negative integers, found {text!r}")
+    return seeds

@@ -10,8 +10,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from core.contracts import N_CLASSES, SPLIT_TRAIN, SPLITS
-from sim.dataset import Dataset, Windows, make_windows
+from core.contracts import N_CLASSES, SPLIT_TRAIN, SPLIT_VALIDATION, SPLITS
+from sim.dataset import Dataset, Windows, gather_windows, make_windows, split_rows, window_index
 
 
 @dataclass(frozen=True)
@@ -21,8 +21,29 @@ class Splits:
     test: Windows
 
 
-def split_windows(ds: Dataset) -> Splits:
-    return Splits(**{name: make_windows(ds, name) for name in SPLITS})
+def split_windows(ds: Dataset, max_train_windows: int = 0, seed: int = 0) -> Splits:
+    """Train, validation and test windows; the training windows capped by ``capped_train_windows``."""
+    return Splits(train=capped_train_windows(ds, max_train_windows, seed),
+                  **{name: make_windows(ds, name) for name in SPLITS if name != "train"})
+
+
+def capped_train_windows(ds: Dataset, cap: int, seed: int) -> Windows:
+    """The training windows, or (``cap`` > 0 and fewer than there are) ``cap`` of them drawn without
+    replacement from the generator stream (seed, 0xCA9) and kept in dataset order. The draw has
+    its own stream, so a cap changes no other random number (batches, initial weights); cap 0
+    (the paper config) takes every window, as before the cap existed."""
+    traj, start = window_index(ds, split_rows(ds, SPLIT_TRAIN))
+    if 0 < cap < len(traj):
+        rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(0xCA9,)))
+        keep = np.sort(rng.choice(len(traj), size=cap, replace=False))
+        traj, start = traj[keep], start[keep]
+    return gather_windows(ds, traj, start)
+
+
+def evaluation_rows(ds: Dataset) -> np.ndarray:
+    """Dataset rows of every evaluation flight: split code >= 1 (validation, test and the
+    out-of-distribution test sets), in dataset order."""
+    return np.flatnonzero(np.asarray(ds["split"]) >= SPLIT_VALIDATION)
 
 
 def fit_normalisation(ds: Dataset) -> tuple[np.ndarray, np.ndarray]:

@@ -9,12 +9,16 @@ from pathlib import Path
 import numpy as np
 from sklearn.metrics import confusion_matrix, roc_curve
 
-from core.contracts import CLASS_LABELS, CLASS_NAMES, HEALTHY, N_CLASSES
+from core.contracts import CLASS_NAMES, HEALTHY
 from core.plotting import pyplot as _plt
 from core.plotting import save_png as _save
 
-SHORT = tuple(name.removesuffix("Fault") for name in CLASS_NAMES)  # Healthy, Battery, Motor, Overheat
-FAULT_CLASSES = tuple(c for c in CLASS_LABELS if c != HEALTHY)
+def short_names(names) -> tuple[str, ...]:
+    """Axis labels: the class names without "Fault" (Healthy, Battery, Motor, Overheat, ...)."""
+    return tuple(str(name).removesuffix("Fault") for name in names)
+
+
+SHORT = short_names(CLASS_NAMES)  # the paper's four
 LABEL = {"cnode": "Neural ODE", "gru": "GRU", "baseline": "LogReg baseline"}
 
 
@@ -34,29 +38,31 @@ def draw_curves(history: dict, out: Path) -> None:
     _save(fig, out)
 
 
-def draw_confusion(y: np.ndarray, proba: np.ndarray, title: str, out: Path) -> None:
+def draw_confusion(y: np.ndarray, proba: np.ndarray, title: str, out: Path, names=CLASS_NAMES) -> None:
     plt = _plt()
-    cm = confusion_matrix(y, proba.argmax(1), labels=list(CLASS_LABELS))
-    fig, ax = plt.subplots(figsize=(5, 4.3))
+    k, short = len(names), short_names(names)
+    cm = confusion_matrix(y, proba.argmax(1), labels=list(range(k)))
+    fig, ax = plt.subplots(figsize=(4 + 0.25 * k, 3.3 + 0.25 * k))
     ax.imshow(cm, cmap="Blues")
-    for i in range(N_CLASSES):
-        for j in range(N_CLASSES):
+    for i in range(k):
+        for j in range(k):
             ax.text(j, i, str(cm[i, j]), ha="center", va="center", color="white" if cm[i, j] > cm.max() / 2 else "black")
-    ax.set(xticks=range(N_CLASSES), yticks=range(N_CLASSES), xticklabels=SHORT, yticklabels=SHORT, xlabel="predicted", ylabel="true",
+    ax.set(xticks=range(k), yticks=range(k), xticklabels=short, yticklabels=short, xlabel="predicted", ylabel="true",
            title=title)
     fig.tight_layout()
     _save(fig, out)
 
 
-def draw_per_class_f1(metrics: dict, out: Path) -> None:
+def draw_per_class_f1(metrics: dict, out: Path, names=CLASS_NAMES) -> None:
     plt = _plt()
+    k = len(names)
     fig, ax = plt.subplots(figsize=(7, 4))
     kinds = list(metrics)
     width = 0.8 / len(kinds)
     for n, kind in enumerate(kinds):
-        vals = [metrics[kind]["per_class"][c]["f1"] for c in CLASS_NAMES]
-        ax.bar(np.arange(N_CLASSES) + n * width, vals, width, label=LABEL.get(kind, kind))
-    ax.set(xticks=np.arange(N_CLASSES) + width * (len(kinds) - 1) / 2, xticklabels=SHORT, ylabel="F1", ylim=(0, 1.05),
+        vals = [metrics[kind]["per_class"][c]["f1"] for c in names]
+        ax.bar(np.arange(k) + n * width, vals, width, label=LABEL.get(kind, kind))
+    ax.set(xticks=np.arange(k) + width * (len(kinds) - 1) / 2, xticklabels=short_names(names), ylabel="F1", ylim=(0, 1.05),
            title="per-class F1 (test)")
     ax.legend()
     ax.grid(alpha=0.3, axis="y")
@@ -83,6 +89,7 @@ def draw_roc(y: np.ndarray, probas: dict, metrics: dict, out: Path) -> None:
 def draw_trajectory_detection(ds, test, probas: dict, row: int, out: Path) -> None:
     """Position, attitude, battery, temperature, effectiveness, severity and the any-fault
     probability of each model at each window end, for dataset row ``row`` (Figs. 12-27)."""
+    from sim.dataset import class_names
     from sim.plot import plot_groups
 
     plt = _plt()
@@ -119,14 +126,17 @@ def draw_trajectory_detection(ds, test, probas: dict, row: int, out: Path) -> No
     axes[6].set_xlabel("time [s]")
     axes[7].set_xlabel("time [s]")
     cls = int(ds["fault_class"][row])
-    fig.suptitle(f"test trajectory {row}: {CLASS_NAMES[cls]} (dotted: onset {onset:.2f} s, dashed: detectable {det:.2f} s)")
+    fig.suptitle(f"test trajectory {row}: {class_names(ds.arrays)[cls]} (dotted: onset {onset:.2f} s, dashed: detectable {det:.2f} s)")
     fig.tight_layout()
     _save(fig, out)
 
 
 def draw_all(run, ds, result: dict) -> list[Path]:
-    """Every training figure into ``run.figures``; returns the paths written."""
+    """Every training figure into ``run.figures``, classes named by the data; returns the paths written."""
+    from sim.dataset import class_names
+
     figs = run.figures
+    names = class_names(ds.arrays)
     test = result["splits"].test
     written = []
     if result["history"]:
@@ -134,16 +144,16 @@ def draw_all(run, ds, result: dict) -> list[Path]:
         written.append(figs / "train_curves.png")
     for kind, p in result["proba"].items():
         path = figs / f"confusion_{kind}.png"
-        draw_confusion(test.y, p, f"confusion: {LABEL.get(kind, kind)}", path)
+        draw_confusion(test.y, p, f"confusion: {LABEL.get(kind, kind)}", path, names)
         written.append(path)
-    draw_per_class_f1(result["metrics"], figs / "per_class_f1.png")
+    draw_per_class_f1(result["metrics"], figs / "per_class_f1.png", names)
     draw_roc(test.y, result["proba"], result["metrics"], figs / "any_fault_roc.png")
     written += [figs / "per_class_f1.png", figs / "any_fault_roc.png"]
     neural = {k: v for k, v in result["proba"].items() if k != "baseline"}
-    for cls in FAULT_CLASSES:
+    for cls in (c for c in range(len(names)) if c != HEALTHY):
         rows = [r for r in np.unique(test.traj) if ds["fault_class"][r] == cls]
         if rows:
-            path = figs / f"detection_{SHORT[cls].lower()}_traj{rows[0]}.png"
+            path = figs / f"detection_{short_names(names)[cls].lower()}_traj{rows[0]}.png"
             draw_trajectory_detection(ds, test, neural, int(rows[0]), path)
             written.append(path)
     return written

@@ -17,7 +17,6 @@ import torch
 from sklearn.metrics import f1_score
 
 from core.config import TrainConfig
-from core.contracts import CLASS_LABELS, N_CLASSES
 from core.errors import QuadfdiError
 from sim.dataset import Windows
 from train.data import batch_order
@@ -33,13 +32,13 @@ def weighted_cross_entropy(logits: torch.Tensor, y: torch.Tensor, weights: torch
 
 @torch.no_grad()
 def predict_proba(model: torch.nn.Module, x: np.ndarray, batch_size: int = 512) -> np.ndarray:
-    """Class probabilities (n, N_CLASSES) float64 for raw windows x (n, W, C)."""
+    """Class probabilities (n, K) float64 for raw windows x (n, W, C); K = ``model.n_classes``."""
     model.eval()
     out = []
     for i in range(0, len(x), batch_size):
         logits = model(torch.from_numpy(np.ascontiguousarray(x[i:i + batch_size])))
         out.append(torch.softmax(logits.double(), dim=1).numpy())
-    return np.concatenate(out) if out else np.zeros((0, N_CLASSES))
+    return np.concatenate(out) if out else np.zeros((0, model.n_classes))
 
 
 @dataclass
@@ -115,7 +114,7 @@ def train_model(model: torch.nn.Module, train: Windows, val: Windows, cfg: Train
         val_proba = predict_proba(model, val.x)
         _stop_if_diverged(torch.as_tensor(val_proba), model, cfg, epoch)
         val_pred = val_proba.argmax(1)
-        f1 = float(f1_score(val.y, val_pred, labels=list(CLASS_LABELS), average="macro", zero_division=0))
+        f1 = float(f1_score(val.y, val_pred, labels=list(range(model.n_classes)), average="macro", zero_division=0))
         hist.val_macro_f1.append(f1)
         if f1 > best_f1:
             best_f1, best_state, hist.best_epoch = f1, copy.deepcopy(model.state_dict()), epoch

@@ -1,7 +1,8 @@
 """Test-set metrics of a window classifier (paper Eq. 13; ``metrics.json`` in docs/formats.md).
 
-Inputs are the columns of ``predictions_<model>.npz``: ``y_true`` (n,) int labels in ``CLASS_LABELS`` (0..3),
-``proba`` (n, 4) class probabilities (columns in ``CLASS_NAMES`` order, rows summing to 1
+Inputs are the columns of ``predictions_<model>.npz``: ``y_true`` (n,) int labels 0..K-1,
+``proba`` (n, K) class probabilities (columns in ``class_names`` order -- the data's classes, the
+paper's four ``CLASS_NAMES`` by default; Healthy is label 0 in every suite -- rows summing to 1
 within 1e-4; they are renormalised in float64 so that a float32 softmax passes scikit-learn's
 sum-to-one check -- a change of order 1e-7 that leaves every arg-max and ranking unchanged),
 ``traj`` (n,) index of each window's trajectory into the dataset's per-trajectory arrays and
@@ -15,11 +16,11 @@ defines a metric, its value is scikit-learn's (computed by calling it, not re-de
   arg-max decision. Balanced accuracy averages the recall of the classes present in ``y_true``
   (scikit-learn's definition; a class absent from ``y_true`` is left out, not scored 0).
 - ``macro_precision``, ``macro_recall``, ``macro_f1``, ``per_class``:
-  ``precision_recall_fscore_support(labels=CLASS_LABELS, zero_division=0)``, so a class with no
+  ``precision_recall_fscore_support(labels=0..K-1, zero_division=0)``, so a class with no
   predicted (precision) or no true (recall) window scores 0 and still counts in the macro mean.
 - ``weighted_f1``: ``f1_score(average="weighted")``, same labels and ``zero_division``.
 - ``mcc``: ``matthews_corrcoef`` (multiclass); scikit-learn returns 0.0 when it is 0/0.
-- ``macro_specificity`` (no scikit-learn function): from ``confusion_matrix(labels=CLASS_LABELS)``,
+- ``macro_specificity`` (no scikit-learn function): from ``confusion_matrix(labels=0..K-1)``,
   specificity_k = TN_k / (TN_k + FP_k) where TN_k + FP_k is the number of windows whose true
   class is not k. A class with no negatives (every window is of class k) has 0/0 and is skipped;
   the macro value is the mean over the remaining classes (NaN if none remains).
@@ -28,18 +29,18 @@ defines a metric, its value is scikit-learn's (computed by calling it, not re-de
   (average="macro") on the ``label_binarize`` indicator. Only classes with both positives and
   negatives in ``y_true`` enter the mean: ROC-AUC is undefined otherwise, and average precision
   is undefined without positives and trivially 1 without negatives. NaN if no class qualifies
-  (``y_true`` of a single class). With all four classes present this equals
+  (``y_true`` of a single class). With all K classes present this equals
   ``roc_auc_score(y_true, proba, multi_class="ovr", average="macro")`` and
   ``average_precision_score(y_true, proba, average="macro")``.
 - ``brier``: scikit-learn's multiclass Brier score,
-  ``brier_score_loss(y_true, proba, labels=CLASS_LABELS)`` = mean over windows of the sum over
-  the K = 4 classes of (p_k - onehot_k)^2, range [0, 2]. Relative to the paper's per-class
+  ``brier_score_loss(y_true, proba, labels=0..K-1)`` = mean over windows of the sum over
+  the K classes of (p_k - onehot_k)^2, range [0, 2]. Relative to the paper's per-class
   Eq. 13 this is the SUM over classes of Brier_k (Brier_k = ``brier_score_loss(y_true == k,
-  proba[:, k])``), not their mean: divide by 4 for the mean per-class Brier score. This
+  proba[:, k])``), not their mean: divide by K for the mean per-class Brier score. This
   normalisation is chosen because the project's rule is that a metric scikit-learn defines takes
   scikit-learn's value, and scikit-learn (>= 1.7) defines the multiclass Brier score this way.
 - ``any_fault_f1``, ``any_fault_roc_auc``: the any-fault score of a window is
-  1 - p(Healthy) (the sum of the three fault probabilities); its decision is positive when the
+  1 - p(Healthy) (the sum of the K - 1 fault probabilities); its decision is positive when the
   score is > 0.5. ``f1_score(y_true != 0, decision, zero_division=0)`` and
   ``roc_auc_score(y_true != 0, score)`` (NaN when ``y_true`` is all healthy or all faulty).
 
@@ -85,9 +86,8 @@ from sklearn.metrics import (
 )
 from sklearn.preprocessing import label_binarize
 
-from core.contracts import CLASS_LABELS, CLASS_NAMES, HEALTHY, N_CLASSES
+from core.contracts import CLASS_NAMES, HEALTHY
 
-LABELS = list(CLASS_LABELS)
 THRESHOLD = 0.5  # any-fault decision: 1 - p(Healthy) > THRESHOLD
 T_TOL_S = 1e-6  # tolerance of "window ending at or after t_det"
 
@@ -114,10 +114,11 @@ METRIC_KEYS = CLASSIFICATION_KEYS + DETECTION_KEYS + ("per_class",)
 # ----------------------------------------------------------------------------- validation
 
 
-def _check_proba(proba: Any) -> np.ndarray:
+def _check_proba(proba: Any, k: int | None = None) -> np.ndarray:
+    """``proba`` checked; ``k``: its number of columns (None: any, at least 2)."""
     p = np.asarray(proba, dtype=np.float64)
-    if p.ndim != 2 or p.shape[1] != N_CLASSES:
-        raise ValueError(f"proba must have shape (n, {N_CLASSES}), found {p.shape}")
+    if p.ndim != 2 or (p.shape[1] != k if k is not None else p.shape[1] < 2):
+        raise ValueError(f"proba must have shape (n, {k if k is not None else 'K >= 2'}), found {p.shape}")
     if p.shape[0] == 0:
         raise ValueError("proba is empty: no window to evaluate")
     if not np.all(np.isfinite(p)):
@@ -131,7 +132,7 @@ def _check_proba(proba: Any) -> np.ndarray:
     return p / p.sum(axis=1, keepdims=True)  # exact in float64 (float32 softmax is off by ~1e-7)
 
 
-def _check_labels(y_true: Any, n: int) -> np.ndarray:
+def _check_labels(y_true: Any, n: int, k: int) -> np.ndarray:
     y = np.asarray(y_true)
     if y.shape != (n,):
         raise ValueError(f"y_true must have shape ({n},), found {y.shape}")
@@ -141,8 +142,8 @@ def _check_labels(y_true: Any, n: int) -> np.ndarray:
         else:
             raise ValueError(f"y_true must hold integer class labels, found dtype {y.dtype}")
     y = y.astype(np.int64)
-    if y.min() < 0 or y.max() >= N_CLASSES:
-        raise ValueError(f"y_true labels must be in 0..{N_CLASSES - 1}, found range [{y.min()}, {y.max()}]")
+    if y.min() < 0 or y.max() >= k:
+        raise ValueError(f"y_true labels must be in 0..{k - 1}, found range [{y.min()}, {y.max()}]")
     return y
 
 
@@ -165,7 +166,7 @@ class _quiet_sklearn(warnings.catch_warnings):
 
 
 def any_fault_score(proba: Any) -> np.ndarray:
-    """1 - p(Healthy) per window: the summed probability of the three fault classes."""
+    """1 - p(Healthy) per window: the summed probability of the fault classes."""
     p = _check_proba(proba)
     return 1.0 - p[:, HEALTHY]
 
@@ -175,12 +176,12 @@ def any_fault_decision(proba: Any) -> np.ndarray:
     return any_fault_score(proba) > THRESHOLD
 
 
-def macro_specificity(y_true: Any, y_pred: Any) -> float:
-    """Mean over classes of TN/(TN+FP) from the 4x4 confusion matrix; 0/0 classes skipped (NaN if all)."""
-    cm = confusion_matrix(y_true, y_pred, labels=LABELS)
+def macro_specificity(y_true: Any, y_pred: Any, n_classes: int = len(CLASS_NAMES)) -> float:
+    """Mean over classes of TN/(TN+FP) from the K x K confusion matrix; 0/0 classes skipped (NaN if all)."""
+    cm = confusion_matrix(y_true, y_pred, labels=list(range(n_classes)))
     n = cm.sum()
     spec = []
-    for k in LABELS:
+    for k in range(n_classes):
         fp = cm[:, k].sum() - cm[k, k]
         negatives = n - cm[k, :].sum()  # TN + FP: windows whose true class is not k
         if negatives == 0:
@@ -192,7 +193,7 @@ def macro_specificity(y_true: Any, y_pred: Any) -> float:
 
 def _ovr_auc(y: np.ndarray, p: np.ndarray) -> tuple[float, float]:
     """Macro one-vs-rest ROC-AUC and PR-AUC over the classes with positives and negatives."""
-    onehot = label_binarize(y, classes=LABELS)
+    onehot = label_binarize(y, classes=list(range(p.shape[1])))
     pos = onehot.sum(axis=0)
     ok = (pos > 0) & (pos < len(y))
     if not ok.any():
@@ -203,11 +204,13 @@ def _ovr_auc(y: np.ndarray, p: np.ndarray) -> tuple[float, float]:
     return float(roc), float(ap)
 
 
-def classification_metrics(y_true: Any, proba: Any) -> dict:
-    """Window-level metrics of ``CLASSIFICATION_KEYS`` plus ``per_class`` (see the module docstring)."""
-    p = _check_proba(proba)
-    y = _check_labels(y_true, p.shape[0])
+def classification_metrics(y_true: Any, proba: Any, class_names: Sequence[str] = CLASS_NAMES) -> dict:
+    """Window-level metrics of ``CLASSIFICATION_KEYS`` plus ``per_class`` named by ``class_names``
+    (K names, label order; see the module docstring)."""
+    p = _check_proba(proba, len(class_names))
+    y = _check_labels(y_true, p.shape[0], len(class_names))
     y_pred = p.argmax(axis=1)
+    LABELS = list(range(len(class_names)))  # noqa: N806  (the labels 0..K-1 of every call below)
     with _quiet_sklearn():
         prec, rec, f1, _ = precision_recall_fscore_support(y, y_pred, labels=LABELS, zero_division=0)
         mprec, mrec, mf1, _ = precision_recall_fscore_support(
@@ -222,7 +225,7 @@ def classification_metrics(y_true: Any, proba: Any) -> dict:
             "balanced_accuracy": float(balanced_accuracy_score(y, y_pred)),
             "macro_precision": float(mprec),
             "macro_recall": float(mrec),
-            "macro_specificity": macro_specificity(y, y_pred),
+            "macro_specificity": macro_specificity(y, y_pred, len(class_names)),
             "macro_f1": float(mf1),
             "weighted_f1": float(f1_score(y, y_pred, labels=LABELS, average="weighted", zero_division=0)),
             "mcc": float(matthews_corrcoef(y, y_pred)),
@@ -236,7 +239,7 @@ def classification_metrics(y_true: Any, proba: Any) -> dict:
         }
     out["per_class"] = {
         name: {"precision": float(prec[k]), "recall": float(rec[k]), "f1": float(f1[k])}
-        for k, name in enumerate(CLASS_NAMES)
+        for k, name in enumerate(class_names)
     }
     return out
 
@@ -286,8 +289,8 @@ def detection_metrics(
             n_healthy += 1
             n_alarmed += bool(decision[mine].any())
             continue
-        if not 0 <= cls < N_CLASSES:  # a label, and not Healthy (handled above)
-            raise ValueError(f"trajectory {i} has fault class {cls}, expected 0..{N_CLASSES - 1}")
+        if not 0 <= cls < p.shape[1]:  # a label, and not Healthy (handled above)
+            raise ValueError(f"trajectory {i} has fault class {cls}, expected 0..{p.shape[1] - 1}")
         if not math.isfinite(t_det):
             raise ValueError(f"fault trajectory {i} (class {cls}) has no finite detectable time: {t_det}")
         times = te[mine]
@@ -310,13 +313,14 @@ def compute_metrics(
     t_end: Any,
     fault_class_by_traj: Any,
     detectable_s_by_traj: Any,
+    class_names: Sequence[str] = CLASS_NAMES,
 ) -> dict:
     """All metrics of the ``metrics.json`` contract, keys in ``METRIC_KEYS`` order.
 
     ``fault_class_by_traj`` and ``detectable_s_by_traj`` are the dataset's per-trajectory arrays
     (length n_traj_total), indexed by ``traj``.
     """
-    cls = classification_metrics(y_true, proba)
+    cls = classification_metrics(y_true, proba, class_names)
     det = detection_metrics(proba, traj, t_end, fault_class_by_traj, detectable_s_by_traj)
     merged = {**cls, **det}
     return {k: merged[k] for k in METRIC_KEYS}

@@ -335,13 +335,15 @@ class GRUClassifier(_Normalised):
         return self.window * 3 * h * (c + h) + h * self.n_classes
 
 
-def build_model(kind: str, n_channels: int, cfg: TrainConfig, window: int = 80) -> nn.Module:
-    """A fresh model of ``kind`` ("cnode" or "gru") sized by ``cfg``; ``window`` is sim.window."""
+def build_model(kind: str, n_channels: int, cfg: TrainConfig, window: int = 80, n_classes: int = 4) -> nn.Module:
+    """A fresh model of ``kind`` ("cnode" or "gru") sized by ``cfg``; ``window`` is sim.window,
+    ``n_classes`` the data's class count (K outputs)."""
     if kind == "cnode":
         solver = SolverSpec(cfg.solver, cfg.steps, cfg.rtol, cfg.atol, cfg.jump_t)
-        return CNODE(n_channels, window=window, latent=cfg.latent, hidden=cfg.hidden, solver=solver)
+        return CNODE(n_channels, window=window, latent=cfg.latent, hidden=cfg.hidden, solver=solver,
+                     n_classes=n_classes)
     if kind == "gru":
-        return GRUClassifier(n_channels, hidden=cfg.gru_hidden, window=window)
+        return GRUClassifier(n_channels, hidden=cfg.gru_hidden, window=window, n_classes=n_classes)
     raise ValueError(f"unknown model kind {kind!r}; valid: {', '.join(MODEL_KINDS)}")
 
 

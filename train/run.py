@@ -1,7 +1,9 @@
 """Train the selected models on a run's dataset and write every training artifact.
 
 Writes into the run folder: ``<kind>.pt`` checkpoints, ``predictions_<kind>.npz`` (test split),
-``metrics.json`` ({"cnode", "gru", "baseline"}), ``history.json`` and the figures.
+``metrics.json`` ({"cnode", "gru", "baseline"}; test split), ``history.json``, the figures, and each
+network's prediction set on every evaluation window (``predictions/<kind>_sim<S>_train<T>.npz``,
+core.predindex), listed in ``predictions/index.json`` once the stage is published.
 """
 
 from __future__ import annotations
@@ -17,15 +19,18 @@ from core.contracts import SPLITS
 from core.errors import QuadfdiError
 from core.jsonio import read_json, write_json
 from core.npzio import write_npz
+from core.predindex import add_entries
 from core.rundir import RunDir
 from core.stage import stage
-from sim.dataset import Dataset, Windows, load_dataset
+from sim.dataset import Dataset, Windows, class_names, load_dataset
 from train.baseline import fit_baseline, predict_proba_baseline
 from train.checkpoint import save_checkpoint
 from train.data import class_weights, fit_normalisation, split_windows
 from train.loop import predict_proba, train_model
 from train.metrics import compute_metrics
 from train.models import build_model
+from train.predsets import (drop_missing_entries, index_entry, prediction_set, relative_prediction_path,
+                            write_prediction_set)
 
 
 def kinds_of(model: str) -> list[str]:
@@ -33,31 +38,38 @@ def kinds_of(model: str) -> list[str]:
 
 
 def evaluate(ds: Dataset, test: Windows, proba: np.ndarray) -> dict:
-    return compute_metrics(test.y, proba, test.traj, test.t_end, ds["fault_class"], ds["detectable_s"])
+    return compute_metrics(test.y, proba, test.traj, test.t_end, ds["fault_class"], ds["detectable_s"],
+                           class_names(ds.arrays))
 
 
 def train_all(ds: Dataset, cfg: Config, kinds: list[str], log: Callable[[str], None] = print) -> dict:
-    """Train ``kinds`` and the baseline on ``ds``; return models, histories, probabilities, metrics."""
+    """Train ``kinds`` and the baseline on ``ds``; return models, histories, test probabilities,
+    metrics and each network's prediction set (every evaluation window, ``train.predsets``)."""
     torch.set_num_threads(cfg.train.threads)
-    splits = split_windows(ds)
+    k = len(class_names(ds.arrays))
+    splits = split_windows(ds, cfg.train.max_train_windows, cfg.train.seed)
     for name in SPLITS:
         if len(getattr(splits, name)) == 0:
             raise QuadfdiError(f"the dataset has no {name} windows: raise sim.n_traj or sim.duration_s")
     mean, std = fit_normalisation(ds)
-    weights = class_weights(splits.train.y)
-    out: dict = {"models": {}, "history": {}, "proba": {}, "metrics": {}, "splits": splits}
+    weights = class_weights(splits.train.y, k)
+    out: dict = {"models": {}, "history": {}, "proba": {}, "metrics": {}, "splits": splits, "predsets": {}}
     for kind in kinds:
         torch.manual_seed(cfg.train.seed)  # same initial weights for the same seed
-        model = build_model(kind, ds.n_channels, cfg.train, window=cfg.sim.window)
+        model = build_model(kind, ds.n_channels, cfg.train, window=cfg.sim.window, n_classes=k)
         model.set_normalisation(mean, std)
         log(f"train {kind} (seed {cfg.train.seed}, {sum(p.numel() for p in model.parameters())} parameters):")
         t0 = time.perf_counter()
         hist = train_model(model, splits.train, splits.validation, cfg.train, weights, log)
         log(f"  {kind}: trained in {time.perf_counter() - t0:.1f} s (best epoch {hist.best_epoch + 1})")
-        proba = predict_proba(model, splits.test.x)
+        proba = predict_proba(model, splits.test.x)  # as before the prediction sets: the test metrics keep their bits
         out["models"][kind], out["history"][kind], out["proba"][kind] = model, hist, proba
+        t0 = time.perf_counter()
+        out["predsets"][kind] = prediction_set(model, ds)
+        log(f"  {kind}: prediction set of {len(out['predsets'][kind]['traj'])} evaluation windows in "
+            f"{time.perf_counter() - t0:.1f} s")
         out["metrics"][kind] = evaluate(ds, splits.test, proba)
-    base = fit_baseline(splits.train.x, splits.train.y, cfg.train.seed)
+    base = fit_baseline(splits.train.x, splits.train.y, cfg.train.seed, k)
     out["proba"]["baseline"] = predict_proba_baseline(base, splits.test.x)
     out["metrics"]["baseline"] = evaluate(ds, splits.test, out["proba"]["baseline"])
     return out
@@ -71,9 +83,12 @@ def write_outputs(out: RunDir, ds: Dataset, cfg: Config, result: dict, previous:
     test = result["splits"].test
     for kind, model in result["models"].items():
         save_checkpoint(out.checkpoint(kind), model, cfg.to_dict(), ds.channel_names,
-                        extra={"history": result["history"][kind].to_dict(times=False)})
+                        extra={"history": result["history"][kind].to_dict(times=False)},
+                        class_names=class_names(ds.arrays))
         write_npz(out.predictions(kind), {"y_true": test.y, "proba": result["proba"][kind],
                                           "traj": test.traj, "t_end": test.t_end})
+        write_prediction_set(out.root / relative_prediction_path(kind, cfg.sim.seed, cfg.train.seed),
+                             result["predsets"][kind])
     old_metrics, old_hist = None if previous is None else previous.metrics, None if previous is None else previous.root / "history.json"
     metrics = read_json(old_metrics, "metrics") if old_metrics is not None and old_metrics.exists() else {}
     metrics.update(result["metrics"])
@@ -99,6 +114,10 @@ def train_run(run: RunDir, cfg: Config, model: str = "both", seed: int | None = 
         result = train_all(ds, cfg, kinds, log)
         previous = run if len(kinds) < 2 and st.carry_previous() else None
         write_outputs(RunDir(st.out), ds, cfg, result, previous)
+    # The index is not a stage output (the study adds to it too): entries are added once the
+    # prediction sets they name are published.
+    add_entries(run.root, [index_entry(k, cfg.sim.seed, cfg.train.seed) for k in kinds])
+    drop_missing_entries(run.root)
     return result
 
 

@@ -1,11 +1,17 @@
-"""The seed study as jobs of ``core.executor``: one per seed x model, each keyed by its config
-(the seed included), the dataset's hash and the code of ``sim`` and ``train``, its metrics cached
-as ``<run>/cache/study/<key>.json``. Training is deterministic on one thread (every worker has
-one), so a study gives the same metrics serial or distributed, and a rerun takes them from the cache."""
+"""The seed study as jobs of ``core.executor``: one per simulator seed x training seed x model, each
+keyed by its config (both seeds included), the dataset's hash and the code of ``sim`` and ``train``,
+its result cached as ``<run>/cache/study/<key>.npz``: the network's prediction set on every
+evaluation window (core.predindex's format) plus ``metrics_json``, its and the baseline's test
+metrics as one JSON string. Training is deterministic on one thread (every worker has one), so a
+study gives the same bytes serial or distributed, and a rerun takes them from the cache."""
 
 from __future__ import annotations
 
+import json
+from dataclasses import dataclass
 from pathlib import Path
+
+import numpy as np
 
 from core.config import Config, replace_section
 from core.executor import Job
@@ -15,26 +21,51 @@ from core.rundir import RunDir
 
 KIND = "study"
 MODELS = ("cnode", "gru")
+METRICS_KEY = "metrics_json"
+
+
+@dataclass(frozen=True)
+class StudyData:
+    """One simulator seed's dataset: its path, and that path relative to the run folder (the index's)."""
+
+    sim_seed: int
+    path: Path
+    rel: str
 
 
 def train_seed_model(dataset: str, cfg: Config, kind: str) -> dict:
-    """Train ``kind`` with ``cfg.train.seed`` on ``dataset`` (a job); its and the baseline's test metrics."""
+    """Train ``kind`` with ``cfg.train.seed`` on ``dataset`` (a job): its prediction set and, as
+    ``metrics_json``, its and the baseline's test metrics."""
     from sim.dataset import load_dataset
     from train.run import train_all
 
     result = train_all(load_dataset(dataset), cfg, [kind], log=lambda _: None)
-    return to_jsonable(result["metrics"])
+    metrics = json.dumps(to_jsonable(result["metrics"]), sort_keys=True, allow_nan=False)
+    return {**result["predsets"][kind], METRICS_KEY: np.array(metrics)}
+
+
+def split_result(arrays: dict) -> tuple[dict, dict]:
+    """A cached job result -> (prediction set arrays, metrics dict)."""
+    pred = {k: v for k, v in arrays.items() if k != METRICS_KEY}
+    return pred, json.loads(str(arrays[METRICS_KEY]))
 
 
 def seed_model_jobs(run: RunDir, cfg: Config, seeds: list[int], models: tuple[str, ...] = MODELS,
-                    cache_root: Path | None = None) -> list[Job]:
-    """Jobs in (seed, model) order; results under ``cache_root`` (default: the run folder)."""
+                    cache_root: Path | None = None, data: list[StudyData] | None = None,
+                    skip: set[tuple[str, int, int]] = frozenset()) -> list[Job]:
+    """Jobs in (sim seed, train seed, model) order; results under ``cache_root`` (default: the run
+    folder). ``data``: the datasets by simulator seed (default: the run's own); ``skip``: the
+    (model, sim seed, train seed) whose prediction set exists already (the train stage's)."""
     root = run.root if cache_root is None else Path(cache_root)
+    data = data or [StudyData(cfg.sim.seed, run.dataset, "dataset.npz")]
     jobs = []
-    for seed in seeds:
-        c = replace_section(cfg, "train", seed=seed)
-        for kind in models:
-            key = job_key(KIND, c.to_dict(), {"model": kind}, {"dataset": run.dataset}, packages=("sim", "train"))
-            jobs.append(Job(KIND, key, train_seed_model, (str(run.dataset), c, kind), cache_path(root, KIND, key, "json"),
-                            label=f"seed {seed} {kind}", torch=True))
+    for d in data:
+        for seed in seeds:
+            c = replace_section(replace_section(cfg, "sim", seed=d.sim_seed), "train", seed=seed)
+            for kind in models:
+                if (kind, d.sim_seed, seed) in skip:
+                    continue
+                key = job_key(KIND, c.to_dict(), {"model": kind}, {"dataset": d.path}, packages=("sim", "train"))
+                jobs.append(Job(KIND, key, train_seed_model, (str(d.path), c, kind), cache_path(root, KIND, key, "npz"),
+                                label=f"sim {d.sim_seed} seed {seed} {kind}", torch=True))
     return jobs

@@ -1,0 +1,85 @@
+"""Prediction sets of a trained network: its class probabilities on every evaluation window of a
+dataset (split code >= 1: validation, test, the realistic suite's out-of-distribution sets), in the
+format of ``core.predindex`` (docs/formats.md, "Prediction sets").
+
+The windows are made and scored a few flights at a time, so the full evaluation set (38 880
+windows of 80 x 25 float32 on the realistic suite, 311 MB) is never held at once.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+
+from core.npzio import write_npz
+from core.predindex import check_prediction_set, prediction_path
+from sim.dataset import Dataset, class_names, gather_windows, window_index
+from train.data import evaluation_rows
+from train.loop import predict_proba
+
+FLIGHTS_PER_CHUNK = 16  # 16 x 90 windows x 80 x 25 float32 = 11.5 MB at a time
+
+
+def prediction_set(model: torch.nn.Module, ds: Dataset, flights_per_chunk: int = FLIGHTS_PER_CHUNK) -> dict[str, np.ndarray]:
+    """``model``'s prediction set on ``ds``: every window of every evaluation flight, flight by
+    flight in dataset order, windows in time order (the order of ``sim.dataset.make_windows``)."""
+    rows = evaluation_rows(ds)
+    names = class_names(ds.arrays)
+    parts: dict[str, list[np.ndarray]] = {k: [] for k in ("proba", "y_true", "traj", "t_end")}
+    for i in range(0, len(rows), flights_per_chunk):
+        traj, start = window_index(ds, rows[i:i + flights_per_chunk])
+        w = gather_windows(ds, traj, start)
+        parts["proba"].append(predict_proba(model, w.x))
+        parts["y_true"].append(w.y)
+        parts["traj"].append(w.traj)
+        parts["t_end"].append(w.t_end)
+    out = {k: np.concatenate(v) if v else np.zeros((0, len(names)) if k == "proba" else 0) for k, v in parts.items()}
+    out["proba"] = out["proba"].astype(np.float32).reshape(-1, len(names))  # the format's dtype
+    out["y_true"] = out["y_true"].astype(np.int64)
+    out["traj"] = out["traj"].astype(np.int64)
+    out["t_end"] = out["t_end"].astype(np.float64)
+    out["split"] = np.asarray(ds["split"])[out["traj"]].astype(np.int8)
+    out["class_names"] = np.array(names)
+    return out
+
+
+def split_part(pred: dict[str, np.ndarray], split_code: int) -> dict[str, np.ndarray]:
+    """The windows of one split of a prediction set (same order), e.g. the test split's."""
+    keep = pred["split"] == split_code
+    return {k: (v if k == "class_names" else v[keep]) for k, v in pred.items()}
+
+
+def write_prediction_set(path: str | Path, arrays: dict[str, Any]) -> Path:
+    """Check ``arrays`` against the prediction-set format and write them atomically."""
+    check_prediction_set(arrays, str(path))
+    Path(path).parent.mkdir(parents=True, exist_ok=True)
+    write_npz(path, arrays)
+    return Path(path)
+
+
+def relative_prediction_path(model: str, sim_seed: int, train_seed: int) -> str:
+    """``core.predindex.prediction_path`` relative to the run folder (what the index stores)."""
+    return prediction_path(Path("."), model, sim_seed, train_seed).as_posix()
+
+
+def index_entry(model: str, sim_seed: int, train_seed: int, dataset: str = "dataset.npz") -> dict[str, Any]:
+    """The index entry of a prediction set written at its default path; ``dataset`` relative to the run."""
+    return {"model": model, "sim_seed": int(sim_seed), "train_seed": int(train_seed), "dataset": dataset,
+            "predictions": relative_prediction_path(model, sim_seed, train_seed)}
+
+
+def drop_missing_entries(run_root: str | Path) -> int:
+    """Remove the index entries whose prediction set no longer exists (a stage re-run with another
+    seed unpublishes the sets of the previous one); returns how many were removed. Same format and
+    atomic write as ``core.predindex.add_entries``."""
+    from core.jsonio import write_json
+    from core.predindex import index_path, read_index
+
+    entries = read_index(run_root)
+    keep = [e for e in entries if (Path(run_root) / e["predictions"]).is_file()]
+    if len(keep) != len(entries):
+        write_json(index_path(run_root), {"entries": keep}, indent=2)
+    return len(entries) - len(keep)
