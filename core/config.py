@@ -17,7 +17,8 @@ from typing import Any, get_args, get_origin, get_type_hints
 from core.errors import QuadfdiError
 from core.tomlio import dumps_toml  # noqa: F401 (re-exported: the run folder writes it)
 from core.limits import FIRMWARE_MAX_STEPS, MAX_THREADS, check_dataset_memory, dataset_bytes
-from core.evalconfig import AlarmConfig, EvaluateConfig  # [alarm], [evaluate]: own modules (400-line cap)
+from core.evalconfig import AlarmConfig, EvaluateConfig  # [alarm], [evaluate], [run]: own modules (400-line cap)
+from core.runconfig import RunConfig
 
 
 @dataclass(frozen=True)
@@ -133,8 +134,7 @@ class TrainConfig:
     atol: float = 1e-4
     jump_t: bool = True  # adaptive solvers: tell torchdiffeq where the path's knots are
     log_eps: float = 1e-8  # the epsilon of Eq. (12)
-    # One intra-op thread: the matrices are tiny (batch 96 x 64), so a second thread buys little,
-    # and on a loaded 2-core machine oversubscribed OpenMP threads made the GRU ~50x slower.
+    # One intra-op thread: tiny matrices (batch 96 x 64); oversubscribed OpenMP made the GRU ~50x slower.
     threads: int = 1
     seeds: tuple[int, ...] = (0, 1, 2)  # the multi-seed study
     max_train_windows: int = 0  # cap: a seeded subsample of the training windows (train.data); 0 = all
@@ -255,10 +255,10 @@ class Config:
     bench: BenchConfig = field(default_factory=BenchConfig)
     alarm: AlarmConfig = field(default_factory=AlarmConfig)
     evaluate: EvaluateConfig = field(default_factory=EvaluateConfig)
+    run: RunConfig = field(default_factory=RunConfig)
 
     def validate(self) -> None:
-        for f in fields(self):
-            getattr(self, f.name).validate()
+        [getattr(self, f.name).validate() for f in fields(self)]
 
     def to_dict(self) -> dict[str, dict[str, Any]]:
         return {f.name: _section_dict(getattr(self, f.name)) for f in fields(self)}

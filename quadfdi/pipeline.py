@@ -1,34 +1,43 @@
 """``quadfdi run``: every stage, in order, into one run folder, with each stage's time.
 
-sim, plots, train, export, parity, solvers (the solver study, ``solverstudy.run.study_run``),
-bench, report: each a library call with the run folder and its config; no command lines are built.
-The solver study's settings are the config's ``[solvers]`` section, bench's its ``[bench]`` section.
+sim, plots, train, study, baselines, evaluate, export, parity, solvers (the solver study,
+``solverstudy.run.study_run``), bench, realism, report: each a library call with the run folder, its
+config and the executor settings (``--workers``/``--scheduler``: sim shards and study jobs); no
+command lines are built. ``study`` (simulator seeds x training seeds) runs when ``[run]
+study_sim_seeds`` lists seeds and ``realism`` when ``[run] realism_logs`` lists logs; otherwise
+they say so and take no time. The solver study's settings are ``[solvers]``, bench's ``[bench]``.
 """
 
 from __future__ import annotations
 
 import argparse
+import functools
 import time
+from pathlib import Path
 from typing import Callable
 
 from core.cliargs import add_config_args
 from core.config import Config, load_config
+from core.executor import SERIAL, ExecSettings, add_executor_args, session
 from core.rundir import RunDir, create_run
 from core.runlock import run_lock
 
+REPO = Path(__file__).resolve().parents[1]
+
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("run", help="run the whole pipeline (sim, train, export, parity, solvers, bench, report) "
-                                   "into one run folder")
+    p = sub.add_parser("run", help="run the whole pipeline (sim, train, study, baselines, evaluate, export, parity, "
+                                   "solvers, bench, realism, report) into one run folder")
     add_config_args(p)
+    add_executor_args(p)
     p.add_argument("--out", default="runs/paper", help="run folder (default: %(default)s)")
     p.set_defaults(func=run_all)
 
 
-def _sim(run: RunDir, cfg: Config) -> None:
+def _sim(run: RunDir, cfg: Config, settings: ExecSettings = SERIAL) -> None:
     from sim.cli import generate_into
 
-    generate_into(run, cfg)
+    generate_into(run, cfg, settings=settings)
 
 
 def _plots(run: RunDir, cfg: Config) -> None:
@@ -41,6 +50,30 @@ def _train(run: RunDir, cfg: Config) -> None:
     from train.run import train_run
 
     train_run(run, cfg, cfg.train.model)
+
+
+def _study(run: RunDir, cfg: Config, settings: ExecSettings = SERIAL) -> None:
+    if not cfg.run.study_sim_seeds:
+        print("study: not part of this pipeline ([run] study_sim_seeds is empty; make study runs it)")
+        return
+    from train.study import run_study
+
+    seeds, sims = list(cfg.train.seeds), list(cfg.run.study_sim_seeds)
+    command = (f"quadfdi train study --run {run.root} --sim-seeds {','.join(map(str, sims))} "
+               f"--seeds {','.join(map(str, seeds))}")
+    run_study(run, cfg, seeds, command, settings=settings, sim_seeds=sims)
+
+
+def _baselines(run: RunDir, cfg: Config) -> None:
+    from train.baselines_run import baselines_run
+
+    baselines_run(run, cfg)
+
+
+def _evaluate(run: RunDir, cfg: Config) -> None:
+    from evaluate.run import evaluate_run
+
+    evaluate_run(run.root, cfg, f"quadfdi evaluate --run {run.root}")
 
 
 def _export(run: RunDir, cfg: Config) -> None:
@@ -67,23 +100,36 @@ def _bench(run: RunDir, cfg: Config) -> None:
     bench_run(run, cfg)
 
 
+def _realism(run: RunDir, cfg: Config) -> None:
+    if not cfg.run.realism_logs:
+        print("realism: not part of this pipeline ([run] realism_logs is empty)")
+        return
+    from realism.cli import realism_into
+
+    realism_into(run, [str(p if Path(p).is_absolute() else REPO / p) for p in cfg.run.realism_logs])
+
+
 def _report(run: RunDir, cfg: Config) -> None:
     from quadfdi.report import write_run_report
 
     write_run_report(run.root, log=print)
 
 
-STAGES: tuple[tuple[str, Callable[[RunDir, Config], None]], ...] = (
-    ("sim", _sim), ("plots", _plots), ("train", _train), ("export", _export), ("parity", _parity),
-    ("solvers", _solvers), ("bench", _bench), ("report", _report))
+STAGES: tuple[tuple[str, Callable[..., None]], ...] = (
+    ("sim", _sim), ("plots", _plots), ("train", _train), ("study", _study), ("baselines", _baselines),
+    ("evaluate", _evaluate), ("export", _export), ("parity", _parity), ("solvers", _solvers), ("bench", _bench),
+    ("realism", _realism), ("report", _report))
+PARALLEL = ("sim", "study")  # the stages whose jobs run on the executor
 
 
-def run_stages(run: RunDir, cfg: Config, stages=STAGES, log: Callable[[str], None] = print) -> dict[str, float]:
-    """Run ``stages`` in order on ``run``; seconds per stage."""
+def run_stages(run: RunDir, cfg: Config, stages=STAGES, log: Callable[[str], None] = print,
+               settings: ExecSettings = SERIAL) -> dict[str, float]:
+    """Run ``stages`` in order on ``run``; seconds per stage. ``settings``: the executor of the
+    stages in ``PARALLEL`` (the others run here)."""
     timings = {}
     for name, stage in stages:
         t0 = time.perf_counter()
-        stage(run, cfg)
+        (functools.partial(stage, settings=settings) if name in PARALLEL else stage)(run, cfg)
         timings[name] = time.perf_counter() - t0
     log("stage times: " + ", ".join(f"{k} {v:.1f} s" for k, v in timings.items())
         + f"; total {sum(timings.values()):.0f} s")
@@ -92,8 +138,9 @@ def run_stages(run: RunDir, cfg: Config, stages=STAGES, log: Callable[[str], Non
 
 def run_all(args: argparse.Namespace) -> int:
     cfg = load_config(args.config, args.overrides)
+    settings = ExecSettings.from_args(args)
     run = create_run(args.out, cfg)
-    with run_lock(run.root):  # one writer for the whole pipeline; each stage re-enters the lock
-        run_stages(run, cfg)
+    with run_lock(run.root), session(settings):  # one writer for the whole pipeline; one cluster for its jobs
+        run_stages(run, cfg, settings=settings)
     print(f"report: {run.root / 'report.md'}")
     return 0

@@ -37,18 +37,31 @@ def parse_masses(items: list[str]) -> dict[str, float]:
 
 def run(args: argparse.Namespace) -> int:
     from core.rundir import open_run
+
+    run_dir, _ = open_run(args.run, need=("dataset",))
+    command = "quadfdi realism " + shlex.join(sys.argv[2:] if sys.argv[1:2] == ["realism"] else ["--run", args.run, "--logs", *args.logs])
+    realism_into(run_dir, args.logs, parse_masses(args.mass), command)
+    return 0
+
+
+def realism_into(run_dir, logs: list[str], masses: dict[str, float] | None = None, command: str | None = None) -> None:
+    """Compare ``run_dir``'s dataset with ``logs`` and publish <run>/realism/ as one stage."""
+    from pathlib import Path
+
+    from core.errors import QuadfdiError
     from core.stage import stage
     from realism.compare import compare
     from realism.report import write
 
-    run_dir, _ = open_run(args.run, need=("dataset",))
-    command = "quadfdi realism " + shlex.join(sys.argv[2:] if sys.argv[1:2] == ["realism"] else ["--run", args.run, "--logs", *args.logs])
+    missing = [p for p in logs if not Path(p).is_file()]
+    if missing:
+        raise QuadfdiError(f"realism: no such log {missing[0]}")
+    command = command or "quadfdi realism " + shlex.join(["--run", str(run_dir.root), "--logs", *map(str, logs)])
     with stage(run_dir.root, "realism", {}, targets=("realism/realism.json",)) as st:  # published as one unit
-        res = compare(st.consume("dataset.npz"), args.logs, parse_masses(args.mass))
+        res = compare(st.consume("dataset.npz"), logs, masses or {})
         written = write(res, st.out / "realism", command)
     for path in written:
         print(f"wrote {run_dir.root / path.relative_to(st.out)}")
     none = [r["log"] for r in res["real"] if not r["segments"]]
     if none:
         print(f"no qualifying steady segment: {', '.join(none)}")
-    return 0

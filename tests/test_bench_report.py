@@ -226,10 +226,10 @@ def test_pipeline_runs_every_stage_in_order(tmp_path):
     from core.rundir import create_run
     from quadfdi.pipeline import STAGES, run_stages
 
-    assert [name for name, _ in STAGES] == ["sim", "plots", "train", "export", "parity", "solvers", "bench",
-                                            "report"]
+    assert [name for name, _ in STAGES] == ["sim", "plots", "train", "study", "baselines", "evaluate", "export",
+                                            "parity", "solvers", "bench", "realism", "report"]
     calls = []
-    fake = tuple((name, lambda run, cfg, name=name: calls.append((name, run.root))) for name, _ in STAGES)
+    fake = tuple((name, lambda run, cfg, name=name, **kw: calls.append((name, run.root))) for name, _ in STAGES)
     run = create_run(tmp_path / "r", load_config(None))
     timings = run_stages(run, load_config(None), fake, log=lambda s: None)
     assert [c[0] for c in calls] == [name for name, _ in STAGES] and set(timings) == {n for n, _ in STAGES}
