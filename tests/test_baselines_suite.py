@@ -172,6 +172,9 @@ def test_baselines_learn_and_cover_every_evaluation_window(fitted):
         np.testing.assert_allclose(res[m].proba.sum(axis=1), 1.0, atol=1e-9)
         assert max(res[m].record["validation_macro_f1"]) > 0.4, m  # chance is 0.2
     assert res["logreg_physics"].record["features"] == physics_feature_names(CHANNEL_NAMES)
+    per_class = res["gbt"].record["f1_per_class_by_split"]
+    assert set(per_class) == {"validation", "test", "test_ood_mission"} and list(per_class["test"]) == list(CLASSES)
+    assert res["gbt"].record["macro_f1_by_split"]["test"] == pytest.approx(np.mean(list(per_class["test"].values())))
 
 
 def test_deterministic_per_seed(fitted):

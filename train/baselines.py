@@ -211,13 +211,24 @@ def fit_baselines(ds: Dataset, seed: int, models: Sequence[str] = MODELS,
         est, record = tune(model, train, val, len(classes), seed)
         with threadpool_limits(1):
             proba = full_proba(est, evals.inputs(model), len(classes))
-        record["macro_f1_by_split"] = {split_names(ds.arrays)[c]: macro_f1(evals.y[evals.split == c],
-                                                                           proba[evals.split == c])
-                                       for c in codes}  # reported only: the choice used validation
+        record.update(report_scores(evals, proba, codes, split_names(ds.arrays), classes))
         record.update(n_train_windows=len(train.y), n_train_available=n_train, max_train_windows=int(cap),
                       features=feature_names(model, ds.channel_names))
         out[model] = BaselineResult(proba=proba, record=record)
     return evals, out
+
+
+def report_scores(evals: Block, proba: np.ndarray, codes: Sequence[int], splits: Sequence[str],
+                  classes: Sequence[str]) -> dict[str, Any]:
+    """Macro F1 and per-class F1 on every evaluation split: reported only, the choice used validation."""
+    macro, per_class = {}, {}
+    for c in codes:
+        m = evals.split == c
+        macro[splits[c]] = macro_f1(evals.y[m], proba[m])
+        f = f1_score(evals.y[m], proba[m].argmax(axis=1), labels=list(range(len(classes))), average=None,
+                     zero_division=0)
+        per_class[splits[c]] = dict(zip(classes, (float(v) for v in f)))
+    return {"macro_f1_by_split": macro, "f1_per_class_by_split": per_class}
 
 
 def feature_names(model: str, channel_names: Sequence[str]) -> list[str]:
