@@ -186,6 +186,7 @@ def test_deterministic_per_seed(fitted):
     assert len(a) == 100 and np.all(np.diff(a) > 0)
     assert not np.array_equal(a, train_subsample(1000, 4, 100))
     np.testing.assert_array_equal(train_subsample(50, 3, 100), np.arange(50))  # under the cap: every window
+    np.testing.assert_array_equal(train_subsample(500, 3, 0), np.arange(500))  # cap 0: every window
 
 
 def _run(tmp_path, arrays, seed=0):
@@ -238,3 +239,6 @@ def test_cli_errors_write_nothing(tmp_path):
     assert sorted(p.name for p in (run / "predictions").iterdir()) == before
     r = quadfdi("train", "baselines", "--run", str(tmp_path / "nowhere"))
     assert r.returncode == 2 and "does not exist" in r.stderr
+    r = quadfdi("train", "baselines", "--run", str(run), "--max-train-windows", "-1")
+    assert r.returncode == 2 and "must not be negative" in r.stderr
+    assert sorted(p.name for p in (run / "predictions").iterdir()) == before

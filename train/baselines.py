@@ -109,8 +109,9 @@ def split_block(ds: Dataset, code: int, seed: int = 0, cap: int | None = None) -
 
 
 def train_subsample(n: int, seed: int, cap: int = MAX_TRAIN_WINDOWS) -> np.ndarray:
-    """Sorted indices of at most ``cap`` of ``n`` training windows, drawn without replacement from ``seed``."""
-    if n <= cap:
+    """Sorted indices of at most ``cap`` of ``n`` training windows, drawn without replacement from ``seed``
+    (every window when ``cap`` is 0)."""
+    if cap <= 0 or n <= cap:
         return np.arange(n)
     rng = np.random.default_rng(np.random.SeedSequence(int(seed), spawn_key=(_SUBSAMPLE_KEY,)))
     return np.sort(rng.choice(n, size=cap, replace=False))

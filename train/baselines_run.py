@@ -70,15 +70,15 @@ def check_run(run_root: str | Path, which: str = "all") -> list[tuple[str, int]]
     return out
 
 
-def fit_run(run_root: str | Path, seed: int, which: str = "all",
-            models: Sequence[str] = MODELS) -> list[dict[str, Any]]:
+def fit_run(run_root: str | Path, seed: int, which: str = "all", models: Sequence[str] = MODELS,
+            cap: int = MAX_TRAIN_WINDOWS) -> list[dict[str, Any]]:
     """Fit the baselines on every dataset of the run (in memory; nothing is written)."""
     root = Path(run_root)
     done: list[dict[str, Any]] = []
     for rel, sim_seed in check_run(root, which):
         ds = load_dataset(root / rel)  # one dataset in memory at a time
         try:
-            evals, results = fit_baselines(ds, seed, models)
+            evals, results = fit_baselines(ds, seed, models, cap)
         except ValueError as exc:
             raise QuadfdiError(f"{root / rel}: {exc}") from None
         done.append({"dataset": rel, "sim_seed": sim_seed, "evals": evals, "results": results,
@@ -86,14 +86,14 @@ def fit_run(run_root: str | Path, seed: int, which: str = "all",
     return done
 
 
-def write_run(run_root: str | Path, done: list[dict[str, Any]], seed: int) -> list[Path]:
+def write_run(run_root: str | Path, done: list[dict[str, Any]], seed: int, cap: int = MAX_TRAIN_WINDOWS) -> list[Path]:
     """Write the prediction sets and records of ``fit_run``'s results, then add the index entries."""
     root = Path(run_root)
     entries, written = [], []
     for d in done:
         ev, s = d["evals"], d["sim_seed"]
         record = {"dataset": d["dataset"], "sim_seed": s, "train_seed": int(seed), "n_configs": N_CONFIGS,
-                  "max_train_windows": MAX_TRAIN_WINDOWS, "class_names": d["class_names"],
+                  "max_train_windows": int(cap), "class_names": d["class_names"],
                   "split_names": d["split_names"], "selection": "validation macro F1 (split 1) only",
                   "models": {}}
         for model, res in d["results"].items():
@@ -115,12 +115,12 @@ def write_run(run_root: str | Path, done: list[dict[str, Any]], seed: int) -> li
     return written
 
 
-def run_baselines(run_root: str | Path, seed: int, which: str = "all",
-                  models: Sequence[str] = MODELS) -> tuple[list[Path], list[str]]:
+def run_baselines(run_root: str | Path, seed: int, which: str = "all", models: Sequence[str] = MODELS,
+                  cap: int = MAX_TRAIN_WINDOWS) -> tuple[list[Path], list[str]]:
     """Fit, then write: the files written (prediction sets, records, the index) and a summary line per
     dataset x model (chosen configuration, macro F1 per split, tuning CPU time)."""
-    done = fit_run(run_root, seed, which, models)
-    written = write_run(run_root, done, seed)
+    done = fit_run(run_root, seed, which, models, cap)
+    written = write_run(run_root, done, seed, cap)
     lines = []
     for d in done:
         for model, res in d["results"].items():

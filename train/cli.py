@@ -37,6 +37,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     pb.add_argument("--datasets", choices=("run", "all"), default="all",
                     help="run: dataset.npz only; all: also every dataset the prediction index lists (default)")
     pb.add_argument("--seed", type=int, default=None, help="the baselines' seed (default: train.seed)")
+    pb.add_argument("--max-train-windows", type=int, default=None,
+                    help="seeded subsample of the training windows; 0 = all (default: train.baselines.MAX_TRAIN_WINDOWS)")
     add_config_args(pb, config=False)
     pb.set_defaults(func=run_baselines_cmd)
 
@@ -74,13 +76,15 @@ def run_study_cmd(args: argparse.Namespace) -> int:
 
 
 def run_baselines_cmd(args: argparse.Namespace) -> int:
+    from train.baselines import MAX_TRAIN_WINDOWS
     from train.baselines_run import run_baselines
 
     run, cfg = open_run(args.run, args.overrides, need=("dataset",))
     seed = cfg.train.seed if args.seed is None else args.seed
-    if seed < 0:
-        raise QuadfdiError(f"--seed must not be negative, found {seed}")
-    written, lines = run_baselines(run.root, seed, args.datasets)
+    cap = MAX_TRAIN_WINDOWS if args.max_train_windows is None else args.max_train_windows
+    if seed < 0 or cap < 0:
+        raise QuadfdiError(f"--seed and --max-train-windows must not be negative, found {seed} and {cap}")
+    written, lines = run_baselines(run.root, seed, args.datasets, cap=cap)
     print("\n".join(lines))
     print(f"wrote {len(written)} files into {run.root / 'predictions'}")
     return 0
