@@ -65,9 +65,10 @@ def _study(run: RunDir, cfg: Config, settings: ExecSettings = SERIAL) -> None:
 
 
 def _baselines(run: RunDir, cfg: Config) -> None:
-    from train.baselines_run import baselines_run
+    from train.baselines_run import run_baselines
 
-    baselines_run(run, cfg)
+    _, lines = run_baselines(run.root, cfg.train.seed)  # every dataset the index lists (the study's sim seeds)
+    print("\n".join(lines))
 
 
 def _evaluate(run: RunDir, cfg: Config) -> None:

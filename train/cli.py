@@ -1,5 +1,6 @@
 """``quadfdi train``: train the CNODE, the GRU and the baseline on a run's dataset;
-``quadfdi train study``: the multi-seed results table."""
+``quadfdi train study``: the multi-seed results table;
+``quadfdi train baselines``: the three tuned baselines' prediction sets (train/baselines_run.py)."""
 
 from __future__ import annotations
 
@@ -22,7 +23,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--seed", type=int, default=None, help="training seed (default: train.seed)")
     add_config_args(p, config=False)
     p.set_defaults(func=run_train)
-    acts = p.add_subparsers(dest="action", metavar="{study}")
+    acts = p.add_subparsers(dest="action", metavar="{study,baselines}")
     ps = acts.add_parser("study", help="train with several seeds: seeds.json and results.md (Tables 3-4)")
     ps.add_argument("--run", required=True, help="run folder holding dataset.npz")
     ps.add_argument("--seeds", default=None, help="comma-separated seeds (default: train.seeds)")
@@ -32,6 +33,16 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     add_config_args(ps, config=False)
     add_executor_args(ps)
     ps.set_defaults(func=run_study_cmd)
+    pb = acts.add_parser("baselines", help="logreg (statistics), logreg (physics features), gradient-boosted trees: "
+                                          "prediction sets tuned on validation")
+    pb.add_argument("--run", required=True, help="run folder holding dataset.npz")
+    pb.add_argument("--datasets", choices=("run", "all"), default="all",
+                    help="run: dataset.npz only; all: also every dataset the prediction index lists (default)")
+    pb.add_argument("--seed", type=int, default=None, help="the baselines' seed (default: train.seed)")
+    pb.add_argument("--max-train-windows", type=int, default=None,
+                    help="seeded subsample of the training windows; 0 = all (default: train.baselines.MAX_TRAIN_WINDOWS)")
+    add_config_args(pb, config=False)
+    pb.set_defaults(func=run_baselines_cmd)
 
 
 def run_train(args: argparse.Namespace) -> int:
@@ -75,3 +86,18 @@ def _seed_list(flag: str, text: str | None, default: list[int]) -> list[int]:
     if min(seeds) < 0 or len(set(seeds)) != len(seeds):
         raise QuadfdiError(f"{flag} expects distinct non-negative integers, found {text!r}")
     return seeds
+
+
+def run_baselines_cmd(args: argparse.Namespace) -> int:
+    from train.baselines import MAX_TRAIN_WINDOWS
+    from train.baselines_run import run_baselines
+
+    run, cfg = open_run(args.run, args.overrides, need=("dataset",))
+    seed = cfg.train.seed if args.seed is None else args.seed
+    cap = MAX_TRAIN_WINDOWS if args.max_train_windows is None else args.max_train_windows
+    if seed < 0 or cap < 0:
+        raise QuadfdiError(f"--seed and --max-train-windows must not be negative, found {seed} and {cap}")
+    written, lines = run_baselines(run.root, seed, args.datasets, cap=cap)
+    print("\n".join(lines))
+    print(f"wrote {len(written)} files into {run.root / 'predictions'}")
+    return 0
