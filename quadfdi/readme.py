@@ -28,12 +28,21 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                        description="Rewrite the README's deployment block from a run's files.")
     p.add_argument("--run", required=True, help="run folder made by quadfdi run")
     p.add_argument("--readme", default="README.md", help="markdown file with the block (default: %(default)s)")
+    p.add_argument("--block", choices=(BLOCK, "realistic"), default=BLOCK,
+                   help="deployment: export, parity, bench and Cortex-M tables; realistic: the evaluation's "
+                        "model x test-set tables (quadfdi.readme_realistic) (default: %(default)s)")
     p.set_defaults(func=_cli)
 
 
 def _cli(args: argparse.Namespace) -> int:
-    path = rewrite_file_block(args.readme, BLOCK, deployment_block(Path(args.run)))
-    print(f"wrote the {BLOCK} block of {path}")
+    if args.block == "realistic":
+        from quadfdi.readme_realistic import realistic_block
+
+        text = realistic_block(Path(args.run))
+    else:
+        text = deployment_block(Path(args.run))
+    path = rewrite_file_block(args.readme, args.block, text)
+    print(f"wrote the {args.block} block of {path}")
     return 0
 
 

@@ -174,3 +174,20 @@ def test_network_against_best_baseline_is_network_minus_baseline(run):
     res = {r["model"]: r["metrics"]["macro_f1"]["value"] for r in ev["results"] if r["set"] == "test_ood_all"}
     assert g["macro_f1_diff"] == pytest.approx(res["lrnet"] - res["logreg"])
     assert g["lo"] <= g["hi"] and g["goal_met"] == (g["macro_f1_diff"] >= 0.03 and g["lo"] > 0)
+
+
+def test_readme_realistic_block_comes_from_the_evaluation(run, tmp_path):
+    """`quadfdi readme --block realistic` rewrites only its block, with every model and the ceiling."""
+    readme = tmp_path / "README.md"
+    readme.write_text("# x\n\n<!-- realistic:start -->\nSTALE-BLOCK\n<!-- realistic:end -->\n\ntail\n")
+    res = quadfdi("readme", "--run", str(run), "--block", "realistic", "--readme", str(readme))
+    assert res.returncode == 0, res.stderr
+    text = readme.read_text()
+    block = text.split("<!-- realistic:start -->")[1].split("<!-- realistic:end -->")[0]
+    assert "STALE-BLOCK" not in block and text.endswith("tail\n")
+    ev = _ev(run)
+    for model in ev["models"]:
+        assert f"| {model} |" in block
+    assert "*label-noise ceiling*" in block and "Realism: not run" in block
+    missing = quadfdi("readme", "--run", str(tmp_path), "--block", "realistic", "--readme", str(readme))
+    assert missing.returncode == 2 and "quadfdi evaluate" in missing.stderr
