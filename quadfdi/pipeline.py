@@ -107,7 +107,7 @@ def _realism(run: RunDir, cfg: Config) -> None:
         return
     from realism.cli import realism_into
 
-    realism_into(run, [str(p if Path(p).is_absolute() else REPO / p) for p in cfg.run.realism_logs])
+    realism_into(run, [str(p if Path(p).is_absolute() else (REPO / p).resolve()) for p in cfg.run.realism_logs])
 
 
 def _report(run: RunDir, cfg: Config) -> None:

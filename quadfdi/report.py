@@ -3,7 +3,8 @@
     quadfdi report --run runs/<name>     redraw the bench figures, rewrite report.md (no measuring)
 
 Each stage owns its section and reads only its own files: ``report_section(run_root) -> list[str]``
-in sim.report, train.report, evaluate.report, export.report, parity.report, bench.report and solverstudy.report,
+in sim.report, train.report, evaluate.report, export.report, parity.report, bench.report, solverstudy.report
+and realism.report,
 in that order, after a headline made of the bullets of ``headline(run_root)`` (train, export, bench
 and solverstudy). A stage whose files are absent says "Not run" under its
 heading; a file that is there but unreadable stops the report with a one-line QuadfdiError.
@@ -21,7 +22,8 @@ from core.atomic import write_text
 from core.errors import QuadfdiError
 from core.reportmd import figure_links
 
-SECTIONS = ("sim.report", "train.report", "evaluate.report", "export.report", "parity.report", "bench.report", "solverstudy.report")
+SECTIONS = ("sim.report", "train.report", "evaluate.report", "export.report", "parity.report", "bench.report",
+            "solverstudy.report", "realism.report")
 HEADLINES = ("train.report", "evaluate.report", "export.report", "bench.report", "solverstudy.report")
 
 

@@ -116,3 +116,22 @@ def write(res: dict, out: Path, command: str) -> list[Path]:
                                       "rates": res["rates"], "table": rows, "command": command})
     write_text(out / "realism.md", markdown(res, rows, command) + "\n")
     return [out / "realism.json", out / "realism.md", *figures(res, out)]
+
+
+HEADING = "## Realism: simulated telemetry against real flights"
+
+
+def report_section(root: Path) -> list[str]:
+    """report.md's section: realism/realism.md under one heading (its own title dropped)."""
+    from core.reportmd import demote, not_run
+
+    md = Path(root) / "realism" / "realism.md"
+    if not md.is_file():
+        return not_run(HEADING, "no realism/realism.md ([run] realism_logs, or quadfdi realism --run RUN --logs ...)")
+    body = md.read_text().splitlines()
+    text = "\n".join(body[1:] if body and body[0].startswith("# ") else body)
+    return [HEADING, ""] + demote(text.replace("](realism_", "](realism/realism_"), 1)
+
+
+def headline(root: Path) -> list[str]:
+    return []

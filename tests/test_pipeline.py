@@ -27,8 +27,8 @@ TINY = [*SMALL_SIM, "--set", "train.epochs=1",
 
 FILES = ("config.toml", "dataset.npz", "cnode.pt", "gru.pt", "metrics.json", "export/manifest.json",
          "export/weights.bin", "parity/parity.json", "parity/mcu.json", "solvers/solvers.json", "bench.json",
-         "report.md")
-SECTIONS = ("## Simulation", "## Training", "## Export", "## Parity", "## Bench", "## Solvers")
+         "predictions/index.json", "evaluation/evaluation.json", "realism/realism.json", "report.md")
+SECTIONS = ("## Simulation", "## Training", "## Evaluation", "## Export", "## Parity", "## Bench", "## Solvers", "## Realism")
 
 
 @pytest.fixture(scope="module")
@@ -46,7 +46,7 @@ def test_run_writes_every_stage_file_and_report_section(whole_run):
     assert not missing, missing
     text = (whole_run / "report.md").read_text()
     positions = [text.index(s) for s in SECTIONS]
-    assert positions[:5] == sorted(positions[:5])  # the pipeline's order; the solver study comes last
+    assert positions == sorted(positions)  # the pipeline's order
     assert "Not run" not in text
     stored = tomllib.loads((whole_run / "config.toml").read_text())  # the overrides are stored
     assert stored["bench"]["windows"] == 6 and stored["train"]["epochs"] == 1
