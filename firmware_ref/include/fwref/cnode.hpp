@@ -98,6 +98,13 @@ struct CnodeWorkspace {
   std::int8_t q_hid[kMaxCnodeHidden];
   Lat z, k1, k2, k3, k4, state;
   Hid a;
+#if defined(FWREF_CNODE_LIN1Z_INT16)
+  // Cortex-M option (firmware_ref/mcu, FWREF_CNODE_LIN1Z_INT16=ON): lin1_z's int8 weights sign-extended
+  // to int16 in RAM (rows padded to a multiple of 8), made by the first int8 inference of a model
+  // (w16_of: which weights they are); the 4N stage products then run without SXTB16.
+  alignas(8) std::int16_t lin1z16[kMaxCnodeHidden * ((kMaxLatent + 7) & ~7)];  // LDRD needs word alignment
+  const std::int8_t* w16_of = nullptr;
+#endif
 };
 
 // Dimensions within the maxima and consistent with every view; scales positive and finite;
