@@ -141,14 +141,16 @@ Status infer(const CnodeF32& m, const float* x, float* logits, CnodeWorkspace& w
   if (tr != nullptr && tr->x_norm != nullptr) trace_x_norm(x, m.mean, m.std, W, C, tr->x_norm);
 
   const ConstMapVec b1(m.lin1_b, H), b2(m.lin2_b, L);
+  ws.a.resize(CnodeWorkspace::kURowInA ? C : 0);
+  float* const u_row = CnodeWorkspace::kURowInA ? ws.a.data() : ws.u_row;
   // U row by row, each row straight into V = lin1_u U + b1 (MatMul, then Add); row 0 also feeds
   // the encoder (interp's row 0 is sample 0 alone).
   for (int s = 0; s < S; ++s) {
-    interp_row_f32(m.interp.data + s * W, x, m.mean, m.std, W, C, ws.u_row);
+    interp_row_f32(m.interp.data + s * W, x, m.mean, m.std, W, C, u_row);
     if (tr != nullptr && tr->u != nullptr) {
-      for (int c = 0; c < C; ++c) tr->u[s * C + c] = ws.u_row[c];
+      for (int c = 0; c < C; ++c) tr->u[s * C + c] = u_row[c];
     }
-    const ConstMapVec u(ws.u_row, C);
+    const ConstMapVec u(u_row, C);
     MapVec v(ws.v + s * H, H);
     matvec(m.lin1_u, u, v);
     v += b1;
@@ -213,19 +215,22 @@ Status infer(const CnodeI8& m, const float* x, float* logits, CnodeWorkspace& ws
   }
 
   const std::int16_t* lin1z16 = nullptr;
-#if defined(FWREF_CNODE_LIN1Z_INT16)
+  const std::int16_t* lin2w16 = nullptr;
+#if defined(FWREF_CNODE_W_INT16)
   if (ws.w16_of != m.lin1_z.q) {
     expand_i8_to_i16(m.lin1_z.q, H, L, ws.lin1z16);
+    expand_i8_to_i16(m.lin2_w.q, L, H, ws.lin2w16);
     ws.w16_of = m.lin1_z.q;
   }
   lin1z16 = ws.lin1z16;
+  lin2w16 = ws.lin2w16;
 #endif
   auto field = [&](int e, const CnodeWorkspace::Lat& z, CnodeWorkspace::Lat& k) {
     const float s_z = m.s_stage[e];
     quantize_all(z.data(), L, s_z, ws.q_lat);
     lin1_tanh_quantize(m, lin1z16, ws.q_lat, s_z, ws.v + m.stage_index[e] * H, ws.q_hid);
     k.resize(L);
-    linear_i8_tensor(m.lin2_w.q, m.lin2_w.scale, L, H, ws.q_hid, m.s_hidden, m.lin2_b, k.data());
+    linear_i8_tensor(m.lin2_w.q, m.lin2_w.scale, L, H, ws.q_hid, m.s_hidden, m.lin2_b, k.data(), lin2w16);
   };
   detail::rk4_integrate(m.rk4, d.steps, ws.z, ws.k1, ws.k2, ws.k3, ws.k4, ws.state, field,
                         tr != nullptr ? tr->stages : nullptr);
