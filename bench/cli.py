@@ -2,6 +2,8 @@
 
     quadfdi bench --run runs/<name> [--quick] [--skip-cpp] [--cpus 0,1] [--fwref PATH] [--set bench.key=value]
     quadfdi bench limits [--quick] [--cpus 0,1]   print the machine limits as JSON
+    quadfdi bench kernels --run runs/<name> [--fwref PATH] [--json FILE]
+                                                  C++ instructions per kernel and per MAC (callgrind, bench/kernels.py)
 
 The measurement settings are the run's ``[bench]`` config section (``--set bench.windows=100``);
 ``bench_run`` (bench/run.py) does the work; docs/bench.md describes bench.json. report.md is
@@ -13,7 +15,9 @@ from __future__ import annotations
 import argparse
 import json
 import shlex
+import subprocess
 import sys
+from pathlib import Path
 
 from core.errors import QuadfdiError
 
@@ -41,11 +45,17 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="fwref_infer program (default: firmware_ref/build/fwref_infer, built if missing)")
     add_config_args(p, config=False)
     p.set_defaults(func=run_bench)
-    acts = p.add_subparsers(dest="action", metavar="{limits}")
+    acts = p.add_subparsers(dest="action", metavar="{limits,kernels}")
     pl = acts.add_parser("limits", help="measure peak GFLOP/s, L2 bandwidth and ORT's call cost; print JSON")
     pl.add_argument("--quick", action="store_true")
     pl.add_argument("--cpus", default=BenchConfig.cpus, help="CPUs to pin to (default: %(default)s)")
     pl.set_defaults(func=run_limits)
+    pk = acts.add_parser("kernels", help="C++ instructions per kernel and per MAC (callgrind, 8 minus 4 windows)")
+    pk.add_argument("--run", required=True, help="run folder with an export and a dataset (e.g. runs/paper)")
+    pk.add_argument("--fwref", default=None,
+                    help="fwref_infer program (default: firmware_ref/build/fwref_infer, built if missing)")
+    pk.add_argument("--json", default=None, help="also write the records to this JSON file")
+    pk.set_defaults(func=run_kernels)
 
 
 def run_bench(args: argparse.Namespace) -> int:
@@ -65,4 +75,27 @@ def run_limits(args: argparse.Namespace) -> int:
 
     limits = measure_limits(args.cpus, args.quick, log=lambda s: print(s, file=sys.stderr))
     print(json.dumps(limits, indent=1))
+    return 0
+
+
+def run_kernels(args: argparse.Namespace) -> int:
+    """Print the per-kernel instruction table of the run's weights.bin (bench.kernels)."""
+    from bench.kernels import kernel_counts, kernels_table
+    from bench.latency import find_fwref
+    from bench.run import test_windows
+    from core.jsonio import read_json, write_json
+    from core.rundir import open_run
+
+    run, _cfg = open_run(args.run, [], need=("dataset", "export"))
+    manifest = read_json(run.export / "manifest.json")
+    fwref, how = find_fwref(args.fwref, log=lambda s: print(s, file=sys.stderr))
+    if fwref is None:
+        raise QuadfdiError(f"no fwref_infer to count: {how}")
+    records = kernel_counts(fwref, str(run.export / "weights.bin"), test_windows(run, manifest).x, manifest)
+    info = subprocess.run([str(Path(fwref).parent / "fwref_kernels"), "--info"], capture_output=True, text=True)
+    print(f"fwref_infer: {fwref}")
+    print(info.stdout.strip() or "(fwref_kernels --info not available)")
+    print("\n".join(kernels_table(records)))
+    if args.json:
+        write_json(Path(args.json), {"fwref": fwref, "kernel_info": info.stdout.strip(), "records": records})
     return 0

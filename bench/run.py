@@ -113,7 +113,7 @@ def solver_records(run_root: Path) -> tuple[list, dict]:
     return list(load_records(run_root)), {"file": str(SOLVERS_JSON)}
 
 
-def _test_windows(run: RunDir, manifest: dict):
+def test_windows(run: RunDir, manifest: dict):
     """The run's test windows, checked against the export and the checkpoints."""
     from sim.dataset import load_dataset, make_windows
 
@@ -274,7 +274,7 @@ def _bench_into(run: RunDir, cfg: Config, dest: RunDir, log: Callable[[str], Non
     t_start = time.perf_counter()
     manifest = load_manifest(run.export / "manifest.json")
     check_files(manifest, run.export)
-    test = _test_windows(run, manifest)
+    test = test_windows(run, manifest)
     machine = _machine(cpus)
     fwref_found = (None, "C++ reference not measured: --skip-cpp") if skip_cpp else find_fwref(fwref, log)
     if not fwref_found[0]:

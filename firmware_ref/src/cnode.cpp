@@ -2,6 +2,7 @@
 #include "fwref/cnode.hpp"
 
 #include "fwref/numerics.hpp"
+#include "fwref/tanhq.hpp"
 #include "model_common.hpp"
 
 namespace fwref {
@@ -67,8 +68,29 @@ void quantize_all(const float* x, int n, float s, std::int8_t* q) {
   for (int i = 0; i < n; ++i) q[i] = quantize(x[i], s);
 }
 
-void tanh_quantize_all(const float* x, int n, float s, std::int8_t* q) {
-  for (int i = 0; i < n; ++i) q[i] = quantize(tanh_approx(x[i]), s);
+// One stage's lin1 fused with the hidden activation: q_hid[o] = quantize(tanh(f32(acc[o]) * f32(s_z *
+// s_w[o]) + v[o]), s_hid), the operations of linear_i8_tensor then quantize(tanh_approx(.)) in the
+// same order, without a float buffer in between. On Cortex-M, with s_hid = 1/127 (always: the bound
+// scale), tanh then quantize is fwref/tanhq.hpp's exact table (a few integer operations instead of
+// the rational function and two divisions); elsewhere the direct loop, which the host vectorises.
+void lin1_tanh_quantize(const CnodeI8& m, const std::int16_t* w16, const std::int8_t* zq, float s_z, const float* v,
+                        std::int8_t* q_hid) {
+  const int H = m.dims.hidden, L = m.dims.latent;
+  const float* s_w = m.lin1_z.scale;
+  std::int32_t acc[kGemvRowBlock];
+  for (int o0 = 0; o0 < H; o0 += kGemvRowBlock) {
+    const int o1 = H - o0 < kGemvRowBlock ? H : o0 + kGemvRowBlock;
+    gemv_i8_any(m.lin1_z.q, w16, o0, o1 - o0, L, zq, acc);  // w16: the int16 copy, or null
+#if defined(__ARM_FEATURE_SIMD32) && !defined(FWREF_PORTABLE_KERNELS)
+    if (m.s_hidden == kTanhqScale) {
+      for (int o = o0; o < o1; ++o) q_hid[o] = tanh_quantize_bound(rescale_i32(acc[o - o0], s_z, s_w[o]) + v[o]);
+      continue;
+    }
+#endif
+    for (int o = o0; o < o1; ++o) {
+      q_hid[o] = quantize(tanh_approx(rescale_i32(acc[o - o0], s_z, s_w[o]) + v[o]), m.s_hidden);
+    }
+  }
 }
 
 template <class Vec>
@@ -119,14 +141,16 @@ Status infer(const CnodeF32& m, const float* x, float* logits, CnodeWorkspace& w
   if (tr != nullptr && tr->x_norm != nullptr) trace_x_norm(x, m.mean, m.std, W, C, tr->x_norm);
 
   const ConstMapVec b1(m.lin1_b, H), b2(m.lin2_b, L);
+  ws.a.resize(CnodeWorkspace::kURowInA ? C : 0);
+  float* const u_row = CnodeWorkspace::kURowInA ? ws.a.data() : ws.u_row;
   // U row by row, each row straight into V = lin1_u U + b1 (MatMul, then Add); row 0 also feeds
   // the encoder (interp's row 0 is sample 0 alone).
   for (int s = 0; s < S; ++s) {
-    interp_row_f32(m.interp.data + s * W, x, m.mean, m.std, W, C, ws.u_row);
+    interp_row_f32(m.interp.data + s * W, x, m.mean, m.std, W, C, u_row);
     if (tr != nullptr && tr->u != nullptr) {
-      for (int c = 0; c < C; ++c) tr->u[s * C + c] = ws.u_row[c];
+      for (int c = 0; c < C; ++c) tr->u[s * C + c] = u_row[c];
     }
-    const ConstMapVec u(ws.u_row, C);
+    const ConstMapVec u(u_row, C);
     MapVec v(ws.v + s * H, H);
     matvec(m.lin1_u, u, v);
     v += b1;
@@ -190,14 +214,23 @@ Status infer(const CnodeI8& m, const float* x, float* logits, CnodeWorkspace& ws
     linear_i8_folded(m.lin1_u.q, m.lin1_u.scale, H, C, ws.uq + s * C, m.lin1_b, ws.v + s * H);
   }
 
-  ws.a.resize(H);
+  const std::int16_t* lin1z16 = nullptr;
+  const std::int16_t* lin2w16 = nullptr;
+#if defined(FWREF_CNODE_W_INT16)
+  if (ws.w16_of != m.lin1_z.q) {
+    expand_i8_to_i16(m.lin1_z.q, H, L, ws.lin1z16);
+    expand_i8_to_i16(m.lin2_w.q, L, H, ws.lin2w16);
+    ws.w16_of = m.lin1_z.q;
+  }
+  lin1z16 = ws.lin1z16;
+  lin2w16 = ws.lin2w16;
+#endif
   auto field = [&](int e, const CnodeWorkspace::Lat& z, CnodeWorkspace::Lat& k) {
     const float s_z = m.s_stage[e];
     quantize_all(z.data(), L, s_z, ws.q_lat);
-    linear_i8_tensor(m.lin1_z.q, m.lin1_z.scale, H, L, ws.q_lat, s_z, ws.v + m.stage_index[e] * H, ws.a.data());
-    tanh_quantize_all(ws.a.data(), H, m.s_hidden, ws.q_hid);
+    lin1_tanh_quantize(m, lin1z16, ws.q_lat, s_z, ws.v + m.stage_index[e] * H, ws.q_hid);
     k.resize(L);
-    linear_i8_tensor(m.lin2_w.q, m.lin2_w.scale, L, H, ws.q_hid, m.s_hidden, m.lin2_b, k.data());
+    linear_i8_tensor(m.lin2_w.q, m.lin2_w.scale, L, H, ws.q_hid, m.s_hidden, m.lin2_b, k.data(), lin2w16);
   };
   detail::rk4_integrate(m.rk4, d.steps, ws.z, ws.k1, ws.k2, ws.k3, ws.k4, ws.state, field,
                         tr != nullptr ? tr->stages : nullptr);

@@ -92,12 +92,23 @@ struct CnodeWorkspace {
   using Lat = VecN<kMaxLatent>;
   using Hid = VecN<kMaxCnodeHidden>;
   float v[kMaxStageTimes * kMaxCnodeHidden];  // V, (S, H)
-  float u_row[kMaxChannels];                  // one row of U (fp32)
+  // One row of U (fp32 only): held in ``a`` (free while V is computed) when it is long enough,
+  // which saves its RAM; else in u_row.
+  static constexpr bool kURowInA = kMaxChannels <= kMaxCnodeHidden;
+  float u_row[kURowInA ? 1 : kMaxChannels];
   std::int8_t uq[kMaxStageTimes * kMaxChannels];  // quantized U (int8), (S, C)
   std::int8_t q_lat[kMaxLatent];
   std::int8_t q_hid[kMaxCnodeHidden];
   Lat z, k1, k2, k3, k4, state;
   Hid a;
+#if defined(FWREF_CNODE_W_INT16)
+  // Cortex-M option (firmware_ref/mcu, FWREF_CNODE_W_INT16=ON): lin1_z's and lin2's int8 weights
+  // sign-extended to int16 in RAM (rows padded to a multiple of 8), made by the first int8 inference
+  // of a model (w16_of: which weights they are); the 4N stage products then run without SXTB16.
+  alignas(8) std::int16_t lin1z16[kMaxCnodeHidden * ((kMaxLatent + 7) & ~7)];  // LDRD needs word alignment
+  alignas(8) std::int16_t lin2w16[kMaxLatent * ((kMaxCnodeHidden + 7) & ~7)];
+  const std::int8_t* w16_of = nullptr;
+#endif
 };
 
 // Dimensions within the maxima and consistent with every view; scales positive and finite;

@@ -163,7 +163,7 @@ inline void gemv_i8(const std::int8_t* w, int rows, int cols, const std::int8_t*
 }
 #undef FWREF_M_ROWS4_STEP
 
-#if defined(FWREF_GRU_WHH_INT16)
+#if defined(FWREF_GRU_WHH_INT16) || defined(FWREF_CNODE_W_INT16)
 #define FWREF_HAS_W16_KERNEL 1
 // The same products with the weights already sign-extended to int16 (a copy in RAM made once at
 // load by expand_i8_to_i16; weights.bin and flash keep int8): 4 products of a row are one LDRD and
@@ -256,7 +256,7 @@ inline const char* gemv_i8_kernel_name() { return "portable"; }
 #endif
 
 // Rows [o0, o0 + rows) of the matrix: from its int16 copy ``w16`` when there is one and the kernel
-// for it is built (Cortex-M, FWREF_GRU_WHH_INT16), else from the int8 ``w``.
+// for it is built (Cortex-M, FWREF_GRU_WHH_INT16 or FWREF_CNODE_W_INT16), else from the int8 ``w``.
 inline void gemv_i8_any(const std::int8_t* w, const std::int16_t* w16, int o0, int rows, int cols,
                         const std::int8_t* x, std::int32_t* acc) {
 #if defined(FWREF_HAS_W16_KERNEL)

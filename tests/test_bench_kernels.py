@@ -1,0 +1,57 @@
+"""quadfdi bench kernels: per-kernel instruction counts of the C++ reference (bench/kernels.py)."""
+
+from __future__ import annotations
+
+import json
+import shutil
+
+import pytest
+
+from bench.kernels import executed_macs, kernel_name
+from tests.conftest import quadfdi
+from tests.test_firmware_fixtures import fw_run, host_build  # noqa: F401 (fixtures)
+
+PAPER_CNODE = {"kind": "cnode", "n_channels": 23, "window": 80, "latent": 40, "hidden": 64, "n_classes": 4,
+               "macs_per_window": 221224}
+PAPER_GRU = {"kind": "gru", "n_channels": 23, "window": 80, "hidden": 80, "n_classes": 4, "macs_per_window": 1977920}
+
+
+def test_kernel_name_strips_file_arguments_templates_and_return_type():
+    assert kernel_name("???:fwref::(anonymous namespace)::gemv_i8_avx2(signed char const*, int, int, signed char "
+                       "const*, int*) [/tmp/b/fwref_infer]") == "gemv_i8_avx2"
+    assert kernel_name("???:void fwref::detail::gru_cell<Eigen::Matrix<float, -1, 1, 0, 128, 1> >(float const*) "
+                       "[/x]") == "gru_cell"
+    assert kernel_name("???:fwref::detail::rk4_integrate<Eigen::Matrix<float, -1, 1>, fwref::infer(fwref::CnodeI8 "
+                       "const&)::{lambda(int)#1}>(float const*)::{lambda(float)#1}::operator()(float) const [/x]") \
+        == "rk4_integrate {lambda}"
+
+
+def test_executed_macs_match_the_manifest_except_the_dense_interpolation():
+    # GRU: every MAC the manifest counts runs; CNODE: the (S, W) control product runs as 2 weights a row
+    assert executed_macs(PAPER_GRU, 8) == {"total": 1977920, "gemv": 1977920}
+    cnode = executed_macs(PAPER_CNODE, 8)
+    S, W, C = 17, 80, 23
+    assert cnode["total"] == PAPER_CNODE["macs_per_window"] - S * W * C + 2 * S * C == 190726
+    assert cnode["gemv"] == cnode["total"] - 2 * S * C
+
+
+@pytest.mark.skipif(shutil.which("valgrind") is None, reason="valgrind is not installed")
+def test_bench_kernels_command_counts_every_model_and_names_the_int8_kernel(fw_run, host_build, tmp_path):  # noqa: F811
+    out = tmp_path / "kernels.json"
+    res = quadfdi("bench", "kernels", "--run", str(fw_run), "--fwref", str(host_build / "fwref_infer"),
+                  "--json", str(out), timeout=1800)
+    assert res.returncode == 0, res.stderr
+    doc = json.loads(out.read_text())
+    recs = {(r["model"], r["precision"]): r for r in doc["records"]}
+    assert set(recs) == {("cnode", "fp32"), ("cnode", "int8"), ("gru", "fp32"), ("gru", "int8")}
+    ran = next(line.split(":", 1)[1].strip() for line in doc["kernel_info"].splitlines()
+               if line.startswith("int8_kernel:"))
+    for (model, precision), r in recs.items():
+        parts = sum(k["ir_per_window"] for k in r["kernels"])
+        assert r["ir_per_window"] > r["macs"]["total"] * 0.1, (model, precision)
+        assert parts == pytest.approx(r["ir_per_window"], rel=0.01)  # the kernels add up to the window
+        names = {k["kernel"] for k in r["kernels"]}
+        assert (f"gemv_i8_{ran}" in names) == (precision == "int8"), (model, precision, names)
+    # the packed int8 kernels pay off on the GRU (issue 15): fewer instructions than fp32
+    assert recs[("gru", "int8")]["ir_per_window"] < recs[("gru", "fp32")]["ir_per_window"]
+    assert f"gemv_i8_{ran}" in res.stdout and "**total**" in res.stdout
