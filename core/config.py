@@ -229,9 +229,8 @@ class BenchConfig:
     profile_windows: int = 100  # windows run under the ORT per-node profiler
     callgrind_windows: int = 5  # windows run under valgrind callgrind (C++)
     worker_timeout_s: float = 900.0  # one worker process may take this long
-    # A runtime measured below its floor after re-measuring means the floors are not lower bounds
-    # here: the bench then exits non-zero (after writing bench.json). false only reports it, for
-    # checks of the pipeline's plumbing on a machine whose timings are not under test.
+    # A runtime below its floor after re-measuring: the floors are not lower bounds here, so the bench
+    # exits non-zero (after writing bench.json); false only reports it (plumbing checks, not timings).
     fail_below_floor: bool = True
 
     def validate(self) -> None:
