@@ -81,7 +81,7 @@ def _sim_channel(t: np.ndarray, tel: np.ndarray, j: int, rows_segs: list, rate: 
     sq, npairs, specs = 0.0, 0, []
     for row, segs in rows_segs:
         tl, vl = stats.log_like(t, tel[row, :, j].astype(np.float64), rate)
-        noise, n = stats.hp_noise(tl, vl, [(s["start_s"], s["end_s"]) for s in segs])
+        noise, n = stats.hp_noise(tl, _unwrap(vl) if angle else vl, [(s["start_s"], s["end_s"]) for s in segs])  # as the real side
         if n and np.isfinite(noise):
             sq, npairs = sq + noise ** 2 * n, npairs + n
         g, _ = resample(tl, vl, t, angle=angle)
