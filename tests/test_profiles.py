@@ -95,3 +95,11 @@ def test_a_dataset_without_the_raw_channels_is_refused(tmp_path):
     arrays = dict(ds.arrays, channel_names=np.array([n if n != "vib_px4" else "vib" for n in RAW]))
     with pytest.raises(QuadfdiError, match="needs raw channels vib_px4"):
         profiled_dataset(Dataset(ds.path, arrays, ds.config), "flightlog-min")
+
+
+def test_a_flight_that_never_hovers_has_no_decided_window(tmp_path):
+    ds = _dataset(tmp_path)
+    ds.arrays["telemetry"][1, :, RAW.index("vz")] = 1.0  # flight 1 climbs throughout
+    pd = profiled_dataset(ds, "flightlog-min")
+    assert pd["hover_freeze"][1] == 160 and np.isfinite(pd["telemetry"][1]).all()
+    assert not decided(pd, np.array([1]), np.array([140])).any()

@@ -6,7 +6,8 @@ and reference windows are made as before. ``paper`` returns ``ds`` itself (nothi
 
 For a profile with a hover estimate (core.hover) the per-flight estimate is stored beside it:
 ``hover_cmd``, ``hover_cur`` (float32) and ``hover_freeze`` (sample index; the estimate is applied to
-every sample of the flight once frozen). A window whose last sample is before ``hover_freeze`` has
+every sample of the flight once frozen; a flight that never freezes gets ``hover_freeze`` = its
+length and the whole-flight means). A window whose last sample is before ``hover_freeze`` has
 no decision on a real vehicle (detect gives none): ``decided`` tells them, and training and
 validation drop them (train.data). The test metrics and prediction sets keep every window (the
 evaluation's window grid); the windows before the freeze there use the estimate from later in the
@@ -20,7 +21,7 @@ import dataclasses
 import numpy as np
 
 from core.errors import QuadfdiError
-from core.hover import INPUTS as HOVER_INPUTS, estimate_many
+from core.hover import INPUTS as HOVER_INPUTS, collective, estimate_many
 from core.profiles import apply_profile, channel_names, channel_units, required_raw, uses_hover
 from sim.dataset import Dataset
 
@@ -43,9 +44,12 @@ def profiled_dataset(ds: Dataset, profile: str) -> Dataset:
         raise QuadfdiError(f"profile {profile!r} needs each flight's cell count (pack_cells), absent from {ds.path}")
     tel = ds["telemetry"]
     cmd, cur, freeze = estimate_many(tel[:, :, [names.index(c) for c in HOVER_INPUTS]])  # the dataset has I_b
-    if (freeze < 0).any():
-        raise QuadfdiError(f"{int((freeze < 0).sum())} flights of {ds.path} never hover steadily for the hover "
-                           "estimate (core.hover): profile unusable on this dataset")
+    never = freeze < 0  # no decided window at all; their (evaluation-only) inputs use the whole-flight mean
+    if never.any():
+        hv = tel[never][:, :, [names.index(c) for c in HOVER_INPUTS]]
+        cmd[never] = collective(hv[:, :, 3:7]).mean(axis=1)
+        cur[never] = hv[:, :, 7].mean(axis=1)
+        freeze[never] = tel.shape[1]
     raw = {r: tel[:, :, names.index(r)] for r in required_raw(profile, names)}
     x = apply_profile(profile, raw, ds["pack_cells"], cmd, cur)
     arrays = dict(ds.arrays)
