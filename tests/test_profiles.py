@@ -23,6 +23,8 @@ def test_paper_is_the_default_and_the_identity():
     assert cfg.train.profile == "paper" and not uses_hover("paper")
     assert channel_names("paper", RAW) == RAW and required_raw("paper", RAW) == RAW
     assert profile_of({}) == "paper"  # a checkpoint or manifest from before profiles
+    assert profile_of({"profile": "flightlog-min"}) == "flightlog-min"  # a checkpoint
+    assert profile_of({"profile": {"name": "flightlog-nocur", "channels": []}}) == "flightlog-nocur"  # a manifest
 
 
 def test_profile_key_is_checked_and_overrides_still_parse():

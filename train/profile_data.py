@@ -29,8 +29,10 @@ PROFILE_KEY = "profile"  # the checkpoint's key (train.run) and the manifest's (
 
 
 def profile_of(blob_or_manifest: dict) -> str:
-    """The profile of a checkpoint blob or a manifest: ``paper`` when it predates profiles."""
-    return str(blob_or_manifest.get(PROFILE_KEY, "paper"))
+    """The profile of a checkpoint blob (a name) or a manifest (``export.manifest.profile_entry``: a
+    dict with ``name``): ``paper`` when it predates profiles."""
+    value = blob_or_manifest.get(PROFILE_KEY) or "paper"
+    return str(value["name"] if isinstance(value, dict) else value)
 
 
 def profiled_dataset(ds: Dataset, profile: str) -> Dataset:
