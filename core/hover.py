@@ -6,8 +6,10 @@ by it, so the inputs do not depend on the vehicle (docs/profiles.md).
 The filter, sample by sample on the 25 Hz grid (everything in float32):
 
 1. collective ``c_i = (((thr1 + thr2) + thr3) + thr4) * 0.25`` (this order).
-2. sample i is **steady** when all of: airborne (a flight's ``airborne``; every simulated sample
-   is), vz, roll, pitch and thr1..4 finite (the current is not needed: a vehicle without a
+2. sample i is **steady** when all of: airborne for more than ``SETTLE_SAMPLES = 50`` samples
+   (2 s) since the last take-off (a flight's ``airborne``; a flight that starts airborne, as every
+   simulated one does, is settled from its first sample: real logs' spool-up and climb-out
+   otherwise pulled the estimate down by 12-30 %), vz, roll, pitch and thr1..4 finite (the current is not needed: a vehicle without a
    current sensor still gets its command estimate), ``|vz| <= 0.5 m/s``, ``|roll| <= 0.25 rad`` and
    ``|pitch| <= 0.25 rad`` (14.3 deg; per axis, no product, so C++ and numpy compare the same
    floats), ``c_i >= 0.05`` (motors spinning).
@@ -32,6 +34,7 @@ STEADY_SAMPLES = 50  # N: 2.0 s at 25 Hz
 VZ_MAX = np.float32(0.5)  # m/s
 TILT_MAX = np.float32(0.25)  # rad, |roll| and |pitch| each (14.3 deg: hovering in wind tilts)
 CMD_MIN = np.float32(0.05)  # collective command (fraction of full thrust)
+SETTLE_SAMPLES = 50  # 2.0 s after a take-off before a sample can be steady (motor spool-up, climb-out)
 INPUTS = ("vz", "roll", "pitch", "thr1", "thr2", "thr3", "thr4", "I_b")  # the columns hover.hpp reads, in order
 
 
@@ -55,6 +58,17 @@ def collective(thr: np.ndarray) -> np.ndarray:
     return ((t[..., 0] + t[..., 1]) + t[..., 2] + t[..., 3]) * np.float32(0.25)
 
 
+def settled(airborne: np.ndarray, n: int = SETTLE_SAMPLES) -> np.ndarray:
+    """(T,) bool: airborne for more than ``n`` samples since the last take-off (a flight that starts
+    airborne, as every simulated one does, counts as settled from its first sample)."""
+    out = np.zeros(len(airborne), bool)
+    run = n  # the C++ mirror starts its counter here too
+    for i, a in enumerate(np.asarray(airborne, bool)):
+        run = run + 1 if a else 0
+        out[i] = run > n
+    return out
+
+
 def steady(cols: np.ndarray, airborne: np.ndarray | None = None) -> np.ndarray:
     """(T, 8) columns ``INPUTS`` -> (T,) bool, the steady-sample test of step 2."""
     x = np.asarray(cols, dtype=np.float32)
@@ -62,7 +76,7 @@ def steady(cols: np.ndarray, airborne: np.ndarray | None = None) -> np.ndarray:
         ok = np.isfinite(x[:, :7]).all(axis=1)
         ok &= (np.abs(x[:, 0]) <= VZ_MAX) & (np.abs(x[:, 1]) <= TILT_MAX) & (np.abs(x[:, 2]) <= TILT_MAX)
         ok &= collective(x[:, 3:7]) >= CMD_MIN
-    return ok if airborne is None else ok & np.asarray(airborne, bool)
+    return ok if airborne is None else ok & settled(airborne)
 
 
 def first_run_end(ok: np.ndarray, n: int = STEADY_SAMPLES) -> int:

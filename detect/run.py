@@ -48,17 +48,11 @@ def softmax(logits: np.ndarray) -> np.ndarray:
 
 def model_logits(folder: Path, manifest: dict, net: str, precision: str, runtime: str, x: np.ndarray) -> np.ndarray:
     """(n, K) float32 logits of ``x`` from ORT (the exported graph) or the C++ reference (weights.bin)."""
+    from detect.runtimes import cpp_logits, ort_logits
+
     if runtime == "ort":
-        from export.ort_session import session
-        from export.verify import ort_outputs
-
-        sess = session((folder / manifest["artifacts"][f"{net}_{precision}"]).read_bytes())
-        return ort_outputs(sess, x)[0].astype(np.float32)
-    from parity.build import HOST_BUILD, build_host
-    from parity.runners import cpp_logits
-
-    build = build_host(HOST_BUILD, log=lambda _: None)
-    return cpp_logits(build, folder / "weights.bin", net, precision == "int8", x)
+        return ort_logits(folder / manifest["artifacts"][f"{net}_{precision}"], x)
+    return cpp_logits(folder / "weights.bin", net, precision == "int8", x)
 
 
 def exposure_s(fi: FlightInputs, window: int, dt: float) -> float:

@@ -55,7 +55,13 @@ def test_not_airborne_motors_idle_and_never_steady():
     x = _flight()
     air = np.ones(len(x), bool)
     air[:40] = False
-    assert hover.estimate(x, air).freeze == 40 + hover.STEADY_SAMPLES - 1
+    # a take-off at sample 40: 2 s of settling (spool-up, climb-out), then 2 s of steady samples
+    assert hover.estimate(x, air).freeze == 40 + hover.SETTLE_SAMPLES + hover.STEADY_SAMPLES - 1
+    assert hover.estimate(x, np.ones(len(x), bool)).freeze == hover.STEADY_SAMPLES - 1  # starts airborne: settled
+    y, air2 = _flight(t=300), np.ones(300, bool)
+    air2[:40] = False
+    air2[100:103] = False  # a touch-down before the freeze restarts the settling
+    assert hover.estimate(y, air2).freeze == 103 + hover.SETTLE_SAMPLES + hover.STEADY_SAMPLES - 1
     x[:, 3:7] = 0.01  # motors at idle: collective below CMD_MIN
     assert hover.estimate(x).freeze == -1 and np.isnan(hover.estimate(x).cmd)
     assert hover.estimate(_flight(t=hover.STEADY_SAMPLES - 1)).freeze == -1

@@ -7,7 +7,8 @@
 //
 // Same arithmetic as Python, in the same order, so the estimates are bit-identical:
 //   collective c = (((thr1 + thr2) + thr3) + thr4) * 0.25f;
-//   steady = airborne && vz, roll, pitch, thr finite (not the current) && |vz| <= 0.5f && |roll| <= 0.25f && |pitch| <= 0.25f
+//   steady = airborne for more than 50 samples since the last take-off (a flight starting airborne
+//            counts as settled) && vz, roll, pitch, thr finite (not the current) && |vz| <= 0.5f && |roll| <= 0.25f && |pitch| <= 0.25f
 //            && c >= 0.05f;
 //   at the first sample ending N consecutive steady samples: cmd = (sum of c over them, oldest
 //   first, float accumulator from 0) / float(N); cur likewise over the current; then frozen.
@@ -24,6 +25,7 @@ struct HoverLimits {
     static constexpr float kVzMax = 0.5f;
     static constexpr float kTiltMax = 0.25f;
     static constexpr float kCmdMin = 0.05f;
+    static constexpr int kSettle = 50;  // samples airborne after a take-off before one can be steady
 };
 
 template <int N>
@@ -39,7 +41,11 @@ public:
         const bool finite = std::isfinite(vz) && std::isfinite(roll) && std::isfinite(pitch) &&
                             std::isfinite(thr[0]) && std::isfinite(thr[1]) && std::isfinite(thr[2]) &&
                             std::isfinite(thr[3]);  // the current may be NaN (no sensor): cur is then NaN
-        const bool ok = airborne && finite && std::fabs(vz) <= HoverLimits::kVzMax &&
+        // settled: airborne for more than kSettle samples since the last take-off; the counter
+        // starts at kSettle, so a flight that starts airborne is settled at once
+        if (!airborne) air_run_ = 0;
+        else if (air_run_ <= HoverLimits::kSettle) ++air_run_;
+        const bool ok = air_run_ > HoverLimits::kSettle && finite && std::fabs(vz) <= HoverLimits::kVzMax &&
                         std::fabs(roll) <= HoverLimits::kTiltMax && std::fabs(pitch) <= HoverLimits::kTiltMax &&
                         c >= HoverLimits::kCmdMin;
         if (!ok) {
@@ -74,6 +80,7 @@ private:
     int head_ = 0;
     int run_ = 0;
     int32_t index_ = 0;
+    int air_run_ = HoverLimits::kSettle;
     int32_t freeze_ = -1;
     bool frozen_ = false;
     float cmd_ = NAN;
