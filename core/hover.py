@@ -9,10 +9,10 @@ The filter, sample by sample on the 25 Hz grid (everything in float32):
 2. sample i is **steady** when all of: airborne for more than ``SETTLE_SAMPLES = 50`` samples
    (2 s) since the last take-off (a flight's ``airborne``; a flight that starts airborne, as every
    simulated one does, is settled from its first sample: real logs' spool-up and climb-out
-   otherwise pulled the estimate down by 12-30 %), vz, roll, pitch and thr1..4 finite (the current is not needed: a vehicle without a
-   current sensor still gets its command estimate), ``|vz| <= 0.5 m/s``, ``|roll| <= 0.25 rad`` and
-   ``|pitch| <= 0.25 rad`` (14.3 deg; per axis, no product, so C++ and numpy compare the same
-   floats), ``c_i >= 0.05`` (motors spinning).
+   otherwise pulled the estimate down by 12-30 %), vz, roll, pitch and thr1..4 finite (the
+   current is not needed: a vehicle without a current sensor still gets its command estimate),
+   ``|vz| <= 0.5 m/s``, ``|roll| <= 0.25 rad`` and ``|pitch| <= 0.25 rad`` (14.3 deg; per axis,
+   no product, so C++ and numpy compare the same floats), ``c_i >= 0.05`` (motors spinning).
 3. the estimate **freezes** at the first sample i that ends a run of ``N = 50`` consecutive steady
    samples (2.0 s): ``cmd = s_c / 50`` and ``cur = s_I / 50`` with ``s`` the float32 sum over the
    run's samples in time order (``s = 0; s += x`` from the oldest), then never changes (``cur`` is

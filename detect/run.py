@@ -96,7 +96,8 @@ def detect(model: str | Path, flight: str | Path, net: str = "cnode", precision:
               for e in episodes]
     record = {"flight": fi.name, "model": str(folder), "net": net, "precision": precision, "runtime": runtime,
               "profile": profile, "policy": pol,
-              "hover": {"cmd": float(fi.hover.cmd), "cur_a": None if not np.isfinite(fi.hover.cur) else float(fi.hover.cur),
+              "hover": {"cmd": float(fi.hover.cmd),
+                        "cur_a": None if not np.isfinite(fi.hover.cur) else float(fi.hover.cur),
                         "freeze_s": float(fi.time[fi.hover.freeze]), "cells": fi.cells},
               "airborne_s": round(fi.airborne_s, 2), "windows": int(n), "decided_windows": int(fi.decided.sum()),
               "exposure_s": round(exposure_s(fi, window, dt), 2), "alarms": alarms}

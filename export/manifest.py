@@ -146,7 +146,8 @@ def profile_entry(name: str, *blobs: dict) -> dict:
                                                     "formula": c.formula} for c in spec],
             "vibration": VIBRATION.get(name),
             "hover": None if not uses_hover(name) else {
-                "inputs": list(hover.INPUTS), "steady_samples": hover.STEADY_SAMPLES, "settle_samples": hover.SETTLE_SAMPLES,
+                "inputs": list(hover.INPUTS), "steady_samples": hover.STEADY_SAMPLES,
+                "settle_samples": hover.SETTLE_SAMPLES,
                 "vz_max": float(hover.VZ_MAX), "tilt_max": float(hover.TILT_MAX), "cmd_min": float(hover.CMD_MIN)}}
 
 
