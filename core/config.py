@@ -19,6 +19,8 @@ from core.tomlio import dumps_toml  # noqa: F401 (re-exported: the run folder wr
 from core.limits import FIRMWARE_MAX_STEPS, MAX_THREADS, check_dataset_memory, dataset_bytes
 from core.evalconfig import AlarmConfig, EvaluateConfig  # [alarm], [evaluate], [run]: own modules (400-line cap)
 from core.runconfig import RunConfig
+from core.overrides import parse_override as _parse_override  # own module (400-line cap)
+from core.profiles import check_profile
 
 
 @dataclass(frozen=True)
@@ -138,6 +140,7 @@ class TrainConfig:
     threads: int = 1
     seeds: tuple[int, ...] = (0, 1, 2)  # the multi-seed study
     max_train_windows: int = 0  # cap: a seeded subsample of the training windows (train.data); 0 = all
+    profile: str = "paper"  # the models' input channels (core.profiles, docs/profiles.md): paper | flightlog-min | flightlog-nocur
 
     def validate(self) -> None:
         _positive(self, "epochs", "batch_size", "lr", "latent", "hidden", "gru_hidden", "steps", "rtol", "atol", "threads", "gru_lr")
@@ -148,6 +151,7 @@ class TrainConfig:
         _choice(self, "model", ("cnode", "gru", "both"))
         _choice(self, "lr_schedule", ("constant", "cosine"))
         _choice(self, "solver", ("dopri5", "bosh3", "rk4", "euler", "midpoint"))
+        check_profile(self.profile)
 
 
 @dataclass(frozen=True)
@@ -330,18 +334,6 @@ def _coerce(value: Any, typ: Any, where: str) -> Any:
             raise QuadfdiError(f"{where} must be a string, found {value!r}")
         return value
     raise TypeError(f"unsupported config type {typ} for {where}")
-
-
-def _parse_override(text: str) -> tuple[str, str, Any]:
-    if "=" not in text or "." not in text.split("=", 1)[0]:
-        raise QuadfdiError(f"--set expects section.key=value, found {text!r}")
-    dotted, raw = text.split("=", 1)
-    section, key = dotted.strip().split(".", 1)
-    try:
-        value = tomllib.loads(f"v = {raw.strip()}")["v"]
-    except tomllib.TOMLDecodeError:
-        value = raw.strip()  # a bare word such as cnode is a string
-    return section, key, value
 
 
 def build_config(data: dict[str, Any], overrides: list[str] | tuple[str, ...] = (), source: str = "config") -> Config:

@@ -6,7 +6,8 @@ std), ``solver`` (classic RK4, N, stage times), ``opset``, ``ir_version``, ``io`
 tensors), ``artifacts`` (cnode_fp32, cnode_int8, gru_fp32, gru_int8 -> file names relative to the
 export folder), ``files`` (name -> sha256, bytes), ``models`` (architecture, MACs),
 ``quantization`` (scheme, calibration, coverage), ``verification``, ``metrics`` (test split, per
-artifact), ``reference`` (the test windows in reference.bin), ``config``.
+artifact), ``reference`` (the test windows in reference.bin), ``config``, ``profile`` (the input
+channels, ``profile_entry``), ``alarm`` (the alarm policy: core.alarm, the [alarm] section).
 A reader must check ``schema_version`` first: ``load_manifest`` refuses any other version.
 """
 
@@ -18,6 +19,7 @@ from typing import Any
 
 import numpy as np
 
+from core.alarm import AlarmConfig
 from core.contracts import CLASS_NAMES
 from core.errors import QuadfdiError
 from core.jsonio import read_json, write_json
@@ -89,7 +91,7 @@ def build_manifest(*, ds: Any, config: dict, checkpoints: dict[str, dict], windo
                    ir_version: int, stage_times: np.ndarray, files: dict[str, bytes],
                    coverage: dict[str, dict], calib_windows: int, interp_exact: bool, verification: dict,
                    metrics: dict, reference_index: np.ndarray, reference_labels: np.ndarray,
-                   encoding: dict | None = None) -> dict:
+                   encoding: dict | None = None, profile: dict | None = None, alarm: dict | None = None) -> dict:
     """The manifest of one export (the keys listed in this module's docstring, in that order).
 
     ``ds``: the run's ``sim.dataset.Dataset``; ``checkpoints``: "cnode"/"gru" -> checkpoint blob
@@ -123,7 +125,30 @@ def build_manifest(*, ds: Any, config: dict, checkpoints: dict[str, dict], windo
         "reference": {"test_index": np.asarray(reference_index).tolist(),
                       "labels": np.asarray(reference_labels).tolist()},
         "config": config,
+        "profile": profile or profile_entry("paper"),
+        "alarm": alarm if alarm is not None else AlarmConfig().__dict__,
     }
+
+
+def profile_entry(name: str, *blobs: dict) -> dict:
+    """manifest ``profile``: the input channels' profile (core.profiles; ``paper`` = raw telemetry),
+    each channel with its formula and raw channels, the hover filter's constants (core.hover) and
+    the vibration quantity; every checkpoint given must carry the same profile."""
+    from core import hover
+    from core.profiles import PROFILES, VIBRATION, uses_hover
+
+    found = {str(b.get("profile", "paper")) for b in blobs}
+    if found and found != {name}:
+        raise QuadfdiError(f"the exported models were trained with different channel profiles: {sorted(found)}")
+    spec = PROFILES[name]
+    return {"name": name,
+            "channels": None if spec is None else [{"name": c.name, "unit": c.unit, "raw": list(c.raw),
+                                                    "formula": c.formula} for c in spec],
+            "vibration": VIBRATION.get(name),
+            "hover": None if not uses_hover(name) else {
+                "inputs": list(hover.INPUTS), "steady_samples": hover.STEADY_SAMPLES,
+                "settle_samples": hover.SETTLE_SAMPLES,
+                "vz_max": float(hover.VZ_MAX), "tilt_max": float(hover.TILT_MAX), "cmd_min": float(hover.CMD_MIN)}}
 
 
 def write_manifest(path: str | Path, manifest: dict) -> None:

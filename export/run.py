@@ -23,7 +23,7 @@ from core.stage import stage
 from export.calibrate import WindowReader, collect_ranges, select_windows
 from export.coverage import compare, coverage, fp32_constants, markdown
 from export.graph import IR_VERSION, Built
-from export.manifest import MODEL_KINDS, artifact_names, build_manifest, encoding_of, write_manifest
+from export.manifest import MODEL_KINDS, artifact_names, build_manifest, encoding_of, profile_entry, write_manifest
 from export.quantize import weight_qmax
 from export.onnx_cnode import CnodeParams, CnodeQuant, build_cnode, calibration_probes, cnode_params, quantize_cnode
 from export.onnx_gru import (CALIBRATION_PROBES, GruParams, GruQuant, build_gru_fp32, build_gru_int8, gru_params,
@@ -32,6 +32,7 @@ from export.reference_bin import pick_windows, reference_bytes
 from export.verify import batch_independence, int8_vs_fp32, ort_outputs, parity, session, torch_logits
 from export.weights_bin import weights_bytes
 from sim.dataset import Dataset, class_names, load_dataset, make_windows
+from train.profile_data import profile_of, profiled_dataset
 from train.checkpoint import check_dataset_matches, checkpoint_class_names, load_checkpoint
 from train.metrics import compute_metrics
 from train.models import SolverSpec
@@ -131,7 +132,8 @@ def _export_into(run: RunDir, cfg: Config, dest: RunDir, log: Callable[[str], No
     t0 = time.perf_counter()
     ecfg = cfg.export
     steps, opset = ecfg.steps, ecfg.opset
-    ds = load_dataset(run.dataset)
+    profile = profile_of(load_checkpoint(run.checkpoint("cnode"), "cnode")[1])
+    ds = profiled_dataset(load_dataset(run.dataset), profile)  # the models' input channels
     cnode, cblob, gru, gblob = _load_models(run, ds, steps)
     train_w, test_w = make_windows(ds, "train"), make_windows(ds, "test")
     if len(train_w) == 0 or len(test_w) == 0:
@@ -162,6 +164,7 @@ def _export_into(run: RunDir, cfg: Config, dest: RunDir, log: Callable[[str], No
         steps=steps, opset=opset, ir_version=IR_VERSION, stage_times=cp.times, files=files, coverage=cov,
         calib_windows=len(calib_idx), interp_exact=cq.interp_exact, verification=verification,
         metrics=metrics, reference_index=ref_idx, reference_labels=test_w.y[ref_idx],
+        profile=profile_entry(profile, cblob, gblob), alarm=cfg.to_dict()["alarm"],
         encoding={"cnode": encoding_of(cq.act, weight_qmax(cq.act), graphs.cnode_int8.model),
                   "gru": encoding_of(gq.act, weight_qmax(gq.act), graphs.gru_int8.model)})
     out = ensure_dir(dest.export)

@@ -30,6 +30,7 @@ from core.npzio import write_npz
 from core.stage import stage
 from core.rundir import RunDir
 from sim.dataset import load_dataset, make_windows
+from train.profile_data import profile_of, profiled_dataset
 from core.jsonio import write_json
 
 SCHEMA_VERSION = 1
@@ -58,7 +59,7 @@ def host_parity(run: RunDir, manifest: dict, build_dir: Path, log: Callable[[str
     export = run.export
     weights_path = export / "weights.bin"
     weights = read_weights(weights_path)
-    ds = load_dataset(run.dataset)
+    ds = profiled_dataset(load_dataset(run.dataset), profile_of(manifest))  # the models' input channels
     test = make_windows(ds, "test")
     if len(test) == 0:
         raise QuadfdiError(f"{run.dataset} has no test windows to check parity on")

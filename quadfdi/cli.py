@@ -23,6 +23,7 @@ STAGES = {
     "solvers": "solverstudy.cli",
     "bench": "bench.cli",
     "ingest": "ingest.cli",
+    "detect": "detect.cli",
     "realism": "realism.cli",
     "evaluate": "evaluate.cli",
     "report": "quadfdi.report",

@@ -10,8 +10,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from core.contracts import N_CLASSES, SPLIT_TRAIN, SPLIT_VALIDATION, SPLITS
+from core.contracts import N_CLASSES, SPLIT_TRAIN, SPLIT_VALIDATION
 from sim.dataset import Dataset, Windows, gather_windows, make_windows, split_rows, window_index
+from train.profile_data import decided
 
 
 @dataclass(frozen=True)
@@ -23,8 +24,17 @@ class Splits:
 
 def split_windows(ds: Dataset, max_train_windows: int = 0, seed: int = 0) -> Splits:
     """Train, validation and test windows; the training windows capped by ``capped_train_windows``."""
-    return Splits(train=capped_train_windows(ds, max_train_windows, seed),
-                  **{name: make_windows(ds, name) for name in SPLITS if name != "train"})
+    val = make_windows(ds, "validation")
+    return Splits(train=capped_train_windows(ds, max_train_windows, seed), validation=_decided_only(ds, val),
+                  test=make_windows(ds, "test"))
+
+
+def _decided_only(ds: Dataset, w: Windows) -> Windows:
+    """The windows with a decision (train.profile_data.decided): all of them without a hover estimate."""
+    keep = decided(ds, w.traj, w.start)
+    if keep.all():
+        return w
+    return Windows(x=w.x[keep], y=w.y[keep], traj=w.traj[keep], start=w.start[keep], t_end=w.t_end[keep])
 
 
 def capped_train_windows(ds: Dataset, cap: int, seed: int) -> Windows:
@@ -33,6 +43,8 @@ def capped_train_windows(ds: Dataset, cap: int, seed: int) -> Windows:
     its own stream, so a cap changes no other random number (batches, initial weights); cap 0
     (the paper config) takes every window, as before the cap existed."""
     traj, start = window_index(ds, split_rows(ds, SPLIT_TRAIN))
+    keep = decided(ds, traj, start)  # a profile with a hover estimate: windows before its freeze never decide
+    traj, start = traj[keep], start[keep]
     if 0 < cap < len(traj):
         rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(0xCA9,)))
         keep = np.sort(rng.choice(len(traj), size=cap, replace=False))

@@ -29,6 +29,7 @@ from train.data import class_weights, fit_normalisation, split_windows
 from train.loop import predict_proba, train_model
 from train.metrics import compute_metrics
 from train.models import build_model
+from train.profile_data import PROFILE_KEY, profiled_dataset
 from train.predsets import (drop_missing_entries, index_entry, prediction_set, relative_prediction_path,
                             write_prediction_set)
 
@@ -46,6 +47,7 @@ def train_all(ds: Dataset, cfg: Config, kinds: list[str], log: Callable[[str], N
     """Train ``kinds`` and the baseline on ``ds``; return models, histories, test probabilities,
     metrics and each network's prediction set (every evaluation window, ``train.predsets``)."""
     torch.set_num_threads(cfg.train.threads)
+    ds = profiled_dataset(ds, cfg.train.profile)  # the models' input channels (paper: ds itself)
     k = len(class_names(ds.arrays))
     splits = split_windows(ds, cfg.train.max_train_windows, cfg.train.seed)
     for name in SPLITS:
@@ -53,7 +55,8 @@ def train_all(ds: Dataset, cfg: Config, kinds: list[str], log: Callable[[str], N
             raise QuadfdiError(f"the dataset has no {name} windows: raise sim.n_traj or sim.duration_s")
     mean, std = fit_normalisation(ds)
     weights = class_weights(splits.train.y, k)
-    out: dict = {"models": {}, "history": {}, "proba": {}, "metrics": {}, "splits": splits, "predsets": {}}
+    out: dict = {"models": {}, "history": {}, "proba": {}, "metrics": {}, "splits": splits, "predsets": {},
+                 "ds": ds}
     for kind in kinds:
         torch.manual_seed(cfg.train.seed)  # same initial weights for the same seed
         model = build_model(kind, ds.n_channels, cfg.train, window=cfg.sim.window, n_classes=k)
@@ -81,9 +84,10 @@ def write_outputs(out: RunDir, ds: Dataset, cfg: Config, result: dict, previous:
     from train.figures import draw_all
 
     test = result["splits"].test
+    ds = result.get("ds", ds)  # the profiled dataset the models were trained on
     for kind, model in result["models"].items():
         save_checkpoint(out.checkpoint(kind), model, cfg.to_dict(), ds.channel_names,
-                        extra={"history": result["history"][kind].to_dict(times=False)},
+                        extra={"history": result["history"][kind].to_dict(times=False), PROFILE_KEY: cfg.train.profile},
                         class_names=class_names(ds.arrays))
         write_npz(out.predictions(kind), {"y_true": test.y, "proba": result["proba"][kind],
                                           "traj": test.traj, "t_end": test.t_end})

@@ -1,0 +1,113 @@
+"""Channel profiles (issue 14 point 1): a model's inputs as a named, ordered list of channels, each
+computed from named raw channels (docs/profiles.md). Used identically by ``train`` (dataset
+flights) and ``detect`` (ingested real flights); the profile's name is stored in the checkpoint
+(``profile``) and in the export manifest (``profile``).
+
+- ``paper``: the identity over the dataset's channels (the default; every earlier run is one).
+- ``flightlog-min``: what a stock autopilot logs, with no heading-dependent channel and no
+  vehicle-dependent scale: roll, pitch; p, q, r; vx, vy rotated by -yaw into the heading frame, vz;
+  per-cell voltage; current and the four motor commands over the collective hover estimate
+  (core.hover: one scalar per vehicle, so damage present from take-off stays visible); PX4's
+  ``accel_vibration_metric`` (ArduPilot's VIBE is another quantity and is refused).
+- ``flightlog-nocur``: ``flightlog-min`` without the current, for vehicles whose current sensor is
+  absent or uncalibrated (ingest marks it unusable).
+
+Raw names are the simulator's (sim/telemetry.py); an ingested flight's ``vib_acc`` is mapped to
+``vib_px4`` only when the log is a PX4 log (``raw_from_flight``, detect/).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from core.errors import QuadfdiError
+from core.hover import INPUTS as HOVER_INPUTS
+
+DEFAULT_PROFILE = "paper"
+
+
+@dataclass(frozen=True)
+class ProfileChannel:
+    name: str
+    unit: str
+    raw: tuple[str, ...]  # raw channels it is computed from
+    formula: str  # what docs/profiles.md shows
+
+
+MIN_CHANNELS = (
+    ProfileChannel("roll", "rad", ("roll",), "roll"),
+    ProfileChannel("pitch", "rad", ("pitch",), "pitch"),
+    ProfileChannel("p", "rad/s", ("p",), "p"),
+    ProfileChannel("q", "rad/s", ("q",), "q"),
+    ProfileChannel("r", "rad/s", ("r",), "r"),
+    ProfileChannel("vx_h", "m/s", ("vx", "vy", "yaw"), "cos(yaw) vx + sin(yaw) vy"),
+    ProfileChannel("vy_h", "m/s", ("vx", "vy", "yaw"), "-sin(yaw) vx + cos(yaw) vy"),
+    ProfileChannel("vz", "m/s", ("vz",), "vz"),
+    ProfileChannel("v_cell", "V", ("V_b",), "V_b / cells"),
+    ProfileChannel("i_rel", "-", ("I_b",), "I_b / hover current"),
+    *(ProfileChannel(f"m{k}_rel", "-", (f"thr{k}",), f"thr{k} / hover collective command") for k in range(1, 5)),
+    ProfileChannel("vib", "m/s^2", ("vib_px4",), "PX4 accel_vibration_metric"),
+)
+# flightlog-min without the current: vehicles whose current sensor is absent or uncalibrated
+NOCUR_CHANNELS = tuple(c for c in MIN_CHANNELS if c.name != "i_rel")
+PROFILES = {"paper": None, "flightlog-min": MIN_CHANNELS, "flightlog-nocur": NOCUR_CHANNELS}
+VIBRATION = {"flightlog-min": "px4", "flightlog-nocur": "px4"}  # which vibration quantity a profile reads
+
+
+def check_profile(name: str) -> None:
+    if name not in PROFILES:
+        raise QuadfdiError(f"unknown channel profile {name!r}; valid: {', '.join(PROFILES)}")
+
+
+def uses_hover(name: str) -> bool:
+    check_profile(name)
+    return PROFILES[name] is not None
+
+
+def channel_names(name: str, raw_names: list[str] | tuple[str, ...]) -> list[str]:
+    """The profile's input channels (``paper``: the raw channels themselves)."""
+    check_profile(name)
+    spec = PROFILES[name]
+    return list(raw_names) if spec is None else [c.name for c in spec]
+
+
+def channel_units(name: str, raw_units: list[str] | tuple[str, ...]) -> list[str]:
+    spec = PROFILES[name]
+    return list(raw_units) if spec is None else [c.unit for c in spec]
+
+
+def required_raw(name: str, raw_names: list[str] | tuple[str, ...] = ()) -> list[str]:
+    """Raw channels the profile reads (the hover estimate's included), in first-use order."""
+    check_profile(name)
+    spec = PROFILES[name]
+    if spec is None:
+        return list(raw_names)
+    out: list[str] = []
+    for ch in spec:
+        out += [r for r in ch.raw if r not in out]
+    return out + [r for r in HOVER_INPUTS if r not in out and r != "I_b"]  # the hover current is optional
+
+
+def apply_profile(name: str, raw: dict[str, np.ndarray], cells, hover_cmd, hover_cur) -> np.ndarray:
+    """Profile inputs (..., T, C') float32 from raw channels ``raw[name]`` (..., T).
+
+    ``cells`` (the pack's cell count), ``hover_cmd`` and ``hover_cur`` (core.hover) are scalars or
+    per-flight arrays (...,). ``paper`` is not computed here (it is the raw telemetry as is).
+    """
+    spec = PROFILES[name]
+    if spec is None:
+        raise ValueError("the paper profile is the raw telemetry itself")
+    f32 = {k: np.asarray(v, dtype=np.float32) for k, v in raw.items()}
+    per = lambda v: np.asarray(v, dtype=np.float32)[..., None]  # noqa: E731 (per flight -> broadcast over T)
+    yaw = f32["yaw"]
+    c, s = np.cos(yaw), np.sin(yaw)
+    values = {"roll": f32["roll"], "pitch": f32["pitch"], "p": f32["p"], "q": f32["q"], "r": f32["r"],
+              "vx_h": c * f32["vx"] + s * f32["vy"], "vy_h": -s * f32["vx"] + c * f32["vy"], "vz": f32["vz"],
+              "v_cell": f32["V_b"] / per(cells), "vib": f32["vib_px4"]}
+    if "I_b" in f32:
+        values["i_rel"] = f32["I_b"] / per(hover_cur)
+    for k in range(1, 5):
+        values[f"m{k}_rel"] = f32[f"thr{k}"] / per(hover_cmd)
+    return np.stack([values[ch.name] for ch in spec], axis=-1).astype(np.float32)

@@ -1,0 +1,121 @@
+"""``quadfdi detect``: an exported model on one real flight -> per-window probabilities, the alarm
+timeline under the policy (core.alarm) and the alarms (docs/detect.md).
+
+Writes into OUT (only once everything is computed; a refusal writes nothing):
+- ``alarms.json``: the flight, model, precision, runtime, profile, policy, hover estimate,
+  exposure (flight-seconds covered by decided windows) and the alarms (start_s, end_s, class,
+  motor, peak_p_fault);
+- ``windows.npz``: per window on the grid ``t_end``, ``decided``, ``proba`` (NaN if undecided),
+  ``votes``, ``active``, ``cls`` (-1 inactive), and ``class_names``;
+- ``detect.png``: the profile's channels, the availability mask, alarms shaded.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from core.alarm import AlarmConfig, alarm_episodes, check_policy, run_alarm
+from core.errors import QuadfdiError
+from detect.inputs import FlightInputs, flight_inputs, read_flight, windows
+
+NETS = ("cnode", "gru")
+
+
+def load_export(folder: str | Path) -> dict:
+    from export.manifest import check_files, load_manifest
+
+    root = Path(folder)
+    manifest = load_manifest(root / "manifest.json")
+    check_files(manifest, root)
+    return manifest
+
+
+def policy_of(manifest: dict) -> dict:
+    """The manifest's alarm policy, or the [alarm] defaults for an export that predates it."""
+    pol = {**AlarmConfig().__dict__, **(manifest.get("alarm") or {})}
+    check_policy(pol["threshold"], pol["k"], pol["n"], pol["clear_m"], "manifest alarm.")
+    return pol
+
+
+def softmax(logits: np.ndarray) -> np.ndarray:
+    z = np.asarray(logits, np.float64)
+    e = np.exp(z - z.max(axis=1, keepdims=True))
+    return e / e.sum(axis=1, keepdims=True)
+
+
+def model_logits(folder: Path, manifest: dict, net: str, precision: str, runtime: str, x: np.ndarray) -> np.ndarray:
+    """(n, K) float32 logits of ``x`` from ORT (the exported graph) or the C++ reference (weights.bin)."""
+    from detect.runtimes import cpp_logits, ort_logits
+
+    if runtime == "ort":
+        return ort_logits(folder / manifest["artifacts"][f"{net}_{precision}"], x)
+    return cpp_logits(folder / "weights.bin", net, precision == "int8", x)
+
+
+def exposure_s(fi: FlightInputs, window: int, dt: float) -> float:
+    """Flight-seconds covered by at least one decided window."""
+    cover = np.zeros(len(fi.time), bool)
+    for s in fi.starts[fi.decided]:
+        cover[s:s + window] = True
+    return float(cover.sum()) * dt
+
+
+def detect(model: str | Path, flight: str | Path, net: str = "cnode", precision: str = "fp32",
+           runtime: str = "ort") -> dict:
+    """Everything ``quadfdi detect`` writes, computed (nothing written): a dict with ``record``
+    (alarms.json), ``arrays`` (windows.npz) and ``inputs`` (FlightInputs, for the figure)."""
+    folder = Path(model)
+    manifest = load_export(folder)
+    profile = str((manifest.get("profile") or {}).get("name", "paper"))
+    window = int(manifest["window"])
+    stride = int(manifest["config"]["sim"]["stride"])
+    dt = float(manifest["sample_dt_s"])
+    names = [str(c) for c in manifest["class_names"]]
+    if "Healthy" not in names:
+        raise QuadfdiError(f"{folder}: the model has no Healthy class ({names})")
+    fi = flight_inputs(read_flight(flight), profile, window, stride)
+    if [c["name"] for c in manifest["channels"]] != fi.channel_names:
+        raise QuadfdiError(f"{folder}: the manifest's channels are not profile {profile!r}'s")
+    logits = model_logits(folder, manifest, net, precision, runtime, windows(fi, window))
+    n, k = len(fi.starts), len(names)
+    proba = np.full((n, k), np.nan)
+    proba[fi.decided] = softmax(logits)
+    pol = policy_of(manifest)
+    healthy = names.index("Healthy")
+    p_in = np.where(fi.decided[:, None], proba, 0.0)
+    p_in[~fi.decided, healthy] = 1.0  # undecided windows never vote (and are marked not valid)
+    trace = run_alarm(p_in[None], pol["threshold"], pol["k"], pol["n"], pol["clear_m"], pol["latch"],
+                      healthy=healthy, valid=fi.decided[None])
+    t_end = fi.time[fi.starts + window - 1]
+    episodes = alarm_episodes(trace, t_end[None], p_in[None], healthy=healthy)
+    alarms = [{"start_s": e["start_s"], "end_s": e["end_s"], "class": names[e["cls"]],
+               "motor": None if e["motor"] < 0 else e["motor"] + 1, "peak_p_fault": e["peak_p_fault"]}
+              for e in episodes]
+    record = {"flight": fi.name, "model": str(folder), "net": net, "precision": precision, "runtime": runtime,
+              "profile": profile, "policy": pol,
+              "hover": {"cmd": float(fi.hover.cmd),
+                        "cur_a": None if not np.isfinite(fi.hover.cur) else float(fi.hover.cur),
+                        "freeze_s": float(fi.time[fi.hover.freeze]), "cells": fi.cells},
+              "airborne_s": round(fi.airborne_s, 2), "windows": int(n), "decided_windows": int(fi.decided.sum()),
+              "exposure_s": round(exposure_s(fi, window, dt), 2), "alarms": alarms}
+    arrays = {"t_end": t_end, "decided": fi.decided, "proba": proba.astype(np.float32), "votes": trace.votes[0],
+              "active": trace.active[0], "cls": trace.cls[0], "class_names": np.array(names)}
+    return {"record": record, "arrays": arrays, "inputs": fi, "window": window}
+
+
+def write_detect(out: str | Path, result: dict, log: Callable[[str], None] = print) -> None:
+    from core.atomic import ensure_dir
+    from core.jsonio import write_json
+    from core.npzio import write_npz
+    from detect.figure import draw
+
+    folder = ensure_dir(out)
+    draw(folder / "detect.png", result)
+    write_npz(folder / "windows.npz", result["arrays"])
+    write_json(folder / "alarms.json", result["record"], indent=2)
+    rec = result["record"]
+    log(f"detect: {rec['flight']}: {len(rec['alarms'])} alarm(s) over {rec['exposure_s']:.1f} s of decided flight "
+        f"({rec['decided_windows']}/{rec['windows']} windows); wrote {folder / 'alarms.json'}")

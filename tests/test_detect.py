@@ -1,0 +1,99 @@
+"""quadfdi detect: a flightlog-min model (tiny realistic run, trained and exported through the CLI)
+on real PX4 flights with both runtimes, and the refusals (one line, exit 2, nothing written)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from tests.conftest import ROOT, quadfdi, trained_export_run
+from tests.test_firmware_fixtures import host_build  # noqa: F401 (fixture)
+
+REAL = Path("/work/shared/data/flightlogs")
+TINY = ["sim.n_traj=20", "sim.ood_traj=2", "sim.duration_s=12.0", "sim.chunk=14", "sim.window=40"]
+TRAIN = ["train.epochs=1", "train.latent=8", "train.hidden=16", "train.gru_hidden=16", "train.max_train_windows=60",
+         "train.profile=flightlog-min"]
+MISSION = REAL / "px4_quad_6s_uavcan_mission.ulg"
+
+pytestmark = pytest.mark.skipif(not MISSION.is_file(), reason="the shared real flight logs are not here")
+
+
+@pytest.fixture(scope="module")
+def export(tmp_path_factory) -> Path:
+    sim = tmp_path_factory.mktemp("detect") / "tiny"
+    res = quadfdi("sim", "--config", str(ROOT / "configs/realistic.toml"), "--out", str(sim), "--workers", "1",
+                  *[a for v in TINY for a in ("--set", v)])
+    assert res.returncode == 0, res.stderr
+    return trained_export_run(sim, tmp_path_factory.mktemp("detect_run") / "run", *TRAIN) / "export"
+
+
+@pytest.fixture(scope="module")
+def mission_npz(tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("flight")
+    res = quadfdi("ingest", str(MISSION), "--out", str(out))
+    assert res.returncode == 0, res.stderr
+    return out / "flight.npz"
+
+
+def test_manifest_carries_the_profile_and_the_policy(export):
+    import torch
+
+    m = json.loads((export / "manifest.json").read_text())
+    assert m["profile"]["name"] == "flightlog-min" and len(m["profile"]["channels"]) == 15 == m["n_channels"]
+    assert [c["name"] for c in m["channels"]] == [c["name"] for c in m["profile"]["channels"]]
+    assert m["profile"]["hover"]["steady_samples"] == 50 and m["profile"]["vibration"] == "px4"
+    assert set(m["alarm"]) == {"threshold", "k", "n", "clear_m", "latch"}
+    blob = torch.load(export.parent / "cnode.pt", weights_only=True)
+    assert blob["profile"] == "flightlog-min"
+
+
+def _detect(export, flight, out, *extra):
+    return quadfdi("detect", "--model", str(export), str(flight), "--out", str(out), *extra)
+
+
+def test_detect_writes_alarms_windows_and_figure(export, mission_npz, tmp_path):
+    res = _detect(export, MISSION, tmp_path / "log")  # the .ulg, ingested on the fly
+    assert res.returncode == 0, res.stderr
+    rec = json.loads((tmp_path / "log" / "alarms.json").read_text())
+    assert rec["profile"] == "flightlog-min" and rec["hover"]["cells"] == 6 and 0.2 < rec["hover"]["cmd"] < 0.9
+    assert 0 < rec["decided_windows"] <= rec["windows"] and 0 < rec["exposure_s"] <= rec["airborne_s"] + 1.6
+    for a in rec["alarms"]:
+        assert a["class"] != "Healthy" and 0 < a["peak_p_fault"] <= 1 and a["start_s"] >= rec["hover"]["freeze_s"]
+    w = np.load(tmp_path / "log" / "windows.npz")
+    assert np.isnan(w["proba"][~w["decided"]]).all() and np.allclose(w["proba"][w["decided"]].sum(axis=1), 1, atol=1e-5)
+    assert not w["votes"][~w["decided"]].any()
+    assert (tmp_path / "log" / "detect.png").stat().st_size > 10_000
+    res = _detect(export, mission_npz, tmp_path / "npz")  # the same flight, already ingested
+    assert res.returncode == 0, res.stderr
+    assert json.loads((tmp_path / "npz" / "alarms.json").read_text())["alarms"] == rec["alarms"]
+
+
+@pytest.mark.parametrize("precision", ["fp32", "int8"])
+def test_cpp_runtime_gives_the_ort_alarms(export, mission_npz, tmp_path, host_build, precision):  # noqa: F811
+    out = {}
+    for rt in ("ort", "cpp"):
+        res = _detect(export, mission_npz, tmp_path / rt, "--precision", precision, "--runtime", rt, "--net", "gru")
+        assert res.returncode == 0, res.stderr
+        out[rt] = np.load(tmp_path / rt / "windows.npz")
+    d = out["ort"]["decided"]
+    # fp32: the export's parity tolerance; int8: the C++ integer kernels match ORT's to the logit
+    np.testing.assert_allclose(out["cpp"]["proba"][d], out["ort"]["proba"][d], atol=1e-4)
+    assert (out["cpp"]["votes"] == out["ort"]["votes"]).all() and (out["cpp"]["active"] == out["ort"]["active"]).all()
+
+
+@pytest.mark.parametrize("log,why", [
+    ("px4_quad_battery_monitor_disconnected.ulg", "needs channel 'V_b', which is unusable"),
+    ("px4_fmuv5_quad_real_short.ulg", "needs channel 'vx', which is unusable"),
+    ("px4_quad_6s_gps_interference.ulg", "needs channel 'I_b', which is unusable"),
+    ("ardupilot_plane_1s.BIN", "not a multirotor"),
+    ("px4_cubeorange_vtol_real.ulg", "not a multirotor"),
+])
+def test_refusals_are_one_line_exit_2_and_write_nothing(export, tmp_path, log, why):
+    if not (REAL / log).is_file():
+        pytest.skip(f"{log} is not here")
+    res = _detect(export, REAL / log, tmp_path / "out")
+    assert res.returncode == 2 and why in res.stderr and len(res.stderr.strip().splitlines()) == 1, res.stderr
+    assert not (tmp_path / "out").exists()

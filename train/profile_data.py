@@ -1,0 +1,70 @@
+"""Dataset flights -> a channel profile's inputs (core.profiles), for train, export and parity.
+
+``profiled_dataset(ds, profile)`` returns the dataset with its ``telemetry`` replaced by the
+profile's channels (same flights, samples, labels, splits), so windows, normalisation, calibration
+and reference windows are made as before. ``paper`` returns ``ds`` itself (nothing changes).
+
+For a profile with a hover estimate (core.hover) the per-flight estimate is stored beside it:
+``hover_cmd``, ``hover_cur`` (float32) and ``hover_freeze`` (sample index; the estimate is applied to
+every sample of the flight once frozen; a flight that never freezes gets ``hover_freeze`` = its
+length and the whole-flight means). A window whose last sample is before ``hover_freeze`` has
+no decision on a real vehicle (detect gives none): ``decided`` tells them, and training and
+validation drop them (train.data). The test metrics and prediction sets keep every window (the
+evaluation's window grid); the windows before the freeze there use the estimate from later in the
+flight (docs/profiles.md says so).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from core.errors import QuadfdiError
+from core.hover import INPUTS as HOVER_INPUTS, collective, estimate_many
+from core.profiles import apply_profile, channel_names, channel_units, required_raw, uses_hover
+from sim.dataset import Dataset
+
+PROFILE_KEY = "profile"  # the checkpoint's key (train.run) and the manifest's (export.manifest)
+
+
+def profile_of(blob_or_manifest: dict) -> str:
+    """The profile of a checkpoint blob (a name) or a manifest (``export.manifest.profile_entry``: a
+    dict with ``name``): ``paper`` when it predates profiles."""
+    value = blob_or_manifest.get(PROFILE_KEY) or "paper"
+    return str(value["name"] if isinstance(value, dict) else value)
+
+
+def profiled_dataset(ds: Dataset, profile: str) -> Dataset:
+    if not uses_hover(profile):
+        return ds
+    names = ds.channel_names
+    missing = [r for r in required_raw(profile, names) if r not in names]
+    if missing:
+        raise QuadfdiError(f"profile {profile!r} needs raw channels {', '.join(missing)}, absent from {ds.path}")
+    if "pack_cells" not in ds.arrays:
+        raise QuadfdiError(f"profile {profile!r} needs each flight's cell count (pack_cells), absent from {ds.path}")
+    tel = ds["telemetry"]
+    cmd, cur, freeze = estimate_many(tel[:, :, [names.index(c) for c in HOVER_INPUTS]])  # the dataset has I_b
+    never = freeze < 0  # no decided window at all; their (evaluation-only) inputs use the whole-flight mean
+    if never.any():
+        hv = tel[never][:, :, [names.index(c) for c in HOVER_INPUTS]]
+        cmd[never] = collective(hv[:, :, 3:7]).mean(axis=1)
+        cur[never] = hv[:, :, 7].mean(axis=1)
+        freeze[never] = tel.shape[1]
+    raw = {r: tel[:, :, names.index(r)] for r in required_raw(profile, names)}
+    x = apply_profile(profile, raw, ds["pack_cells"], cmd, cur)
+    arrays = dict(ds.arrays)
+    arrays.update(telemetry=x, channel_names=np.array(channel_names(profile, names)),
+                  channel_units=np.array(channel_units(profile, [str(u) for u in ds["channel_units"]])),
+                  hover_cmd=cmd, hover_cur=cur, hover_freeze=freeze)
+    return dataclasses.replace(ds, arrays=arrays)
+
+
+def decided(ds: Dataset, traj: np.ndarray, start: np.ndarray) -> np.ndarray:
+    """(n,) bool: the window (traj, start) ends at or after its flight's hover freeze (always True
+    without a hover estimate)."""
+    if "hover_freeze" not in ds.arrays:
+        return np.ones(len(traj), bool)
+    last = np.asarray(start) + ds.config.sim.window - 1
+    return last >= ds["hover_freeze"][np.asarray(traj)]
