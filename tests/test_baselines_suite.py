@@ -216,6 +216,7 @@ def test_run_writes_prediction_sets_and_index(tmp_path):
         check_prediction_set(arrays, e["predictions"])
         assert arrays["proba"].dtype == np.float32 and list(arrays["class_names"]) == list(CLASSES)
         assert set(np.unique(arrays["split"])) == {1, 2, 3}
+        _check_suspected_motor(run, e, arrays)
     from core.jsonio import read_json
     rec = read_json(record_path(run, 1, 2))
     assert rec["n_configs"] == N_CONFIGS and rec["dataset"] == "sims/seed1/dataset.npz"
@@ -242,3 +243,19 @@ def test_cli_errors_write_nothing(tmp_path):
     r = quadfdi("train", "baselines", "--run", str(run), "--max-train-windows", "-1")
     assert r.returncode == 2 and "must not be negative" in r.stderr
     assert sorted(p.name for p in (run / "predictions").iterdir()) == before
+
+
+def _check_suspected_motor(run, entry, arrays):
+    """motor_proba is one-hot on the rotor with the highest window-mean command (the physics rule)."""
+    from sim.dataset import load_dataset, make_windows
+
+    mp = arrays["motor_proba"]
+    assert mp.shape == (len(arrays["proba"]), 4) and np.all(mp.sum(axis=1) == 1.0)
+    ds = load_dataset(run / entry["dataset"])
+    cols = [ds.channel_names.index(f"thr{i}") for i in range(1, 5)]
+    for code in np.unique(arrays["split"]):
+        w = make_windows(ds, int(code))
+        want = {(int(t), round(float(e), 6)): int(np.argmax(x[:, cols].mean(axis=0))) for t, e, x in zip(w.traj, w.t_end, w.x)}
+        rows = np.flatnonzero(arrays["split"] == code)
+        got = {(int(arrays["traj"][r]), round(float(arrays["t_end"][r]), 6)): int(np.argmax(mp[r])) for r in rows}
+        assert got == want

@@ -82,8 +82,23 @@ def fit_run(run_root: str | Path, seed: int, which: str = "all", models: Sequenc
         except ValueError as exc:
             raise QuadfdiError(f"{root / rel}: {exc}") from None
         done.append({"dataset": rel, "sim_seed": sim_seed, "evals": evals, "results": results,
-                     "class_names": list(class_names(ds.arrays)), "split_names": list(split_names(ds.arrays))})
+                     "class_names": list(class_names(ds.arrays)), "split_names": list(split_names(ds.arrays)),
+                     "motor_proba": suspected_motor(evals, ds.channel_names)})
     return done
+
+
+def suspected_motor(evals, channel_names) -> np.ndarray | None:
+    """(n, 4) one-hot: the rotor whose window-mean command is highest over the mean of the four (the
+    physics feature ``thr_ratio<i>``: a weak motor or a damaged propeller needs more command for its
+    share of thrust). A fixed physics rule, not learned; shared by the three baselines, so the
+    evaluation can score their localisation. None when the dataset has no motor commands."""
+    from train.features import physics_feature_names
+
+    names = physics_feature_names(channel_names)
+    cols = [names.index(f"thr_ratio{i}") for i in range(1, 5) if f"thr_ratio{i}" in names]
+    if len(cols) != 4:
+        return None
+    return np.eye(4, dtype=np.float32)[np.argmax(evals.physics[:, cols], axis=1)]
 
 
 def write_run(run_root: str | Path, done: list[dict[str, Any]], seed: int, cap: int = MAX_TRAIN_WINDOWS) -> list[Path]:
@@ -101,6 +116,8 @@ def write_run(run_root: str | Path, done: list[dict[str, Any]], seed: int, cap: 
             arrays = {"proba": res.proba.astype(np.float32), "y_true": ev.y.astype(np.int64),
                       "traj": ev.traj.astype(np.int64), "t_end": ev.t_end.astype(np.float64),
                       "split": ev.split.astype(np.int8), "class_names": np.array(d["class_names"])}
+            if d.get("motor_proba") is not None:
+                arrays["motor_proba"] = d["motor_proba"]
             check_prediction_set(arrays, str(path))
             path.parent.mkdir(parents=True, exist_ok=True)
             write_npz(path, arrays)
