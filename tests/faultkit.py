@@ -8,6 +8,7 @@ import json
 import re
 import os
 import resource
+import signal
 import shutil
 import subprocess
 import sys
@@ -40,6 +41,10 @@ def cli(*args: str, fault: str | None = None, fsize: int | None = None, env: dic
         full_env["QUADFDI_FAULT_POINT"] = fault
 
     def limit() -> None:
+        # A child inherits an ignored SIGINT (an earlier test in this pytest process, e.g. the
+        # distributed sweep's interrupt, can leave SIGINT ignored), and Python then keeps it ignored:
+        # the fault point's SIGINT would be lost. Restore the default so Python installs its handler.
+        signal.signal(signal.SIGINT, signal.SIG_DFL)
         if fsize is not None:
             resource.setrlimit(resource.RLIMIT_FSIZE, (fsize, fsize))
 
