@@ -14,15 +14,12 @@ from pathlib import Path
 from core.errors import QuadfdiError
 from core.jsonio import read_json
 from core.tables import md_table
+from evaluate.report import (  # one formatting of an interval and of a policy
+    _ci,
+    _policy,
+)
 
 SETS = ("test", "test_ood_mission", "test_ood_vehicle", "test_ood_wind", "test_incipient", "test_ood_all")
-
-
-def _ci(m: dict | None, nd: int = 3) -> str:
-    if not m or m.get("value") is None:
-        return "—"
-    s = f"{m['value']:.{nd}f}"
-    return s if m.get("lo") is None else f"{s} [{m['lo']:.{nd}f}, {m['hi']:.{nd}f}]"
 
 
 def _models(ev: dict) -> list[str]:
@@ -48,7 +45,7 @@ def alarm_table(ev: dict, set_name: str = "test") -> list[str]:
             continue
         fa, mt, p = r["false_alarms"], r["metrics"], ev["models"][m]["policy"]
         rate = "—" if fa["rate_per_h"] is None else f"{fa['rate_per_h']:.2f} [{fa['poisson_lo']:.2f}, {fa['poisson_hi']:.2f}]"
-        rows.append([m, f"p≥{p['threshold']:g}, {p['k']}/{p['n']}, clear {p['clear_m']}", fa["count"],
+        rows.append([m, _policy(p), fa["count"],
                      f"{fa['exposure_h']:.2f}", rate, _ci(mt["detection_rate"]), _ci(mt["delay_onset_s"], 2),
                      _ci(mt["delay_thr_s"], 2), f"{r['missed_faults']:.1f}", _ci(mt["motor_acc"])])
     return md_table(["model", "alarm policy (chosen on validation)", "false alarms", "healthy exposure h (all runs)",
