@@ -132,7 +132,10 @@ def run_on_dask(todo: Sequence[Job], settings: "ExecSettings", done: Callable[[J
         futures = [client.submit(execute_job, j.fn, j.args, str(j.out), with_torch, key=f"{j.kind}-{j.key}",
                                  retries=ATTEMPTS - 1, pure=False) for j in todo]
         job_of = {f.key: j for f, j in zip(futures, todo)}
-        for fut in as_completed(futures):
+        # as_completed waits on the *default* client's loop unless told: with a second client in the
+        # process (a test's, a notebook's) a result lost with a killed worker was then awaited on two
+        # loops and failed with "Event ... bound to a different event loop" (CI, 2026-12-02).
+        for fut in as_completed(futures, loop=client.loop):
             job = job_of[fut.key]
             if fut.status != "finished":
                 exc = fut.exception() if fut.status == "error" else None
