@@ -10,6 +10,7 @@ import os
 import sys
 from collections.abc import Callable, Iterator, Sequence
 
+import dask
 from distributed import Client, LocalCluster, as_completed
 from distributed.diagnostics.plugin import WorkerPlugin
 
@@ -48,10 +49,28 @@ def _has_bokeh() -> bool:
     return True
 
 
-def start_local_cluster(n_workers: int) -> LocalCluster:
-    """``n_workers`` worker processes of one thread each on this machine (dashboard on a free port)."""
-    return LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True, dashboard_address=":0",
-                        silence_logs=logging.ERROR, env=_worker_env())
+# Our jobs last seconds to minutes (a shard, a training). Dask's defaults poll for an interactive
+# dashboard: a 20 ms event-loop tick in the scheduler and every worker, a statistical profiler
+# every 10 ms, a system monitor every 0.5 s, a memory check every 0.1 s. On 2 cores that cost
+# CPU the jobs cannot use (docs/distributed.md, "What the cluster itself costs", measured with
+# ``quadfdi sweep bench`` and ``--dask-defaults``). The local cluster uses these settings; a
+# cluster started by hand gets them from the YAML in that section.
+COARSE_JOBS = {
+    "distributed.admin.tick.interval": "500ms",
+    "distributed.admin.system-monitor.interval": "2s",
+    "distributed.admin.system-monitor.gil.enabled": False,
+    "distributed.worker.profile.enabled": False,
+    "distributed.worker.memory.monitor-interval": "1s",
+}
+
+
+def start_local_cluster(n_workers: int, coarse: bool = True) -> LocalCluster:
+    """``n_workers`` worker processes of one thread each on this machine (dashboard on a free port),
+    configured for coarse jobs (``COARSE_JOBS``: read by the scheduler and the nannies at start);
+    ``coarse=False`` keeps Dask's defaults (``quadfdi sweep bench --dask-defaults`` compares)."""
+    with dask.config.set(COARSE_JOBS if coarse else {}):
+        return LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True, dashboard_address=":0",
+                            silence_logs=logging.ERROR, env=_worker_env())
 
 
 @contextlib.contextmanager

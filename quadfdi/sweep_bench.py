@@ -41,6 +41,8 @@ def add_bench_parser(acts: argparse._SubParsersAction) -> None:
     pb.add_argument("--workloads", default="sim,study", help="comma-separated: sim, study (default: %(default)s)")
     pb.add_argument("--n-traj", type=int, default=2400, help="trajectories of the sim workload (default: %(default)s)")
     pb.add_argument("--noop-jobs", type=int, default=200, help="empty jobs timing the scheduler (default: %(default)s)")
+    pb.add_argument("--dask-defaults", action="store_true",
+                    help="start the cluster with Dask's default intervals instead of quadfdi's (core.executor_dask.COARSE_JOBS)")
     pb.add_argument("--part", default=None, help=argparse.SUPPRESS)  # internal: run these job indices here
     pb.add_argument("--cache", default=None, help=argparse.SUPPRESS)
     pb.set_defaults(func=run_bench_cmd)
@@ -103,6 +105,23 @@ def _fresh(path: Path) -> Path:
     return path
 
 
+def _cpu_s(tree: bool) -> float:
+    """CPU seconds used so far by this process (the client, and the local cluster's scheduler) and,
+    with ``tree``, by its children (the cluster's nannies and workers)."""
+    import psutil
+
+    me = psutil.Process()
+    procs = [me, *me.children(recursive=True)] if tree else [me]
+    total = 0.0
+    for p in procs:
+        try:
+            t = p.cpu_times()
+        except psutil.NoSuchProcess:
+            continue
+        total += t.user + t.system
+    return total
+
+
 def _timed(jobs: list[Job], settings: ExecSettings) -> tuple[float, list[float]]:
     t0 = time.perf_counter()
     res = run_jobs(jobs, settings, progress=False, log=lambda s: None)
@@ -136,14 +155,21 @@ def _same_bytes(a: list[Job], b: list[Job]) -> bool:
 def measure(args: argparse.Namespace, name: str, cfg: Config, out: Path, client_address: str) -> dict:
     roots = {k: _fresh(out / name / k) for k in ("serial", "hand", "dask")}
     jobs = {k: workload_jobs(name, cfg, r, args.n_traj) for k, r in roots.items()}
+    c0 = _cpu_s(tree=False)
     t1, secs = _timed(jobs["serial"], SERIAL)
+    cpu_serial = _cpu_s(tree=False) - c0
     parts = balance(secs)
     t_hand = by_hand(jobs["hand"], roots["hand"], parts)
+    c0 = _cpu_s(tree=True)
     t2, secs2 = _timed(jobs["dask"], ExecSettings(client_address))
+    cpu_dask = _cpu_s(tree=True) - c0
     return {"jobs": len(secs), "serial_s": t1, "hand_2proc_s": t_hand, "dask_2workers_s": t2,
             "job_seconds_serial": sum(secs), "job_seconds_dask": sum(secs2),
             "speedup_hand": t1 / t_hand, "speedup_dask": t1 / t2, "efficiency_vs_hand": t_hand / t2,
             "hand_shares": [len(p) for p in parts],
+            # CPU the cluster spends beyond the jobs' own (the serial run's CPU): scheduler, client,
+            # workers' event loops and monitors, result handling
+            "cpu_serial_s": cpu_serial, "cpu_dask_s": cpu_dask, "dask_overhead_cpu_s": cpu_dask - cpu_serial,
             "bytes_identical": _same_bytes(jobs["serial"], jobs["hand"]) and _same_bytes(jobs["serial"], jobs["dask"])}
 
 
@@ -170,10 +196,11 @@ def run_bench_cmd(args: argparse.Namespace) -> int:
 
     out = Path(args.out)
     t0 = time.perf_counter()
-    with start_local_cluster(2) as cluster, Client(cluster) as client:
+    with start_local_cluster(2, coarse=not args.dask_defaults) as cluster, Client(cluster) as client:
         client.register_plugin(OneThread())
         start_s = time.perf_counter() - t0
-        result = {"cluster_start_s": start_s, "cores": len(os.sched_getaffinity(0)),
+        result = {"cluster_start_s": start_s, "dask_config": "defaults" if args.dask_defaults else "coarse",
+                  "cores": len(os.sched_getaffinity(0)),
                   "load_avg_before": os.getloadavg()[0],
                   "workloads": {n: measure(args, n, cfg, out, cluster.scheduler_address) for n in names},
                   "scheduler": scheduler_cost(out, args.noop_jobs, cluster.scheduler_address),

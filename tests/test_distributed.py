@@ -4,6 +4,7 @@ an interrupted sweep. Small configs: 2 cores are shared; timings belong to the b
 
 from __future__ import annotations
 
+import json
 import os
 import shutil
 import signal
@@ -263,3 +264,16 @@ def test_solver_matrix_cells_on_two_workers_equal_in_process(cluster, small_run,
     assert [len(list((cache / k).iterdir())) for k in ("matrix-train", "matrix-ref", "matrix-cell")] == [2, 2, 6]
     assert sorted(p.name for p in (tmp_path / "dask" / "solvers" / "matrix_models").iterdir()) == \
         sorted(p.name for p in (tmp_path / "here" / "solvers" / "matrix_models").iterdir())
+
+
+def test_sweep_bench_measures_three_ways_and_the_cluster_cpu(tmp_path):
+    # The bench at toy size: its timings are not under test, its bookkeeping is.
+    res = quadfdi("sweep", "bench", "--workloads", "sim", "--n-traj", "4", "--noop-jobs", "2",
+                  "--out", str(tmp_path / "b"), *CLI_TINY)
+    assert res.returncode == 0, res.stderr
+    r = json.loads((tmp_path / "b" / "sweep_bench.json").read_text())
+    w = r["workloads"]["sim"]
+    assert w["jobs"] == 2 and w["bytes_identical"] is True and r["dask_config"] == "coarse"
+    assert w["cpu_serial_s"] > 0 and w["cpu_dask_s"] > 0
+    assert w["dask_overhead_cpu_s"] == pytest.approx(w["cpu_dask_s"] - w["cpu_serial_s"])
+    assert "CPU of the Dask way beyond the jobs' own (sim)" in (tmp_path / "b" / "sweep_bench.md").read_text()
