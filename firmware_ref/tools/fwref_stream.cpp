@@ -191,7 +191,11 @@ int main(int argc, char** argv) {
                 fwref::profile_spec(rec.params.profile).name + "'");
   }
   if (h.names != rec.raw_names) return fail("stream " + in + ": its channels are not the on-board record's raw channels");
-  if (std::fabs(h.dt - rec.params.sample_dt_s) > 1e-9) return fail("stream " + in + ": another sample period");
+  // the record holds the period as float32 (0.04 -> 0.0399999991): equal within float32's precision
+  if (std::fabs(h.dt - rec.params.sample_dt_s) > 1e-6 * rec.params.sample_dt_s) {
+    return fail("stream " + in + ": sample period " + std::to_string(h.dt) + " s, the model's is " +
+                std::to_string(rec.params.sample_dt_s) + " s");
+  }
   if (rec.cells_from_stream && h.cells == 0) return fail("stream " + in + " does not give the pack's cell count");
   fwref::StreamParams p = rec.params;
   p.classes = m->classes;

@@ -1,0 +1,255 @@
+"""The on-board streaming runtime (issue 16): fwref/alarm.hpp against core/alarm.py, weights.bin's
+on-board record as the C++ reads it, and fwref_stream replaying a simulated and a real flight against
+the Python window path at every stride (int8 logits bit-identical, fp32 within the parity tolerance,
+alarms identical), plus the defined behaviour on NaN samples, timestamp gaps and refusals.
+
+Cheap: the flightlog-min export is the session's (tests/conftest.py, shared with test_detect.py),
+the C++ programs the session's host build."""
+
+from __future__ import annotations
+
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from core.alarm import run_alarm
+from core.contracts import FP32_CPP_REL_TOL
+from tests.conftest import quadfdi
+from tests.test_firmware_fixtures import host_build  # noqa: F401 (fixture)
+
+REAL = Path("/work/shared/data/flightlogs")
+MISSION = REAL / "px4_quad_6s_uavcan_mission.ulg"
+PREDICTIONS = Path("/work/main/runs/realistic/predictions/cnode_sim0_train0.npz")
+POLICIES = [(0.5, 2, 3, 3, False), (0.3, 1, 1, 1, False), (0.7, 3, 5, 2, True), (0.45, 4, 8, 6, False)]
+
+
+def _alarm_cpp(exe: Path, tmp: Path, proba, valid, policy, healthy=0, motor=None) -> np.ndarray:
+    """fwref_alarm on (F, W, K) proba: (F, W, 6) vote, active, raised, cleared, cls, motor."""
+    f, w, k = proba.shape
+    parts = [valid[..., None].astype(np.float64), proba] + ([motor] if motor is not None else [])
+    np.concatenate(parts, axis=2).astype("<f8").tofile(tmp / "seq.f64")
+    thr, kk, n, m, latch = policy
+    cmd = [str(exe / "fwref_alarm"), "--in", str(tmp / "seq.f64"), "--out", str(tmp / "steps.i32"), "--windows",
+           str(w), "--classes", str(k), "--healthy", str(healthy), "--threshold", repr(thr), "--k", str(kk), "--n",
+           str(n), "--clear-m", str(m)] + (["--latch"] if latch else []) + (["--motor"] if motor is not None else [])
+    subprocess.run(cmd, check=True, capture_output=True)
+    return np.fromfile(tmp / "steps.i32", "<i4").reshape(f, w, 6)
+
+
+def _same_alarm(cpp: np.ndarray, trace) -> None:
+    for j, name in enumerate(("votes", "active", "raised", "cleared", "cls", "motor")):
+        np.testing.assert_array_equal(cpp[..., j], getattr(trace, name).astype(np.int64), err_msg=name)
+
+
+@pytest.mark.parametrize("policy", POLICIES)
+def test_alarm_mirror_on_random_sequences(host_build, tmp_path, policy):  # noqa: F811
+    rng = np.random.default_rng(7)
+    f, w, k = 30, 80, 5
+    # bursts of fault-looking windows so that alarms raise, hold and clear
+    burst = np.repeat(rng.random((f, w // 8, 1)) < 0.35, 8, axis=1)  # runs of 8 fault-looking windows
+    logits = rng.normal(size=(f, w, k)) + 2.0 * np.eye(k)[0] + 4.0 * burst * np.eye(k)[rng.integers(1, k, (f, w))]
+    proba = np.exp(logits) / np.exp(logits).sum(axis=2, keepdims=True)
+    valid = rng.random((f, w)) > 0.1
+    motor = rng.dirichlet(np.ones(4), size=(f, w))
+    p_in = np.where(valid[..., None], proba, 0.0)
+    cpp = _alarm_cpp(host_build, tmp_path, p_in, valid, policy, motor=motor)
+    trace = run_alarm(p_in, *policy, healthy=0, valid=valid, motor_proba=motor)
+    _same_alarm(cpp, trace)
+    assert trace.raised.sum() > 10 and (policy[4] or trace.cleared.sum() > 5)  # the sequences exercise the policy
+
+
+@pytest.mark.skipif(not PREDICTIONS.is_file(), reason="the realistic run's prediction sets are not here")
+def test_alarm_mirror_on_a_prediction_set(host_build, tmp_path):  # noqa: F811
+    z = np.load(PREDICTIONS)
+    test = z["split"] == z["split"].max()  # one split's flights: enough, and cheap
+    traj, t_end, proba = z["traj"][test], z["t_end"][test], z["proba"][test].astype(np.float64)
+    flights = np.unique(traj)[:60]
+    rows = [np.argsort(t_end[traj == fl]) for fl in flights]
+    w = min(len(r) for r in rows)
+    batch = np.stack([proba[traj == fl][r[:w]] for fl, r in zip(flights, rows)])
+    valid = np.ones(batch.shape[:2], bool)
+    healthy = list(z["class_names"]).index("Healthy")
+    cpp = _alarm_cpp(host_build, tmp_path, batch, valid, POLICIES[0], healthy=healthy)
+    trace = run_alarm(batch, *POLICIES[0], healthy=healthy, valid=valid)
+    _same_alarm(cpp, trace)
+    assert trace.raised.any() and (~trace.active).any()
+
+
+# ------------------------------------------------------------------------------- the record
+
+
+def _fwref_stream(exe: Path, export: Path, *args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([str(exe / "fwref_stream"), "--weights", str(export / "weights.bin"), *args],
+                          capture_output=True, text=True, timeout=300)
+
+
+def test_onboard_record_as_the_cpp_reads_it(flightlog_export, host_build):  # noqa: F811
+    from detect.streamfile import record_of
+
+    rec = record_of(flightlog_export)
+    res = _fwref_stream(host_build, flightlog_export, "--info")
+    assert res.returncode == 0, res.stderr
+    got = dict(line.split("=", 1) for line in res.stdout.splitlines())
+    assert got["profile"] == rec["profile"] == "flightlog-min"
+    assert int(got["window"]) == rec["window"] == 40 and int(got["stride"]) == rec["stride"]
+    assert got["raw_channels"].split(",") == rec["raw_channels"] and rec["raw_channels"][-1] == "airborne"
+    assert got["channels"].split(",") == rec["channels"] == [c["name"] for c in _manifest(flightlog_export)["channels"]]
+    pol = _manifest(flightlog_export)["alarm"]
+    assert float(got["threshold"]) == pol["threshold"] == rec["alarm"]["threshold"]
+    assert [int(got[k]) for k in ("k", "n", "clear_m", "latch")] == [pol["k"], pol["n"], pol["clear_m"], pol["latch"]]
+    assert int(got["hover_steady_samples"]) == 50 and int(got["healthy"]) == rec["healthy"] == 0
+
+
+def _manifest(export: Path) -> dict:
+    import json
+
+    return json.loads((export / "manifest.json").read_text())
+
+
+# ------------------------------------------------------------------ replay against the window path
+
+
+@pytest.fixture(scope="module")
+def streams(flightlog_export, tmp_path_factory) -> dict[str, Path]:
+    """A simulated test flight with a fault and the real UAVCAN mission, written by `quadfdi stream-file`."""
+    out = tmp_path_factory.mktemp("streams")
+    ds = flightlog_export.parent / "dataset.npz"
+    z = np.load(ds)
+    sim = int(np.flatnonzero((z["split"] == list(z["split_names"]).index("test")) & (z["fault_class"] > 0))[0])
+    paths = {"sim": out / "sim.bin", "real": out / "mission.bin"}
+    res = quadfdi("stream-file", "--model", str(flightlog_export), "--dataset", str(ds), "--flight", str(sim),
+                  "--out", str(paths["sim"]))
+    assert res.returncode == 0, res.stderr
+    if MISSION.is_file():
+        res = quadfdi("stream-file", "--model", str(flightlog_export), str(MISSION), "--out", str(paths["real"]))
+        assert res.returncode == 0, res.stderr
+    else:
+        paths.pop("real")
+    return paths
+
+
+def _window_path(export: Path, rs, record: dict, net: str, precision: str):
+    """The Python window path on the stream's samples: windows, ORT and C++ window logits, the alarm."""
+    from detect.run import softmax
+    from detect.runtimes import cpp_logits, ort_logits
+    from detect.streamref import windows_of
+
+    sw = windows_of(rs, record)
+    x = sw.windows(record["window"])
+    ort = ort_logits(export / _manifest(export)["artifacts"][f"{net}_{precision}"], x)
+    cpp = cpp_logits(export / "weights.bin", net, precision == "int8", x)
+    proba = np.zeros((len(sw.starts), ort.shape[1]))
+    proba[:, record["healthy"]] = 1.0  # undecided windows never vote (detect/run.py)
+    proba[sw.decided] = softmax(ort)
+    a = record["alarm"]
+    trace = run_alarm(proba[None], a["threshold"], a["k"], a["n"], a["clear_m"], a["latch"], healthy=record["healthy"],
+                      valid=sw.decided[None])
+    return sw, ort, cpp, proba, trace
+
+
+@pytest.mark.parametrize("precision", ["fp32", "int8"])
+@pytest.mark.parametrize("net", ["cnode", "gru"])
+def test_stream_gives_the_window_path_at_every_stride(flightlog_export, streams, host_build, net, precision):  # noqa: F811
+    from detect.streamfile import read_stream, record_of
+    from detect.streamref import read_lines
+
+    record = record_of(flightlog_export)
+    report = []
+    for name, path in streams.items():
+        rs = read_stream(path)
+        sw, ort, cpp, proba, trace = _window_path(flightlog_export, rs, record, net, precision)
+        res = _fwref_stream(host_build, flightlog_export, "--model", net, "--in", str(path),
+                            *(["--int8"] if precision == "int8" else []))
+        assert res.returncode == 0, res.stderr
+        out = read_lines(res.stdout, ort.shape[1])
+        np.testing.assert_array_equal(out["index"], sw.ends)  # one line per stride once W samples arrived
+        want = np.where(sw.decided, "decided", np.where(sw.nohover, "nohover", "skipped"))
+        np.testing.assert_array_equal(out["status"], want)
+        assert sw.decided.sum() >= 5 and (name == "sim" or (want == "skipped").any()), name
+        got = out["logits"][sw.decided]
+        np.testing.assert_array_equal(got, cpp)  # the C++ window path on the same windows: the same bits
+        if precision == "int8":
+            np.testing.assert_array_equal(got, ort)
+        else:
+            assert np.abs(got - ort).max() <= FP32_CPP_REL_TOL * max(1.0, np.abs(ort).max())
+        p_fault = 1.0 - proba[:, record["healthy"]]
+        flips = out["vote"] != trace.votes[0]
+        near = np.abs(p_fault - record["alarm"]["threshold"]) <= 1e-4
+        assert precision == "fp32" or not flips.any(), name
+        assert not (flips & ~near).any(), name  # fp32: only a score within tolerance of the threshold may flip
+        if not flips.any():
+            for key, ref in (("active", trace.active), ("raised", trace.raised), ("cleared", trace.cleared),
+                             ("cls", trace.cls)):
+                np.testing.assert_array_equal(out[key], ref[0], err_msg=f"{name} {key}")
+        report.append(f"{name}: {int(sw.decided.sum())} decided / {len(sw.ends)} strides, {int(flips.sum())} vote flips")
+    print("; ".join(report))
+
+
+@pytest.mark.skipif(not MISSION.is_file(), reason="the shared real flight logs are not here")
+def test_stream_reference_is_detects_window_path(flightlog_export, streams):
+    """detect/streamref.py on the stream file decides the windows detect/inputs.py decides, with the same inputs."""
+    from detect.inputs import flight_inputs, read_flight, windows
+    from detect.streamfile import read_stream, record_of
+    from detect.streamref import windows_of
+
+    record = record_of(flightlog_export)
+    fi = flight_inputs(read_flight(MISSION), record["profile"], record["window"], record["stride"])
+    sw = windows_of(read_stream(streams["real"]), record)
+    np.testing.assert_array_equal(sw.starts, fi.starts)
+    np.testing.assert_array_equal(sw.decided, fi.decided)
+    np.testing.assert_array_equal(sw.windows(record["window"]), windows(fi, record["window"]))
+
+
+def _edit_stream(src: Path, dst: Path, edit) -> None:
+    from detect.streamfile import read_stream, write_stream
+
+    rs = read_stream(src)
+    edit(rs)
+    write_stream(dst, rs)
+
+
+def test_nan_samples_skip_their_windows_and_gaps_are_held(flightlog_export, streams, host_build, tmp_path):  # noqa: F811
+    from detect.streamref import read_lines
+
+    def run(path):
+        res = _fwref_stream(host_build, flightlog_export, "--model", "cnode", "--int8", "--in", str(path))
+        assert res.returncode == 0, res.stderr
+        return read_lines(res.stdout, 5), res.stdout
+
+    clean, _ = run(streams["sim"])
+    lost = slice(150, 153)
+
+    def nan(rs):
+        rs.values[lost, 2] = np.nan
+
+    def gap(rs):
+        keep = np.ones(len(rs.time), bool)
+        keep[lost] = False
+        rs.time, rs.values = rs.time[keep], rs.values[keep]
+
+    def backwards(rs):
+        rs.time[200] = rs.time[199]  # a time that does not advance: that sample is dropped
+
+    outs = {}
+    for name, edit in (("nan", nan), ("gap", gap), ("backwards", backwards)):
+        _edit_stream(streams["sim"], tmp_path / f"{name}.bin", edit)
+        outs[name] = run(tmp_path / f"{name}.bin")
+    hit = (clean["index"] >= lost.start) & (clean["index"] - 39 < lost.stop)  # windows holding a lost sample
+    nan_out = outs["nan"][0]
+    assert hit.sum() >= 2 and (nan_out["status"][hit] == "skipped").all()
+    np.testing.assert_array_equal(nan_out["logits"][~hit], clean["logits"][~hit])
+    for key in ("index", "status", "logits", "active", "cls"):  # a gap is held: the missing samples are NaN samples
+        np.testing.assert_array_equal(outs["gap"][0][key], nan_out[key], err_msg=key)
+    assert "dropped=1 " in outs["backwards"][1] and clean["index"][0] == 39  # no decision before W samples
+
+
+def test_stream_file_refusals_are_one_line_and_write_nothing(flightlog_export, tmp_path):
+    out = tmp_path / "s.bin"
+    for args in (["--dataset", str(flightlog_export.parent / "dataset.npz"), "--flight", "999"],
+                 [str(REAL / "ardupilot_copter_quadx_ground.BIN")], []):
+        if args and not Path(args[0]).exists():
+            continue
+        res = quadfdi("stream-file", "--model", str(flightlog_export), *args, "--out", str(out))
+        assert res.returncode == 2 and len(res.stderr.strip().splitlines()) == 1 and not out.exists(), res.stderr
