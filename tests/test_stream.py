@@ -120,26 +120,35 @@ def streams(flightlog_export, tmp_path_factory) -> dict[str, Path]:
     sim = int(np.flatnonzero((z["split"] == list(z["split_names"]).index("test")) & (z["fault_class"] > 0))[0])
     paths = {"sim": out / "sim.bin", "real": out / "mission.bin"}
     res = quadfdi("stream-file", "--model", str(flightlog_export), "--dataset", str(ds), "--flight", str(sim),
-                  "--out", str(paths["sim"]))
+                  "--out", str(paths["sim"]))  # the CLI once; the real flight in process (a second start costs 2 s)
     assert res.returncode == 0, res.stderr
     if MISSION.is_file():
-        res = quadfdi("stream-file", "--model", str(flightlog_export), str(MISSION), "--out", str(paths["real"]))
-        assert res.returncode == 0, res.stderr
+        from detect.streamfile import from_flight, record_of, write_stream
+
+        write_stream(paths["real"], from_flight(MISSION, record_of(flightlog_export)))
     else:
         paths.pop("real")
     return paths
 
 
-def _window_path(export: Path, rs, record: dict, net: str, precision: str):
+def _infer(exe: Path, export: Path, net: str, int8: bool, x: np.ndarray, tmp: Path) -> np.ndarray:
+    """fwref_infer (the C++ window path) on windows (n, W, C) -> logits (n, K)."""
+    x.astype("<f4").tofile(tmp / "x.f32")
+    subprocess.run([str(exe / "fwref_infer"), "--weights", str(export / "weights.bin"), "--model", net, "--in",
+                    str(tmp / "x.f32"), "--out", str(tmp / "y.f32")] + (["--int8"] if int8 else []), check=True)
+    return np.fromfile(tmp / "y.f32", "<f4").reshape(len(x), -1)
+
+
+def _window_path(export: Path, exe: Path, tmp: Path, rs, record: dict, net: str, precision: str):
     """The Python window path on the stream's samples: windows, ORT and C++ window logits, the alarm."""
     from detect.run import softmax
-    from detect.runtimes import cpp_logits, ort_logits
+    from detect.runtimes import ort_logits
     from detect.streamref import windows_of
 
     sw = windows_of(rs, record)
     x = sw.windows(record["window"])
     ort = ort_logits(export / _manifest(export)["artifacts"][f"{net}_{precision}"], x)
-    cpp = cpp_logits(export / "weights.bin", net, precision == "int8", x)
+    cpp = _infer(exe, export, net, precision == "int8", x, tmp)
     proba = np.zeros((len(sw.starts), ort.shape[1]))
     proba[:, record["healthy"]] = 1.0  # undecided windows never vote (detect/run.py)
     proba[sw.decided] = softmax(ort)
@@ -151,7 +160,8 @@ def _window_path(export: Path, rs, record: dict, net: str, precision: str):
 
 @pytest.mark.parametrize("precision", ["fp32", "int8"])
 @pytest.mark.parametrize("net", ["cnode", "gru"])
-def test_stream_gives_the_window_path_at_every_stride(flightlog_export, streams, host_build, net, precision):  # noqa: F811
+def test_stream_gives_the_window_path_at_every_stride(flightlog_export, streams, host_build, tmp_path, net,  # noqa: F811
+                                                      precision):
     from detect.streamfile import read_stream, record_of
     from detect.streamref import read_lines
 
@@ -159,7 +169,7 @@ def test_stream_gives_the_window_path_at_every_stride(flightlog_export, streams,
     report = []
     for name, path in streams.items():
         rs = read_stream(path)
-        sw, ort, cpp, proba, trace = _window_path(flightlog_export, rs, record, net, precision)
+        sw, ort, cpp, proba, trace = _window_path(flightlog_export, host_build, tmp_path, rs, record, net, precision)
         res = _fwref_stream(host_build, flightlog_export, "--model", net, "--in", str(path),
                             *(["--int8"] if precision == "int8" else []))
         assert res.returncode == 0, res.stderr
@@ -247,9 +257,11 @@ def test_nan_samples_skip_their_windows_and_gaps_are_held(flightlog_export, stre
 
 def test_stream_file_refusals_are_one_line_and_write_nothing(flightlog_export, tmp_path):
     out = tmp_path / "s.bin"
-    for args in (["--dataset", str(flightlog_export.parent / "dataset.npz"), "--flight", "999"],
-                 [str(REAL / "ardupilot_copter_quadx_ground.BIN")], []):
-        if args and not Path(args[0]).exists():
-            continue
+    cases = [(["--dataset", str(flightlog_export.parent / "dataset.npz"), "--flight", "999"], "has flights 0..")]
+    ardupilot = REAL / "ardupilot_copter_quadx_ground.BIN"
+    if ardupilot.is_file():  # refused as by detect (ingest: never airborne)
+        cases.append(([str(ardupilot)], "ardupilot_copter_quadx_ground.BIN"))
+    for args, why in cases:
         res = quadfdi("stream-file", "--model", str(flightlog_export), *args, "--out", str(out))
         assert res.returncode == 2 and len(res.stderr.strip().splitlines()) == 1 and not out.exists(), res.stderr
+        assert why in res.stderr, res.stderr
