@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from core.alarm import run_alarm
-from core.contracts import FP32_CPP_REL_TOL
+from core.contracts import FP32_CPP_REL_TOL, SPLIT_TEST
 from tests.conftest import quadfdi
 from tests.test_firmware_fixtures import host_build  # noqa: F401 (fixture)
 
@@ -117,7 +117,7 @@ def streams(flightlog_export, tmp_path_factory) -> dict[str, Path]:
     out = tmp_path_factory.mktemp("streams")
     ds = flightlog_export.parent / "dataset.npz"
     z = np.load(ds)
-    sim = int(np.flatnonzero((z["split"] == list(z["split_names"]).index("test")) & (z["fault_class"] > 0))[0])
+    sim = int(np.flatnonzero((z["split"] == SPLIT_TEST) & (z["fault_class"] > 0))[0])
     paths = {"sim": out / "sim.bin", "real": out / "mission.bin"}
     res = quadfdi("stream-file", "--model", str(flightlog_export), "--dataset", str(ds), "--flight", str(sim),
                   "--out", str(paths["sim"]))  # the CLI once; the real flight in process (a second start costs 2 s)
@@ -162,16 +162,35 @@ def _window_path(export: Path, exe: Path, tmp: Path, rs, record: dict, net: str,
 @pytest.mark.parametrize("net", ["cnode", "gru"])
 def test_stream_gives_the_window_path_at_every_stride(flightlog_export, streams, host_build, tmp_path, net,  # noqa: F811
                                                       precision):
+    print("; ".join(_check_replay(flightlog_export, streams, host_build, tmp_path, net, precision)))
+
+
+def test_paper_profile_stream_gives_the_window_path(fault_exported, host_build, tmp_path):  # noqa: F811
+    """The identity profile (no hover estimate, no airborne channel) on the session's paper-config export."""
+    from detect.streamfile import from_dataset, record_of, write_stream
+
+    export = fault_exported / "export"
+    record = record_of(export)
+    assert record["profile"] == "paper" and not record["cells_from_stream"]
+    assert record["raw_channels"] == record["channels"] == [c["name"] for c in _manifest(export)["channels"]]
+    z = np.load(fault_exported / "dataset.npz")
+    flight = int(np.flatnonzero(z["split"] == SPLIT_TEST)[0])
+    write_stream(tmp_path / "paper.bin", from_dataset(fault_exported / "dataset.npz", flight, record))
+    for net, precision in (("cnode", "int8"), ("gru", "fp32")):
+        print(_check_replay(export, {"sim": tmp_path / "paper.bin"}, host_build, tmp_path, net, precision))
+
+
+def _check_replay(export: Path, streams: dict[str, Path], exe: Path, tmp: Path, net: str, precision: str) -> list[str]:
+    """fwref_stream on each stream against the window path at every stride; a report line per stream."""
     from detect.streamfile import read_stream, record_of
     from detect.streamref import read_lines
 
-    record = record_of(flightlog_export)
+    record = record_of(export)
     report = []
     for name, path in streams.items():
         rs = read_stream(path)
-        sw, ort, cpp, proba, trace = _window_path(flightlog_export, host_build, tmp_path, rs, record, net, precision)
-        res = _fwref_stream(host_build, flightlog_export, "--model", net, "--in", str(path),
-                            *(["--int8"] if precision == "int8" else []))
+        sw, ort, cpp, proba, trace = _window_path(export, exe, tmp, rs, record, net, precision)
+        res = _fwref_stream(exe, export, "--model", net, "--in", str(path), *(["--int8"] if precision == "int8" else []))
         assert res.returncode == 0, res.stderr
         out = read_lines(res.stdout, ort.shape[1])
         np.testing.assert_array_equal(out["index"], sw.ends)  # one line per stride once W samples arrived
@@ -194,7 +213,7 @@ def test_stream_gives_the_window_path_at_every_stride(flightlog_export, streams,
                              ("cls", trace.cls)):
                 np.testing.assert_array_equal(out[key], ref[0], err_msg=f"{name} {key}")
         report.append(f"{name}: {int(sw.decided.sum())} decided / {len(sw.ends)} strides, {int(flips.sum())} vote flips")
-    print("; ".join(report))
+    return report
 
 
 @pytest.mark.skipif(not MISSION.is_file(), reason="the shared real flight logs are not here")

@@ -40,6 +40,10 @@
 #include "fwref/profile.hpp"
 #include "fwref/status.hpp"
 
+// The Cortex-M stream image sets these two through a generated header (tools/gen_stream.py).
+#ifdef FWREF_STREAM_LIMITS_HEADER
+#include FWREF_STREAM_LIMITS_HEADER
+#endif
 #ifndef FWREF_MAX_RAW_CHANNELS
 #define FWREF_MAX_RAW_CHANNELS FWREF_MAX_CHANNELS
 #endif
