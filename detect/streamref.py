@@ -62,7 +62,7 @@ def read_lines(text: str, classes: int) -> dict[str, np.ndarray]:
     proba (n, K), vote, active, raised, cleared (bool), cls, motor (int)."""
     rows = [ln.split() for ln in text.splitlines() if ln and not ln.startswith("#")]
     k = classes
-    col = lambda j, dt: np.array([r[j] for r in rows], dtype=dt)  # noqa: E731
+    col = lambda j, dt: np.array([r[j] for r in rows], dtype=dt)
     out = {"index": col(0, np.int64), "t": col(1, np.float64), "status": np.array([r[2] for r in rows]),
            "logits": np.array([[float(v) for v in r[3:3 + k]] for r in rows], np.float32).reshape(-1, k),
            "proba": np.array([[float(v) for v in r[3 + k:3 + 2 * k]] for r in rows], np.float64).reshape(-1, k)}

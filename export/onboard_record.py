@@ -18,7 +18,12 @@ from core import hover
 from core.errors import QuadfdiError
 from core.profiles import required_raw, uses_hover
 from export.binfmt import Section
-from export.weights_layout import ONBOARD_DIMS, ONBOARD_PROFILES, ONBOARD_TENSORS, STREAM_AIRBORNE
+from export.weights_layout import (
+    ONBOARD_DIMS,
+    ONBOARD_PROFILES,
+    ONBOARD_TENSORS,
+    STREAM_AIRBORNE,
+)
 
 KIND = ("none", "none")  # (model, precision) of the section
 

@@ -102,7 +102,7 @@ def main(argv: list[str]) -> int:
                "FWREF_WEIGHTS": str(export / "weights.bin"), "FWREF_REFERENCE": str(export / "reference.bin"),
                "Python3_EXECUTABLE": sys.executable, "FWREF_STREAMS": ";".join(str(s) for s in streams)}
     _configure_and_build(FW_ROOT / "mcu", build, options, f"the {cpu} stream image", ("fwref_mcu_stream",))
-    res = subprocess.run(qemu_command(cpu, build / "fwref_mcu_stream.elf"), capture_output=True, text=True,
+    res = subprocess.run(qemu_command(cpu, build / "fwref_mcu_stream.elf"), capture_output=True, text=True, check=False,
                          timeout=3600)
     assert "RESULT DONE" in res.stdout, res.stdout[-2000:] + res.stderr[-2000:]
     record = record_of(export)

@@ -59,6 +59,7 @@ void Stream::reset() {
 
 Status Stream::push(const float* sample, double t, StrideSink* sink) {
   if (fn_ == nullptr || sample == nullptr) return Status::kNullArgument;
+  if (!std::isfinite(t)) return Status::kBadInput;
   if (next_ > 0) {
     const double periods = (t - t_prev_) / p_.sample_dt_s;
     if (!(periods >= 0.5)) return Status::kBadInput;  // also NaN

@@ -100,6 +100,7 @@ void print_info(const fwref::OnboardRecord& r) {
   for (const std::string& s : r.raw_names) raw += (raw.empty() ? "" : ",") + s;
   for (const std::string& s : r.model_names) model += (model.empty() ? "" : ",") + s;
   std::printf("raw_channels=%s\nchannels=%s\n", raw.c_str(), model.c_str());
+  std::printf("stream_bytes=%zu\n", sizeof(fwref::Stream));  // this build's capacities (fwref/config.hpp)
 }
 
 // One output line per stride, into a string (stdout is written as it comes, --out at the end).

@@ -19,11 +19,11 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
-from core.errors import QuadfdiError  # noqa: E402
-from detect.streamfile import read_stream  # noqa: E402
-from export.onboard_record import onboard_dict  # noqa: E402
-from export.weights_bin import read_weights  # noqa: E402
-from export.weights_layout import ONBOARD_PROFILES  # noqa: E402
+from core.errors import QuadfdiError
+from detect.streamfile import read_stream
+from export.onboard_record import onboard_dict
+from export.weights_bin import read_weights
+from export.weights_layout import ONBOARD_PROFILES
 
 PROFILE_ENUM = {"paper": "kPaper", "flightlog-min": "kFlightlogMin", "flightlog-nocur": "kFlightlogNocur"}
 

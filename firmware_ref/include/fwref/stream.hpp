@@ -107,7 +107,8 @@ class Stream {
   // kDimsTooLarge / kDimsInvalid when the parameters exceed this build's capacity or disagree with
   // the profile; ``cells`` the pack's cell count (profiles with a hover estimate; ignored otherwise).
   Status init(const StreamParams& p, int cells, WindowFn fn, void* ctx);
-  // One sample (R raw channels, the record's order) at time t; kBadInput: a time that does not advance, dropped.
+  // One sample (R raw channels, the record's order) at time t; kBadInput: a time that is not finite or does
+  // not advance by half a period, the sample dropped.
   Status push(const float* sample, double t, StrideSink* sink = nullptr);
   void reset();  // a new flight: ring, hover estimate, alarm and time forgotten
 
