@@ -102,6 +102,29 @@ def test_onboard_record_as_the_cpp_reads_it(flightlog_export, host_build):  # no
     assert int(got["hover_steady_samples"]) == 50 and int(got["healthy"]) == rec["healthy"] == 0
 
 
+def test_onboard_record_round_trip_and_refusals():
+    """A threshold float32 cannot hold survives exactly; nocur streams carry no current; a record
+    that differs from the layout is refused in one line."""
+    from core.errors import QuadfdiError
+    from core.profiles import channel_names, required_raw
+    from export.binfmt import Section, pack, unpack
+    from export.onboard_record import check_onboard, onboard_dict, onboard_section
+
+    policy = {"threshold": 0.35, "k": 3, "n": 5, "clear_m": 4, "latch": True}
+    sec = onboard_section("flightlog-nocur", channel_names("flightlog-nocur", []), 50, 10, 0.04, policy,
+                          ["BatteryFault", "Healthy", "MotorFault"])
+    (back,) = unpack(pack(b"QFDIWTS\0", 1, [sec]), b"QFDIWTS\0", 1, "w")[1]
+    d = onboard_dict(back)
+    assert d["alarm"] == policy and d["healthy"] == 1 and d["window"] == 50 and d["stride"] == 10
+    assert d["raw_channels"] == required_raw("flightlog-nocur") + ["airborne"] and "I_b" not in d["raw_channels"]
+    bad = Section(sec.model, sec.precision, sec.dims, dict(sec.tensors))
+    bad.tensors.pop("alarm.policy")
+    with pytest.raises(QuadfdiError, match="on-board record holds tensors"):
+        check_onboard(bad, "w")
+    with pytest.raises(QuadfdiError, match="knows profiles"):
+        onboard_section("flightlog-esc", [], 50, 10, 0.04, policy, ["Healthy"])
+
+
 def _manifest(export: Path) -> dict:
     import json
 
