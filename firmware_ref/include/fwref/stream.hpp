@@ -4,7 +4,7 @@
 // C++17, no heap, every buffer sized at compile time by fwref/config.hpp (kMaxWindow,
 // kMaxChannels, kMaxRawChannels, kMaxClasses, kMaxAlarmN).
 //
-//   fwref::Stream s;                        // ~2 * W * C floats + the alarm's ring: make it static
+//   fwref::Stream s;                        // 2 * W * C floats + the alarm's ring: make it static
 //   s.init(params, cells, run_window, ctx);  // params from weights.bin's on-board record
 //   s.push(sample, t);                       // sample: the record's raw channels, in its order
 //   if (s.last().status == fwref::StrideStatus::kDecided) { s.last().proba; s.last().alarm; }
