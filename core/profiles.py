@@ -101,8 +101,11 @@ def apply_profile(name: str, raw: dict[str, np.ndarray], cells, hover_cmd, hover
         raise ValueError("the paper profile is the raw telemetry itself")
     f32 = {k: np.asarray(v, dtype=np.float32) for k, v in raw.items()}
     per = lambda v: np.asarray(v, dtype=np.float32)[..., None]  # noqa: E731 (per flight -> broadcast over T)
-    yaw = f32["yaw"]
-    c, s = np.cos(yaw), np.sin(yaw)
+    # cos and sin in float64, then rounded to float32: libm's correctly rounded values, which the C++
+    # mirror (firmware_ref fwref/profile.hpp) reproduces bit for bit; numpy's float32 SIMD cos differs
+    # from them in the last bit for ~15 % of angles, which would make int8 stream parity a lottery.
+    yaw = f32["yaw"].astype(np.float64)
+    c, s = np.cos(yaw).astype(np.float32), np.sin(yaw).astype(np.float32)
     values = {"roll": f32["roll"], "pitch": f32["pitch"], "p": f32["p"], "q": f32["q"], "r": f32["r"],
               "vx_h": c * f32["vx"] + s * f32["vy"], "vy_h": -s * f32["vx"] + c * f32["vy"], "vz": f32["vz"],
               "v_cell": f32["V_b"] / per(cells), "vib": f32["vib_px4"]}

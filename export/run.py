@@ -23,13 +23,15 @@ from core.stage import stage
 from export.calibrate import WindowReader, collect_ranges, select_windows
 from export.coverage import compare, coverage, fp32_constants, markdown
 from export.graph import IR_VERSION, Built
-from export.manifest import MODEL_KINDS, artifact_names, build_manifest, encoding_of, profile_entry, write_manifest
+from export.manifest import (MODEL_KINDS, artifact_names, build_manifest, encoding_of, manifest_class_names,
+                             profile_entry, write_manifest)
 from export.quantize import weight_qmax
 from export.onnx_cnode import CnodeParams, CnodeQuant, build_cnode, calibration_probes, cnode_params, quantize_cnode
 from export.onnx_gru import (CALIBRATION_PROBES, GruParams, GruQuant, build_gru_fp32, build_gru_int8, gru_params,
                              quantize_gru)
 from export.reference_bin import pick_windows, reference_bytes
 from export.verify import batch_independence, int8_vs_fp32, ort_outputs, parity, session, torch_logits
+from export.onboard_record import onboard_section
 from export.weights_bin import weights_bytes
 from sim.dataset import Dataset, class_names, load_dataset, make_windows
 from train.profile_data import profile_of, profiled_dataset
@@ -154,7 +156,9 @@ def _export_into(run: RunDir, cfg: Config, dest: RunDir, log: Callable[[str], No
     cp, cq, gp, gq = graphs.cnode_params, graphs.cnode_quant, graphs.gru_params, graphs.gru_quant
     ref_idx = pick_windows(test_w.y, ecfg.reference_windows)
     files = {names[k]: blobs[k] for k in names}
-    files["weights.bin"] = weights_bytes(cp, cq, gp, gq)
+    onboard = onboard_section(profile, ds.channel_names, int(cnode.window), cfg.sim.stride, ds.config.sim.sample_dt_s,
+                              cfg.to_dict()["alarm"], manifest_class_names({"cnode": cblob}))
+    files["weights.bin"] = weights_bytes(cp, cq, gp, gq, onboard)
     files["reference.bin"] = reference_bytes(test_w.x[ref_idx], test_w.y[ref_idx], ref_idx, cnode, cp,
                                              graphs.cnode_int8, gru, gp, graphs.gru_int8)
     files["coverage.md"] = markdown(cov).encode()

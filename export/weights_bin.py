@@ -88,15 +88,18 @@ def gru_section(p: GruParams, q: GruQuant | None) -> Section:
     return _section("gru", "int8" if q else "fp32", gru_dims(p), v)
 
 
-def weights_bytes(cp: CnodeParams, cq: CnodeQuant, gp: GruParams, gq: GruQuant) -> bytes:
+def weights_bytes(cp: CnodeParams, cq: CnodeQuant, gp: GruParams, gq: GruQuant,
+                  onboard: Section | None = None) -> bytes:
+    """The model sections in SECTION_ORDER, then the on-board record (export/onboard_record.py) if given."""
     sections = {("cnode", "fp32"): cnode_section(cp, None), ("cnode", "int8"): cnode_section(cp, cq),
                 ("gru", "fp32"): gru_section(gp, None), ("gru", "int8"): gru_section(gp, gq)}
-    return pack(MAGIC, VERSION, [sections[k] for k in SECTION_ORDER])
+    return pack(MAGIC, VERSION, [sections[k] for k in SECTION_ORDER] + ([onboard] if onboard is not None else []))
 
 
-def write_weights(path: str | Path, cp: CnodeParams, cq: CnodeQuant, gp: GruParams, gq: GruQuant) -> bytes:
+def write_weights(path: str | Path, cp: CnodeParams, cq: CnodeQuant, gp: GruParams, gq: GruQuant,
+                  onboard: Section | None = None) -> bytes:
     """Write weights.bin atomically; returns its bytes."""
-    data = weights_bytes(cp, cq, gp, gq)
+    data = weights_bytes(cp, cq, gp, gq, onboard)
     write_bytes(path, data)
     return data
 
@@ -105,6 +108,12 @@ def write_weights(path: str | Path, cp: CnodeParams, cq: CnodeQuant, gp: GruPara
 class WeightsFile:
     version: int
     sections: list[Section]
+
+    @property
+    def onboard(self) -> Section | None:
+        """The on-board record (export/onboard_record.py); None in a file written before it."""
+        last = self.sections[-1] if self.sections else None
+        return last if last is not None and (last.model, last.precision) == ("none", "none") else None
 
     def section(self, model: str, precision: str) -> Section:
         for s in self.sections:
@@ -115,7 +124,13 @@ class WeightsFile:
 
 def check_layout(sections: list[Section], where: str) -> None:
     """Every section of the table, in its order, each holding exactly the table's tensors with the
-    dtype and shape its dims imply; otherwise a one-line QuadfdiError."""
+    dtype and shape its dims imply, optionally followed by the on-board record; otherwise a one-line
+    QuadfdiError."""
+    from export.onboard_record import KIND as ONBOARD, check_onboard
+
+    if sections and (sections[-1].model, sections[-1].precision) == ONBOARD:
+        check_onboard(sections[-1], where)
+        sections = sections[:-1]
     got = [(s.model, s.precision) for s in sections]
     if got != list(SECTION_ORDER):
         raise QuadfdiError(f"{where} holds sections {got}, the layout is {list(SECTION_ORDER)} "

@@ -24,6 +24,7 @@ STAGES = {
     "bench": "bench.cli",
     "ingest": "ingest.cli",
     "detect": "detect.cli",
+    "stream-file": "detect.stream_cli",
     "realism": "realism.cli",
     "evaluate": "evaluate.cli",
     "report": "quadfdi.report",

@@ -90,6 +90,24 @@ def small_run(tmp_path_factory) -> Path:
     return out
 
 
+# ---- a flightlog-min model (tiny realistic run): quadfdi detect (tests/test_detect.py) and the
+# streaming runtime (tests/test_stream.py) share it
+
+FLIGHTLOG_TINY = ["sim.n_traj=20", "sim.ood_traj=2", "sim.duration_s=12.0", "sim.chunk=14", "sim.window=40"]
+FLIGHTLOG_TRAIN = ["train.epochs=1", "train.latent=8", "train.hidden=16", "train.gru_hidden=16",
+                   "train.max_train_windows=60", "train.profile=flightlog-min"]
+
+
+@pytest.fixture(scope="session")
+def flightlog_export(tmp_path_factory) -> Path:
+    """RUN/export of a tiny realistic run trained with the flightlog-min profile through the CLI."""
+    sim = tmp_path_factory.mktemp("flightlog") / "tiny"
+    res = quadfdi("sim", "--config", str(ROOT / "configs/realistic.toml"), "--out", str(sim), "--workers", "1",
+                  *[a for v in FLIGHTLOG_TINY for a in ("--set", v)])
+    assert res.returncode == 0, res.stderr
+    return trained_export_run(sim, tmp_path_factory.mktemp("flightlog_run") / "run", *FLIGHTLOG_TRAIN) / "export"
+
+
 # ---- the fault-injection suite's runs (tests/test_faults*.py)
 
 

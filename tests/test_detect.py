@@ -9,25 +9,18 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tests.conftest import ROOT, quadfdi, trained_export_run
+from tests.conftest import quadfdi
 from tests.test_firmware_fixtures import host_build  # noqa: F401 (fixture)
 
 REAL = Path("/work/shared/data/flightlogs")
-TINY = ["sim.n_traj=20", "sim.ood_traj=2", "sim.duration_s=12.0", "sim.chunk=14", "sim.window=40"]
-TRAIN = ["train.epochs=1", "train.latent=8", "train.hidden=16", "train.gru_hidden=16", "train.max_train_windows=60",
-         "train.profile=flightlog-min"]
 MISSION = REAL / "px4_quad_6s_uavcan_mission.ulg"
 
 pytestmark = pytest.mark.skipif(not MISSION.is_file(), reason="the shared real flight logs are not here")
 
 
 @pytest.fixture(scope="module")
-def export(tmp_path_factory) -> Path:
-    sim = tmp_path_factory.mktemp("detect") / "tiny"
-    res = quadfdi("sim", "--config", str(ROOT / "configs/realistic.toml"), "--out", str(sim), "--workers", "1",
-                  *[a for v in TINY for a in ("--set", v)])
-    assert res.returncode == 0, res.stderr
-    return trained_export_run(sim, tmp_path_factory.mktemp("detect_run") / "run", *TRAIN) / "export"
+def export(flightlog_export) -> Path:
+    return flightlog_export  # tests/conftest.py: shared with tests/test_stream.py
 
 
 @pytest.fixture(scope="module")

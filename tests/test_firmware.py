@@ -212,6 +212,8 @@ def _tensor_headers(data: bytes) -> list[tuple[int, tuple[str, bool]]]:
     models, out = {1: "cnode", 2: "gru"}, []
     for start, _ in _sections(data):
         model, precision = struct.unpack_from("<II", data, start + 8)
+        if model not in models:
+            continue  # the on-board record (export/onboard_record.py): no model binds it
         pos = start + 52
         for _ in range(struct.unpack_from("<I", data, start + 48)[0]):
             out.append((pos, (models[model], precision == 2)))

@@ -1,0 +1,35 @@
+"""``quadfdi stream-file --model RUN/export (FLIGHT | --dataset DATASET.npz --flight N) --out STREAM.bin``:
+a flight as the raw telemetry stream that ``fwref_stream`` (firmware_ref's streaming runtime) reads,
+with the raw channels in the order the export's on-board record names (docs/formats.md "Stream
+file"). A flight the model cannot use is refused as by ``quadfdi detect``: one line, exit 2, nothing written."""
+
+from __future__ import annotations
+
+import argparse
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("stream-file", help="write a flight as a raw telemetry stream for fwref_stream",
+                       description="A simulated flight of a dataset or a real flight (.ulg, .BIN, flight.npz) as a "
+                                   "stream file: header (channels, period, profile, cells), then f64 time + f32 "
+                                   "samples (docs/formats.md).")
+    p.add_argument("flight", metavar="FLIGHT", nargs="?", help="a PX4 .ulg, an ArduPilot .BIN or a flight.npz")
+    p.add_argument("--model", required=True, help="the export folder (RUN/export): its weights.bin's on-board record")
+    p.add_argument("--dataset", help="a simulated dataset.npz instead of FLIGHT")
+    p.add_argument("--flight", dest="index", type=int, help="with --dataset: the flight's index")
+    p.add_argument("--out", required=True, help="the stream file to write")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from core.errors import QuadfdiError
+    from detect.streamfile import from_dataset, from_flight, record_of, write_stream
+
+    if (args.dataset is None) == (args.flight is None) or (args.dataset is not None and args.index is None):
+        raise QuadfdiError("stream-file needs either FLIGHT or --dataset DATASET.npz --flight N")
+    record = record_of(args.model)
+    rs = from_dataset(args.dataset, args.index, record) if args.dataset else from_flight(args.flight, record)
+    write_stream(args.out, rs)
+    print(f"stream-file: {rs.source}: {len(rs.time)} samples x {len(rs.names)} channels ({rs.profile}, "
+          f"{rs.cells} cells) -> {args.out}")
+    return 0

@@ -1,0 +1,134 @@
+"""Stream files (docs/formats.md "Stream file"): a flight as the raw telemetry stream a flight
+controller would deliver, for ``fwref_stream`` (firmware_ref's streaming runtime).
+
+Little-endian; a 128-byte fixed header, the channel names, then the samples:
+
+    0   char[8]   magic          b"QFDISTR\\0"
+    8   u32       version        1
+    12  u32       header_bytes   where the samples begin (128 + names, padded to a multiple of 8)
+    16  u32       n_channels     R
+    20  u32       cells          the pack's cell count (0: unknown / not needed)
+    24  f64       sample_dt_s    the grid period (0.04)
+    32  char[32]  profile        the channel profile the stream is for (core.profiles), NUL-padded
+    64  char[64]  source         the flight it came from, NUL-padded (truncated)
+    128 names     R channel names, each NUL-terminated ASCII, then zero padding
+    SAMPLES       f64 t (s), f32 values[R]   (8 + 4R bytes each; NaN = no data for that channel)
+
+The channels are the raw ones the export's on-board record names, in its order
+(export/onboard_record.stream_channels): for a profile with a hover estimate the raw channels it
+reads and ``airborne`` (0/1) last; for ``paper`` the model's own channels.
+"""
+
+from __future__ import annotations
+
+import struct
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from core.errors import QuadfdiError
+
+MAGIC = b"QFDISTR\0"
+VERSION = 1
+FIXED = struct.Struct("<8sIIIId32s64s")  # 128 bytes
+
+
+@dataclass
+class RawStream:
+    source: str
+    profile: str
+    names: list[str]
+    sample_dt_s: float
+    cells: int
+    time: np.ndarray  # (T,) float64, s
+    values: np.ndarray  # (T, R) float32
+
+    def column(self, name: str) -> np.ndarray:
+        return self.values[:, self.names.index(name)]
+
+
+def stream_bytes(rs: RawStream) -> bytes:
+    names = b"".join(n.encode("ascii") + b"\0" for n in rs.names)
+    header_bytes = FIXED.size + len(names) + (-(FIXED.size + len(names))) % 8
+    head = FIXED.pack(MAGIC, VERSION, header_bytes, len(rs.names), int(rs.cells), float(rs.sample_dt_s),
+                      rs.profile.encode("ascii"), rs.source.encode("utf-8")[:63])
+    rec = np.zeros(len(rs.time), dtype=[("t", "<f8"), ("v", "<f4", (len(rs.names),))])
+    rec["t"], rec["v"] = rs.time, rs.values
+    return head + names.ljust(header_bytes - FIXED.size, b"\0") + rec.tobytes()
+
+
+def write_stream(path: str | Path, rs: RawStream) -> None:
+    from core.atomic import write_bytes
+
+    write_bytes(path, stream_bytes(rs))
+
+
+def read_stream(path: str | Path) -> RawStream:
+    """Parse a stream file; a foreign or truncated file is a one-line QuadfdiError."""
+    data = Path(path).read_bytes()
+    if len(data) < FIXED.size or data[:8] != MAGIC:
+        raise QuadfdiError(f"{path} is not a quadfdi stream file")
+    _, version, header_bytes, r, cells, dt, profile, source = FIXED.unpack_from(data)
+    if version != VERSION:
+        raise QuadfdiError(f"{path} has stream version {version}, this reader reads {VERSION}")
+    names = [n.decode("ascii") for n in data[FIXED.size:header_bytes].split(b"\0")[:r]]
+    body = data[header_bytes:]
+    rec = np.dtype([("t", "<f8"), ("v", "<f4", (r,))])
+    if len(names) != r or len(body) % rec.itemsize:
+        raise QuadfdiError(f"{path} is truncated or has a bad header")
+    arr = np.frombuffer(body, rec)
+    return RawStream(source.rstrip(b"\0").decode("utf-8", "replace"), profile.rstrip(b"\0").decode("ascii"), names,
+                     float(dt), int(cells), arr["t"].astype(np.float64), arr["v"].astype(np.float32).reshape(-1, r))
+
+
+def record_of(export: str | Path) -> dict:
+    """The export's on-board record (export/onboard_record.onboard_dict), or a one-line refusal."""
+    from export.onboard_record import onboard_dict
+    from export.weights_bin import read_weights
+
+    wf = read_weights(Path(export) / "weights.bin")
+    if wf.onboard is None:
+        raise QuadfdiError(f"{export}/weights.bin has no on-board record (exported before it: re-run `quadfdi export`)")
+    return onboard_dict(wf.onboard)
+
+
+def from_dataset(dataset: str | Path, flight: int, record: dict) -> RawStream:
+    """Flight ``flight`` of a simulated dataset.npz (every simulated flight is airborne throughout)."""
+    from sim.dataset import load_dataset
+
+    ds = load_dataset(dataset)
+    tel = ds["telemetry"]
+    if not 0 <= flight < tel.shape[0]:
+        raise QuadfdiError(f"{dataset} has flights 0..{tel.shape[0] - 1}, not {flight}")
+    names, cols = ds.channel_names, []
+    for r in record["raw_channels"]:
+        if r == "airborne" and record["cells_from_stream"]:
+            cols.append(np.ones(tel.shape[1], np.float32))
+        elif r in names:
+            cols.append(tel[flight, :, names.index(r)])
+        else:
+            raise QuadfdiError(f"{dataset} has no channel {r!r}, which the model's stream needs")
+    cells = 0
+    if record["cells_from_stream"]:
+        if "pack_cells" not in ds.arrays:
+            raise QuadfdiError(f"{dataset} has no pack_cells: profile {record['profile']!r} needs the cell count")
+        cells = int(ds["pack_cells"][flight])
+    dt = float(ds.config.sim.sample_dt_s)
+    return RawStream(f"{Path(dataset).name}#{flight}", record["profile"], list(record["raw_channels"]), dt, cells,
+                     np.arange(tel.shape[1]) * dt, np.stack(cols, axis=1).astype(np.float32))
+
+
+def from_flight(path: str | Path, record: dict) -> RawStream:
+    """A real flight (.ulg / .BIN ingested on the fly, or flight.npz) with detect's refusals."""
+    from detect.inputs import _cells, _raw_channels, read_flight
+
+    if not record["cells_from_stream"]:
+        raise QuadfdiError(f"profile {record['profile']!r} is the simulator's telemetry: a real flight cannot feed it "
+                           "(train with --set train.profile=flightlog-min)")
+    arrays = read_flight(path)
+    cells = _cells(arrays)
+    raw, _ = _raw_channels(arrays, record["profile"])
+    cols = [np.asarray(arrays["airborne"], np.float32) if r == "airborne" else raw[r] for r in record["raw_channels"]]
+    return RawStream(Path(path).name, record["profile"], list(record["raw_channels"]), float(record["sample_dt_s"]),
+                     cells, np.asarray(arrays["time"], np.float64), np.stack(cols, axis=1).astype(np.float32))

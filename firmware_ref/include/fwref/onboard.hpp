@@ -1,0 +1,29 @@
+// fwref/onboard.hpp -- scope: weights.bin's on-board record on the host (export/onboard_record.py,
+// docs/formats.md): the section (model 0, precision 0) after the model sections, read and checked
+// against this build: a hover profile's raw and model channels must be the ones fwref/profile.hpp
+// compiles in, the hover filter's constants the ones fwref/hover.hpp compiles in. Host only
+// (std::string, std::vector); a microcontroller build takes the same values from generated constants.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "fwref/stream.hpp"
+#include "fwref/weights_file.hpp"
+
+namespace fwref {
+
+struct OnboardRecord {
+  StreamParams params{};             // classes: 0 here, the bound model's K goes in before Stream::init
+  bool cells_from_stream = false;    // the cell count comes with the stream (its header)
+  int hover_steady = 0, hover_settle = 0;
+  float hover_limits[3] = {};        // vz_max, tilt_max, cmd_min
+  std::vector<std::string> raw_names;    // the stream's channels, in sample order
+  std::vector<std::string> model_names;  // the model's input channels
+};
+
+// kMissingSection: a weights.bin written before the record (re-run `quadfdi export`); kBadShape /
+// kDimsInvalid: a record this build cannot run. ``*error`` is one line naming the file.
+Status read_onboard(const WeightsFile& wf, OnboardRecord* out, std::string* error);
+
+}  // namespace fwref

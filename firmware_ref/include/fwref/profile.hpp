@@ -1,0 +1,97 @@
+// fwref/profile.hpp -- scope: the channel profiles of core/profiles.py on one raw sample, in
+// float32, as the streaming runtime (fwref/stream.hpp) applies them. Header-only, no heap.
+//
+// A stream delivers the raw channels the on-board record names (export/onboard_record.py), in
+// this order for the profiles with a hover estimate (``airborne`` 0/1 last):
+//   flightlog-min:   roll pitch p q r vx vy yaw vz V_b I_b thr1 thr2 thr3 thr4 vib_px4 airborne
+//   flightlog-nocur: roll pitch p q r vx vy yaw vz V_b     thr1 thr2 thr3 thr4 vib_px4 airborne
+// and the model's own channels for ``paper`` (the identity). The model channels, as Python:
+//   roll pitch p q r | vx_h = c vx + s vy | vy_h = -s vx + c vy | vz | v_cell = V_b / cells |
+//   i_rel = I_b / hover_cur (min only) | m1..4_rel = thr / hover_cmd | vib = vib_px4
+// with c = float(cos(double(yaw))), s = float(sin(double(yaw))) (libm, correctly rounded; core/profiles.py
+// does the same), every other operation one float32 operation. ``prep`` computes a sample's values
+// that do not depend on the hover estimate (at push); ``hover`` divides the hover columns once the
+// estimate exists (at the decision): thr / cmd is the same float32 division either way.
+#pragma once
+
+#include <cmath>
+#include <cstring>
+
+namespace fwref {
+
+enum class Profile : int { kPaper = 0, kFlightlogMin = 1, kFlightlogNocur = 2 };
+constexpr int kProfileCount = 3;
+
+struct ProfileSpec {
+  const char* name;
+  int raw;          // raw channels (0: paper, the model's own)
+  int channels;     // model channels (0: paper)
+  const char* const* raw_names;
+  const char* const* model_names;
+  int i_b;          // raw column of the current (-1: none)
+  int thr;          // raw column of thr1 (thr1..thr4 follow)
+};
+
+namespace profile_tables {
+constexpr const char* kMinRaw[] = {"roll", "pitch", "p", "q", "r", "vx", "vy", "yaw", "vz",
+                                   "V_b", "I_b", "thr1", "thr2", "thr3", "thr4", "vib_px4", "airborne"};
+constexpr const char* kNocurRaw[] = {"roll", "pitch", "p", "q", "r", "vx", "vy", "yaw", "vz",
+                                     "V_b", "thr1", "thr2", "thr3", "thr4", "vib_px4", "airborne"};
+constexpr const char* kMinModel[] = {"roll", "pitch", "p", "q", "r", "vx_h", "vy_h", "vz", "v_cell",
+                                     "i_rel", "m1_rel", "m2_rel", "m3_rel", "m4_rel", "vib"};
+constexpr const char* kNocurModel[] = {"roll", "pitch", "p", "q", "r", "vx_h", "vy_h", "vz", "v_cell",
+                                       "m1_rel", "m2_rel", "m3_rel", "m4_rel", "vib"};
+constexpr ProfileSpec kSpecs[kProfileCount] = {
+    {"paper", 0, 0, nullptr, nullptr, -1, -1},
+    {"flightlog-min", 17, 15, kMinRaw, kMinModel, 10, 11},
+    {"flightlog-nocur", 16, 14, kNocurRaw, kNocurModel, -1, 10},
+};
+}  // namespace profile_tables
+
+inline const ProfileSpec& profile_spec(Profile p) { return profile_tables::kSpecs[static_cast<int>(p)]; }
+
+// The inputs of the hover estimate (fwref/hover.hpp) in one raw sample of a hover profile.
+struct HoverInputs {
+  float vz, roll, pitch, thr[4], current;
+  bool airborne;
+};
+
+inline HoverInputs hover_inputs(Profile p, const float* raw) {
+  const ProfileSpec& s = profile_spec(p);
+  HoverInputs h{raw[8], raw[0], raw[1], {raw[s.thr], raw[s.thr + 1], raw[s.thr + 2], raw[s.thr + 3]},
+                s.i_b >= 0 ? raw[s.i_b] : NAN, raw[s.raw - 1] >= 0.5f};  // NaN airborne: not airborne
+  return h;
+}
+
+// x (C) <- the sample's hover-independent model values; hover columns hold the raw current / commands.
+inline void profile_prep(Profile p, const float* raw, int raw_n, float cells, float* x) {
+  if (p == Profile::kPaper) {
+    std::memcpy(x, raw, sizeof(float) * static_cast<std::size_t>(raw_n));
+    return;
+  }
+  const ProfileSpec& s = profile_spec(p);
+  const float yaw = raw[7];
+  const float c = static_cast<float>(std::cos(static_cast<double>(yaw)));
+  const float sn = static_cast<float>(std::sin(static_cast<double>(yaw)));
+  const float vx = raw[5], vy = raw[6];
+  int j = 0;
+  for (int k = 0; k < 5; ++k) x[j++] = raw[k];  // roll pitch p q r
+  x[j++] = c * vx + sn * vy;
+  x[j++] = -sn * vx + c * vy;
+  x[j++] = raw[8];          // vz
+  x[j++] = raw[9] / cells;  // v_cell
+  if (s.i_b >= 0) x[j++] = raw[s.i_b];
+  for (int k = 0; k < 4; ++k) x[j++] = raw[s.thr + k];
+  x[j++] = raw[s.thr + 4];  // vib_px4
+}
+
+// One prepared sample (C) -> the model's values: the hover columns divided by the frozen estimate.
+inline void profile_hover(Profile p, float hover_cmd, float hover_cur, float* x) {
+  if (p == Profile::kPaper) return;
+  const ProfileSpec& s = profile_spec(p);
+  int j = 9;
+  if (s.i_b >= 0) x[j] = x[j] / hover_cur, ++j;
+  for (int k = 0; k < 4; ++k, ++j) x[j] = x[j] / hover_cmd;
+}
+
+}  // namespace fwref

@@ -1,0 +1,149 @@
+// fwref/stream.hpp -- scope: the on-board streaming runtime (issue 16, docs/firmware.md
+// "Streaming"): one raw telemetry sample at a time in, a decision at every stride out, with the
+// arithmetic of the window path (the Python one: detect/, and the C++ one: infer() on a window).
+// C++17, no heap, every buffer sized at compile time by fwref/config.hpp (kMaxWindow,
+// kMaxChannels, kMaxRawChannels, kMaxClasses, kMaxAlarmN).
+//
+//   fwref::Stream s;                        // 2 * W * C floats + the alarm's ring: make it static
+//   s.init(params, cells, run_window, ctx);  // params from weights.bin's on-board record
+//   s.push(sample, t);                       // sample: the record's raw channels, in its order
+//   if (s.last().status == fwref::StrideStatus::kDecided) { s.last().proba; s.last().alarm; }
+//   s.reset();                               // between flights
+//
+// Per sample: the profile's hover-independent values go into a ring of the window length
+// (fwref/profile.hpp) and the hover estimator (fwref/hover.hpp) takes the sample. At every stride
+// once W samples have arrived (window ends at samples W-1, W-1+stride, ...: the window grid of
+// detect/ and train/) the stride has one outcome:
+//   kNoHover  the hover estimate has not frozen by the window's last sample: no decision;
+//   kSkipped  a sample of the window is unusable: NaN/Inf in a raw channel or a model value, or not
+//             airborne (the profiles with a hover estimate), as detect/inputs.py skips it;
+//   kDecided  the window (hover columns divided by the frozen estimate) runs through the window
+//             path (``WindowFn``: infer() of cnode.cpp / gru.cpp), softmax in double.
+// Every stride then steps the alarm policy (fwref/alarm.hpp; only kDecided strides are valid).
+// No decision before W samples; reset() forgets everything (ring, hover estimate, alarm).
+//
+// Timestamps: each sample carries its time t (s). The stream runs on the grid of the record's
+// sample period dt. A gap (t - t_prev rounds to g > 1 periods) is HELD, not reset: the g - 1
+// missing samples are pushed as unusable samples (NaN, airborne as before), so the windows
+// containing them are skipped and the stride phase, the hover estimate and the alarm carry on.
+// This is what the window path does with an ingested flight (whose grid marks a logging gap as
+// masked samples), so both decide the same; a reset would throw away the frozen hover estimate,
+// which belongs to the vehicle, not to the gap. A time that does not advance by at least half a
+// period is refused (kBadInput, the sample is dropped).
+#pragma once
+
+#include <cstdint>
+
+#include "fwref/alarm.hpp"
+#include "fwref/config.hpp"
+#include "fwref/hover.hpp"
+#include "fwref/profile.hpp"
+#include "fwref/status.hpp"
+
+// The Cortex-M stream image sets these two through a generated header (tools/gen_stream.py).
+#ifdef FWREF_STREAM_LIMITS_HEADER
+#include FWREF_STREAM_LIMITS_HEADER
+#endif
+#ifndef FWREF_MAX_RAW_CHANNELS
+#define FWREF_MAX_RAW_CHANNELS FWREF_MAX_CHANNELS
+#endif
+#ifndef FWREF_MAX_ALARM_N
+#define FWREF_MAX_ALARM_N 64
+#endif
+
+namespace fwref {
+
+constexpr int kMaxRawChannels = FWREF_MAX_RAW_CHANNELS;  // channels of one stream sample
+constexpr int kMaxAlarmN = FWREF_MAX_ALARM_N;            // the alarm policy's n
+constexpr int kHoverSteady = 50;                         // core.hover.STEADY_SAMPLES, compiled in
+
+// What the stream needs besides the weights: weights.bin's on-board record (fwref/onboard.hpp).
+struct StreamParams {
+  Profile profile;
+  int window;          // W
+  int stride;          // samples between decisions
+  int raw_channels;    // R, channels of one sample
+  int channels;        // C, the model's
+  int classes;         // K
+  double sample_dt_s;  // the grid period
+  AlarmParams alarm;
+};
+
+enum class StrideStatus : int { kNone = 0, kNoHover = 1, kSkipped = 2, kDecided = 3 };
+const char* stride_status_name(StrideStatus s);
+
+// The outcome of one stride (the latest: Stream::last()).
+struct Decision {
+  StrideStatus status = StrideStatus::kNone;
+  std::int64_t index = -1;  // sample index of the window's last sample (0 = the first pushed)
+  double t = 0.0;           // its timestamp, s
+  float logits[kMaxClasses] = {};
+  double proba[kMaxClasses] = {};  // softmax of the logits (kDecided only)
+  AlarmStep alarm{false, false, false, false, -1, -1};
+  int motor = -1;  // the window path's suspected motor (0..3): -1, the models have no motor output yet
+};
+
+// The window path: Status infer(model, window (W, C), logits (K)) behind a plain function pointer.
+using WindowFn = Status (*)(void* ctx, const float* window, float* logits);
+
+template <class Model, class Workspace>
+struct WindowRunner {
+  const Model* model;
+  Workspace* ws;
+  static Status run(void* ctx, const float* window, float* logits);
+};
+
+// Called for every stride (several when a gap is filled); optional.
+class StrideSink {
+ public:
+  virtual void on_stride(const Decision& d) = 0;
+
+ protected:
+  ~StrideSink() = default;
+};
+
+class Stream {
+ public:
+  // kDimsTooLarge / kDimsInvalid when the parameters exceed this build's capacity or disagree with
+  // the profile; ``cells`` the pack's cell count (profiles with a hover estimate; ignored otherwise).
+  Status init(const StreamParams& p, int cells, WindowFn fn, void* ctx);
+  // One sample (R raw channels, the record's order) at time t; kBadInput: a time that is not finite or does
+  // not advance by half a period, the sample dropped.
+  Status push(const float* sample, double t, StrideSink* sink = nullptr);
+  void reset();  // a new flight: ring, hover estimate, alarm and time forgotten
+
+  const Decision& last() const { return last_; }  // the latest stride (status kNone before any)
+  std::int64_t samples() const { return next_; }  // samples pushed, filled gap samples included
+  bool hover_frozen() const { return hover_.frozen(); }
+  float hover_cmd() const { return hover_.cmd(); }
+  float hover_cur() const { return hover_.cur(); }
+  std::int64_t decided() const { return decided_; }
+  std::int64_t skipped() const { return skipped_; }
+
+ private:
+  Status push_one(const float* sample, double t, StrideSink* sink);
+  void stride(double t, StrideSink* sink);
+
+  StreamParams p_{};
+  float cells_ = 0.0f;
+  WindowFn fn_ = nullptr;
+  void* ctx_ = nullptr;
+  float ring_[kMaxWindow * kMaxChannels] = {};  // prepared samples, slot = index % W
+  bool ok_[kMaxWindow] = {};                    // the sample is usable
+  float win_[kMaxWindow * kMaxChannels] = {};   // the window handed to the model, oldest first
+  float nan_sample_[kMaxRawChannels] = {};
+  HoverEstimator<kHoverSteady> hover_;
+  AlarmPolicy<kMaxAlarmN, kMaxClasses> alarm_;
+  Decision last_;
+  std::int64_t next_ = 0, decided_ = 0, skipped_ = 0;
+  double t_prev_ = 0.0;
+  bool airborne_prev_ = false;
+};
+
+template <class Model, class Workspace>
+Status WindowRunner<Model, Workspace>::run(void* ctx, const float* window, float* logits) {
+  auto* self = static_cast<WindowRunner*>(ctx);
+  return infer(*self->model, window, logits, *self->ws);
+}
+
+}  // namespace fwref

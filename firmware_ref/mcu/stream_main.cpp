@@ -1,0 +1,126 @@
+// mcu/stream_main.cpp -- scope: the streaming runtime (fwref/stream.hpp) on the Cortex-M under
+// QEMU: the four compiled-in models (fwref_weights_*.cpp) each replay the compiled-in flights
+// (fwref_stream_data.cpp, tools/gen_stream.py) sample by sample with reset() between flights,
+// counting instructions per push (SysTick under -icount). Output over semihosting, parsed by
+// scripts/stream_mcu.py, which holds the strides against the host's fwref_stream:
+//   STREAM cpu=<cpu> flights=<n> instructions_per_tick=<r>
+//   STRIDE <model> <prec> <flight> <index> <status> <logit bits (u32) x K> <vote> <active> <cls>
+//   PERF <model> <prec> <flight> samples=<n> push_n=<n> push_sum=<i> push_max=<i> decide_n=<n> decide_sum=<i>
+//        decide_max=<i> other_n=<n> other_sum=<i> other_max=<i>
+//   RESULT DONE
+// (push: a push without a stride; decide: a push whose stride ran the model; other: a stride
+// without a decision: nohover or skipped.)
+#include <cstdint>
+#include <cstring>
+
+#include "board.hpp"
+#include "fwref_stream_data.hpp"
+#include "fwref_weights.hpp"
+
+#ifndef FWREF_CPU_NAME
+#define FWREF_CPU_NAME "unknown"
+#endif
+
+namespace {
+
+struct Line {  // no printf: newlib's allocates
+  char buf[512];
+  int n = 0;
+  Line& s(const char* t) {
+    while (*t && n < 508) buf[n++] = *t++;
+    return *this;
+  }
+  Line& u(std::uint64_t v) {
+    char tmp[24];
+    int k = 0;
+    do tmp[k++] = char('0' + v % 10); while ((v /= 10) && k < 23);
+    while (k && n < 508) buf[n++] = tmp[--k];
+    return *this;
+  }
+  Line& i(long v) { return v < 0 ? s("-").u(std::uint64_t(-v)) : u(std::uint64_t(v)); }
+  void out() {
+    buf[n++] = '\n';
+    buf[n] = '\0';
+    board::puts(buf);
+  }
+};
+
+// Keeps the strides of one push (a gap can give several) so that printing is not timed.
+class Keep final : public fwref::StrideSink {
+ public:
+  void on_stride(const fwref::Decision& d) override {
+    if (n < 8) held[n++] = d;
+  }
+  fwref::Decision held[8];
+  int n = 0;
+};
+
+struct Stat {
+  std::uint64_t n = 0, sum = 0, max = 0;
+  void add(std::uint64_t v) { ++n, sum += v, max = v > max ? v : max; }
+};
+
+fwref::Stream g_stream;
+fwref::CnodeWorkspace g_cnode_ws;
+fwref::GruWorkspace g_gru_ws;
+double g_ratio = 0.0;
+
+template <class Model, class Workspace>
+bool replay(const Model& m, Workspace& ws, const char* model, const char* prec) {
+  using namespace fwref_stream_data;
+  fwref::WindowRunner<Model, Workspace> runner{&m, &ws};
+  const int R = kParams.raw_channels, K = kParams.classes;
+  for (int f = 0; f < kFlightCount; ++f) {
+    const Flight& fl = kFlights[f];
+    if (g_stream.init(kParams, fl.cells, &fwref::WindowRunner<Model, Workspace>::run, &runner) != fwref::Status::kOk) {
+      return false;
+    }
+    Stat push, decide, other;
+    for (int k = 0; k < fl.samples; ++k) {
+      Keep keep;
+      const std::uint64_t t0 = board::ticks();
+      g_stream.push(fl.values + k * R, fl.t[k], &keep);
+      const std::uint64_t ins = std::uint64_t(double(board::ticks() - t0) * g_ratio + 0.5);
+      bool decided = false;
+      for (int j = 0; j < keep.n; ++j) {
+        const fwref::Decision& d = keep.held[j];
+        decided = decided || d.status == fwref::StrideStatus::kDecided;
+        Line l;
+        l.s("STRIDE ").s(model).s(" ").s(prec).s(" ").u(f).s(" ").i(long(d.index)).s(" ")
+            .s(fwref::stride_status_name(d.status));
+        for (int c = 0; c < K; ++c) {
+          std::uint32_t bits;
+          std::memcpy(&bits, &d.logits[c], 4);
+          l.s(" ").u(bits);
+        }
+        l.s(" ").u(d.alarm.vote).s(" ").u(d.alarm.active).s(" ").i(d.alarm.cls).out();
+      }
+      (keep.n == 0 ? push : decided ? decide : other).add(ins);
+    }
+    Line().s("PERF ").s(model).s(" ").s(prec).s(" ").u(f).s(" samples=").u(fl.samples).s(" push_n=").u(push.n)
+        .s(" push_sum=").u(push.sum).s(" push_max=").u(push.max).s(" decide_n=").u(decide.n).s(" decide_sum=")
+        .u(decide.sum).s(" decide_max=").u(decide.max).s(" other_n=").u(other.n).s(" other_sum=").u(other.sum)
+        .s(" other_max=").u(other.max).out();
+  }
+  return true;
+}
+
+}  // namespace
+
+int main() {
+  board::ticks_start();
+  // SysTick's current value reads 0 until its first reload: board::ticks() taken at once after
+  // ticks_start() is one reload short (calibrate() then came out negative). The first line gives it time.
+  Line().s("STREAM-START cpu=").s(FWREF_CPU_NAME).out();
+  std::uint64_t loop_ticks = 0;
+  g_ratio = board::calibrate(2000000, &loop_ticks);
+  Line l;
+  l.s("STREAM cpu=").s(FWREF_CPU_NAME).s(" flights=").u(fwref_stream_data::kFlightCount)
+      .s(" calib_ticks=").u(loop_ticks).s(" instructions_per_tick_x1000=").u(std::uint64_t(g_ratio * 1000.0 + 0.5))
+      .out();
+  using namespace fwref_data;
+  const bool ok = replay(kCnodeF32, g_cnode_ws, "cnode", "fp32") && replay(kCnodeI8, g_cnode_ws, "cnode", "int8") &&
+                  replay(kGruF32, g_gru_ws, "gru", "fp32") && replay(kGruI8, g_gru_ws, "gru", "int8");
+  Line().s(ok ? "RESULT DONE" : "RESULT FAIL stream init").out();
+  return ok ? 0 : 2;
+}

@@ -1,0 +1,102 @@
+// src/onboard.cpp -- scope: reading and checking weights.bin's on-board record (fwref/onboard.hpp).
+#include "fwref/onboard.hpp"
+
+#include <cstring>
+
+namespace fwref {
+
+namespace {
+
+constexpr const char* kTensors[] = {"raw.names", "model.names", "sample_dt_s", "hover.limits", "alarm.threshold",
+                                    "alarm.policy"};
+
+std::vector<std::string> names_of(const std::vector<std::int32_t>& codes) {
+  std::vector<std::string> out;
+  std::string cur;
+  for (std::int32_t c : codes) {
+    if (c == 0) {
+      out.push_back(cur);
+      cur.clear();
+    } else {
+      cur += static_cast<char>(c);
+    }
+  }
+  return out;
+}
+
+}  // namespace
+
+Status read_onboard(const WeightsFile& wf, OnboardRecord* out, std::string* error) {
+  const Container& file = wf.container();
+  const SectionInfo* sec = file.find(kModelNone, kPrecNone);
+  if (sec == nullptr) {
+    *error = fmt("%s holds no on-board record (written before it: re-run `quadfdi export`)", file.where().c_str());
+    return Status::kMissingSection;
+  }
+  const TensorInfo* t[6];
+  for (int i = 0; i < 6; ++i) {
+    t[i] = sec->find(kTensors[i]);
+    const bool f32 = i == 2 || i == 3;
+    if (t[i] == nullptr || t[i]->dtype != (f32 ? DType::kF32 : DType::kI32) || t[i]->ndim != 1) {
+      *error = fmt("%s: the on-board record lacks tensor '%s' or it has the wrong dtype", file.where().c_str(),
+                   kTensors[i]);
+      return Status::kBadShape;
+    }
+  }
+  std::vector<std::int32_t> raw(t[0]->count), model(t[1]->count), thr(2), pol(5);
+  float dt = 0.0f;
+  if (t[2]->count != 1 || t[3]->count != 3 || t[4]->count != 2 || t[5]->count != 5) {
+    *error = fmt("%s: the on-board record's tensors have the wrong sizes", file.where().c_str());
+    return Status::kBadShape;
+  }
+  file.copy_i32(*t[0], raw.data());
+  file.copy_i32(*t[1], model.data());
+  file.copy_f32(*t[2], &dt);
+  file.copy_f32(*t[3], out->hover_limits);
+  file.copy_i32(*t[4], thr.data());
+  file.copy_i32(*t[5], pol.data());
+  const std::uint32_t* d = sec->dims;
+  OnboardRecord& r = *out;
+  r.raw_names = names_of(raw);
+  r.model_names = names_of(model);
+  if (d[0] >= static_cast<std::uint32_t>(kProfileCount) || r.raw_names.size() != d[3] || r.model_names.size() != d[4]) {
+    *error = fmt("%s: the on-board record's dims disagree with its channel names (profile id %u)", file.where().c_str(),
+                 d[0]);
+    return Status::kDimsInvalid;
+  }
+  std::uint64_t bits = std::uint32_t(thr[0]) | (std::uint64_t(std::uint32_t(thr[1])) << 32);
+  double threshold;
+  std::memcpy(&threshold, &bits, sizeof threshold);
+  r.params = StreamParams{static_cast<Profile>(d[0]), int(d[1]), int(d[2]), int(d[3]), int(d[4]), 0, double(dt),
+                          AlarmParams{threshold, pol[0], pol[1], pol[2], pol[3] != 0, pol[4], 0}};
+  r.cells_from_stream = d[5] != 0;
+  r.hover_steady = int(d[6]);
+  r.hover_settle = int(d[7]);
+  const ProfileSpec& spec = profile_spec(r.params.profile);
+  if (r.params.profile != Profile::kPaper) {
+    for (int i = 0; i < spec.raw; ++i) {
+      if (int(r.raw_names.size()) != spec.raw || r.raw_names[i] != spec.raw_names[i]) {
+        *error = fmt("%s: the on-board record's raw channels are not profile %s's as this build knows them",
+                     file.where().c_str(), spec.name);
+        return Status::kDimsInvalid;
+      }
+    }
+    for (int i = 0; i < spec.channels; ++i) {
+      if (int(r.model_names.size()) != spec.channels || r.model_names[i] != spec.model_names[i]) {
+        *error = fmt("%s: the on-board record's model channels are not profile %s's", file.where().c_str(), spec.name);
+        return Status::kDimsInvalid;
+      }
+    }
+    if (r.hover_steady != kHoverSteady || r.hover_settle != HoverLimits::kSettle ||
+        r.hover_limits[0] != HoverLimits::kVzMax || r.hover_limits[1] != HoverLimits::kTiltMax ||
+        r.hover_limits[2] != HoverLimits::kCmdMin) {
+      *error = fmt("%s: the on-board record's hover constants (%d, %d, %g, %g, %g) are not this build's "
+                   "(fwref/hover.hpp)", file.where().c_str(), r.hover_steady, r.hover_settle, r.hover_limits[0],
+                   r.hover_limits[1], r.hover_limits[2]);
+      return Status::kDimsInvalid;
+    }
+  }
+  return Status::kOk;
+}
+
+}  // namespace fwref

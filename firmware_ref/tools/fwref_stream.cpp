@@ -1,0 +1,245 @@
+// tools/fwref_stream.cpp -- scope: the streaming runtime (fwref/stream.hpp) on a recorded stream
+// (a contract: outside tools drive it, docs/firmware.md "Streaming"):
+//
+//   fwref_stream --weights <weights.bin> --model cnode|gru [--int8] --in <stream.bin | -> [--out <lines.txt>]
+//                [--manifest <manifest.json>] [--timings <seconds.f64>]
+//   fwref_stream --weights <weights.bin> --info
+//
+// stream.bin (docs/formats.md "Stream file", written by `quadfdi stream-file`): a header (magic,
+// version, channel names, sample period, profile, cell count), then samples (f64 time, f32 values
+// in the header's channel order), read from the path or stdin ("-") one sample at a time. The
+// header's channels, profile and period must be the ones weights.bin's on-board record names.
+// Output (stdout, or --out written atomically at the end): '#' comment lines, then one line per
+// stride:  index t status logit_1..K proba_1..K vote active raised cleared cls motor
+// (status decided | skipped | nohover; logits %.9g (float32 round trip), proba %.17g, NaN when
+// not decided; cls/motor -1 while no alarm). --info prints the on-board record as key=value lines.
+// --timings writes (samples,) float64 seconds per push (steady clock). Errors: one line, exit 2,
+// no output file; usage errors exit 1.
+#include <chrono>
+#include <cmath>
+#include <cstdint>
+#include <cstdio>
+#include <cstring>
+#include <string>
+#include <vector>
+
+#include "fwref/onboard.hpp"
+#include "fwref/stream.hpp"
+#include "host_common.hpp"
+#include "host_files.hpp"
+
+namespace {
+
+const char* const kUsage =
+    "usage: fwref_stream --weights <weights.bin> (--info | --model cnode|gru [--int8] --in <stream.bin|-> "
+    "[--out <lines.txt>] [--manifest <manifest.json>] [--timings <seconds.f64>])";
+constexpr char kMagic[9] = "QFDISTR";  // + NUL: 8 bytes
+constexpr std::uint32_t kVersion = 1;
+constexpr std::size_t kFixedHeader = 128;  // magic .. source; the channel names follow
+
+int usage_error(const std::string& problem) {
+  std::fprintf(stderr, "fwref_stream: %s; %s\n", problem.c_str(), kUsage);
+  return 1;
+}
+
+int fail(const std::string& message) {
+  std::fprintf(stderr, "fwref_stream: error: %s\n", message.c_str());
+  return 2;
+}
+
+struct Header {
+  std::uint32_t channels = 0, cells = 0;
+  double dt = 0.0;
+  std::string profile, source;
+  std::vector<std::string> names;
+  std::size_t bytes = 0;
+};
+
+bool read_exact(std::FILE* f, void* dst, std::size_t n) { return std::fread(dst, 1, n, f) == n; }
+
+bool read_header(std::FILE* f, const std::string& where, Header* h, std::string* error) {
+  unsigned char fixed[kFixedHeader];
+  if (!read_exact(f, fixed, sizeof fixed)) return *error = "stream " + where + " is shorter than its header", false;
+  if (std::memcmp(fixed, kMagic, 8) != 0) return *error = "stream " + where + " is not a quadfdi stream file", false;
+  std::uint32_t version, bytes;
+  std::memcpy(&version, fixed + 8, 4);
+  std::memcpy(&bytes, fixed + 12, 4);
+  std::memcpy(&h->channels, fixed + 16, 4);
+  std::memcpy(&h->cells, fixed + 20, 4);
+  std::memcpy(&h->dt, fixed + 24, 8);
+  if (version != kVersion) {
+    return *error = "stream " + where + " has version " + std::to_string(version) + ", this reader reads 1", false;
+  }
+  if (bytes < kFixedHeader || bytes > (1u << 20) || h->channels == 0 || h->channels > 4096) {
+    return *error = "stream " + where + " has a bad header (size or channel count)", false;
+  }
+  h->profile.assign(reinterpret_cast<const char*>(fixed + 32), strnlen(reinterpret_cast<const char*>(fixed + 32), 32));
+  h->source.assign(reinterpret_cast<const char*>(fixed + 64), strnlen(reinterpret_cast<const char*>(fixed + 64), 64));
+  std::vector<char> rest(bytes - kFixedHeader);
+  if (!read_exact(f, rest.data(), rest.size())) return *error = "stream " + where + " is truncated in its header", false;
+  std::size_t pos = 0;
+  for (std::uint32_t c = 0; c < h->channels; ++c) {
+    const std::size_t len = strnlen(rest.data() + pos, rest.size() - pos);
+    if (pos + len >= rest.size()) return *error = "stream " + where + " has unterminated channel names", false;
+    h->names.emplace_back(rest.data() + pos, len);
+    pos += len + 1;
+  }
+  h->bytes = bytes;
+  return true;
+}
+
+void print_info(const fwref::OnboardRecord& r) {
+  const fwref::StreamParams& p = r.params;
+  std::printf("profile=%s\nwindow=%d\nstride=%d\nsample_dt_s=%.9g\ncells_from_stream=%d\n",
+              fwref::profile_spec(p.profile).name, p.window, p.stride, p.sample_dt_s, int(r.cells_from_stream));
+  std::printf("hover_steady_samples=%d\nhover_settle_samples=%d\nhover_limits=%.9g,%.9g,%.9g\n", r.hover_steady,
+              r.hover_settle, r.hover_limits[0], r.hover_limits[1], r.hover_limits[2]);
+  std::printf("threshold=%.17g\nk=%d\nn=%d\nclear_m=%d\nlatch=%d\nhealthy=%d\n", p.alarm.threshold, p.alarm.k,
+              p.alarm.n, p.alarm.clear_m, int(p.alarm.latch), p.alarm.healthy);
+  std::string raw, model;
+  for (const std::string& s : r.raw_names) raw += (raw.empty() ? "" : ",") + s;
+  for (const std::string& s : r.model_names) model += (model.empty() ? "" : ",") + s;
+  std::printf("raw_channels=%s\nchannels=%s\n", raw.c_str(), model.c_str());
+  std::printf("stream_bytes=%zu\n", sizeof(fwref::Stream));  // this build's capacities (fwref/config.hpp)
+}
+
+// One output line per stride, into a string (stdout is written as it comes, --out at the end).
+class Lines final : public fwref::StrideSink {
+ public:
+  Lines(int classes, std::FILE* direct) : k_(classes), direct_(direct) {}
+  void on_stride(const fwref::Decision& d) override {
+    char buf[96];
+    std::string line;
+    std::snprintf(buf, sizeof buf, "%lld %.6f %s", static_cast<long long>(d.index), d.t,
+                  fwref::stride_status_name(d.status));
+    line += buf;
+    for (int k = 0; k < k_; ++k) std::snprintf(buf, sizeof buf, " %.9g", double(d.logits[k])), line += buf;
+    for (int k = 0; k < k_; ++k) std::snprintf(buf, sizeof buf, " %.17g", d.proba[k]), line += buf;
+    std::snprintf(buf, sizeof buf, " %d %d %d %d %d %d\n", int(d.alarm.vote), int(d.alarm.active),
+                  int(d.alarm.raised), int(d.alarm.cleared), d.alarm.cls, d.motor);
+    line += buf;
+    add(line);
+  }
+  void add(const std::string& s) {
+    if (direct_) std::fputs(s.c_str(), direct_);
+    else text += s;
+  }
+  std::string text;
+
+ private:
+  int k_;
+  std::FILE* direct_;
+};
+
+fwref::Stream g_stream;  // 143 kB with the host's defaults (--info: stream_bytes): static, not on the stack
+
+fwref::Status run_window(void* ctx, const float* window, float* logits) {
+  return static_cast<fwref::host::Model*>(ctx)->run(window, logits);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::string weights, model, in, out, manifest, timings;
+  bool int8 = false, info = false;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    if (a == "-h" || a == "--help") return std::printf("%s\n", kUsage), 0;
+    if (a == "--int8") { int8 = true; continue; }
+    if (a == "--info") { info = true; continue; }
+    std::string* dst = a == "--weights" ? &weights : a == "--model" ? &model : a == "--in" ? &in : a == "--out" ? &out
+                       : a == "--manifest" ? &manifest : a == "--timings" ? &timings : nullptr;
+    if (dst == nullptr) return usage_error("unknown argument '" + a + "'");
+    if (i + 1 >= argc) return usage_error(a + " needs a value");
+    *dst = argv[++i];
+  }
+  if (weights.empty() || (!info && (model.empty() || in.empty()))) return usage_error("missing arguments");
+  if (!info && model != "cnode" && model != "gru") return usage_error("--model must be cnode or gru");
+  std::string error;
+  for (const std::string* o : {&out, &timings}) {
+    if (!o->empty() && !fwref::host::output_allowed(*o, {weights, in, manifest}, {"--weights file", "--in file",
+                                                                                   "--manifest file"}, &error)) {
+      return fail(error);
+    }
+  }
+  if (!manifest.empty()) {
+    std::vector<unsigned char> text, wbytes;
+    if (!fwref::host::read_file(manifest, "manifest", &text, &error)) return fail(error);
+    if (!fwref::host::read_file(weights, "weights", &wbytes, &error)) return fail(error);
+    const std::string want = fwref::host::manifest_sha256(std::string(text.begin(), text.end()), "weights.bin");
+    if (want.empty() || fwref::host::sha256_hex(wbytes) != want) {
+      return fail("weights " + weights + " is not the weights.bin that " + manifest + " records");
+    }
+  }
+  fwref::WeightsFile wf;
+  if (wf.load(weights, &error) != fwref::Status::kOk) return fail(error);
+  fwref::OnboardRecord rec;
+  if (fwref::read_onboard(wf, &rec, &error) != fwref::Status::kOk) return fail(error);
+  if (info) return print_info(rec), 0;
+  fwref::Status status;
+  std::unique_ptr<fwref::host::Model> m = fwref::host::bind_model(wf, model, int8, &status, &error);
+  if (!m) return fail(error);
+  if (m->window != rec.params.window || m->channels != rec.params.channels) {
+    return fail("the on-board record's window/channels disagree with the " + model + " section of " + weights);
+  }
+
+  std::FILE* f = in == "-" ? stdin : std::fopen(in.c_str(), "rb");
+  if (f == nullptr) return fail("cannot open stream " + in);
+  Header h;
+  if (!read_header(f, in, &h, &error)) return fail(error);
+  if (h.profile != fwref::profile_spec(rec.params.profile).name) {
+    return fail("stream " + in + " is for profile '" + h.profile + "', the model's is '" +
+                fwref::profile_spec(rec.params.profile).name + "'");
+  }
+  if (h.names != rec.raw_names) return fail("stream " + in + ": its channels are not the on-board record's raw channels");
+  // the record holds the period as float32 (0.04 -> 0.0399999991): equal within float32's precision
+  if (std::fabs(h.dt - rec.params.sample_dt_s) > 1e-6 * rec.params.sample_dt_s) {
+    return fail("stream " + in + ": sample period " + std::to_string(h.dt) + " s, the model's is " +
+                std::to_string(rec.params.sample_dt_s) + " s");
+  }
+  if (rec.cells_from_stream && h.cells == 0) return fail("stream " + in + " does not give the pack's cell count");
+  fwref::StreamParams p = rec.params;
+  p.classes = m->classes;
+  p.alarm.classes = m->classes;
+  if ((status = g_stream.init(p, int(h.cells), run_window, m.get())) != fwref::Status::kOk) {
+    return fail(std::string("cannot run this record: ") + fwref::status_name(status));
+  }
+
+  Lines lines(m->classes, out.empty() ? stdout : nullptr);
+  char head[512];
+  std::snprintf(head, sizeof head, "# fwref_stream source=%s model=%s precision=%s profile=%s window=%d stride=%d "
+                "classes=%d\n# index t status logits[%d] proba[%d] vote active raised cleared cls motor\n",
+                h.source.c_str(), model.c_str(), int8 ? "int8" : "fp32", h.profile.c_str(), p.window, p.stride,
+                p.classes, p.classes, p.classes);
+  lines.add(head);
+  const std::size_t rec_bytes = 8 + 4 * std::size_t(h.channels);
+  std::vector<unsigned char> buf(rec_bytes);
+  std::vector<float> sample(h.channels);
+  std::vector<double> seconds;
+  long long n = 0, dropped = 0;
+  for (;; ++n) {
+    const std::size_t got = std::fread(buf.data(), 1, rec_bytes, f);
+    if (got == 0) break;
+    if (got != rec_bytes) return fail("stream " + in + " ends inside sample " + std::to_string(n));
+    double t;
+    std::memcpy(&t, buf.data(), 8);
+    std::memcpy(sample.data(), buf.data() + 8, 4 * std::size_t(h.channels));
+    const auto t0 = std::chrono::steady_clock::now();
+    const fwref::Status s = g_stream.push(sample.data(), t, &lines);
+    const auto t1 = std::chrono::steady_clock::now();
+    if (!timings.empty()) seconds.push_back(std::chrono::duration<double>(t1 - t0).count());
+    dropped += s != fwref::Status::kOk ? 1 : 0;
+  }
+  if (f != stdin) std::fclose(f);
+  std::snprintf(head, sizeof head, "# end samples=%lld dropped=%lld decided=%lld skipped=%lld hover_cmd=%.9g "
+                "hover_cur=%.9g\n", n, dropped, static_cast<long long>(g_stream.decided()),
+                static_cast<long long>(g_stream.skipped()), double(g_stream.hover_cmd()), double(g_stream.hover_cur()));
+  lines.add(head);
+  if (!out.empty() && !fwref::host::write_atomic(out, lines.text.data(), lines.text.size(), &error)) return fail(error);
+  if (!timings.empty() &&
+      !fwref::host::write_atomic(timings, seconds.data(), seconds.size() * sizeof(double), &error)) {
+    if (!out.empty()) std::remove(out.c_str());
+    return fail(error);
+  }
+  return 0;
+}

@@ -1,0 +1,119 @@
+"""The streaming runtime on the Cortex-M under QEMU for a bounded set of recorded flights
+(docs/firmware.md "Streaming"): a measurement, not a test.
+
+    PYTHONPATH=. python scripts/stream_mcu.py RUN/export BUILD_DIR STREAM.bin [STREAM.bin ...] [--cpu cortex-m4]
+
+Cross-builds firmware_ref/mcu with the export's weights and -DFWREF_STREAMS (fwref_mcu_stream.elf,
+mcu/stream_main.cpp), runs it under QEMU, and holds every stride against the host's fwref_stream on
+the same stream files: the same status, int8 logits bit-identical, fp32 within FP32_CPP_REL_TOL,
+the same votes and alarm states (fp32: counted where they differ). Prints per model and precision
+the instructions per push (without a stride), per decision (mean and worst) and per non-decided
+stride, and the estimated time and duty cycle at 168 MHz (M4) / 216 MHz (M7), one instruction per
+cycle assumed, against one sample period (40 ms) and one decision per stride.
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from core.contracts import FP32_CPP_REL_TOL
+from detect.streamfile import record_of
+from detect.streamref import read_lines
+from parity.build import FW_ROOT, HOST_BUILD, MCU_CPUS, _configure_and_build, build_host
+from parity.mcu import CLOCK_MHZ, qemu_command
+
+
+def parse(text: str, k: int) -> tuple[dict, dict]:
+    strides: dict = {}
+    perf: dict = {}
+    for line in text.splitlines():
+        p = line.split()
+        if p and p[0] == "STRIDE":
+            key = (p[1], p[2], int(p[3]))
+            bits = np.array([int(v) for v in p[6:6 + k]], np.uint32).view(np.float32)
+            strides.setdefault(key, []).append((int(p[4]), p[5], bits, int(p[6 + k]), int(p[7 + k]), int(p[8 + k])))
+        elif p and p[0] == "PERF":
+            perf[(p[1], p[2], int(p[3]))] = {a.split("=")[0]: int(a.split("=")[1]) for a in p[4:]}
+    return strides, perf
+
+
+def compare(export: Path, streams: list[Path], strides: dict, k: int) -> list[str]:
+    out = []
+    for net in ("cnode", "gru"):
+        for prec in ("fp32", "int8"):
+            flips = 0
+            for f, path in enumerate(streams):
+                res = subprocess.run([str(HOST_BUILD / "fwref_stream"), "--weights", str(export / "weights.bin"),
+                                      "--model", net, "--in", str(path)] + (["--int8"] if prec == "int8" else []),
+                                     capture_output=True, text=True, check=True)
+                host = read_lines(res.stdout, k)
+                mcu = strides[(net, prec, f)]
+                assert [m[0] for m in mcu] == host["index"].tolist() and [m[1] for m in mcu] == host["status"].tolist()
+                dec = host["status"] == "decided"
+                got = np.stack([m[2] for m in mcu])[dec]
+                if prec == "int8":
+                    assert (got == host["logits"][dec]).all(), (net, prec, f)
+                else:
+                    ref = host["logits"][dec]
+                    assert np.abs(got - ref).max() <= FP32_CPP_REL_TOL * max(1.0, np.abs(ref).max()), (net, prec, f)
+                votes = np.array([m[3] for m in mcu], bool)
+                flips += int((votes != host["vote"]).sum())
+                assert prec == "fp32" or flips == 0
+                if not (votes != host["vote"]).any():
+                    assert (np.array([m[4] for m in mcu], bool) == host["active"]).all()
+                    assert (np.array([m[5] for m in mcu]) == host["cls"]).all()
+            out.append(f"{net} {prec}: every stride as the host's (vote flips {flips})")
+    return out
+
+
+def report(perf: dict, cpu: str, stride: int, dt: float) -> list[str]:
+    lines = []
+    for net in ("cnode", "gru"):
+        for prec in ("fp32", "int8"):
+            rows = [v for (m, p, _), v in perf.items() if (m, p) == (net, prec)]
+            tot = {key: sum(r[key] for r in rows) for key in rows[0]}
+            worst = {key: max(r[key] for r in rows) for key in rows[0] if key.endswith("_max")}
+            mean_dec = tot["decide_sum"] / max(tot["decide_n"], 1)
+            mhz = CLOCK_MHZ[cpu]
+            worst_ms = worst["decide_max"] / mhz / 1000
+            duty = (mean_dec + (stride - 1) * tot["push_sum"] / max(tot["push_n"], 1)) / (stride * dt * mhz * 1e6)
+            lines.append(f"{cpu} {net} {prec}: push {tot['push_sum'] / max(tot['push_n'], 1):.0f} (max "
+                         f"{worst['push_max']}), decision {mean_dec:.0f} (max {worst['decide_max']}), no-decision "
+                         f"stride max {worst['other_max']} instructions; worst decision {worst_ms:.2f} ms at {mhz:.0f} "
+                         f"MHz ({'within' if worst_ms < dt * 1000 else 'OVER'} {dt * 1000:.0f} ms), duty {100 * duty:.2f} %")
+    return lines
+
+
+def main(argv: list[str]) -> int:
+    cpu = "cortex-m4"
+    if "--cpu" in argv:
+        i = argv.index("--cpu")
+        cpu = argv[i + 1]
+        argv = argv[:i] + argv[i + 2:]
+    export, build = Path(argv[0]).resolve(), Path(argv[1]).resolve()
+    streams = [Path(p).resolve() for p in argv[2:]]
+    build_host(HOST_BUILD, log=lambda _: None)
+    build.mkdir(parents=True, exist_ok=True)
+    options = {"CMAKE_TOOLCHAIN_FILE": str(FW_ROOT / "mcu" / "toolchain-arm-none-eabi.cmake"), "FWREF_CPU": cpu,
+               "FWREF_WEIGHTS": str(export / "weights.bin"), "FWREF_REFERENCE": str(export / "reference.bin"),
+               "Python3_EXECUTABLE": sys.executable, "FWREF_STREAMS": ";".join(str(s) for s in streams)}
+    _configure_and_build(FW_ROOT / "mcu", build, options, f"the {cpu} stream image", ("fwref_mcu_stream",))
+    res = subprocess.run(qemu_command(cpu, build / "fwref_mcu_stream.elf"), capture_output=True, text=True, check=False,
+                         timeout=3600)
+    assert "RESULT DONE" in res.stdout, res.stdout[-2000:] + res.stderr[-2000:]
+    record = record_of(export)
+    k = int(res.stdout.split("STRIDE ", 1)[1].split("\n", 1)[0].split().__len__()) - 8  # after "STRIDE ": 8 fields + K
+    strides, perf = parse(res.stdout, k)
+    print(f"{export} ({record['profile']}) on {cpu} ({MCU_CPUS[cpu]}): {len(streams)} flights, "
+          f"{next(ln for ln in res.stdout.splitlines() if ln.startswith('STREAM '))}")
+    for line in compare(export, streams, strides, k) + report(perf, cpu, record["stride"], record["sample_dt_s"]):
+        print(line)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))

@@ -1,0 +1,96 @@
+"""Replay simulated test flights through ``fwref_stream`` (firmware_ref's streaming runtime) against
+the Python window path, and time every push (docs/firmware.md "Streaming"): a measurement, not a test.
+
+    PYTHONPATH=. python scripts/stream_replay.py RUN/export DATASET.npz [PER_CLASS]
+
+For PER_CLASS (default 2) test flights of each class: the stream file (detect/streamfile.py), the
+window path's windows (detect/streamref.py), ONNX Runtime's and fwref_infer's logits on them, and
+fwref_stream's line per stride with --timings. Checks (AssertionError otherwise): the same status at
+every stride, logits bit-identical to fwref_infer, fp32 within FP32_CPP_REL_TOL of ORT; counts int8
+rows differing from ORT and fp32 vote flips against core.alarm on ORT's probabilities. Prints per
+model and precision the strides, those counts and the latency of a push without a decision and of
+a push that decides (p50, p99, microseconds; this machine as it is, other load included).
+"""
+
+from __future__ import annotations
+
+import functools
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+import sim.dataset as sim_dataset
+from core.alarm import run_alarm
+from core.contracts import FP32_CPP_REL_TOL
+from detect.run import softmax
+from detect.runtimes import cpp_logits, ort_logits
+from detect.streamfile import from_dataset, read_stream, record_of, write_stream
+from detect.streamref import read_lines, windows_of
+from export.manifest import load_manifest
+from parity.build import HOST_BUILD, build_host
+
+
+def replay(export: Path, path: Path, record: dict, manifest: dict, net: str, prec: str, tmp: Path) -> dict:
+    sw = windows_of(read_stream(path), record)
+    x = sw.windows(record["window"])
+    ort = ort_logits(export / manifest["artifacts"][f"{net}_{prec}"], x)
+    cpp = cpp_logits(export / "weights.bin", net, prec == "int8", x)
+    exe = HOST_BUILD / "fwref_stream"
+    res = subprocess.run([str(exe), "--weights", str(export / "weights.bin"), "--model", net, "--in", str(path),
+                          "--timings", str(tmp / "t.f64")] + (["--int8"] if prec == "int8" else []),
+                         capture_output=True, text=True, check=True)
+    out, t = read_lines(res.stdout, ort.shape[1]), np.fromfile(tmp / "t.f64")
+    assert (out["index"] == sw.ends).all() and ((out["status"] == "decided") == sw.decided).all()
+    got = out["logits"][sw.decided]
+    assert (got == cpp).all(), (net, prec, path)
+    if prec == "fp32":
+        assert np.abs(got - ort).max() <= FP32_CPP_REL_TOL * max(1.0, np.abs(ort).max())
+    proba = np.zeros((len(sw.ends), ort.shape[1]))
+    proba[:, record["healthy"]] = 1.0
+    proba[sw.decided] = softmax(ort)
+    a = record["alarm"]
+    tr = run_alarm(proba[None], a["threshold"], a["k"], a["n"], a["clear_m"], a["latch"], healthy=record["healthy"],
+                   valid=sw.decided[None])
+    flips = out["vote"] != tr.votes[0]
+    if not flips.any():
+        assert (out["active"] == tr.active[0]).all() and (out["cls"] == tr.cls[0]).all()
+    decides = np.zeros(len(t), bool)
+    decides[out["index"][out["status"] == "decided"]] = True
+    return {"strides": len(sw.ends), "decided": int(sw.decided.sum()), "int8_diff": int((got != ort).any(axis=1).sum())
+            if prec == "int8" else 0, "flips": int(flips.sum()), "push": t[~decides], "decision": t[decides]}
+
+
+def main(argv: list[str]) -> int:
+    export, dataset = Path(argv[0]), Path(argv[1])
+    per_class = int(argv[2]) if len(argv) > 2 else 2
+    sim_dataset.load_dataset = functools.lru_cache(None)(sim_dataset.load_dataset)  # one load for every flight
+    build_host(HOST_BUILD, log=lambda _: None)
+    record, manifest = record_of(export), load_manifest(export / "manifest.json")
+    ds = sim_dataset.load_dataset(dataset)
+    test = [i for i, s in enumerate(ds["split_names"]) if str(s).startswith("test")]
+    flights = [int(i) for c in range(len(ds["class_names"]))
+               for i in np.flatnonzero(np.isin(ds["split"], test) & (ds["fault_class"] == c))[:per_class]]
+    with tempfile.TemporaryDirectory(prefix="stream-replay-") as d:
+        tmp = Path(d)
+        paths = []
+        for f in flights:
+            paths.append(tmp / f"f{f}.bin")
+            write_stream(paths[-1], from_dataset(dataset, f, record))
+        print(f"{export} ({record['profile']}): test flights {flights}")
+        for net in ("cnode", "gru"):
+            for prec in ("fp32", "int8"):
+                rs = [replay(export, p, record, manifest, net, prec, tmp) for p in paths]
+                push = np.concatenate([r["push"] for r in rs]) * 1e6
+                dec = np.concatenate([r["decision"] for r in rs]) * 1e6
+                print(f"{net} {prec}: {sum(r['strides'] for r in rs)} strides, {sum(r['decided'] for r in rs)} decided,"
+                      f" int8 rows != ORT {sum(r['int8_diff'] for r in rs)}, vote flips {sum(r['flips'] for r in rs)};"
+                      f" push p50/p99 {np.percentile(push, 50):.2f}/{np.percentile(push, 99):.2f} us, decision"
+                      f" p50/p99 {np.percentile(dec, 50):.1f}/{np.percentile(dec, 99):.1f} us", flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
