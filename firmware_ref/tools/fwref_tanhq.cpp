@@ -15,10 +15,13 @@
 // outside the narrow [F[k], L[k]) zones and odd inside one, where the direct computation runs.
 // q(-a) = -q(a) exactly (tanh_approx is odd: symmetric clamp, odd numerator, even denominator; x / s
 // and round-half-even are symmetric), so only a >= 0 is tabulated.
+#include <algorithm>
+#include <atomic>
 #include <cinttypes>
 #include <cstdint>
 #include <cstdio>
 #include <cstring>
+#include <thread>
 #include <vector>
 
 #include "fwref/numerics.hpp"
@@ -46,17 +49,80 @@ float float_of(std::uint32_t b) {
 
 int direct(float a) { return fwref::quantize(fwref::tanh_approx(a), 1.0f / 127.0f); }
 
+// The float range split into chunks scanned on every core (the scan and the check each walk about
+// 1e9 floats: a minute of one core). Chunks are merged in order, so the output does not depend on
+// the number of threads.
+template <class Fn>
+void parallel_chunks(std::size_t n_chunks, Fn fn) {
+  std::atomic<std::size_t> next{0};
+  const unsigned n_threads = std::max(1u, std::thread::hardware_concurrency());
+  std::vector<std::thread> pool;
+  for (unsigned t = 0; t < n_threads; ++t) {
+    pool.emplace_back([&] {
+      for (std::size_t c = next++; c < n_chunks; c = next++) fn(c);
+    });
+  }
+  for (auto& th : pool) th.join();
+}
+
+constexpr std::size_t kChunks = 64;
+
+std::uint32_t chunk_lo(std::uint32_t end, std::size_t c) {  // chunk c covers [lo(c), lo(c + 1))
+  return static_cast<std::uint32_t>((static_cast<std::uint64_t>(end) + 1) * c / kChunks);
+}
+
+// One chunk [lo, hi) of the generator's walk: per code k, the first float with q >= k, and the last
+// float with q < k after that one within the chunk (a step back below k).
+struct Scan {
+  std::uint32_t first[128] = {}, after[128] = {};
+  bool has_first[128] = {}, has_after[128] = {};
+  bool negative = false;
+  std::uint32_t negative_at = 0;
+  int qmax = 0;
+};
+
+void scan(std::uint32_t lo, std::uint32_t hi, Scan& s) {
+  for (std::uint32_t b = lo; b < hi; ++b) {
+    const int q = direct(float_of(b));
+    if (q < 0) {
+      if (!s.negative) s.negative = true, s.negative_at = b;
+      continue;
+    }
+    for (int k = s.qmax + 1; k <= q; ++k) s.first[k] = b, s.has_first[k] = true;
+    s.qmax = q > s.qmax ? q : s.qmax;
+    for (int k = q + 1; k <= s.qmax; ++k) s.after[k] = b, s.has_after[k] = true;
+  }
+}
+
 int generate() {
   const std::uint32_t end = bits_of(9.0f);
+  std::vector<Scan> scans(kChunks);
+  parallel_chunks(kChunks, [&](std::size_t c) { scan(chunk_lo(end, c), chunk_lo(end, c + 1), scans[c]); });
+  // Merge in order: F[k] from the first chunk that reaches k; L[k] - 1 from the last chunk that has
+  // a float with q < k after F[k] (in a chunk after F[k]'s, every float before its own first >= k).
   std::vector<std::uint32_t> first(128, 0), last_below(128, 0);
   std::vector<bool> seen(128, false), below(128, false);
   int qmax = 0;
-  for (std::uint32_t b = 0; b <= end; ++b) {
-    const int q = direct(float_of(b));
-    if (q < 0) return std::fprintf(stderr, "fwref_tanhq: q(%a) = %d < 0\n", float_of(b), q), 1;
-    for (int k = qmax + 1; k <= q; ++k) first[k] = b, seen[k] = true;
-    qmax = q > qmax ? q : qmax;
-    for (int k = q + 1; k <= qmax; ++k) last_below[k] = b, below[k] = true;  // a step back below k
+  for (std::size_t c = 0; c < kChunks; ++c) {
+    const Scan& s = scans[c];
+    const std::uint32_t lo = chunk_lo(end, c), hi = chunk_lo(end, c + 1);
+    if (s.negative) return std::fprintf(stderr, "fwref_tanhq: q(%a) < 0\n", float_of(s.negative_at)), 1;
+    if (lo == hi) continue;
+    for (int k = 1; k <= 127; ++k) {
+      if (seen[k]) {
+        if (s.has_after[k]) {
+          last_below[k] = s.after[k], below[k] = true;
+        } else if (!s.has_first[k]) {
+          last_below[k] = hi - 1, below[k] = true;
+        } else if (s.first[k] > lo) {
+          last_below[k] = s.first[k] - 1, below[k] = true;
+        }
+      } else if (s.has_first[k]) {
+        first[k] = s.first[k], seen[k] = true;
+        if (s.has_after[k]) last_below[k] = s.after[k], below[k] = true;
+      }
+    }
+    qmax = s.qmax > qmax ? s.qmax : qmax;
   }
   if (qmax != 127 || direct(9.0f) != 127) return std::fprintf(stderr, "fwref_tanhq: q(9) != 127\n"), 1;
   std::vector<std::uint32_t> bnd;
@@ -102,16 +168,30 @@ int generate() {
 int check() {
 #ifdef FWREF_HAVE_TANHQ
   const std::uint32_t end = bits_of(9.5f);
-  std::uint64_t n = 0, fallback = 0;
-  for (std::uint32_t b = 0; b <= end; ++b) {
-    for (const float a : {float_of(b), -float_of(b)}) {
-      ++n;
-      if (fwref::tanh_quantize_bound(a) != direct(a)) {
-        return std::fprintf(stderr, "fwref_tanhq: table %d != direct %d at %a\n", fwref::tanh_quantize_bound(a),
-                            direct(a), a), 1;
+  struct Count {
+    std::uint64_t n = 0, fallback = 0;
+    bool bad = false;
+    float at = 0.0f;
+  };
+  std::vector<Count> counts(kChunks);
+  parallel_chunks(kChunks, [&](std::size_t c) {
+    Count& r = counts[c];
+    const std::uint32_t hi = c + 1 == kChunks ? end + 1 : chunk_lo(end, c + 1);
+    for (std::uint32_t b = chunk_lo(end, c); b < hi && !r.bad; ++b) {
+      for (const float a : {float_of(b), -float_of(b)}) {
+        ++r.n;
+        if (fwref::tanh_quantize_bound(a) != direct(a)) r.bad = true, r.at = a;
       }
+      r.fallback += fwref::tanhq::needs_direct(b) ? 1 : 0;
     }
-    fallback += fwref::tanhq::needs_direct(b) ? 1 : 0;
+  });
+  std::uint64_t n = 0, fallback = 0;
+  for (const Count& r : counts) {
+    if (r.bad) {
+      return std::fprintf(stderr, "fwref_tanhq: table %d != direct %d at %a\n", fwref::tanh_quantize_bound(r.at),
+                          direct(r.at), r.at), 1;
+    }
+    n += r.n, fallback += r.fallback;
   }
   const float special[] = {1e30f, -1e30f, float_of(0x7f800000u), float_of(0xff800000u), float_of(0x7fc00000u)};
   for (const float a : special) {
