@@ -96,7 +96,20 @@ struct CnodeWorkspace {
   // which saves its RAM; else in u_row.
   static constexpr bool kURowInA = kMaxChannels <= kMaxCnodeHidden;
   float u_row[kURowInA ? 1 : kMaxChannels];
+#if defined(FWREF_CNODE_W_INT16)
+  // With the int16 stage weights (below), the stage products' inputs are quantized straight into
+  // int16 (no widening pass per product); they share uq's RAM, which is free once V is computed.
+  struct StageX16 {
+    alignas(8) std::int16_t lat[(kMaxLatent + 7) & ~7];  // quantize(z, s_stage[e]), zero-padded
+    alignas(8) std::int16_t hid[(kMaxCnodeHidden + 7) & ~7];  // the hidden codes, zero-padded
+  };
+  union {
+    std::int8_t uq[kMaxStageTimes * kMaxChannels];  // quantized U (int8), (S, C)
+    StageX16 x16;
+  };
+#else
   std::int8_t uq[kMaxStageTimes * kMaxChannels];  // quantized U (int8), (S, C)
+#endif
   std::int8_t q_lat[kMaxLatent];
   std::int8_t q_hid[kMaxCnodeHidden];
   Lat z, k1, k2, k3, k4, state;
@@ -107,6 +120,11 @@ struct CnodeWorkspace {
   // of a model (w16_of: which weights they are); the 4N stage products then run without SXTB16.
   alignas(8) std::int16_t lin1z16[kMaxCnodeHidden * ((kMaxLatent + 7) & ~7)];  // LDRD needs word alignment
   alignas(8) std::int16_t lin2w16[kMaxLatent * ((kMaxCnodeHidden + 7) & ~7)];
+#if defined(FWREF_CNODE_U_INT16)
+  // Host option (on by default there): lin1_u (H, C) too, for the S products of the control path
+  // (3 KB more; off on Cortex-M, whose static RAM target is 16 KiB).
+  alignas(8) std::int16_t lin1u16[kMaxCnodeHidden * ((kMaxChannels + 7) & ~7)];
+#endif
   const std::int8_t* w16_of = nullptr;
 #endif
 };
