@@ -100,8 +100,9 @@ struct CnodeWorkspace {
   // With the int16 stage weights (below), the stage products' inputs are quantized straight into
   // int16 (no widening pass per product); they share uq's RAM, which is free once V is computed.
   struct StageX16 {
-    alignas(8) std::int16_t lat[(kMaxLatent + 7) & ~7];  // quantize(z, s_stage[e]), zero-padded
-    alignas(8) std::int16_t hid[(kMaxCnodeHidden + 7) & ~7];  // the hidden codes, zero-padded
+    // word-aligned, as LDRD needs (4 bytes, not 8: the union then adds no padding to the workspace)
+    alignas(4) std::int16_t lat[(kMaxLatent + 7) & ~7];  // quantize(z, s_stage[e]), zero-padded
+    alignas(4) std::int16_t hid[(kMaxCnodeHidden + 7) & ~7];  // the hidden codes, zero-padded
   };
   union {
     std::int8_t uq[kMaxStageTimes * kMaxChannels];  // quantized U (int8), (S, C)
