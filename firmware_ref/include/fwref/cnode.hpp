@@ -116,9 +116,11 @@ struct CnodeWorkspace {
   Lat z, k1, k2, k3, k4, state;
   Hid a;
 #if defined(FWREF_CNODE_W_INT16)
-  // Cortex-M option (firmware_ref/mcu, FWREF_CNODE_W_INT16=ON): lin1_z's and lin2's int8 weights
-  // sign-extended to int16 in RAM (rows padded to a multiple of 8), made by the first int8 inference
-  // of a model (w16_of: which weights they are); the 4N stage products then run without SXTB16.
+  // Option FWREF_CNODE_W_INT16 (on in firmware_ref/mcu and in the host build): lin1_z's and lin2's
+  // int8 weights sign-extended to int16 (rows padded to a multiple of 8) and packed for the
+  // platform's int16 kernel (fwref/kernels_i8.hpp), made by the first int8 inference of a model.
+  // w16_of records which weights they are BY ADDRESS: a caller that frees a model's weights and
+  // loads others at the same address into a workspace it keeps must set w16_of = nullptr first.
   alignas(8) std::int16_t lin1z16[kMaxCnodeHidden * ((kMaxLatent + 7) & ~7)];  // LDRD needs word alignment
   alignas(8) std::int16_t lin2w16[kMaxLatent * ((kMaxCnodeHidden + 7) & ~7)];
 #if defined(FWREF_CNODE_U_INT16)
