@@ -92,7 +92,9 @@ def run_kernels(args: argparse.Namespace) -> int:
     if fwref is None:
         raise QuadfdiError(f"no fwref_infer to count: {how}")
     records = kernel_counts(fwref, str(run.export / "weights.bin"), test_windows(run, manifest).x, manifest)
-    info = subprocess.run([str(Path(fwref).parent / "fwref_kernels"), "--info"], capture_output=True, text=True)
+    kernels = Path(fwref).parent / "fwref_kernels"  # absent when find_fwref built fwref_infer alone
+    info = subprocess.run([str(kernels), "--info"], capture_output=True, text=True) if kernels.is_file() else \
+        subprocess.CompletedProcess([], 1, "", "")
     print(f"fwref_infer: {fwref}")
     print(info.stdout.strip() or "(fwref_kernels --info not available)")
     print("\n".join(kernels_table(records)))

@@ -112,7 +112,7 @@ def kernel_counts(fwref: str, weights: str, windows: np.ndarray, manifest: dict)
                 ir = (k8[k] - k4.get(k, 0)) / span
                 if ir <= 0:
                     continue
-                denom = macs["gemv"] if k.startswith("gemv_i8") else macs["total"]
+                denom = macs["gemv"] if k.startswith(("gemv_i8", "gemv_w16")) else macs["total"]
                 kernels.append({"kernel": k, "ir_per_window": ir, "ir_per_mac": ir / denom})
             ir = (t8 - t4) / span
             out.append({"model": model, "precision": precision, "ir_per_window": ir, "macs": macs,

@@ -407,7 +407,7 @@ def _check_lines(res: subprocess.CompletedProcess) -> dict[str, str]:
 def test_every_int8_kernel_this_cpu_runs_gives_the_portable_accumulators(host_build, asan_build):
     """fwref_kernels --check: each kernel the CPU runs (and the dispatched entry point) against the
     portable loop on random data, every column count 1..100 and longer ones (not multiples of the
-    vector width), 1..13, 64 and 240 rows, and the extremes (x = -128 against w = +-127, x = 127, zeros).
+    vector width), 1..13, 24, 40, 64 and 240 rows, and the extremes (x = -128 against w = +-127, x = 127, zeros).
     Under the sanitizer build too, where the inputs are exact-size heap blocks (no read past a row)."""
     for build in (host_build, asan_build):
         res = _kernels(build, "--check")
@@ -417,6 +417,8 @@ def test_every_int8_kernel_this_cpu_runs_gives_the_portable_accumulators(host_bu
         assert all(ln.endswith(" OK") and "mismatches=0" in ln for ln in lines.values()), res.stdout
         if "avx2" in _cpu_flags():
             assert "avx2" in lines, res.stdout
+        # the packed int16 copies (FWREF_CNODE_W_INT16 / FWREF_GRU_WHH_INT16, on by default) per kernel
+        assert {f"w16:{k}" for k in lines if not k.startswith(("dispatched:", "w16:"))} <= set(lines), res.stdout
         assert not any(m in res.stderr for m in SANITIZER_MARKERS), res.stderr
 
 

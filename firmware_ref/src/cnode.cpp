@@ -1,6 +1,8 @@
 // src/cnode.cpp -- scope: CNODE inference, fp32 and int8 (fwref/cnode.hpp), and its weight checks.
 #include "fwref/cnode.hpp"
 
+#include <cstring>
+
 #include "fwref/numerics.hpp"
 #include "fwref/tanhq.hpp"
 #include "model_common.hpp"
@@ -64,8 +66,40 @@ void trace_x_norm(const float* x, const float* mean, const float* std_, int wind
 
 // q[i] = quantize(x[i], s) and q[i] = quantize(tanh(x[i]), s) through plain pointers: an int8 store
 // may alias anything, so loops over Eigen vectors would reload their data pointer and size per element.
-void quantize_all(const float* x, int n, float s, std::int8_t* q) {
+// (``q`` int16 on the Cortex-M stage path: the same codes, stored widened for the int16 kernel.)
+template <class Q>
+void quantize_all(const float* x, int n, float s, Q* q) {
   for (int i = 0; i < n; ++i) q[i] = quantize(x[i], s);
+}
+
+// The stage products' int32 accumulators of rows [o0, o0 + n): from int8 codes (gemv_i8_any: the
+// int16 weight copy when there is one); or, on Cortex-M with FWREF_CNODE_W_INT16, from codes that
+// were quantized straight into int16 (no widening pass: fwref/kernels_i8.hpp's gemv_w16_x16).
+inline void stage_gemv(const std::int8_t* w, const std::int16_t* w16, int o0, int n, int cols, const std::int8_t* x,
+                       std::int32_t* acc) {
+  gemv_i8_any(w, w16, o0, n, cols, x, acc);
+}
+#if defined(FWREF_CNODE_W_INT16) && defined(FWREF_HAS_W16_KERNEL)
+constexpr bool kStageX16 = true;
+inline void stage_gemv(const std::int8_t*, const std::int16_t* w16, int o0, int n, int cols, const std::int16_t* x,
+                       std::int32_t* acc) {
+  gemv_w16_x16(w16 + o0 * w16_stride(cols), n, cols, x, acc);
+}
+#else
+constexpr bool kStageX16 = false;
+#endif
+
+// lin2 of a stage: linear_i8_tensor's operations (pattern A) on either kind of codes.
+template <class Q>
+void stage_lin2(const CnodeI8& m, const std::int16_t* w16, const Q* q_hid, float* k) {
+  const int L = m.dims.latent, H = m.dims.hidden;
+  const float* s_w = m.lin2_w.scale;
+  std::int32_t acc[kGemvRowBlock];
+  for (int o0 = 0; o0 < L; o0 += kGemvRowBlock) {
+    const int o1 = L - o0 < kGemvRowBlock ? L : o0 + kGemvRowBlock;
+    stage_gemv(m.lin2_w.q, w16, o0, o1 - o0, H, q_hid, acc);
+    for (int o = o0; o < o1; ++o) k[o] = rescale_i32(acc[o - o0], m.s_hidden, s_w[o]) + m.lin2_b[o];
+  }
 }
 
 // One stage's lin1 fused with the hidden activation: q_hid[o] = quantize(tanh(f32(acc[o]) * f32(s_z *
@@ -73,14 +107,14 @@ void quantize_all(const float* x, int n, float s, std::int8_t* q) {
 // same order, without a float buffer in between. On Cortex-M, with s_hid = 1/127 (always: the bound
 // scale), tanh then quantize is fwref/tanhq.hpp's exact table (a few integer operations instead of
 // the rational function and two divisions); elsewhere the direct loop, which the host vectorises.
-void lin1_tanh_quantize(const CnodeI8& m, const std::int16_t* w16, const std::int8_t* zq, float s_z, const float* v,
-                        std::int8_t* q_hid) {
+template <class Q>
+void lin1_tanh_quantize(const CnodeI8& m, const std::int16_t* w16, const Q* zq, float s_z, const float* v, Q* q_hid) {
   const int H = m.dims.hidden, L = m.dims.latent;
   const float* s_w = m.lin1_z.scale;
   std::int32_t acc[kGemvRowBlock];
   for (int o0 = 0; o0 < H; o0 += kGemvRowBlock) {
     const int o1 = H - o0 < kGemvRowBlock ? H : o0 + kGemvRowBlock;
-    gemv_i8_any(m.lin1_z.q, w16, o0, o1 - o0, L, zq, acc);  // w16: the int16 copy, or null
+    stage_gemv(m.lin1_z.q, w16, o0, o1 - o0, L, zq, acc);  // w16: the int16 copy, or null
 #if defined(__ARM_FEATURE_SIMD32) && !defined(FWREF_PORTABLE_KERNELS)
     if (m.s_hidden == kTanhqScale) {
       for (int o = o0; o < o1; ++o) q_hid[o] = tanh_quantize_bound(rescale_i32(acc[o - o0], s_z, s_w[o]) + v[o]);
@@ -126,6 +160,75 @@ template <class Model>
 Status check_any(const Model& m) {
   return detail::check_model(check_dims(m.dims), [&] { return shapes_ok(m); },
                              [&] { return scales_ok(m) ? check_common(m) : Status::kBadWeights; });
+}
+
+// The int16 copies of the weights (null where this build has none), made by the first int8
+// inference of a model (ws.w16_of: which weights they are).
+struct StageWeights16 {
+  const std::int16_t* lin1z = nullptr;
+  const std::int16_t* lin2 = nullptr;
+  const std::int16_t* lin1u = nullptr;
+};
+
+StageWeights16 int16_copies(const CnodeI8& m, CnodeWorkspace& ws) {
+  StageWeights16 w;
+#if defined(FWREF_CNODE_W_INT16) && defined(FWREF_HAS_W16_KERNEL)
+  const CnodeDims& d = m.dims;
+  if (ws.w16_of != m.lin1_z.q) {
+    expand_i8_to_i16(m.lin1_z.q, d.hidden, d.latent, ws.lin1z16);
+    expand_i8_to_i16(m.lin2_w.q, d.latent, d.hidden, ws.lin2w16);
+#if defined(FWREF_CNODE_U_INT16)
+    expand_i8_to_i16(m.lin1_u.q, d.hidden, d.channels, ws.lin1u16);
+#endif
+    ws.w16_of = m.lin1_z.q;
+  }
+  w.lin1z = ws.lin1z16;
+  w.lin2 = ws.lin2w16;
+#if defined(FWREF_CNODE_U_INT16)
+  w.lin1u = ws.lin1u16;
+#endif
+#else
+  (void)m, (void)ws;
+#endif
+  return w;
+}
+
+// The control path: U = interp_q @ quantize(x_norm, s_x[c]) in int32, u = f32(acc) * f32(s_P[s] *
+// s_x[c]), quantized per channel with s_u[c] into ws.uq; z0 = tanh(B(uq[0], encoder) + b); V[s] =
+// B(uq[s], lin1_u) + b1 (pattern B: s_u folded in). x_norm is requantized where a sample feeds two
+// rows (the same numbers both times), so no (W, C) buffer is needed.
+void control_path_i8(const CnodeI8& m, const float* x, const std::int16_t* lin1u16, CnodeWorkspace& ws,
+                     CnodeTrace* tr) {
+  const CnodeDims& d = m.dims;
+  const int C = d.channels, W = d.window, S = d.stage_times, H = d.hidden, L = d.latent;
+  std::int32_t acc[kMaxChannels];
+  for (int s = 0; s < S; ++s) {
+    const std::int8_t* p_row = m.interp.q + s * W;
+    for (int c = 0; c < C; ++c) acc[c] = 0;
+    for (int w0 = 0; w0 < W; w0 += 8) {  // 8 weights at a time past the zeros (most of a row)
+      std::uint64_t eight = 1;
+      if (w0 + 8 <= W) std::memcpy(&eight, p_row + w0, 8);
+      if (eight == 0) continue;
+      for (int w = w0; w < W && w < w0 + 8; ++w) {
+        const std::int32_t p = p_row[w];
+        if (p == 0) continue;
+        const float* xw = x + w * C;
+        for (int c = 0; c < C; ++c) acc[c] += p * quantize(normalise(xw[c], m.mean[c], m.std[c]), m.s_x[c]);
+      }
+    }
+    for (int c = 0; c < C; ++c) {
+      const float u = rescale_i32(acc[c], m.interp.scale[s], m.s_x[c]);
+      if (tr != nullptr && tr->u != nullptr) tr->u[s * C + c] = u;
+      ws.uq[s * C + c] = quantize(u, m.s_u[c]);
+    }
+  }
+  ws.z.resize(L);
+  linear_i8_folded(m.encoder_w.q, m.encoder_w.scale, L, C, ws.uq, m.encoder_b, ws.z.data());
+  tanh_inplace(ws.z);
+  if (tr != nullptr) copy_out(ws.z, tr->z0);
+  for (int s = 0; s < S; ++s) {
+    linear_i8_folded(m.lin1_u.q, m.lin1_u.scale, H, C, ws.uq + s * C, m.lin1_b, ws.v + s * H, lin1u16);
+  }
 }
 
 }  // namespace
@@ -182,55 +285,29 @@ Status infer(const CnodeF32& m, const float* x, float* logits, CnodeWorkspace& w
 Status infer(const CnodeI8& m, const float* x, float* logits, CnodeWorkspace& ws, CnodeTrace* tr) {
   if (x == nullptr || logits == nullptr) return Status::kNullArgument;
   const CnodeDims& d = m.dims;
-  const int C = d.channels, W = d.window, S = d.stage_times, H = d.hidden, L = d.latent, K = d.classes;
+  const int C = d.channels, W = d.window, H = d.hidden, L = d.latent, K = d.classes;
   if (!all_finite(x, W * C)) return Status::kNonFiniteInput;
   if (tr != nullptr && tr->x_norm != nullptr) trace_x_norm(x, m.mean, m.std, W, C, tr->x_norm);
 
-  // U = interp_q @ quantize(x_norm, s_x[c]) in int32, u = f32(acc) * f32(s_P[s] * s_x[c]), then
-  // quantized per channel with s_u[c]. x_norm is requantized where a sample feeds two rows (the
-  // same numbers both times), so no (W, C) buffer is needed.
-  std::int32_t acc[kMaxChannels];
-  for (int s = 0; s < S; ++s) {
-    const std::int8_t* p_row = m.interp.q + s * W;
-    for (int c = 0; c < C; ++c) acc[c] = 0;
-    for (int w = 0; w < W; ++w) {
-      const std::int32_t p = p_row[w];
-      if (p == 0) continue;
-      const float* xw = x + w * C;
-      for (int c = 0; c < C; ++c) acc[c] += p * quantize(normalise(xw[c], m.mean[c], m.std[c]), m.s_x[c]);
-    }
-    for (int c = 0; c < C; ++c) {
-      const float u = rescale_i32(acc[c], m.interp.scale[s], m.s_x[c]);
-      if (tr != nullptr && tr->u != nullptr) tr->u[s * C + c] = u;
-      ws.uq[s * C + c] = quantize(u, m.s_u[c]);
-    }
-  }
-  // z0 = tanh(B(uq[0], encoder) + b); V[s] = B(uq[s], lin1_u) + b1  (pattern B: s_u folded in)
-  ws.z.resize(L);
-  linear_i8_folded(m.encoder_w.q, m.encoder_w.scale, L, C, ws.uq, m.encoder_b, ws.z.data());
-  tanh_inplace(ws.z);
-  if (tr != nullptr) copy_out(ws.z, tr->z0);
-  for (int s = 0; s < S; ++s) {
-    linear_i8_folded(m.lin1_u.q, m.lin1_u.scale, H, C, ws.uq + s * C, m.lin1_b, ws.v + s * H);
-  }
-
-  const std::int16_t* lin1z16 = nullptr;
-  const std::int16_t* lin2w16 = nullptr;
-#if defined(FWREF_CNODE_W_INT16)
-  if (ws.w16_of != m.lin1_z.q) {
-    expand_i8_to_i16(m.lin1_z.q, H, L, ws.lin1z16);
-    expand_i8_to_i16(m.lin2_w.q, L, H, ws.lin2w16);
-    ws.w16_of = m.lin1_z.q;
-  }
-  lin1z16 = ws.lin1z16;
-  lin2w16 = ws.lin2w16;
+  const StageWeights16 w16 = int16_copies(m, ws);
+  control_path_i8(m, x, w16.lin1u, ws, tr);
+  // The stage codes: int8, or int16 in uq's RAM (free now) with zero padding for the int16 kernel.
+#if defined(FWREF_CNODE_W_INT16) && defined(FWREF_HAS_W16_KERNEL)
+  std::int16_t* const zq = ws.x16.lat;
+  std::int16_t* const hq = ws.x16.hid;
+  for (int i = L; i < w16_stride(L); ++i) zq[i] = 0;
+  for (int i = H; i < w16_stride(H); ++i) hq[i] = 0;
+#else
+  std::int8_t* const zq = ws.q_lat;
+  std::int8_t* const hq = ws.q_hid;
 #endif
+  static_assert(kStageX16 == (sizeof *zq == 2), "int16 stage codes only with the int16 kernel");
   auto field = [&](int e, const CnodeWorkspace::Lat& z, CnodeWorkspace::Lat& k) {
     const float s_z = m.s_stage[e];
-    quantize_all(z.data(), L, s_z, ws.q_lat);
-    lin1_tanh_quantize(m, lin1z16, ws.q_lat, s_z, ws.v + m.stage_index[e] * H, ws.q_hid);
+    quantize_all(z.data(), L, s_z, zq);
+    lin1_tanh_quantize(m, w16.lin1z, zq, s_z, ws.v + m.stage_index[e] * H, hq);
     k.resize(L);
-    linear_i8_tensor(m.lin2_w.q, m.lin2_w.scale, L, H, ws.q_hid, m.s_hidden, m.lin2_b, k.data(), lin2w16);
+    stage_lin2(m, w16.lin2, hq, k.data());
   };
   detail::rk4_integrate(m.rk4, d.steps, ws.z, ws.k1, ws.k2, ws.k3, ws.k4, ws.state, field,
                         tr != nullptr ? tr->stages : nullptr);

@@ -116,7 +116,7 @@ Status infer(const GruI8& m, const float* x, float* logits, GruWorkspace& ws, Gr
   ws.gx.resize(3 * H);
   ws.gh.resize(3 * H);
   const std::int16_t *whh16 = nullptr, *wih16 = nullptr;
-#if defined(FWREF_GRU_WHH_INT16)
+#if defined(FWREF_GRU_WHH_INT16) && defined(FWREF_HAS_W16_KERNEL)
   if (ws.w16_of != m.w_hh.q) {
     expand_i8_to_i16(m.w_hh.q, 3 * H, H, ws.whh16);
     expand_i8_to_i16(m.w_ih.q, 3 * H, C, ws.wih16);

@@ -32,7 +32,8 @@ using Fn = void (*)(const std::int8_t*, int, int, const std::int8_t*, std::int32
 // Random shapes (every column count 1..100 and a few long ones, row counts around the 4-row
 // blocks), uniform values, and the extremes: x = -128 everywhere against w = +-127 (the largest
 // pair sums of the sign trick), alternating signs, zeros.
-long check_kernel(Fn fn, unsigned seed, long* cases) {
+template <class F>
+long check_kernel(F fn, unsigned seed, long* cases) {
   std::mt19937 rng(seed);
   std::uniform_int_distribution<int> ux(-128, 127), uw(-127, 127);
   long bad = 0;
@@ -42,7 +43,7 @@ long check_kernel(Fn fn, unsigned seed, long* cases) {
   for (int c : {127, 128, 129, 200, 255, 256}) {
     if (c <= fwref::kMaxGemvCols) col_counts.push_back(c);
   }
-  const int row_counts[] = {1, 2, 3, 4, 5, 7, 8, 9, 13, 64, 240};
+  const int row_counts[] = {1, 2, 3, 4, 5, 7, 8, 9, 13, 24, 40, 64, 240};
   for (int cols : col_counts) {
     for (int rows : row_counts) {
       for (int pattern = 0; pattern < 5; ++pattern) {
@@ -69,6 +70,21 @@ long check_kernel(Fn fn, unsigned seed, long* cases) {
   }
   return bad;
 }
+
+#if defined(FWREF_HAS_W16_KERNEL) && defined(__x86_64__) && !defined(FWREF_PORTABLE_KERNELS)
+// The packed int16 path as an int8 kernel: expand the weights (fwref/kernels_i8.hpp's layout) and
+// widen x into exact-size blocks (rows * w16_stride(cols), w16_stride(cols)), then the int16 kernel.
+struct W16AsI8 {
+  fwref::GemvW16Fn w16;
+  void operator()(const std::int8_t* w, int rows, int cols, const std::int8_t* x, std::int32_t* acc) const {
+    const int stride = fwref::w16_stride(cols);
+    std::vector<std::int16_t> wp(std::size_t(rows) * stride), x16(stride, 0);
+    fwref::expand_i8_to_i16(w, rows, cols, wp.data());
+    for (int i = 0; i < cols; ++i) x16[i] = x[i];
+    w16(wp.data(), rows, cols, x16.data(), acc);
+  }
+};
+#endif
 
 }  // namespace
 
@@ -112,6 +128,11 @@ int main(int argc, char** argv) {
     std::printf("CHECK %s cases=%ld mismatches=%ld %s\n", ks[k].name, cases, bad, bad ? "NOT_OK" : "OK");
     failed += bad ? 1 : 0;
     ++ran;
+#if defined(FWREF_HAS_W16_KERNEL)
+    const long bad16 = check_kernel(W16AsI8{ks[k].w16}, seed + 2, &cases);  // its packed int16 path
+    std::printf("CHECK w16:%s cases=%ld mismatches=%ld %s\n", ks[k].name, cases, bad16, bad16 ? "NOT_OK" : "OK");
+    failed += bad16 ? 1 : 0;
+#endif
   }
   // and the dispatched entry point itself
   if (only.empty()) {

@@ -96,17 +96,38 @@ struct CnodeWorkspace {
   // which saves its RAM; else in u_row.
   static constexpr bool kURowInA = kMaxChannels <= kMaxCnodeHidden;
   float u_row[kURowInA ? 1 : kMaxChannels];
+#if defined(FWREF_CNODE_W_INT16)
+  // With the int16 stage weights (below), the stage products' inputs are quantized straight into
+  // int16 (no widening pass per product); they share uq's RAM, which is free once V is computed.
+  struct StageX16 {
+    // word-aligned, as LDRD needs (4 bytes, not 8: the union then adds no padding to the workspace)
+    alignas(4) std::int16_t lat[(kMaxLatent + 7) & ~7];  // quantize(z, s_stage[e]), zero-padded
+    alignas(4) std::int16_t hid[(kMaxCnodeHidden + 7) & ~7];  // the hidden codes, zero-padded
+  };
+  union {
+    std::int8_t uq[kMaxStageTimes * kMaxChannels];  // quantized U (int8), (S, C)
+    StageX16 x16;
+  };
+#else
   std::int8_t uq[kMaxStageTimes * kMaxChannels];  // quantized U (int8), (S, C)
+#endif
   std::int8_t q_lat[kMaxLatent];
   std::int8_t q_hid[kMaxCnodeHidden];
   Lat z, k1, k2, k3, k4, state;
   Hid a;
 #if defined(FWREF_CNODE_W_INT16)
-  // Cortex-M option (firmware_ref/mcu, FWREF_CNODE_W_INT16=ON): lin1_z's and lin2's int8 weights
-  // sign-extended to int16 in RAM (rows padded to a multiple of 8), made by the first int8 inference
-  // of a model (w16_of: which weights they are); the 4N stage products then run without SXTB16.
+  // Option FWREF_CNODE_W_INT16 (on in firmware_ref/mcu and in the host build): lin1_z's and lin2's
+  // int8 weights sign-extended to int16 (rows padded to a multiple of 8) and packed for the
+  // platform's int16 kernel (fwref/kernels_i8.hpp), made by the first int8 inference of a model.
+  // w16_of records which weights they are BY ADDRESS: a caller that frees a model's weights and
+  // loads others at the same address into a workspace it keeps must set w16_of = nullptr first.
   alignas(8) std::int16_t lin1z16[kMaxCnodeHidden * ((kMaxLatent + 7) & ~7)];  // LDRD needs word alignment
   alignas(8) std::int16_t lin2w16[kMaxLatent * ((kMaxCnodeHidden + 7) & ~7)];
+#if defined(FWREF_CNODE_U_INT16)
+  // Host option (on by default there): lin1_u (H, C) too, for the S products of the control path
+  // (3 KB more; off on Cortex-M, whose static RAM target is 16 KiB).
+  alignas(8) std::int16_t lin1u16[kMaxCnodeHidden * ((kMaxChannels + 7) & ~7)];
+#endif
   const std::int8_t* w16_of = nullptr;
 #endif
 };

@@ -68,10 +68,12 @@ struct GruWorkspace {
   std::int8_t xq[kMaxChannels];
   std::int8_t hq[kMaxGruHidden];
 #if defined(FWREF_GRU_WHH_INT16)
-  // Cortex-M option (firmware_ref/mcu, FWREF_GRU_WHH_INT16=ON): W_hh and W_ih sign-extended to int16
-  // in RAM (rows padded to a multiple of 8), made by the first int8 inference of a model (w16_of
-  // records which weights they hold), so both products, run W times per window, are LDRD + SMLAD
-  // (fwref/kernels_i8.hpp): 2 * 3H * (pad8(H) + pad8(C)) bytes of RAM for speed.
+  // Option FWREF_GRU_WHH_INT16 (on in firmware_ref/mcu and in the host build): W_hh and W_ih
+  // sign-extended to int16 (rows padded to a multiple of 8) and packed for the platform's int16
+  // kernel (fwref/kernels_i8.hpp: LDM + SMLAD on Cortex-M, vpmaddwd on x86-64), made by the first
+  // int8 inference of a model: 2 * 3H * (pad8(H) + pad8(C)) bytes of RAM for speed. w16_of records
+  // which weights they hold BY ADDRESS: a caller that frees a model's weights and loads others at
+  // the same address into a workspace it keeps must set w16_of = nullptr first.
   alignas(8) std::int16_t whh16[kMaxGruGates * ((kMaxGruHidden + 7) & ~7)];  // LDRD needs word alignment
   alignas(8) std::int16_t wih16[kMaxGruGates * ((kMaxChannels + 7) & ~7)];
   const std::int8_t* w16_of = nullptr;

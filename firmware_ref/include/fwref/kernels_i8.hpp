@@ -166,62 +166,87 @@ inline void gemv_i8(const std::int8_t* w, int rows, int cols, const std::int8_t*
 #if defined(FWREF_GRU_WHH_INT16) || defined(FWREF_CNODE_W_INT16)
 #define FWREF_HAS_W16_KERNEL 1
 // The same products with the weights already sign-extended to int16 (a copy in RAM made once at
-// load by expand_i8_to_i16; weights.bin and flash keep int8): 4 products of a row are one LDRD and
-// two SMLAD, one LDRD of x (as plain int16 pairs) serves 4 rows: 26 instructions for 32 products
-// plus the loop's 2. Rows are padded with zeros to a multiple of 8 columns.
-#define FWREF_M_ROWS4_W16_STEP(R, A)                                                                \
-  "ldrd   %[t], %[u], [%[" R "]], #8\n\t"                                                          \
-  "smlad  %[" A "], %[t], %[xa], %[" A "]\n\t"                                                      \
-  "smlad  %[" A "], %[u], %[xb], %[" A "]\n\t"
-#define FWREF_M_ROWS4_W16_COLS4                                                                     \
-  "ldrd   %[xa], %[xb], [%[xp]], #8\n\t" FWREF_M_ROWS4_W16_STEP("p0", "a0")                         \
-  FWREF_M_ROWS4_W16_STEP("p1", "a1") FWREF_M_ROWS4_W16_STEP("p2", "a2") FWREF_M_ROWS4_W16_STEP("p3", "a3")
+// load by expand_i8_to_i16; weights.bin and flash keep int8), repacked so that one pointer walks
+// them in the order the kernel reads them: per block of 4 rows and per 4 columns, 16 int16
+// [row0 c0..c3, row1 c0..c3, row2 c0..c3, row3 c0..c3]. One LDM of 4 words brings 2 rows x 4
+// columns, one LDRD the 4 columns of x (plain int16 pairs): 4 columns of 4 rows are LDRD, 2 LDM and
+// 8 SMLAD, 11 instructions for 16 products (0.69 per MAC) plus the loop's 3 per 8 columns. Rows
+// are padded with zeros to a multiple of 8 columns; the rows after the last whole block of 4 stay
+// row-major (stride w16_stride(cols)). Block b starts at element 4 * b * stride, as row 4b of a
+// row-major copy would, so rows [o0, o0 + n) with o0 a multiple of 4 start at o0 * stride.
 // Row stride of the int16 copies: cols rounded up to 8, the tail zero (x's copy is zero there too).
 constexpr int w16_stride(int cols) { return (cols + 7) & ~7; }
-// (rows, cols) int8 -> (rows, w16_stride(cols)) int16, the padding zero.
+// (rows, cols) int8 -> the blocked int16 copy above ((rows, w16_stride(cols)) elements), padding zero.
 inline void expand_i8_to_i16(const std::int8_t* q, int rows, int cols, std::int16_t* out) {
   const int stride = w16_stride(cols);
+  const int blocked = rows & ~3;
   for (int o = 0; o < rows; ++o) {
-    for (int i = 0; i < stride; ++i) out[o * stride + i] = i < cols ? q[o * cols + i] : 0;
+    for (int i = 0; i < stride; ++i) {
+      const std::int16_t v = i < cols ? q[o * cols + i] : 0;
+      if (o < blocked) {
+        out[(o & ~3) * stride + (i / 4) * 16 + (o & 3) * 4 + (i & 3)] = v;
+      } else {
+        out[o * stride + i] = v;
+      }
+    }
   }
 }
-// ``w``: the int16 copy (stride w16_stride(cols)).
-inline void gemv_i8w16(const std::int16_t* w, int rows, int cols, const std::int8_t* x, std::int32_t* acc) {
+#define FWREF_M_W16_COLS4                                                                           \
+  "ldrd   %[xa], %[xb], [%[xp]], #8\n\t"                                                            \
+  "ldmia  %[p]!, {%[w0], %[w1], %[w2], %[w3]}\n\t"                                                  \
+  "smlad  %[a0], %[w0], %[xa], %[a0]\n\t"                                                           \
+  "smlad  %[a0], %[w1], %[xb], %[a0]\n\t"                                                           \
+  "smlad  %[a1], %[w2], %[xa], %[a1]\n\t"                                                           \
+  "smlad  %[a1], %[w3], %[xb], %[a1]\n\t"                                                           \
+  "ldmia  %[p]!, {%[w0], %[w1], %[w2], %[w3]}\n\t"                                                  \
+  "smlad  %[a2], %[w0], %[xa], %[a2]\n\t"                                                           \
+  "smlad  %[a2], %[w1], %[xb], %[a2]\n\t"                                                           \
+  "smlad  %[a3], %[w2], %[xa], %[a3]\n\t"                                                           \
+  "smlad  %[a3], %[w3], %[xb], %[a3]\n\t"
+// ``w``: the blocked int16 copy; ``x16``: x as int16, word-aligned (LDRD), w16_stride(cols) long
+// with zeros after cols. The caller that quantizes x can write it so directly (no widening pass).
+inline void gemv_w16_x16(const std::int16_t* w, int rows, int cols, const std::int16_t* x16, std::int32_t* acc) {
   const int stride = w16_stride(cols);
-  alignas(8) std::int16_t x16[w16_stride(kMaxGemvCols)];  // LDRD needs word alignment
-  for (int i = 0; i < cols; ++i) x16[i] = x[i];
-  for (int i = cols; i < stride; ++i) x16[i] = 0;
-  cols = stride;
+  // A stack slot: the 12 values of the loop fill the registers the compiler can give (see the asm).
+  const std::int16_t* volatile xend = x16 + stride;
+  const std::int16_t* p = w;
   int o = 0;
   for (; o + 4 <= rows; o += 4) {
-    const std::int16_t* p0 = w + o * cols;
-    const std::int16_t* p1 = p0 + cols;
-    const std::int16_t* p2 = p1 + cols;
-    const std::int16_t* p3 = p2 + cols;
-    const std::int16_t* volatile end = p0 + cols;  // a stack slot (see the asm)
     const std::int16_t* xp = x16;
     std::int32_t a0 = 0, a1 = 0, a2 = 0, a3 = 0;
-    std::uint32_t xa, xb, t, u;
-    __asm__ volatile("1:\n\t" FWREF_M_ROWS4_W16_COLS4 FWREF_M_ROWS4_W16_COLS4
-                     "ldr    %[t], %[end]\n\t"  // from memory: all 14 allocatable registers are in use
-                     "cmp    %[p0], %[t]\n\t"
+    std::uint32_t xa, xb;
+    // LDM takes its registers in ascending order and fills them from ascending addresses: fixed
+    // registers, so that w0..w3 are the 1st..4th word (r0..r3, ascending).
+    register std::uint32_t w0 __asm__("r0");
+    register std::uint32_t w1 __asm__("r1");
+    register std::uint32_t w2 __asm__("r2");
+    register std::uint32_t w3 __asm__("r3");
+    __asm__ volatile("1:\n\t" FWREF_M_W16_COLS4 FWREF_M_W16_COLS4
+                     "ldr    %[w0], %[xend]\n\t"  // w0 is free until the next LDM
+                     "cmp    %[xp], %[w0]\n\t"
                      "bne    1b\n\t"
-                     : [a0] "+&r"(a0), [a1] "+&r"(a1), [a2] "+&r"(a2), [a3] "+&r"(a3), [p0] "+&r"(p0), [p1] "+&r"(p1),
-                       [p2] "+&r"(p2), [p3] "+&r"(p3), [xp] "+&r"(xp), [xa] "=&r"(xa), [xb] "=&r"(xb), [t] "=&r"(t),
-                       [u] "=&r"(u)
-                     : [end] "m"(end)
+                     : [a0] "+&r"(a0), [a1] "+&r"(a1), [a2] "+&r"(a2), [a3] "+&r"(a3), [p] "+&r"(p), [xp] "+&r"(xp),
+                       [xa] "=&r"(xa), [xb] "=&r"(xb), [w0] "=&r"(w0), [w1] "=&r"(w1), [w2] "=&r"(w2), [w3] "=&r"(w3)
+                     : [xend] "m"(xend)
                      : "cc", "memory");
     acc[o] = a0, acc[o + 1] = a1, acc[o + 2] = a2, acc[o + 3] = a3;
   }
-  for (; o < rows; ++o) {
-    const std::int16_t* r = w + o * cols;
+  for (; o < rows; ++o) {  // the row-major tail rows
+    const std::int16_t* r = w + o * stride;
     std::int32_t s = 0;
-    for (int i = 0; i < cols; ++i) s += std::int32_t(r[i]) * x16[i];
+    for (int i = 0; i < stride; ++i) s += std::int32_t(r[i]) * x16[i];
     acc[o] = s;
   }
 }
-#undef FWREF_M_ROWS4_W16_COLS4
-#undef FWREF_M_ROWS4_W16_STEP
+#undef FWREF_M_W16_COLS4
+// The same with int8 x (widened here, once per call).
+inline void gemv_i8w16(const std::int16_t* w, int rows, int cols, const std::int8_t* x, std::int32_t* acc) {
+  const int stride = w16_stride(cols);
+  alignas(8) std::int16_t x16[w16_stride(kMaxGemvCols)];
+  for (int i = 0; i < cols; ++i) x16[i] = x[i];
+  for (int i = cols; i < stride; ++i) x16[i] = 0;
+  gemv_w16_x16(w, rows, cols, x16, acc);
+}
 #endif
 inline const char* gemv_i8_kernel_name() { return "cortex-m-dsp-4row"; }
 
@@ -233,11 +258,60 @@ extern GemvI8Fn g_gemv_i8;
 inline void gemv_i8(const std::int8_t* w, int rows, int cols, const std::int8_t* x, std::int32_t* acc) {
   g_gemv_i8(w, rows, cols, x, acc);
 }
-// The kernels this build has, and whether the CPU runs each (index 0 is the portable one).
+// The int16 path (FWREF_CNODE_W_INT16 / FWREF_GRU_WHH_INT16, on by default on the host): the
+// weights sign-extended to int16 once (expand_i8_to_i16, at the first inference) and packed for
+// vpmaddwd: per block of 8 rows and per column pair k, one 256-bit vector of the 8 rows' int16
+// pairs (w[r][2k], w[r][2k+1]); blocks go in panels of up to 4 (32 rows) so that one broadcast pair
+// of x serves 4 vectors; within a panel of nb blocks the vector of block j, pair k is at
+// (k * nb + j) * 16. Panels start at element 8 * b * stride (b: the panel's first block), where
+// row 8b of a row-major copy would; rows after the last whole block of 8 are row-major. Hence rows
+// [o0, o0 + n) can be multiplied on their own when o0 is a multiple of 32 and n is a multiple of
+// 32 or reaches the last row (the callers' blocks of kGemvRowBlock rows are). Exact: int16
+// products summed in int32 by vpmaddwd, as the int8 ones are (|acc| < 2^24).
+constexpr int w16_stride(int cols) { return (cols + 7) & ~7; }
+inline long w16_index(int r, int c, int rows, int stride) {
+  const int blocks = rows / 8;
+  if (r >= 8 * blocks) return long(r) * stride + c;
+  const int b = r / 8, b0 = b & ~3, nb = blocks - b0 < 4 ? blocks - b0 : 4;
+  return long(8 * b0) * stride + (long(c / 2) * nb + (b - b0)) * 16 + (r % 8) * 2 + (c & 1);
+}
+// (rows, cols) int8 -> the packed int16 copy above (rows * w16_stride(cols) elements), padding zero.
+inline void expand_i8_to_i16(const std::int8_t* q, int rows, int cols, std::int16_t* out) {
+  const int stride = w16_stride(cols);
+  for (int r = 0; r < rows; ++r) {
+    for (int c = 0; c < stride; ++c) out[w16_index(r, c, rows, stride)] = c < cols ? q[r * cols + c] : 0;
+  }
+}
+// x16: x as int16, w16_stride(cols) long, zero after cols.
+using GemvW16Fn = void (*)(const std::int16_t* w, int rows, int cols, const std::int16_t* x16, std::int32_t* acc);
+extern GemvW16Fn g_gemv_w16;
+#define FWREF_HAS_W16_KERNEL 1
+inline void gemv_w16_x16(const std::int16_t* w, int rows, int cols, const std::int16_t* x16, std::int32_t* acc) {
+  g_gemv_w16(w, rows, cols, x16, acc);
+}
+inline void gemv_i8w16(const std::int16_t* w, int rows, int cols, const std::int8_t* x, std::int32_t* acc) {
+  const int stride = w16_stride(cols);
+  alignas(32) std::int16_t x16[w16_stride(kMaxGemvCols)];
+  for (int i = 0; i < cols; ++i) x16[i] = x[i];
+  for (int i = cols; i < stride; ++i) x16[i] = 0;
+  g_gemv_w16(w, rows, cols, x16, acc);
+}
+// The reference of the packed layout: one product at a time.
+inline void gemv_w16_portable(const std::int16_t* w, int rows, int cols, const std::int16_t* x16, std::int32_t* acc) {
+  const int stride = w16_stride(cols);
+  for (int r = 0; r < rows; ++r) {
+    std::int32_t s = 0;
+    for (int c = 0; c < cols; ++c) s += std::int32_t(w[w16_index(r, c, rows, stride)]) * x16[c];
+    acc[r] = s;
+  }
+}
+// The kernels this build has, and whether the CPU runs each (index 0 is the portable one); ``w16``
+// is the same instruction set's kernel for the packed int16 copy.
 struct GemvI8Kernel {
   const char* name;
   GemvI8Fn fn;
   bool cpu_runs;
+  GemvW16Fn w16;
 };
 int gemv_i8_kernels(const GemvI8Kernel** out);
 const char* gemv_i8_kernel_name();
