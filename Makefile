@@ -12,8 +12,11 @@ setup:
 run: setup
 	$(PY) -m quadfdi.cli run --config $(CONFIG) --out $(RUN)
 
+# Two pytest workers, one per core, each taking whole files (module fixtures are built once): the
+# suite is half subprocesses (C++ builds, QEMU, ONNX Runtime, CLI runs) and half single-threaded
+# Python, so it took 15 min 54 s serially on CI (2026-12-02), over the 15-minute budget.
 test: setup
-	$(PY) -m pytest -q
+	$(PY) -m pytest -q -n 2 --dist loadfile
 
 sim-bench: setup
 	$(PY) -m quadfdi.cli sim bench --config $(CONFIG)

@@ -109,7 +109,8 @@ def _limits_section(bench: dict) -> list[str]:
          "best of numpy (OpenBLAS) / torch (MKL) sgemm (best size)"
          + (f" {lim['gemm_peak_gflops']:.1f} and the probe's FMA loop {lim['fma_peak_gflops']:.1f}"
             if lim.get("fma_peak_gflops") else "")],
-        ["peak fp32, 2 threads", f"{lim['peak_gflops_2t']:.1f} GFLOP/s", "same"],
+        *([["peak fp32, 2 threads", f"{lim['peak_gflops_2t']:.1f} GFLOP/s", "same"]]
+          if lim.get("peak_gflops_2t") is not None else []),  # measured only when bench.threads has 2
         ["peak int8, 1 thread", f"{lim['peak_int8_gops']:.0f} GOP/s",
          "ORT MatMulInteger, uint8 x int8 (MLAS): the exported graphs' products (7-bit weights)"],
         ["int8 x int8, 1 thread", f"{lim.get('s8s8_int8_gops', float('nan')):.0f} GOP/s",
