@@ -388,13 +388,11 @@ def model_from_signature(sig: dict[str, Any], solver: SolverSpec | None = None,
         raise ValueError(f"{kind} signature n_motors must be 4, found {n_motors!r}")
     if set(sig) != keys[kind] or not all(isinstance(v, int) and not isinstance(v, bool) for v in sig.values()):
         raise ValueError(f"{kind} signature must hold integer {', '.join(sorted(keys[kind]))}; found {sig}")
+    classes = {"point": CNODE, **(cnode_classes or {})}
     if kind == "cnode":
-        classes = {"point": CNODE, **(cnode_classes or {})}
         if control not in classes:
             raise ValueError(f"cnode signature control must be one of {', '.join(classes)}, found {control!r}")
-        model = classes[control](solver=solver, **sig)
-    else:
-        model = GRUClassifier(**sig)
+    model = classes[control](solver=solver, **sig) if kind == "cnode" else GRUClassifier(**sig)
     if n_motors is not None:
         model.motor_head = nn.Linear(model.head.in_features, n_motors)
     return model
