@@ -67,13 +67,13 @@ def test_checkpoint_round_trip_and_training_moves_the_head(kind, tmp_path):
     from sim.dataset import Windows
 
     torch.manual_seed(0)
-    cfg = TrainConfig(latent=6, hidden=8, gru_hidden=6, epochs=2, batch_size=16, steps=2, motor_head="auto")
+    cfg = TrainConfig(latent=6, hidden=8, gru_hidden=6, epochs=1, batch_size=16, steps=2, motor_head="auto")
     model = attach_motor_head(build_model(kind, C, cfg, window=W, n_classes=5))
     rng = np.random.default_rng(0)
-    x = synthetic_windows(48, 1, np.zeros(C, np.float32), np.ones(C, np.float32))
-    y = rng.integers(0, 5, 48)
-    motor = np.where(rotor_side(REALISTIC)[y], rng.integers(0, 4, 48), -1)
-    w = Windows(x, y, np.arange(48), np.zeros(48, np.int64), np.zeros(48))
+    x = synthetic_windows(32, 1, np.zeros(C, np.float32), np.ones(C, np.float32))
+    y = rng.integers(0, 5, 32)
+    motor = np.where(rotor_side(REALISTIC)[y], rng.integers(0, 4, 32), -1)
+    w = Windows(x, y, np.arange(32), np.zeros(32, np.int64), np.zeros(32))
     before = model.motor_head.weight.detach().clone()
     with torch_threads(1):  # one thread, as training runs (oversubscribed OpenMP makes the GRU ~50x slower)
         train_model(model, w, w, cfg, np.ones(5, np.float32), log=lambda _: None, motor=motor)
@@ -84,7 +84,7 @@ def test_checkpoint_round_trip_and_training_moves_the_head(kind, tmp_path):
     back, blob = load_checkpoint(tmp_path / "m.pt", kind)
     assert blob["architecture"]["n_motors"] == 4
     p = predict_motor_proba(back, x)
-    assert p.shape == (48, 4) and np.allclose(p.sum(1), 1)
+    assert p.shape == (32, 4) and np.allclose(p.sum(1), 1)
     np.testing.assert_array_equal(p, predict_motor_proba(model, x))
 
 
@@ -107,11 +107,11 @@ def _tiny_with_heads(steps: int = 2):
     gq = quantize_gru(gp, collect_ranges(gf, CALIBRATION_PROBES, WindowReader(calib, batch=32)))
     graphs = {"cnode_fp32": cf, "cnode_int8": build_cnode(cp, OPSET, cq), "gru_fp32": gf,
               "gru_int8": build_gru_int8(gp, gq, OPSET)}
-    return cnode, gru, x, graphs
+    return cnode, gru, x, graphs, (cp, cq, gp, gq)
 
 
 def test_graphs_output_motor_logits_matching_pytorch():
-    cnode, gru, x, graphs = _tiny_with_heads()
+    cnode, gru, x, graphs, _ = _tiny_with_heads()
     for key, built in graphs.items():
         assert [o.name for o in built.model.graph.output] == ["logits", "proba", "motor_logits"], key
     sessions = {k: session(b.model.SerializeToString()) for k, b in graphs.items()}
@@ -153,3 +153,29 @@ def test_detect_motor_rules():
     spans = episode_spans(np.array([0, 1, 0, 0, 1, 0], bool), np.array([0, 0, 0, 1, 0, 0], bool),
                           np.array([0, 1, 1, 0, 1, 1], bool))
     assert [s.nonzero()[0].tolist() for s in spans] == [[1, 2], [4, 5]]
+
+
+def test_weights_bin_carries_the_heads_in_optional_trailing_sections(tmp_path):
+    from dataclasses import replace
+
+    from export.binfmt import pack
+    from export.weights_bin import read_weights, weights_bytes
+    from export.weights_layout import MAGIC, VERSION
+
+    _, gru, _, _, (cp, cq, gp, gq) = _tiny_with_heads()
+    (tmp_path / "w.bin").write_bytes(weights_bytes(cp, cq, gp, gq))
+    wf = read_weights(tmp_path / "w.bin")
+    assert [(s.model, s.precision) for s in wf.sections][4:] == [
+        ("cnode_motor", "fp32"), ("cnode_motor", "int8"), ("gru_motor", "fp32"), ("gru_motor", "int8")]
+    sec = wf.section("gru_motor", "int8")
+    assert sec.dims[:2] == (6, 4) and sec.tensors["motor_head.weight"].array.dtype == np.int8
+    np.testing.assert_array_equal(wf.section("gru_motor", "fp32")["motor_head.weight"],
+                                  gru.motor_head.weight.detach().numpy())
+    # without heads: the four sections of before, and a lone or misordered head is refused
+    plain = weights_bytes(replace(cp, motor_w=None, motor_b=None), cq, replace(gp, motor_w=None, motor_b=None), gq)
+    (tmp_path / "p.bin").write_bytes(plain)
+    assert len(read_weights(tmp_path / "p.bin").sections) == 4
+    for bad in ([0, 1, 2, 3, 5], [0, 1, 2, 3, 6, 7, 4, 5]):
+        (tmp_path / "b.bin").write_bytes(pack(MAGIC, VERSION, [wf.sections[i] for i in bad]))
+        with pytest.raises(QuadfdiError, match="optionally"):
+            read_weights(tmp_path / "b.bin")
