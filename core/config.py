@@ -141,6 +141,9 @@ class TrainConfig:
     seeds: tuple[int, ...] = (0, 1, 2)  # the multi-seed study
     max_train_windows: int = 0  # cap: a seeded subsample of the training windows (train.data); 0 = all
     profile: str = "paper"  # the models' input channels (core.profiles, docs/profiles.md): paper | flightlog-min | flightlog-nocur
+    # The motor head (train.motor, docs/training.md): "auto" = on when the data has a rotor-side class, "off" never.
+    motor_head: str = "off"
+    motor_loss_weight: float = 0.5  # weight of the motor cross-entropy added to the class loss
 
     def validate(self) -> None:
         _positive(self, "epochs", "batch_size", "lr", "latent", "hidden", "gru_hidden", "steps", "rtol", "atol", "threads", "gru_lr")
@@ -152,6 +155,8 @@ class TrainConfig:
         _choice(self, "lr_schedule", ("constant", "cosine"))
         _choice(self, "solver", ("dopri5", "bosh3", "rk4", "euler", "midpoint"))
         check_profile(self.profile)
+        _choice(self, "motor_head", ("auto", "off"))
+        _not_negative(self, "motor_loss_weight")
 
 
 @dataclass(frozen=True)

@@ -6,7 +6,8 @@ Writes into OUT (only once everything is computed; a refusal writes nothing):
   exposure (flight-seconds covered by decided windows) and the alarms (start_s, end_s, class,
   motor, peak_p_fault);
 - ``windows.npz``: per window on the grid ``t_end``, ``decided``, ``proba`` (NaN if undecided),
-  ``votes``, ``active``, ``cls`` (-1 inactive), and ``class_names``;
+  ``votes``, ``active``, ``cls`` (-1 inactive), ``class_names``, ``motor`` (int8, 1..4 or 0: detect.motor)
+  and, for a model with a motor head, ``motor_proba`` (n, 4) float32 (NaN if undecided);
 - ``detect.png``: the profile's channels, the availability mask, alarms shaded.
 """
 
@@ -20,6 +21,7 @@ import numpy as np
 from core.alarm import AlarmConfig, alarm_episodes, check_policy, run_alarm
 from core.errors import QuadfdiError
 from detect.inputs import FlightInputs, flight_inputs, read_flight, windows
+from detect.motor import alarm_motor, episode_spans, rotor_columns, window_motor
 
 NETS = ("cnode", "gru")
 
@@ -46,13 +48,23 @@ def softmax(logits: np.ndarray) -> np.ndarray:
     return e / e.sum(axis=1, keepdims=True)
 
 
-def model_logits(folder: Path, manifest: dict, net: str, precision: str, runtime: str, x: np.ndarray) -> np.ndarray:
-    """(n, K) float32 logits of ``x`` from ORT (the exported graph) or the C++ reference (weights.bin)."""
-    from detect.runtimes import cpp_logits, ort_logits
+def has_motor(manifest: dict, net: str) -> bool:
+    """Whether the exported ``net`` has a motor head (manifest ``motor_head``, export.manifest.motor_entry)."""
+    return net in ((manifest.get("motor_head") or {}).get("models") or [])
 
+
+def model_logits(folder: Path, manifest: dict, net: str, precision: str, runtime: str,
+                 x: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
+    """(n, K) float32 logits of ``x`` from ORT (the exported graph) or the C++ reference (weights.bin),
+    and (n, 4) motor logits for a model with a motor head (else None)."""
+    from detect.runtimes import cpp_outputs, ort_outputs
+
+    motor = has_motor(manifest, net)
     if runtime == "ort":
-        return ort_logits(folder / manifest["artifacts"][f"{net}_{precision}"], x)
-    return cpp_logits(folder / "weights.bin", net, precision == "int8", x)
+        out = ort_outputs(folder / manifest["artifacts"][f"{net}_{precision}"], x,
+                          ["logits"] + (["motor_logits"] if motor else []))
+        return out[0], out[1] if motor else None
+    return cpp_outputs(folder / "weights.bin", net, precision == "int8", x, motor)
 
 
 def exposure_s(fi: FlightInputs, window: int, dt: float) -> float:
@@ -79,10 +91,14 @@ def detect(model: str | Path, flight: str | Path, net: str = "cnode", precision:
     fi = flight_inputs(read_flight(flight), profile, window, stride)
     if [c["name"] for c in manifest["channels"]] != fi.channel_names:
         raise QuadfdiError(f"{folder}: the manifest's channels are not profile {profile!r}'s")
-    logits = model_logits(folder, manifest, net, precision, runtime, windows(fi, window))
+    logits, motor_logits = model_logits(folder, manifest, net, precision, runtime, windows(fi, window))
     n, k = len(fi.starts), len(names)
     proba = np.full((n, k), np.nan)
     proba[fi.decided] = softmax(logits)
+    motor_p = None
+    if motor_logits is not None:
+        motor_p = np.full((n, 4), np.nan)
+        motor_p[fi.decided] = softmax(motor_logits)
     pol = policy_of(manifest)
     healthy = names.index("Healthy")
     p_in = np.where(fi.decided[:, None], proba, 0.0)
@@ -91,9 +107,11 @@ def detect(model: str | Path, flight: str | Path, net: str = "cnode", precision:
                       healthy=healthy, valid=fi.decided[None])
     t_end = fi.time[fi.starts + window - 1]
     episodes = alarm_episodes(trace, t_end[None], p_in[None], healthy=healthy)
+    rotor = rotor_columns(names, list((manifest.get("motor_head") or {}).get("rotor_side_classes") or []))
+    spans = episode_spans(trace.raised[0], trace.cleared[0], trace.active[0])
     alarms = [{"start_s": e["start_s"], "end_s": e["end_s"], "class": names[e["cls"]],
-               "motor": None if e["motor"] < 0 else e["motor"] + 1, "peak_p_fault": e["peak_p_fault"]}
-              for e in episodes]
+               "motor": alarm_motor(e["cls"], span, proba, motor_p, healthy, rotor), "peak_p_fault": e["peak_p_fault"]}
+              for e, span in zip(episodes, spans)]
     record = {"flight": fi.name, "model": str(folder), "net": net, "precision": precision, "runtime": runtime,
               "profile": profile, "policy": pol,
               "hover": {"cmd": float(fi.hover.cmd),
@@ -102,7 +120,10 @@ def detect(model: str | Path, flight: str | Path, net: str = "cnode", precision:
               "airborne_s": round(fi.airborne_s, 2), "windows": int(n), "decided_windows": int(fi.decided.sum()),
               "exposure_s": round(exposure_s(fi, window, dt), 2), "alarms": alarms}
     arrays = {"t_end": t_end, "decided": fi.decided, "proba": proba.astype(np.float32), "votes": trace.votes[0],
-              "active": trace.active[0], "cls": trace.cls[0], "class_names": np.array(names)}
+              "active": trace.active[0], "cls": trace.cls[0], "class_names": np.array(names),
+              "motor": window_motor(proba, motor_p, healthy, rotor)}
+    if motor_p is not None:
+        arrays["motor_proba"] = motor_p.astype(np.float32)
     return {"record": record, "arrays": arrays, "inputs": fi, "window": window}
 
 

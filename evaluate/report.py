@@ -33,19 +33,28 @@ def _policy(p: dict) -> str:
     return f"p≥{p['threshold']:g}, {p['k']}/{p['n']}, clear {p['clear_m']}" + (", latch" if p["latch"] else "")
 
 
+def _motor(ev: dict, r: dict) -> str:
+    """The localisation cell, tagged with where the motor comes from: a network's motor head, or a
+    baseline's physics rule (train.baselines_run.suspected_motor)."""
+    cell = _ci(r["metrics"]["motor_acc"])
+    if cell == "—":
+        return cell
+    return f"{cell} ({'head' if ev['models'].get(r['model'], {}).get('network') else 'rule'})"
+
+
 def _set_table(ev: dict, name: str) -> list[str]:
     rows = []
     for r in (r for r in ev["results"] if r["set"] == name):
         m = r["metrics"]
         rows.append([r["model"], r["flights"], _ci(m["macro_f1"]), _ci(m["accuracy"]), _ci(m["detection_rate"]),
-                     _ci(m["delay_onset_s"], 2), _ci(m["delay_thr_s"], 2), _ci(m["class_acc"]), _ci(m["motor_acc"])])
+                     _ci(m["delay_onset_s"], 2), _ci(m["delay_thr_s"], 2), _ci(m["class_acc"]), _motor(ev, r)])
     c = ev["ceiling"].get(name)
     if c:
         rows.append([f"*label-noise ceiling* ({c['ambiguous_windows']}/{c['windows']} windows ambiguous)", "",
                      _v(c["macro_f1"]), _v(c["accuracy"]), "", "", "", "", ""])
     return [f"### {name}", ""] + md_table(
         ["model", "flights", "macro F1", "accuracy", "detected", "delay from onset s", "delay from threshold s",
-         "alarm class right", "motor right"], rows)
+         "alarm class right", "motor right (head / physics rule)"], rows)
 
 
 def _fa_table(ev: dict) -> list[str]:

@@ -7,7 +7,9 @@ tensors), ``artifacts`` (cnode_fp32, cnode_int8, gru_fp32, gru_int8 -> file name
 export folder), ``files`` (name -> sha256, bytes), ``models`` (architecture, MACs),
 ``quantization`` (scheme, calibration, coverage), ``verification``, ``metrics`` (test split, per
 artifact), ``reference`` (the test windows in reference.bin), ``config``, ``profile`` (the input
-channels, ``profile_entry``), ``alarm`` (the alarm policy: core.alarm, the [alarm] section).
+channels, ``profile_entry``), ``alarm`` (the alarm policy: core.alarm, the [alarm] section), and
+only for models with a motor head (train.motor) ``motor_head`` (``motor_entry``; ``io.outputs``
+then also lists ``motor_logits``).
 A reader must check ``schema_version`` first: ``load_manifest`` refuses any other version.
 """
 
@@ -65,11 +67,24 @@ def manifest_class_names(checkpoints: dict[str, dict]) -> list[str]:
     return [str(c) for c in checkpoints["cnode"].get("class_names", CLASS_NAMES)]
 
 
-def _io(window: int, n_channels: int, n_classes: int) -> dict:
+def _io(window: int, n_channels: int, n_classes: int, motor: dict | None = None) -> dict:
+    extra = [{"name": motor["output"], "dtype": "float32", "shape": ["batch", motor["n_motors"]],
+              "models": motor["models"]}] if motor else []
     return {"input": {"name": "telemetry", "dtype": "float32", "shape": ["batch", window, n_channels],
                       "units": "raw (as the dataset's channel units)"},
             "outputs": [{"name": "logits", "dtype": "float32", "shape": ["batch", n_classes]},
-                        {"name": "proba", "dtype": "float32", "shape": ["batch", n_classes]}]}
+                        {"name": "proba", "dtype": "float32", "shape": ["batch", n_classes]}] + extra}
+
+
+def motor_entry(checkpoints: dict[str, dict], rotor_side_classes: list[str]) -> dict | None:
+    """manifest ``motor_head`` (None when no exported model has one): the models with the head, the
+    output's name and width, the rotor-side classes (the alarm's motor is only given for those)
+    and the numbering of the output's columns."""
+    models = [k for k in MODEL_KINDS if "n_motors" in checkpoints[k]["architecture"]]
+    if not models:
+        return None
+    return {"models": models, "output": "motor_logits", "n_motors": 4, "rotor_side_classes": list(rotor_side_classes),
+            "numbering": "column m = rotor m + 1 (docs/ingest.md, motor numbering) = the dataset's fault_motor m"}
 
 
 def _quantization(coverage: dict[str, dict], calib_windows: int, interp_exact: bool,
@@ -91,15 +106,17 @@ def build_manifest(*, ds: Any, config: dict, checkpoints: dict[str, dict], windo
                    ir_version: int, stage_times: np.ndarray, files: dict[str, bytes],
                    coverage: dict[str, dict], calib_windows: int, interp_exact: bool, verification: dict,
                    metrics: dict, reference_index: np.ndarray, reference_labels: np.ndarray,
-                   encoding: dict | None = None, profile: dict | None = None, alarm: dict | None = None) -> dict:
+                   encoding: dict | None = None, profile: dict | None = None, alarm: dict | None = None,
+                   motor: dict | None = None) -> dict:
     """The manifest of one export (the keys listed in this module's docstring, in that order).
 
     ``ds``: the run's ``sim.dataset.Dataset``; ``checkpoints``: "cnode"/"gru" -> checkpoint blob
     (architecture, normalisation); ``coverage``: per model {"fp32", "int8", "summary"} of
     ``export.coverage``; ``files``: every file written beside the manifest, name -> bytes;
-    ``encoding``: per model ``encoding_of`` (activation type, weight bits, contrib ops).
+    ``encoding``: per model ``encoding_of`` (activation type, weight bits, contrib ops); ``motor``:
+    ``motor_entry`` (None: no key, the manifest of a model without the head is as before).
     """
-    return {
+    out = {
         "schema_version": SCHEMA_VERSION,
         "producer": "quadfdi export",
         "channels": [{"name": n, "unit": str(u)} for n, u in zip(ds.channel_names, ds["channel_units"])],
@@ -114,7 +131,7 @@ def build_manifest(*, ds: Any, config: dict, checkpoints: dict[str, dict], windo
                    "control": "U = interp @ x_norm, one constant (2N+1, W) linear-interpolation matrix"},
         "opset": opset,
         "ir_version": ir_version,
-        "io": _io(int(window), ds.n_channels, len(manifest_class_names(checkpoints))),
+        "io": _io(int(window), ds.n_channels, len(manifest_class_names(checkpoints)), motor),
         "artifacts": artifact_names(steps),
         "files": {name: file_entry(data) for name, data in files.items()},
         "models": {k: {**checkpoints[k]["architecture"], "macs_per_window": coverage[k]["fp32"]["macs_per_window"]}
@@ -128,6 +145,9 @@ def build_manifest(*, ds: Any, config: dict, checkpoints: dict[str, dict], windo
         "profile": profile or profile_entry("paper"),
         "alarm": alarm if alarm is not None else AlarmConfig().__dict__,
     }
+    if motor is not None:
+        out["motor_head"] = motor
+    return out
 
 
 def profile_entry(name: str, *blobs: dict) -> dict:

@@ -34,7 +34,8 @@ import torch
 from onnx import TensorProto
 
 from core.rk4 import RK4_CONSTANT_NAMES, rk4_constants, rk4_step
-from export.graph import BATCH, MS_DOMAIN, Built, Graph, class_outputs, telemetry_input
+from export.graph import BATCH, MS_DOMAIN, Built, Graph, telemetry_input
+from export.motor_graph import graph_outputs, motor_fp32_gemm, motor_int8
 from export.quantize import (BOUND_SCALE, UINT8, QWeight, act_scale, int8_matmul, int8_weight, quantize,
                              quantize_channels, quantize_interp, weight_qmax)
 from train.control import interp_matrix
@@ -67,6 +68,8 @@ class CnodeParams:
     times: np.ndarray  # (S,) float64 stage times, S = 2N + 1
     interp: np.ndarray  # (S, W) float32, U = interp @ x_norm
     stage_index: np.ndarray  # (4N,) int32: row of interp used by stage e = 4k + i
+    motor_w: np.ndarray | None = None  # (4, L) the motor head (train.motor), None without one
+    motor_b: np.ndarray | None = None  # (4,)
 
     @property
     def n_channels(self) -> int:
@@ -196,6 +199,7 @@ def cnode_params(model: torch.nn.Module, steps: int) -> CnodeParams:
         head_w=sd["head.weight"], head_b=sd["head.bias"], steps=int(steps), times=times,
         interp=interp_matrix(times, int(model.window)).astype(np.float32),
         stage_index=rk4_stage_index(times, steps),
+        motor_w=sd.get("motor_head.weight"), motor_b=sd.get("motor_head.bias"),
     )
 
 
@@ -217,6 +221,7 @@ class CnodeQuant:
     s_hid: np.ndarray  # () tanh output of the field's hidden layer: bound 1/127
     s_z1: np.ndarray  # () z1 entering the head
     act: str = CNODE_ACT  # activations after the control path: "int8" (zp 0) or "uint8" (zp 128, 7-bit weights)
+    motor: QWeight | None = None  # the motor head, reading the head's quantized z1 (scale s_z1)
 
 
 def quantize_cnode(p: CnodeParams, ranges: dict[str, np.ndarray], act: str = "") -> CnodeQuant:
@@ -233,6 +238,7 @@ def quantize_cnode(p: CnodeParams, ranges: dict[str, np.ndarray], act: str = "")
         s_x=act_scale(ranges["x_norm"]), s_u=s_u,
         s_z=act_scale(np.array([ranges[f"stage{e}"] for e in range(p.n_stages)])),
         s_hid=np.asarray(BOUND_SCALE), s_z1=act_scale(ranges["z1"]),
+        motor=None if p.motor_w is None else QWeight.of(p.motor_w, qm),
     )
 
 
@@ -276,14 +282,16 @@ def _control_path(g: Graph, p: CnodeParams, q: CnodeQuant | None, xn: str, row0:
 
 
 def _head(g: Graph, p: CnodeParams, q: CnodeQuant | None, z: str) -> None:
-    """logits = head(z1), fp32 Gemm or one int8 product."""
+    """logits = head(z1), fp32 Gemm or one int8 product; motor_logits likewise (export.motor_graph)."""
     if q is None:
         g.op("Gemm", z, g.const("head.weight", p.head_w), g.const("head.bias", p.head_b), transB=1, name="logits")
     else:
         wh, s_wh = int8_weight(g, "head", q.head)
         s_z1 = g.const("act.z1.scale", q.s_z1)
-        int8_matmul(g, quantize(g, z, s_z1, q.act), s_z1, wh, s_wh, g.const("head.bias", p.head_b), q.act,
-                    name="logits")
+        zq = quantize(g, z, s_z1, q.act)
+        int8_matmul(g, zq, s_z1, wh, s_wh, g.const("head.bias", p.head_b), q.act, name="logits")
+    if p.motor_w is not None:
+        motor_fp32_gemm(g, z, p.motor_w, p.motor_b) if q is None else motor_int8(g, zq, s_z1, q.motor, p.motor_b, q.act)
 
 
 def build_cnode(p: CnodeParams, opset: int, q: CnodeQuant | None = None) -> Built:
@@ -358,4 +366,4 @@ def build_cnode(p: CnodeParams, opset: int, q: CnodeQuant | None = None) -> Buil
     doc = (f"quadfdi CNODE, classic RK4 unrolled over N={p.steps} steps, "
            f"{'int8 (int8 activations, MatMulIntegerToFloat, static scales)' if q else 'fp32'}; "
            f"input raw telemetry (batch, {W}, {C})")
-    return g.finish([telemetry_input(W, C)], class_outputs(K), opset, doc)
+    return g.finish([telemetry_input(W, C)], graph_outputs(K, p.motor_w is not None), opset, doc)

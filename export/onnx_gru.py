@@ -27,8 +27,9 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from export.graph import BATCH, Built, Graph, class_outputs, telemetry_input
-from export.quantize import (BOUND_SCALE, UINT8, QWeight, act_scale, int8_linear, int8_matmul, int8_weight, quantize,
+from export.graph import BATCH, Built, Graph, telemetry_input
+from export.motor_graph import MOTOR_OUTPUT, graph_outputs, motor_fp32_matmul, motor_int8
+from export.quantize import (BOUND_SCALE, UINT8, QWeight, act_scale, int8_matmul, int8_weight, quantize,
                              quantize_channels, weight_qmax)
 
 # Activation encoding of the int8 GRU: uint8 (zero point 128) with 7-bit weights takes ONNX Runtime's
@@ -49,6 +50,8 @@ class GruParams:
     head_w: np.ndarray  # (K, H)
     head_b: np.ndarray  # (K,)
     window: int
+    motor_w: np.ndarray | None = None  # (4, H) the motor head (train.motor), None without one
+    motor_b: np.ndarray | None = None  # (4,)
 
     @property
     def n_channels(self) -> int:
@@ -68,7 +71,8 @@ def gru_params(model: torch.nn.Module) -> GruParams:
     sd = {k: v.detach().cpu().numpy().astype(np.float32) for k, v in model.state_dict().items()}
     return GruParams(mean=sd["mean"], std=sd["std"], w_ih=sd["gru.weight_ih_l0"], w_hh=sd["gru.weight_hh_l0"],
                      b_ih=sd["gru.bias_ih_l0"], b_hh=sd["gru.bias_hh_l0"], head_w=sd["head.weight"],
-                     head_b=sd["head.bias"], window=int(model.window))
+                     head_b=sd["head.bias"], window=int(model.window), motor_w=sd.get("motor_head.weight"),
+                     motor_b=sd.get("motor_head.bias"))
 
 
 @dataclass(frozen=True)
@@ -81,13 +85,15 @@ class GruQuant:
     s_x: np.ndarray  # (C,) x_norm per channel, calibrated, folded into w_ih
     s_h: np.ndarray  # () the hidden state, bound 1/127
     act: str = GRU_ACT  # activation encoding: "uint8" (zp 128, 7-bit weights) or "int8" (zp 0)
+    motor: QWeight | None = None  # the motor head, reading the head's quantized h_W (scale s_h)
 
 
 def quantize_gru(p: GruParams, ranges: dict[str, np.ndarray], act: str = GRU_ACT) -> GruQuant:
     s_x = act_scale(ranges["x_norm"])
     qmax = weight_qmax(act)
     return GruQuant(w_ih=QWeight.folded(p.w_ih, s_x, qmax), w_hh=QWeight.of(p.w_hh, qmax),
-                    head=QWeight.of(p.head_w, qmax), s_x=s_x, s_h=np.asarray(BOUND_SCALE), act=act)
+                    head=QWeight.of(p.head_w, qmax), s_x=s_x, s_h=np.asarray(BOUND_SCALE), act=act,
+                    motor=None if p.motor_w is None else QWeight.of(p.motor_w, qmax))
 
 
 CALIBRATION_PROBES = {"x_norm": "channel"}
@@ -121,9 +127,11 @@ def build_gru_fp32(p: GruParams, opset: int, linear_before_reset: int = 1) -> Bu
     out = g.op("Add", g.op("MatMul", last, g.const("head.weight_t", p.head_w.T)), g.const("head.bias", p.head_b),
                name="logits")
     g.op("Softmax", out, name="proba", axis=-1)
+    if p.motor_w is not None:
+        motor_fp32_matmul(g, last, p.motor_w, p.motor_b)
     doc = (f"quadfdi GRU (hidden {H}), fp32, ONNX GRU linear_before_reset={linear_before_reset}; "
            f"raw telemetry (batch, {W}, {C})")
-    return g.finish([telemetry_input(W, C)], class_outputs(K), opset, doc)
+    return g.finish([telemetry_input(W, C)], graph_outputs(K, p.motor_w is not None), opset, doc)
 
 
 def build_gru_int8(p: GruParams, q: GruQuant, opset: int) -> Built:
@@ -160,9 +168,15 @@ def build_gru_int8(p: GruParams, q: GruQuant, opset: int) -> Built:
         n = g.op("Tanh", g.op("Add", x_n[t], g.op("Mul", gh_n, r)))
         h = g.op("Add", g.op("Mul", g.op("Sub", h, n), z), n, name=f"h{t}")
         g.probe(f"h{t}", h, [1, BATCH, H])
-    out = int8_linear(g, h, s_h, "head", q.head, g.const("head.bias", p.head_b), q.act)
+    bh = g.const("head.bias", p.head_b)  # int8_linear's steps in its order (the graph's bytes), hq kept
+    wh, s_wh = int8_weight(g, "head", q.head)
+    hq = quantize(g, h, s_h, q.act)
+    out = int8_matmul(g, hq, s_h, wh, s_wh, bh, q.act)
     g.op("Squeeze", out, g.const("axis0", [0], np.int64), name="logits")
     g.op("Softmax", "logits", name="proba", axis=-1)
+    if p.motor_w is not None:
+        g.op("Squeeze", motor_int8(g, hq, s_h, q.motor, p.motor_b, q.act, name=None), g.const("axis0", [0], np.int64),
+             name=MOTOR_OUTPUT)
     doc = (f"quadfdi GRU (hidden {H}), int8 ({q.act} activations, MatMulIntegerToFloat, static scales), "
            f"unrolled over {W} steps; raw telemetry (batch, {W}, {C})")
-    return g.finish([telemetry_input(W, C)], class_outputs(K), opset, doc)
+    return g.finish([telemetry_input(W, C)], graph_outputs(K, p.motor_w is not None), opset, doc)

@@ -24,13 +24,14 @@ from export.calibrate import WindowReader, collect_ranges, select_windows
 from export.coverage import compare, coverage, fp32_constants, markdown
 from export.graph import IR_VERSION, Built
 from export.manifest import (MODEL_KINDS, artifact_names, build_manifest, encoding_of, manifest_class_names,
-                             profile_entry, write_manifest)
+                             motor_entry, profile_entry, write_manifest)
 from export.quantize import weight_qmax
 from export.onnx_cnode import CnodeParams, CnodeQuant, build_cnode, calibration_probes, cnode_params, quantize_cnode
 from export.onnx_gru import (CALIBRATION_PROBES, GruParams, GruQuant, build_gru_fp32, build_gru_int8, gru_params,
                              quantize_gru)
 from export.reference_bin import pick_windows, reference_bytes
-from export.verify import batch_independence, int8_vs_fp32, ort_outputs, parity, session, torch_logits
+from export.verify import (batch_independence, int8_vs_fp32, motor_verification, ort_outputs, parity, session,
+                           torch_logits)
 from export.onboard_record import onboard_section
 from export.weights_bin import weights_bytes
 from sim.dataset import Dataset, class_names, load_dataset, make_windows
@@ -38,6 +39,7 @@ from train.profile_data import profile_of, profiled_dataset
 from train.checkpoint import check_dataset_matches, checkpoint_class_names, load_checkpoint
 from train.metrics import compute_metrics
 from train.models import SolverSpec
+from train.motor import ROTOR_SIDE_CLASSES
 
 
 @dataclass
@@ -88,9 +90,12 @@ def build_graphs(cnode: torch.nn.Module, gru: torch.nn.Module, calib: np.ndarray
     return Graphs(cf, build_cnode(cp, opset, cq), gf, build_gru_int8(gp, gq, opset), cp, cq, gp, gq)
 
 
+_FP32_CHECKS = ("cnode_fp32_vs_pytorch", "gru_fp32_vs_pytorch", "cnode_motor_fp32_vs_pytorch", "gru_motor_fp32_vs_pytorch")
+
+
 def _require_parity(verification: dict, log: Callable[[str], None]) -> None:
     """Stop on an fp32 graph that disagrees with PyTorch; report int8 against fp32 (a target only)."""
-    for key in ("cnode_fp32_vs_pytorch", "gru_fp32_vs_pytorch"):
+    for key in (k for k in _FP32_CHECKS if k in verification):
         v = verification[key]
         if not v["passed"]:
             raise QuadfdiError(f"verification failed, nothing written: {key} max abs logit difference "
@@ -169,6 +174,7 @@ def _export_into(run: RunDir, cfg: Config, dest: RunDir, log: Callable[[str], No
         calib_windows=len(calib_idx), interp_exact=cq.interp_exact, verification=verification,
         metrics=metrics, reference_index=ref_idx, reference_labels=test_w.y[ref_idx],
         profile=profile_entry(profile, cblob, gblob), alarm=cfg.to_dict()["alarm"],
+        motor=motor_entry({"cnode": cblob, "gru": gblob}, list(ROTOR_SIDE_CLASSES)),
         encoding={"cnode": encoding_of(cq.act, weight_qmax(cq.act), graphs.cnode_int8.model),
                   "gru": encoding_of(gq.act, weight_qmax(gq.act), graphs.gru_int8.model)})
     out = ensure_dir(dest.export)
@@ -183,9 +189,9 @@ def verify_all(blobs: dict[str, bytes], cnode: torch.nn.Module, gru: torch.nn.Mo
     """ORT (all four graphs) against PyTorch and int8 against fp32 on the whole test split."""
     x = test.x
     ref = {"cnode": torch_logits(cnode, x), "gru": torch_logits(gru, x)}
-    logits, proba, indep = {}, {}, {}
+    logits, proba, indep, sessions = {}, {}, {}, {}
     for key, data in blobs.items():
-        sess = session(data)
+        sess = sessions[key] = session(data)
         logits[key], proba[key] = ort_outputs(sess, x)
         indep[key] = batch_independence(sess, x, logits[key])
     verification = {
@@ -195,9 +201,9 @@ def verify_all(blobs: dict[str, bytes], cnode: torch.nn.Module, gru: torch.nn.Mo
         "cnode_int8_vs_fp32": int8_vs_fp32(logits["cnode_int8"], logits["cnode_fp32"], test.y),
         "gru_int8_vs_fp32": int8_vs_fp32(logits["gru_int8"], logits["gru_fp32"], test.y),
         "batch_independence": indep,
+        **motor_verification(sessions, {"cnode": cnode, "gru": gru}, x),  # only models with a motor head
     }
-    verification["passed"] = bool(verification["cnode_fp32_vs_pytorch"]["passed"]
-                                  and verification["gru_fp32_vs_pytorch"]["passed"])
+    verification["passed"] = bool(all(verification[k]["passed"] for k in _FP32_CHECKS if k in verification))
 
     def metrics_of(p: np.ndarray) -> dict:
         return compute_metrics(test.y, p, test.traj, test.t_end, ds["fault_class"], ds["detectable_s"],

@@ -70,3 +70,32 @@ def batch_independence(sess: ort.InferenceSession, x: np.ndarray, batch_logits: 
     diffs = [float(np.abs(sess.run(["logits"], {"telemetry": x[i:i + 1]})[0][0] - batch_logits[i]).max())
              for i in range(min(n, len(x)))]
     return {"windows_checked": len(diffs), "max_abs_logit_diff": max(diffs) if diffs else 0.0}
+
+
+@torch.no_grad()
+def torch_motor_logits(model: torch.nn.Module, x: np.ndarray) -> np.ndarray:
+    """(n, 4) motor logits of a model with a motor head (train.motor)."""
+    with torch_threads():
+        return np.concatenate([model.motor_head(model.features(torch.from_numpy(x[i:i + CHUNK]))).numpy()
+                               for i in range(0, len(x), CHUNK)])
+
+
+def ort_motor_logits(sess: ort.InferenceSession, x: np.ndarray) -> np.ndarray:
+    """(n, 4) ``motor_logits`` of a graph with the motor head, in chunks."""
+    return np.concatenate([sess.run(["motor_logits"], {"telemetry": x[i:i + CHUNK]})[0] for i in range(0, len(x), CHUNK)])
+
+
+def motor_verification(sessions: dict, models: dict[str, torch.nn.Module], x: np.ndarray) -> dict:
+    """Per model with a motor head: fp32 ORT against PyTorch (``parity``, the class logits' bound)
+    and int8 against fp32 (argmax agreement, max logit difference; reported)."""
+    out = {}
+    for kind, model in models.items():
+        if getattr(model, "motor_head", None) is None:
+            continue
+        ref = torch_motor_logits(model, x)
+        fp32, int8 = ort_motor_logits(sessions[f"{kind}_fp32"], x), ort_motor_logits(sessions[f"{kind}_int8"], x)
+        out[f"{kind}_motor_fp32_vs_pytorch"] = parity(fp32, ref)
+        out[f"{kind}_motor_int8_vs_fp32"] = {"argmax_agreement": float(np.mean(int8.argmax(1) == fp32.argmax(1))),
+                                             "max_abs_logit_diff": float(np.abs(int8 - fp32).max()),
+                                             "windows": int(len(x))}
+    return out

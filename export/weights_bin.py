@@ -13,6 +13,11 @@ it and the reader checks every file against it. Meaning of the int8-only tensors
 activation scales; ``act.u.scale`` (C,) is folded into the int8 ``encoder.weight`` and
 ``lin1_u.weight`` (they hold W diag(s_u), quantized per row), ``act.x_norm.scale`` of the GRU into
 ``gru.weight_ih``. ``rk4.consts`` = core.rk4.rk4_constants(1/N), in RK4_CONSTANT_NAMES order.
+
+A net with a motor head (train.motor) adds, after these four and in this order, its sections
+"cnode_motor" / "gru_motor" fp32 and int8 (dims [0] F features, [1] M = 4 motors): the head's
+weight (M, F) and bias (M,); the int8 head uses the class head's activation scale (act.z1.scale,
+act.h.scale). A file without a head is byte for byte what it was before the head existed.
 """
 
 from __future__ import annotations
@@ -27,8 +32,8 @@ from core.atomic import write_bytes
 from core.errors import QuadfdiError
 from core.rk4 import rk4_constants
 from export.binfmt import Section, pack, read_file
-from export.weights_layout import (MAGIC, MODELS, SECTION_ORDER, VERSION, check_dims, dims_of, dtype_of,
-                                   shape_of)
+from export.weights_layout import (LAYOUTS, MAGIC, MOTOR_SECTION_ORDER, SECTION_ORDER, VERSION, check_dims, dims_of,
+                                   dtype_of, shape_of)
 
 if TYPE_CHECKING:  # the reader needs neither torch nor onnx (firmware_ref/tools/gen_weights.py uses it)
     from export.onnx_cnode import CnodeParams, CnodeQuant
@@ -48,7 +53,7 @@ def _section(model: str, precision: str, dims: tuple[int, ...], values: dict[str
     """A section in the table's order; ``values`` maps each tensor name to an array, or for an int8
     matrix to (int8 array, per-row scales). Every shape and dtype is checked against the table."""
     s = Section(model, precision, dims)
-    for spec in MODELS[model].specs(precision):
+    for spec in LAYOUTS[model].specs(precision):
         value, want = values[spec.name], dtype_of(spec, precision)
         if want == np.int8:
             q, scales = value
@@ -88,12 +93,23 @@ def gru_section(p: GruParams, q: GruQuant | None) -> Section:
     return _section("gru", "int8" if q else "fp32", gru_dims(p), v)
 
 
+def motor_sections(net: str, w, b, qw) -> list[Section]:
+    """The fp32 and int8 motor-head sections of ``net`` (none when ``w`` is None)."""
+    if w is None:
+        return []
+    dims = dims_of(f"{net}_motor", {"F": int(w.shape[1]), "M": int(w.shape[0])})
+    return [_section(f"{net}_motor", "fp32", dims, {"motor_head.weight": w, "motor_head.bias": b}),
+            _section(f"{net}_motor", "int8", dims, {"motor_head.weight": (qw.q, qw.scale), "motor_head.bias": b})]
+
+
 def weights_bytes(cp: CnodeParams, cq: CnodeQuant, gp: GruParams, gq: GruQuant,
                   onboard: Section | None = None) -> bytes:
-    """The model sections in SECTION_ORDER, then the on-board record (export/onboard_record.py) if given."""
+    """The model sections in SECTION_ORDER, the motor heads' (MOTOR_SECTION_ORDER) of the nets that
+    have one, then the on-board record (export/onboard_record.py) if given."""
     sections = {("cnode", "fp32"): cnode_section(cp, None), ("cnode", "int8"): cnode_section(cp, cq),
                 ("gru", "fp32"): gru_section(gp, None), ("gru", "int8"): gru_section(gp, gq)}
-    return pack(MAGIC, VERSION, [sections[k] for k in SECTION_ORDER] + ([onboard] if onboard is not None else []))
+    motor = motor_sections("cnode", cp.motor_w, cp.motor_b, cq.motor) + motor_sections("gru", gp.motor_w, gp.motor_b, gq.motor)
+    return pack(MAGIC, VERSION, [sections[k] for k in SECTION_ORDER] + motor + ([onboard] if onboard is not None else []))
 
 
 def write_weights(path: str | Path, cp: CnodeParams, cq: CnodeQuant, gp: GruParams, gq: GruQuant,
@@ -115,6 +131,10 @@ class WeightsFile:
         last = self.sections[-1] if self.sections else None
         return last if last is not None and (last.model, last.precision) == ("none", "none") else None
 
+    def has(self, model: str, precision: str) -> bool:
+        """Whether the file holds the section (e.g. a net's optional "cnode_motor" head)."""
+        return any((s.model, s.precision) == (model, precision) for s in self.sections)
+
     def section(self, model: str, precision: str) -> Section:
         for s in self.sections:
             if (s.model, s.precision) == (model, precision):
@@ -132,15 +152,17 @@ def check_layout(sections: list[Section], where: str) -> None:
         check_onboard(sections[-1], where)
         sections = sections[:-1]
     got = [(s.model, s.precision) for s in sections]
-    if got != list(SECTION_ORDER):
+    base, extra = got[:len(SECTION_ORDER)], got[len(SECTION_ORDER):]
+    motor_ok = [k for k in MOTOR_SECTION_ORDER if k[0] in {m for m, _ in extra}] == extra  # whole heads, in order
+    if base != list(SECTION_ORDER) or not motor_ok:
         raise QuadfdiError(f"{where} holds sections {got}, the layout is {list(SECTION_ORDER)} "
-                           f"(re-run `quadfdi export`)")
+                           f"(then optionally {list(MOTOR_SECTION_ORDER)}; re-run `quadfdi export`)")
     for s in sections:
         label = f"{where}: section {s.model} {s.precision}"
         bad = check_dims(s.model, s.dims)
         if bad:
             raise QuadfdiError(f"{label}: {bad}")
-        specs = MODELS[s.model].specs(s.precision)
+        specs = LAYOUTS[s.model].specs(s.precision)
         if list(s.tensors) != [t.name for t in specs]:
             raise QuadfdiError(f"{label} holds tensors {list(s.tensors)}, the layout is {[t.name for t in specs]}")
         for spec in specs:

@@ -36,8 +36,9 @@ def run_parity(args: argparse.Namespace) -> int:
     if "models" in report:
         for model, pairs in report["models"].items():
             f, q = pairs["cpp_fp32_vs_ort_fp32"], pairs["cpp_int8_vs_ort_int8"]
+            i8 = (f"{q['bitwise_identical_windows']}/{q['windows']} windows bit-identical" if q["target"].get("bitwise")
+                  else f"{q['target']['max_diff_steps']:.3g} logit steps")  # a motor head (parity.run.motor_pairs)
             print(f"parity: {model}: C++ fp32 vs ORT max |diff| {f['max_abs_diff']:.3g}, argmax "
-                  f"{100 * f['argmax_agreement']:.2f} %; C++ int8 vs ORT {q['target']['max_diff_steps']:.3g} logit "
-                  f"steps, argmax {100 * q['argmax_agreement']:.2f} %")
+                  f"{100 * f['argmax_agreement']:.2f} %; C++ int8 vs ORT {i8}, argmax {100 * q['argmax_agreement']:.2f} %")
     print(f"parity: passed; report {run.root / 'parity' / 'parity.md'}")
     return 0

@@ -22,7 +22,8 @@ def _g(v: float) -> str:
 
 
 def _pairs_table(model: str, pairs: dict) -> list[str]:
-    rows = [f"### {model.upper() if model == 'gru' else 'CNODE'}", "",
+    title = {"cnode": "CNODE", "gru": "GRU", "cnode_motor": "CNODE motor head", "gru_motor": "GRU motor head"}
+    rows = [f"### {title.get(model, model)}", "",
             "| pair | max abs diff | RMSE | rel. L2 | cosine | argmax agreement | bit-identical windows | target |",
             "|---|---|---|---|---|---|---|---|"]
     for key, m in pairs.items():
@@ -30,7 +31,8 @@ def _pairs_table(model: str, pairs: dict) -> list[str]:
         if t is None:
             verdict = "(information)"
         else:
-            extra = f", {t['max_diff_steps']:.3g} logit steps" if "max_diff_steps" in t else f", bound {t['bound']:.2g}"
+            extra = (f", {t['max_diff_steps']:.3g} logit steps" if "max_diff_steps" in t
+                     else "" if t.get("bitwise") else f", bound {t['bound']:.2g}")
             verdict = f"{'**pass**' if t['passed'] else '**FAIL**'}: {t['rule']}{extra}"
         rows.append(f"| {PAIR_TITLES.get(key, key)} | {_g(m['max_abs_diff'])} | {_g(m['rmse'])} | {_g(m['rel_l2'])} | "
                     f"{m['cosine']:.9f} | {100 * m['argmax_agreement']:.2f} % ({m['argmax_disagreements']} differ) | "

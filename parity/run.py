@@ -67,25 +67,34 @@ def host_parity(run: RunDir, manifest: dict, build_dir: Path, log: Callable[[str
     art = manifest["artifacts"]
     torch_models = runners.torch_models(run, manifest["solver"]["steps"])
     timing, logits = {}, {}
+    motor: dict[str, dict] = {}  # a net with a motor head: its motor logits per runtime, from the same runs
     for model in ("cnode", "gru"):
+        has = weights.has(f"{model}_motor", "fp32")
+        names = ["logits"] + (["motor_logits"] if has else [])
         t0 = time.perf_counter()
-        logits[model] = {"cpp_fp32": runners.cpp_logits(build_dir, weights_path, model, False, x),
-                         "cpp_int8": runners.cpp_logits(build_dir, weights_path, model, True, x)}
+        (cf, mf), (ci, mi) = (runners.cpp_outputs(build_dir, weights_path, model, i8, x, has) for i8 in (False, True))
+        logits[model] = {"cpp_fp32": cf, "cpp_int8": ci}
         timing[f"{model}_cpp"] = time.perf_counter() - t0
         t0 = time.perf_counter()
-        logits[model]["ort_fp32"] = runners.ort_logits(export / art[f"{model}_fp32"], x)
-        logits[model]["ort_int8"] = runners.ort_logits(export / art[f"{model}_int8"], x)
+        of, oi = (runners.ort_outputs(export / art[f"{model}_{p}"], x, names) for p in ("fp32", "int8"))
+        logits[model]["ort_fp32"], logits[model]["ort_int8"] = of[0], oi[0]
         timing[f"{model}_ort"] = time.perf_counter() - t0
         t0 = time.perf_counter()
         logits[model]["torch"] = runners.pytorch_logits(torch_models[model], x)
+        if has:
+            motor[model] = {"cpp_fp32": mf, "cpp_int8": mi, "ort_fp32": of[1], "ort_int8": oi[1],
+                            "torch": runners.torch_motor(torch_models[model], x)}
         timing[f"{model}_torch"] = time.perf_counter() - t0
         log(f"parity: {model}: {len(x)} windows through C++ ({timing[f'{model}_cpp']:.1f} s), ONNX Runtime "
             f"({timing[f'{model}_ort']:.1f} s) and PyTorch ({timing[f'{model}_torch']:.1f} s)")
 
     write_npz(out_dir / "logits.npz",
-              {"y": test.y, **{f"{m}_{k}": v for m, lg in logits.items() for k, v in lg.items()}})
+              {"y": test.y, **{f"{m}_{k}": v for m, lg in logits.items() for k, v in lg.items()},
+               **{f"{m}_motor_{k}": v for m, lg in motor.items() for k, v in lg.items()}})
     models = {}
     for model, lg in logits.items():
+        if model in motor:
+            models[f"{model}_motor"] = motor_pairs(motor[model])
         pairs = {
             "cpp_fp32_vs_ort_fp32": compare.pair_metrics(lg["cpp_fp32"], lg["ort_fp32"]),
             "cpp_fp32_vs_torch": compare.pair_metrics(lg["cpp_fp32"], lg["torch"]),
@@ -99,6 +108,20 @@ def host_parity(run: RunDir, manifest: dict, build_dir: Path, log: Callable[[str
             lg["cpp_int8"], lg["ort_int8"], compare.logit_steps(weights, model), pairs["cpp_int8_vs_ort_int8"])
         models[model] = pairs
     return models, timing
+
+
+def motor_pairs(lg: dict) -> dict:
+    """The motor head's pairs: C++ fp32 against ORT fp32 within the class logits' fp32 bound; C++ int8
+    against ORT int8 bit-identical (the same integers and the class head's rescale order)."""
+    pairs = {"cpp_fp32_vs_ort_fp32": compare.pair_metrics(lg["cpp_fp32"], lg["ort_fp32"]),
+             "cpp_fp32_vs_torch": compare.pair_metrics(lg["cpp_fp32"], lg["torch"]),
+             "cpp_int8_vs_ort_int8": compare.pair_metrics(lg["cpp_int8"], lg["ort_int8"]),
+             "cpp_int8_vs_cpp_fp32": compare.pair_metrics(lg["cpp_int8"], lg["cpp_fp32"])}
+    pairs["cpp_fp32_vs_ort_fp32"]["target"] = compare.fp32_target(pairs["cpp_fp32_vs_ort_fp32"])
+    m = pairs["cpp_int8_vs_ort_int8"]
+    m["target"] = {"bitwise": True, "rule": "every window bit-identical",
+                   "passed": bool(m["bitwise_identical_windows"] == m["windows"])}
+    return pairs
 
 
 def parity_run(run: RunDir, cfg: Config, log: Callable[[str], None] = print, *, mcu: bool = True,
@@ -164,9 +187,13 @@ def _parity_host(run: RunDir, out_dir: Path, log: Callable[[str], None], mcu: bo
         problems.append(f"fwref_parity on reference.bin exited {fp['exit_code']}")
     for model, pairs in models.items():
         for key in ("cpp_fp32_vs_ort_fp32", "cpp_int8_vs_ort_int8"):
+            if key not in pairs:
+                continue
             t, m = pairs[key]["target"], pairs[key]
             if not t["passed"]:
                 detail = (f"{t['max_diff_steps']:.3g} logit steps" if "max_diff_steps" in t
+                          else f"{m['windows'] - m['bitwise_identical_windows']} windows not bit-identical"
+                          if "bitwise" in t
                           else f"max |diff| {m['max_abs_diff']:.3g} (bound {t['bound']:.3g})")
                 problems.append(f"{model} {key}: {detail}, argmax {100 * m['argmax_agreement']:.2f} %")
     problems += mcu_report.get("problems", [])

@@ -95,7 +95,7 @@ def small_run(tmp_path_factory) -> Path:
 
 FLIGHTLOG_TINY = ["sim.n_traj=20", "sim.ood_traj=2", "sim.duration_s=12.0", "sim.chunk=14", "sim.window=40"]
 FLIGHTLOG_TRAIN = ["train.epochs=1", "train.latent=8", "train.hidden=16", "train.gru_hidden=16",
-                   "train.max_train_windows=60", "train.profile=flightlog-min"]
+                   "train.max_train_windows=60", "train.profile=flightlog-min", "train.motor_head=auto"]
 
 
 @pytest.fixture(scope="session")

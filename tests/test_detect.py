@@ -1,5 +1,6 @@
-"""quadfdi detect: a flightlog-min model (tiny realistic run, trained and exported through the CLI)
-on real PX4 flights with both runtimes, and the refusals (one line, exit 2, nothing written)."""
+"""quadfdi detect: a flightlog-min model with the motor head (tiny realistic run, trained and
+exported through the CLI) on real PX4 flights with both runtimes, and the refusals (one line, exit
+2, nothing written); the same export through `quadfdi parity` (the motor head's extra output)."""
 
 from __future__ import annotations
 
@@ -58,6 +59,17 @@ def test_detect_writes_alarms_windows_and_figure(export, mission_npz, tmp_path):
     w = np.load(tmp_path / "log" / "windows.npz")
     assert np.isnan(w["proba"][~w["decided"]]).all() and np.allclose(w["proba"][w["decided"]].sum(axis=1), 1, atol=1e-5)
     assert not w["votes"][~w["decided"]].any()
+    # the motor head: probabilities on decided windows, a motor 1..4 only on rotor-side windows
+    assert np.isnan(w["motor_proba"][~w["decided"]]).all() and np.allclose(w["motor_proba"][w["decided"]].sum(1), 1, atol=1e-5)
+    names = [str(c) for c in w["class_names"]]
+    fault = np.where(w["decided"][:, None], np.nan_to_num(w["proba"]), 0.0)
+    fault[:, names.index("Healthy")] = -1.0
+    rotor = np.isin(np.array(names)[fault.argmax(1)], ["MotorFault", "OverheatFault", "PropellerFault"]) & w["decided"]
+    assert ((w["motor"] > 0) == rotor).all() and set(np.unique(w["motor"])) <= {0, 1, 2, 3, 4}
+    assert (w["motor"][rotor] == w["motor_proba"][rotor].argmax(1) + 1).all()
+    for a in rec["alarms"]:
+        rotor_alarm = a["class"] in ("MotorFault", "OverheatFault", "PropellerFault")
+        assert (a["motor"] in (1, 2, 3, 4)) if rotor_alarm else a["motor"] is None
     assert (tmp_path / "log" / "detect.png").stat().st_size > 10_000
     res = _detect(export, mission_npz, tmp_path / "npz")  # the same flight, already ingested
     assert res.returncode == 0, res.stderr
@@ -74,6 +86,8 @@ def test_cpp_runtime_gives_the_ort_alarms(export, mission_npz, tmp_path, host_bu
     d = out["ort"]["decided"]
     # fp32: the export's parity tolerance; int8: the C++ integer kernels match ORT's to the logit
     np.testing.assert_allclose(out["cpp"]["proba"][d], out["ort"]["proba"][d], atol=1e-4)
+    np.testing.assert_allclose(out["cpp"]["motor_proba"][d], out["ort"]["motor_proba"][d], atol=1e-4)
+    assert (out["cpp"]["motor"] == out["ort"]["motor"]).all()
     assert (out["cpp"]["votes"] == out["ort"]["votes"]).all() and (out["cpp"]["active"] == out["ort"]["active"]).all()
 
 
@@ -90,3 +104,25 @@ def test_refusals_are_one_line_exit_2_and_write_nothing(export, tmp_path, log, w
     res = _detect(export, REAL / log, tmp_path / "out")
     assert res.returncode == 2 and why in res.stderr and len(res.stderr.strip().splitlines()) == 1, res.stderr
     assert not (tmp_path / "out").exists()
+
+
+def test_parity_checks_the_motor_head(export, host_build):  # noqa: F811
+    """The export's manifest lists the extra output; `quadfdi parity` checks it: C++ fp32 against ORT
+    within the class logits' bound, C++ int8 against ORT int8 bit-identical."""
+    m = json.loads((export / "manifest.json").read_text())
+    assert m["motor_head"]["models"] == ["cnode", "gru"] and m["models"]["gru"]["n_motors"] == 4
+    assert [o["name"] for o in m["io"]["outputs"]] == ["logits", "proba", "motor_logits"]
+    assert m["verification"]["cnode_motor_fp32_vs_pytorch"]["passed"]
+    from export.weights_bin import read_weights
+
+    wf = read_weights(export / "weights.bin")
+    assert [(s.model, s.precision) for s in wf.sections][4:8] == [  # then the on-board record
+        ("cnode_motor", "fp32"), ("cnode_motor", "int8"), ("gru_motor", "fp32"), ("gru_motor", "int8")]
+    res = quadfdi("parity", "--run", str(export.parent), "--no-mcu")
+    assert res.returncode == 0, res.stderr
+    p = json.loads((export.parent / "parity" / "parity.json").read_text())
+    for net in ("cnode", "gru"):
+        pairs = p["models"][f"{net}_motor"]
+        assert pairs["cpp_fp32_vs_ort_fp32"]["target"]["passed"]
+        i8 = pairs["cpp_int8_vs_ort_int8"]
+        assert i8["target"]["passed"] and i8["bitwise_identical_windows"] == i8["windows"] > 0

@@ -163,12 +163,12 @@ def expected_contract_lines() -> list[str]:
     from core import contracts
     from core.rk4 import RK4_CONSTANT_NAMES
     from export import reference_bin
-    from export.weights_layout import MAGIC, MODELS, SECTION_ORDER, VERSION, dtype_of
+    from export.weights_layout import LAYOUTS, MAGIC, MOTOR_SECTION_ORDER, SECTION_ORDER, VERSION, dtype_of
 
     lines = [f"weights {MAGIC.rstrip(bytes(1)).decode()} {VERSION}",
              f"reference {reference_bin.MAGIC.rstrip(bytes(1)).decode()} {reference_bin.VERSION}"]
-    for model, precision in SECTION_ORDER:
-        layout = MODELS[model]
+    for model, precision in SECTION_ORDER + MOTOR_SECTION_ORDER:  # then the optional motor-head sections
+        layout = LAYOUTS[model]
         lines.append(f"section {model} {precision}")
         for d in layout.dims:
             if d.derived:

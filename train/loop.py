@@ -21,6 +21,7 @@ from core.errors import QuadfdiError
 from sim.dataset import Windows
 from train.data import batch_order
 from train.models import GRUClassifier
+from train.motor import has_motor_head, motor_loss
 
 
 def weighted_cross_entropy(logits: torch.Tensor, y: torch.Tensor, weights: torch.Tensor, eps: float) -> torch.Tensor:
@@ -75,8 +76,14 @@ def _stop_if_diverged(value: torch.Tensor, model: torch.nn.Module, cfg: TrainCon
 
 
 def train_model(model: torch.nn.Module, train: Windows, val: Windows, cfg: TrainConfig, weights: np.ndarray,
-                log: Callable[[str], None] = print) -> History:
-    """Train ``model`` in place for ``cfg.epochs`` epochs; keep the best-validation weights."""
+                log: Callable[[str], None] = print, motor: np.ndarray | None = None) -> History:
+    """Train ``model`` in place for ``cfg.epochs`` epochs; keep the best-validation weights.
+
+    A model with a motor head (train.motor) needs ``motor``, (n,) the target motor of each training
+    window (-1: no motor loss); its loss is the class loss + cfg.motor_loss_weight x the motor
+    cross-entropy. The epoch is still chosen on the validation macro F1 of the classes."""
+    if has_motor_head(model) and (motor is None or len(motor) != len(train)):
+        raise ValueError("a model with a motor head needs one target motor per training window")
     torch.manual_seed(cfg.seed)
     opt = torch.optim.Adam(model.parameters(), lr=learning_rate(model, cfg))
     n_batches = -(-len(train) // cfg.batch_size)
@@ -88,6 +95,7 @@ def train_model(model: torch.nn.Module, train: Windows, val: Windows, cfg: Train
     w = torch.as_tensor(weights, dtype=torch.float32)
     x_all = torch.from_numpy(train.x)
     y_all = torch.from_numpy(train.y)
+    m_all = torch.from_numpy(np.asarray(motor, dtype=np.int64)) if has_motor_head(model) else None
     hist = History()
     best_f1, best_state = -1.0, None
     for epoch in range(cfg.epochs):
@@ -96,10 +104,13 @@ def train_model(model: torch.nn.Module, train: Windows, val: Windows, cfg: Train
         losses, nfes = [], []
         for idx in batch_order(len(train), cfg.batch_size, cfg.seed, epoch):
             idx_t = torch.from_numpy(idx)
-            logits = model(x_all[idx_t])
+            z = model.features(x_all[idx_t]) if m_all is not None else None
+            logits = model(x_all[idx_t]) if z is None else model.head(z)
             if hasattr(model, "nfe"):
                 nfes.append(float(model.nfe))
             loss = weighted_cross_entropy(logits, y_all[idx_t], w, cfg.log_eps)
+            if z is not None:
+                loss = loss + cfg.motor_loss_weight * motor_loss(model.motor_head(z), m_all[idx_t])
             _stop_if_diverged(loss, model, cfg, epoch)
             opt.zero_grad(set_to_none=True)
             loss.backward()

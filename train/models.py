@@ -99,6 +99,7 @@ class _Normalised(nn.Module):
         self.window = int(window)
         self.register_buffer("mean", torch.zeros(n_channels))  # (C,), training split only
         self.register_buffer("std", torch.ones(n_channels))  # (C,), floored at STD_FLOOR
+        self.motor_head: nn.Linear | None = None  # train.motor.attach_motor_head: (B, width) -> (B, 4)
 
     def set_normalisation(self, mean: Any, std: Any) -> None:
         """Store the training split's per-channel mean and std, (C,) each; std floored at STD_FLOOR."""
@@ -220,14 +221,14 @@ class CNODE(_Normalised):
     # -- public -----------------------------------------------------------------------------
     def forward(self, x_raw: torch.Tensor) -> torch.Tensor:
         """x_raw (batch, W, C) raw telemetry -> logits (batch, n_classes)."""
+        return self.head(self.features(x_raw))
+
+    def features(self, x_raw: torch.Tensor) -> torch.Tensor:
+        """x_raw (batch, W, C) -> z1 (batch, latent), what the class and motor heads read."""
         self.nfe = 0
         x_norm = self.normalise(x_raw)
         z0 = torch.tanh(self.encoder(x_norm[:, 0]))
-        if self.solver.is_fixed:
-            z1 = self._integrate_fixed(z0, x_norm)
-        else:
-            z1 = self._integrate_adaptive(z0, x_norm)
-        return self.head(z1)
+        return self._integrate_fixed(z0, x_norm) if self.solver.is_fixed else self._integrate_adaptive(z0, x_norm)
 
     @torch.no_grad()
     def trace(self, x_raw: torch.Tensor) -> dict[str, Any]:
@@ -315,9 +316,12 @@ class GRUClassifier(_Normalised):
 
     def forward(self, x_raw: torch.Tensor) -> torch.Tensor:
         """x_raw (batch, W, C) raw telemetry -> logits (batch, n_classes)."""
-        x_norm = self.normalise(x_raw)
-        _, h_last = self.gru(x_norm)  # (1, batch, H)
-        return self.head(h_last[0])
+        return self.head(self.features(x_raw))
+
+    def features(self, x_raw: torch.Tensor) -> torch.Tensor:
+        """x_raw (batch, W, C) -> h_W (batch, H), what the class and motor heads read."""
+        _, h_last = self.gru(self.normalise(x_raw))  # (1, batch, H)
+        return h_last[0]
 
     @torch.no_grad()
     def trace(self, x_raw: torch.Tensor) -> dict[str, torch.Tensor]:
@@ -352,14 +356,15 @@ def model_signature(model: nn.Module) -> dict[str, int | str]:
 
     The solver is not part of it: a CNODE's weights are valid under any solver. Its control
     representation is (``control``: "point", or "average" for ``train.variants.AverageControlCNODE``):
-    the same weights driven by another control are another model.
+    the same weights driven by another control are another model. ``n_motors`` (4): a motor head.
     """
     if isinstance(model, (CNODE, GRUClassifier)):
         kind = "cnode" if isinstance(model, CNODE) else "gru"
         sig = {"kind": kind, "n_channels": model.n_channels, "window": model.window}
         sizes = {"latent": model.latent, "hidden": model.hidden} if kind == "cnode" else {"hidden": model.hidden}
         extra = {"control": model.control} if kind == "cnode" else {}
-        return {**sig, **sizes, "n_classes": model.n_classes, **extra}
+        motor = {"n_motors": int(model.motor_head.out_features)} if model.motor_head is not None else {}
+        return {**sig, **sizes, "n_classes": model.n_classes, **extra, **motor}
     raise TypeError(f"not a quadfdi model: {type(model).__name__}")
 
 
@@ -378,11 +383,16 @@ def model_from_signature(sig: dict[str, Any], solver: SolverSpec | None = None,
     if kind not in keys:
         raise ValueError(f"model signature kind must be one of {', '.join(MODEL_KINDS)}, found {kind!r}")
     control = sig.pop("control", "point") if kind == "cnode" else None
+    n_motors = sig.pop("n_motors", None)  # the motor head (train.motor), absent without one
+    if n_motors is not None and n_motors != 4:
+        raise ValueError(f"{kind} signature n_motors must be 4, found {n_motors!r}")
     if set(sig) != keys[kind] or not all(isinstance(v, int) and not isinstance(v, bool) for v in sig.values()):
         raise ValueError(f"{kind} signature must hold integer {', '.join(sorted(keys[kind]))}; found {sig}")
+    classes = {"point": CNODE, **(cnode_classes or {})}
     if kind == "cnode":
-        classes = {"point": CNODE, **(cnode_classes or {})}
         if control not in classes:
             raise ValueError(f"cnode signature control must be one of {', '.join(classes)}, found {control!r}")
-        return classes[control](solver=solver, **sig)
-    return GRUClassifier(**sig)
+    model = classes[control](solver=solver, **sig) if kind == "cnode" else GRUClassifier(**sig)
+    if n_motors is not None:
+        model.motor_head = nn.Linear(model.head.in_features, n_motors)
+    return model

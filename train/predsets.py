@@ -1,6 +1,7 @@
 """Prediction sets of a trained network: its class probabilities on every evaluation window of a
 dataset (split code >= 1: validation, test, the realistic suite's out-of-distribution sets), in the
-format of ``core.predindex`` (docs/formats.md, "Prediction sets").
+format of ``core.predindex`` (docs/formats.md, "Prediction sets"); a model with a motor head
+(train.motor) adds ``motor_proba`` (n, 4), the softmax of its motor logits.
 
 The windows are made and scored a few flights at a time, so the full evaluation set (38 880
 windows of 80 x 25 float32 on the realistic suite, 311 MB) is never held at once.
@@ -19,6 +20,7 @@ from core.predindex import check_prediction_set, prediction_path
 from sim.dataset import Dataset, class_names, gather_windows, window_index
 from train.data import evaluation_rows
 from train.loop import predict_proba
+from train.motor import N_MOTORS, has_motor_head, predict_motor_proba
 
 FLIGHTS_PER_CHUNK = 16  # 16 x 90 windows x 80 x 25 float32 = 11.5 MB at a time
 
@@ -28,16 +30,21 @@ def prediction_set(model: torch.nn.Module, ds: Dataset, flights_per_chunk: int =
     flight in dataset order, windows in time order (the order of ``sim.dataset.make_windows``)."""
     rows = evaluation_rows(ds)
     names = class_names(ds.arrays)
-    parts: dict[str, list[np.ndarray]] = {k: [] for k in ("proba", "y_true", "traj", "t_end")}
+    keys = ("proba", "y_true", "traj", "t_end") + (("motor_proba",) if has_motor_head(model) else ())
+    parts: dict[str, list[np.ndarray]] = {k: [] for k in keys}
     for i in range(0, len(rows), flights_per_chunk):
         traj, start = window_index(ds, rows[i:i + flights_per_chunk])
         w = gather_windows(ds, traj, start)
         parts["proba"].append(predict_proba(model, w.x))
+        if "motor_proba" in parts:
+            parts["motor_proba"].append(predict_motor_proba(model, w.x))
         parts["y_true"].append(w.y)
         parts["traj"].append(w.traj)
         parts["t_end"].append(w.t_end)
     out = {k: np.concatenate(v) if v else np.zeros((0, len(names)) if k == "proba" else 0) for k, v in parts.items()}
     out["proba"] = out["proba"].astype(np.float32).reshape(-1, len(names))  # the format's dtype
+    if "motor_proba" in out:
+        out["motor_proba"] = out["motor_proba"].astype(np.float32).reshape(-1, N_MOTORS)
     out["y_true"] = out["y_true"].astype(np.int64)
     out["traj"] = out["traj"].astype(np.int64)
     out["t_end"] = out["t_end"].astype(np.float64)

@@ -29,6 +29,7 @@ from train.data import class_weights, fit_normalisation, split_windows
 from train.loop import predict_proba, train_model
 from train.metrics import compute_metrics
 from train.models import build_model
+from train.motor import attach_motor_head, motor_targets, wants_motor_head
 from train.profile_data import PROFILE_KEY, profiled_dataset
 from train.predsets import (drop_missing_entries, index_entry, prediction_set, relative_prediction_path,
                             write_prediction_set)
@@ -60,10 +61,16 @@ def train_all(ds: Dataset, cfg: Config, kinds: list[str], log: Callable[[str], N
     for kind in kinds:
         torch.manual_seed(cfg.train.seed)  # same initial weights for the same seed
         model = build_model(kind, ds.n_channels, cfg.train, window=cfg.sim.window, n_classes=k)
+        motor = None
+        if wants_motor_head(cfg.train.motor_head, class_names(ds.arrays)):
+            attach_motor_head(model)  # after the other layers: their initial weights stay those of no head
+            tr = splits.train
+            motor = motor_targets(tr.y, tr.traj, ds["fault_motor"], class_names(ds.arrays))
         model.set_normalisation(mean, std)
-        log(f"train {kind} (seed {cfg.train.seed}, {sum(p.numel() for p in model.parameters())} parameters):")
+        log(f"train {kind} (seed {cfg.train.seed}, {sum(p.numel() for p in model.parameters())} parameters"
+            f"{', motor head' if motor is not None else ''}):")
         t0 = time.perf_counter()
-        hist = train_model(model, splits.train, splits.validation, cfg.train, weights, log)
+        hist = train_model(model, splits.train, splits.validation, cfg.train, weights, log, motor=motor)
         log(f"  {kind}: trained in {time.perf_counter() - t0:.1f} s (best epoch {hist.best_epoch + 1})")
         proba = predict_proba(model, splits.test.x)  # as before the prediction sets: the test metrics keep their bits
         out["models"][kind], out["history"][kind], out["proba"][kind] = model, hist, proba

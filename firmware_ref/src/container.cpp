@@ -61,6 +61,8 @@ const char* dtype_name(DType t) {
 }
 
 const char* model_name(std::uint32_t model) {
+  if (model == kModelCnodeMotor) return "cnode_motor";
+  if (model == kModelGruMotor) return "gru_motor";
   return model == kModelCnode ? "cnode" : model == kModelGru ? "gru" : model == kModelNone ? "none" : "?";
 }
 
@@ -189,7 +191,8 @@ Status Container::parse_section(std::size_t& pos, std::size_t end, int index, st
   }
   const unsigned char* h = b + pos;
   const std::uint32_t size = u32_at(h + 4), model = u32_at(h + 8), prec = u32_at(h + 12);
-  if (std::memcmp(h, "SECT", 4) != 0 || model > kModelGru || prec > kPrecI8) {
+  const bool motor = model == kModelCnodeMotor || model == kModelGruMotor;
+  if (std::memcmp(h, "SECT", 4) != 0 || (model > kModelGru && !motor) || prec > kPrecI8) {
     *error = fmt("%s: section %d has a bad header (tag %s, model %u, precision %u)", where_.c_str(), index,
                  bytes_repr(h, 4).c_str(), model, prec);
     return Status::kBadHeader;

@@ -184,5 +184,9 @@ Status WeightsFile::bind(CnodeF32* m, std::string* error) { return bind_section(
 Status WeightsFile::bind(CnodeI8* m, std::string* error) { return bind_section(m, error); }
 Status WeightsFile::bind(GruF32* m, std::string* error) { return bind_section(m, error); }
 Status WeightsFile::bind(GruI8* m, std::string* error) { return bind_section(m, error); }
+Status WeightsFile::bind(CnodeMotorF32* m, std::string* error) { return bind_section(m, error); }
+Status WeightsFile::bind(CnodeMotorI8* m, std::string* error) { return bind_section(m, error); }
+Status WeightsFile::bind(GruMotorF32* m, std::string* error) { return bind_section(m, error); }
+Status WeightsFile::bind(GruMotorI8* m, std::string* error) { return bind_section(m, error); }
 
 }  // namespace fwref

@@ -83,6 +83,10 @@ int main(int argc, char**) {
   print_section<fwref::CnodeI8>();
   print_section<fwref::GruF32>();
   print_section<fwref::GruI8>();
+  print_section<fwref::CnodeMotorF32>();  // the optional motor-head sections, in their file order
+  print_section<fwref::CnodeMotorI8>();
+  print_section<fwref::GruMotorF32>();
+  print_section<fwref::GruMotorI8>();
   for (int k = 0; k < c::kNumClasses; ++k) std::printf("class %d %s\n", k, c::kClassNames[k]);
   std::printf("split train %d\nsplit validation %d\nsplit test %d\n", c::kSplitTrain, c::kSplitValidation,
               c::kSplitTest);

@@ -2,7 +2,7 @@
 // drive it, docs/firmware.md):
 //
 //   fwref_infer --weights <weights.bin> --model cnode|gru [--int8] --in <windows.f32> --out <logits.f32>
-//               [--repeat R --timings <seconds.f64>] [--manifest <manifest.json>]
+//               [--repeat R --timings <seconds.f64>] [--manifest <manifest.json>] [--motor-out <motor.f32>]
 //
 // windows.f32: raw little-endian float32 (n, W, C), n from the file size; logits.f32: (n, K)
 // float32. Windows run one at a time (batch 1, as firmware does). A wrong input size, NaN or Inf in
@@ -12,6 +12,9 @@
 // --manifest: weights.bin must have the sha256 export/manifest.json records for it. --out and
 // --timings must be absent or regular files other than the inputs (a symlink, FIFO, device or an
 // input is refused before anything runs); outputs are created with the user's umask.
+// --motor-out: also the motor head's logits (n, 4) float32 (fwref/motor.hpp), from the same
+// inference; a weights file without the net's motor section is refused (exit 2, no output).
+// Without it the program and its outputs are what they were.
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -21,12 +24,13 @@
 
 #include "host_common.hpp"
 #include "host_files.hpp"
+#include "host_motor.hpp"
 
 namespace {
 
 const char* const kUsage =
     "usage: fwref_infer --weights <weights.bin> --model cnode|gru [--int8] --in <windows.f32> --out <logits.f32> "
-    "[--repeat R --timings <seconds.f64>] [--manifest <manifest.json>]";
+    "[--repeat R --timings <seconds.f64>] [--manifest <manifest.json>] [--motor-out <motor.f32>]";
 
 int usage_error(const std::string& problem) {
   std::fprintf(stderr, "fwref_infer: %s; %s\n", problem.c_str(), kUsage);
@@ -41,7 +45,7 @@ int fail(const std::string& message) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  std::string weights, model, in, out, timings, manifest;
+  std::string weights, model, in, out, timings, manifest, motor_out;
   bool int8 = false;
   long repeat = 1;
   for (int i = 1; i < argc; ++i) {
@@ -58,9 +62,10 @@ int main(int argc, char** argv) {
     } else if (a == "--int8") {
       int8 = true;
     } else if (a == "--weights" || a == "--model" || a == "--in" || a == "--out" || a == "--timings" ||
-               a == "--manifest") {
+               a == "--manifest" || a == "--motor-out") {
       std::string* dst = a == "--weights" ? &weights : a == "--model" ? &model : a == "--in" ? &in
-                         : a == "--out" ? &out : a == "--manifest" ? &manifest : &timings;
+                         : a == "--out" ? &out : a == "--manifest" ? &manifest : a == "--motor-out" ? &motor_out
+                         : &timings;
       if (!value(dst)) return usage_error(a + " needs a value");
     } else if (a == "--repeat") {
       char* end = nullptr;
@@ -85,6 +90,14 @@ int main(int argc, char** argv) {
                                                          "--out file"}, &error))) {
     return fail(timings == out ? "refusing to write --timings " + timings + ": it is also --out" : error);
   }
+  if (!motor_out.empty() && (motor_out == out || motor_out == timings ||
+                             !fwref::host::output_allowed(motor_out, {weights, in, manifest, out},
+                                                          {"--weights file", "--in file", "--manifest file",
+                                                           "--out file"}, &error))) {
+    return fail(motor_out == out || motor_out == timings ? "refusing to write --motor-out " + motor_out +
+                                                               ": it is also another output"
+                                                         : error);
+  }
   if (!manifest.empty()) {
     std::vector<unsigned char> text, wbytes;
     if (!fwref::host::read_file(manifest, "manifest", &text, &error)) return fail(error);
@@ -102,6 +115,8 @@ int main(int argc, char** argv) {
   fwref::Status status;
   std::unique_ptr<fwref::host::Model> m = fwref::host::bind_model(wf, model, int8, &status, &error);
   if (!m) return fail(error);
+  std::unique_ptr<fwref::host::MotorModel> mm;
+  if (!motor_out.empty() && !(mm = fwref::host::bind_motor_model(wf, model, int8, &status, &error))) return fail(error);
 
   std::vector<unsigned char> bytes;
   if (!fwref::host::read_file(in, "input", &bytes, &error)) return fail(error);
@@ -130,11 +145,13 @@ int main(int argc, char** argv) {
   }
 
   std::vector<float> logits(n * m->classes);
+  std::vector<float> motor(mm ? n * fwref::kMotors : 0);
   std::vector<double> seconds(timings.empty() ? 0 : n * repeat);
   for (std::size_t k = 0; k < n; ++k) {
     for (long r = 0; r < repeat; ++r) {
       const auto t0 = std::chrono::steady_clock::now();
-      status = m->run(&x[k * per_window], &logits[k * m->classes]);
+      status = mm ? mm->run(&x[k * per_window], &logits[k * m->classes], &motor[k * fwref::kMotors])
+                  : m->run(&x[k * per_window], &logits[k * m->classes]);
       const auto t1 = std::chrono::steady_clock::now();
       if (!seconds.empty()) seconds[k * repeat + r] = std::chrono::duration<double>(t1 - t0).count();
       if (status != fwref::Status::kOk) {
@@ -146,6 +163,11 @@ int main(int argc, char** argv) {
   if (!seconds.empty() &&
       !fwref::host::write_atomic(timings, seconds.data(), seconds.size() * sizeof(double), &error)) {
     std::remove(out.c_str());
+    return fail(error);
+  }
+  if (mm && !fwref::host::write_atomic(motor_out, motor.data(), motor.size() * sizeof(float), &error)) {
+    std::remove(out.c_str());
+    if (!timings.empty()) std::remove(timings.c_str());
     return fail(error);
   }
   return 0;

@@ -28,6 +28,11 @@ class WeightsFile {
   Status bind(CnodeI8* out, std::string* error);
   Status bind(GruF32* out, std::string* error);
   Status bind(GruI8* out, std::string* error);
+  // The optional motor-head sections (fwref/motor.hpp): kMissingSection for a model without the head.
+  Status bind(CnodeMotorF32* out, std::string* error);
+  Status bind(CnodeMotorI8* out, std::string* error);
+  Status bind(GruMotorF32* out, std::string* error);
+  Status bind(GruMotorI8* out, std::string* error);
 
   const Container& container() const { return file_; }
 

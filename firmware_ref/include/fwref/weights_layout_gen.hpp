@@ -10,6 +10,7 @@
 #include "fwref/cnode.hpp"
 #include "fwref/config.hpp"
 #include "fwref/gru.hpp"
+#include "fwref/motor.hpp"
 
 namespace fwref {
 namespace layout {
@@ -269,6 +270,110 @@ FWREF_FOLLOWS(GruI8, head_b, s_x);
 FWREF_FOLLOWS(GruI8, s_x, s_h);
 FWREF_LAST(GruI8, s_h);
 #undef FWREF_GRU_ORDER
+
+// ---- cnode_motor: section dims u32[8] and tensors, in file order
+
+constexpr DimSpec kCnodeMotorDims[] = {
+    {"F", "features (latent L)", 0, kMaxLatent, "FWREF_MAX_LATENT", -1, 0, 0},
+    {"M", "motors", 1, kMotors, "FWREF_MOTORS", -1, 0, 0},
+};
+constexpr int kCnodeMotorDimCount = 2;
+
+constexpr TensorSpec kCnodeMotorTensors[] = {
+    {"motor_head.weight", Kind::kMat, 2, {{1, 1}, {0, 1}}, "(M, F)", false},
+    {"motor_head.bias", Kind::kVec, 1, {{1, 1}, {-1, 0}}, "(M,)", false},
+};
+constexpr int kCnodeMotorTensorCount = 2;
+
+inline void dims_from(const std::uint32_t* v, CnodeMotorDims* d) {
+  d->features = static_cast<int>(v[0]);
+  d->motors = static_cast<int>(v[1]);
+}
+
+template <std::uint32_t P>
+struct CnodeMotorSection {
+  static constexpr std::uint32_t model = 16, precision = P;
+  static constexpr const char* label = P == 1 ? "cnode_motor fp32" : "cnode_motor int8";
+  static constexpr const DimSpec* dims = kCnodeMotorDims;
+  static constexpr int dim_count = kCnodeMotorDimCount;
+  static constexpr const TensorSpec* tensors = kCnodeMotorTensors;
+  static constexpr int tensor_count = kCnodeMotorTensorCount;
+};
+template <> struct Section<CnodeMotorF32> : CnodeMotorSection<1> {};
+template <> struct Section<CnodeMotorI8> : CnodeMotorSection<2> {};
+
+// Every tensor of a cnode_motor section, in file order, with the member it binds to.
+template <class M, class F>
+std::enable_if_t<std::is_same_v<std::remove_const_t<M>, CnodeMotorF32> || std::is_same_v<std::remove_const_t<M>, CnodeMotorI8>>
+visit(M& m, F& f) {
+  f(m.w, kCnodeMotorTensors[0]);
+  f(m.b, kCnodeMotorTensors[1]);
+  if constexpr (Section<std::remove_const_t<M>>::precision == 2) {
+  }
+}
+
+#define FWREF_CNODE_MOTOR_ORDER(T)                                  \
+  static_assert(offsetof(T, dims) == 0, #T " starts with dims"); \
+  FWREF_FOLLOWS(T, dims, w); \
+  FWREF_FOLLOWS(T, w, b); \
+
+FWREF_CNODE_MOTOR_ORDER(CnodeMotorF32);
+FWREF_LAST(CnodeMotorF32, b);
+FWREF_CNODE_MOTOR_ORDER(CnodeMotorI8);
+FWREF_LAST(CnodeMotorI8, b);
+#undef FWREF_CNODE_MOTOR_ORDER
+
+// ---- gru_motor: section dims u32[8] and tensors, in file order
+
+constexpr DimSpec kGruMotorDims[] = {
+    {"F", "features (hidden H)", 0, kMaxGruHidden, "FWREF_MAX_GRU_HIDDEN", -1, 0, 0},
+    {"M", "motors", 1, kMotors, "FWREF_MOTORS", -1, 0, 0},
+};
+constexpr int kGruMotorDimCount = 2;
+
+constexpr TensorSpec kGruMotorTensors[] = {
+    {"motor_head.weight", Kind::kMat, 2, {{1, 1}, {0, 1}}, "(M, F)", false},
+    {"motor_head.bias", Kind::kVec, 1, {{1, 1}, {-1, 0}}, "(M,)", false},
+};
+constexpr int kGruMotorTensorCount = 2;
+
+inline void dims_from(const std::uint32_t* v, GruMotorDims* d) {
+  d->features = static_cast<int>(v[0]);
+  d->motors = static_cast<int>(v[1]);
+}
+
+template <std::uint32_t P>
+struct GruMotorSection {
+  static constexpr std::uint32_t model = 17, precision = P;
+  static constexpr const char* label = P == 1 ? "gru_motor fp32" : "gru_motor int8";
+  static constexpr const DimSpec* dims = kGruMotorDims;
+  static constexpr int dim_count = kGruMotorDimCount;
+  static constexpr const TensorSpec* tensors = kGruMotorTensors;
+  static constexpr int tensor_count = kGruMotorTensorCount;
+};
+template <> struct Section<GruMotorF32> : GruMotorSection<1> {};
+template <> struct Section<GruMotorI8> : GruMotorSection<2> {};
+
+// Every tensor of a gru_motor section, in file order, with the member it binds to.
+template <class M, class F>
+std::enable_if_t<std::is_same_v<std::remove_const_t<M>, GruMotorF32> || std::is_same_v<std::remove_const_t<M>, GruMotorI8>>
+visit(M& m, F& f) {
+  f(m.w, kGruMotorTensors[0]);
+  f(m.b, kGruMotorTensors[1]);
+  if constexpr (Section<std::remove_const_t<M>>::precision == 2) {
+  }
+}
+
+#define FWREF_GRU_MOTOR_ORDER(T)                                  \
+  static_assert(offsetof(T, dims) == 0, #T " starts with dims"); \
+  FWREF_FOLLOWS(T, dims, w); \
+  FWREF_FOLLOWS(T, w, b); \
+
+FWREF_GRU_MOTOR_ORDER(GruMotorF32);
+FWREF_LAST(GruMotorF32, b);
+FWREF_GRU_MOTOR_ORDER(GruMotorI8);
+FWREF_LAST(GruMotorI8, b);
+#undef FWREF_GRU_MOTOR_ORDER
 
 }  // namespace layout
 }  // namespace fwref
