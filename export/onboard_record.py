@@ -1,8 +1,9 @@
 """weights.bin's on-board record (issue 16): the section a streaming runtime reads besides the
 weights: the channel profile (its id, the raw channels the stream delivers in their order, the
 model's channels), the window, stride and sample period, the hover filter's constants, where the
-cell count comes from, and the alarm policy (core.alarm). Layout: export/weights_layout.py
-(``ONBOARD_*``); the C++ reader: firmware_ref/include/fwref/onboard.hpp; docs/formats.md.
+cell count comes from, and the alarm policy (core.alarm). Layout: ``ONBOARD_*`` below (the model
+sections' is export/weights_layout.py); the C++ reader: firmware_ref/include/fwref/onboard.hpp;
+docs/formats.md.
 
 Written by ``quadfdi export`` from the manifest's ``profile`` and ``alarm``; weights.bin files written
 before it lack it (``read_onboard`` then returns None).
@@ -18,14 +19,24 @@ from core import hover
 from core.errors import QuadfdiError
 from core.profiles import required_raw, uses_hover
 from export.binfmt import Section
-from export.weights_layout import (
-    ONBOARD_DIMS,
-    ONBOARD_PROFILES,
-    ONBOARD_TENSORS,
-    STREAM_AIRBORNE,
-)
 
 KIND = ("none", "none")  # (model, precision) of the section
+
+# The layout: weights.bin's last section, model 0 and precision 0 ("none none"): what a streaming runtime needs
+# besides the weights (docs/formats.md "on-board record"). Files written before it lack it (readers
+# of the model sections do not need it; firmware_ref's Stream refuses a file without it). The C++
+# reader is fwref/onboard.hpp (hand-written: tests/test_stream.py checks it prints back these values).
+ONBOARD_PROFILES = ("paper", "flightlog-min", "flightlog-nocur")  # dims[0] is the index here
+ONBOARD_DIMS = ("profile", "window", "stride", "raw_channels", "channels", "cells_from_stream",
+                "hover_steady_samples", "hover_settle_samples")  # dims[i], u32
+# name, dtype, shape ("text": int32 (n,) ASCII codes, every name NUL-terminated)
+ONBOARD_TENSORS = (("raw.names", np.int32, "text"),  # the stream's channels, in sample order
+                   ("model.names", np.int32, "text"),  # the model's input channels (the profile's)
+                   ("sample_dt_s", np.float32, (1,)),
+                   ("hover.limits", np.float32, (3,)),  # vz_max m/s, tilt_max rad, cmd_min
+                   ("alarm.threshold", np.int32, (2,)),  # the float64 threshold's bits, low word first
+                   ("alarm.policy", np.int32, (5,)))  # k, n, clear_m, latch (0/1), Healthy's class index
+STREAM_AIRBORNE = "airborne"  # the raw channel (0/1) that profiles with a hover estimate add last
 
 
 def stream_channels(profile: str, model_channels: list[str]) -> list[str]:

@@ -205,24 +205,6 @@ def check_dims(model: str, dims: tuple[int, ...]) -> str | None:
     return None
 
 
-# ------------------------------------------------------------------- the on-board record (issue 16)
-# weights.bin's last section, model 0 and precision 0 ("none none"): what a streaming runtime needs
-# besides the weights (docs/formats.md "on-board record"). Files written before it lack it (readers
-# of the model sections do not need it; firmware_ref's Stream refuses a file without it). The C++
-# reader is fwref/onboard.hpp (hand-written: tests/test_stream.py checks it prints back these values).
-ONBOARD_PROFILES = ("paper", "flightlog-min", "flightlog-nocur")  # dims[0] is the index here
-ONBOARD_DIMS = ("profile", "window", "stride", "raw_channels", "channels", "cells_from_stream",
-                "hover_steady_samples", "hover_settle_samples")  # dims[i], u32
-# name, dtype, shape ("text": int32 (n,) ASCII codes, every name NUL-terminated)
-ONBOARD_TENSORS = (("raw.names", np.int32, "text"),  # the stream's channels, in sample order
-                   ("model.names", np.int32, "text"),  # the model's input channels (the profile's)
-                   ("sample_dt_s", np.float32, (1,)),
-                   ("hover.limits", np.float32, (3,)),  # vz_max m/s, tilt_max rad, cmd_min
-                   ("alarm.threshold", np.int32, (2,)),  # the float64 threshold's bits, low word first
-                   ("alarm.policy", np.int32, (5,)))  # k, n, clear_m, latch (0/1), Healthy's class index
-STREAM_AIRBORNE = "airborne"  # the raw channel (0/1) that profiles with a hover estimate add last
-
-
 # ---------------------------------------------------------------------------------- the C++ header
 
 HEADER_PATH = Path(__file__).resolve().parents[1] / "firmware_ref" / "include" / "fwref" / "weights_layout_gen.hpp"
