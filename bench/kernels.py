@@ -3,9 +3,9 @@
     quadfdi bench kernels --run runs/<name> [--fwref PATH] [--json FILE]
 
 For each model (CNODE, GRU) and precision (fp32, int8), fwref_infer runs under
-``valgrind --tool=callgrind --toggle-collect=fwref::infer*`` (only the inference calls are counted,
-not loading weights.bin) once on the first 8 test windows and once on the first 4; the difference
-divided by 4 is the cost of one window in steady state (the first window's one-off work, e.g. lazy
+``valgrind --tool=callgrind --toggle-collect`` on fwref_infer's per-window call (only the inference
+calls are counted, not loading weights.bin; ``bench.profile.CALLGRIND_TOGGLE``) once on the first
+8 test windows and once on the first 4; the difference divided by 4 is the cost of one window in steady state (the first window's one-off work, e.g. lazy
 buffers, cancels out). Self instructions (Ir) are grouped per function ("kernel": an int8 gemv, the
 inference function with what the compiler inlined into it, Eigen's products, ...). Per MAC divides by
 the multiply-accumulates the C++ executes (``executed_macs``: the CNODE's control path is two weights
@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from bench.profile import parse_callgrind_annotate
+from bench.profile import CALLGRIND_TOGGLE, parse_callgrind_annotate
 from core.errors import QuadfdiError
 from core.tables import md_table
 
@@ -69,7 +69,7 @@ def kernel_name(function: str) -> str:
 
 def _callgrind(fwref: str, weights: str, model: str, int8: bool, windows: Path, tmp: Path) -> tuple[int, dict]:
     out = tmp / f"cg_{model}_{int8}_{windows.stem}.out"
-    cmd = ["valgrind", "--tool=callgrind", "--toggle-collect=fwref::infer*", f"--callgrind-out-file={out}",
+    cmd = ["valgrind", "--tool=callgrind", f"--toggle-collect={CALLGRIND_TOGGLE}", f"--callgrind-out-file={out}",
            fwref, "--weights", weights, "--model", model, "--in", str(windows), "--out", str(tmp / "o.f32")]
     res = subprocess.run(cmd + (["--int8"] if int8 else []), capture_output=True, text=True, timeout=900)
     if res.returncode != 0 or not out.is_file():

@@ -3,7 +3,7 @@
 This machine's virtual CPUs expose no hardware performance counters (``perf stat`` reports
 cycles and instructions as "not supported"), so the profiles are:
 
-- C++ reference: valgrind's callgrind, collecting only inside ``fwref::infer*`` (the inference
+- C++ reference: valgrind's callgrind, collecting only inside fwref_infer's per-window call (``CALLGRIND_TOGGLE``) (the inference
   calls, not the weights loading): instructions (Ir) per window, per MAC, and by function;
   divided into the measured batch-1 p50 it gives the instructions retired per nanosecond. Plus
   what the compiler was allowed to use (the build's flags from CMakeCache.txt / flags.make) and
@@ -55,6 +55,12 @@ def parse_callgrind_annotate(text: str) -> tuple[int, list[dict]]:
     return total, rows
 
 
+# Collect inside fwref_infer's per-window call (tools/host_common.hpp BoundModel::run), not inside
+# fwref::infer: GCC splits infer into a checking wrapper that tail-jumps to "infer [clone .part.0]",
+# and callgrind stops collecting at that jump (it then counted 5 instructions a window).
+CALLGRIND_TOGGLE = "fwref::host::BoundModel*::run*"
+
+
 def callgrind_cpp(fwref: str, weights: str, windows_f32: str, n_windows: int, model: str, int8: bool) -> dict | None:
     """Instructions per window of fwref_infer's inference calls, and the top functions by self Ir."""
     valgrind, annotate = shutil.which("valgrind"), shutil.which("callgrind_annotate")
@@ -62,7 +68,7 @@ def callgrind_cpp(fwref: str, weights: str, windows_f32: str, n_windows: int, mo
         return None
     with tempfile.TemporaryDirectory(prefix="quadfdi-callgrind-") as tmp:
         out = Path(tmp) / "callgrind.out"
-        cmd = [valgrind, "--tool=callgrind", "--toggle-collect=fwref::infer*", f"--callgrind-out-file={out}",
+        cmd = [valgrind, "--tool=callgrind", f"--toggle-collect={CALLGRIND_TOGGLE}", f"--callgrind-out-file={out}",
                fwref, "--weights", weights, "--model", model, "--in", windows_f32, "--out", str(Path(tmp) / "o.f32")]
         if int8:
             cmd.append("--int8")
@@ -73,7 +79,7 @@ def callgrind_cpp(fwref: str, weights: str, windows_f32: str, n_windows: int, mo
     total, rows = parse_callgrind_annotate(ann.stdout)
     top = [{"function": _short(r["function"]), "ir_per_window": r["ir"] / n_windows,
             "share": r["ir"] / total if total else None} for r in rows[:6] if r["ir"] > 0.005 * max(total, 1)]
-    return {"tool": "valgrind --tool=callgrind --toggle-collect=fwref::infer*", "windows": n_windows,
+    return {"tool": f"valgrind --tool=callgrind --toggle-collect={CALLGRIND_TOGGLE}", "windows": n_windows,
             "ir_per_window": total / n_windows, "top": top}
 
 

@@ -216,7 +216,7 @@ def _profiles_section(bench: dict) -> list[str]:
                       "kernel time by op type"], rows)
     if prof.get("cpp"):
         out += ["### C++ reference instruction profile", "",
-                "valgrind callgrind inside `fwref::infer*` only (no hardware counters on this machine: `perf stat` "
+                "valgrind callgrind inside fwref_infer's per-window call only (no hardware counters on this machine: `perf stat` "
                 "reports cycles and instructions as not supported).", ""]
         rows = []
         for key, c in prof["cpp"].items():

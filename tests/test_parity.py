@@ -100,14 +100,14 @@ def test_a_missed_target_writes_the_report_then_fails(fw_run, host_build, tmp_pa
     """ONNX Runtime's int8 GRU logits moved by three times the tolerance: the int8 target fails, the
     report says so, and the stage raises a one-line error naming the pair."""
     run_dir = copy_run(fw_run, tmp_path / "run")
-    real = runners.ort_logits
+    real = runners.ort_outputs  # what the stage calls: the logits first, then the motor head's if any
     shift = 3 * compare.INT8_TOL_STEPS * compare.logit_steps(read_weights(run_dir / "export" / "weights.bin"), "gru")
 
-    def shifted(path, x):
-        out = real(path, x)
-        return (out + shift.astype(np.float32)) if path.name == "gru.int8.onnx" else out
+    def shifted(path, x, names):
+        out = real(path, x, names)
+        return [out[0] + shift.astype(np.float32), *out[1:]] if path.name == "gru.int8.onnx" else out
 
-    monkeypatch.setattr(runners, "ort_logits", shifted)
+    monkeypatch.setattr(runners, "ort_outputs", shifted)
     run, cfg = open_run(run_dir)
     with pytest.raises(QuadfdiError, match="gru cpp_int8_vs_ort_int8") as info:
         parity_run(run, cfg, log=lambda _: None, mcu=False)
