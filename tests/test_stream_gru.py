@@ -1,0 +1,92 @@
+"""The streaming GRU (train/stream_gru*.py): its training command, prediction set, step = sequence,
+the compute comparison, and its one-step ONNX export. Tiny settings on the session's small run."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+from conftest import copy_run, quadfdi
+
+TINY = ["--epochs", "2", "--hidden", "8", "--segment", "120", "--tbptt", "40", "--warmup", "10", "--batch", "6"]
+
+
+@pytest.fixture(scope="module")
+def sgru_run(small_run, tmp_path_factory):
+    out = copy_run(small_run, tmp_path_factory.mktemp("sgru") / "run")
+    res = quadfdi("train", "sgru", "--run", str(out), *TINY)
+    assert res.returncode == 0, res.stderr
+    return out
+
+
+def test_train_sgru_writes_a_prediction_set_at_the_window_ends(sgru_run):
+    from core.predindex import check_prediction_set, read_index
+    from sim.dataset import gather_windows, load_dataset, window_index
+    from train.data import evaluation_rows
+    from train.stream_gru_run import load_stream_checkpoint
+
+    ds = load_dataset(sgru_run / "dataset.npz")
+    entry = [e for e in read_index(sgru_run) if e["model"] == "sgru"]
+    assert len(entry) == 1 and entry[0]["train_seed"] == 0
+    pred = dict(np.load(sgru_run / entry[0]["predictions"]))
+    check_prediction_set(pred, "sgru")
+    traj, start = window_index(ds, evaluation_rows(ds))
+    w = gather_windows(ds, traj, start)
+    # same windows, same order, same labels as the windowed models' sets (train/predsets.py)
+    assert np.array_equal(pred["traj"], w.traj) and np.array_equal(pred["y_true"], w.y)
+    assert np.array_equal(pred["t_end"], w.t_end)
+    assert np.allclose(pred["proba"].sum(1), 1.0, atol=1e-5)
+    # the probability at a window end is the stream's, started at h = 0 at take-off, one step per sample
+    model, blob = load_stream_checkpoint(sgru_run / "sgru_train0.pt")
+    assert blob["architecture"] == {"kind": "sgru", "n_channels": ds.n_channels, "hidden": 8, "n_classes": 4}
+    f = int(w.traj[0])
+    h = torch.zeros(1, model.hidden)
+    tel = torch.from_numpy(ds["telemetry"][f])
+    ends = set((w.start[w.traj == f] + ds.config.sim.window - 1).tolist())
+    got = []
+    for t in range(tel.shape[0]):
+        logits, h = model.step(tel[t:t + 1], h)
+        if t in ends:
+            got.append(torch.softmax(logits.double(), -1).numpy()[0])
+    # step by step (one-sample sequences) vs whole-flight nn.GRU: same cell, float32 order of sums only
+    assert np.allclose(np.array(got), pred["proba"][w.traj == f], atol=1e-5)
+
+
+def test_train_sgru_bad_setting_is_a_one_line_error_before_any_write(small_run, tmp_path):
+    from core.errors import QuadfdiError
+    from quadfdi.cli import build_parser
+
+    out = copy_run(small_run, tmp_path / "run")
+    argv = ["train", "sgru", "--run", str(out), "--hidden", "0"]
+    args = build_parser(argv).parse_args(argv)
+    with pytest.raises(QuadfdiError, match="hidden") as exc:  # the CLI prints it on one line, exits 2
+        args.func(args)
+    assert "\n" not in str(exc.value) and not (out / "predictions").exists()
+
+
+def test_step_labels_follow_the_window_label_rule(small_run):
+    from sim.dataset import load_dataset, make_windows
+    from train.stream_gru_fit import step_labels
+
+    ds = load_dataset(small_run / "dataset.npz")
+    w = make_windows(ds, "test")
+    lab = step_labels(ds, np.unique(w.traj))
+    rows = {int(r): i for i, r in enumerate(np.unique(w.traj))}
+    got = lab[[rows[int(t)] for t in w.traj], w.start + ds.config.sim.window - 1]
+    assert np.array_equal(got, w.y) and (w.y > 0).any() and (w.y == 0).any()
+
+
+def test_compute_per_second_of_flight(sgru_run):
+    from core.jsonio import read_json
+    from sim.dataset import load_dataset
+
+    stride = load_dataset(sgru_run / "dataset.npz").config.sim.stride
+
+    rec = read_json(sgru_run / "predictions" / "sgru_sim0_train0.json")
+    rows = {r["model"]: r for r in rec["compute"]}
+    # H = 8, C = 23 (paper channels), K = 4: 3*8*(23+8) + 8*4 = 776 MACs per sample, 25 samples per s
+    assert rows["sgru"]["macs_per_decision"] == 776 and rows["sgru"]["macs_per_s"] == pytest.approx(776 * 25)
+    # windowed GRU (H 80, W 80): 80*3*80*(23+80) + 80*4 = 1 977 920 per window, a window per stride
+    assert rows["gru"]["macs_per_s"] == pytest.approx(1977920 * 25 / stride)
+    assert rows["gru"]["ratio_to_gru"] == 1.0 and rows["sgru"]["ratio_to_gru"] < 0.01
