@@ -7,16 +7,24 @@ import numpy as np
 import pytest
 import torch
 
-from conftest import copy_run, quadfdi
+from conftest import copy_run
 
 TINY = ["--epochs", "2", "--hidden", "8", "--segment", "120", "--tbptt", "40", "--warmup", "10", "--batch", "6"]
+
+
+def _cli(*argv: str):
+    """Run a quadfdi command in this process (a subprocess would cost seconds of imports): parse it
+    with the real parser, call its function."""
+    from quadfdi.cli import build_parser
+
+    args = build_parser(list(argv)).parse_args(list(argv))
+    return args.func(args)
 
 
 @pytest.fixture(scope="module")
 def sgru_run(small_run, tmp_path_factory):
     out = copy_run(small_run, tmp_path_factory.mktemp("sgru") / "run")
-    res = quadfdi("train", "sgru", "--run", str(out), *TINY)
-    assert res.returncode == 0, res.stderr
+    assert _cli("train", "sgru", "--run", str(out), *TINY) == 0
     return out
 
 
@@ -55,13 +63,10 @@ def test_train_sgru_writes_a_prediction_set_at_the_window_ends(sgru_run):
 
 def test_train_sgru_bad_setting_is_a_one_line_error_before_any_write(small_run, tmp_path):
     from core.errors import QuadfdiError
-    from quadfdi.cli import build_parser
 
     out = copy_run(small_run, tmp_path / "run")
-    argv = ["train", "sgru", "--run", str(out), "--hidden", "0"]
-    args = build_parser(argv).parse_args(argv)
     with pytest.raises(QuadfdiError, match="hidden") as exc:  # the CLI prints it on one line, exits 2
-        args.func(args)
+        _cli("train", "sgru", "--run", str(out), "--hidden", "0")
     assert "\n" not in str(exc.value) and not (out / "predictions").exists()
 
 
@@ -90,3 +95,26 @@ def test_compute_per_second_of_flight(sgru_run):
     # windowed GRU (H 80, W 80): 80*3*80*(23+80) + 80*4 = 1 977 920 per window, a window per stride
     assert rows["gru"]["macs_per_s"] == pytest.approx(1977920 * 25 / stride)
     assert rows["gru"]["ratio_to_gru"] == 1.0 and rows["sgru"]["ratio_to_gru"] < 0.01
+
+
+def test_export_sgru_one_step_onnx_matches_pytorch_on_a_replayed_flight(sgru_run):
+    import onnx
+
+    from core.jsonio import read_json
+    from export.verify import session
+    from train.stream_gru_run import load_stream_checkpoint
+
+    assert _cli("export", "sgru", "--run", str(sgru_run)) == 0
+    m = onnx.load(str(sgru_run / "export" / "sgru_step.onnx"))
+    assert m.ir_version <= 13 and [i.name for i in m.graph.input] == ["sample", "h"]
+    assert [o.name for o in m.graph.output] == ["logits", "proba", "h_new"]
+    rec = read_json(sgru_run / "export" / "sgru_export.json")["fp32_vs_torch"]
+    assert rec["passed"] and rec["steps"] == 200 and rec["max_abs_state_diff"] < 1e-4
+    # the state really is carried: feeding h = 0 at every step gives other logits than the replay
+    rep = np.load(sgru_run / "export" / "sgru_replay.npz")
+    sess = session(str(sgru_run / "export" / "sgru_step.onnx"))
+    model, _ = load_stream_checkpoint(sgru_run / "sgru_train0.pt")
+    zero = np.zeros((len(rep["telemetry"]), model.hidden), np.float32)
+    memoryless = sess.run(["logits"], {"sample": rep["telemetry"], "h": zero})[0]
+    assert np.abs(memoryless[1:] - rep["logits"][1:]).max() > 1e-3
+    assert np.allclose(memoryless[0], rep["logits"][0], atol=1e-5)  # step 0 starts from h = 0 in both

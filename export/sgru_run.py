@@ -1,0 +1,90 @@
+"""``quadfdi export sgru --run RUN``: the streaming GRU's one-step ONNX graph, checked on a replayed
+flight, and the files the C++ one-step GRU reads.
+
+Writes into ``<run>/export/``:
+- ``sgru_step.onnx``: the fp32 one-step graph (export/onnx_sgru.py), IR version ``export.graph.IR_VERSION``;
+- ``sgru_replay.npz``: the replayed flight and ONNX Runtime's answer to it, for the C++ parity:
+  ``telemetry`` (T, C) float32 raw samples (the first test flight with a fault, else the first test
+  flight), ``logits`` (T, K) and ``h`` (T, H) float32, ONNX Runtime stepped one sample at a time
+  from h = 0 carrying its own state, ``traj`` () the flight's dataset row;
+- ``sgru_export.json``: the parity of that replay against PyTorch's whole-flight sequence
+  (``export.verify.parity`` on the logits at every step, and the state's max abs difference).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from core.atomic import ensure_dir, write_bytes
+from core.errors import QuadfdiError
+from core.jsonio import write_json
+from core.npzio import write_npz
+from export.graph import IR_VERSION
+from export.onnx_sgru import build_sgru_fp32, sgru_params
+from export.verify import parity, session
+from sim.dataset import load_dataset
+
+
+def replay_flight(ds) -> int:
+    """The dataset row replayed: the first test flight (split 2) with a fault, else the first test flight."""
+    split, cls = np.asarray(ds["split"]), np.asarray(ds["fault_class"])
+    rows = np.flatnonzero(split == 2)
+    if len(rows) == 0:
+        raise QuadfdiError("the dataset has no test flight to replay")
+    faulty = rows[cls[rows] > 0]
+    return int(faulty[0] if len(faulty) else rows[0])
+
+
+def ort_replay(onnx_bytes: bytes, tel: np.ndarray, hidden: int) -> tuple[np.ndarray, np.ndarray]:
+    """Step ONNX Runtime through ``tel`` (T, C), one sample per run, its own state carried: logits, states."""
+    sess = session(onnx_bytes)
+    h = np.zeros((1, hidden), np.float32)
+    logits, states = [], []
+    for t in range(len(tel)):
+        lg, _, h = sess.run(["logits", "proba", "h_new"], {"sample": tel[t:t + 1], "h": h})
+        logits.append(lg[0])
+        states.append(h[0])
+    return np.array(logits, np.float32), np.array(states, np.float32)
+
+
+@torch.no_grad()
+def torch_replay(model, tel: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """PyTorch's whole-flight sequence from h = 0: logits (T, K) and states (T, H)."""
+    x = (torch.from_numpy(tel)[None] - model.mean) / model.std
+    hs, _ = model.gru(x)
+    return model.head(hs)[0].numpy(), hs[0].numpy()
+
+
+def export_sgru_run(root: str | Path, seed: int = 0, opset: int = 18) -> list[Path]:
+    from train.stream_gru_run import load_stream_checkpoint
+
+    root = Path(root)
+    ckpt = root / f"sgru_train{seed}.pt"
+    if not ckpt.is_file():
+        raise QuadfdiError(f"{ckpt} is missing: run `quadfdi train sgru --run {root}` first")
+    model, blob = load_stream_checkpoint(ckpt)
+    ds = load_dataset(root / "dataset.npz")
+    if list(blob["channel_names"]) != list(ds.channel_names):
+        raise QuadfdiError(f"{ckpt} was trained on other channels than {root / 'dataset.npz'}")
+    built = build_sgru_fp32(sgru_params(model), opset)
+    data = built.model.SerializeToString()
+    row = replay_flight(ds)
+    tel = np.ascontiguousarray(ds["telemetry"][row], dtype=np.float32)
+    ort_logits, ort_h = ort_replay(data, tel, model.hidden)
+    ref_logits, ref_h = torch_replay(model, tel)
+    check = {**parity(ort_logits, ref_logits.astype(np.float64)), "max_abs_state_diff":
+             float(np.abs(ort_h - ref_h).max()), "flight_row": row, "steps": len(tel)}
+    out = ensure_dir(root / "export")
+    paths = [out / "sgru_step.onnx", out / "sgru_replay.npz", out / "sgru_export.json"]
+    write_bytes(paths[0], data)
+    write_npz(paths[1], {"telemetry": tel, "logits": ort_logits, "h": ort_h, "traj": np.asarray(row, np.int64)})
+    write_json(paths[2], {"onnx": paths[0].name, "ir_version": IR_VERSION, "opset": opset, "train_seed": seed,
+                          "inputs": ["sample", "h"], "outputs": ["logits", "proba", "h_new"],
+                          "fp32_vs_torch": check})
+    if not check["passed"]:
+        raise QuadfdiError(f"sgru_step.onnx differs from PyTorch on flight {row}: max |logit diff| "
+                           f"{check['max_abs_logit_diff']:.3g} > {check['bound']:.3g}")
+    return paths
