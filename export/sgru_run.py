@@ -7,6 +7,9 @@ Writes into ``<run>/export/``:
   ``telemetry`` (T, C) float32 raw samples (the first test flight with a fault, else the first test
   flight), ``logits`` (T, K) and ``h`` (T, H) float32, ONNX Runtime stepped one sample at a time
   from h = 0 carrying its own state, ``traj`` () the flight's dataset row;
+- ``sgru_fw.bin``: the same flight and the weights for ``fwref_sgru`` (firmware_ref/tools/fwref_sgru.cpp):
+  little-endian, b"QSGRU1\\0\\0", int32 C, H, K, T, then float32 mean, std, w_ih (3H, C), w_hh (3H, H),
+  b_ih, b_hh, head_w (K, H), head_b, telemetry (T, C) (``fw_replay_bytes``);
 - ``sgru_export.json``: the parity of that replay against PyTorch's whole-flight sequence
   (``export.verify.parity`` on the logits at every step, and the state's max abs difference).
 """
@@ -36,6 +39,16 @@ def replay_flight(ds) -> int:
         raise QuadfdiError("the dataset has no test flight to replay")
     faulty = rows[cls[rows] > 0]
     return int(faulty[0] if len(faulty) else rows[0])
+
+
+FW_MAGIC = b"QSGRU1\0\0"
+
+
+def fw_replay_bytes(p, tel: np.ndarray) -> bytes:
+    """The ``fwref_sgru`` input: weights of GruParams ``p`` and the raw flight ``tel`` (T, C)."""
+    dims = np.array([p.n_channels, p.hidden, p.n_classes, len(tel)], "<i4")
+    parts = [p.mean, p.std, p.w_ih, p.w_hh, p.b_ih, p.b_hh, p.head_w, p.head_b, tel]
+    return FW_MAGIC + dims.tobytes() + b"".join(np.ascontiguousarray(a, "<f4").tobytes() for a in parts)
 
 
 def ort_replay(onnx_bytes: bytes, tel: np.ndarray, hidden: int) -> tuple[np.ndarray, np.ndarray]:
@@ -69,7 +82,8 @@ def export_sgru_run(root: str | Path, seed: int = 0, opset: int = 18) -> list[Pa
     ds = load_dataset(root / "dataset.npz")
     if list(blob["channel_names"]) != list(ds.channel_names):
         raise QuadfdiError(f"{ckpt} was trained on other channels than {root / 'dataset.npz'}")
-    built = build_sgru_fp32(sgru_params(model), opset)
+    params = sgru_params(model)
+    built = build_sgru_fp32(params, opset)
     data = built.model.SerializeToString()
     row = replay_flight(ds)
     tel = np.ascontiguousarray(ds["telemetry"][row], dtype=np.float32)
@@ -78,10 +92,11 @@ def export_sgru_run(root: str | Path, seed: int = 0, opset: int = 18) -> list[Pa
     check = {**parity(ort_logits, ref_logits.astype(np.float64)), "max_abs_state_diff":
              float(np.abs(ort_h - ref_h).max()), "flight_row": row, "steps": len(tel)}
     out = ensure_dir(root / "export")
-    paths = [out / "sgru_step.onnx", out / "sgru_replay.npz", out / "sgru_export.json"]
+    paths = [out / "sgru_step.onnx", out / "sgru_replay.npz", out / "sgru_fw.bin", out / "sgru_export.json"]
     write_bytes(paths[0], data)
     write_npz(paths[1], {"telemetry": tel, "logits": ort_logits, "h": ort_h, "traj": np.asarray(row, np.int64)})
-    write_json(paths[2], {"onnx": paths[0].name, "ir_version": IR_VERSION, "opset": opset, "train_seed": seed,
+    write_bytes(paths[2], fw_replay_bytes(params, tel))
+    write_json(paths[3], {"onnx": paths[0].name, "ir_version": IR_VERSION, "opset": opset, "train_seed": seed,
                           "inputs": ["sample", "h"], "outputs": ["logits", "proba", "h_new"],
                           "fp32_vs_torch": check})
     if not check["passed"]:

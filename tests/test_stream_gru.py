@@ -8,6 +8,7 @@ import pytest
 import torch
 
 from conftest import copy_run
+from tests.test_firmware_fixtures import host_build  # noqa: F401 (fixture: firmware_ref/build, shared with the firmware tests)
 
 TINY = ["--epochs", "2", "--hidden", "8", "--segment", "120", "--tbptt", "40", "--warmup", "10", "--batch", "6"]
 
@@ -118,3 +119,29 @@ def test_export_sgru_one_step_onnx_matches_pytorch_on_a_replayed_flight(sgru_run
     memoryless = sess.run(["logits"], {"sample": rep["telemetry"], "h": zero})[0]
     assert np.abs(memoryless[1:] - rep["logits"][1:]).max() > 1e-3
     assert np.allclose(memoryless[0], rep["logits"][0], atol=1e-5)  # step 0 starts from h = 0 in both
+
+
+def test_fwref_sgru_one_step_matches_onnx_runtime_on_the_replayed_flight(sgru_run, host_build):
+    import subprocess
+
+    from core.jsonio import read_json
+
+    if not (sgru_run / "export" / "sgru_fw.bin").exists():
+        assert _cli("export", "sgru", "--run", str(sgru_run)) == 0
+    out = sgru_run / "export" / "sgru_fw_out.f32"
+    res = subprocess.run([str(host_build / "fwref_sgru"), str(sgru_run / "export" / "sgru_fw.bin"), str(out)],
+                         capture_output=True, text=True, timeout=60)
+    assert res.returncode == 0, res.stderr
+    rep = np.load(sgru_run / "export" / "sgru_replay.npz")
+    t, k = rep["logits"].shape
+    got = np.fromfile(out, "<f4").reshape(t, -1)
+    logits, h = got[:, :k], got[:, k:]
+    # the fp32 tolerance of the windowed models (export/verify.py), over 200 carried steps
+    bound = read_json(sgru_run / "export" / "sgru_export.json")["fp32_vs_torch"]["bound"]
+    assert np.abs(logits - rep["logits"]).max() <= bound
+    assert np.abs(h - rep["h"]).max() < 1e-4
+    assert (logits.argmax(1) == rep["logits"].argmax(1)).all()
+    bad = sgru_run / "export" / "bad.bin"
+    bad.write_bytes(b"NOTSGRU1" + bytes(16))
+    res = subprocess.run([str(host_build / "fwref_sgru"), str(bad), str(out)], capture_output=True, text=True)
+    assert res.returncode == 1 and "magic" in res.stderr

@@ -39,6 +39,7 @@ class StreamGRU(nn.Module):
         self.register_buffer("std", torch.ones(n_channels))
         self.gru = nn.GRU(n_channels, hidden, batch_first=True)
         self.head = nn.Linear(hidden, n_classes)
+        self.head_dropout = 0.0  # training only (dropout on h before the head): no parameter, no effect in eval
 
     def set_normalisation(self, mean: Any, std: Any) -> None:
         """The training split's per-channel mean and std (C,); std floored at STD_FLOOR like the windowed models."""
@@ -57,6 +58,8 @@ class StreamGRU(nn.Module):
             raise ValueError(f"telemetry must be (batch, samples, {self.n_channels}), found {tuple(x_raw.shape)}")
         x = (x_raw.to(self.mean.dtype) - self.mean) / self.std
         hs, h_last = self.gru(x, None if h0 is None else h0[None])
+        if self.training and self.head_dropout > 0:
+            hs = nn.functional.dropout(hs, self.head_dropout, training=True)
         return self.head(hs), h_last[0]
 
     @torch.no_grad()

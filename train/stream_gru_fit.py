@@ -47,6 +47,8 @@ class StreamFitConfig:
     noise_start: float = 0.5  # share of mid-flight segments that start at a random state
     lr: float = 3e-3
     clip: float = 1.0
+    weight_decay: float = 0.0  # AdamW's decoupled weight decay (0: Adam)
+    head_dropout: float = 0.0  # dropout on h before the head, training only
     log_eps: float = 1e-8
     seed: int = 0
     threads: int = 1
@@ -54,8 +56,10 @@ class StreamFitConfig:
     def validate(self) -> None:
         if min(self.hidden, self.epochs, self.batch, self.segment, self.tbptt) < 1 or self.warmup < 0:
             raise ValueError(f"stream GRU settings must be positive: {self}")
-        if not (0 <= self.zero_start <= 1 and 0 <= self.noise_start <= 1):
-            raise ValueError("zero_start and noise_start are probabilities")
+        if not (0 <= self.zero_start <= 1 and 0 <= self.noise_start <= 1 and 0 <= self.head_dropout < 1):
+            raise ValueError("zero_start, noise_start and head_dropout are probabilities (head_dropout < 1)")
+        if self.weight_decay < 0:
+            raise ValueError(f"weight_decay must not be negative, found {self.weight_decay}")
 
 
 @dataclass
@@ -139,13 +143,14 @@ def fit_stream_gru(ds: Dataset, cfg: StreamFitConfig, log: Callable[[str], None]
     n_classes = len(class_names(ds.arrays))
     model = StreamGRU(ds.n_channels, cfg.hidden, n_classes)
     model.set_normalisation(*fit_normalisation(ds))
+    model.head_dropout = cfg.head_dropout
     tel = ds["telemetry"][train_rows]  # (n, T, C) float32, raw: the model normalises inside
     lab = step_labels(ds, train_rows)
     w = torch.as_tensor(class_weights(lab.ravel(), n_classes))
     ends = window_end_index(ds)
     n_t = tel.shape[1]
     seg = min(cfg.segment, n_t)
-    opt = torch.optim.Adam(model.parameters(), lr=cfg.lr)
+    opt = torch.optim.AdamW(model.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
     n_opt = cfg.epochs * (-(-len(train_rows) // cfg.batch)) * (-(-seg // cfg.tbptt))
     sched = torch.optim.lr_scheduler.CosineAnnealingLR(opt, T_max=n_opt)
     hist, best_f1, best_state = StreamHistory(), -1.0, None
