@@ -12,7 +12,7 @@ from core.rundir import open_run
 
 
 def add_sgru_parser(acts: argparse._SubParsersAction) -> None:
-    from train.stream_gru_fit import StreamFitConfig
+    from train.stream_gru_config import StreamFitConfig
 
     p = acts.add_parser("sgru", help="the streaming GRU: one GRU step per sample, trained on whole-flight segments "
                                      "(truncated BPTT); its prediction set at every evaluation window end")
@@ -25,7 +25,7 @@ def add_sgru_parser(acts: argparse._SubParsersAction) -> None:
 
 
 def run_sgru_cmd(args: argparse.Namespace) -> int:
-    from train.stream_gru_fit import StreamFitConfig
+    from train.stream_gru_config import StreamFitConfig
     from train.stream_gru_run import train_stream_run
 
     run, cfg = open_run(args.run, args.overrides, need=("dataset",))

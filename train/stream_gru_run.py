@@ -15,8 +15,9 @@ Writes into the run folder:
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 import torch
@@ -30,7 +31,14 @@ from train.data import evaluation_rows
 from train.models import build_model
 from train.predsets import index_entry, write_prediction_set
 from train.stream_gru import StreamGRU, stream_from_signature, stream_signature
-from train.stream_gru_fit import StreamFitConfig, config_dict, fit_stream_gru, step_labels, stream_logits, window_end_index
+from train.stream_gru_config import StreamFitConfig
+from train.stream_gru_fit import (
+    config_dict,
+    fit_stream_gru,
+    step_labels,
+    stream_logits,
+    window_end_index,
+)
 
 MODEL = "sgru"
 
