@@ -141,6 +141,12 @@ def test_fwref_sgru_one_step_matches_onnx_runtime_on_the_replayed_flight(sgru_ru
     assert np.abs(logits - rep["logits"]).max() <= bound
     assert np.abs(h - rep["h"]).max() < 1e-4
     assert (logits.argmax(1) == rep["logits"].argmax(1)).all()
+    nan = bytearray((sgru_run / "export" / "sgru_fw.bin").read_bytes())
+    nan[-4:] = np.array([np.nan], "<f4").tobytes()  # the last sample's last channel
+    (sgru_run / "export" / "nan.bin").write_bytes(bytes(nan))
+    res = subprocess.run([str(host_build / "fwref_sgru"), str(sgru_run / "export" / "nan.bin"), str(out)],
+                         capture_output=True, text=True, check=False)
+    assert res.returncode == 1 and "non-finite" in res.stderr  # fwref::step refuses it (kNonFiniteInput)
     bad = sgru_run / "export" / "bad.bin"
     bad.write_bytes(b"NOTSGRU1" + bytes(16))
     res = subprocess.run([str(host_build / "fwref_sgru"), str(bad), str(out)], capture_output=True, text=True, check=False)
