@@ -3,6 +3,8 @@ flight, and the files the C++ one-step GRU reads.
 
 Writes into ``<run>/export/``:
 - ``sgru_step.onnx``: the fp32 one-step graph (export/onnx_sgru.py), IR version ``export.graph.IR_VERSION``;
+- ``sgru_step.int8.onnx``: the int8 one-step graph (export/onnx_sgru_int8.py), x_norm scales calibrated
+  on every sample of the first ``CALIB_FLIGHTS`` training flights;
 - ``sgru_replay.npz``: the replayed flight and ONNX Runtime's answer to it, for the C++ parity:
   ``telemetry`` (T, C) float32 raw samples (the first test flight with a fault, else the first test
   flight), ``logits`` (T, K) and ``h`` (T, H) float32, ONNX Runtime stepped one sample at a time
@@ -26,7 +28,9 @@ from core.errors import QuadfdiError
 from core.jsonio import write_json
 from core.npzio import write_npz
 from export.graph import IR_VERSION
+from export.onnx_gru import quantize_gru
 from export.onnx_sgru import build_sgru_fp32, sgru_params
+from export.onnx_sgru_int8 import build_sgru_int8, calibrate_x_norm
 from export.verify import parity, session
 from sim.dataset import load_dataset
 
@@ -42,6 +46,7 @@ def replay_flight(ds) -> int:
 
 
 FW_MAGIC = b"QSGRU1\0\0"
+CALIB_FLIGHTS = 64
 
 
 def fw_replay_bytes(p, tel: np.ndarray) -> bytes:
@@ -85,20 +90,28 @@ def export_sgru_run(root: str | Path, seed: int = 0, opset: int = 18) -> list[Pa
     params = sgru_params(model)
     built = build_sgru_fp32(params, opset)
     data = built.model.SerializeToString()
+    calib = ds["telemetry"][np.flatnonzero(np.asarray(ds["split"]) == 0)[:CALIB_FLIGHTS]]
+    quant = quantize_gru(params, {"x_norm": calibrate_x_norm(params, calib)})
+    data8 = build_sgru_int8(params, quant, opset).model.SerializeToString()
     row = replay_flight(ds)
     tel = np.ascontiguousarray(ds["telemetry"][row], dtype=np.float32)
     ort_logits, ort_h = ort_replay(data, tel, model.hidden)
     ref_logits, ref_h = torch_replay(model, tel)
+    i8_logits, _ = ort_replay(data8, tel, model.hidden)
+    int8 = {"argmax_agreement_vs_fp32": float((i8_logits.argmax(1) == ort_logits.argmax(1)).mean()),
+            "max_abs_logit_diff_vs_fp32": float(np.abs(i8_logits - ort_logits).max()), "calib_flights": len(calib)}
     check = {**parity(ort_logits, ref_logits.astype(np.float64)), "max_abs_state_diff":
              float(np.abs(ort_h - ref_h).max()), "flight_row": row, "steps": len(tel)}
     out = ensure_dir(root / "export")
-    paths = [out / "sgru_step.onnx", out / "sgru_replay.npz", out / "sgru_fw.bin", out / "sgru_export.json"]
+    paths = [out / "sgru_step.onnx", out / "sgru_replay.npz", out / "sgru_fw.bin", out / "sgru_export.json",
+             out / "sgru_step.int8.onnx"]
     write_bytes(paths[0], data)
     write_npz(paths[1], {"telemetry": tel, "logits": ort_logits, "h": ort_h, "traj": np.asarray(row, np.int64)})
     write_bytes(paths[2], fw_replay_bytes(params, tel))
+    write_bytes(paths[4], data8)
     write_json(paths[3], {"onnx": paths[0].name, "ir_version": IR_VERSION, "opset": opset, "train_seed": seed,
                           "inputs": ["sample", "h"], "outputs": ["logits", "proba", "h_new"],
-                          "fp32_vs_torch": check})
+                          "fp32_vs_torch": check, "int8_onnx": paths[4].name, "int8_vs_fp32": int8})
     if not check["passed"]:
         raise QuadfdiError(f"sgru_step.onnx differs from PyTorch on flight {row}: max |logit diff| "
                            f"{check['max_abs_logit_diff']:.3g} > {check['bound']:.3g}")

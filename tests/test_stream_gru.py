@@ -111,6 +111,12 @@ def test_export_sgru_one_step_onnx_matches_pytorch_on_a_replayed_flight(sgru_run
     assert [o.name for o in m.graph.output] == ["logits", "proba", "h_new"]
     rec = read_json(sgru_run / "export" / "sgru_export.json")["fp32_vs_torch"]
     assert rec["passed"] and rec["steps"] == 200 and rec["max_abs_state_diff"] < 1e-4
+    # int8: a graph of integer products, close to fp32 on the replay (recorded)
+    m8 = onnx.load(str(sgru_run / "export" / "sgru_step.int8.onnx"))
+    assert sum(n.op_type == "MatMulIntegerToFloat" for n in m8.graph.node) == 4 and m8.ir_version <= 13
+    i8 = read_json(sgru_run / "export" / "sgru_export.json")["int8_vs_fp32"]
+    print("int8 vs fp32 on the replay:", i8)
+    assert i8["argmax_agreement_vs_fp32"] >= 0.9
     # the state really is carried: feeding h = 0 at every step gives other logits than the replay
     rep = np.load(sgru_run / "export" / "sgru_replay.npz")
     sess = session(str(sgru_run / "export" / "sgru_step.onnx"))
