@@ -12,6 +12,8 @@ Writes into ``<run>/export/``:
 - ``sgru_fw.bin``: the same flight and the weights for ``fwref_sgru`` (firmware_ref/tools/fwref_sgru.cpp):
   little-endian, b"QSGRU1\\0\\0", int32 C, H, K, T, then float32 mean, std, w_ih (3H, C), w_hh (3H, H),
   b_ih, b_hh, head_w (K, H), head_b, telemetry (T, C) (``fw_replay_bytes``);
+- ``sgru_fw_i8.bin``: the same for the int8 step (magic QSGRU8, ``fw_replay_bytes_i8``), and in
+  ``sgru_replay.npz`` ``logits_int8`` (T, K): ONNX Runtime's int8 graph on the flight;
 - ``sgru_export.json``: the parity of that replay against PyTorch's whole-flight sequence
   (``export.verify.parity`` on the logits at every step, and the state's max abs difference).
 """
@@ -54,6 +56,19 @@ def fw_replay_bytes(p, tel: np.ndarray) -> bytes:
     dims = np.array([p.n_channels, p.hidden, p.n_classes, len(tel)], "<i4")
     parts = [p.mean, p.std, p.w_ih, p.w_hh, p.b_ih, p.b_hh, p.head_w, p.head_b, tel]
     return FW_MAGIC + dims.tobytes() + b"".join(np.ascontiguousarray(a, "<f4").tobytes() for a in parts)
+
+
+FW_MAGIC_I8 = b"QSGRU8\0\0"
+
+
+def fw_replay_bytes_i8(p, q, tel: np.ndarray) -> bytes:
+    """The int8 ``fwref_sgru`` input: GruParams ``p``, GruQuant ``q`` and the raw flight ``tel`` (T, C)."""
+    dims = np.array([p.n_channels, p.hidden, p.n_classes, len(tel)], "<i4")
+    floats = [p.mean, p.std, q.s_x, np.reshape(q.s_h, 1), p.b_ih, p.b_hh, p.head_b, q.w_ih.scale, q.w_hh.scale,
+              q.head.scale, tel]
+    ints = [q.w_ih.q, q.w_hh.q, q.head.q]
+    return (FW_MAGIC_I8 + dims.tobytes() + b"".join(np.ascontiguousarray(a, "<f4").tobytes() for a in floats)
+            + b"".join(np.ascontiguousarray(a, np.int8).tobytes() for a in ints))
 
 
 def ort_replay(onnx_bytes: bytes, tel: np.ndarray, hidden: int) -> tuple[np.ndarray, np.ndarray]:
@@ -104,11 +119,12 @@ def export_sgru_run(root: str | Path, seed: int = 0, opset: int = 18) -> list[Pa
              float(np.abs(ort_h - ref_h).max()), "flight_row": row, "steps": len(tel)}
     out = ensure_dir(root / "export")
     paths = [out / "sgru_step.onnx", out / "sgru_replay.npz", out / "sgru_fw.bin", out / "sgru_export.json",
-             out / "sgru_step.int8.onnx"]
+             out / "sgru_step.int8.onnx", out / "sgru_fw_i8.bin"]
     write_bytes(paths[0], data)
-    write_npz(paths[1], {"telemetry": tel, "logits": ort_logits, "h": ort_h, "traj": np.asarray(row, np.int64)})
+    write_npz(paths[1], {"telemetry": tel, "logits": ort_logits, "h": ort_h, "logits_int8": i8_logits, "traj": np.asarray(row, np.int64)})
     write_bytes(paths[2], fw_replay_bytes(params, tel))
     write_bytes(paths[4], data8)
+    write_bytes(paths[5], fw_replay_bytes_i8(params, quant, tel))
     write_json(paths[3], {"onnx": paths[0].name, "ir_version": IR_VERSION, "opset": opset, "train_seed": seed,
                           "inputs": ["sample", "h"], "outputs": ["logits", "proba", "h_new"],
                           "fp32_vs_torch": check, "int8_onnx": paths[4].name, "int8_vs_fp32": int8})

@@ -147,6 +147,12 @@ def test_fwref_sgru_one_step_matches_onnx_runtime_on_the_replayed_flight(sgru_ru
     assert np.abs(logits - rep["logits"]).max() <= bound
     assert np.abs(h - rep["h"]).max() < 1e-4
     assert (logits.argmax(1) == rep["logits"].argmax(1)).all()
+    # int8: bit-identical logits to ONNX Runtime's int8 graph at every sample
+    res = subprocess.run([str(host_build / "fwref_sgru"), str(sgru_run / "export" / "sgru_fw_i8.bin"), str(out)],
+                         capture_output=True, text=True, timeout=60, check=False)
+    assert res.returncode == 0, res.stderr
+    got8 = np.fromfile(out, "<f4").reshape(t, -1)[:, :k]
+    assert np.array_equal(got8, rep["logits_int8"]), np.abs(got8 - rep["logits_int8"]).max()
     nan = bytearray((sgru_run / "export" / "sgru_fw.bin").read_bytes())
     nan[-4:] = np.array([np.nan], "<f4").tobytes()  # the last sample's last channel
     (sgru_run / "export" / "nan.bin").write_bytes(bytes(nan))

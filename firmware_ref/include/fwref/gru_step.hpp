@@ -1,4 +1,4 @@
-// fwref/gru_step.hpp -- scope: the streaming GRU (train/stream_gru.py), fp32, one step per sample:
+// fwref/gru_step.hpp -- scope: the streaming GRU (train/stream_gru.py), fp32 and int8, one step per sample:
 // the hidden state is carried from sample to sample instead of re-running a window.
 //
 //   x_norm = (sample - mean) / std
@@ -12,6 +12,8 @@
 // graph (sgru_step.onnx). No allocation: the state and its buffers live in the caller's GruStepState.
 #pragma once
 
+#include <cstdint>
+
 #include "fwref/config.hpp"
 #include "fwref/gru.hpp"
 #include "fwref/linalg.hpp"
@@ -23,6 +25,8 @@ struct GruStepState {
   VecN<kMaxGruHidden> h;  // the carried hidden state (H)
   VecN<kMaxGruGates> gx, gh;
   VecN<kMaxChannels> xn;
+  std::int8_t xq[kMaxChannels];  // int8 only: the quantized sample and state
+  std::int8_t hq[kMaxGruHidden];
   long steps = 0;  // samples stepped since the last reset
 };
 
@@ -32,5 +36,10 @@ void reset(const GruF32& m, GruStepState& s);
 // One new raw sample (C floats): advances h and writes the class logits (K). A sample holding NaN or
 // Inf returns kNonFiniteInput and leaves the state as it was (the sample is skipped, the caller says so).
 Status step(const GruF32& m, const float* sample, GruStepState& s, float* logits);
+
+// int8 (export/onnx_sgru_int8.py, sgru_step.int8.onnx): the windowed int8 GRU's step (src/gru.cpp) with
+// the state carried: x_norm quantized per channel (folded into W_ih), h and the head input with s_h.
+void reset(const GruI8& m, GruStepState& s);
+Status step(const GruI8& m, const float* sample, GruStepState& s, float* logits);
 
 }  // namespace fwref
