@@ -15,15 +15,34 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                                    "cnode_rk4_<N>.onnx, cnode_rk4_<N>.int8.onnx, gru.onnx, gru.int8.onnx, "
                                    "weights.bin, reference.bin, coverage.md, manifest.json.")
     add_config_args(p, config=False)
-    p.add_argument("--run", required=True, help="run folder holding dataset.npz, cnode.pt and gru.pt")
+    # not required=True: `quadfdi export sgru --run RUN` gives --run to the subcommand; run_export checks it
+    p.add_argument("--run", default=None, help="run folder holding dataset.npz, cnode.pt and gru.pt")
     p.add_argument("--steps", type=int, default=None,
                    help="N, classic RK4 steps of the unrolled CNODE graph (default: the config's export.steps)")
     p.set_defaults(func=run_export)
+    acts = p.add_subparsers(dest="action", metavar="{sgru}")
+    ps = acts.add_parser("sgru", help="the streaming GRU: one-step ONNX graph, checked on a replayed flight")
+    ps.add_argument("--run", required=True, help="run folder holding dataset.npz and sgru_train<seed>.pt")
+    ps.add_argument("--seed", type=int, default=0, help="training seed of the checkpoint (default 0)")
+    add_config_args(ps, config=False)
+    ps.set_defaults(func=run_export_sgru)
+
+
+def run_export_sgru(args: argparse.Namespace) -> int:
+    from export.sgru_run import export_sgru_run
+
+    run, cfg = open_run(args.run, args.overrides, need=("dataset",))
+    for path in export_sgru_run(run.root, args.seed, cfg.export.opset):
+        print(f"wrote {path}")
+    return 0
 
 
 def run_export(args: argparse.Namespace) -> int:
+    from core.errors import QuadfdiError
     from export.run import export_run
 
+    if args.run is None:
+        raise QuadfdiError("quadfdi export needs --run <run folder>")
     run, cfg = open_run(args.run, args.overrides, need=("dataset",))
     if args.steps is not None:
         cfg = replace_section(cfg, "export", steps=args.steps)

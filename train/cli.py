@@ -23,7 +23,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--seed", type=int, default=None, help="training seed (default: train.seed)")
     add_config_args(p, config=False)
     p.set_defaults(func=run_train)
-    acts = p.add_subparsers(dest="action", metavar="{study,baselines}")
+    acts = p.add_subparsers(dest="action", metavar="{study,baselines,sgru}")
     ps = acts.add_parser("study", help="train with several seeds: seeds.json and results.md (Tables 3-4)")
     ps.add_argument("--run", required=True, help="run folder holding dataset.npz")
     ps.add_argument("--seeds", default=None, help="comma-separated seeds (default: train.seeds)")
@@ -43,6 +43,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                     help="seeded subsample of the training windows; 0 = all (default: train.baselines.MAX_TRAIN_WINDOWS)")
     add_config_args(pb, config=False)
     pb.set_defaults(func=run_baselines_cmd)
+    from train.stream_gru_cli import add_sgru_parser
+
+    add_sgru_parser(acts)
 
 
 def run_train(args: argparse.Namespace) -> int:

@@ -1,0 +1,45 @@
+// fwref/gru_step.hpp -- scope: the streaming GRU (train/stream_gru.py), fp32 and int8, one step per sample:
+// the hidden state is carried from sample to sample instead of re-running a window.
+//
+//   x_norm = (sample - mean) / std
+//   gx = W_ih x_norm + b_ih,  gh = W_hh h + b_hh            (3H) rows r, z, n
+//   r = sigmoid(gx_r + gh_r);  z = sigmoid(gx_z + gh_z)
+//   n = tanh(gx_n + gh_n * r); h = (h - n) * z + n          PyTorch's cell, ONNX linear_before_reset=1
+//   logits = head(h)
+//
+// The weights are a GruF32 (fwref/gru.hpp) with dims.window = 1 (checked by its check()); the cell is
+// the windowed GRU's arithmetic, step by step, so that one step here is one step of export/onnx_sgru.py's
+// graph (sgru_step.onnx). No allocation: the state and its buffers live in the caller's GruStepState.
+#pragma once
+
+#include <cstdint>
+
+#include "fwref/config.hpp"
+#include "fwref/gru.hpp"
+#include "fwref/linalg.hpp"
+#include "fwref/status.hpp"
+
+namespace fwref {
+
+struct GruStepState {
+  VecN<kMaxGruHidden> h;  // the carried hidden state (H)
+  VecN<kMaxGruGates> gx, gh;
+  VecN<kMaxChannels> xn;
+  std::int8_t xq[kMaxChannels];  // int8 only: the quantized sample and state
+  std::int8_t hq[kMaxGruHidden];
+  long steps = 0;  // samples stepped since the last reset
+};
+
+// h = 0 (take-off, or a reset between flights / after a gap in the timestamps).
+void reset(const GruF32& m, GruStepState& s);
+
+// One new raw sample (C floats): advances h and writes the class logits (K). A sample holding NaN or
+// Inf returns kNonFiniteInput and leaves the state as it was (the sample is skipped, the caller says so).
+Status step(const GruF32& m, const float* sample, GruStepState& s, float* logits);
+
+// int8 (export/onnx_sgru_int8.py, sgru_step.int8.onnx): the windowed int8 GRU's step (src/gru.cpp) with
+// the state carried: x_norm quantized per channel (folded into W_ih), h and the head input with s_h.
+void reset(const GruI8& m, GruStepState& s);
+Status step(const GruI8& m, const float* sample, GruStepState& s, float* logits);
+
+}  // namespace fwref

@@ -1,0 +1,163 @@
+"""Training the streaming GRU for streaming use: long segments of whole flights, truncated
+backpropagation through time, random start points and start states, a label at every step.
+
+- Segments: each batch takes ``batch`` training flights; each flight contributes one segment of
+  ``segment`` samples that starts at sample 0 with probability ``zero_start`` (a stream that starts
+  at take-off, as the evaluation does), else at a uniformly drawn sample.
+- Start states: a segment from sample 0 starts at h = 0; a segment from mid-flight starts at h = 0
+  (probability 1 - ``noise_start``) or at a random state tanh(N(0, 1)) (``noise_start``), and its
+  first ``warmup`` steps carry no loss, so the model learns to forget a wrong or empty state.
+- Truncated BPTT: the segment runs in chunks of ``tbptt`` steps, h detached between chunks.
+- Labels per step: the dataset's window-label rule applied at the step's sample
+  (``sim.dataset.gather_windows``: the flight's class when ``severity[t] >= severity_threshold``,
+  else Healthy): the label of a window ending at t is the label of step t.
+- Loss: Eq. (12)'s weighted cross-entropy over every labelled step, inverse-frequency class weights
+  from the training steps; Adam, cosine rate, gradient norm clipped at ``clip``.
+- Selection: the epoch whose validation macro F1 (the stream's decision at the validation windows'
+  ends, stream started at h = 0 at take-off) is best.
+"""
+
+from __future__ import annotations
+
+import copy
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+import torch
+from sklearn.metrics import f1_score
+
+from core.contracts import SPLIT_TRAIN, SPLIT_VALIDATION
+from sim.dataset import Dataset, class_names, window_starts
+from train.data import class_weights, fit_normalisation
+from train.loop import weighted_cross_entropy
+from train.stream_gru import StreamGRU
+from train.stream_gru_config import StreamFitConfig
+
+
+@dataclass
+class StreamHistory:
+    loss: list[float] = field(default_factory=list)
+    val_macro_f1: list[float] = field(default_factory=list)
+    epoch_s: list[float] = field(default_factory=list)
+    best_epoch: int = -1
+
+
+def step_labels(ds: Dataset, rows: np.ndarray) -> np.ndarray:
+    """(n, T) int64: the window-label rule at every sample of the flights ``rows``."""
+    rows = np.asarray(rows, dtype=np.int64)
+    fault = ds["severity"][rows] >= ds.severity_threshold
+    return np.where(fault, ds["fault_class"][rows].astype(np.int64)[:, None], 0).astype(np.int64)
+
+
+@torch.no_grad()
+def stream_logits(model: StreamGRU, tel: np.ndarray, flights_per_chunk: int = 64) -> np.ndarray:
+    """(n, T, K) float32: the logits of a stream started at h = 0 on every flight of ``tel`` (n, T, C)."""
+    model.eval()
+    out = [model(torch.from_numpy(np.ascontiguousarray(tel[i:i + flights_per_chunk], dtype=np.float32)))[0].numpy()
+           for i in range(0, len(tel), flights_per_chunk)]
+    return np.concatenate(out) if out else np.zeros((0, tel.shape[1], model.n_classes), np.float32)
+
+
+def window_end_index(ds: Dataset) -> np.ndarray:
+    """Sample index of every window end of a flight (start + W - 1), in ``window_starts`` order."""
+    w = ds.config.sim.window
+    return window_starts(ds["telemetry"].shape[1], w, ds.config.sim.stride) + w - 1
+
+
+def _val_f1(model: StreamGRU, ds: Dataset, rows: np.ndarray, ends: np.ndarray) -> float:
+    logits = stream_logits(model, ds["telemetry"][rows])[:, ends]
+    y = step_labels(ds, rows)[:, ends]
+    return float(f1_score(y.ravel(), logits.argmax(-1).ravel(), labels=list(range(model.n_classes)),
+                          average="macro", zero_division=0))
+
+
+def _segments(rng: np.ndarray, n_samples: int, n: int, cfg: StreamFitConfig) -> tuple[np.ndarray, np.ndarray]:
+    """(start sample, mid-flight) per flight of a batch."""
+    seg = min(cfg.segment, n_samples)
+    mid = rng.random(n) >= cfg.zero_start
+    start = np.where(mid, rng.integers(0, n_samples - seg + 1, size=n), 0)
+    return start.astype(np.int64), mid & (start > 0)
+
+
+def _batch_loss(model: StreamGRU, opt, x: torch.Tensor, y: torch.Tensor, mask: torch.Tensor, h: torch.Tensor,
+                w: torch.Tensor, cfg: StreamFitConfig) -> float:
+    """One segment batch: chunks of ``tbptt`` steps, an optimiser step per chunk; the summed loss."""
+    total = 0.0
+    for c0 in range(0, x.shape[1], cfg.tbptt):
+        sl = slice(c0, c0 + cfg.tbptt)
+        logits, h = model(x[:, sl], h)
+        h = h.detach()
+        keep = mask[:, sl].reshape(-1)
+        if not bool(keep.any()):
+            continue
+        loss = weighted_cross_entropy(logits.reshape(-1, model.n_classes)[keep], y[:, sl].reshape(-1)[keep], w,
+                                      cfg.log_eps)
+        if not bool(torch.isfinite(loss)):
+            raise ValueError(f"streaming GRU training diverged (non-finite loss) at lr {cfg.lr:g}: lower it")
+        opt.zero_grad(set_to_none=True)
+        loss.backward()
+        torch.nn.utils.clip_grad_norm_(model.parameters(), cfg.clip)
+        opt.step()
+        total += loss.item() * int(keep.sum())
+    return total
+
+
+def fit_stream_gru(ds: Dataset, cfg: StreamFitConfig, log: Callable[[str], None] = print) -> tuple[StreamGRU, StreamHistory]:
+    """Train a streaming GRU on the training flights of ``ds``; keep the best-validation epoch."""
+    cfg.validate()
+    torch.manual_seed(cfg.seed)
+    torch.set_num_threads(cfg.threads)
+    rng = np.random.default_rng(np.random.SeedSequence(cfg.seed, spawn_key=(0x5690,)))
+    split = np.asarray(ds["split"])
+    train_rows, val_rows = np.flatnonzero(split == SPLIT_TRAIN), np.flatnonzero(split == SPLIT_VALIDATION)
+    if len(train_rows) == 0 or len(val_rows) == 0:
+        raise ValueError("the streaming GRU needs training and validation flights")
+    n_classes = len(class_names(ds.arrays))
+    model = StreamGRU(ds.n_channels, cfg.hidden, n_classes)
+    model.set_normalisation(*fit_normalisation(ds))
+    model.head_dropout = cfg.head_dropout
+    tel = ds["telemetry"][train_rows]  # (n, T, C) float32, raw: the model normalises inside
+    lab = step_labels(ds, train_rows)
+    w = torch.as_tensor(class_weights(lab.ravel(), n_classes))
+    ends = window_end_index(ds)
+    n_t = tel.shape[1]
+    seg = min(cfg.segment, n_t)
+    opt = torch.optim.AdamW(model.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
+    n_opt = cfg.epochs * (-(-len(train_rows) // cfg.batch)) * (-(-seg // cfg.tbptt))
+    sched = torch.optim.lr_scheduler.CosineAnnealingLR(opt, T_max=n_opt)
+    hist, best_f1, best_state = StreamHistory(), -1.0, None
+    for epoch in range(cfg.epochs):
+        model.train()
+        t0, total, count = time.perf_counter(), 0.0, 0
+        perm = rng.permutation(len(train_rows))
+        for b0 in range(0, len(perm), cfg.batch):
+            idx = perm[b0:b0 + cfg.batch]
+            start, mid = _segments(rng, n_t, len(idx), cfg)
+            cols = start[:, None] + np.arange(seg)[None, :]
+            x = torch.from_numpy(np.ascontiguousarray(tel[idx[:, None], cols]))
+            y = torch.from_numpy(lab[idx[:, None], cols])
+            mask = torch.ones(len(idx), seg, dtype=torch.bool)
+            mask[torch.from_numpy(mid), :cfg.warmup] = False
+            noisy = mid & (rng.random(len(idx)) < cfg.noise_start)
+            h0 = np.where(noisy[:, None], np.tanh(rng.standard_normal((len(idx), cfg.hidden))), 0.0)
+            total += _batch_loss(model, opt, x, y, mask, torch.as_tensor(h0, dtype=torch.float32), w, cfg)
+            for _ in range(-(-seg // cfg.tbptt)):
+                sched.step()
+            count += int(mask.sum())
+        hist.epoch_s.append(time.perf_counter() - t0)
+        hist.loss.append(total / max(count, 1))
+        f1 = _val_f1(model, ds, val_rows, ends)
+        hist.val_macro_f1.append(f1)
+        if f1 > best_f1:
+            best_f1, best_state, hist.best_epoch = f1, copy.deepcopy(model.state_dict()), epoch
+        log(f"  epoch {epoch + 1:2d}/{cfg.epochs}: loss {hist.loss[-1]:.4f}, val macro F1 {f1:.4f}, "
+            f"{hist.epoch_s[-1]:.1f} s")
+    model.load_state_dict(best_state)
+    model.eval()
+    return model, hist
+
+
+def config_dict(cfg: StreamFitConfig) -> dict:
+    return asdict(cfg)
