@@ -1,19 +1,15 @@
 """Logits of the decided windows from ONNX Runtime (the exported graph) or the C++ reference
-(``fwref_infer`` on weights.bin: the program's contract, as parity.runners uses it). Neither path
+(``fwref_infer`` on weights.bin through parity.fwref_cli, as parity.runners uses it). Neither path
 imports torch (4 s of the 10 s that ingest + detect took on a 79 s flight)."""
 
 from __future__ import annotations
 
-import subprocess
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
-from core.errors import QuadfdiError
 
 CHUNK = 512
-CPP_TIMEOUT_S = 600
 
 
 def ort_logits(graph: Path, x: np.ndarray) -> np.ndarray:
@@ -36,20 +32,6 @@ def cpp_logits(weights: Path, net: str, int8: bool, x: np.ndarray) -> np.ndarray
 def cpp_outputs(weights: Path, net: str, int8: bool, x: np.ndarray, motor: bool) -> tuple[np.ndarray, np.ndarray | None]:
     """(logits, motor_logits or None): ``fwref_infer`` with ``--motor-out`` when ``motor``."""
     from parity.build import HOST_BUILD, build_host
+    from parity.fwref_cli import fwref_infer
 
-    exe = build_host(HOST_BUILD, log=lambda _: None) / "fwref_infer"
-    with tempfile.TemporaryDirectory(prefix="quadfdi-detect-") as tmp:
-        src, dst, mdst = Path(tmp) / "windows.f32", Path(tmp) / "logits.f32", Path(tmp) / "motor.f32"
-        np.ascontiguousarray(x, dtype="<f4").tofile(src)
-        cmd = [str(exe), "--weights", str(weights), "--model", net, "--in", str(src), "--out", str(dst),
-               "--manifest", str(Path(weights).parent / "manifest.json")] + (["--int8"] if int8 else [])
-        cmd += ["--motor-out", str(mdst)] if motor else []
-        res = subprocess.run(cmd, capture_output=True, text=True, timeout=CPP_TIMEOUT_S)
-        if res.returncode != 0:
-            msg = (res.stderr.strip().splitlines() or [f"exit code {res.returncode}"])[-1]
-            raise QuadfdiError(f"fwref_infer ({net} {'int8' if int8 else 'fp32'}) failed: {msg}")
-        out = np.fromfile(dst, dtype="<f4")
-        mout = np.fromfile(mdst, dtype="<f4") if motor else None
-    if out.size % max(len(x), 1) or (mout is not None and mout.size != 4 * len(x)):
-        raise QuadfdiError(f"fwref_infer wrote {out.size} values for {len(x)} windows")
-    return out.reshape(len(x), -1).astype(np.float32), None if mout is None else mout.reshape(len(x), 4)
+    return fwref_infer(build_host(HOST_BUILD, log=lambda _: None) / "fwref_infer", weights, net, int8, x, motor)

@@ -9,8 +9,6 @@
 
 from __future__ import annotations
 
-import subprocess
-import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -20,10 +18,10 @@ from export.ort_session import session
 from export.verify import torch_logits
 from core.errors import QuadfdiError
 from core.rundir import RunDir
+from parity.fwref_cli import fwref_infer
 from train.checkpoint import load_checkpoint
 from train.models import SolverSpec
 
-CPP_TIMEOUT_S = 1800
 
 
 def cpp_logits(build_dir: Path, weights: Path, model: str, int8: bool, x: np.ndarray) -> np.ndarray:
@@ -33,28 +31,8 @@ def cpp_logits(build_dir: Path, weights: Path, model: str, int8: bool, x: np.nda
 
 def cpp_outputs(build_dir: Path, weights: Path, model: str, int8: bool, x: np.ndarray,
                 motor: bool) -> tuple[np.ndarray, np.ndarray | None]:
-    """fwref_infer on windows ``x`` -> (logits (n, K), motor logits (n, 4) with ``motor``, else None):
-    the class and motor heads of one inference (``--motor-out``)."""
-    exe = Path(build_dir) / "fwref_infer"
-    with tempfile.TemporaryDirectory(prefix="quadfdi-parity-") as tmp:
-        src, dst, mdst = Path(tmp) / "windows.f32", Path(tmp) / "logits.f32", Path(tmp) / "motor.f32"
-        np.ascontiguousarray(x, dtype="<f4").tofile(src)
-        cmd = [str(exe), "--weights", str(weights), "--model", model, "--in", str(src), "--out", str(dst)]
-        cmd += ["--motor-out", str(mdst)] if motor else []
-        manifest = Path(weights).parent / "manifest.json"
-        if manifest.is_file():  # the C++ side checks weights.bin against the manifest's sha256 itself
-            cmd += ["--manifest", str(manifest)]
-        if int8:
-            cmd.append("--int8")
-        res = subprocess.run(cmd, capture_output=True, text=True, timeout=CPP_TIMEOUT_S)
-        if res.returncode != 0:
-            msg = (res.stderr.strip().splitlines() or [f"exit code {res.returncode}"])[-1]
-            raise QuadfdiError(f"fwref_infer ({model} {'int8' if int8 else 'fp32'}) failed: {msg}")
-        out = np.fromfile(dst, dtype="<f4")
-        mout = np.fromfile(mdst, dtype="<f4") if motor else None
-    if out.size % len(x) or (mout is not None and mout.size != 4 * len(x)):
-        raise QuadfdiError(f"fwref_infer wrote {out.size} values for {len(x)} windows")
-    return out.reshape(len(x), -1).astype(np.float32), None if mout is None else mout.reshape(len(x), 4)
+    """fwref_infer of ``build_dir`` on windows ``x`` -> (logits (n, K), motor logits (n, 4) or None)."""
+    return fwref_infer(Path(build_dir) / "fwref_infer", weights, model, int8, x, motor)
 
 
 def ort_logits(onnx_path: Path, x: np.ndarray) -> np.ndarray:

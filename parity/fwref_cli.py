@@ -1,0 +1,41 @@
+"""``fwref_infer`` as a function: raw float32 windows in, the class logits (and with ``motor`` the
+motor head's logits, ``--motor-out``) out, through temporary files. Its own module so that callers
+that must not import torch (``detect``) share it with ``parity.runners``."""
+
+from __future__ import annotations
+
+import subprocess
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from core.errors import QuadfdiError
+
+CPP_TIMEOUT_S = 1800
+
+
+def fwref_infer(exe: Path, weights: Path, model: str, int8: bool, x: np.ndarray,
+                motor: bool = False) -> tuple[np.ndarray, np.ndarray | None]:
+    """``exe`` (fwref_infer) on windows ``x`` (n, W, C) -> (logits (n, K), motor logits (n, 4) with
+    ``motor``, else None): the class and motor heads of one inference. The C++ side checks weights.bin
+    against the manifest's sha256 when the export folder has one."""
+    with tempfile.TemporaryDirectory(prefix="quadfdi-fwref-") as tmp:
+        src, dst, mdst = Path(tmp) / "windows.f32", Path(tmp) / "logits.f32", Path(tmp) / "motor.f32"
+        np.ascontiguousarray(x, dtype="<f4").tofile(src)
+        cmd = [str(exe), "--weights", str(weights), "--model", model, "--in", str(src), "--out", str(dst)]
+        cmd += ["--motor-out", str(mdst)] if motor else []
+        manifest = Path(weights).parent / "manifest.json"
+        if manifest.is_file():
+            cmd += ["--manifest", str(manifest)]
+        if int8:
+            cmd.append("--int8")
+        res = subprocess.run(cmd, capture_output=True, text=True, timeout=CPP_TIMEOUT_S)
+        if res.returncode != 0:
+            msg = (res.stderr.strip().splitlines() or [f"exit code {res.returncode}"])[-1]
+            raise QuadfdiError(f"fwref_infer ({model} {'int8' if int8 else 'fp32'}) failed: {msg}")
+        out = np.fromfile(dst, dtype="<f4")
+        mout = np.fromfile(mdst, dtype="<f4") if motor else None
+    if out.size % max(len(x), 1) or (mout is not None and mout.size != 4 * len(x)):
+        raise QuadfdiError(f"fwref_infer wrote {out.size} values for {len(x)} windows")
+    return out.reshape(len(x), -1).astype(np.float32), None if mout is None else mout.reshape(len(x), 4)
