@@ -1,7 +1,7 @@
 """fwref/tanhq.hpp: the Cortex-M table of quantize(tanh_approx(a), 1/127) is exact and up to date.
 
 ``fwref_tanhq --check`` compares the table lookup with the direct computation on every float32 in
-[-9.5, 9.5] (about 2.2e9 values, a minute of one core) and on +-inf and NaN; regenerating the table
+[-9.5, 9.5] (about 2.2e9 values, a minute of one core, split over every core) and on +-inf and NaN; regenerating the table
 must give the committed header byte for byte (a change of tanh_approx or quantize would otherwise
 leave a stale table that the check, compiled against the same header, could not see)."""
 
