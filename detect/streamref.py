@@ -6,6 +6,12 @@
 (core.profiles.apply_profile), windows on the grid starts 0, stride, ... and a window decided when
 it ends at or after the freeze and every one of its samples is usable (every raw channel finite,
 airborne, every model value finite). ``paper``: the identity, no hover estimate.
+
+``stepped_of(sw)`` and ``sgru_logits`` state the per-sample model's rules (the streaming GRU,
+fwref/stream.hpp): a sample is stepped when it is usable and the hover estimate has frozen at or
+before it (``paper``: every usable sample); an unstepped sample holds the state; the state starts at
+h = 0 on the stream's first sample; a stride is decided when it is not nohover and every sample of
+its window was stepped, with the logits of the step at the window's last sample.
 """
 
 from __future__ import annotations
@@ -27,6 +33,7 @@ class StreamWindows:
     decided: np.ndarray  # (n,) bool
     nohover: np.ndarray  # (n,) bool: no decision because the hover estimate had not frozen
     hover: hover.Hover | None
+    ok: np.ndarray | None = None  # (T,) bool: the sample is usable
 
     def windows(self, window: int) -> np.ndarray:
         """(n_decided, W, C) float32."""
@@ -54,12 +61,41 @@ def windows_of(rs: RawStream, record: dict) -> StreamWindows:
         nohover = ~((est.freeze >= 0) & (ends >= est.freeze))
     cs = np.concatenate([[0], np.cumsum(ok)])
     decided = ~nohover & (cs[starts + window] - cs[starts] == window)
-    return StreamWindows(x=x, starts=starts, ends=ends, decided=decided, nohover=nohover, hover=est)
+    return StreamWindows(x=x, starts=starts, ends=ends, decided=decided, nohover=nohover, hover=est, ok=ok)
+
+
+def stepped_of(sw: StreamWindows, window: int) -> tuple[np.ndarray, np.ndarray]:
+    """The per-sample model's (T,) stepped samples and (n,) decided strides (module docstring)."""
+    stepped = sw.ok.copy()
+    if sw.hover is not None:
+        freeze = int(sw.hover.freeze)
+        stepped[:freeze if freeze >= 0 else len(stepped)] = False
+    cs = np.concatenate([[0], np.cumsum(stepped)])
+    decided = ~sw.nohover & (cs[sw.starts + window] - cs[sw.starts] == window)
+    return stepped, decided
+
+
+def sgru_logits(onnx_path, x: np.ndarray, stepped: np.ndarray, hidden: int) -> np.ndarray:
+    """ONNX Runtime's one-step graph (sgru_step[.int8].onnx) over the model rows ``x`` (T, C), h = 0
+    at the first sample, stepped on ``stepped`` samples only (the state held otherwise): (T, K)
+    float32 logits of the step at each sample, NaN where not stepped."""
+    from export.ort_session import session
+
+    sess = session(str(onnx_path))
+    h = np.zeros((1, hidden), np.float32)
+    out = None
+    for t in np.flatnonzero(stepped):
+        lg, h = sess.run(["logits", "h_new"], {"sample": np.ascontiguousarray(x[t:t + 1], np.float32), "h": h})
+        if out is None:
+            out = np.full((len(x), lg.shape[1]), np.nan, np.float32)
+        out[t] = lg[0]
+    return out if out is not None else np.zeros((len(x), 0), np.float32)
 
 
 def read_lines(text: str, classes: int) -> dict[str, np.ndarray]:
     """fwref_stream's output -> arrays per stride: index, t, status (str), logits (n, K) float32,
-    proba (n, K), vote, active, raised, cleared (bool), cls, motor (int)."""
+    proba (n, K), vote, active, raised, cleared (bool), cls, motor (the alarm's), wmotor (the stride's
+    motor-head argmax; -1 from a reader without the column) (int)."""
     rows = [ln.split() for ln in text.splitlines() if ln and not ln.startswith("#")]
     k = classes
     col = lambda j, dt: np.array([r[j] for r in rows], dtype=dt)
@@ -69,4 +105,5 @@ def read_lines(text: str, classes: int) -> dict[str, np.ndarray]:
     for j, name in enumerate(("vote", "active", "raised", "cleared")):
         out[name] = col(3 + 2 * k + j, np.int64).astype(bool)
     out["cls"], out["motor"] = col(7 + 2 * k, np.int64), col(8 + 2 * k, np.int64)
+    out["wmotor"] = np.array([int(r[9 + 2 * k]) if len(r) > 9 + 2 * k else -1 for r in rows], np.int64)
     return out

@@ -15,7 +15,11 @@ Writes into ``<run>/export/``:
 - ``sgru_fw_i8.bin``: the same for the int8 step (magic QSGRU8, ``fw_replay_bytes_i8``), and in
   ``sgru_replay.npz`` ``logits_int8`` (T, K): ONNX Runtime's int8 graph on the flight;
 - ``sgru_export.json``: the parity of that replay against PyTorch's whole-flight sequence
-  (``export.verify.parity`` on the logits at every step, and the state's max abs difference).
+  (``export.verify.parity`` on the logits at every step, and the state's max abs difference);
+- ``sgru_weights.bin`` (export/sgru_weights.py), when ``<run>/export/weights.bin`` holds the on-board
+  record and the streaming GRU reads its model channels: the fp32 and int8 sections and a copy of the
+  record, what fwref_stream --model sgru and the Cortex-M stream image run; sgru_export.json then
+  records ``weights`` (its sha256 and that of the weights.bin whose record it copied), else why not.
 """
 
 from __future__ import annotations
@@ -33,6 +37,7 @@ from export.graph import IR_VERSION
 from export.onnx_gru import quantize_gru
 from export.onnx_sgru import build_sgru_fp32, sgru_params
 from export.onnx_sgru_int8 import build_sgru_int8, calibrate_x_norm
+from export.sgru_weights import FILE_NAME as WEIGHTS_NAME, export_onboard, write_sgru_weights
 from export.verify import parity, session
 from sim.dataset import load_dataset
 
@@ -118,6 +123,7 @@ def export_sgru_run(root: str | Path, seed: int = 0, opset: int = 18) -> list[Pa
     check = {**parity(ort_logits, ref_logits.astype(np.float64)), "max_abs_state_diff":
              float(np.abs(ort_h - ref_h).max()), "flight_row": row, "steps": len(tel)}
     out = ensure_dir(root / "export")
+    onboard_note = _write_onboard(out, params, quant, list(ds.channel_names))
     paths = [out / "sgru_step.onnx", out / "sgru_replay.npz", out / "sgru_fw.bin", out / "sgru_export.json",
              out / "sgru_step.int8.onnx", out / "sgru_fw_i8.bin"]
     write_bytes(paths[0], data)
@@ -127,8 +133,23 @@ def export_sgru_run(root: str | Path, seed: int = 0, opset: int = 18) -> list[Pa
     write_bytes(paths[5], fw_replay_bytes_i8(params, quant, tel))
     write_json(paths[3], {"onnx": paths[0].name, "ir_version": IR_VERSION, "opset": opset, "train_seed": seed,
                           "inputs": ["sample", "h"], "outputs": ["logits", "proba", "h_new"],
-                          "fp32_vs_torch": check, "int8_onnx": paths[4].name, "int8_vs_fp32": int8})
+                          "fp32_vs_torch": check, "int8_onnx": paths[4].name, "int8_vs_fp32": int8,
+                          "weights": onboard_note})
     if not check["passed"]:
         raise QuadfdiError(f"sgru_step.onnx differs from PyTorch on flight {row}: max |logit diff| "
                            f"{check['max_abs_logit_diff']:.3g} > {check['bound']:.3g}")
-    return paths
+    return paths + ([out / WEIGHTS_NAME] if "sha256" in onboard_note else [])
+
+
+def _write_onboard(out: Path, params, quant, channels: list[str]) -> dict:
+    """sgru_weights.bin beside the export's weights.bin, or (nothing written) why not."""
+    import hashlib
+
+    try:
+        onboard = export_onboard(out, channels)
+    except QuadfdiError as exc:
+        (out / WEIGHTS_NAME).unlink(missing_ok=True)  # never a file whose record is not this export's
+        return {"file": None, "why_not": str(exc)}
+    data = write_sgru_weights(out / WEIGHTS_NAME, params, quant, onboard)
+    return {"file": WEIGHTS_NAME, "sha256": hashlib.sha256(data).hexdigest(),
+            "record_from_sha256": hashlib.sha256((out / "weights.bin").read_bytes()).hexdigest()}

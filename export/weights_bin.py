@@ -82,7 +82,8 @@ def cnode_section(p: CnodeParams, q: CnodeQuant | None) -> Section:
     return _section("cnode", "int8" if q else "fp32", cnode_dims(p), v)
 
 
-def gru_section(p: GruParams, q: GruQuant | None) -> Section:
+def gru_section(p: GruParams, q: GruQuant | None, model: str = "gru") -> Section:
+    """The windowed GRU's section, or with ``model`` "sgru" the streaming GRU's (the same tensors, W = 1)."""
     v: dict[str, object] = {"norm.mean": p.mean, "norm.std": p.std, "gru.bias_ih": p.b_ih, "gru.bias_hh": p.b_hh,
                             "head.bias": p.head_b}
     for name, w, qw in (("gru.weight_ih", p.w_ih, q and q.w_ih), ("gru.weight_hh", p.w_hh, q and q.w_hh),
@@ -90,7 +91,7 @@ def gru_section(p: GruParams, q: GruQuant | None) -> Section:
         v[name] = (qw.q, qw.scale) if qw else w
     if q:
         v.update({"act.x_norm.scale": q.s_x, "act.h.scale": q.s_h})
-    return _section("gru", "int8" if q else "fp32", gru_dims(p), v)
+    return _section(model, "int8" if q else "fp32", gru_dims(p), v)
 
 
 def motor_sections(net: str, w, b, qw) -> list[Section]:

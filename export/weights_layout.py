@@ -147,7 +147,11 @@ MOTOR_MODELS: dict[str, ModelLayout] = {
     "gru_motor": _motor_layout("gru", Dim("F", 0, "features", "features (hidden H)", "kMaxGruHidden", "FWREF_MAX_GRU_HIDDEN")),
 }
 MOTOR_SECTION_ORDER: tuple[tuple[str, str], ...] = tuple((m, p) for m in MOTOR_MODELS for p in PRECISIONS)
-LAYOUTS: dict[str, ModelLayout] = {**MODELS, **MOTOR_MODELS}
+# The streaming GRU (train/stream_gru.py): the GRU's tensors with W = 1, in its own weights file
+# (export/sgru_weights.py), never in weights.bin. Not in the generated header: C++ binds it to the
+# GRU's structs (WeightsFile::bind_sgru), so the header stays what it was.
+STREAM_MODELS: dict[str, ModelLayout] = {"sgru": ModelLayout("sgru", GRU.cpp_dims, GRU.cpp_types, GRU.dims, GRU.tensors)}
+LAYOUTS: dict[str, ModelLayout] = {**MODELS, **MOTOR_MODELS, **STREAM_MODELS}
 _EXTENT = re.compile(r"^(\d*)([A-Z]?)$")
 
 
@@ -369,7 +373,7 @@ def _cpp_structs(layout: ModelLayout, title: str) -> list[str]:
 def cpp_header() -> str:
     """The text of fwref/weights_layout_gen.hpp."""
     body = []
-    for layout in LAYOUTS.values():
+    for layout in (*MODELS.values(), *MOTOR_MODELS.values()):
         title = "".join(w.capitalize() for w in layout.model.split("_"))
         body += _cpp_tables(layout, title) + _cpp_structs(layout, title)
     return (_PREAMBLE.replace("@MAGIC@", MAGIC.rstrip(b"\0").decode()).replace("@VERSION@", str(VERSION))

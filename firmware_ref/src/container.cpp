@@ -63,6 +63,7 @@ const char* dtype_name(DType t) {
 const char* model_name(std::uint32_t model) {
   if (model == kModelCnodeMotor) return "cnode_motor";
   if (model == kModelGruMotor) return "gru_motor";
+  if (model == kModelSgru) return "sgru";
   return model == kModelCnode ? "cnode" : model == kModelGru ? "gru" : model == kModelNone ? "none" : "?";
 }
 
@@ -191,7 +192,7 @@ Status Container::parse_section(std::size_t& pos, std::size_t end, int index, st
   }
   const unsigned char* h = b + pos;
   const std::uint32_t size = u32_at(h + 4), model = u32_at(h + 8), prec = u32_at(h + 12);
-  const bool motor = model == kModelCnodeMotor || model == kModelGruMotor;
+  const bool motor = model == kModelCnodeMotor || model == kModelGruMotor || model == kModelSgru;  // the optional codes
   if (std::memcmp(h, "SECT", 4) != 0 || (model > kModelGru && !motor) || prec > kPrecI8) {
     *error = fmt("%s: section %d has a bad header (tag %s, model %u, precision %u)", where_.c_str(), index,
                  bytes_repr(h, 4).c_str(), model, prec);

@@ -18,7 +18,15 @@ const char* stride_status_name(StrideStatus s) {
 }
 
 Status Stream::init(const StreamParams& p, int cells, WindowFn fn, void* ctx) {
-  if (fn == nullptr) return Status::kNullArgument;
+  StreamModel m;
+  m.window = fn;
+  m.ctx = ctx;
+  return init(p, cells, m);
+}
+
+Status Stream::init(const StreamParams& p, int cells, const StreamModel& m) {
+  const int models = int(m.window != nullptr) + int(m.window_motor != nullptr) + int(m.step != nullptr);
+  if (models != 1 || (m.step != nullptr && m.reset == nullptr)) return Status::kNullArgument;
   const int prof = static_cast<int>(p.profile);
   if (prof < 0 || prof >= kProfileCount || p.window < 2 || p.stride < 1 || p.raw_channels < 1 || p.channels < 1 ||
       p.classes < 2 || !(p.sample_dt_s > 0.0)) {
@@ -40,8 +48,7 @@ Status Stream::init(const StreamParams& p, int cells, WindowFn fn, void* ctx) {
   p_ = p;
   p_.alarm = a;
   cells_ = static_cast<float>(cells);
-  fn_ = fn;
-  ctx_ = ctx;
+  m_ = m;
   for (int c = 0; c < kMaxRawChannels; ++c) nan_sample_[c] = NAN;
   reset();
   return Status::kOk;
@@ -51,14 +58,17 @@ void Stream::reset() {
   hover_.reset();
   alarm_.reset();
   last_ = Decision();
-  next_ = decided_ = skipped_ = 0;
+  next_ = decided_ = skipped_ = steps_ = 0;
+  if (m_.reset != nullptr) m_.reset(m_.ctx);
   t_prev_ = 0.0;
   airborne_prev_ = false;
   for (int i = 0; i < kMaxWindow; ++i) ok_[i] = false;
 }
 
 Status Stream::push(const float* sample, double t, StrideSink* sink) {
-  if (fn_ == nullptr || sample == nullptr) return Status::kNullArgument;
+  if ((m_.window == nullptr && m_.window_motor == nullptr && m_.step == nullptr) || sample == nullptr) {
+    return Status::kNullArgument;
+  }
   if (!std::isfinite(t)) return Status::kBadInput;
   if (next_ > 0) {
     const double periods = (t - t_prev_) / p_.sample_dt_s;
@@ -87,6 +97,7 @@ Status Stream::push_one(const float* sample, double t, StrideSink* sink) {
     ok = ok && h.airborne;
     airborne_prev_ = h.airborne;
   }
+  if (m_.step != nullptr && ok) ok = step_sample(x);
   ok_[slot] = ok;
   ++next_;
   const std::int64_t end = next_ - 1;  // this sample's index
@@ -100,6 +111,7 @@ void Stream::stride(double t, StrideSink* sink) {
   d.index = next_ - 1;
   d.t = t;
   d.motor = -1;
+  for (int j = 0; j < kMotors; ++j) d.motor_logits[j] = NAN;
   const bool hover = p_.profile != Profile::kPaper;
   if (hover && !(hover_.frozen() && hover_.freeze_index() <= d.index)) {
     d.status = StrideStatus::kNoHover;
@@ -109,25 +121,69 @@ void Stream::stride(double t, StrideSink* sink) {
     for (int j = 0; j < W && ok; ++j) {
       const int slot = (first + j) % W;
       ok = ok_[slot];
+      if (m_.step != nullptr) continue;  // a per-sample model checked each row as it stepped it
       float* row = &win_[j * C];
       for (int c = 0; c < C; ++c) row[c] = ring_[slot * C + c];
       if (hover) profile_hover(p_.profile, hover_.cmd(), hover_.cur(), row);
       for (int c = 0; c < C && ok; ++c) ok = std::isfinite(row[c]);
     }
-    d.status = ok && fn_(ctx_, win_, d.logits) == Status::kOk ? StrideStatus::kDecided : StrideStatus::kSkipped;
+    d.status = ok && run_window(d) == Status::kOk ? StrideStatus::kDecided : StrideStatus::kSkipped;
   }
   if (d.status == StrideStatus::kDecided) {
     double mx = d.logits[0], sum = 0.0;
     for (int k = 1; k < K; ++k) mx = d.logits[k] > mx ? double(d.logits[k]) : mx;
     for (int k = 0; k < K; ++k) sum += (d.proba[k] = std::exp(double(d.logits[k]) - mx));
     for (int k = 0; k < K; ++k) d.proba[k] /= sum;
+    if (m_.window_motor != nullptr) {  // softmax of the motor logits, in double (core/alarm.py's motor_proba)
+      double mm = d.motor_logits[0], ms = 0.0;
+      d.motor = 0;
+      for (int j = 1; j < kMotors; ++j) {
+        if (d.motor_logits[j] > d.motor_logits[d.motor]) d.motor = j;  // first maximum, numpy's argmax
+        mm = d.motor_logits[j] > mm ? double(d.motor_logits[j]) : mm;
+      }
+      for (int j = 0; j < kMotors; ++j) ms += (motor_proba_[j] = std::exp(double(d.motor_logits[j]) - mm));
+      for (int j = 0; j < kMotors; ++j) motor_proba_[j] /= ms;
+    }
     ++decided_;
   } else {
     for (int k = 0; k < K; ++k) d.logits[k] = NAN, d.proba[k] = NAN;
     skipped_ += d.status == StrideStatus::kSkipped ? 1 : 0;
   }
-  d.alarm = alarm_.step(d.proba, nullptr, d.status == StrideStatus::kDecided);
+  if (m_.window_motor != nullptr && d.status != StrideStatus::kDecided) {
+    for (int j = 0; j < kMotors; ++j) motor_proba_[j] = 0.0;  // not read: an undecided stride never votes
+  }
+  d.alarm = alarm_.step(d.proba, m_.window_motor != nullptr ? motor_proba_ : nullptr,
+                        d.status == StrideStatus::kDecided);
   if (sink != nullptr) sink->on_stride(d);
+}
+
+// The per-sample model on sample x (the prepared ring row): the model row (hover columns divided by
+// the frozen estimate), one step; false (the sample is unusable, the state held) when the estimate
+// has not frozen yet, a model value is not finite or the step fails.
+bool Stream::step_sample(const float* x) {
+  const int C = p_.channels;
+  if (p_.profile != Profile::kPaper) {
+    if (!hover_.frozen()) return false;
+    for (int c = 0; c < C; ++c) step_row_[c] = x[c];
+    profile_hover(p_.profile, hover_.cmd(), hover_.cur(), step_row_);
+    x = step_row_;
+  }
+  for (int c = 0; c < C; ++c) {
+    if (!std::isfinite(x[c])) return false;
+  }
+  if (m_.step(m_.ctx, x, step_logits_) != Status::kOk) return false;
+  ++steps_;
+  return true;
+}
+
+// The decision of a stride whose window is usable: the window path, or the latest step's logits.
+Status Stream::run_window(Decision& d) {
+  if (m_.step != nullptr) {
+    for (int k = 0; k < p_.classes; ++k) d.logits[k] = step_logits_[k];
+    return Status::kOk;
+  }
+  if (m_.window_motor != nullptr) return m_.window_motor(m_.ctx, win_, d.logits, d.motor_logits);
+  return m_.window(m_.ctx, win_, d.logits);
 }
 
 }  // namespace fwref

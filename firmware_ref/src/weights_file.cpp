@@ -153,10 +153,17 @@ Status check_dims(const Container& file, const SectionInfo& sec, const layout::D
 
 template <class Model>
 Status WeightsFile::bind_section(Model* m, std::string* error) {
+  return bind_as(m, layout::Section<Model>::model, layout::Section<Model>::label, error);
+}
+
+// Section (model, the struct's precision) bound to the struct's layout: model is the struct's own
+// code, or kModelSgru for the streaming GRU (the GRU's layout).
+template <class Model>
+Status WeightsFile::bind_as(Model* m, std::uint32_t model, const char* label, std::string* error) {
   using S = layout::Section<Model>;
-  const SectionInfo* sec = file_.find(S::model, S::precision);
+  const SectionInfo* sec = file_.find(model, S::precision);
   if (sec == nullptr) {
-    *error = fmt("%s holds no %s section", file_.where().c_str(), S::label);
+    *error = fmt("%s holds no %s section", file_.where().c_str(), label);
     return Status::kMissingSection;
   }
   const Status s = check_dims(file_, *sec, S::dims, S::dim_count, error);
@@ -188,5 +195,7 @@ Status WeightsFile::bind(CnodeMotorF32* m, std::string* error) { return bind_sec
 Status WeightsFile::bind(CnodeMotorI8* m, std::string* error) { return bind_section(m, error); }
 Status WeightsFile::bind(GruMotorF32* m, std::string* error) { return bind_section(m, error); }
 Status WeightsFile::bind(GruMotorI8* m, std::string* error) { return bind_section(m, error); }
+Status WeightsFile::bind_sgru(GruF32* m, std::string* error) { return bind_as(m, kModelSgru, "sgru fp32", error); }
+Status WeightsFile::bind_sgru(GruI8* m, std::string* error) { return bind_as(m, kModelSgru, "sgru int8", error); }
 
 }  // namespace fwref

@@ -1,18 +1,27 @@
 // tools/fwref_stream.cpp -- scope: the streaming runtime (fwref/stream.hpp) on a recorded stream
 // (a contract: outside tools drive it, docs/firmware.md "Streaming"):
 //
-//   fwref_stream --weights <weights.bin> --model cnode|gru [--int8] --in <stream.bin | -> [--out <lines.txt>]
+//   fwref_stream --weights <weights.bin> --model cnode|gru|sgru [--int8] --in <stream.bin | -> [--out <lines.txt>]
 //                [--manifest <manifest.json>] [--timings <seconds.f64>]
 //   fwref_stream --weights <weights.bin> --info
+//
+// --model sgru: the streaming GRU, one step per usable sample (fwref/gru_step.hpp); --weights is then
+// the export's sgru_weights.bin (export/sgru_weights.py: the sgru sections and a copy of weights.bin's
+// on-board record). cnode / gru with a motor head (sections cnode_motor / gru_motor in weights.bin)
+// run infer_motor: the motor columns below are then filled.
 //
 // stream.bin (docs/formats.md "Stream file", written by `quadfdi stream-file`): a header (magic,
 // version, channel names, sample period, profile, cell count), then samples (f64 time, f32 values
 // in the header's channel order), read from the path or stdin ("-") one sample at a time. The
 // header's channels, profile and period must be the ones weights.bin's on-board record names.
+// --in may be given several times: the flights run in sequence through one Stream, reset() between
+// them (each flight's lines start with its "# fwref_stream flight=<i>" comment).
 // Output (stdout, or --out written atomically at the end): '#' comment lines, then one line per
-// stride:  index t status logit_1..K proba_1..K vote active raised cleared cls motor
+// stride:  index t status logit_1..K proba_1..K vote active raised cleared cls motor wmotor
 // (status decided | skipped | nohover; logits %.9g (float32 round trip), proba %.17g, NaN when
-// not decided; cls/motor -1 while no alarm). --info prints the on-board record as key=value lines.
+// not decided; cls/motor the alarm's class and motor (core/alarm.py's rule), -1 while no alarm or,
+// for motor, without a motor head; wmotor this stride's motor-head argmax 0..3, -1 when not decided
+// or without a head). --info prints the on-board record as key=value lines.
 // --timings writes (samples,) float64 seconds per push (steady clock). Errors: one line, exit 2,
 // no output file; usage errors exit 1.
 #include <chrono>
@@ -26,12 +35,13 @@
 #include "fwref/onboard.hpp"
 #include "fwref/stream.hpp"
 #include "host_common.hpp"
+#include "host_motor.hpp"
 #include "host_files.hpp"
 
 namespace {
 
 const char* const kUsage =
-    "usage: fwref_stream --weights <weights.bin> (--info | --model cnode|gru [--int8] --in <stream.bin|-> "
+    "usage: fwref_stream --weights <weights.bin> (--info | --model cnode|gru|sgru [--int8] --in <stream.bin|-> "
     "[--out <lines.txt>] [--manifest <manifest.json>] [--timings <seconds.f64>])";
 constexpr char kMagic[9] = "QFDISTR";  // + NUL: 8 bytes
 constexpr std::uint32_t kVersion = 1;
@@ -115,8 +125,8 @@ class Lines final : public fwref::StrideSink {
     line += buf;
     for (int k = 0; k < k_; ++k) std::snprintf(buf, sizeof buf, " %.9g", double(d.logits[k])), line += buf;
     for (int k = 0; k < k_; ++k) std::snprintf(buf, sizeof buf, " %.17g", d.proba[k]), line += buf;
-    std::snprintf(buf, sizeof buf, " %d %d %d %d %d %d\n", int(d.alarm.vote), int(d.alarm.active),
-                  int(d.alarm.raised), int(d.alarm.cleared), d.alarm.cls, d.motor);
+    std::snprintf(buf, sizeof buf, " %d %d %d %d %d %d %d\n", int(d.alarm.vote), int(d.alarm.active),
+                  int(d.alarm.raised), int(d.alarm.cleared), d.alarm.cls, d.alarm.motor, d.motor);
     line += buf;
     add(line);
   }
@@ -137,10 +147,142 @@ fwref::Status run_window(void* ctx, const float* window, float* logits) {
   return static_cast<fwref::host::Model*>(ctx)->run(window, logits);
 }
 
+fwref::Status run_motor(void* ctx, const float* window, float* logits, float* motor) {
+  return static_cast<fwref::host::MotorModel*>(ctx)->run(window, logits, motor);
+}
+
+// What the stream runs, bound from the weights file; lives as long as main.
+struct Bound {
+  std::unique_ptr<fwref::host::Model> window;
+  std::unique_ptr<fwref::host::MotorModel> motor;
+  fwref::GruF32 sgru_f{};
+  fwref::GruI8 sgru_q{};
+  fwref::GruStepState state;
+  fwref::StepRunner<fwref::GruF32, fwref::GruStepState> step_f{&sgru_f, &state};
+  fwref::StepRunner<fwref::GruI8, fwref::GruStepState> step_q{&sgru_q, &state};
+  fwref::StreamModel fns;
+  int channels = 0, window_len = 0, classes = 0;
+  bool has_motor = false;
+};
+
+// The streaming GRU's section; window 1 (one step), its channels the record's model channels.
+bool bind_sgru(fwref::WeightsFile& wf, bool int8, Bound* b, std::string* error) {
+  const fwref::Status s = int8 ? wf.bind_sgru(&b->sgru_q, error) : wf.bind_sgru(&b->sgru_f, error);
+  if (s != fwref::Status::kOk) {
+    if (s == fwref::Status::kMissingSection) *error += " (--model sgru reads the export's sgru_weights.bin)";
+    return false;
+  }
+  const fwref::GruDims& d = int8 ? b->sgru_q.dims : b->sgru_f.dims;
+  if (d.window != 1) return *error = "the sgru section has window " + std::to_string(d.window) + ", not 1", false;
+  b->channels = d.channels, b->window_len = 1, b->classes = d.classes;
+  b->fns.step = int8 ? &decltype(b->step_q)::step : &decltype(b->step_f)::step;
+  b->fns.reset = int8 ? &decltype(b->step_q)::reset : &decltype(b->step_f)::reset;
+  b->fns.ctx = int8 ? static_cast<void*>(&b->step_q) : static_cast<void*>(&b->step_f);
+  return true;
+}
+
+// cnode / gru, with infer_motor when weights.bin holds the net's motor head.
+bool bind_stream_model(fwref::WeightsFile& wf, const std::string& model, bool int8, Bound* b, std::string* error) {
+  if (model == "sgru") return bind_sgru(wf, int8, b, error);
+  fwref::Status status;
+  b->window = fwref::host::bind_model(wf, model, int8, &status, error);
+  if (!b->window) return false;
+  b->channels = b->window->channels, b->window_len = b->window->window, b->classes = b->window->classes;
+  const bool head = wf.container().find(model == "cnode" ? fwref::kModelCnodeMotor : fwref::kModelGruMotor,
+                                        int8 ? 2u : 1u) != nullptr;
+  if (head) {
+    b->motor = fwref::host::bind_motor_model(wf, model, int8, &status, error);
+    if (!b->motor) return false;
+    b->fns.window_motor = run_motor;
+    b->fns.ctx = b->motor.get();
+    b->has_motor = true;
+  } else {
+    b->fns.window = run_window;
+    b->fns.ctx = b->window.get();
+  }
+  return true;
+}
+
+
+// The state a replay of one or more stream files shares.
+struct Replay {
+  const fwref::OnboardRecord& rec;
+  Bound& m;
+  const std::string& model;
+  bool int8;
+  Lines& lines;
+  std::vector<double>* seconds;  // per push, or null
+  std::uint32_t cells = 0;
+};
+
+bool check_header(const Header& h, const std::string& in, const fwref::OnboardRecord& rec, std::string* error) {
+  const std::string want = fwref::profile_spec(rec.params.profile).name;
+  if (h.profile != want) return *error = "stream " + in + " is for profile '" + h.profile + "', the model's is '" + want + "'", false;
+  if (h.names != rec.raw_names) return *error = "stream " + in + ": its channels are not the on-board record's raw channels", false;
+  // the record holds the period as float32 (0.04 -> 0.0399999991): equal within float32's precision
+  if (std::fabs(h.dt - rec.params.sample_dt_s) > 1e-6 * rec.params.sample_dt_s) {
+    return *error = "stream " + in + ": sample period " + std::to_string(h.dt) + " s, the model's is " +
+                    std::to_string(rec.params.sample_dt_s) + " s", false;
+  }
+  if (rec.cells_from_stream && h.cells == 0) return *error = "stream " + in + " does not give the pack's cell count", false;
+  return true;
+}
+
+// One stream file (flight ``index`` of the replay): the first init()s the stream, the next ones
+// reset() it (a new flight; their cell count must be the first's).
+bool replay_file(const std::string& in, std::size_t index, Replay* r, std::string* error) {
+  std::FILE* f = in == "-" ? stdin : std::fopen(in.c_str(), "rb");
+  if (f == nullptr) return *error = "cannot open stream " + in, false;
+  struct Closer { std::FILE* f; ~Closer() { if (f != stdin) std::fclose(f); } } closer{f};
+  Header h;
+  if (!read_header(f, in, &h, error) || !check_header(h, in, r->rec, error)) return false;
+  fwref::StreamParams p = r->rec.params;
+  p.classes = p.alarm.classes = r->m.classes;
+  if (index == 0) {
+    const fwref::Status status = g_stream.init(p, int(h.cells), r->m.fns);
+    if (status != fwref::Status::kOk) return *error = std::string("cannot run this record: ") + fwref::status_name(status), false;
+    r->cells = h.cells;
+  } else if (h.cells != r->cells) {
+    return *error = "stream " + in + " has " + std::to_string(h.cells) + " cells, the first stream " + std::to_string(r->cells), false;
+  } else {
+    g_stream.reset();
+  }
+  char head[512];
+  std::snprintf(head, sizeof head, "# fwref_stream flight=%zu source=%s model=%s precision=%s profile=%s window=%d "
+                "stride=%d classes=%d motor_head=%d\n# index t status logits[%d] proba[%d] vote active raised cleared "
+                "cls motor wmotor\n", index, h.source.c_str(), r->model.c_str(), r->int8 ? "int8" : "fp32",
+                h.profile.c_str(), p.window, p.stride, p.classes, int(r->m.has_motor), p.classes, p.classes);
+  r->lines.add(head);
+  const std::size_t rec_bytes = 8 + 4 * std::size_t(h.channels);
+  std::vector<unsigned char> buf(rec_bytes);
+  std::vector<float> sample(h.channels);
+  long long n = 0, dropped = 0;
+  for (;; ++n) {
+    const std::size_t got = std::fread(buf.data(), 1, rec_bytes, f);
+    if (got == 0) break;
+    if (got != rec_bytes) return *error = "stream " + in + " ends inside sample " + std::to_string(n), false;
+    double t;
+    std::memcpy(&t, buf.data(), 8);
+    std::memcpy(sample.data(), buf.data() + 8, 4 * std::size_t(h.channels));
+    const auto t0 = std::chrono::steady_clock::now();
+    const fwref::Status s = g_stream.push(sample.data(), t, &r->lines);
+    const auto t1 = std::chrono::steady_clock::now();
+    if (r->seconds) r->seconds->push_back(std::chrono::duration<double>(t1 - t0).count());
+    dropped += s != fwref::Status::kOk ? 1 : 0;
+  }
+  std::snprintf(head, sizeof head, "# end samples=%lld dropped=%lld decided=%lld skipped=%lld steps=%lld "
+                "hover_cmd=%.9g hover_cur=%.9g\n", n, dropped, static_cast<long long>(g_stream.decided()),
+                static_cast<long long>(g_stream.skipped()), static_cast<long long>(g_stream.steps()),
+                double(g_stream.hover_cmd()), double(g_stream.hover_cur()));
+  r->lines.add(head);
+  return true;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
   std::string weights, model, in, out, manifest, timings;
+  std::vector<std::string> ins;  // --in, repeatable: flights in sequence, reset() between them
   bool int8 = false, info = false;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
@@ -152,14 +294,17 @@ int main(int argc, char** argv) {
     if (dst == nullptr) return usage_error("unknown argument '" + a + "'");
     if (i + 1 >= argc) return usage_error(a + " needs a value");
     *dst = argv[++i];
+    if (dst == &in) ins.push_back(in);
   }
-  if (weights.empty() || (!info && (model.empty() || in.empty()))) return usage_error("missing arguments");
-  if (!info && model != "cnode" && model != "gru") return usage_error("--model must be cnode or gru");
+  if (weights.empty() || (!info && (model.empty() || ins.empty()))) return usage_error("missing arguments");
+  if (!info && model != "cnode" && model != "gru" && model != "sgru") return usage_error("--model must be cnode, gru or sgru");
   std::string error;
   for (const std::string* o : {&out, &timings}) {
-    if (!o->empty() && !fwref::host::output_allowed(*o, {weights, in, manifest}, {"--weights file", "--in file",
-                                                                                   "--manifest file"}, &error)) {
-      return fail(error);
+    for (const std::string& one : ins) {
+      if (!o->empty() && !fwref::host::output_allowed(*o, {weights, one, manifest}, {"--weights file", "--in file",
+                                                                                      "--manifest file"}, &error)) {
+        return fail(error);
+      }
     }
   }
   if (!manifest.empty()) {
@@ -176,65 +321,18 @@ int main(int argc, char** argv) {
   fwref::OnboardRecord rec;
   if (fwref::read_onboard(wf, &rec, &error) != fwref::Status::kOk) return fail(error);
   if (info) return print_info(rec), 0;
-  fwref::Status status;
-  std::unique_ptr<fwref::host::Model> m = fwref::host::bind_model(wf, model, int8, &status, &error);
-  if (!m) return fail(error);
-  if (m->window != rec.params.window || m->channels != rec.params.channels) {
+  static Bound m;  // the sgru state and the bound structs: not on the stack
+  if (!bind_stream_model(wf, model, int8, &m, &error)) return fail(error);
+  if ((model != "sgru" && m.window_len != rec.params.window) || m.channels != rec.params.channels) {
     return fail("the on-board record's window/channels disagree with the " + model + " section of " + weights);
   }
 
-  std::FILE* f = in == "-" ? stdin : std::fopen(in.c_str(), "rb");
-  if (f == nullptr) return fail("cannot open stream " + in);
-  Header h;
-  if (!read_header(f, in, &h, &error)) return fail(error);
-  if (h.profile != fwref::profile_spec(rec.params.profile).name) {
-    return fail("stream " + in + " is for profile '" + h.profile + "', the model's is '" +
-                fwref::profile_spec(rec.params.profile).name + "'");
-  }
-  if (h.names != rec.raw_names) return fail("stream " + in + ": its channels are not the on-board record's raw channels");
-  // the record holds the period as float32 (0.04 -> 0.0399999991): equal within float32's precision
-  if (std::fabs(h.dt - rec.params.sample_dt_s) > 1e-6 * rec.params.sample_dt_s) {
-    return fail("stream " + in + ": sample period " + std::to_string(h.dt) + " s, the model's is " +
-                std::to_string(rec.params.sample_dt_s) + " s");
-  }
-  if (rec.cells_from_stream && h.cells == 0) return fail("stream " + in + " does not give the pack's cell count");
-  fwref::StreamParams p = rec.params;
-  p.classes = m->classes;
-  p.alarm.classes = m->classes;
-  if ((status = g_stream.init(p, int(h.cells), run_window, m.get())) != fwref::Status::kOk) {
-    return fail(std::string("cannot run this record: ") + fwref::status_name(status));
-  }
-
-  Lines lines(m->classes, out.empty() ? stdout : nullptr);
-  char head[512];
-  std::snprintf(head, sizeof head, "# fwref_stream source=%s model=%s precision=%s profile=%s window=%d stride=%d "
-                "classes=%d\n# index t status logits[%d] proba[%d] vote active raised cleared cls motor\n",
-                h.source.c_str(), model.c_str(), int8 ? "int8" : "fp32", h.profile.c_str(), p.window, p.stride,
-                p.classes, p.classes, p.classes);
-  lines.add(head);
-  const std::size_t rec_bytes = 8 + 4 * std::size_t(h.channels);
-  std::vector<unsigned char> buf(rec_bytes);
-  std::vector<float> sample(h.channels);
+  Lines lines(m.classes, out.empty() ? stdout : nullptr);
   std::vector<double> seconds;
-  long long n = 0, dropped = 0;
-  for (;; ++n) {
-    const std::size_t got = std::fread(buf.data(), 1, rec_bytes, f);
-    if (got == 0) break;
-    if (got != rec_bytes) return fail("stream " + in + " ends inside sample " + std::to_string(n));
-    double t;
-    std::memcpy(&t, buf.data(), 8);
-    std::memcpy(sample.data(), buf.data() + 8, 4 * std::size_t(h.channels));
-    const auto t0 = std::chrono::steady_clock::now();
-    const fwref::Status s = g_stream.push(sample.data(), t, &lines);
-    const auto t1 = std::chrono::steady_clock::now();
-    if (!timings.empty()) seconds.push_back(std::chrono::duration<double>(t1 - t0).count());
-    dropped += s != fwref::Status::kOk ? 1 : 0;
+  Replay r{rec, m, model, int8, lines, timings.empty() ? nullptr : &seconds};
+  for (std::size_t i = 0; i < ins.size(); ++i) {
+    if (!replay_file(ins[i], i, &r, &error)) return fail(error);
   }
-  if (f != stdin) std::fclose(f);
-  std::snprintf(head, sizeof head, "# end samples=%lld dropped=%lld decided=%lld skipped=%lld hover_cmd=%.9g "
-                "hover_cur=%.9g\n", n, dropped, static_cast<long long>(g_stream.decided()),
-                static_cast<long long>(g_stream.skipped()), double(g_stream.hover_cmd()), double(g_stream.hover_cur()));
-  lines.add(head);
   if (!out.empty() && !fwref::host::write_atomic(out, lines.text.data(), lines.text.size(), &error)) return fail(error);
   if (!timings.empty() &&
       !fwref::host::write_atomic(timings, seconds.data(), seconds.size() * sizeof(double), &error)) {

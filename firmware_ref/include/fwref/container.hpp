@@ -20,6 +20,7 @@ const char* dtype_name(DType t);
 
 constexpr std::uint32_t kModelNone = 0, kModelCnode = 1, kModelGru = 2;
 constexpr std::uint32_t kModelCnodeMotor = 16, kModelGruMotor = 17;  // the optional motor-head sections
+constexpr std::uint32_t kModelSgru = 18;  // the streaming GRU (its own file, export/sgru_weights.py)
 constexpr std::uint32_t kPrecNone = 0, kPrecF32 = 1, kPrecI8 = 2;
 const char* model_name(std::uint32_t model);
 const char* precision_name(std::uint32_t precision);

@@ -20,7 +20,24 @@
 //   kDecided  the window (hover columns divided by the frozen estimate) runs through the window
 //             path (``WindowFn``: infer() of cnode.cpp / gru.cpp), softmax in double.
 // Every stride then steps the alarm policy (fwref/alarm.hpp; only kDecided strides are valid).
-// No decision before W samples; reset() forgets everything (ring, hover estimate, alarm).
+// No decision before W samples; reset() forgets everything (ring, hover estimate, alarm, model state).
+//
+// A windowed model with its motor head (``WindowMotorFn``: infer_motor()) also gives, at every
+// kDecided stride, the motor logits: Decision::motor is their argmax (0..3), and the alarm policy
+// takes their softmax (core/alarm.py's motor rule), so Decision::alarm.motor is the alarm's motor.
+//
+// A per-sample model (``StepFn``: the streaming GRU, fwref/gru_step.hpp) steps on every usable
+// sample as it is pushed, with the sample's model row (the profile's values, hover columns divided
+// by the frozen estimate); the decision at a stride is the logits of the latest step (the state
+// after the window's last sample), never a recomputation. Its state:
+//   - h = 0 at init() and reset() (``ResetFn``), i.e. at take-off, as train/stream_gru_run.py
+//     evaluates it (one stream per flight, started at h = 0 on its first sample);
+//   - an unusable sample (NaN/Inf raw or model value, not airborne, or a filled timestamp gap) is
+//     not stepped: h is held across it (and the strides whose window holds it are kSkipped, as for
+//     the windowed models, so that all models vote on the same strides);
+//   - profiles with a hover estimate: no sample is stepped before the estimate has frozen (the model
+//     row needs it), so the state starts at h = 0 on the freezing sample; strides before: kNoHover.
+// detect/streamref.py ``step_rows`` is the Python statement of these rules.
 //
 // Timestamps: each sample carries its time t (s). The stream runs on the grid of the record's
 // sample period dt. A gap (t - t_prev rounds to g > 1 periods) is HELD, not reset: the g - 1
@@ -36,7 +53,9 @@
 
 #include "fwref/alarm.hpp"
 #include "fwref/config.hpp"
+#include "fwref/gru_step.hpp"
 #include "fwref/hover.hpp"
+#include "fwref/motor.hpp"
 #include "fwref/profile.hpp"
 #include "fwref/status.hpp"
 
@@ -80,17 +99,59 @@ struct Decision {
   float logits[kMaxClasses] = {};
   double proba[kMaxClasses] = {};  // softmax of the logits (kDecided only)
   AlarmStep alarm{false, false, false, false, -1, -1};
-  int motor = -1;  // the window path's suspected motor (0..3): -1, the models have no motor output yet
+  int motor = -1;  // this stride's suspected motor (0..3): argmax of the motor head; -1 without a head or decision
+  float motor_logits[kMotors] = {};  // the motor head's logits (kDecided with a head; NaN otherwise)
 };
 
 // The window path: Status infer(model, window (W, C), logits (K)) behind a plain function pointer.
 using WindowFn = Status (*)(void* ctx, const float* window, float* logits);
+// The window path with its motor head: infer_motor(model, head, window, logits (K), motor (kMotors)).
+using WindowMotorFn = Status (*)(void* ctx, const float* window, float* logits, float* motor);
+// A per-sample model: one step on a usable sample's model row (C), the logits (K) of the new state.
+using StepFn = Status (*)(void* ctx, const float* row, float* logits);
+using ResetFn = void (*)(void* ctx);  // the per-sample model's state back to take-off (h = 0)
+
+// What the stream runs: exactly one of window, window_motor, step (step needs reset).
+struct StreamModel {
+  WindowFn window = nullptr;
+  WindowMotorFn window_motor = nullptr;
+  StepFn step = nullptr;
+  ResetFn reset = nullptr;
+  void* ctx = nullptr;
+};
 
 template <class Model, class Workspace>
 struct WindowRunner {
   const Model* model;
   Workspace* ws;
   static Status run(void* ctx, const float* window, float* logits);
+};
+
+// A net and its motor head (fwref/motor.hpp) as a WindowMotorFn.
+template <class Model, class Head, class Workspace>
+struct WindowMotorRunner {
+  const Model* model;
+  const Head* head;
+  Workspace* ws;
+  static Status run(void* ctx, const float* window, float* logits, float* motor) {
+    auto* self = static_cast<WindowMotorRunner*>(ctx);
+    return infer_motor(*self->model, *self->head, window, logits, motor, *self->ws);
+  }
+};
+
+// A per-sample model (fwref/gru_step.hpp: GruF32 / GruI8 with window 1) as a StepFn / ResetFn.
+template <class Model, class State>
+struct StepRunner {
+  const Model* model;
+  State* state;
+  static Status step(void* ctx, const float* row, float* logits) {
+    auto* self = static_cast<StepRunner*>(ctx);
+    return fwref::step(*self->model, row, *self->state, logits);
+  }
+  static void reset(void* ctx) {
+    auto* self = static_cast<StepRunner*>(ctx);
+    fwref::reset(*self->model, *self->state);
+  }
 };
 
 // Called for every stride (several when a gap is filled); optional.
@@ -107,6 +168,7 @@ class Stream {
   // kDimsTooLarge / kDimsInvalid when the parameters exceed this build's capacity or disagree with
   // the profile; ``cells`` the pack's cell count (profiles with a hover estimate; ignored otherwise).
   Status init(const StreamParams& p, int cells, WindowFn fn, void* ctx);
+  Status init(const StreamParams& p, int cells, const StreamModel& m);  // kNullArgument: not exactly one model
   // One sample (R raw channels, the record's order) at time t; kBadInput: a time that is not finite or does
   // not advance by half a period, the sample dropped.
   Status push(const float* sample, double t, StrideSink* sink = nullptr);
@@ -119,23 +181,28 @@ class Stream {
   float hover_cur() const { return hover_.cur(); }
   std::int64_t decided() const { return decided_; }
   std::int64_t skipped() const { return skipped_; }
+  std::int64_t steps() const { return steps_; }  // per-sample model steps since reset (0 for a windowed model)
 
  private:
   Status push_one(const float* sample, double t, StrideSink* sink);
   void stride(double t, StrideSink* sink);
+  bool step_sample(const float* x);
+  Status run_window(Decision& d);
 
   StreamParams p_{};
   float cells_ = 0.0f;
-  WindowFn fn_ = nullptr;
-  void* ctx_ = nullptr;
+  StreamModel m_{};
   float ring_[kMaxWindow * kMaxChannels] = {};  // prepared samples, slot = index % W
   bool ok_[kMaxWindow] = {};                    // the sample is usable
   float win_[kMaxWindow * kMaxChannels] = {};   // the window handed to the model, oldest first
   float nan_sample_[kMaxRawChannels] = {};
+  float step_row_[kMaxChannels] = {};
+  float step_logits_[kMaxClasses] = {};  // the latest step's (per-sample model)
+  double motor_proba_[kMaxClasses > kMotors ? kMaxClasses : kMotors] = {};
   HoverEstimator<kHoverSteady> hover_;
   AlarmPolicy<kMaxAlarmN, kMaxClasses> alarm_;
   Decision last_;
-  std::int64_t next_ = 0, decided_ = 0, skipped_ = 0;
+  std::int64_t next_ = 0, decided_ = 0, skipped_ = 0, steps_ = 0;
   double t_prev_ = 0.0;
   bool airborne_prev_ = false;
 };

@@ -33,6 +33,10 @@ class WeightsFile {
   Status bind(CnodeMotorI8* out, std::string* error);
   Status bind(GruMotorF32* out, std::string* error);
   Status bind(GruMotorI8* out, std::string* error);
+  // The streaming GRU's sections (model code kModelSgru, the GRU's tensors with window 1:
+  // fwref/gru_step.hpp), in its own file export/sgru_weights.bin; kMissingSection in weights.bin.
+  Status bind_sgru(GruF32* out, std::string* error);
+  Status bind_sgru(GruI8* out, std::string* error);
 
   const Container& container() const { return file_; }
 
@@ -40,6 +44,8 @@ class WeightsFile {
   friend class Binder;
   template <class Model>
   Status bind_section(Model* out, std::string* error);
+  template <class Model>
+  Status bind_as(Model* out, std::uint32_t model, const char* label, std::string* error);
   Container file_;
   std::deque<std::vector<float>> f32_;
   std::deque<std::vector<std::int8_t>> i8_;
