@@ -164,22 +164,28 @@ def _infer(exe: Path, export: Path, net: str, int8: bool, x: np.ndarray, tmp: Pa
 
 
 def _window_path(export: Path, exe: Path, tmp: Path, rs, record: dict, net: str, precision: str):
-    """The Python window path on the stream's samples: windows, ORT and C++ window logits, the alarm."""
-    from detect.run import softmax
-    from detect.runtimes import ort_logits
+    """The Python window path on the stream's samples: windows, ORT and C++ window logits, ORT's motor
+    logits (None without a motor head) and the alarm (with the head's motor probabilities)."""
+    from detect.run import has_motor, model_logits, softmax
     from detect.streamref import windows_of
 
     sw = windows_of(rs, record)
     x = sw.windows(record["window"])
-    ort = ort_logits(export / _manifest(export)["artifacts"][f"{net}_{precision}"], x)
+    manifest = _manifest(export)
+    ort, motor = model_logits(export, manifest, net, precision, "ort", x)
+    assert (motor is not None) == has_motor(manifest, net)
     cpp = _infer(exe, export, net, precision == "int8", x, tmp)
     proba = np.zeros((len(sw.starts), ort.shape[1]))
     proba[:, record["healthy"]] = 1.0  # undecided windows never vote (detect/run.py)
     proba[sw.decided] = softmax(ort)
+    motor_p = None
+    if motor is not None:
+        motor_p = np.zeros((len(sw.starts), 4))
+        motor_p[sw.decided] = softmax(motor)
     a = record["alarm"]
     trace = run_alarm(proba[None], a["threshold"], a["k"], a["n"], a["clear_m"], a["latch"], healthy=record["healthy"],
-                      valid=sw.decided[None])
-    return sw, ort, cpp, proba, trace
+                      valid=sw.decided[None], motor_proba=None if motor_p is None else motor_p[None])
+    return sw, ort, cpp, proba, trace, motor
 
 
 @pytest.mark.parametrize("precision", ["fp32", "int8"])
@@ -213,7 +219,7 @@ def _check_replay(export: Path, streams: dict[str, Path], exe: Path, tmp: Path, 
     report = []
     for name, path in streams.items():
         rs = read_stream(path)
-        sw, ort, cpp, proba, trace = _window_path(export, exe, tmp, rs, record, net, precision)
+        sw, ort, cpp, proba, trace, motor = _window_path(export, exe, tmp, rs, record, net, precision)
         res = _fwref_stream(exe, export, "--model", net, "--in", str(path), *(["--int8"] if precision == "int8" else []))
         assert res.returncode == 0, res.stderr
         out = read_lines(res.stdout, ort.shape[1])
@@ -234,10 +240,26 @@ def _check_replay(export: Path, streams: dict[str, Path], exe: Path, tmp: Path, 
         assert not (flips & ~near).any(), name  # fp32: only a score within tolerance of the threshold may flip
         if not flips.any():
             for key, ref in (("active", trace.active), ("raised", trace.raised), ("cleared", trace.cleared),
-                             ("cls", trace.cls)):
+                             ("cls", trace.cls), ("motor", trace.motor)):
                 np.testing.assert_array_equal(out[key], ref[0], err_msg=f"{name} {key}")
-        report.append(f"{name}: {int(sw.decided.sum())} decided / {len(sw.ends)} strides, {int(flips.sum())} vote flips")
+        _check_motor(out, sw.decided, motor, precision, name)
+        report.append(f"{name}: {int(sw.decided.sum())} decided / {len(sw.ends)} strides, {int(flips.sum())} vote flips"
+                      + ("" if motor is None else f", motor head: {int((out['motor'] >= 0).sum())} strides with an alarm motor"))
     return report
+
+
+def _check_motor(out: dict, decided: np.ndarray, motor: np.ndarray | None, precision: str, name: str) -> None:
+    """The stride's motor (wmotor) is the head's argmax at every decided stride (int8: ORT's bits, so
+    always; fp32: where the two largest motor logits are apart by more than the tolerance), -1 elsewhere."""
+    if motor is None:
+        assert (out["wmotor"] == -1).all() and (out["motor"] == -1).all(), name
+        return
+    assert (out["wmotor"][~decided] == -1).all(), name
+    want = np.argmax(motor, axis=1)
+    top2 = np.sort(motor, axis=1)[:, -2:]
+    clear = precision == "int8" or np.ones(len(want), bool)
+    clear = clear & (top2[:, 1] - top2[:, 0] > FP32_CPP_REL_TOL * max(1.0, np.abs(motor).max()))
+    np.testing.assert_array_equal(out["wmotor"][decided][clear], want[clear], err_msg=name)
 
 
 @pytest.mark.skipif(not MISSION.is_file(), reason="the shared real flight logs are not here")
