@@ -6,10 +6,13 @@
 Cross-builds firmware_ref/mcu with the export's weights and -DFWREF_STREAMS (fwref_mcu_stream.elf,
 mcu/stream_main.cpp), runs it under QEMU, and holds every stride against the host's fwref_stream on
 the same stream files: the same status, int8 logits bit-identical, fp32 within FP32_CPP_REL_TOL,
-the same votes and alarm states (fp32: counted where they differ). Prints per model and precision
-the instructions per push (without a stride), per decision (mean and worst) and per non-decided
-stride, and the estimated time and duty cycle at 168 MHz (M4) / 216 MHz (M7), one instruction per
-cycle assumed, against one sample period (40 ms) and one decision per stride.
+the same votes and alarm states, and with a motor head the same alarm motor and stride motor
+(fp32: counted where they differ). With the export's sgru_weights.bin (``quadfdi export sgru``) the
+streaming GRU runs too (model "sgru": a GRU step per push). Prints per model and precision the
+instructions per push (without a stride: for the streaming GRU one step, i.e. per sample), per
+decision (mean and worst) and per non-decided stride, and the estimated time and duty cycle at
+168 MHz (M4) / 216 MHz (M7), one instruction per cycle assumed, against one sample period (40 ms);
+the duty cycle is over a stride of samples (stride - 1 pushes and one decision).
 """
 
 from __future__ import annotations
@@ -35,19 +38,25 @@ def parse(text: str, k: int) -> tuple[dict, dict]:
         if p and p[0] == "STRIDE":
             key = (p[1], p[2], int(p[3]))
             bits = np.array([int(v) for v in p[6:6 + k]], np.uint32).view(np.float32)
-            strides.setdefault(key, []).append((int(p[4]), p[5], bits, int(p[6 + k]), int(p[7 + k]), int(p[8 + k])))
+            strides.setdefault(key, []).append((int(p[4]), p[5], bits, int(p[6 + k]), int(p[7 + k]), int(p[8 + k]),
+                                                int(p[9 + k]), int(p[10 + k])))
         elif p and p[0] == "PERF":
             perf[(p[1], p[2], int(p[3]))] = {a.split("=")[0]: int(a.split("=")[1]) for a in p[4:]}
     return strides, perf
 
 
+def models(strides: dict) -> list[str]:
+    return [m for m in ("cnode", "gru", "sgru") if any(key[0] == m for key in strides)]
+
+
 def compare(export: Path, streams: list[Path], strides: dict, k: int) -> list[str]:
     out = []
-    for net in ("cnode", "gru"):
+    for net in models(strides):
+        weights = export / ("sgru_weights.bin" if net == "sgru" else "weights.bin")
         for prec in ("fp32", "int8"):
             flips = 0
             for f, path in enumerate(streams):
-                res = subprocess.run([str(HOST_BUILD / "fwref_stream"), "--weights", str(export / "weights.bin"),
+                res = subprocess.run([str(HOST_BUILD / "fwref_stream"), "--weights", str(weights),
                                       "--model", net, "--in", str(path)] + (["--int8"] if prec == "int8" else []),
                                      capture_output=True, text=True, check=True)
                 host = read_lines(res.stdout, k)
@@ -66,13 +75,17 @@ def compare(export: Path, streams: list[Path], strides: dict, k: int) -> list[st
                 if not (votes != host["vote"]).any():
                     assert (np.array([m[4] for m in mcu], bool) == host["active"]).all()
                     assert (np.array([m[5] for m in mcu]) == host["cls"]).all()
-            out.append(f"{net} {prec}: every stride as the host's (vote flips {flips})")
+                    assert (np.array([m[6] for m in mcu]) == host["motor"]).all()
+                    wm = np.array([m[7] for m in mcu])
+                    assert prec == "fp32" or (wm == host["wmotor"]).all()
+            heads = sum(m[7] >= 0 for f in range(len(streams)) for m in strides[(net, prec, f)])
+            out.append(f"{net} {prec}: every stride as the host's (vote flips {flips}; strides with a motor {heads})")
     return out
 
 
 def report(perf: dict, cpu: str, stride: int, dt: float) -> list[str]:
     lines = []
-    for net in ("cnode", "gru"):
+    for net in sorted({m for m, _, _ in perf}, key=("cnode", "gru", "sgru").index):
         for prec in ("fp32", "int8"):
             rows = [v for (m, p, _), v in perf.items() if (m, p) == (net, prec)]
             tot = {key: sum(r[key] for r in rows) for key in rows[0]}
@@ -101,12 +114,13 @@ def main(argv: list[str]) -> int:
     options = {"CMAKE_TOOLCHAIN_FILE": str(FW_ROOT / "mcu" / "toolchain-arm-none-eabi.cmake"), "FWREF_CPU": cpu,
                "FWREF_WEIGHTS": str(export / "weights.bin"), "FWREF_REFERENCE": str(export / "reference.bin"),
                "Python3_EXECUTABLE": sys.executable, "FWREF_STREAMS": ";".join(str(s) for s in streams)}
+    (build / "generated" / "stream.stamp").unlink(missing_ok=True)  # sgru_weights.bin is not a CMake dependency
     _configure_and_build(FW_ROOT / "mcu", build, options, f"the {cpu} stream image", ("fwref_mcu_stream",))
     res = subprocess.run(qemu_command(cpu, build / "fwref_mcu_stream.elf"), capture_output=True, text=True, check=False,
                          timeout=3600)
     assert "RESULT DONE" in res.stdout, res.stdout[-2000:] + res.stderr[-2000:]
     record = record_of(export)
-    k = int(res.stdout.split("STRIDE ", 1)[1].split("\n", 1)[0].split().__len__()) - 8  # after "STRIDE ": 8 fields + K
+    k = int(res.stdout.split("STRIDE ", 1)[1].split("\n", 1)[0].split().__len__()) - 10  # after "STRIDE ": 10 fields + K
     strides, perf = parse(res.stdout, k)
     print(f"{export} ({record['profile']}) on {cpu} ({MCU_CPUS[cpu]}): {len(streams)} flights, "
           f"{next(ln for ln in res.stdout.splitlines() if ln.startswith('STREAM '))}")

@@ -10,6 +10,9 @@ every stride, logits bit-identical to fwref_infer, fp32 within FP32_CPP_REL_TOL 
 rows differing from ORT and fp32 vote flips against core.alarm on ORT's probabilities. Prints per
 model and precision the strides, those counts and the latency of a push without a decision and of
 a push that decides (p50, p99, microseconds; this machine as it is, other load included).
+With the export's sgru_weights.bin (``quadfdi export sgru``) the streaming GRU too ("sgru"): its
+reference is ONNX Runtime's one-step graph stepped under the on-board rules (detect/streamref.py
+``stepped_of`` / ``sgru_logits``); its push is one GRU step (per sample).
 """
 
 from __future__ import annotations
@@ -28,24 +31,35 @@ from core.contracts import FP32_CPP_REL_TOL
 from detect.run import softmax
 from detect.runtimes import cpp_logits, ort_logits
 from detect.streamfile import from_dataset, read_stream, record_of, write_stream
-from detect.streamref import read_lines, windows_of
+from detect.streamref import read_lines, sgru_logits, stepped_of, windows_of
 from export.manifest import load_manifest
 from parity.build import HOST_BUILD, build_host
 
 
+def _stream(export: Path, path: Path, net: str, prec: str, tmp: Path, k: int) -> tuple[dict, np.ndarray]:
+    weights = export / ("sgru_weights.bin" if net == "sgru" else "weights.bin")
+    res = subprocess.run([str(HOST_BUILD / "fwref_stream"), "--weights", str(weights), "--model", net, "--in",
+                          str(path), "--timings", str(tmp / "t.f64")] + (["--int8"] if prec == "int8" else []),
+                         capture_output=True, text=True, check=True)
+    return read_lines(res.stdout, k), np.fromfile(tmp / "t.f64")
+
+
 def replay(export: Path, path: Path, record: dict, manifest: dict, net: str, prec: str, tmp: Path) -> dict:
     sw = windows_of(read_stream(path), record)
-    x = sw.windows(record["window"])
-    ort = ort_logits(export / manifest["artifacts"][f"{net}_{prec}"], x)
-    cpp = cpp_logits(export / "weights.bin", net, prec == "int8", x)
-    exe = HOST_BUILD / "fwref_stream"
-    res = subprocess.run([str(exe), "--weights", str(export / "weights.bin"), "--model", net, "--in", str(path),
-                          "--timings", str(tmp / "t.f64")] + (["--int8"] if prec == "int8" else []),
-                         capture_output=True, text=True, check=True)
-    out, t = read_lines(res.stdout, ort.shape[1]), np.fromfile(tmp / "t.f64")
+    if net == "sgru":
+        hidden = int(np.load(export / "sgru_replay.npz")["h"].shape[1])
+        stepped, sw.decided = stepped_of(sw, record["window"])
+        onnx = export / ("sgru_step.int8.onnx" if prec == "int8" else "sgru_step.onnx")
+        ort = sgru_logits(onnx, sw.x, stepped, hidden)[sw.ends][sw.decided]
+        cpp = None
+    else:
+        x = sw.windows(record["window"])
+        ort = ort_logits(export / manifest["artifacts"][f"{net}_{prec}"], x)
+        cpp = cpp_logits(export / "weights.bin", net, prec == "int8", x)
+    out, t = _stream(export, path, net, prec, tmp, ort.shape[1])
     assert (out["index"] == sw.ends).all() and ((out["status"] == "decided") == sw.decided).all()
     got = out["logits"][sw.decided]
-    assert (got == cpp).all(), (net, prec, path)
+    assert cpp is None or (got == cpp).all(), (net, prec, path)
     if prec == "fp32":
         assert np.abs(got - ort).max() <= FP32_CPP_REL_TOL * max(1.0, np.abs(ort).max())
     proba = np.zeros((len(sw.ends), ort.shape[1]))
@@ -59,7 +73,8 @@ def replay(export: Path, path: Path, record: dict, manifest: dict, net: str, pre
         assert (out["active"] == tr.active[0]).all() and (out["cls"] == tr.cls[0]).all()
     decides = np.zeros(len(t), bool)
     decides[out["index"][out["status"] == "decided"]] = True
-    return {"strides": len(sw.ends), "decided": int(sw.decided.sum()), "int8_diff": int((got != ort).any(axis=1).sum())
+    rel = float(np.abs(got - ort).max() / max(1.0, np.abs(ort).max())) if len(got) else 0.0
+    return {"rel": rel, "strides": len(sw.ends), "decided": int(sw.decided.sum()), "int8_diff": int((got != ort).any(axis=1).sum())
             if prec == "int8" else 0, "flips": int(flips.sum()), "push": t[~decides], "decision": t[decides]}
 
 
@@ -80,13 +95,15 @@ def main(argv: list[str]) -> int:
             paths.append(tmp / f"f{f}.bin")
             write_stream(paths[-1], from_dataset(dataset, f, record))
         print(f"{export} ({record['profile']}): test flights {flights}")
-        for net in ("cnode", "gru"):
+        for net in ("cnode", "gru") + (("sgru",) if (export / "sgru_weights.bin").is_file() else ()):
             for prec in ("fp32", "int8"):
                 rs = [replay(export, p, record, manifest, net, prec, tmp) for p in paths]
                 push = np.concatenate([r["push"] for r in rs]) * 1e6
                 dec = np.concatenate([r["decision"] for r in rs]) * 1e6
+                rel = max(r["rel"] for r in rs)
                 print(f"{net} {prec}: {sum(r['strides'] for r in rs)} strides, {sum(r['decided'] for r in rs)} decided,"
-                      f" int8 rows != ORT {sum(r['int8_diff'] for r in rs)}, vote flips {sum(r['flips'] for r in rs)};"
+                      f" int8 rows != ORT {sum(r['int8_diff'] for r in rs)}, max |C++ - ORT| / max(1, |ORT|) {rel:.2g},"
+                      f" vote flips {sum(r['flips'] for r in rs)};"
                       f" push p50/p99 {np.percentile(push, 50):.2f}/{np.percentile(push, 99):.2f} us, decision"
                       f" p50/p99 {np.percentile(dec, 50):.1f}/{np.percentile(dec, 99):.1f} us", flush=True)
     return 0

@@ -1,10 +1,11 @@
 // mcu/stream_main.cpp -- scope: the streaming runtime (fwref/stream.hpp) on the Cortex-M under
-// QEMU: the four compiled-in models (fwref_weights_*.cpp) each replay the compiled-in flights
-// (fwref_stream_data.cpp, tools/gen_stream.py) sample by sample with reset() between flights,
-// counting instructions per push (SysTick under -icount). Output over semihosting, parsed by
-// scripts/stream_mcu.py, which holds the strides against the host's fwref_stream:
+// QEMU: the four compiled-in models (fwref_weights_*.cpp), with their motor heads when the export has
+// them (infer_motor), and the streaming GRU when the export has it (fwref_stream_data.cpp,
+// tools/gen_stream.py: one step per sample), each replay the compiled-in flights sample by sample
+// with reset() between flights, counting instructions per push (SysTick under -icount). Output over
+// semihosting, parsed by scripts/stream_mcu.py, which holds the strides against the host's fwref_stream:
 //   STREAM cpu=<cpu> flights=<n> instructions_per_tick=<r>
-//   STRIDE <model> <prec> <flight> <index> <status> <logit bits (u32) x K> <vote> <active> <cls>
+//   STRIDE <model> <prec> <flight> <index> <status> <logit bits (u32) x K> <vote> <active> <cls> <motor> <wmotor>
 //   PERF <model> <prec> <flight> samples=<n> push_n=<n> push_sum=<i> push_max=<i> decide_n=<n> decide_sum=<i>
 //        decide_max=<i> other_n=<n> other_sum=<i> other_max=<i>
 //   RESULT DONE
@@ -63,16 +64,20 @@ struct Stat {
 fwref::Stream g_stream;
 fwref::CnodeWorkspace g_cnode_ws;
 fwref::GruWorkspace g_gru_ws;
+fwref::GruStepState g_step;
 double g_ratio = 0.0;
 
-template <class Model, class Workspace>
-bool replay(const Model& m, Workspace& ws, const char* model, const char* prec) {
+// Every flight through the stream with model ``sm``: init() for the first flight, reset() between
+// flights (as a flight controller between flights; the cell count is the flight's, so init again
+// when it changes).
+bool replay(const fwref::StreamModel& sm, const char* model, const char* prec) {
   using namespace fwref_stream_data;
-  fwref::WindowRunner<Model, Workspace> runner{&m, &ws};
   const int R = kParams.raw_channels, K = kParams.classes;
   for (int f = 0; f < kFlightCount; ++f) {
     const Flight& fl = kFlights[f];
-    if (g_stream.init(kParams, fl.cells, &fwref::WindowRunner<Model, Workspace>::run, &runner) != fwref::Status::kOk) {
+    if (f > 0 && fl.cells == kFlights[f - 1].cells) {
+      g_stream.reset();
+    } else if (g_stream.init(kParams, fl.cells, sm) != fwref::Status::kOk) {
       return false;
     }
     Stat push, decide, other;
@@ -93,7 +98,8 @@ bool replay(const Model& m, Workspace& ws, const char* model, const char* prec) 
           std::memcpy(&bits, &d.logits[c], 4);
           l.s(" ").u(bits);
         }
-        l.s(" ").u(d.alarm.vote).s(" ").u(d.alarm.active).s(" ").i(d.alarm.cls).out();
+        l.s(" ").u(d.alarm.vote).s(" ").u(d.alarm.active).s(" ").i(d.alarm.cls).s(" ").i(d.alarm.motor).s(" ")
+            .i(d.motor).out();
       }
       (keep.n == 0 ? push : decided ? decide : other).add(ins);
     }
@@ -103,6 +109,55 @@ bool replay(const Model& m, Workspace& ws, const char* model, const char* prec) 
         .s(" other_max=").u(other.max).out();
   }
   return true;
+}
+
+template <class Model, class Workspace>
+bool replay_window(const Model& m, Workspace& ws, const char* model, const char* prec) {
+  fwref::WindowRunner<Model, Workspace> runner{&m, &ws};
+  fwref::StreamModel sm;
+  sm.window = &fwref::WindowRunner<Model, Workspace>::run;
+  sm.ctx = &runner;
+  return replay(sm, model, prec);
+}
+
+template <class Model, class Head, class Workspace>
+bool replay_motor(const Model& m, const Head& h, Workspace& ws, const char* model, const char* prec) {
+  fwref::WindowMotorRunner<Model, Head, Workspace> runner{&m, &h, &ws};
+  fwref::StreamModel sm;
+  sm.window_motor = &fwref::WindowMotorRunner<Model, Head, Workspace>::run;
+  sm.ctx = &runner;
+  return replay(sm, model, prec);
+}
+
+template <class Model>
+bool replay_step(const Model& m, const char* prec) {
+  fwref::StepRunner<Model, fwref::GruStepState> runner{&m, &g_step};
+  fwref::StreamModel sm;
+  sm.step = &fwref::StepRunner<Model, fwref::GruStepState>::step;
+  sm.reset = &fwref::StepRunner<Model, fwref::GruStepState>::reset;
+  sm.ctx = &runner;
+  return replay(sm, "sgru", prec);
+}
+
+bool replay_all() {
+  using namespace fwref_data;
+  using namespace fwref_stream_data;
+#if FWREF_STREAM_HAS_CNODE_MOTOR
+  bool ok = replay_motor(kCnodeF32, kCnodeMotorF32, g_cnode_ws, "cnode", "fp32") &&
+            replay_motor(kCnodeI8, kCnodeMotorI8, g_cnode_ws, "cnode", "int8");
+#else
+  bool ok = replay_window(kCnodeF32, g_cnode_ws, "cnode", "fp32") && replay_window(kCnodeI8, g_cnode_ws, "cnode", "int8");
+#endif
+#if FWREF_STREAM_HAS_GRU_MOTOR
+  ok = ok && replay_motor(kGruF32, kGruMotorF32, g_gru_ws, "gru", "fp32") &&
+       replay_motor(kGruI8, kGruMotorI8, g_gru_ws, "gru", "int8");
+#else
+  ok = ok && replay_window(kGruF32, g_gru_ws, "gru", "fp32") && replay_window(kGruI8, g_gru_ws, "gru", "int8");
+#endif
+#if FWREF_STREAM_HAS_SGRU
+  ok = ok && replay_step(kSgruF32, "fp32") && replay_step(kSgruI8, "int8");
+#endif
+  return ok;
 }
 
 }  // namespace
@@ -118,9 +173,7 @@ int main() {
   l.s("STREAM cpu=").s(FWREF_CPU_NAME).s(" flights=").u(fwref_stream_data::kFlightCount)
       .s(" calib_ticks=").u(loop_ticks).s(" instructions_per_tick_x1000=").u(std::uint64_t(g_ratio * 1000.0 + 0.5))
       .out();
-  using namespace fwref_data;
-  const bool ok = replay(kCnodeF32, g_cnode_ws, "cnode", "fp32") && replay(kCnodeI8, g_cnode_ws, "cnode", "int8") &&
-                  replay(kGruF32, g_gru_ws, "gru", "fp32") && replay(kGruI8, g_gru_ws, "gru", "int8");
+  const bool ok = replay_all();
   Line().s(ok ? "RESULT DONE" : "RESULT FAIL stream init").out();
   return ok ? 0 : 2;
 }
