@@ -92,6 +92,34 @@ def sgru_logits(onnx_path, x: np.ndarray, stepped: np.ndarray, hidden: int) -> n
     return out if out is not None else np.zeros((len(x), 0), np.float32)
 
 
+def stream_alarm(record: dict, decided: np.ndarray, logits: np.ndarray, motor_logits: np.ndarray | None = None):
+    """What the stream decides from the decided strides' class logits (n_decided, K) and, for a net with
+    its motor head, motor logits (n_decided, 4): the probabilities (n, K) (an undecided stride all
+    Healthy: it never votes) and core.alarm's trace under the record's policy, whose ``motor`` is the
+    alarm's motor from the head's softmax (fwref/stream.hpp: Decision::alarm.motor), and the
+    stride's motor (n,) (the head's argmax, -1 where undecided or without a head: Decision::motor)."""
+    from core.alarm import run_alarm
+
+    def softmax(z):
+        z = np.asarray(z, np.float64)
+        e = np.exp(z - z.max(axis=1, keepdims=True))
+        return e / e.sum(axis=1, keepdims=True)
+
+    n = len(decided)
+    proba = np.zeros((n, np.shape(logits)[1]))
+    proba[:, record["healthy"]] = 1.0
+    proba[decided] = softmax(logits)
+    motor_p, wmotor = None, np.full(n, -1, np.int64)
+    if motor_logits is not None:
+        motor_p = np.zeros((n, 4))
+        motor_p[decided] = softmax(motor_logits)
+        wmotor[decided] = np.argmax(motor_logits, axis=1)
+    a = record["alarm"]
+    trace = run_alarm(proba[None], a["threshold"], a["k"], a["n"], a["clear_m"], a["latch"], healthy=record["healthy"],
+                      valid=np.asarray(decided)[None], motor_proba=None if motor_p is None else motor_p[None])
+    return proba, trace, wmotor
+
+
 def read_lines(text: str, classes: int) -> dict[str, np.ndarray]:
     """fwref_stream's output -> arrays per stride: index, t, status (str), logits (n, K) float32,
     proba (n, K), vote, active, raised, cleared (bool), cls, motor (the alarm's), wmotor (the stride's

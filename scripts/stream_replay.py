@@ -1,7 +1,9 @@
 """Replay simulated test flights through ``fwref_stream`` (firmware_ref's streaming runtime) against
 the Python window path, and time every push (docs/firmware.md "Streaming"): a measurement, not a test.
 
-    PYTHONPATH=. python scripts/stream_replay.py RUN/export DATASET.npz [PER_CLASS]
+    PYTHONPATH=. python scripts/stream_replay.py RUN/export DATASET.npz [PER_CLASS [MODELS]]
+
+MODELS: comma-separated, default every model the export has (cnode,gru[,sgru]).
 
 For PER_CLASS (default 2) test flights of each class: the stream file (detect/streamfile.py), the
 window path's windows (detect/streamref.py), ONNX Runtime's and fwref_infer's logits on them, and
@@ -12,7 +14,9 @@ model and precision the strides, those counts and the latency of a push without 
 a push that decides (p50, p99, microseconds; this machine as it is, other load included).
 With the export's sgru_weights.bin (``quadfdi export sgru``) the streaming GRU too ("sgru"): its
 reference is ONNX Runtime's one-step graph stepped under the on-board rules (detect/streamref.py
-``stepped_of`` / ``sgru_logits``); its push is one GRU step (per sample).
+``stepped_of`` / ``sgru_logits``); its push is one GRU step (per sample); and when RUN holds the
+Python evaluation's prediction set predictions/sgru_sim*_train0.npz (``quadfdi train sgru``), the
+largest difference between the stream's fp32 probabilities and that set's on the same strides.
 """
 
 from __future__ import annotations
@@ -44,6 +48,17 @@ def _stream(export: Path, path: Path, net: str, prec: str, tmp: Path, k: int) ->
     return read_lines(res.stdout, k), np.fromfile(tmp / "t.f64")
 
 
+def _evaluation_gap(export: Path, path: Path, out: dict) -> float | None:
+    """max |stream proba - prediction set proba| on this flight's strides (None without the set)."""
+    sets = sorted((export.parent / "predictions").glob("sgru_sim*_train0.npz"))
+    if not sets:
+        return None
+    z = np.load(sets[0])
+    mine = z["traj"] == int(path.stem[1:])  # f<row>.bin
+    assert mine.sum() == len(out["proba"]), (mine.sum(), len(out["proba"]))
+    return float(np.abs(out["proba"] - z["proba"][mine]).max())
+
+
 def replay(export: Path, path: Path, record: dict, manifest: dict, net: str, prec: str, tmp: Path) -> dict:
     sw = windows_of(read_stream(path), record)
     if net == "sgru":
@@ -71,10 +86,11 @@ def replay(export: Path, path: Path, record: dict, manifest: dict, net: str, pre
     flips = out["vote"] != tr.votes[0]
     if not flips.any():
         assert (out["active"] == tr.active[0]).all() and (out["cls"] == tr.cls[0]).all()
+    evaluation = _evaluation_gap(export, path, out) if net == "sgru" and prec == "fp32" else None
     decides = np.zeros(len(t), bool)
     decides[out["index"][out["status"] == "decided"]] = True
     rel = float(np.abs(got - ort).max() / max(1.0, np.abs(ort).max())) if len(got) else 0.0
-    return {"rel": rel, "strides": len(sw.ends), "decided": int(sw.decided.sum()), "int8_diff": int((got != ort).any(axis=1).sum())
+    return {"evaluation": evaluation, "rel": rel, "strides": len(sw.ends), "decided": int(sw.decided.sum()), "int8_diff": int((got != ort).any(axis=1).sum())
             if prec == "int8" else 0, "flips": int(flips.sum()), "push": t[~decides], "decision": t[decides]}
 
 
@@ -95,12 +111,17 @@ def main(argv: list[str]) -> int:
             paths.append(tmp / f"f{f}.bin")
             write_stream(paths[-1], from_dataset(dataset, f, record))
         print(f"{export} ({record['profile']}): test flights {flights}")
-        for net in ("cnode", "gru") + (("sgru",) if (export / "sgru_weights.bin").is_file() else ()):
+        nets = ("cnode", "gru") + (("sgru",) if (export / "sgru_weights.bin").is_file() else ())
+        for net in argv[3].split(",") if len(argv) > 3 else nets:
             for prec in ("fp32", "int8"):
                 rs = [replay(export, p, record, manifest, net, prec, tmp) for p in paths]
                 push = np.concatenate([r["push"] for r in rs]) * 1e6
                 dec = np.concatenate([r["decision"] for r in rs]) * 1e6
                 rel = max(r["rel"] for r in rs)
+                gaps = [r["evaluation"] for r in rs if r["evaluation"] is not None]
+                if gaps:
+                    print(f"sgru fp32: stream vs the evaluation's prediction set, max |proba diff| {max(gaps):.2g}"
+                          f" over {len(gaps)} flights")
                 print(f"{net} {prec}: {sum(r['strides'] for r in rs)} strides, {sum(r['decided'] for r in rs)} decided,"
                       f" int8 rows != ORT {sum(r['int8_diff'] for r in rs)}, max |C++ - ORT| / max(1, |ORT|) {rel:.2g},"
                       f" vote flips {sum(r['flips'] for r in rs)};"

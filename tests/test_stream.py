@@ -166,8 +166,8 @@ def _infer(exe: Path, export: Path, net: str, int8: bool, x: np.ndarray, tmp: Pa
 def _window_path(export: Path, exe: Path, tmp: Path, rs, record: dict, net: str, precision: str):
     """The Python window path on the stream's samples: windows, ORT and C++ window logits, ORT's motor
     logits (None without a motor head) and the alarm (with the head's motor probabilities)."""
-    from detect.run import has_motor, model_logits, softmax
-    from detect.streamref import windows_of
+    from detect.run import has_motor, model_logits
+    from detect.streamref import stream_alarm, windows_of
 
     sw = windows_of(rs, record)
     x = sw.windows(record["window"])
@@ -175,16 +175,7 @@ def _window_path(export: Path, exe: Path, tmp: Path, rs, record: dict, net: str,
     ort, motor = model_logits(export, manifest, net, precision, "ort", x)
     assert (motor is not None) == has_motor(manifest, net)
     cpp = _infer(exe, export, net, precision == "int8", x, tmp)
-    proba = np.zeros((len(sw.starts), ort.shape[1]))
-    proba[:, record["healthy"]] = 1.0  # undecided windows never vote (detect/run.py)
-    proba[sw.decided] = softmax(ort)
-    motor_p = None
-    if motor is not None:
-        motor_p = np.zeros((len(sw.starts), 4))
-        motor_p[sw.decided] = softmax(motor)
-    a = record["alarm"]
-    trace = run_alarm(proba[None], a["threshold"], a["k"], a["n"], a["clear_m"], a["latch"], healthy=record["healthy"],
-                      valid=sw.decided[None], motor_proba=None if motor_p is None else motor_p[None])
+    proba, trace, _ = stream_alarm(record, sw.decided, ort, motor)  # the stream's alarm and motor rules, in Python
     return sw, ort, cpp, proba, trace, motor
 
 

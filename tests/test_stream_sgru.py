@@ -15,7 +15,6 @@ import numpy as np
 import pytest
 from conftest import copy_run
 
-from core.alarm import run_alarm
 from core.contracts import FP32_CPP_REL_TOL, SPLIT_TEST
 from tests.test_firmware_fixtures import host_build  # noqa: F401 (fixture)
 from tests.test_stream_gru import TINY, _cli
@@ -82,19 +81,13 @@ def test_sgru_weights_file(sgru_export, host_build):  # noqa: F811
 
 def _mirror(export: Path, rs, record: dict, precision: str, hidden: int):
     """The Python statement of the on-board rules: stepped samples, decided strides, ORT logits, alarm."""
-    from detect.run import softmax
-    from detect.streamref import sgru_logits, stepped_of, windows_of
+    from detect.streamref import sgru_logits, stepped_of, stream_alarm, windows_of
 
     sw = windows_of(rs, record)
     stepped, decided = stepped_of(sw, record["window"])
     onnx = export / ("sgru_step.int8.onnx" if precision == "int8" else "sgru_step.onnx")
     logits = sgru_logits(onnx, sw.x, stepped, hidden)[sw.ends]
-    proba = np.zeros((len(sw.ends), logits.shape[1]))
-    proba[:, record["healthy"]] = 1.0
-    proba[decided] = softmax(logits[decided])
-    a = record["alarm"]
-    trace = run_alarm(proba[None], a["threshold"], a["k"], a["n"], a["clear_m"], a["latch"], healthy=record["healthy"],
-                      valid=decided[None])
+    _, trace, _ = stream_alarm(record, decided, logits[decided])
     return sw, stepped, decided, logits, trace
 
 
