@@ -495,3 +495,14 @@ def test_reset_between_flights_equals_separate_runs(sgru_export, sgru_flight, ho
     strip = lambda text: [ln for ln in text.splitlines() if not ln.startswith("# fwref_stream")]
     assert strip(both) == strip(one) + strip(two)
     assert "flight=1 " in both and sum(not ln.startswith("#") for ln in strip(two)) >= 2
+
+
+def test_stream_sgru_under_sanitizers_gives_the_release_lines(sgru_export, sgru_flight, asan_build, host_build):  # noqa: F811
+    """The per-sample path (StepRunner, the step's state, two flights with reset()) in bounds under ASan + UBSan."""
+    path = sgru_flight[0]
+    args = ("--model", "sgru", "--int8", "--in", str(path), "--in", str(path))
+    weights = sgru_export / "export" / "sgru_weights.bin"
+    asan = subprocess.run([str(asan_build / "fwref_stream"), "--weights", str(weights), *args], capture_output=True,
+                          text=True, timeout=300, check=False)
+    assert asan.returncode == 0 and not any(m in asan.stderr for m in SANITIZER_MARKERS), asan.stderr[-2000:]
+    assert asan.stdout == _sgru_stream(host_build, weights, *args)
