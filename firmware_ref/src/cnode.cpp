@@ -3,6 +3,7 @@
 
 #include <cstring>
 
+#include "fwref/kernels_f32.hpp"
 #include "fwref/numerics.hpp"
 #include "fwref/tanhq.hpp"
 #include "model_common.hpp"
@@ -256,10 +257,10 @@ Status infer(const CnodeF32& m, const float* x, float* logits, CnodeWorkspace& w
     }
     const ConstMapVec u(u_row, C);
     MapVec v(ws.v + s * H, H);
-    matvec(m.lin1_u, u, v);
+    matvec_fast(m.lin1_u, u, v);
     v += b1;
     if (s == 0) {
-      matvec(m.encoder_w, u, ws.z);
+      matvec_fast(m.encoder_w, u, ws.z);
       ws.z += ConstMapVec(m.encoder_b, L);
       tanh_inplace(ws.z);
     }
@@ -267,10 +268,10 @@ Status infer(const CnodeF32& m, const float* x, float* logits, CnodeWorkspace& w
   if (tr != nullptr) copy_out(ws.z, tr->z0);
 
   auto field = [&](int e, const CnodeWorkspace::Lat& z, CnodeWorkspace::Lat& k) {
-    matvec(m.lin1_z, z, ws.a);
+    matvec_fast(m.lin1_z, z, ws.a);
     ws.a += ConstMapVec(ws.v + m.stage_index[e] * H, H);
     tanh_inplace(ws.a);
-    matvec(m.lin2_w, ws.a, k);
+    matvec_fast(m.lin2_w, ws.a, k);
     k += b2;
   };
   detail::rk4_integrate(m.rk4, d.steps, ws.z, ws.k1, ws.k2, ws.k3, ws.k4, ws.state, field,
@@ -278,7 +279,7 @@ Status infer(const CnodeF32& m, const float* x, float* logits, CnodeWorkspace& w
   if (tr != nullptr) copy_out(ws.z, tr->z1);
 
   MapVec out(logits, d.classes);
-  matvec(m.head_w, ws.z, out);
+  matvec_fast(m.head_w, ws.z, out);
   out += ConstMapVec(m.head_b, d.classes);
   return all_finite(logits, d.classes) ? Status::kOk : Status::kNonFiniteOutput;
 }
