@@ -40,24 +40,32 @@ inline void gemv_f32_portable(const float* w, int rows, int cols, const float* x
 
 #if defined(FWREF_F32_KERNEL_M)
 
-// One row's 8 (or 4) columns: its weights into s8.. by one VLDM (write-back), then VMLA into its
+// One multiply-accumulate A += W * X, the product rounded before the addition either way:
+// VMLA.F32 (default: one instruction, 3 cycles on the M4) or, with FWREF_F32_MUL_ADD, VMUL.F32 +
+// VADD.F32 (two instructions, 2 cycles on the M4; W's register is the product's scratch).
+#if defined(FWREF_F32_MUL_ADD)
+#define FWREF_F32_MAC(A, W, X) "vmul.f32 " W ", " W ", " X "\n\tvadd.f32 %[" A "], %[" A "], " W "\n\t"
+#else
+#define FWREF_F32_MAC(A, W, X) "vmla.f32 %[" A "], " W ", " X "\n\t"
+#endif
+// One row's 8 (or 4) columns: its weights into s8.. by one VLDM (write-back), then a MAC into its
 // accumulator against x in s0...
 #define FWREF_F32_ROW8(P, A)                                                                        \
   "vldmia   %[" P "]!, {s8-s15}\n\t"                                                                \
-  "vmla.f32 %[" A "], s8, s0\n\t"                                                                   \
-  "vmla.f32 %[" A "], s9, s1\n\t"                                                                   \
-  "vmla.f32 %[" A "], s10, s2\n\t"                                                                  \
-  "vmla.f32 %[" A "], s11, s3\n\t"                                                                  \
-  "vmla.f32 %[" A "], s12, s4\n\t"                                                                  \
-  "vmla.f32 %[" A "], s13, s5\n\t"                                                                  \
-  "vmla.f32 %[" A "], s14, s6\n\t"                                                                  \
-  "vmla.f32 %[" A "], s15, s7\n\t"
+  FWREF_F32_MAC(A, "s8", "s0")                                                                      \
+  FWREF_F32_MAC(A, "s9", "s1")                                                                      \
+  FWREF_F32_MAC(A, "s10", "s2")                                                                     \
+  FWREF_F32_MAC(A, "s11", "s3")                                                                     \
+  FWREF_F32_MAC(A, "s12", "s4")                                                                     \
+  FWREF_F32_MAC(A, "s13", "s5")                                                                     \
+  FWREF_F32_MAC(A, "s14", "s6")                                                                     \
+  FWREF_F32_MAC(A, "s15", "s7")
 #define FWREF_F32_ROW4(P, A)                                                                        \
   "vldmia   %[" P "]!, {s8-s11}\n\t"                                                                \
-  "vmla.f32 %[" A "], s8, s0\n\t"                                                                   \
-  "vmla.f32 %[" A "], s9, s1\n\t"                                                                   \
-  "vmla.f32 %[" A "], s10, s2\n\t"                                                                  \
-  "vmla.f32 %[" A "], s11, s3\n\t"
+  FWREF_F32_MAC(A, "s8", "s0")                                                                      \
+  FWREF_F32_MAC(A, "s9", "s1")                                                                      \
+  FWREF_F32_MAC(A, "s10", "s2")                                                                     \
+  FWREF_F32_MAC(A, "s11", "s3")
 #define FWREF_F32_OPERANDS                                                                          \
   : [a0] "+t"(a0), [a1] "+t"(a1), [a2] "+t"(a2), [a3] "+t"(a3), [p0] "+&r"(p0), [p1] "+&r"(p1),      \
     [p2] "+&r"(p2), [p3] "+&r"(p3), [xp] "+&r"(xp)
@@ -103,6 +111,7 @@ inline void gemv_f32(const float* w, int rows, int cols, const float* x, float* 
   }
   if (o < rows) gemv_f32_portable(w + o * cols, rows - o, cols, x, y + o);
 }
+#undef FWREF_F32_MAC
 #undef FWREF_F32_ROW8
 #undef FWREF_F32_ROW4
 #undef FWREF_F32_OPERANDS
