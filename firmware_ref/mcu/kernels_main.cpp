@@ -3,7 +3,8 @@
 // column counts around the 4- and 8-column steps, each against its portable reference:
 //   gemv_i8 (int8 weights, SXTB16 + SMLAD)         == gemv_i8_portable, exactly;
 //   expand_i8_to_i16 + gemv_w16_x16 / gemv_i8w16   == gemv_i8_portable, exactly (int16 copies);
-//   gemv_f32 (VLDM + VMLA.F32)                     == gemv_f32_portable, bit for bit.
+//   gemv_f32 (VLDM + VMLA.F32)                     == gemv_f32_portable, bit for bit;
+//   all_finite_f32 (VMLA of x * 0)                 == std::isfinite on every value.
 // Prints "KERNELS PASS cases=<n>" (or the first failing case) over semihosting; exit 0 or 1.
 #include <cstdint>
 #include <cstring>
@@ -76,9 +77,30 @@ bool check_shape(int rows, int cols) {
   return true;
 }
 
+// all_finite_f32 against std::isfinite: every length 0..kCols, a NaN, +inf or -inf at every position
+// (and the largest finite values, which must pass); false and the case printed on a mismatch.
+bool check_finite() {
+  static const float bad[3] = {__builtin_nanf(""), __builtin_inff(), -__builtin_inff()};
+  for (int n = 0; n <= kCols; ++n) {
+    for (int i = 0; i < n; ++i) xf[i] = (i & 1) ? 3.4028235e38f : -1.0e-45f;  // finite extremes
+    if (!fwref::all_finite_f32(xf, n)) return put_case("FAIL all_finite_f32 finite", n, 0), false;
+    for (int pos = 0; pos < n; ++pos) {
+      for (float b : bad) {
+        const float keep = xf[pos];
+        xf[pos] = b;
+        const bool got_ok = fwref::all_finite_f32(xf, n);
+        xf[pos] = keep;
+        if (got_ok) return put_case("FAIL all_finite_f32 at", n, pos), false;
+      }
+    }
+  }
+  return true;
+}
+
 }  // namespace
 
 int main() {
+  if (!check_finite()) return 1;
   static const int cols_list[] = {1, 2, 3, 4, 5, 7, 8, 9, 11, 12, 15, 16, 17, 23, 25, 31, 40, 41};
   int cases = 0;
   for (int rows = 1; rows <= kRows; ++rows) {

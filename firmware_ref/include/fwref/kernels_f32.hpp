@@ -18,6 +18,8 @@
 // (docs/firmware.md, "fp32 kernel"); the Cortex-M7 pipelines VMLA.
 #pragma once
 
+#include <cmath>
+
 #include "fwref/linalg.hpp"
 
 #if defined(__ARM_ARCH_7EM__) && defined(__ARM_FP) && !defined(FWREF_PORTABLE_KERNELS)
@@ -125,6 +127,48 @@ inline void gemv_f32(const float* w, int rows, int cols, const float* x, float* 
 }
 inline const char* gemv_f32_kernel_name() { return "portable"; }
 
+#endif
+
+// True when every x[i] (i < n) is finite: the models' check of their input window, run at every
+// inference. On the Cortex-M one VMLA per value, acc += x[i] * 0 (+-0 for a finite x; NaN for an
+// infinity or a NaN, and a NaN stays NaN through every later addition), 8 values per VLDM: 11
+// instructions per 8 values instead of about 8 per value for the std::isfinite loop (1,840 values
+// per window for W = 80, C = 23). Elsewhere the std::isfinite loop.
+#if defined(FWREF_F32_KERNEL_M)
+inline bool all_finite_f32(const float* x, int n) {
+  const int n8 = n & ~7;
+  const float* p = x;
+  const float* const end8 = x + n8;
+  float acc = 0.0f;
+  const float zero = 0.0f;
+  if (n8 > 0) {
+    __asm__ volatile(
+        "1:\n\t"
+        "vldmia   %[p]!, {s0-s7}\n\t"
+        "vmla.f32 %[acc], s0, %[z]\n\t"
+        "vmla.f32 %[acc], s1, %[z]\n\t"
+        "vmla.f32 %[acc], s2, %[z]\n\t"
+        "vmla.f32 %[acc], s3, %[z]\n\t"
+        "vmla.f32 %[acc], s4, %[z]\n\t"
+        "vmla.f32 %[acc], s5, %[z]\n\t"
+        "vmla.f32 %[acc], s6, %[z]\n\t"
+        "vmla.f32 %[acc], s7, %[z]\n\t"
+        "cmp      %[p], %[end]\n\t"
+        "bne      1b\n\t"
+        : [acc] "+t"(acc), [p] "+&r"(p)
+        : [z] "t"(zero), [end] "r"(end8)
+        : "s0", "s1", "s2", "s3", "s4", "s5", "s6", "s7", "cc", "memory");
+  }
+  for (int i = n8; i < n; ++i) acc = acc + x[i] * zero;
+  return acc == acc;
+}
+#else
+inline bool all_finite_f32(const float* x, int n) {
+  for (int i = 0; i < n; ++i) {
+    if (!std::isfinite(x[i])) return false;
+  }
+  return true;
+}
 #endif
 
 // y = W x for the models' Eigen vectors: the Cortex-M kernel above on the Cortex-M build, Eigen's
