@@ -2,6 +2,7 @@
 // models do not have: every row count 1..13 (the tails of the 4-row passes: rows % 4 = 1, 2, 3) and
 // column counts around the 4- and 8-column steps, each against its portable reference:
 //   gemv_i8 (int8 weights, SXTB16 + SMLAD)         == gemv_i8_portable, exactly;
+//   gemv_i8_x2 (two vectors per pass)              == gemv_i8_portable of each, exactly;
 //   expand_i8_to_i16 + gemv_w16_x16 / gemv_i8w16   == gemv_i8_portable, exactly (int16 copies);
 //   gemv_f32 (VLDM + VMLA.F32)                     == gemv_f32_portable, bit for bit;
 //   all_finite_f32 (VMLA of x * 0)                 == std::isfinite on every value.
@@ -12,6 +13,7 @@
 #include "board.hpp"
 #include "fwref/kernels_f32.hpp"
 #include "fwref/kernels_i8.hpp"
+#include "fwref/kernels_i8_x2.hpp"
 
 namespace {
 
@@ -25,8 +27,8 @@ std::uint32_t next() {
 }
 
 std::int8_t w8[kRows * kCols];
-std::int8_t x8[kCols];
-std::int32_t got[kRows], want[kRows];
+std::int8_t x8[kCols], x8b[kCols];
+std::int32_t got[kRows], want[kRows], got_b[kRows], want_b[kRows];
 #if defined(FWREF_HAS_W16_KERNEL)
 alignas(8) std::int16_t w16[kRows * fwref::w16_stride(kCols)];
 alignas(8) std::int16_t x16[fwref::w16_stride(kCols)];
@@ -62,6 +64,12 @@ bool check_shape(int rows, int cols) {
   fwref::gemv_i8_portable(w8, rows, cols, x8, want);
   fwref::gemv_i8(w8, rows, cols, x8, got);
   if (std::memcmp(got, want, sizeof(std::int32_t) * rows) != 0) return put_case("FAIL gemv_i8", rows, cols), false;
+  for (int i = 0; i < cols; ++i) x8b[i] = static_cast<std::int8_t>(int(next() % 256u) - 128);
+  fwref::gemv_i8_portable(w8, rows, cols, x8b, want_b);
+  fwref::gemv_i8_x2(w8, rows, cols, x8, x8b, got, got_b);
+  if (std::memcmp(got, want, sizeof(std::int32_t) * rows) != 0 || std::memcmp(got_b, want_b, sizeof(std::int32_t) * rows) != 0) {
+    return put_case("FAIL gemv_i8_x2", rows, cols), false;
+  }
 #if defined(FWREF_HAS_W16_KERNEL)
   fwref::expand_i8_to_i16(w8, rows, cols, w16);
   const int stride = fwref::w16_stride(cols);

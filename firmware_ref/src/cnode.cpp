@@ -4,6 +4,7 @@
 #include <cstring>
 
 #include "fwref/kernels_f32.hpp"
+#include "fwref/kernels_i8_x2.hpp"
 #include "fwref/numerics.hpp"
 #include "fwref/tanhq.hpp"
 #include "model_common.hpp"
@@ -195,6 +196,33 @@ StageWeights16 int16_copies(const CnodeI8& m, CnodeWorkspace& ws) {
   return w;
 }
 
+// V[s] = B(uq[s], lin1_u) + b1 for every row s of U: linear_i8_folded's operations. On Cortex-M
+// (without an int16 copy of lin1_u) two rows of U per pass over the weights (fwref/kernels_i8_x2.hpp),
+// then the same rescale, f32(acc) * s_w' + b, row by row.
+void lin1_u_rows(const CnodeI8& m, const std::int16_t* lin1u16, CnodeWorkspace& ws) {
+  const CnodeDims& d = m.dims;
+  const int C = d.channels, S = d.stage_times, H = d.hidden;
+  int s = 0;
+#if defined(FWREF_HAS_I8_X2)
+  if (lin1u16 == nullptr) {
+    std::int32_t acc_a[kMaxCnodeHidden], acc_b[kMaxCnodeHidden];
+    const float* s_w = m.lin1_u.scale;
+    for (; s + 2 <= S; s += 2) {
+      gemv_i8_x2(m.lin1_u.q, H, C, ws.uq + s * C, ws.uq + (s + 1) * C, acc_a, acc_b);
+      float* va = ws.v + s * H;
+      float* vb = va + H;
+      for (int o = 0; o < H; ++o) {
+        va[o] = (static_cast<float>(acc_a[o]) * s_w[o]) + m.lin1_b[o];
+        vb[o] = (static_cast<float>(acc_b[o]) * s_w[o]) + m.lin1_b[o];
+      }
+    }
+  }
+#endif
+  for (; s < S; ++s) {
+    linear_i8_folded(m.lin1_u.q, m.lin1_u.scale, H, C, ws.uq + s * C, m.lin1_b, ws.v + s * H, lin1u16);
+  }
+}
+
 // The control path: U = interp_q @ quantize(x_norm, s_x[c]) in int32, u = f32(acc) * f32(s_P[s] *
 // s_x[c]), quantized per channel with s_u[c] into ws.uq; z0 = tanh(B(uq[0], encoder) + b); V[s] =
 // B(uq[s], lin1_u) + b1 (pattern B: s_u folded in). x_norm is requantized where a sample feeds two
@@ -202,7 +230,7 @@ StageWeights16 int16_copies(const CnodeI8& m, CnodeWorkspace& ws) {
 void control_path_i8(const CnodeI8& m, const float* x, const std::int16_t* lin1u16, CnodeWorkspace& ws,
                      CnodeTrace* tr) {
   const CnodeDims& d = m.dims;
-  const int C = d.channels, W = d.window, S = d.stage_times, H = d.hidden, L = d.latent;
+  const int C = d.channels, W = d.window, S = d.stage_times, L = d.latent;
   std::int32_t acc[kMaxChannels];
   for (int s = 0; s < S; ++s) {
     const std::int8_t* p_row = m.interp.q + s * W;
@@ -228,9 +256,7 @@ void control_path_i8(const CnodeI8& m, const float* x, const std::int16_t* lin1u
   linear_i8_folded(m.encoder_w.q, m.encoder_w.scale, L, C, ws.uq, m.encoder_b, ws.z.data());
   tanh_inplace(ws.z);
   if (tr != nullptr) copy_out(ws.z, tr->z0);
-  for (int s = 0; s < S; ++s) {
-    linear_i8_folded(m.lin1_u.q, m.lin1_u.scale, H, C, ws.uq + s * C, m.lin1_b, ws.v + s * H, lin1u16);
-  }
+  lin1_u_rows(m, lin1u16, ws);
 }
 
 }  // namespace
