@@ -74,6 +74,23 @@ template <class Q>
 void quantize_all(const float* x, int n, float s, Q* q) {
   for (int i = 0; i < n; ++i) q[i] = quantize(x[i], s);
 }
+#if defined(__ARM_FEATURE_SAT) && defined(__ARM_FP) && !defined(FWREF_PORTABLE_KERNELS)
+// The int16 stage codes on Cortex-M: numerics.hpp's quantize (VDIV, VCVTR, SSAT #8) stored as int16
+// without its cast through int8 (a redundant SXTB after SSAT #8), two values per iteration.
+inline std::int16_t quantize_i16(float x, float scale) {
+  const float v = x / scale;
+  float r;
+  __asm__("vcvtr.s32.f32 %0, %1" : "=t"(r) : "t"(v));
+  std::int32_t i;
+  std::memcpy(&i, &r, 4);
+  return static_cast<std::int16_t>(__ssat(i, 8));
+}
+void quantize_all(const float* x, int n, float s, std::int16_t* q) {
+  int i = 0;
+  for (; i + 2 <= n; i += 2) q[i] = quantize_i16(x[i], s), q[i + 1] = quantize_i16(x[i + 1], s);
+  if (i < n) q[i] = quantize_i16(x[i], s);
+}
+#endif
 
 // The stage products' int32 accumulators of rows [o0, o0 + n): from int8 codes (gemv_i8_any: the
 // int16 weight copy when there is one); or, on Cortex-M with FWREF_CNODE_W_INT16, from codes that
@@ -93,15 +110,16 @@ constexpr bool kStageX16 = false;
 #endif
 
 // lin2 of a stage: linear_i8_tensor's operations (pattern A) on either kind of codes.
+// ``mult``: rescale_i32's multipliers f32(s_hidden * s_w[o]), formed once per window (the same
+// float32 product as forming them here at every stage).
 template <class Q>
-void stage_lin2(const CnodeI8& m, const std::int16_t* w16, const Q* q_hid, float* k) {
+void stage_lin2(const CnodeI8& m, const std::int16_t* w16, const Q* q_hid, const float* mult, float* k) {
   const int L = m.dims.latent, H = m.dims.hidden;
-  const float* s_w = m.lin2_w.scale;
   std::int32_t acc[kGemvRowBlock];
   for (int o0 = 0; o0 < L; o0 += kGemvRowBlock) {
     const int o1 = L - o0 < kGemvRowBlock ? L : o0 + kGemvRowBlock;
     stage_gemv(m.lin2_w.q, w16, o0, o1 - o0, H, q_hid, acc);
-    for (int o = o0; o < o1; ++o) k[o] = rescale_i32(acc[o - o0], m.s_hidden, s_w[o]) + m.lin2_b[o];
+    for (int o = o0; o < o1; ++o) k[o] = static_cast<float>(acc[o - o0]) * mult[o] + m.lin2_b[o];
   }
 }
 
@@ -330,12 +348,14 @@ Status infer(const CnodeI8& m, const float* x, float* logits, CnodeWorkspace& ws
   std::int8_t* const hq = ws.q_hid;
 #endif
   static_assert(kStageX16 == (sizeof *zq == 2), "int16 stage codes only with the int16 kernel");
+  float lin2_mult[kMaxLatent];
+  for (int o = 0; o < L; ++o) lin2_mult[o] = m.s_hidden * m.lin2_w.scale[o];  // rescale_i32's multiplier
   auto field = [&](int e, const CnodeWorkspace::Lat& z, CnodeWorkspace::Lat& k) {
     const float s_z = m.s_stage[e];
     quantize_all(z.data(), L, s_z, zq);
     lin1_tanh_quantize(m, w16.lin1z, zq, s_z, ws.v + m.stage_index[e] * H, hq);
     k.resize(L);
-    stage_lin2(m, w16.lin2, hq, k.data());
+    stage_lin2(m, w16.lin2, hq, lin2_mult, k.data());
   };
   detail::rk4_integrate(m.rk4, d.steps, ws.z, ws.k1, ws.k2, ws.k3, ws.k4, ws.state, field,
                         tr != nullptr ? tr->stages : nullptr);
