@@ -35,6 +35,10 @@ void ticks_start() {
   *kSystRvr = kReload;
   *kSystCvr = 0;
   *kSystCsr = 7;  // enable, interrupt on wrap, core clock
+  // The counter reads 0 until its first tick reloads it (with no wrap counted): a ticks() in
+  // between would read kReload ticks and the next one 0, so wait for the reload (at most one tick).
+  while (*kSystCvr == 0) {
+  }
 }
 
 std::uint64_t ticks() {

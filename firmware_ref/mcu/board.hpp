@@ -10,7 +10,8 @@ namespace board {
 // SYS_WRITE0: a NUL-terminated string to the host's console.
 void puts(const char* s);
 
-// Start SysTick from the core clock with the largest reload and count its wraps in the interrupt.
+// Start SysTick from the core clock with the largest reload and count its wraps in the interrupt;
+// returns once the counter has loaded its reload value, so a ticks() right after it is valid.
 // Under QEMU with -icount shift=0 the virtual clock advances 1 ns per instruction, and SysTick
 // runs at the board's 25 MHz, so one tick is 40 instructions; calibrate() measures that ratio.
 void ticks_start();

@@ -3,6 +3,8 @@
 
 #include <cstring>
 
+#include "fwref/kernels_f32.hpp"
+#include "fwref/kernels_i8_x2.hpp"
 #include "fwref/numerics.hpp"
 #include "fwref/tanhq.hpp"
 #include "model_common.hpp"
@@ -72,6 +74,23 @@ template <class Q>
 void quantize_all(const float* x, int n, float s, Q* q) {
   for (int i = 0; i < n; ++i) q[i] = quantize(x[i], s);
 }
+#if defined(__ARM_FEATURE_SAT) && defined(__ARM_FP) && !defined(FWREF_PORTABLE_KERNELS)
+// The int16 stage codes on Cortex-M: numerics.hpp's quantize (VDIV, VCVTR, SSAT #8) stored as int16
+// without its cast through int8 (a redundant SXTB after SSAT #8), two values per iteration.
+inline std::int16_t quantize_i16(float x, float scale) {
+  const float v = x / scale;
+  float r;
+  __asm__("vcvtr.s32.f32 %0, %1" : "=t"(r) : "t"(v));
+  std::int32_t i;
+  std::memcpy(&i, &r, 4);
+  return static_cast<std::int16_t>(__ssat(i, 8));
+}
+void quantize_all(const float* x, int n, float s, std::int16_t* q) {
+  int i = 0;
+  for (; i + 2 <= n; i += 2) q[i] = quantize_i16(x[i], s), q[i + 1] = quantize_i16(x[i + 1], s);
+  if (i < n) q[i] = quantize_i16(x[i], s);
+}
+#endif
 
 // The stage products' int32 accumulators of rows [o0, o0 + n): from int8 codes (gemv_i8_any: the
 // int16 weight copy when there is one); or, on Cortex-M with FWREF_CNODE_W_INT16, from codes that
@@ -91,15 +110,16 @@ constexpr bool kStageX16 = false;
 #endif
 
 // lin2 of a stage: linear_i8_tensor's operations (pattern A) on either kind of codes.
+// ``mult``: rescale_i32's multipliers f32(s_hidden * s_w[o]), formed once per window (the same
+// float32 product as forming them here at every stage).
 template <class Q>
-void stage_lin2(const CnodeI8& m, const std::int16_t* w16, const Q* q_hid, float* k) {
+void stage_lin2(const CnodeI8& m, const std::int16_t* w16, const Q* q_hid, const float* mult, float* k) {
   const int L = m.dims.latent, H = m.dims.hidden;
-  const float* s_w = m.lin2_w.scale;
   std::int32_t acc[kGemvRowBlock];
   for (int o0 = 0; o0 < L; o0 += kGemvRowBlock) {
     const int o1 = L - o0 < kGemvRowBlock ? L : o0 + kGemvRowBlock;
     stage_gemv(m.lin2_w.q, w16, o0, o1 - o0, H, q_hid, acc);
-    for (int o = o0; o < o1; ++o) k[o] = rescale_i32(acc[o - o0], m.s_hidden, s_w[o]) + m.lin2_b[o];
+    for (int o = o0; o < o1; ++o) k[o] = static_cast<float>(acc[o - o0]) * mult[o] + m.lin2_b[o];
   }
 }
 
@@ -194,6 +214,33 @@ StageWeights16 int16_copies(const CnodeI8& m, CnodeWorkspace& ws) {
   return w;
 }
 
+// V[s] = B(uq[s], lin1_u) + b1 for every row s of U: linear_i8_folded's operations. On Cortex-M
+// (without an int16 copy of lin1_u) two rows of U per pass over the weights (fwref/kernels_i8_x2.hpp),
+// then the same rescale, f32(acc) * s_w' + b, row by row.
+void lin1_u_rows(const CnodeI8& m, const std::int16_t* lin1u16, CnodeWorkspace& ws) {
+  const CnodeDims& d = m.dims;
+  const int C = d.channels, S = d.stage_times, H = d.hidden;
+  int s = 0;
+#if defined(FWREF_HAS_I8_X2)
+  if (lin1u16 == nullptr) {
+    std::int32_t acc_a[kMaxCnodeHidden], acc_b[kMaxCnodeHidden];
+    const float* s_w = m.lin1_u.scale;
+    for (; s + 2 <= S; s += 2) {
+      gemv_i8_x2(m.lin1_u.q, H, C, ws.uq + s * C, ws.uq + (s + 1) * C, acc_a, acc_b);
+      float* va = ws.v + s * H;
+      float* vb = va + H;
+      for (int o = 0; o < H; ++o) {
+        va[o] = (static_cast<float>(acc_a[o]) * s_w[o]) + m.lin1_b[o];
+        vb[o] = (static_cast<float>(acc_b[o]) * s_w[o]) + m.lin1_b[o];
+      }
+    }
+  }
+#endif
+  for (; s < S; ++s) {
+    linear_i8_folded(m.lin1_u.q, m.lin1_u.scale, H, C, ws.uq + s * C, m.lin1_b, ws.v + s * H, lin1u16);
+  }
+}
+
 // The control path: U = interp_q @ quantize(x_norm, s_x[c]) in int32, u = f32(acc) * f32(s_P[s] *
 // s_x[c]), quantized per channel with s_u[c] into ws.uq; z0 = tanh(B(uq[0], encoder) + b); V[s] =
 // B(uq[s], lin1_u) + b1 (pattern B: s_u folded in). x_norm is requantized where a sample feeds two
@@ -201,7 +248,7 @@ StageWeights16 int16_copies(const CnodeI8& m, CnodeWorkspace& ws) {
 void control_path_i8(const CnodeI8& m, const float* x, const std::int16_t* lin1u16, CnodeWorkspace& ws,
                      CnodeTrace* tr) {
   const CnodeDims& d = m.dims;
-  const int C = d.channels, W = d.window, S = d.stage_times, H = d.hidden, L = d.latent;
+  const int C = d.channels, W = d.window, S = d.stage_times, L = d.latent;
   std::int32_t acc[kMaxChannels];
   for (int s = 0; s < S; ++s) {
     const std::int8_t* p_row = m.interp.q + s * W;
@@ -227,9 +274,7 @@ void control_path_i8(const CnodeI8& m, const float* x, const std::int16_t* lin1u
   linear_i8_folded(m.encoder_w.q, m.encoder_w.scale, L, C, ws.uq, m.encoder_b, ws.z.data());
   tanh_inplace(ws.z);
   if (tr != nullptr) copy_out(ws.z, tr->z0);
-  for (int s = 0; s < S; ++s) {
-    linear_i8_folded(m.lin1_u.q, m.lin1_u.scale, H, C, ws.uq + s * C, m.lin1_b, ws.v + s * H, lin1u16);
-  }
+  lin1_u_rows(m, lin1u16, ws);
 }
 
 }  // namespace
@@ -241,7 +286,7 @@ Status infer(const CnodeF32& m, const float* x, float* logits, CnodeWorkspace& w
   if (x == nullptr || logits == nullptr) return Status::kNullArgument;
   const CnodeDims& d = m.dims;
   const int C = d.channels, W = d.window, S = d.stage_times, H = d.hidden, L = d.latent;
-  if (!all_finite(x, W * C)) return Status::kNonFiniteInput;
+  if (!all_finite_f32(x, W * C)) return Status::kNonFiniteInput;
   if (tr != nullptr && tr->x_norm != nullptr) trace_x_norm(x, m.mean, m.std, W, C, tr->x_norm);
 
   const ConstMapVec b1(m.lin1_b, H), b2(m.lin2_b, L);
@@ -256,10 +301,10 @@ Status infer(const CnodeF32& m, const float* x, float* logits, CnodeWorkspace& w
     }
     const ConstMapVec u(u_row, C);
     MapVec v(ws.v + s * H, H);
-    matvec(m.lin1_u, u, v);
+    matvec_fast(m.lin1_u, u, v);
     v += b1;
     if (s == 0) {
-      matvec(m.encoder_w, u, ws.z);
+      matvec_fast(m.encoder_w, u, ws.z);
       ws.z += ConstMapVec(m.encoder_b, L);
       tanh_inplace(ws.z);
     }
@@ -267,10 +312,10 @@ Status infer(const CnodeF32& m, const float* x, float* logits, CnodeWorkspace& w
   if (tr != nullptr) copy_out(ws.z, tr->z0);
 
   auto field = [&](int e, const CnodeWorkspace::Lat& z, CnodeWorkspace::Lat& k) {
-    matvec(m.lin1_z, z, ws.a);
+    matvec_fast(m.lin1_z, z, ws.a);
     ws.a += ConstMapVec(ws.v + m.stage_index[e] * H, H);
     tanh_inplace(ws.a);
-    matvec(m.lin2_w, ws.a, k);
+    matvec_fast(m.lin2_w, ws.a, k);
     k += b2;
   };
   detail::rk4_integrate(m.rk4, d.steps, ws.z, ws.k1, ws.k2, ws.k3, ws.k4, ws.state, field,
@@ -278,7 +323,7 @@ Status infer(const CnodeF32& m, const float* x, float* logits, CnodeWorkspace& w
   if (tr != nullptr) copy_out(ws.z, tr->z1);
 
   MapVec out(logits, d.classes);
-  matvec(m.head_w, ws.z, out);
+  matvec_fast(m.head_w, ws.z, out);
   out += ConstMapVec(m.head_b, d.classes);
   return all_finite(logits, d.classes) ? Status::kOk : Status::kNonFiniteOutput;
 }
@@ -287,7 +332,7 @@ Status infer(const CnodeI8& m, const float* x, float* logits, CnodeWorkspace& ws
   if (x == nullptr || logits == nullptr) return Status::kNullArgument;
   const CnodeDims& d = m.dims;
   const int C = d.channels, W = d.window, H = d.hidden, L = d.latent, K = d.classes;
-  if (!all_finite(x, W * C)) return Status::kNonFiniteInput;
+  if (!all_finite_f32(x, W * C)) return Status::kNonFiniteInput;
   if (tr != nullptr && tr->x_norm != nullptr) trace_x_norm(x, m.mean, m.std, W, C, tr->x_norm);
 
   const StageWeights16 w16 = int16_copies(m, ws);
@@ -303,12 +348,14 @@ Status infer(const CnodeI8& m, const float* x, float* logits, CnodeWorkspace& ws
   std::int8_t* const hq = ws.q_hid;
 #endif
   static_assert(kStageX16 == (sizeof *zq == 2), "int16 stage codes only with the int16 kernel");
+  float lin2_mult[kMaxLatent];
+  for (int o = 0; o < L; ++o) lin2_mult[o] = m.s_hidden * m.lin2_w.scale[o];  // rescale_i32's multiplier
   auto field = [&](int e, const CnodeWorkspace::Lat& z, CnodeWorkspace::Lat& k) {
     const float s_z = m.s_stage[e];
     quantize_all(z.data(), L, s_z, zq);
     lin1_tanh_quantize(m, w16.lin1z, zq, s_z, ws.v + m.stage_index[e] * H, hq);
     k.resize(L);
-    stage_lin2(m, w16.lin2, hq, k.data());
+    stage_lin2(m, w16.lin2, hq, lin2_mult, k.data());
   };
   detail::rk4_integrate(m.rk4, d.steps, ws.z, ws.k1, ws.k2, ws.k3, ws.k4, ws.state, field,
                         tr != nullptr ? tr->stages : nullptr);

@@ -1,6 +1,7 @@
 // src/gru.cpp -- scope: GRU inference, fp32 and int8 (fwref/gru.hpp), and its weight checks.
 #include "fwref/gru.hpp"
 
+#include "fwref/kernels_f32.hpp"
 #include "fwref/numerics.hpp"
 #include "model_common.hpp"
 #include "motor_common.hpp"
@@ -88,22 +89,22 @@ Status infer(const GruF32& m, const float* x, float* logits, GruWorkspace& ws, G
   if (x == nullptr || logits == nullptr) return Status::kNullArgument;
   const GruDims& d = m.dims;
   const int C = d.channels, W = d.window, H = d.hidden;
-  if (!all_finite(x, W * C)) return Status::kNonFiniteInput;
+  if (!all_finite_f32(x, W * C)) return Status::kNonFiniteInput;
   const ConstMapVec b_ih(m.b_ih, 3 * H), b_hh(m.b_hh, 3 * H);
   ws.h.setZero(H);
   ws.xn.resize(C);
   for (int t = 0; t < W; ++t) {
     for (int c = 0; c < C; ++c) ws.xn[c] = normalise(x[t * C + c], m.mean[c], m.std[c]);
     if (tr != nullptr) trace_row(ws.xn, C, tr->x_norm == nullptr ? nullptr : tr->x_norm + t * C);
-    matvec(m.w_ih, ws.xn, ws.gx);
+    matvec_fast(m.w_ih, ws.xn, ws.gx);
     ws.gx += b_ih;
-    matvec(m.w_hh, ws.h, ws.gh);
+    matvec_fast(m.w_hh, ws.h, ws.gh);
     ws.gh += b_hh;
     gru_cell(ws.gx, ws.gh, H, ws.h);
     if (tr != nullptr) trace_row(ws.h, H, tr->h == nullptr ? nullptr : tr->h + t * H);
   }
   MapVec out(logits, d.classes);
-  matvec(m.head_w, ws.h, out);
+  matvec_fast(m.head_w, ws.h, out);
   out += ConstMapVec(m.head_b, d.classes);
   return all_finite(logits, d.classes) ? Status::kOk : Status::kNonFiniteOutput;
 }
@@ -112,7 +113,7 @@ Status infer(const GruI8& m, const float* x, float* logits, GruWorkspace& ws, Gr
   if (x == nullptr || logits == nullptr) return Status::kNullArgument;
   const GruDims& d = m.dims;
   const int C = d.channels, W = d.window, H = d.hidden;
-  if (!all_finite(x, W * C)) return Status::kNonFiniteInput;
+  if (!all_finite_f32(x, W * C)) return Status::kNonFiniteInput;
   ws.h.setZero(H);
   ws.gx.resize(3 * H);
   ws.gh.resize(3 * H);

@@ -205,15 +205,32 @@ inline void expand_i8_to_i16(const std::int8_t* q, int rows, int cols, std::int1
   "smlad  %[a3], %[w3], %[xb], %[a3]\n\t"
 // ``w``: the blocked int16 copy; ``x16``: x as int16, word-aligned (LDRD), w16_stride(cols) long
 // with zeros after cols. The caller that quantizes x can write it so directly (no widening pass).
+// The first 4 columns of a block start the sums with SMUAD (no accumulator to zero) instead of SMLAD.
+#define FWREF_M_W16_COLS4_FIRST                                                                     \
+  "ldrd   %[xa], %[xb], [%[xp]], #8\n\t"                                                            \
+  "ldmia  %[p]!, {%[w0], %[w1], %[w2], %[w3]}\n\t"                                                  \
+  "smuad  %[a0], %[w0], %[xa]\n\t"                                                                 \
+  "smlad  %[a0], %[w1], %[xb], %[a0]\n\t"                                                           \
+  "smuad  %[a1], %[w2], %[xa]\n\t"                                                                 \
+  "smlad  %[a1], %[w3], %[xb], %[a1]\n\t"                                                           \
+  "ldmia  %[p]!, {%[w0], %[w1], %[w2], %[w3]}\n\t"                                                  \
+  "smuad  %[a2], %[w0], %[xa]\n\t"                                                                 \
+  "smlad  %[a2], %[w1], %[xb], %[a2]\n\t"                                                           \
+  "smuad  %[a3], %[w2], %[xa]\n\t"                                                                 \
+  "smlad  %[a3], %[w3], %[xb], %[a3]\n\t"
+// Per block of 4 rows: the first 8 columns (w16_stride(cols) >= 8 always), then the loop over the
+// rest; the block's 4 sums go straight to acc through a pointer (no row counter to keep: the loop's
+// values already take every register, so a counter would live on the stack).
 inline void gemv_w16_x16(const std::int16_t* w, int rows, int cols, const std::int16_t* x16, std::int32_t* acc) {
   const int stride = w16_stride(cols);
   // A stack slot: the 12 values of the loop fill the registers the compiler can give (see the asm).
   const std::int16_t* volatile xend = x16 + stride;
   const std::int16_t* p = w;
-  int o = 0;
-  for (; o + 4 <= rows; o += 4) {
+  std::int32_t* out = acc;
+  std::int32_t* const out_end = acc + (rows & ~3);
+  for (; out != out_end; out += 4) {
     const std::int16_t* xp = x16;
-    std::int32_t a0 = 0, a1 = 0, a2 = 0, a3 = 0;
+    std::int32_t a0, a1, a2, a3;
     std::uint32_t xa, xb;
     // LDM takes its registers in ascending order and fills them from ascending addresses: fixed
     // registers, so that w0..w3 are the 1st..4th word (r0..r3, ascending).
@@ -221,23 +238,29 @@ inline void gemv_w16_x16(const std::int16_t* w, int rows, int cols, const std::i
     register std::uint32_t w1 __asm__("r1");
     register std::uint32_t w2 __asm__("r2");
     register std::uint32_t w3 __asm__("r3");
-    __asm__ volatile("1:\n\t" FWREF_M_W16_COLS4 FWREF_M_W16_COLS4
+    __asm__ volatile(FWREF_M_W16_COLS4_FIRST FWREF_M_W16_COLS4
                      "ldr    %[w0], %[xend]\n\t"  // w0 is free until the next LDM
                      "cmp    %[xp], %[w0]\n\t"
+                     "beq    2f\n\t"
+                     "1:\n\t" FWREF_M_W16_COLS4 FWREF_M_W16_COLS4
+                     "ldr    %[w0], %[xend]\n\t"
+                     "cmp    %[xp], %[w0]\n\t"
                      "bne    1b\n\t"
-                     : [a0] "+&r"(a0), [a1] "+&r"(a1), [a2] "+&r"(a2), [a3] "+&r"(a3), [p] "+&r"(p), [xp] "+&r"(xp),
+                     "2:\n\t"
+                     : [a0] "=&r"(a0), [a1] "=&r"(a1), [a2] "=&r"(a2), [a3] "=&r"(a3), [p] "+&r"(p), [xp] "+&r"(xp),
                        [xa] "=&r"(xa), [xb] "=&r"(xb), [w0] "=&r"(w0), [w1] "=&r"(w1), [w2] "=&r"(w2), [w3] "=&r"(w3)
                      : [xend] "m"(xend)
                      : "cc", "memory");
-    acc[o] = a0, acc[o + 1] = a1, acc[o + 2] = a2, acc[o + 3] = a3;
+    out[0] = a0, out[1] = a1, out[2] = a2, out[3] = a3;
   }
-  for (; o < rows; ++o) {  // the row-major tail rows
+  for (int o = rows & ~3; o < rows; ++o) {  // the row-major tail rows
     const std::int16_t* r = w + o * stride;
     std::int32_t s = 0;
     for (int i = 0; i < stride; ++i) s += std::int32_t(r[i]) * x16[i];
     acc[o] = s;
   }
 }
+#undef FWREF_M_W16_COLS4_FIRST
 #undef FWREF_M_W16_COLS4
 // The same with int8 x (widened here, once per call).
 inline void gemv_i8w16(const std::int16_t* w, int rows, int cols, const std::int8_t* x, std::int32_t* acc) {
