@@ -30,9 +30,11 @@ from core.errors import QuadfdiError
 
 def pick_flights(dataset, n: int) -> list[int]:
     """Up to ``n`` test flights: round-robin over the classes (the first of each, then the second...)."""
-    test = [i for i, s in enumerate(dataset["split_names"]) if str(s) == "test"]
+    from sim.dataset import class_names, split_names
+
+    test = [i for i, s in enumerate(split_names(dataset.arrays)) if s == "test"]
     rows = np.flatnonzero(np.isin(dataset["split"], test))
-    per_class = [rows[dataset["fault_class"][rows] == c].tolist() for c in range(len(dataset["class_names"]))]
+    per_class = [rows[dataset["fault_class"][rows] == c].tolist() for c in range(len(class_names(dataset.arrays)))]
     out: list[int] = []
     for j in range(max((len(p) for p in per_class), default=0)):
         out += [int(p[j]) for p in per_class if j < len(p)]
