@@ -17,6 +17,7 @@ fwref_stream can be found or built, or ``flights`` is 0. The CPU flags are bench
 from __future__ import annotations
 
 import functools
+import subprocess
 import tempfile
 import time
 from collections.abc import Callable
@@ -44,7 +45,6 @@ def pick_flights(dataset, n: int) -> list[int]:
 def find_stream_exe(fwref_infer: str | None) -> tuple[Path | None, str]:
     """fwref_stream beside fwref_infer (the same host build), built there if missing."""
     import shutil
-    import subprocess
 
     from parity.build import HOST_BUILD
 
@@ -97,8 +97,14 @@ def stream_section(run_root: Path, manifest: dict, fwref_infer: str | None, cpus
         for f in rows:
             paths.append(tmp / f"f{f}.bin")
             write_stream(paths[-1], from_dataset(dataset_path, f, record))
-        latency = latency_records(exe, export / "weights.bin", paths, tmp, cpu_prefix(cpus))
-    memory = stream_memory(record, manifest, exe, export / "weights.bin")
+        try:
+            latency = latency_records(exe, export / "weights.bin", paths, tmp, cpu_prefix(cpus))
+            memory = stream_memory(record, manifest, exe, export / "weights.bin")
+        except subprocess.CalledProcessError as exc:  # a failed replay or compile skips the section, not the bench
+            err = (exc.stderr or "").strip().splitlines()
+            prog = next((Path(str(c)).name for c in exc.cmd if "taskset" not in str(c) and not str(c).startswith("-")
+                         and not str(c)[:1].isdigit()), "?")
+            return {"skipped": f"{prog} failed: {err[-1] if err else exc.returncode}"}
     seconds = time.perf_counter() - t0
     log(f"bench stream: {len(rows)} test flights x 4 models through {exe.name} in {seconds:.1f} s")
     return {"exe": how, "profile": record["profile"], "window": int(record["window"]), "stride": int(record["stride"]),

@@ -2,11 +2,13 @@
 train.profile_data.decided): PYTHONPATH=. python scripts/add_decided.py RUN PROFILE"""
 import sys
 from pathlib import Path
+
 import numpy as np
+
 from core.predindex import read_index
 from sim.dataset import load_dataset
-from train.profile_data import decided, profiled_dataset
 from train.predsets import write_prediction_set
+from train.profile_data import decided, profiled_dataset
 
 run = Path(sys.argv[1]); profile = sys.argv[2]
 ds = profiled_dataset(load_dataset(run / "dataset.npz"), profile)

@@ -1,12 +1,14 @@
 """Alarms of every evaluation flight with and without the prediction set's ``decided`` (docs/detect.md):
     PYTHONPATH=. python scripts/cmp_decided.py RUN   (RUN/export/manifest.json gives the policy)"""
-import sys, json
+import json
+import sys
 from dataclasses import replace
 from pathlib import Path
-import numpy as np
-from evaluate.load import load_run
-from evaluate.alarms import flight_alarms
+
 from detect.run import policy_of
+from evaluate.alarms import flight_alarms
+from evaluate.load import load_run
+
 run = Path(sys.argv[1])
 pol = policy_of(json.loads((run / "export/manifest.json").read_text()))
 sets, infos = load_run(run)

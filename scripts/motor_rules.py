@@ -5,7 +5,9 @@ rotor-side, rotor-side alarm class only). Both read at the window evaluate score
 window at or after onset) for detected rotor-side fault flights with a known motor."""
 import sys
 from pathlib import Path
+
 import numpy as np
+
 from core.alarm import AlarmConfig, reported_motor, rotor_columns
 from evaluate.alarms import set_trace
 from evaluate.load import load_run
