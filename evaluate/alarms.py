@@ -2,10 +2,10 @@
 
 ``set_trace(fl, policy, reps, classes)`` is the AlarmTrace every outcome of evaluate.outcomes (and
 so the validation sweep and the test report) is computed from: ``fl.proba`` / ``fl.motor`` with
-``fl.voting()`` (padding and the windows before the hover freeze never vote, as in detect). ``flight_alarms(fl, policy, row)`` lists
-one flight's alarms in detect's alarms.json format (core.alarm.alarm_records: start, end, class,
-motor, peak), the motor reported by core.alarm's rule 5: what ``quadfdi detect`` on the same
-flight must give (tests/test_detect_evaluate.py).
+``fl.voting()`` (padding and the windows before the hover freeze never vote, as in detect).
+``flight_alarms(fl, policy, row)`` lists one flight's alarms in detect's alarms.json format
+(core.alarm.alarm_records: start, end, class, motor, peak), the motor reported by core.alarm's
+rule 5: what ``quadfdi detect`` on the same flight must give (tests/test_detect_evaluate.py).
 """
 
 from __future__ import annotations
