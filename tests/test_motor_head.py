@@ -146,7 +146,8 @@ def test_detect_motor_rules():
     assert window_motor(proba, mp, 0, rotor).tolist() == [0, 3, 1, 1, 0]  # window 3: fault class Propeller
     assert window_motor(proba, None, 0, rotor).tolist() == [0] * 5
     # an alarm's motor: core.alarm's rule (summed over the voting windows; rotor-side classes only)
-    from core.alarm import ROTOR_SIDE_CLASSES as CORE_ROTOR_SIDE, alarm_episodes, reported_motor, run_alarm
+    from core.alarm import ROTOR_SIDE_CLASSES as CORE_ROTOR_SIDE
+    from core.alarm import alarm_episodes, reported_motor, run_alarm
 
     assert CORE_ROTOR_SIDE == ROTOR_SIDE_CLASSES  # core's copy of train.motor's names
     tr = run_alarm(proba[None, 1:4], 0.35, 1, 1, 1, healthy=0, motor_proba=mp[None, 1:4])
