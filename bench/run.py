@@ -183,7 +183,8 @@ def _measure(run: RunDir, cfg: Config, manifest: dict, test_x, fw_copy: str | No
     t0 = time.perf_counter()
     stream = {"skipped": "the C++ reference is not measured (--skip-cpp or no build)"} if not fw_flags else \
         stream_section(run.root, manifest, str(Path(fw_flags["build_dir"]) / "fwref_infer"), cpus,
-                       1 if quick else cfg.bench.stream_flights, log)
+                       1 if quick else cfg.bench.stream_flights, log,
+                       ("cortex-m4",) if quick else ("cortex-m4", "cortex-m7"))
     timing["stream"] = time.perf_counter() - t0
     return {"limits": limits, "lat": lat, "floors": floor_list, "profiles": profiles, "memory": memory,
             "stream": stream, "timing": timing}

@@ -70,7 +70,8 @@ def _record(export: Path) -> dict | None:
 
 
 def stream_section(run_root: Path, manifest: dict, fwref_infer: str | None, cpus: str, flights: int,
-                   log: Callable[[str], None] = print) -> dict:
+                   log: Callable[[str], None] = print, cores: tuple[str, ...] = ("cortex-m4", "cortex-m7")) -> dict:
+    """The section (module docstring); ``cores``: the Cortex-M cores whose sizeof is compiled."""
     from bench.limits import cpu_prefix
     from bench.stream_latency import latency_records
     from bench.stream_memory import stream_memory
@@ -99,7 +100,7 @@ def stream_section(run_root: Path, manifest: dict, fwref_infer: str | None, cpus
             write_stream(paths[-1], from_dataset(dataset_path, f, record))
         try:
             latency = latency_records(exe, export / "weights.bin", paths, tmp, cpu_prefix(cpus))
-            memory = stream_memory(record, manifest, exe, export / "weights.bin")
+            memory = stream_memory(record, manifest, exe, export / "weights.bin", cores)
         except subprocess.CalledProcessError as exc:  # a failed replay or compile skips the section, not the bench
             err = (exc.stderr or "").strip().splitlines()
             prog = next((Path(str(c)).name for c in exc.cmd if "taskset" not in str(c) and not str(c).startswith("-")

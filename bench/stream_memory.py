@@ -55,12 +55,14 @@ def _image(cpu: str) -> dict | None:
             "bss_bytes": s.get(".bss", 0), "note": "as last built (its own weights and stream files)"}
 
 
-def stream_memory(record: dict, manifest: dict, exe: Path | None, weights: Path) -> list[dict]:
-    """One record per target: host (c++) and each Cortex-M core (skipped with a reason if no compiler)."""
+def stream_memory(record: dict, manifest: dict, exe: Path | None, weights: Path,
+                  cores: tuple[str, ...] = tuple(MCU_FLAGS)) -> list[dict]:
+    """One record per target: host (c++) and each Cortex-M core of ``cores`` (skipped with a reason
+    if no compiler)."""
     macros = limit_macros(record, manifest)
     rows = []
     targets = [("host", "c++", "nm", [])] + [(cpu, "arm-none-eabi-g++", "arm-none-eabi-nm", f)
-                                              for cpu, f in MCU_FLAGS.items()]
+                                              for cpu, f in MCU_FLAGS.items() if cpu in cores]
     with tempfile.TemporaryDirectory(prefix="quadfdi-stream-sizeof-") as d:
         for target, cc, nm, flags in targets:
             row: dict = {"target": target, "limits": macros}

@@ -22,7 +22,7 @@ from tests.test_firmware_fixtures import host_build  # noqa: F401 (fixture)
 def section(flightlog_export, host_build):  # noqa: F811
     manifest = json.loads((flightlog_export / "manifest.json").read_text())
     return stream_section(flightlog_export.parent, manifest, str(host_build / "fwref_infer"), "0", 1,
-                          log=lambda _: None), manifest
+                          log=lambda _: None, cores=("cortex-m4",)), manifest
 
 
 def test_pick_flights_round_robin_over_test_classes(flightlog_export):
