@@ -4,6 +4,9 @@
     quadfdi bench limits [--quick] [--cpus 0,1]   print the machine limits as JSON
     quadfdi bench kernels --run runs/<name> [--fwref PATH] [--json FILE]
                                                   C++ instructions per kernel and per MAC (callgrind, bench/kernels.py)
+    quadfdi bench stream --run runs/<name> [--flights N] [--cpus 0] [--fwref PATH] [--json FILE]
+                                                  the streaming runtime alone (bench/stream.py): print its
+                                                  report section; bench.json is not touched
 
 The measurement settings are the run's ``[bench]`` config section (``--set bench.windows=100``);
 ``bench_run`` (bench/run.py) does the work; docs/bench.md describes bench.json. report.md is
@@ -45,7 +48,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="fwref_infer program (default: firmware_ref/build/fwref_infer, built if missing)")
     add_config_args(p, config=False)
     p.set_defaults(func=run_bench)
-    acts = p.add_subparsers(dest="action", metavar="{limits,kernels}")
+    acts = p.add_subparsers(dest="action", metavar="{limits,kernels,stream}")
     pl = acts.add_parser("limits", help="measure peak GFLOP/s, L2 bandwidth and ORT's call cost; print JSON")
     pl.add_argument("--quick", action="store_true")
     pl.add_argument("--cpus", default=BenchConfig.cpus, help="CPUs to pin to (default: %(default)s)")
@@ -56,6 +59,14 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                     help="fwref_infer program (default: firmware_ref/build/fwref_infer, built if missing)")
     pk.add_argument("--json", default=None, help="also write the records to this JSON file")
     pk.set_defaults(func=run_kernels)
+    ps = acts.add_parser("stream", help="fwref_stream's latency per sample and per decision, and the stream "
+                         "object's memory (print; bench.json untouched)")
+    ps.add_argument("--run", required=True, help="run folder with an export and a dataset")
+    ps.add_argument("--flights", type=int, default=BenchConfig.stream_flights, help="test flights (default: %(default)s)")
+    ps.add_argument("--cpus", default=BenchConfig.cpus, help="CPUs to pin to (default: %(default)s)")
+    ps.add_argument("--fwref", default=None, help="fwref_infer whose build holds fwref_stream (default: firmware_ref/build)")
+    ps.add_argument("--json", default=None, help="also write the section to this JSON file")
+    ps.set_defaults(func=run_stream)
 
 
 def run_bench(args: argparse.Namespace) -> int:
@@ -101,3 +112,24 @@ def run_kernels(args: argparse.Namespace) -> int:
     if args.json:
         write_json(Path(args.json), {"fwref": fwref, "kernel_info": info.stdout.strip(), "records": records})
     return 0
+
+
+def run_stream(args: argparse.Namespace) -> int:
+    """The stream section alone (bench.stream), printed as report.md would show it."""
+    from bench.latency import check_cpus
+    from bench.report_stream import stream_report
+    from bench.stream import stream_section
+    from core.jsonio import read_json, write_json
+    from core.rundir import open_run
+
+    cpus = check_cpus(args.cpus)
+    if args.flights < 1:
+        raise QuadfdiError(f"--flights must be 1 or more, found {args.flights}")
+    run, _cfg = open_run(args.run, [], need=("dataset", "export"))
+    manifest = read_json(run.export / "manifest.json")
+    section = stream_section(run.root, manifest, args.fwref, cpus, args.flights,
+                             log=lambda s: print(s, file=sys.stderr))
+    print("\n".join(stream_report({"stream": section})))
+    if args.json:
+        write_json(Path(args.json), section, indent=1)
+    return 0 if not section.get("skipped") else 2

@@ -14,6 +14,7 @@ from pathlib import Path
 
 from bench.figures import draw_bench_figures
 from bench.report_fmt import RUNTIME_NAME, RUNTIME_ORDER, nbytes, setting, us
+from bench.report_stream import stream_report
 from bench.report_targets import targets_section
 from core.errors import QuadfdiError
 from core.reportmd import figure_links, not_run, num, optional_json
@@ -273,7 +274,7 @@ def bench_section(bench: dict, figures: str = "figures", run_root: Path | None =
             "traffic model is too pessimistic for that runtime; treat the floor as approximate here.", ""]
     out += _speedup_section(bench) + _graphs_section(bench)
     out += _floors_section(bench) + targets_section(bench) + _limits_section(bench) + _memory_section(bench)
-    out += _profiles_section(bench)
+    out += stream_report(bench) + _profiles_section(bench)
     note = bench.get("solvers_meta", {}).get("note") or bench.get("solvers_meta", {}).get("skipped")
     if note:
         out += [f"Solver study: {note}.", ""]

@@ -150,6 +150,7 @@ def _measure(run: RunDir, cfg: Config, manifest: dict, test_x, fw_copy: str | No
     from bench.latency import measure_latency
     from bench.limits import measure_limits, merge_limits
     from bench.memory import memory_records
+    from bench.stream import stream_section
 
     timing: dict[str, float] = {}
     window, channels = manifest["window"], manifest["n_channels"]
@@ -179,8 +180,14 @@ def _measure(run: RunDir, cfg: Config, manifest: dict, test_x, fw_copy: str | No
     profiles = _profiles(run, manifest, test_x, fw_copy, fw_flags, cpus, quick, lat["latency"], cfg.bench, log)
     timing["profiles"] = time.perf_counter() - t0
     memory = memory_records(run.root, manifest, lat["runtime_memory"], fw_copy)
+    t0 = time.perf_counter()
+    stream = {"skipped": "the C++ reference is not measured (--skip-cpp or no build)"} if not fw_flags else \
+        stream_section(run.root, manifest, str(Path(fw_flags["build_dir"]) / "fwref_infer"), cpus,
+                       1 if quick else cfg.bench.stream_flights, log,
+                       ("cortex-m4",) if quick else ("cortex-m4", "cortex-m7"))
+    timing["stream"] = time.perf_counter() - t0
     return {"limits": limits, "lat": lat, "floors": floor_list, "profiles": profiles, "memory": memory,
-            "timing": timing}
+            "stream": stream, "timing": timing}
 
 
 def _command(run: RunDir, quick: bool, skip_cpp: bool) -> str:
@@ -227,6 +234,7 @@ def _bench_dict(run: RunDir, manifest: dict, m: dict, machine: dict, fwref: tupl
         "graphs": graph_nodes(run, manifest),
         "memory": m["memory"],
         "mcu": mcu_records(run.root)[1],
+        "stream": m["stream"],
         "solvers": solvers,
         "solvers_meta": solver_meta,
         "profiles": m["profiles"],

@@ -17,8 +17,12 @@ Inputs per flight: the windows in time order, each with class probabilities ``pr
    raise, the voting windows among i-n+1..i; then every voting window while active. The alarm's
    class at a window is the argmax of S over the fault columns (every column but ``healthy``);
    a tie goes to the lowest class index. Likewise the motor: argmax of the summed ``motor_proba``
-   (ties: lowest motor index). Python sums in float64; a float32 mirror can differ only on
-   near-exact ties.
+   over the same voting windows (ties: lowest motor index). Python sums in float64; a float32
+   mirror can differ only on near-exact ties.
+5. **Which motor is reported** (``reported_motor``: detect's alarms.json, evaluate's "motor
+   right"): the motor of rule 4 where the alarm's class is rotor-side (``rotor``: MotorFault,
+   OverheatFault, PropellerFault for the realistic classes), none otherwise. The ONE motor rule
+   (issue 14; why this one and not a mean over rotor-side windows: docs/detect.md "Which motor").
 
 Everything is integer logic on the vote bits except the threshold comparison and the sums, so a
 C++ mirror (firmware_ref) reproduces it exactly given the same p_fault comparisons.
@@ -33,6 +37,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from core.errors import QuadfdiError
+
+# The rotor-side classes by name (train.motor.ROTOR_SIDE_CLASSES; core cannot import train: a test
+# checks they agree). Rule 5 reports a motor for these alarm classes only.
+ROTOR_SIDE_CLASSES = ("MotorFault", "OverheatFault", "PropellerFault")
+
+
+def rotor_columns(names, rotor_side_classes=ROTOR_SIDE_CLASSES) -> np.ndarray:
+    """(K,) bool: the class columns of ``names`` that are rotor-side."""
+    return np.array([str(n) in rotor_side_classes for n in names], dtype=bool)
 
 
 @dataclass(frozen=True)
@@ -141,11 +154,23 @@ def run_alarm(proba: np.ndarray, threshold, k, n, clear_m, latch=False, *, healt
                       motor=motor)
 
 
-def alarm_episodes(trace: AlarmTrace, t_end: np.ndarray, proba: np.ndarray, row: int = 0, healthy: int = 0) -> list[dict]:
+def reported_motor(cls: np.ndarray, motor: np.ndarray, rotor: np.ndarray | None) -> np.ndarray:
+    """Rule 5: ``motor`` (0..3, AlarmTrace.motor) where the alarm's class ``cls`` is a rotor-side
+    column of ``rotor`` (K,) bool, else -1 (inactive, no motor_proba, a battery alarm, or no
+    ``rotor``). Elementwise over any shape of cls / motor."""
+    cls, motor = np.asarray(cls, np.int64), np.asarray(motor, np.int64)
+    if rotor is None:
+        return np.full(np.broadcast(cls, motor).shape, -1, np.int64)
+    ok = (cls >= 0) & (motor >= 0) & np.asarray(rotor, bool)[np.maximum(cls, 0)]
+    return np.where(ok, motor, -1)
+
+
+def alarm_episodes(trace: AlarmTrace, t_end: np.ndarray, proba: np.ndarray, row: int = 0, healthy: int = 0,
+                   rotor: np.ndarray | None = None) -> list[dict]:
     """The alarms of one flight (row of the batch) as records: ``start_s`` (end time of the raising
     window), ``end_s`` (end time of the clearing window; None if still active at the last window),
-    ``cls`` and ``motor`` (the alarm's class and motor at its last active window; motor -1 without
-    motor_proba), ``peak_p_fault`` (largest 1 - p(Healthy) while active). What ``detect`` writes."""
+    ``cls`` and ``motor`` (the alarm's class and reported motor, rule 5, at its last active window;
+    -1: none), ``peak_p_fault`` (largest 1 - p(Healthy) while active). What ``detect`` writes."""
     raised, cleared, active = trace.raised[row], trace.cleared[row], trace.active[row]
     p_fault = 1.0 - np.asarray(proba, dtype=np.float64)[row, :, healthy]
     out = []
@@ -155,6 +180,17 @@ def alarm_episodes(trace: AlarmTrace, t_end: np.ndarray, proba: np.ndarray, row:
         last = (stop if stop is not None else active.size) - 1
         span = slice(start, last + 1)
         out.append({"start_s": float(t_end[row, start]), "end_s": None if stop is None else float(t_end[row, stop]),
-                    "cls": int(trace.cls[row, last]), "motor": int(trace.motor[row, last]),
+                    "cls": int(trace.cls[row, last]),
+                    "motor": int(reported_motor(trace.cls[row, last], trace.motor[row, last], rotor)),
                     "peak_p_fault": float(p_fault[span][active[span]].max())})
     return out
+
+
+def alarm_records(trace: AlarmTrace, t_end: np.ndarray, proba: np.ndarray, class_names, row: int = 0,
+                  rotor: np.ndarray | None = None) -> list[dict]:
+    """alarm_episodes as detect's alarms.json writes them and evaluate.alarms lists them: ``start_s``,
+    ``end_s``, ``class`` (a name), ``motor`` (1..4 or None), ``peak_p_fault``."""
+    names = [str(c) for c in class_names]
+    eps = alarm_episodes(trace, t_end, proba, row=row, healthy=names.index("Healthy"), rotor=rotor)
+    return [{"start_s": e["start_s"], "end_s": e["end_s"], "class": names[e["cls"]],
+             "motor": None if e["motor"] < 0 else e["motor"] + 1, "peak_p_fault": e["peak_p_fault"]} for e in eps]

@@ -238,6 +238,7 @@ class BenchConfig:
     profile_windows: int = 100  # windows run under the ORT per-node profiler
     callgrind_windows: int = 5  # windows run under valgrind callgrind (C++)
     worker_timeout_s: float = 900.0  # one worker process may take this long
+    stream_flights: int = 10  # test flights replayed through fwref_stream (bench/stream.py); 0 skips; --quick: 1
     # A runtime below its floor after re-measuring: the floors are not lower bounds here, so the bench
     # exits non-zero (after writing bench.json); false only reports it (plumbing checks, not timings).
     fail_below_floor: bool = True
@@ -247,6 +248,8 @@ class BenchConfig:
                   "callgrind_windows", "worker_timeout_s")
         if self.warmup < 0:
             raise QuadfdiError(f"bench.warmup must be 0 or more, found {self.warmup}")
+        if self.stream_flights < 0:
+            raise QuadfdiError(f"bench.stream_flights must be 0 or more, found {self.stream_flights}")
         if not self.threads or min(self.threads) < 1 or max(self.threads) > MAX_THREADS:
             raise QuadfdiError(f"bench.threads must be a non-empty list of counts in 1..{MAX_THREADS}, found {list(self.threads)}")
         parts = [c.strip() for c in self.cpus.split(",")]

@@ -10,7 +10,10 @@ an .npz with
 - ``split``   (n,) int8 split code of the window's flight (1 validation, 2 test, 3.. the
   out-of-distribution test sets of the realistic suite; never 0 = train);
 - ``class_names`` (K,) str;
-- optional ``motor_proba`` (n, 4) float32: the suspected motor, for models that output it.
+- optional ``motor_proba`` (n, 4) float32: the suspected motor, for models that output it;
+- optional ``decided`` (n,) bool: whether the window has a decision on a vehicle (False before the
+  flight's hover freeze for a profile with a hover estimate); evaluate's alarm policy skips the
+  others (core.alarm ``valid``), as detect does. Absent: every window decides.
 
 ``<run>/predictions/index.json`` lists the sets: ``{"entries": [{"model", "sim_seed",
 "train_seed", "dataset", "predictions"}]}`` with the two paths relative to the run folder. The
@@ -57,6 +60,8 @@ def check_prediction_set(arrays: Mapping[str, Any], where: str) -> None:
             raise QuadfdiError(f"{where}: {key} has shape {np.asarray(arrays[key]).shape}, expected ({n},)")
     if "motor_proba" in arrays and np.asarray(arrays["motor_proba"]).shape != (n, 4):
         raise QuadfdiError(f"{where}: motor_proba has shape {np.asarray(arrays['motor_proba']).shape}, expected ({n}, 4)")
+    if "decided" in arrays and np.asarray(arrays["decided"]).shape != (n,):
+        raise QuadfdiError(f"{where}: decided has shape {np.asarray(arrays['decided']).shape}, expected ({n},)")
     if n and (np.asarray(arrays["split"]) == 0).any():
         raise QuadfdiError(f"{where}: holds training windows (split 0); a prediction set is evaluation windows only")
 

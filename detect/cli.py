@@ -1,6 +1,7 @@
 """``quadfdi detect --model RUN/export [--net cnode|gru] [--precision fp32|int8] [--runtime ort|cpp]
-FLIGHT --out DIR``: an exported model on a real flight (a .ulg / .BIN log, ingested on the fly, or
-an ingested flight.npz). A flight it cannot use is refused: one line, exit 2, nothing written."""
+(FLIGHT | --dataset DATASET.npz --flight N) --out DIR``: an exported model on a real flight (a .ulg /
+.BIN log, ingested on the fly, or an ingested flight.npz) or a simulated one (detect/simflight.py).
+A flight it cannot use is refused: one line, exit 2, nothing written."""
 
 from __future__ import annotations
 
@@ -11,7 +12,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("detect", help="run an exported model on a real flight: probabilities, alarms, a figure",
                        description="Per-window class probabilities, the alarm timeline under the manifest's "
                                    "policy, DIR/alarms.json, DIR/windows.npz and DIR/detect.png (docs/detect.md).")
-    p.add_argument("flight", metavar="FLIGHT", help="a PX4 .ulg, an ArduPilot .BIN or an ingested flight.npz")
+    p.add_argument("flight", metavar="FLIGHT", nargs="?", help="a PX4 .ulg, an ArduPilot .BIN or an ingested flight.npz")
+    p.add_argument("--dataset", help="a simulated dataset.npz instead of FLIGHT (the realistic suite's)")
+    p.add_argument("--flight", dest="index", type=int, help="with --dataset: the flight's index")
     p.add_argument("--model", required=True, help="the export folder (RUN/export) holding manifest.json")
     p.add_argument("--net", choices=("cnode", "gru"), default="cnode", help="which network (default: %(default)s)")
     p.add_argument("--precision", choices=("fp32", "int8"), default="fp32")
@@ -22,8 +25,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from core.errors import QuadfdiError
     from detect.run import detect, write_detect
+    from detect.simflight import dataset_flight
 
-    result = detect(args.model, args.flight, args.net, args.precision, args.runtime)  # refusals raise here
+    if (args.dataset is None) == (args.flight is None) or (args.dataset is not None and args.index is None):
+        raise QuadfdiError("detect needs either FLIGHT or --dataset DATASET.npz --flight N")
+    flight = dataset_flight(args.dataset, args.index) if args.dataset else args.flight
+    result = detect(args.model, flight, args.net, args.precision, args.runtime)  # refusals raise here
     write_detect(args.out, result)
     return 0

@@ -5,21 +5,17 @@ when the window is decided and its fault class (the argmax of ``proba`` over the
 Healthy left out, as core.alarm names an alarm's class) is rotor-side; 0 otherwise and for a model
 without the head.
 
-Per alarm (alarms.json ``motor``): for an alarm whose class is rotor-side, the argmax of the MEAN
-motor probability over the alarm's active windows whose fault class is rotor-side (ties: the
-lowest motor); None for other classes, for a model without the head, and when no such window
-exists. Motors are numbered 1..4 (column m of ``motor_logits`` is motor m + 1: docs/ingest.md,
-motor numbering).
+Per alarm (alarms.json ``motor``): core.alarm's rule (rules 4-5 of its docstring: the argmax of
+the motor probabilities summed over the alarm's voting windows, reported for a rotor-side alarm
+class only), the same code ``quadfdi evaluate`` scores; None where it names no motor. Motors are
+numbered 1..4 (column m of ``motor_logits`` is motor m + 1: docs/ingest.md, motor numbering).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-
-def rotor_columns(names: list[str], rotor_side_classes: list[str]) -> np.ndarray:
-    """(K,) bool: the rotor-side class columns."""
-    return np.array([n in rotor_side_classes for n in names], dtype=bool)
+from core.alarm import rotor_columns  # noqa: F401 (detect.run and tests import it from here)
 
 
 def window_fault_class(proba: np.ndarray, healthy: int) -> np.ndarray:
@@ -38,27 +34,3 @@ def window_motor(proba: np.ndarray, motor_proba: np.ndarray | None, healthy: int
     cls = window_fault_class(proba, healthy)
     ok = (cls >= 0) & rotor[np.maximum(cls, 0)] & np.isfinite(motor_proba).all(axis=1)
     return np.where(ok, np.argmax(np.nan_to_num(motor_proba, nan=-1.0), axis=1) + 1, 0).astype(np.int8)
-
-
-def alarm_motor(alarm_cls: int, active: np.ndarray, proba: np.ndarray, motor_proba: np.ndarray | None,
-                healthy: int, rotor: np.ndarray) -> int | None:
-    """The motor 1..4 of one alarm (``active`` (n,) bool: its active windows), or None."""
-    if motor_proba is None or alarm_cls < 0 or not rotor[alarm_cls]:
-        return None
-    cls = window_fault_class(proba, healthy)
-    keep = active & (cls >= 0) & rotor[np.maximum(cls, 0)]
-    if not keep.any():
-        return None
-    return int(np.argmax(motor_proba[keep].astype(np.float64).mean(axis=0))) + 1
-
-
-def episode_spans(raised: np.ndarray, cleared: np.ndarray, active: np.ndarray) -> list[np.ndarray]:
-    """Per alarm (in core.alarm.alarm_episodes' order) its active windows, (n,) bool each."""
-    out = []
-    for start in np.flatnonzero(raised):
-        ends = np.flatnonzero(cleared[start + 1:])
-        stop = start + 1 + int(ends[0]) if ends.size else active.size  # first inactive window
-        span = np.zeros(active.size, bool)
-        span[start:stop] = active[start:stop]
-        out.append(span)
-    return out

@@ -18,10 +18,10 @@ from typing import Callable
 
 import numpy as np
 
-from core.alarm import AlarmConfig, alarm_episodes, check_policy, run_alarm
+from core.alarm import AlarmConfig, alarm_records, check_policy, run_alarm
 from core.errors import QuadfdiError
 from detect.inputs import FlightInputs, flight_inputs, read_flight, windows
-from detect.motor import alarm_motor, episode_spans, rotor_columns, window_motor
+from detect.motor import rotor_columns, window_motor
 
 NETS = ("cnode", "gru")
 
@@ -75,10 +75,11 @@ def exposure_s(fi: FlightInputs, window: int, dt: float) -> float:
     return float(cover.sum()) * dt
 
 
-def detect(model: str | Path, flight: str | Path, net: str = "cnode", precision: str = "fp32",
+def detect(model: str | Path, flight: str | Path | dict, net: str = "cnode", precision: str = "fp32",
            runtime: str = "ort") -> dict:
     """Everything ``quadfdi detect`` writes, computed (nothing written): a dict with ``record``
-    (alarms.json), ``arrays`` (windows.npz) and ``inputs`` (FlightInputs, for the figure)."""
+    (alarms.json), ``arrays`` (windows.npz) and ``inputs`` (FlightInputs, for the figure).
+    ``flight``: a log or flight.npz path, or flight.npz's arrays (detect.simflight)."""
     folder = Path(model)
     manifest = load_export(folder)
     profile = str((manifest.get("profile") or {}).get("name", "paper"))
@@ -88,7 +89,7 @@ def detect(model: str | Path, flight: str | Path, net: str = "cnode", precision:
     names = [str(c) for c in manifest["class_names"]]
     if "Healthy" not in names:
         raise QuadfdiError(f"{folder}: the model has no Healthy class ({names})")
-    fi = flight_inputs(read_flight(flight), profile, window, stride)
+    fi = flight_inputs(flight if isinstance(flight, dict) else read_flight(flight), profile, window, stride)
     if [c["name"] for c in manifest["channels"]] != fi.channel_names:
         raise QuadfdiError(f"{folder}: the manifest's channels are not profile {profile!r}'s")
     logits, motor_logits = model_logits(folder, manifest, net, precision, runtime, windows(fi, window))
@@ -103,15 +104,12 @@ def detect(model: str | Path, flight: str | Path, net: str = "cnode", precision:
     healthy = names.index("Healthy")
     p_in = np.where(fi.decided[:, None], proba, 0.0)
     p_in[~fi.decided, healthy] = 1.0  # undecided windows never vote (and are marked not valid)
+    m_in = None if motor_p is None else np.where(fi.decided[:, None], motor_p, 0.0)  # undecided: never voting
     trace = run_alarm(p_in[None], pol["threshold"], pol["k"], pol["n"], pol["clear_m"], pol["latch"],
-                      healthy=healthy, valid=fi.decided[None])
+                      healthy=healthy, valid=fi.decided[None], motor_proba=None if m_in is None else m_in[None])
     t_end = fi.time[fi.starts + window - 1]
-    episodes = alarm_episodes(trace, t_end[None], p_in[None], healthy=healthy)
     rotor = rotor_columns(names, list((manifest.get("motor_head") or {}).get("rotor_side_classes") or []))
-    spans = episode_spans(trace.raised[0], trace.cleared[0], trace.active[0])
-    alarms = [{"start_s": e["start_s"], "end_s": e["end_s"], "class": names[e["cls"]],
-               "motor": alarm_motor(e["cls"], span, proba, motor_p, healthy, rotor), "peak_p_fault": e["peak_p_fault"]}
-              for e, span in zip(episodes, spans)]
+    alarms = alarm_records(trace, t_end[None], p_in[None], names, rotor=rotor)
     record = {"flight": fi.name, "model": str(folder), "net": net, "precision": precision, "runtime": runtime,
               "profile": profile, "policy": pol,
               "hover": {"cmd": float(fi.hover.cmd),

@@ -33,7 +33,8 @@ class DatasetInfo:
 @dataclass
 class Flights:
     """One prediction set as flights. rows (F,) dataset rows; proba (F, W, K); motor (F, W, 4) or None;
-    y_true (F, W); t_end (F, W); valid (F, W); split (F,); stride_s the window spacing in s."""
+    y_true (F, W); t_end (F, W); valid (F, W) (False: padding); split (F,); stride_s the window spacing
+    in s; decided (F, W) or None (the set's ``decided``: windows before the hover freeze do not vote)."""
 
     model: str
     sim_seed: int
@@ -48,13 +49,18 @@ class Flights:
     valid: np.ndarray
     split: np.ndarray
     stride_s: float
+    decided: np.ndarray | None = None  # (F, W) the set's optional ``decided``: None = every valid window
+
+    def voting(self) -> np.ndarray:
+        """(F, W) the windows the alarm policy reads (core.alarm ``valid``): real and decided."""
+        return self.valid if self.decided is None else self.valid & self.decided
 
     def subset(self, keep: np.ndarray) -> "Flights":
         """The flights where ``keep`` (F,) is true."""
         pick = lambda a: None if a is None else a[keep]  # noqa: E731
         return Flights(self.model, self.sim_seed, self.train_seed, self.dataset, self.class_names, self.rows[keep],
                        self.proba[keep], pick(self.motor), self.y_true[keep], self.t_end[keep], self.valid[keep],
-                       self.split[keep], self.stride_s)
+                       self.split[keep], self.stride_s, pick(self.decided))
 
 
 def load_dataset_info(path: Path) -> DatasetInfo:
@@ -116,7 +122,9 @@ def to_flights(entry: dict, arrays: dict[str, np.ndarray], info: DatasetInfo) ->
                    dataset=str(entry["dataset"]), class_names=tuple(str(c) for c in arrays["class_names"]),
                    rows=rows, proba=pad(arrays["proba"].astype(np.float64), 0.0), motor=motor,
                    y_true=pad(arrays["y_true"].astype(np.int64), -1), t_end=pad(t_end, np.nan),
-                   valid=pad(np.ones(traj.size, bool), False), split=info.arrays["split"][rows].astype(np.int64),
+                   valid=pad(np.ones(traj.size, bool), False),
+                   decided=pad(arrays["decided"].astype(bool), False) if "decided" in arrays else None,
+                   split=info.arrays["split"][rows].astype(np.int64),
                    stride_s=float(np.median(steps)) if steps.size else 0.0)
 
 

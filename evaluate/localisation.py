@@ -19,11 +19,12 @@ from pathlib import Path
 
 import numpy as np
 
+from core.alarm import ROTOR_SIDE_CLASSES
 from core.predindex import read_index
 from core.tables import md_table
 from evaluate.bootstrap import draw_weights
 
-ROTOR_SIDE = ("MotorFault", "OverheatFault", "PropellerFault")  # train.motor.ROTOR_SIDE_CLASSES (no torch here)
+ROTOR_SIDE = ROTOR_SIDE_CLASSES  # train.motor.ROTOR_SIDE_CLASSES (no torch here)
 
 
 def flight_counts(arrays: dict, fault_motor: np.ndarray, split: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

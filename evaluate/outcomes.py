@@ -8,7 +8,7 @@ re-running any metric code.
 |---|---|
 | conf | (K, K) window confusion counts, row = true label, column = arg-max class |
 | healthy, fault | 1 for a healthy / faulty flight |
-| exposure_h | healthy flights: valid windows x window spacing, in hours (0 for fault flights) |
+| exposure_h | healthy flights: decided windows (Flights.voting) x window spacing, in hours (0 for fault flights) |
 | fa | healthy flights: alarms raised (episodes) |
 | detected | fault flights: the alarm is active at some window ending at or after onset_s |
 | delay_onset | detected: end time of that first active window - onset_s (s) |
@@ -17,14 +17,15 @@ re-running any metric code.
 | early | thr flights with an alarm raised at a window ending before detectable_s |
 | pre_onset | fault flights with an alarm raised before onset_s (a false alarm on a fault flight) |
 | class_ok | detected and the alarm's class at the detecting window is the flight's fault class |
-| motor_n, motor_ok | detected rotor-side flights (fault_motor >= 0) of a set with motor_proba; motor right |
+| motor_n, motor_ok | detected rotor-side flights (fault_motor >= 0) of a set with motor_proba; reported motor (core.alarm rule 5) right at detection |
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from core.alarm import run_alarm
+from core.alarm import reported_motor, rotor_columns
+from evaluate.alarms import set_trace
 from evaluate.load import DatasetInfo, Flights
 
 SCALAR_KEYS = ("healthy", "fault", "exposure_h", "fa", "detected", "delay_onset", "thr", "detected_thr", "delay_thr",
@@ -54,17 +55,14 @@ def alarm_outcomes(fl: Flights, info: DatasetInfo, policy: dict, reps: int = 1, 
     (the sweep): class_ok and motor_ok are not computed (0)."""
     a = info.arrays
     tile = (lambda x: np.concatenate([x] * reps)) if reps > 1 else (lambda x: x)
-    healthy_col = fl.class_names.index("Healthy")
-    tr = run_alarm(tile(fl.proba), policy["threshold"], policy["k"], policy["n"], policy["clear_m"],
-                   policy.get("latch", False), healthy=healthy_col, valid=tile(fl.valid),
-                   motor_proba=None if fl.motor is None else tile(fl.motor), classes=classes)
+    tr = set_trace(fl, policy, reps, classes)
     t_end = tile(fl.t_end)
     cls = tile(a["fault_class"][fl.rows].astype(np.int64))
     onset = tile(np.nan_to_num(a["onset_s"][fl.rows], nan=np.inf))
     det_s = tile(a["detectable_s"][fl.rows])
     motor = tile(a["fault_motor"][fl.rows].astype(np.int64))
     healthy, fault = cls == 0, cls != 0
-    n_valid = tile(fl.valid).sum(axis=1)
+    n_valid = tile(fl.voting()).sum(axis=1)  # exposure: the decided windows, as detect's exposure_s
     out = {"healthy": healthy * 1.0, "fault": fault * 1.0,
            "exposure_h": np.where(healthy, n_valid * fl.stride_s / 3600.0, 0.0),
            "fa": np.where(healthy, tr.raised.sum(axis=1), 0) * 1.0}
@@ -86,7 +84,9 @@ def alarm_outcomes(fl: Flights, info: DatasetInfo, policy: dict, reps: int = 1, 
     out["class_ok"] = (hit & (tr.cls[rows, i] == cls)) * 1.0
     rotor = hit & (motor >= 0) & (fl.motor is not None)
     out["motor_n"] = rotor * 1.0
-    out["motor_ok"] = (rotor & (tr.motor[rows, i] == motor)) * 1.0
+    # core.alarm rule 5, as detect reports it: no motor for a non-rotor-side alarm class (counted wrong)
+    shown = reported_motor(tr.cls[rows, i], tr.motor[rows, i], rotor_columns(fl.class_names))
+    out["motor_ok"] = (rotor & (shown == motor)) * 1.0
     return out
 
 

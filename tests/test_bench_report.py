@@ -91,6 +91,8 @@ def test_bench_json_holds_every_field(benched):
     assert ("peak_rss_above_baseline_batch1_bytes", "ort") in items
     assert ("peak_rss_above_baseline_batch1_bytes", "torch") in items
     assert bench["solvers"] == [] and "no solver study" in bench["solvers_meta"]["note"]  # no solvers/solvers.json
+    stream = bench["stream"]  # bench/stream.py: measured with the C++ reference, else skipped with a reason
+    assert (len(stream["latency"]) == 4 and len(stream["flights"]) == 1) if FWREF.is_file() else stream["skipped"]
     if FWREF.is_file():
         assert ("static_ram_bytes", "cpp") in items
         assert {t["model"] for t in bench["targets"]} == {"cnode", "gru"}

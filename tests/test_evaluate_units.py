@@ -122,3 +122,27 @@ def test_paired_bootstrap_cancels_shared_flight_variation():
     single = intervals(sa, w, 0.95)["accuracy"]
     assert d["diff"] > 0 and d["lo"] > 0  # the difference is resolved ...
     assert d["hi"] - d["lo"] < 0.5 * (single["hi"] - single["lo"])  # ... far tighter than either model's interval
+
+
+def test_undecided_windows_never_vote_and_leave_the_exposure():
+    """A prediction set's ``decided`` (before the hover freeze: False) as detect treats it."""
+    from dataclasses import replace
+
+    from evaluate.alarms import flight_alarms
+
+    fl = _flights([[.9, .9, .9, 0, 0, 0, 0, 0, 0, 0]], [0])
+    info = _info([0], [np.nan], [np.nan], [-1])
+    assert flight_outcomes(fl, info, POLICY)["fa"][0] == 1
+    assert flight_alarms(fl, POLICY, 0)[0]["start_s"] == 2.0
+    pre = replace(fl, decided=np.arange(10)[None, :] >= 2)  # the first two windows undecided
+    out = flight_outcomes(pre, info, POLICY)
+    assert out["fa"][0] == 0 and out["exposure_h"][0] == pytest.approx(8 * STRIDE / 3600)  # 1 vote of 3: no raise
+    assert flight_alarms(pre, POLICY, 0) == []
+
+
+def test_a_battery_alarm_on_a_rotor_fault_names_no_motor():
+    motor = np.zeros((1, 10, 4))
+    motor[0, :, 3] = 1.0
+    fl = _flights([[0, 0, 0, 0, 0, .9, .9, .9, .9, .9]], [1], motor)  # the model says BatteryFault
+    out = flight_outcomes(fl, _info([2], [3.5], [5.5], [3]), POLICY)
+    assert out["motor_n"][0] == 1 and out["motor_ok"][0] == 0  # core.alarm rule 5: no motor, counted wrong

@@ -10,7 +10,7 @@ import torch
 
 from core.config import TrainConfig
 from core.errors import QuadfdiError
-from detect.motor import alarm_motor, episode_spans, rotor_columns, window_motor
+from detect.motor import rotor_columns, window_motor
 from export.calibrate import WindowReader, collect_ranges
 from export.manifest import motor_entry
 from export.onnx_cnode import build_cnode, calibration_probes, cnode_params, quantize_cnode
@@ -145,14 +145,16 @@ def test_detect_motor_rules():
     mp = np.array([[0.9, 0.1, 0, 0], [0.1, 0.1, 0.7, 0.1], [0.6, 0.2, 0.1, 0.1], [0.5, 0.3, 0.1, 0.1], [np.nan] * 4])
     assert window_motor(proba, mp, 0, rotor).tolist() == [0, 3, 1, 1, 0]  # window 3: fault class Propeller
     assert window_motor(proba, None, 0, rotor).tolist() == [0] * 5
-    every = np.array([True, True, True, True, False])
-    assert alarm_motor(4, every, proba, mp, 0, rotor) == 1  # mean over windows 1..3: motor 1 (0.4) > motor 3 (0.3)
-    assert alarm_motor(1, every, proba, mp, 0, rotor) is None  # a battery alarm has no motor
-    assert alarm_motor(4, every, proba, None, 0, rotor) is None
-    assert alarm_motor(2, np.array([True, False, False, False, False]), proba, mp, 0, rotor) is None
-    spans = episode_spans(np.array([0, 1, 0, 0, 1, 0], bool), np.array([0, 0, 0, 1, 0, 0], bool),
-                          np.array([0, 1, 1, 0, 1, 1], bool))
-    assert [s.nonzero()[0].tolist() for s in spans] == [[1, 2], [4, 5]]
+    # an alarm's motor: core.alarm's rule (summed over the voting windows; rotor-side classes only)
+    from core.alarm import ROTOR_SIDE_CLASSES as CORE_ROTOR_SIDE
+    from core.alarm import alarm_episodes, reported_motor, run_alarm
+
+    assert CORE_ROTOR_SIDE == ROTOR_SIDE_CLASSES  # core's copy of train.motor's names
+    tr = run_alarm(proba[None, 1:4], 0.35, 1, 1, 1, healthy=0, motor_proba=mp[None, 1:4])
+    # classes summed: Motor 0.9 < Propeller 1.1; motors summed: 1.2, 0.6, 0.9, 0.3 -> motor 1
+    assert alarm_episodes(tr, np.arange(3.0)[None], proba[None, 1:4], rotor=rotor)[0]["motor"] == 0
+    assert alarm_episodes(tr, np.arange(3.0)[None], proba[None, 1:4])[0]["motor"] == -1  # no rotor columns
+    assert reported_motor([4, 1, -1, 2], [2, 2, -1, -1], rotor).tolist() == [2, -1, -1, -1]  # battery: none
 
 
 def test_weights_bin_carries_the_heads_in_optional_trailing_sections(tmp_path):

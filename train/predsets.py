@@ -1,7 +1,9 @@
 """Prediction sets of a trained network: its class probabilities on every evaluation window of a
 dataset (split code >= 1: validation, test, the realistic suite's out-of-distribution sets), in the
 format of ``core.predindex`` (docs/formats.md, "Prediction sets"); a model with a motor head
-(train.motor) adds ``motor_proba`` (n, 4), the softmax of its motor logits.
+(train.motor) adds ``motor_proba`` (n, 4), the softmax of its motor logits; every set carries
+``decided`` (train.profile_data.decided: False before the flight's hover freeze, where detect and
+the streaming runtime give no decision; evaluate treats those windows as not voting).
 
 The windows are made and scored a few flights at a time, so the full evaluation set (38 880
 windows of 80 x 25 float32 on the realistic suite, 311 MB) is never held at once.
@@ -21,6 +23,7 @@ from sim.dataset import Dataset, class_names, gather_windows, window_index
 from train.data import evaluation_rows
 from train.loop import predict_proba
 from train.motor import N_MOTORS, has_motor_head, predict_motor_proba
+from train.profile_data import decided
 
 FLIGHTS_PER_CHUNK = 16  # 16 x 90 windows x 80 x 25 float32 = 11.5 MB at a time
 
@@ -30,7 +33,7 @@ def prediction_set(model: torch.nn.Module, ds: Dataset, flights_per_chunk: int =
     flight in dataset order, windows in time order (the order of ``sim.dataset.make_windows``)."""
     rows = evaluation_rows(ds)
     names = class_names(ds.arrays)
-    keys = ("proba", "y_true", "traj", "t_end") + (("motor_proba",) if has_motor_head(model) else ())
+    keys = ("proba", "y_true", "traj", "t_end", "decided") + (("motor_proba",) if has_motor_head(model) else ())
     parts: dict[str, list[np.ndarray]] = {k: [] for k in keys}
     for i in range(0, len(rows), flights_per_chunk):
         traj, start = window_index(ds, rows[i:i + flights_per_chunk])
@@ -41,6 +44,7 @@ def prediction_set(model: torch.nn.Module, ds: Dataset, flights_per_chunk: int =
         parts["y_true"].append(w.y)
         parts["traj"].append(w.traj)
         parts["t_end"].append(w.t_end)
+        parts["decided"].append(decided(ds, w.traj, w.start))
     out = {k: np.concatenate(v) if v else np.zeros((0, len(names)) if k == "proba" else 0) for k, v in parts.items()}
     out["proba"] = out["proba"].astype(np.float32).reshape(-1, len(names))  # the format's dtype
     if "motor_proba" in out:
@@ -48,6 +52,7 @@ def prediction_set(model: torch.nn.Module, ds: Dataset, flights_per_chunk: int =
     out["y_true"] = out["y_true"].astype(np.int64)
     out["traj"] = out["traj"].astype(np.int64)
     out["t_end"] = out["t_end"].astype(np.float64)
+    out["decided"] = out["decided"].astype(bool)
     out["split"] = np.asarray(ds["split"])[out["traj"]].astype(np.int8)
     out["class_names"] = np.array(names)
     return out

@@ -1,0 +1,113 @@
+"""bench.json's ``stream`` section (issue 16 point 4): the streaming runtime's cost per sample.
+
+``stream_section(run, manifest, fwref_infer, cpus, flights, log)`` replays ``flights`` test flights
+of the run's dataset (round-robin over the classes, written as stream files by detect.streamfile)
+through ``fwref_stream`` (the host build beside fwref_infer) for every windowed model (cnode, gru)
+and precision (fp32, int8), pinned like the rest of the bench:
+
+- ``latency`` (bench.stream_latency): per push without a decision and per decided push, p50 / p99
+  / max microseconds, from fwref_stream's own ``--timings``;
+- ``memory`` (bench.stream_memory): sizeof(fwref::Stream) with the model's limits on the host and
+  the Cortex-M cores, and the stream image when one was built.
+
+``{"skipped": reason}`` when the export has no on-board record (exported before it), no
+fwref_stream can be found or built, or ``flights`` is 0. The CPU flags are bench.json's ``machine``.
+"""
+
+from __future__ import annotations
+
+import functools
+import subprocess
+import tempfile
+import time
+from collections.abc import Callable
+from pathlib import Path
+from unittest import mock
+
+import numpy as np
+
+from core.errors import QuadfdiError
+
+
+def pick_flights(dataset, n: int) -> list[int]:
+    """Up to ``n`` test flights: round-robin over the classes (the first of each, then the second...)."""
+    from sim.dataset import class_names, split_names
+
+    test = [i for i, s in enumerate(split_names(dataset.arrays)) if s == "test"]
+    rows = np.flatnonzero(np.isin(dataset["split"], test))
+    per_class = [rows[dataset["fault_class"][rows] == c].tolist() for c in range(len(class_names(dataset.arrays)))]
+    out: list[int] = []
+    for j in range(max((len(p) for p in per_class), default=0)):
+        out += [int(p[j]) for p in per_class if j < len(p)]
+    return out[:n]
+
+
+def find_stream_exe(fwref_infer: str | None) -> tuple[Path | None, str]:
+    """fwref_stream beside fwref_infer (the same host build), built there if missing."""
+    import shutil
+
+    from parity.build import HOST_BUILD
+
+    build = Path(fwref_infer).parent if fwref_infer else HOST_BUILD
+    exe = build / "fwref_stream"
+    if exe.is_file():
+        return exe, f"{exe} (existing build)"
+    cmake = shutil.which("cmake")
+    if cmake is None or not (build / "CMakeCache.txt").is_file():
+        return None, f"no {exe} and no configured build to make it in"
+    res = subprocess.run([cmake, "--build", str(build), "-j2", "--target", "fwref_stream"], capture_output=True,
+                         text=True, timeout=900, check=False)
+    return (exe, f"built {exe}") if res.returncode == 0 and exe.is_file() else (None, f"building {exe} failed")
+
+
+def _record(export: Path) -> dict | None:
+    from detect.streamfile import record_of
+
+    try:
+        return record_of(export)
+    except QuadfdiError:
+        return None
+
+
+def stream_section(run_root: Path, manifest: dict, fwref_infer: str | None, cpus: str, flights: int,
+                   log: Callable[[str], None] = print, cores: tuple[str, ...] = ("cortex-m4", "cortex-m7")) -> dict:
+    """The section (module docstring); ``cores``: the Cortex-M cores whose sizeof is compiled."""
+    from bench.limits import cpu_prefix
+    from bench.stream_latency import latency_records
+    from bench.stream_memory import stream_memory
+    from detect.streamfile import from_dataset, write_stream
+    from sim import dataset as sim_dataset
+
+    t0 = time.perf_counter()
+    export = run_root / "export"
+    if flights <= 0:
+        return {"skipped": "bench.stream_flights = 0"}
+    record = _record(export)
+    if record is None:
+        return {"skipped": f"{export}/weights.bin has no on-board record (re-run `quadfdi export`)"}
+    exe, how = find_stream_exe(fwref_infer)
+    if exe is None:
+        return {"skipped": f"no fwref_stream: {how}"}
+    dataset_path = run_root / "dataset.npz"
+    load = functools.lru_cache(None)(sim_dataset.load_dataset)  # one load for every flight of from_dataset
+    rows = pick_flights(load(dataset_path), flights)
+    with tempfile.TemporaryDirectory(prefix="quadfdi-stream-bench-") as d, \
+            mock.patch.object(sim_dataset, "load_dataset", load):
+        tmp = Path(d)
+        paths = []
+        for f in rows:
+            paths.append(tmp / f"f{f}.bin")
+            write_stream(paths[-1], from_dataset(dataset_path, f, record))
+        try:
+            latency = latency_records(exe, export / "weights.bin", paths, tmp, cpu_prefix(cpus))
+            memory = stream_memory(record, manifest, exe, export / "weights.bin", cores)
+        except subprocess.CalledProcessError as exc:  # a failed replay or compile skips the section, not the bench
+            err = (exc.stderr or "").strip().splitlines()
+            prog = next((Path(str(c)).name for c in exc.cmd if "taskset" not in str(c) and not str(c).startswith("-")
+                         and not str(c)[:1].isdigit()), "?")
+            return {"skipped": f"{prog} failed: {err[-1] if err else exc.returncode}"}
+    seconds = time.perf_counter() - t0
+    log(f"bench stream: {len(rows)} test flights x 4 models through {exe.name} in {seconds:.1f} s")
+    return {"exe": how, "profile": record["profile"], "window": int(record["window"]), "stride": int(record["stride"]),
+            "sample_dt_s": float(record["sample_dt_s"]), "flights": rows, "latency": latency, "memory": memory,
+            "seconds": seconds}
