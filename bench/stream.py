@@ -16,13 +16,11 @@ fwref_stream can be found or built, or ``flights`` is 0. The CPU flags are bench
 
 from __future__ import annotations
 
-import functools
 import subprocess
 import tempfile
 import time
 from collections.abc import Callable
 from pathlib import Path
-from unittest import mock
 
 import numpy as np
 
@@ -89,15 +87,14 @@ def stream_section(run_root: Path, manifest: dict, fwref_infer: str | None, cpus
     if exe is None:
         return {"skipped": f"no fwref_stream: {how}"}
     dataset_path = run_root / "dataset.npz"
-    load = functools.lru_cache(None)(sim_dataset.load_dataset)  # one load for every flight of from_dataset
-    rows = pick_flights(load(dataset_path), flights)
-    with tempfile.TemporaryDirectory(prefix="quadfdi-stream-bench-") as d, \
-            mock.patch.object(sim_dataset, "load_dataset", load):
+    ds = sim_dataset.load_dataset(dataset_path)  # one load for every flight
+    rows = pick_flights(ds, flights)
+    with tempfile.TemporaryDirectory(prefix="quadfdi-stream-bench-") as d:
         tmp = Path(d)
         paths = []
         for f in rows:
             paths.append(tmp / f"f{f}.bin")
-            write_stream(paths[-1], from_dataset(dataset_path, f, record))
+            write_stream(paths[-1], from_dataset(dataset_path, f, record, ds))
         try:
             latency = latency_records(exe, export / "weights.bin", paths, tmp, cpu_prefix(cpus))
             memory = stream_memory(record, manifest, exe, export / "weights.bin", cores)

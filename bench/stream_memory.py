@@ -29,13 +29,23 @@ def limit_macros(record: dict, manifest: dict) -> dict[str, int]:
             "FWREF_MAX_ALARM_N": int(record["alarm"]["n"])}
 
 
+def eigen_include() -> list[str]:
+    """The compiler flags that find Eigen's headers (fwref/stream.hpp includes the streaming GRU's step,
+    which uses Eigen): pkg-config's, else Debian's /usr/include/eigen3 (libeigen3-dev)."""
+    try:
+        out = subprocess.run(["pkg-config", "--cflags", "eigen3"], capture_output=True, text=True, check=True).stdout
+        return out.split()
+    except (OSError, subprocess.CalledProcessError):
+        return ["-I", "/usr/include/eigen3"]
+
+
 def sizeof_stream(compiler: str, nm: str, flags: list[str], macros: dict[str, int], tmp: Path) -> int:
     """sizeof(fwref::Stream) under ``compiler`` and ``flags``: the symbol size of one static object."""
     from parity.build import FW_ROOT
 
     src, obj = tmp / "probe.cpp", tmp / "probe.o"
     src.write_text(PROBE_CPP)
-    cmd = [compiler, "-std=c++17", "-O2", "-I", str(FW_ROOT / "include"), *flags,
+    cmd = [compiler, "-std=c++17", "-O2", "-I", str(FW_ROOT / "include"), *eigen_include(), *flags,
            *(f"-D{k}={v}" for k, v in macros.items()), "-c", str(src), "-o", str(obj)]
     subprocess.run(cmd, check=True, capture_output=True, text=True)
     out = subprocess.run([nm, "-S", "--defined-only", str(obj)], check=True, capture_output=True, text=True).stdout

@@ -93,11 +93,12 @@ def record_of(export: str | Path) -> dict:
     return onboard_dict(wf.onboard)
 
 
-def from_dataset(dataset: str | Path, flight: int, record: dict) -> RawStream:
-    """Flight ``flight`` of a simulated dataset.npz (every simulated flight is airborne throughout)."""
+def from_dataset(dataset: str | Path, flight: int, record: dict, ds=None) -> RawStream:
+    """Flight ``flight`` of a simulated dataset.npz (every simulated flight is airborne throughout);
+    ``ds`` the file already loaded (sim.dataset.load_dataset), for a caller taking several flights."""
     from sim.dataset import load_dataset
 
-    ds = load_dataset(dataset)
+    ds = load_dataset(dataset) if ds is None else ds
     tel = ds["telemetry"]
     if not 0 <= flight < tel.shape[0]:
         raise QuadfdiError(f"{dataset} has flights 0..{tel.shape[0] - 1}, not {flight}")
