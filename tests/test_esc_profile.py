@@ -59,7 +59,7 @@ def _dataset(tmp_path, with_esc: bool) -> Dataset:
             r[k][:] = 0.01
     arrays = {"telemetry": np.stack([np.stack([r[k] for k in RAW], 1) for r in raws]),
               "channel_names": np.array(RAW), "channel_units": np.array(["u"] * len(RAW)),
-              "pack_cells": np.array([3, 6], np.int8)}
+              "pack_cells": np.array([3, 6], np.int8), "time": np.arange(t) * 0.04}
     if with_esc:
         arrays.update(esc_telemetry=np.stack([np.stack([r[k] for k in ESC_RAW], 1) for r in raws]),
                       esc_channel_names=np.array(ESC_RAW), esc_channel_units=np.array(["rpm"] * 4 + ["A"] * 4))
@@ -125,3 +125,19 @@ def test_cpp_mirror_is_bit_identical(tmp_path):
     assert np.isnan(want[:20, 15:19]).all()
     np.testing.assert_array_equal(got.view(np.uint32)[np.isfinite(want)], want.view(np.uint32)[np.isfinite(want)])
     assert (np.isfinite(got) == np.isfinite(want)).all()
+
+
+def test_detect_inputs_read_esc_channels_and_refuse_a_flight_without(tmp_path):
+    """A simulated flight as flight.npz (sim.flight_npz): with ESC telemetry detect's inputs equal the
+    training path's; without it, the one-line refusal naming the channel."""
+    from core.errors import QuadfdiError
+    from detect.inputs import flight_inputs
+    from sim.flight_npz import flight_arrays
+
+    esc = _dataset(tmp_path, True)
+    fi = flight_inputs(flight_arrays(esc.arrays, 1, "d.npz"), "flightlog-esc", 20, 10)
+    pe = profiled_dataset(esc, "flightlog-esc")
+    assert fi.hover.freeze == pe["hover_freeze"][1] and list(fi.decided) == list(fi.starts + 19 >= fi.hover.freeze)
+    np.testing.assert_array_equal(fi.x, pe["telemetry"][1])
+    with pytest.raises(QuadfdiError, match="needs channel 'rpm1', which is absent: not simulated"):
+        flight_inputs(flight_arrays(_dataset(tmp_path, False).arrays, 1, "d.npz"), "flightlog-esc", 20, 10)
