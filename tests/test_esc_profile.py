@@ -40,12 +40,14 @@ def test_flightlog_esc_is_flightlog_min_plus_rpm_shares_and_esc_currents():
     assert set(ESC_RAW) <= set(required_raw("flightlog-esc")) and not {"T1", "SoC", "x"} & set(required_raw("flightlog-esc"))
     raw = _raw(50)
     raw["rpm1"][:], raw["rpm2"][:], raw["rpm3"][:], raw["rpm4"][:] = 6000.0, 5000.0, 5000.0, 4000.0
-    raw["esc_cur3"][:] = 6.0
+    raw["esc_cur1"][:], raw["esc_cur2"][:], raw["esc_cur3"][:], raw["esc_cur4"][:] = 3.0, 3.0, 6.0, 4.0
     x = apply_profile("flightlog-esc", raw, cells=4, hover_cmd=0.5, hover_cur=12.0)
     col = {n: x[:, names.index(n)] for n in names}
     np.testing.assert_array_equal(x[:, :15], apply_profile("flightlog-min", raw, 4, 0.5, 12.0))
     np.testing.assert_allclose([col[f"rpm{k}_rel"][0] for k in range(1, 5)], [1.2, 1.0, 1.0, 0.8], rtol=1e-6)
-    np.testing.assert_allclose(col["esc3_i_rel"], 0.5, rtol=1e-6)  # one ESC's current over the vehicle's hover current
+    np.testing.assert_allclose([col[f"esc{k}_i_rel"][0] for k in range(1, 5)], [0.75, 0.75, 1.5, 1.0], rtol=1e-6)
+    # no battery-monitor scale: the ESC shares do not move with the hover current
+    np.testing.assert_array_equal(x[:, 19:], apply_profile("flightlog-esc", raw, 4, 0.5, 30.0)[:, 19:])
     raw["rpm1"][0] = raw["rpm2"][0] = raw["rpm3"][0] = raw["rpm4"][0] = 0.0  # motors stopped: undefined, not 0
     assert not np.isfinite(apply_profile("flightlog-esc", raw, 4, 0.5, 12.0)[0, 15:19]).any()
 
@@ -106,7 +108,7 @@ int main(int argc, char** argv) {  // in: n x 25 raw float32; cells hover_cmd ho
 
 @pytest.mark.skipif(shutil.which("c++") is None, reason="no C++ compiler")
 def test_cpp_mirror_is_bit_identical(tmp_path):
-    """profile.hpp's prep + hover steps on 4000 random samples (every yaw, zero-rpm rows) give
+    """profile.hpp's prep + hover steps on 4000 random samples (every yaw, zero-rpm and zero-current rows) give
     apply_profile's float32 bits, NaN where Python has NaN."""
     src, exe = tmp_path / "m.cpp", tmp_path / "m"
     src.write_text(MIRROR)
@@ -115,6 +117,7 @@ def test_cpp_mirror_is_bit_identical(tmp_path):
     raw = _raw(4000, seed=7)
     for k in range(1, 5):
         raw[f"rpm{k}"][:20] = 0.0
+        raw[f"esc_cur{k}"][10:30] = 0.0
     raw["airborne"] = np.ones(4000, np.float32)
     cells, cmd, cur = 6, np.float32(0.4637), np.float32(17.31)
     np.stack([raw[k] for k in STREAM], 1).astype("<f4").tofile(tmp_path / "raw.f32")
@@ -122,7 +125,7 @@ def test_cpp_mirror_is_bit_identical(tmp_path):
                     repr(float(cur))], check=True)
     got = np.fromfile(tmp_path / "x.f32", "<f4").reshape(4000, 23)
     want = apply_profile("flightlog-esc", raw, cells, cmd, cur)
-    assert np.isnan(want[:20, 15:19]).all()
+    assert np.isnan(want[:20, 15:19]).all() and np.isnan(want[10:30, 19:]).all()
     np.testing.assert_array_equal(got.view(np.uint32)[np.isfinite(want)], want.view(np.uint32)[np.isfinite(want)])
     assert (np.isfinite(got) == np.isfinite(want)).all()
 

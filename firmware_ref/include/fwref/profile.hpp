@@ -9,7 +9,7 @@
 // and the model's own channels for ``paper`` (the identity). The model channels, as Python:
 //   roll pitch p q r | vx_h = c vx + s vy | vy_h = -s vx + c vy | vz | v_cell = V_b / cells |
 //   i_rel = I_b / hover_cur (min, esc) | m1..4_rel = thr / hover_cmd | vib = vib_px4 |
-//   (esc only) rpmk_rel = rpmk / ((((rpm1 + rpm2) + rpm3) + rpm4) * 0.25f) | esck_i_rel = esc_curk / hover_cur
+//   (esc only) rpmk_rel = rpmk / ((((rpm1 + rpm2) + rpm3) + rpm4) * 0.25f), esck_i_rel likewise over esc_cur1..4
 // with c = float(cos(double(yaw))), s = float(sin(double(yaw))) (libm, correctly rounded; core/profiles.py
 // does the same), every other operation one float32 operation. ``prep`` computes a sample's values
 // that do not depend on the hover estimate (at push); ``hover`` divides the hover columns once the
@@ -95,11 +95,12 @@ inline void profile_prep(Profile p, const float* raw, int raw_n, float cells, fl
   if (s.i_b >= 0) x[j++] = raw[s.i_b];
   for (int k = 0; k < 4; ++k) x[j++] = raw[s.thr + k];
   x[j++] = raw[s.thr + 4];  // vib_px4
-  if (s.rpm >= 0) {
-    const float* rpm = raw + s.rpm;
-    const float collective = (((rpm[0] + rpm[1]) + rpm[2]) + rpm[3]) * 0.25f;
-    for (int k = 0; k < 4; ++k) x[j++] = rpm[k] / collective;
-    for (int k = 0; k < 4; ++k) x[j++] = rpm[4 + k];  // esc_cur: divided by the hover current at the decision
+  if (s.rpm >= 0) {  // rpm1..4, then esc_cur1..4: each over the four's collective of this sample
+    for (int g = 0; g < 2; ++g) {
+      const float* a = raw + s.rpm + 4 * g;
+      const float collective = (((a[0] + a[1]) + a[2]) + a[3]) * 0.25f;
+      for (int k = 0; k < 4; ++k) x[j++] = a[k] / collective;
+    }
   }
 }
 
@@ -110,10 +111,6 @@ inline void profile_hover(Profile p, float hover_cmd, float hover_cur, float* x)
   int j = 9;
   if (s.i_b >= 0) x[j] = x[j] / hover_cur, ++j;
   for (int k = 0; k < 4; ++k, ++j) x[j] = x[j] / hover_cmd;
-  if (s.rpm >= 0) {
-    j += 1 + 4;  // vib, rpm1..4_rel
-    for (int k = 0; k < 4; ++k, ++j) x[j] = x[j] / hover_cur;
-  }
 }
 
 }  // namespace fwref
