@@ -17,7 +17,7 @@ From the 50 Hz record (docs/params.md "ESC telemetry"):
 
 No ESC temperature: the model has no ESC thermal state (the motor winding temperature T1-4 is
 another quantity), and a first-order ESC model would need a MOSFET loss and cooling the suite does
-not draw; the real flight with ESC RPM and current (the UAVCAN mission) logs none usable either.
+not draw (the UAVCAN mission, the 6S vibration flight and the SITL log do report ESC temperatures).
 
 Random numbers come from a NEW stream per flight, ``SeedSequence(seed, spawn_key=(ESC_SPAWN, i))``:
 no earlier draw moves, so every existing array of a dataset stays bit-identical (tests/test_esc_sim.py).
