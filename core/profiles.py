@@ -11,6 +11,11 @@ flights) and ``detect`` (ingested real flights); the profile's name is stored in
   ``accel_vibration_metric`` (ArduPilot's VIBE is another quantity and is refused).
 - ``flightlog-nocur``: ``flightlog-min`` without the current, for vehicles whose current sensor is
   absent or uncalibrated (ingest marks it unusable).
+- ``flightlog-esc``: ``flightlog-min`` plus ESC telemetry: each ESC's rpm and each ESC's current over
+  the four ESCs' collective of the same sample (``(((a1 + a2) + a3) + a4) * 0.25``): a per-motor
+  share, no vehicle scale, no state, and no calibration between the ESCs' current sensing and the
+  battery monitor (on the UAVCAN mission the ESC currents sum to 0.53 of I_b). No ESC temperature
+  (docs/profiles.md says why).
 
 Raw names are the simulator's (sim/telemetry.py); an ingested flight's ``vib_acc`` is mapped to
 ``vib_px4`` only when the log is a PX4 log (``raw_from_flight``, detect/).
@@ -52,8 +57,16 @@ MIN_CHANNELS = (
 )
 # flightlog-min without the current: vehicles whose current sensor is absent or uncalibrated
 NOCUR_CHANNELS = tuple(c for c in MIN_CHANNELS if c.name != "i_rel")
-PROFILES = {"paper": None, "flightlog-min": MIN_CHANNELS, "flightlog-nocur": NOCUR_CHANNELS}
-VIBRATION = {"flightlog-min": "px4", "flightlog-nocur": "px4"}  # which vibration quantity a profile reads
+ESC_CHANNELS = MIN_CHANNELS + (
+    *(ProfileChannel(f"rpm{k}_rel", "-", ("rpm1", "rpm2", "rpm3", "rpm4"),
+                     f"rpm{k} / ((((rpm1 + rpm2) + rpm3) + rpm4) * 0.25)") for k in range(1, 5)),
+    *(ProfileChannel(f"esc{k}_i_rel", "-", ("esc_cur1", "esc_cur2", "esc_cur3", "esc_cur4"),
+                     f"esc_cur{k} / ((((esc_cur1 + esc_cur2) + esc_cur3) + esc_cur4) * 0.25)") for k in range(1, 5)),
+)
+PROFILES = {"paper": None, "flightlog-min": MIN_CHANNELS, "flightlog-nocur": NOCUR_CHANNELS,
+            "flightlog-esc": ESC_CHANNELS}
+VIBRATION = {"flightlog-min": "px4", "flightlog-nocur": "px4", "flightlog-esc": "px4"}  # which vibration quantity
+ESC_RAW = ("rpm1", "rpm2", "rpm3", "rpm4", "esc_cur1", "esc_cur2", "esc_cur3", "esc_cur4")  # sim.esc_telemetry's
 
 
 def check_profile(name: str) -> None:
@@ -113,4 +126,11 @@ def apply_profile(name: str, raw: dict[str, np.ndarray], cells, hover_cmd, hover
         values["i_rel"] = f32["I_b"] / per(hover_cur)
     for k in range(1, 5):
         values[f"m{k}_rel"] = f32[f"thr{k}"] / per(hover_cmd)
+    if "rpm1" in f32:
+        for raw_name, out in (("rpm", "rpm{}_rel"), ("esc_cur", "esc{}_i_rel")):
+            a = [f32[f"{raw_name}{k}"] for k in range(1, 5)]
+            collective = (((a[0] + a[1]) + a[2]) + a[3]) * np.float32(0.25)
+            with np.errstate(divide="ignore", invalid="ignore"):  # motors stopped: NaN / inf, an undecided window
+                for k in range(1, 5):
+                    values[out.format(k)] = a[k - 1] / collective
     return np.stack([values[ch.name] for ch in spec], axis=-1).astype(np.float32)

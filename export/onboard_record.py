@@ -26,7 +26,7 @@ KIND = ("none", "none")  # (model, precision) of the section
 # besides the weights (docs/formats.md "on-board record"). Files written before it lack it (readers
 # of the model sections do not need it; firmware_ref's Stream refuses a file without it). The C++
 # reader is fwref/onboard.hpp (hand-written: tests/test_stream.py checks it prints back these values).
-ONBOARD_PROFILES = ("paper", "flightlog-min", "flightlog-nocur")  # dims[0] is the index here
+ONBOARD_PROFILES = ("paper", "flightlog-min", "flightlog-nocur", "flightlog-esc")  # dims[0]: the index here
 ONBOARD_DIMS = ("profile", "window", "stride", "raw_channels", "channels", "cells_from_stream",
                 "hover_steady_samples", "hover_settle_samples")  # dims[i], u32
 # name, dtype, shape ("text": int32 (n,) ASCII codes, every name NUL-terminated)

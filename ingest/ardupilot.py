@@ -136,13 +136,19 @@ def extra_channels(c: dict, mmap: list[int], lr: LogRead) -> None:
                                          "VIBE: |(VibeX, VibeY, VibeZ)|")
     if "ESC" not in c:
         for k in range(4):
-            lr.status[f"rpm{k + 1}"] = lr.status[f"esc_temp{k + 1}"] = "absent: no ESC messages"
+            for name in ("rpm", "esc_temp", "esc_cur"):
+                lr.status[f"{name}{k + 1}"] = "absent: no ESC messages"
         return
     e = c["ESC"]
     for k, m in enumerate(mmap):
         sel = e["Instance"] == m
         lr.channels[f"rpm{k + 1}"] = Channel(f"rpm{k + 1}", e["t"][sel], e["RPM"][sel].astype(float), f"ESC[{m}].RPM")
         lr.channels[f"esc_temp{k + 1}"] = Channel(f"esc_temp{k + 1}", e["t"][sel], e["Temp"][sel].astype(float), f"ESC[{m}].Temp")
+        if "Curr" in e:  # ESC.Curr (A) since ArduPilot 3.5
+            lr.channels[f"esc_cur{k + 1}"] = Channel(f"esc_cur{k + 1}", e["t"][sel], e["Curr"][sel].astype(float),
+                                                     f"ESC[{m}].Curr")
+        else:
+            lr.status[f"esc_cur{k + 1}"] = "absent: ESC messages without Curr"
 
 
 def flight_state(c: dict, lr: LogRead) -> None:

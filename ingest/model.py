@@ -20,6 +20,7 @@ SIM_CHANNELS: tuple[tuple[str, str], ...] = (
 EXTRA_CHANNELS: tuple[tuple[str, str], ...] = (
     ("vib_acc", "m/s^2"), ("rpm1", "rpm"), ("rpm2", "rpm"), ("rpm3", "rpm"), ("rpm4", "rpm"),
     ("esc_temp1", "degC"), ("esc_temp2", "degC"), ("esc_temp3", "degC"), ("esc_temp4", "degC"),
+    ("esc_cur1", "A"), ("esc_cur2", "A"), ("esc_cur3", "A"), ("esc_cur4", "A"),
 )
 ALL_CHANNELS = SIM_CHANNELS + EXTRA_CHANNELS
 CHANNEL_NAMES = tuple(n for n, _ in ALL_CHANNELS)

@@ -1,4 +1,4 @@
-"""PX4 motor commands and ESC telemetry -> thr1..4, rpm1..4, esc_temp1..4 in the project's motor order.
+"""PX4 motor commands and ESC telemetry -> thr1..4, rpm1..4, esc_temp1..4, esc_cur1..4 in the project's motor order.
 
 actuator_motors (PX4 >= 1.13) is the thrust command in [0, 1]: used as is. Otherwise
 actuator_outputs, which real logs make treacherous: several instances (an unused one always 0
@@ -86,7 +86,8 @@ def esc_channels(tp, mmap: list[int], lr: LogRead) -> None:
     if esc is None or int(np.max(esc["esc_count"])) == 0:
         why = "absent: esc_status " + ("not logged" if esc is None else "logged but empty (esc_count = 0)")
         for k in range(4):
-            lr.status[f"rpm{k + 1}"] = lr.status[f"esc_temp{k + 1}"] = why
+            for name in ("rpm", "esc_temp", "esc_cur"):
+                lr.status[f"{name}{k + 1}"] = why
         return
     n = int(np.max(esc["esc_count"]))
     if n > 4:
@@ -96,6 +97,11 @@ def esc_channels(tp, mmap: list[int], lr: LogRead) -> None:
             continue
         rpm = esc[f"esc[{m}].esc_rpm"].astype(float)
         lr.channels[f"rpm{k + 1}"] = Channel(f"rpm{k + 1}", esc["t"], rpm, f"esc_status.esc[{m}].esc_rpm")
+        cur = esc[f"esc[{m}].esc_current"].astype(float)
+        if np.all(cur == 0):
+            lr.status[f"esc_cur{k + 1}"] = "absent: ESC reports no current (always 0)"
+        else:
+            lr.channels[f"esc_cur{k + 1}"] = Channel(f"esc_cur{k + 1}", esc["t"], cur, f"esc_status.esc[{m}].esc_current")
         temp = esc[f"esc[{m}].esc_temperature"].astype(float)
         if np.all(temp == 0):
             lr.status[f"esc_temp{k + 1}"] = "absent: ESC reports no temperature (always 0)"

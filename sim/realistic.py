@@ -18,7 +18,7 @@ import numpy as np
 
 from core.config import SimConfig
 from core.errors import QuadfdiError
-from sim import mission, propeller, sensors, telemetry
+from sim import esc_telemetry, mission, propeller, sensors, telemetry
 from sim import realistic_dynamics as rd
 from sim import realistic_faults as rf
 from sim import realistic_loop as rl
@@ -76,6 +76,16 @@ def _series(rec: rl.Record, fp: rf.FaultPlan, draws: list[dict], veh, noise: np.
     return out
 
 
+def _esc(rec: rl.Record, fp: rf.FaultPlan, seed: int, idx: np.ndarray, t_rec: np.ndarray,
+         time: np.ndarray) -> np.ndarray:
+    """ESC telemetry (sim.esc_telemetry) on the grid, (B, T, 8): its own noise stream, after everything else."""
+    s = rf.physical_severity(fp, t_rec)
+    cut = propeller.cut_of_severity(s * fp.kind[:, 4])[..., None] * fp.onehot
+    white, gain = esc_telemetry.esc_noise(seed, idx, len(t_rec))
+    series = esc_telemetry.esc_series(rec.x[..., 17:21].astype(np.float64), cut, rec.V.astype(np.float64), white, gain)
+    return telemetry.to_grid(series, time, esc_telemetry.ESC_CHANNEL_NAMES, esc_telemetry.ESC_RATE_OF)
+
+
 def _states(rec: rl.Record, n: int) -> np.ndarray:
     """True STATE_NAMES at the 25 Hz grid (every second 50 Hz record), (B, n, 19)."""
     k = np.arange(n) * 2
@@ -94,12 +104,13 @@ def _chunk(cfg: SimConfig, idx: np.ndarray, cls: np.ndarray, split: np.ndarray, 
     t_rec = np.arange(rec.x.shape[0]) * dt_rec
     noise = telemetry.sensor_noise(cfg.seed, idx, rec.x.shape[0])
     tel = telemetry.to_grid(_series(rec, fp, draws, veh, noise, t_rec, dt_rec), time)
-    if not np.isfinite(tel).all():
+    esc = _esc(rec, fp, cfg.seed, idx, t_rec, time)
+    if not (np.isfinite(tel).all() and np.isfinite(esc).all()):
         raise QuadfdiError("sim: a logged channel does not cover the telemetry grid (resampler mask)")
     sev = rf.label_severity(fp, time).T  # (B, T)
     reached = sev >= cfg.severity_threshold
     out = {
-        "telemetry": tel.astype(np.float32), "states": _states(rec, len(time)).astype(np.float32),
+        "telemetry": tel.astype(np.float32), "esc_telemetry": esc.astype(np.float32), "states": _states(rec, len(time)).astype(np.float32),
         "severity": sev.astype(np.float32), "fault_class": cls.astype(np.int8), "split": split.astype(np.int8),
         "traj_index": idx.astype(np.int64), "test_group": group.astype(np.int8),
         "onset_s": np.where(fp.kind[:, 0] > 0, np.nan, np.maximum(fp.onset, 0.0)),
@@ -150,6 +161,8 @@ def generate(cfg: SimConfig, indices: Sequence[int] | None = None,
     out = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
     out.update({
         "time": time, "channel_names": np.array(telemetry.CHANNEL_NAMES), "channel_units": np.array(telemetry.CHANNEL_UNITS),
+        "esc_channel_names": np.array(esc_telemetry.ESC_CHANNEL_NAMES),
+        "esc_channel_units": np.array(esc_telemetry.ESC_CHANNEL_UNITS),
         "state_names": np.array(sensors.STATE_NAMES), "state_units": np.array(sensors.STATE_UNITS),
         "severity_threshold": np.array(cfg.severity_threshold, dtype=np.float64),
         "class_names": np.array(cfg.classes), "split_names": np.array(SPLIT_NAMES),

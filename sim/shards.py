@@ -30,7 +30,7 @@ KIND = "sim"
 # The realistic suite adds its name tables (sim/realistic.py generate()).
 GLOBAL_KEYS = ("time", "channel_names", "channel_units", "state_names", "state_units", "severity_threshold",
                "class_names", "split_names", "mission_names", "fault_mode_names", "battery_submode_names",
-               "frame_names")
+               "frame_names", "esc_channel_names", "esc_channel_units")
 
 
 def n_rows(sim: SimConfig) -> int:

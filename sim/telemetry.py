@@ -82,14 +82,17 @@ def log_indices(n_rec: int, rate_hz: float) -> np.ndarray:
     return np.floor(k * P.RECORD_HZ / rate_hz + 0.5).astype(np.int64)
 
 
-def to_grid(series: dict[str, np.ndarray], grid: np.ndarray) -> np.ndarray:
-    """Every channel (name -> (n_rec, B) at RECORD_HZ) logged at its rate and resampled onto grid:
-    (B, len(grid), n_channels) float64. Each flight's channel is one ``resample`` call (the ingest
-    API is per channel); NaN where the resampler masks (none when the record covers the grid)."""
+def to_grid(series: dict[str, np.ndarray], grid: np.ndarray, names: tuple[str, ...] = CHANNEL_NAMES,
+            rate_of: dict[str, str] | None = None) -> np.ndarray:
+    """Every channel ``names`` (name -> (n_rec, B) at RECORD_HZ) logged at its rate (``rate_of``, default
+    RATE_OF) and resampled onto grid: (B, len(grid), len(names)) float64. Each flight's channel is one
+    ``resample`` call (the ingest API is per channel); NaN where the resampler masks (none when the
+    record covers the grid)."""
+    rate_of = RATE_OF if rate_of is None else rate_of
     n_rec, B = next(iter(series.values())).shape
-    out = np.empty((B, len(grid), len(CHANNEL_NAMES)))
-    for c, name in enumerate(CHANNEL_NAMES):
-        idx = log_indices(n_rec, P.LOG_HZ[RATE_OF[name]])
+    out = np.empty((B, len(grid), len(names)))
+    for c, name in enumerate(names):
+        idx = log_indices(n_rec, P.LOG_HZ[rate_of[name]])
         t = idx / P.RECORD_HZ
         v = series[name][idx]
         if name == "yaw":

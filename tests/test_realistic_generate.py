@@ -107,3 +107,42 @@ def test_sharded_generation_keeps_every_flight(cfg, ds, tmp_path):
     assert set(got) == set(ds)
     for k in ds:
         np.testing.assert_array_equal(got[k], ds[k], err_msg=k)
+
+
+# the earlier arrays of this module's dataset, hashed with the code before the ESC channels existed
+# (main at 66fa8db; /tmp/esc/hash.py: every key but esc_*, sorted, name + dtype + bytes)
+PRE_ESC_SHA256 = "c2e7df131ed52b56d41575835c4fdb709bef51b062dc7540aa35dbe8a690f420"
+
+
+def test_esc_channels_change_no_earlier_array(ds):
+    """The ESC telemetry (sim.esc_telemetry) draws from its own stream after everything else: every
+    array that existed before it is bit-identical (a paper- or flightlog-min-profile model sees the
+    same inputs); the new channels are the key ``esc_telemetry``."""
+    import hashlib
+
+    h = hashlib.sha256()
+    for k in sorted(ds):
+        if not k.startswith("esc_"):
+            a = np.ascontiguousarray(ds[k])
+            h.update(k.encode()), h.update(str(a.dtype).encode()), h.update(a.tobytes())
+    assert h.hexdigest() == PRE_ESC_SHA256
+    assert list(ds["esc_channel_names"]) == [f"rpm{k}" for k in range(1, 5)] + [f"esc_cur{k}" for k in range(1, 5)]
+    assert ds["esc_telemetry"].shape == ds["telemetry"].shape[:2] + (8,) and np.isfinite(ds["esc_telemetry"]).all()
+
+
+def test_esc_telemetry_physics(ds):
+    """The four ESC currents sum to the bus current less the avionics (gain errors +-5 %); a cut
+    blade's rotor spins fastest (it needs more rpm for its thrust)."""
+    from sim.realistic_params import NOMINAL
+
+    names = list(ds["channel_names"])
+    esc, tel = ds["esc_telemetry"].astype(np.float64), ds["telemetry"].astype(np.float64)
+    want = (tel[..., names.index("I_b")] - NOMINAL.P_av / tel[..., names.index("V_b")]).mean(axis=1)
+    got = esc[..., 4:].sum(axis=2).mean(axis=1)
+    assert np.all(np.abs(got / want - 1.0) < 0.08), np.abs(got / want - 1.0).max()
+    rpm = esc[..., :4]
+    assert 2000 < np.median(rpm) < 12000
+    cut = (ds["fault_class"] == 4) & (ds["prop_cut_frac"] > 0.1) & (ds["severity"][:, -1] >= ds["severity_max"])
+    assert cut.sum() >= 1
+    share = rpm[cut, -25:].mean(axis=1) / rpm[cut, -25:].mean(axis=(1, 2))[:, None]
+    assert np.all(share.argmax(axis=1) == ds["fault_motor"][cut]), (share, ds["fault_motor"][cut])

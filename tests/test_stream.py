@@ -129,7 +129,7 @@ def test_onboard_record_round_trip_and_refusals():
     with pytest.raises(QuadfdiError, match="on-board record holds tensors"):
         check_onboard(bad, "w")
     with pytest.raises(QuadfdiError, match="knows profiles"):
-        onboard_section("flightlog-esc", [], 50, 10, 0.04, policy, ["Healthy"])
+        onboard_section("flightlog-x", [], 50, 10, 0.04, policy, ["Healthy"])
 
 
 def _manifest(export: Path) -> dict:

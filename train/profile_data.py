@@ -38,13 +38,17 @@ def profile_of(blob_or_manifest: dict) -> str:
 def profiled_dataset(ds: Dataset, profile: str) -> Dataset:
     if not uses_hover(profile):
         return ds
-    names = ds.channel_names
+    names, tel = ds.channel_names, ds["telemetry"]
+    if "esc_telemetry" in ds.arrays and not set(required_raw(profile, names)) <= set(names):
+        # the realistic suite's ESC channels (sim.esc_telemetry) are a key of their own, so that every
+        # earlier array (and a paper-profile model's inputs) stays as it was
+        names = names + [str(n) for n in ds["esc_channel_names"]]
+        tel = np.concatenate([tel, ds["esc_telemetry"]], axis=2)
     missing = [r for r in required_raw(profile, names) if r not in names]
     if missing:
         raise QuadfdiError(f"profile {profile!r} needs raw channels {', '.join(missing)}, absent from {ds.path}")
     if "pack_cells" not in ds.arrays:
         raise QuadfdiError(f"profile {profile!r} needs each flight's cell count (pack_cells), absent from {ds.path}")
-    tel = ds["telemetry"]
     cmd, cur, freeze = estimate_many(tel[:, :, [names.index(c) for c in HOVER_INPUTS]])  # the dataset has I_b
     never = freeze < 0  # no decided window at all; their (evaluation-only) inputs use the whole-flight mean
     if never.any():
