@@ -1,11 +1,12 @@
 """``quadfdi detect --model RUN/export [--net cnode|gru] [--precision fp32|int8] [--runtime ort|cpp]
 (FLIGHT | --dataset DATASET.npz --flight N) --out DIR``: an exported model on a real flight (a .ulg /
-.BIN log, ingested on the fly, or an ingested flight.npz) or a simulated one (detect/simflight.py).
+.BIN log, ingested on the fly, or an ingested flight.npz) or a simulated one (sim/flight_npz.py).
 A flight it cannot use is refused: one line, exit 2, nothing written."""
 
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -27,11 +28,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from core.errors import QuadfdiError
     from detect.run import detect, write_detect
-    from detect.simflight import dataset_flight
+    from sim.dataset import load_dataset
+    from sim.flight_npz import flight_arrays
 
     if (args.dataset is None) == (args.flight is None) or (args.dataset is not None and args.index is None):
         raise QuadfdiError("detect needs either FLIGHT or --dataset DATASET.npz --flight N")
-    flight = dataset_flight(args.dataset, args.index) if args.dataset else args.flight
+    flight = (flight_arrays(load_dataset(args.dataset).arrays, args.index, Path(args.dataset).name) if args.dataset
+              else args.flight)
     result = detect(args.model, flight, args.net, args.precision, args.runtime)  # refusals raise here
     write_detect(args.out, result)
     return 0

@@ -79,7 +79,7 @@ def detect(model: str | Path, flight: str | Path | dict, net: str = "cnode", pre
            runtime: str = "ort") -> dict:
     """Everything ``quadfdi detect`` writes, computed (nothing written): a dict with ``record``
     (alarms.json), ``arrays`` (windows.npz) and ``inputs`` (FlightInputs, for the figure).
-    ``flight``: a log or flight.npz path, or flight.npz's arrays (detect.simflight)."""
+    ``flight``: a log or flight.npz path, or flight.npz's arrays (sim.flight_npz.flight_arrays)."""
     folder = Path(model)
     manifest = load_export(folder)
     profile = str((manifest.get("profile") or {}).get("name", "paper"))

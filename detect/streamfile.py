@@ -103,11 +103,14 @@ def from_dataset(dataset: str | Path, flight: int, record: dict, ds=None) -> Raw
     if not 0 <= flight < tel.shape[0]:
         raise QuadfdiError(f"{dataset} has flights 0..{tel.shape[0] - 1}, not {flight}")
     names, cols = ds.channel_names, []
+    esc = [str(n) for n in ds["esc_channel_names"]] if "esc_telemetry" in ds.arrays else []  # realistic suite
     for r in record["raw_channels"]:
         if r == "airborne" and record["cells_from_stream"]:
             cols.append(np.ones(tel.shape[1], np.float32))
         elif r in names:
             cols.append(tel[flight, :, names.index(r)])
+        elif r in esc:
+            cols.append(np.asarray(ds["esc_telemetry"][flight, :, esc.index(r)], np.float32))
         else:
             raise QuadfdiError(f"{dataset} has no channel {r!r}, which the model's stream needs")
     cells = 0

@@ -35,7 +35,8 @@ from export.onboard_record import onboard_dict
 from export.weights_bin import read_weights
 from export.onboard_record import ONBOARD_PROFILES
 
-PROFILE_ENUM = {"paper": "kPaper", "flightlog-min": "kFlightlogMin", "flightlog-nocur": "kFlightlogNocur"}
+PROFILE_ENUM = {"paper": "kPaper", "flightlog-min": "kFlightlogMin", "flightlog-nocur": "kFlightlogNocur",
+                "flightlog-esc": "kFlightlogEsc"}
 
 
 def _floats(a: np.ndarray) -> str:
