@@ -213,6 +213,7 @@ def _bench_dict(run: RunDir, manifest: dict, m: dict, machine: dict, fwref: tupl
                 command: str, quick: bool) -> dict:
     """bench.json's content (docs/bench.md) from the measurements ``m`` of ``_measure``."""
     from bench.floors import below_floor, targets, violation_text
+    from bench.int8_targets import int8_targets
     from bench.memory import mcu_records
 
     solvers, solver_meta = solver_records(run.root)
@@ -229,7 +230,7 @@ def _bench_dict(run: RunDir, manifest: dict, m: dict, machine: dict, fwref: tupl
         "models": {k: {**v, "export_steps": steps} for k, v in manifest["models"].items()},
         "latency": lat["latency"],
         "floors": m["floors"],
-        "targets": targets(lat["latency"], m["floors"]),
+        "targets": targets(lat["latency"], m["floors"]) + int8_targets(lat["latency"], m["floors"]),
         "floor_violations": violation_text(below_floor(lat["latency"])),
         "graphs": graph_nodes(run, manifest),
         "memory": m["memory"],

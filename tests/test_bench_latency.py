@@ -280,3 +280,26 @@ def test_speedup_rows_pair_int8_with_fp32():
     rows = speedup_rows([rec("fp32", 1, 100.0), rec("int8", 1, 200.0), rec("fp32", 96, 900.0), rec("int8", 96, 300.0),
                          rec("int8", 1, 50.0, "cpp")])
     assert [r[3] for r in rows] == ["1", "96"] and rows[0][-1].startswith("0.50x") and rows[1][-1] == "3.00x"
+
+
+def test_int8_targets_compare_within_one_run():
+    """Issue 15's ratios: C++ int8 vs fp32 (the GRU needs 1.5x), int8 within 3x of its floor, ORT at one
+    thread without spinning (a faster 2-thread record must not be picked)."""
+    from bench.int8_targets import int8_targets
+
+    fl = [{"model": m, "precision": p, "floor_us": 10.0, "bound": "compute"} for m in ("cnode", "gru")
+          for p in ("fp32", "int8")]
+    rec = lambda rt, m, p, b, p50, t=1, spin=None: {"runtime": rt, "model": m, "precision": p, "batch": b,
+                                                    "threads": t, "spinning": spin, "p50_us": p50}
+    recs = [rec("cpp", "cnode", "fp32", 1, 40.0), rec("cpp", "cnode", "int8", 1, 35.0),
+            rec("cpp", "gru", "fp32", 1, 100.0), rec("cpp", "gru", "int8", 1, 80.0),
+            rec("ort", "gru", "fp32", 96, 1000.0, 1, False), rec("ort", "gru", "int8", 96, 900.0, 1, False),
+            rec("ort", "gru", "int8", 96, 100.0, 2, True),
+            rec("ort", "gru", "fp32", 1, 100.0, 1, False), rec("ort", "gru", "int8", 1, 250.0, 1, False)]
+    ts = {(t["target"].split(" ")[0] + t["target"].split(" ")[-1], t["model"]): t for t in int8_targets(recs, fl)}
+    assert ts[("C++1", "cnode")]["met"] and ts[("C++1", "cnode")]["measured"] == pytest.approx(40 / 35)
+    assert not ts[("C++1", "gru")]["met"]  # 1.25x < 1.5x
+    assert not ts[("C++floor", "cnode")]["met"] and ts[("C++floor", "gru")]["measured"] == pytest.approx(8.0)
+    assert ts[("ORT96", "gru")]["measured"] == pytest.approx(1000 / 900) and ts[("ORT96", "gru")]["met"]
+    assert ts[("ORT1", "gru")]["measured"] == pytest.approx(2.5) and not ts[("ORT1", "gru")]["met"]
+    assert ("ORT96", "cnode") not in ts  # not measured: no row

@@ -1,0 +1,67 @@
+"""Issue 15's int8 targets ("int8 that pays"), read from one bench's latency records so that every
+ratio compares runtimes measured in the same run (bench.json ``targets``, next to issue 6's from
+bench.floors.targets):
+
+- C++ int8 no slower than C++ fp32 at batch 1, both models; the GRU's int8 at least 1.5x faster;
+- C++ int8 within 3x of its floor at batch 1 (fp32's 2x is issue 6's row), no runtime below its floor;
+- ONNX Runtime at one thread without spinning (the like-for-like single-core setting): at batch 96
+  int8 faster than fp32, at batch 1 int8 within 2x of fp32, both models.
+
+Each row is {target, model, precision, measured, threshold, met, detail} like bench.floors.targets';
+``measured`` is the ratio the threshold applies to (a speed-up, or a slowdown where the target bounds
+one). A pair of records the bench did not measure gives no row.
+"""
+
+from __future__ import annotations
+
+from bench.floors import below_floor, floor_for
+
+INT8_FLOOR_X = 3.0  # issue 15: int8 within 3x of its floor (fp32: 2x, issue 6's row)
+GRU_INT8_SPEEDUP = 1.5  # issue 15: the C++ GRU int8 at least 1.5x faster than its fp32
+ORT_BATCH1_SLOWDOWN = 2.0  # issue 15: ORT int8 at batch 1 within 2x of fp32
+
+
+def _p50(records: list[dict], runtime: str, model: str, precision: str, batch: int) -> float | None:
+    for r in records:
+        if (r.get("runtime"), r.get("model"), r.get("precision"), r.get("batch")) != (runtime, model, precision, batch):
+            continue
+        if runtime == "ort" and (r.get("threads") != 1 or r.get("spinning") is not False):
+            continue  # like-for-like: one thread, no spinning
+        if r.get("p50_us"):
+            return float(r["p50_us"])
+    return None
+
+
+def _row(target: str, model: str, precision: str, measured: float, threshold: float, met: bool, detail: str) -> dict:
+    return {"target": target, "model": model, "precision": precision, "measured": measured, "threshold": threshold,
+            "met": bool(met), "detail": detail}
+
+
+def int8_targets(records: list[dict], floor_list: list[dict]) -> list[dict]:
+    out = []
+    broken = below_floor(records)
+    for model in ("cnode", "gru"):
+        f32, i8 = _p50(records, "cpp", model, "fp32", 1), _p50(records, "cpp", model, "int8", 1)
+        if f32 and i8:
+            need = GRU_INT8_SPEEDUP if model == "gru" else 1.0
+            out.append(_row(f"C++ int8 >= {need:g}x as fast as fp32 at batch 1", model, "int8", f32 / i8, need,
+                            f32 / i8 >= need, f"C++ p50 fp32 {f32:.1f} us, int8 {i8:.1f} us"))
+        f = floor_for(floor_list, model, "int8")
+        if i8 and f is not None:
+            bad = [r for r in broken if r["model"] == model and r["precision"] == "int8"]
+            x = i8 / f["floor_us"]
+            out.append(_row(f"C++ int8 batch-1 p50 within {INT8_FLOOR_X:g}x of the floor", model, "int8", x,
+                            INT8_FLOOR_X, x <= INT8_FLOOR_X and not bad,
+                            f"p50 {i8:.1f} us, floor {f['floor_us']:.2f} us ({f['bound']})"
+                            + ("; FLOOR INVALID: a runtime beat it" if bad else "")))
+        for batch in (96, 1):
+            o32, o8 = _p50(records, "ort", model, "fp32", batch), _p50(records, "ort", model, "int8", batch)
+            if not (o32 and o8):
+                continue
+            detail = f"ORT 1 thread, spinning off, batch {batch}: p50 fp32 {o32:.1f} us, int8 {o8:.1f} us"
+            if batch == 96:
+                out.append(_row("ORT int8 faster than fp32 at batch 96", model, "int8", o32 / o8, 1.0, o8 < o32, detail))
+            else:
+                out.append(_row(f"ORT int8 within {ORT_BATCH1_SLOWDOWN:g}x of fp32 at batch 1", model, "int8", o8 / o32,
+                                ORT_BATCH1_SLOWDOWN, o8 / o32 <= ORT_BATCH1_SLOWDOWN, detail))
+    return out
