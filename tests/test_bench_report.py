@@ -48,7 +48,11 @@ def exported_run(small_run, tmp_path_factory) -> Path:
 
 @pytest.fixture(scope="module")
 def benched(exported_run) -> Path:
-    args = ["--run", str(exported_run), "--quick"] + ([] if FWREF.is_file() else ["--skip-cpp"])
+    # timings on a test machine are not under test (test_pipeline does the same): with the other test
+    # worker on the second core the peak probe reads low, the floors come out too high, and a floor
+    # violation (reported in bench.json either way) must not fail the stage here
+    args = ["--run", str(exported_run), "--quick", "--set", "bench.fail_below_floor=false"] + \
+        ([] if FWREF.is_file() else ["--skip-cpp"])
     res = quadfdi_bench(*args)
     assert res.returncode == 0, res.stderr[-3000:]
     assert "bench: wrote" in res.stdout
