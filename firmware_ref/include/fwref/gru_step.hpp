@@ -27,7 +27,9 @@ struct GruStepState {
   VecN<kMaxChannels> xn;
   std::int8_t xq[kMaxChannels];  // int8 only: the quantized sample and state
   std::int8_t hq[kMaxGruHidden];
+  std::int32_t acc_x[kMaxGruGates], acc_h[kMaxGruGates];  // int8 only: W_ih xq and W_hh hq, int32
   long steps = 0;  // samples stepped since the last reset
+  long hq_at = -1;  // int8 only: hq = quantize(h, s_h) as of this step count (the head's, reused by the next step)
 #if defined(FWREF_GRU_WHH_INT16)
   // int8 only, option FWREF_GRU_WHH_INT16 (on in firmware_ref/mcu and in the host build): W_hh and
   // W_ih sign-extended to int16 and packed for the platform's int16 kernel, as the windowed GRU's
