@@ -27,11 +27,27 @@ struct GruStepState {
   VecN<kMaxChannels> xn;
   std::int8_t xq[kMaxChannels];  // int8 only: the quantized sample and state
   std::int8_t hq[kMaxGruHidden];
+  std::int32_t acc_x[kMaxGruGates], acc_h[kMaxGruGates];  // int8 only: W_ih xq and W_hh hq, int32
   long steps = 0;  // samples stepped since the last reset
+  long hq_at = -1;  // int8 only: hq = quantize(h, s_h) as of this step count (the head's, reused by the next step)
+#if defined(FWREF_GRU_WHH_INT16)
+  // int8 only, option FWREF_GRU_WHH_INT16 (on in firmware_ref/mcu and in the host build): W_hh and
+  // W_ih sign-extended to int16 and packed for the platform's int16 kernel, as the windowed GRU's
+  // GruWorkspace holds them (fwref/gru.hpp: LDM + SMLAD on the Cortex-M, vpmaddwd on x86-64), the
+  // same int32 accumulators as the int8 kernel. Made by reset(GruI8) (and by step() if the model
+  // changed), not per sample: 2 * 3H * (pad8(H) + pad8(C)) bytes, sized by the limits (no heap).
+  // w16_of records which weights they hold BY ADDRESS: a caller that frees a model's weights and
+  // loads others at the same address must call reset() (it expands again) or set w16_of = nullptr.
+  alignas(8) std::int16_t whh16[kMaxGruGates * ((kMaxGruHidden + 7) & ~7)];  // LDRD needs word alignment
+  alignas(8) std::int16_t wih16[kMaxGruGates * ((kMaxChannels + 7) & ~7)];
+  const std::int8_t* w16_of = nullptr;
+#endif
 };
 
 // h = 0 (take-off, or a reset between flights / after a gap in the timestamps).
 void reset(const GruF32& m, GruStepState& s);
+// fp32 step: the products by matvec_fast (fwref/kernels_f32.hpp: the Cortex-M VFP kernel, bit-identical
+// per row to the plain loop; Eigen's matvec on the host), as the windowed fp32 GRU's.
 
 // One new raw sample (C floats): advances h and writes the class logits (K). A sample holding NaN or
 // Inf returns kNonFiniteInput and leaves the state as it was (the sample is skipped, the caller says so).
@@ -39,6 +55,8 @@ Status step(const GruF32& m, const float* sample, GruStepState& s, float* logits
 
 // int8 (export/onnx_sgru_int8.py, sgru_step.int8.onnx): the windowed int8 GRU's step (src/gru.cpp) with
 // the state carried: x_norm quantized per channel (folded into W_ih), h and the head input with s_h.
+// reset() also expands the int16 weight copies (FWREF_GRU_WHH_INT16, above) when they are not this
+// model's: the step then uses the windowed GRU's int16 kernels (the same accumulators, bit for bit).
 void reset(const GruI8& m, GruStepState& s);
 Status step(const GruI8& m, const float* sample, GruStepState& s, float* logits);
 
