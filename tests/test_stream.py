@@ -268,6 +268,19 @@ def test_stream_reports_the_alarm_motor_for_rotor_side_classes_only(flightlog_ex
           f"{int((want >= 0).sum())} with a reported motor")
 
 
+def test_cpp_reader_refuses_rotor_flags_it_cannot_use(flightlog_export, streams, host_build, tmp_path):  # noqa: F811
+    """alarm.rotor_side on the C++ side: "all" when absent; a flag not 0/1 or a class count that is not the
+    model's is refused in one line (exit 2)."""
+    k = len(_manifest(flightlog_export)["class_names"])
+    old = _fwref_stream(host_build, _with_rotor_side(flightlog_export, tmp_path / "old", None), "--info")
+    assert old.returncode == 0 and "rotor_side=all" in old.stdout.splitlines(), old.stderr
+    bad = _fwref_stream(host_build, _with_rotor_side(flightlog_export, tmp_path / "bad", [0, 2] + [1] * (k - 2)), "--info")
+    assert bad.returncode == 2 and "holds 2 (0/1 expected)" in bad.stderr and bad.stderr.count("\n") == 1, bad.stderr
+    short = _fwref_stream(host_build, _with_rotor_side(flightlog_export, tmp_path / "short", [0, 1]), "--model", "cnode",
+                          "--in", str(streams["sim"]))
+    assert short.returncode == 2 and "has 2 classes, the cnode section" in short.stderr and not short.stdout, short.stderr
+
+
 def test_stream_alarm_mirror_applies_rule_5():
     """detect/streamref.py stream_alarm (the stream's rules in Python): a BatteryFault alarm reports no
     motor, a MotorFault alarm its rule-4 motor; without the record's flags every class reports one."""
