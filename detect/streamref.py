@@ -96,9 +96,11 @@ def stream_alarm(record: dict, decided: np.ndarray, logits: np.ndarray, motor_lo
     """What the stream decides from the decided strides' class logits (n_decided, K) and, for a net with
     its motor head, motor logits (n_decided, 4): the probabilities (n, K) (an undecided stride all
     Healthy: it never votes) and core.alarm's trace under the record's policy, whose ``motor`` is the
-    alarm's motor from the head's softmax (fwref/stream.hpp: Decision::alarm.motor), and the
-    stride's motor (n,) (the head's argmax, -1 where undecided or without a head: Decision::motor)."""
-    from core.alarm import run_alarm
+    alarm's REPORTED motor (core.alarm rule 5, reported_motor: the summed head softmax's argmax where
+    the alarm's class is rotor-side by the record's ``rotor_side``, -1 otherwise; a record without the
+    flags: every class rotor-side) as fwref/stream.hpp's Decision::alarm.motor, and the stride's motor
+    (n,) (the head's argmax, -1 where undecided or without a head: Decision::motor)."""
+    from core.alarm import reported_motor, run_alarm
 
     def softmax(z):
         z = np.asarray(z, np.float64)
@@ -117,6 +119,8 @@ def stream_alarm(record: dict, decided: np.ndarray, logits: np.ndarray, motor_lo
     a = record["alarm"]
     trace = run_alarm(proba[None], a["threshold"], a["k"], a["n"], a["clear_m"], a["latch"], healthy=record["healthy"],
                       valid=np.asarray(decided)[None], motor_proba=None if motor_p is None else motor_p[None])
+    rotor = record.get("rotor_side")
+    trace.motor = reported_motor(trace.cls, trace.motor, np.ones(proba.shape[1], bool) if rotor is None else rotor)
     return proba, trace, wmotor
 
 

@@ -6,7 +6,9 @@ sections' is export/weights_layout.py); the C++ reader: firmware_ref/include/fwr
 docs/formats.md.
 
 Written by ``quadfdi export`` from the manifest's ``profile`` and ``alarm``; weights.bin files written
-before it lack it (``read_onboard`` then returns None).
+before it lack it (``read_onboard`` then returns None). The last tensor, ``alarm.rotor_side`` (core.alarm
+rule 5: which alarm classes report a motor), is optional: a record written before it is read as every
+class rotor-side (``onboard_dict``'s ``rotor_side`` None; the C++ the same), i.e. core.alarm's rule 4 alone.
 """
 
 from __future__ import annotations
@@ -16,6 +18,7 @@ import struct
 import numpy as np
 
 from core import hover
+from core.alarm import rotor_columns
 from core.errors import QuadfdiError
 from core.profiles import required_raw, uses_hover
 from export.binfmt import Section
@@ -35,7 +38,9 @@ ONBOARD_TENSORS = (("raw.names", np.int32, "text"),  # the stream's channels, in
                    ("sample_dt_s", np.float32, (1,)),
                    ("hover.limits", np.float32, (3,)),  # vz_max m/s, tilt_max rad, cmd_min
                    ("alarm.threshold", np.int32, (2,)),  # the float64 threshold's bits, low word first
-                   ("alarm.policy", np.int32, (5,)))  # k, n, clear_m, latch (0/1), Healthy's class index
+                   ("alarm.policy", np.int32, (5,)),  # k, n, clear_m, latch (0/1), Healthy's class index
+                   ("alarm.rotor_side", np.int32, "classes"))  # (K,) 0/1: the class reports a motor (rule 5)
+ONBOARD_OPTIONAL = ("alarm.rotor_side",)  # may be absent (a record written before it): every class rotor-side
 STREAM_AIRBORNE = "airborne"  # the raw channel (0/1) that profiles with a hover estimate add last
 
 
@@ -74,7 +79,8 @@ def onboard_section(profile: str, model_channels: list[str], window: int, stride
     values = {"raw.names": _text(raw), "model.names": _text(list(model_channels)), "sample_dt_s": [sample_dt_s],
               "hover.limits": [hover.VZ_MAX, hover.TILT_MAX, hover.CMD_MIN], "alarm.threshold": [lo, hi],
               "alarm.policy": [int(policy["k"]), int(policy["n"]), int(policy["clear_m"]), int(bool(policy["latch"])),
-                               healthy]}
+                               healthy],
+              "alarm.rotor_side": rotor_columns(class_names).astype(np.int32)}
     s = Section(*KIND, tuple(int(dims[d]) for d in ONBOARD_DIMS))
     for name, dtype, _ in ONBOARD_TENSORS:
         s.add(name, values[name], dtype)
@@ -84,21 +90,32 @@ def onboard_section(profile: str, model_channels: list[str], window: int, stride
 def check_onboard(s: Section, where: str) -> None:
     """One-line QuadfdiError unless ``s`` holds the record's tensors, in order, with their dtypes and shapes."""
     names = [t[0] for t in ONBOARD_TENSORS]
-    if list(s.tensors) != names:
-        raise QuadfdiError(f"{where}: the on-board record holds tensors {list(s.tensors)}, the layout is {names}")
+    required = [n for n in names if n not in ONBOARD_OPTIONAL]
+    if list(s.tensors) not in (names, required):
+        raise QuadfdiError(f"{where}: the on-board record holds tensors {list(s.tensors)}, the layout is {names} "
+                           f"(the last {len(ONBOARD_OPTIONAL)} optional)")
     for name, dtype, shape in ONBOARD_TENSORS:
+        if name not in s.tensors:
+            continue
         a = s.tensors[name].array
-        if a.dtype != dtype or (shape == "text" and a.ndim != 1) or (shape != "text" and a.shape != shape):
+        vector = shape in ("text", "classes")
+        if a.dtype != dtype or (vector and a.ndim != 1) or (not vector and a.shape != shape):
             raise QuadfdiError(f"{where}: on-board tensor '{name}' is {a.dtype} {a.shape}, expected {np.dtype(dtype)} "
                                f"{shape}")
     d = dict(zip(ONBOARD_DIMS, s.dims))
     if d["profile"] >= len(ONBOARD_PROFILES) or len(_names(s["raw.names"])) != d["raw_channels"] or \
             len(_names(s["model.names"])) != d["channels"]:
         raise QuadfdiError(f"{where}: the on-board record's dims {s.dims} disagree with its tensors")
+    rotor = s.tensors.get("alarm.rotor_side")
+    if rotor is not None and (not np.isin(rotor.array, (0, 1)).all() or len(rotor.array) < 2 or
+                              not -1 <= int(s["alarm.policy"][4]) < len(rotor.array) or len(rotor.array) > 32):
+        raise QuadfdiError(f"{where}: the on-board record's alarm.rotor_side {rotor.array.tolist()} is not 2..32 "
+                           f"0/1 flags covering the Healthy class")
 
 
 def onboard_dict(s: Section) -> dict:
-    """The record as plain values (what tests compare with the C++ reader's print-out)."""
+    """The record as plain values (what tests compare with the C++ reader's print-out); ``rotor_side``
+    (K,) bool per class, or None for a record written before it (every class rotor-side)."""
     d = dict(zip(ONBOARD_DIMS, (int(v) for v in s.dims)))
     k, n, m, latch, healthy = (int(v) for v in s["alarm.policy"])
     (thr,) = struct.unpack("<d", struct.pack("<ii", *(int(v) for v in s["alarm.threshold"])))
@@ -107,4 +124,5 @@ def onboard_dict(s: Section) -> dict:
             "cells_from_stream": bool(d["cells_from_stream"]), "sample_dt_s": float(s["sample_dt_s"][0]),
             "hover": {"steady_samples": d["hover_steady_samples"], "settle_samples": d["hover_settle_samples"],
                       "limits": [float(v) for v in s["hover.limits"]]},
-            "alarm": {"threshold": thr, "k": k, "n": n, "clear_m": m, "latch": bool(latch)}, "healthy": healthy}
+            "alarm": {"threshold": thr, "k": k, "n": n, "clear_m": m, "latch": bool(latch)}, "healthy": healthy,
+            "rotor_side": [bool(v) for v in s["alarm.rotor_side"]] if "alarm.rotor_side" in s.tensors else None}

@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from core.alarm import run_alarm
+from core.alarm import reported_motor, rotor_columns, run_alarm
 from core.contracts import FP32_CPP_REL_TOL, SPLIT_TEST
 from tests.conftest import copy_run, quadfdi
 from tests.test_firmware_fixtures import asan_build, host_build  # noqa: F401 (fixtures)
@@ -107,6 +107,9 @@ def test_onboard_record_as_the_cpp_reads_it(flightlog_export, host_build):  # no
     assert float(got["threshold"]) == pol["threshold"] == rec["alarm"]["threshold"]
     assert [int(got[k]) for k in ("k", "n", "clear_m", "latch")] == [pol["k"], pol["n"], pol["clear_m"], pol["latch"]]
     assert int(got["hover_steady_samples"]) == 50 and int(got["healthy"]) == rec["healthy"] == 0
+    rotor = rotor_columns(_manifest(flightlog_export)["class_names"])  # core.alarm rule 5's classes
+    assert rotor.any() and not rotor.all()
+    assert got["rotor_side"] == ",".join(str(int(v)) for v in rotor) and rec["rotor_side"] == rotor.tolist()
 
 
 def test_onboard_record_round_trip_and_refusals():
@@ -124,6 +127,15 @@ def test_onboard_record_round_trip_and_refusals():
     d = onboard_dict(back)
     assert d["alarm"] == policy and d["healthy"] == 1 and d["window"] == 50 and d["stride"] == 10
     assert d["raw_channels"] == required_raw("flightlog-nocur") + ["airborne"] and "I_b" not in d["raw_channels"]
+    assert d["rotor_side"] == [False, False, True]
+    old = Section(sec.model, sec.precision, sec.dims, dict(sec.tensors))
+    old.tensors.pop("alarm.rotor_side")  # a record written before the flags: readable, every class rotor-side
+    check_onboard(old, "w")
+    assert onboard_dict(old)["rotor_side"] is None
+    two = Section(sec.model, sec.precision, sec.dims, dict(sec.tensors))
+    two.add("alarm.rotor_side", [0, 2, 1], np.int32)
+    with pytest.raises(QuadfdiError, match="rotor_side"):
+        check_onboard(two, "w")
     bad = Section(sec.model, sec.precision, sec.dims, dict(sec.tensors))
     bad.tensors.pop("alarm.policy")
     with pytest.raises(QuadfdiError, match="on-board record holds tensors"):
@@ -207,6 +219,90 @@ def test_paper_profile_stream_gives_the_window_path(fault_exported, host_build, 
         print(_check_replay(export, {"sim": tmp_path / "paper.bin"}, host_build, tmp_path, net, precision))
 
 
+def _with_rotor_side(export: Path, dst: Path, flags) -> Path:
+    """A folder holding export's weights.bin with its on-board record's alarm.rotor_side set to ``flags``
+    (None: the tensor removed, as in a file written before it)."""
+    from export.binfmt import Section, pack, read_file
+    from export.weights_layout import MAGIC, VERSION
+
+    _, sections = read_file(export / "weights.bin", MAGIC, VERSION, "weights file")
+    rec = sections[-1]
+    new = Section(rec.model, rec.precision, rec.dims, {k: t for k, t in rec.tensors.items() if k != "alarm.rotor_side"})
+    if flags is not None:
+        new.add("alarm.rotor_side", flags, np.int32)
+    dst.mkdir()
+    (dst / "weights.bin").write_bytes(pack(MAGIC, VERSION, sections[:-1] + [new]))
+    return dst
+
+
+def test_stream_reports_the_alarm_motor_for_rotor_side_classes_only(flightlog_export, streams, host_build,  # noqa: F811
+                                                                     tmp_path):
+    """core.alarm rule 5 on board: the same replay under the export's alarm.rotor_side, without the
+    tensor (an older file: every class reports, rule 4 alone) and with no class rotor-side. Everything
+    but the alarm motor is identical; the export's motor is core.alarm.reported_motor of the rule-4
+    motor; no rotor-side class -> no motor although rule 4 has one at every active stride."""
+    from detect.run import has_motor
+    from detect.streamref import read_lines
+
+    manifest = _manifest(flightlog_export)
+    names = manifest["class_names"]
+    net = next(m for m in ("cnode", "gru") if has_motor(manifest, m))
+    runs: dict[str, dict] = {}
+    for name, flags in (("export", "as is"), ("old", None), ("none", [0] * len(names))):
+        folder = flightlog_export if name == "export" else _with_rotor_side(flightlog_export, tmp_path / name, flags)
+        parts = []
+        for path in streams.values():  # one run per flight (their cell counts differ)
+            res = _fwref_stream(host_build, folder, "--model", net, "--int8", "--in", str(path))
+            assert res.returncode == 0, res.stderr
+            parts.append(read_lines(res.stdout, len(names)))
+        runs[name] = {key: np.concatenate([p[key] for p in parts]) for key in parts[0]}
+    rule4, active = runs["old"]["motor"], runs["old"]["active"]
+    assert active.any() and (rule4[active] >= 0).all() and (rule4[~active] == -1).all()
+    assert (runs["none"]["motor"] == -1).all()
+    for key in ("status", "vote", "active", "raised", "cleared", "cls", "wmotor"):
+        for name in ("export", "none"):
+            np.testing.assert_array_equal(runs[name][key], runs["old"][key], err_msg=f"{name} {key}")
+    want = reported_motor(runs["old"]["cls"], rule4, rotor_columns(names))
+    np.testing.assert_array_equal(runs["export"]["motor"], want)
+    print(f"{int(active.sum())} active strides, classes {sorted({names[c] for c in runs['old']['cls'][active]})}, "
+          f"{int((want >= 0).sum())} with a reported motor")
+
+
+def test_cpp_reader_refuses_rotor_flags_it_cannot_use(flightlog_export, streams, host_build, tmp_path):  # noqa: F811
+    """alarm.rotor_side on the C++ side: "all" when absent; a flag not 0/1 or a class count that is not the
+    model's is refused in one line (exit 2)."""
+    k = len(_manifest(flightlog_export)["class_names"])
+    old = _fwref_stream(host_build, _with_rotor_side(flightlog_export, tmp_path / "old", None), "--info")
+    assert old.returncode == 0 and "rotor_side=all" in old.stdout.splitlines(), old.stderr
+    bad = _fwref_stream(host_build, _with_rotor_side(flightlog_export, tmp_path / "bad", [0, 2] + [1] * (k - 2)), "--info")
+    assert bad.returncode == 2 and "holds 2 (0/1 expected)" in bad.stderr and bad.stderr.count("\n") == 1, bad.stderr
+    short = _fwref_stream(host_build, _with_rotor_side(flightlog_export, tmp_path / "short", [0, 1]), "--model", "cnode",
+                          "--in", str(streams["sim"]))
+    assert short.returncode == 2 and "has 2 classes, the cnode section" in short.stderr and not short.stdout, short.stderr
+
+
+def test_stream_alarm_mirror_applies_rule_5():
+    """detect/streamref.py stream_alarm (the stream's rules in Python): a BatteryFault alarm reports no
+    motor, a MotorFault alarm its rule-4 motor; without the record's flags every class reports one."""
+    from detect.streamref import stream_alarm
+
+    names = ["Healthy", "BatteryFault", "MotorFault"]
+    rng = np.random.default_rng(3)
+    logits = np.zeros((12, 3), np.float32)
+    logits[:6, 1], logits[6:, 2] = 6.0, 6.0  # a battery alarm, then a motor alarm after it clears
+    logits[4:8] = [6.0, 0.0, 0.0]  # four healthy strides between them: the first alarm clears
+    motor_logits = rng.normal(size=(12, 4)).astype(np.float32)
+    motor_logits[:, 2] += 5.0
+    decided = np.ones(12, bool)
+    rec = {"healthy": 0, "alarm": {"threshold": 0.5, "k": 2, "n": 3, "clear_m": 3, "latch": False},
+           "rotor_side": rotor_columns(names).tolist()}
+    _, trace, _ = stream_alarm(rec, decided, logits, motor_logits)
+    _, old, _ = stream_alarm({**rec, "rotor_side": None}, decided, logits, motor_logits)
+    cls, motor = trace.cls[0], trace.motor[0]
+    assert set(cls[:4]) == {-1, 1} and set(cls[8:]) == {-1, 2}, cls
+    assert (motor[cls == 1] == -1).all() and (motor[cls == 2] == 2).all() and (old.motor[0][cls >= 0] == 2).all()
+
+
 def _check_replay(export: Path, streams: dict[str, Path], exe: Path, tmp: Path, net: str, precision: str) -> list[str]:
     """fwref_stream on each stream against the window path at every stride; a report line per stream."""
     from detect.streamfile import read_stream, record_of
@@ -235,9 +331,10 @@ def _check_replay(export: Path, streams: dict[str, Path], exe: Path, tmp: Path, 
         near = np.abs(p_fault - record["alarm"]["threshold"]) <= 1e-4
         assert precision == "fp32" or not flips.any(), name
         assert not (flips & ~near).any(), name  # fp32: only a score within tolerance of the threshold may flip
-        if not flips.any():
+        if not flips.any():  # motor: core.alarm's REPORTED motor (rule 5: -1 unless the class is rotor-side)
+            reported = reported_motor(trace.cls, trace.motor, rotor_columns(_manifest(export)["class_names"]))
             for key, ref in (("active", trace.active), ("raised", trace.raised), ("cleared", trace.cleared),
-                             ("cls", trace.cls), ("motor", trace.motor)):
+                             ("cls", trace.cls), ("motor", reported)):
                 np.testing.assert_array_equal(out[key], ref[0], err_msg=f"{name} {key}")
         _check_motor(out, sw.decided, motor, precision, name)
         report.append(f"{name}: {int(sw.decided.sum())} decided / {len(sw.ends)} strides, {int(flips.sum())} vote flips"

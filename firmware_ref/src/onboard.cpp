@@ -67,8 +67,28 @@ Status read_onboard(const WeightsFile& wf, OnboardRecord* out, std::string* erro
   std::uint64_t bits = std::uint32_t(thr[0]) | (std::uint64_t(std::uint32_t(thr[1])) << 32);
   double threshold;
   std::memcpy(&threshold, &bits, sizeof threshold);
+  std::uint32_t mask = 0xFFFFFFFFu;  // no alarm.rotor_side (a record written before it): every class
+  r.rotor_classes = 0;
+  if (const TensorInfo* rs = sec->find("alarm.rotor_side")) {
+    if (rs->dtype != DType::kI32 || rs->ndim != 1 || rs->count < 2 || rs->count > 32) {
+      *error = fmt("%s: the on-board record's alarm.rotor_side is not int32 (K,) with 2 <= K <= 32", file.where().c_str());
+      return Status::kBadShape;
+    }
+    std::vector<std::int32_t> flags(rs->count);
+    file.copy_i32(*rs, flags.data());
+    mask = 0;
+    for (std::size_t c = 0; c < flags.size(); ++c) {
+      if (flags[c] != 0 && flags[c] != 1) {
+        *error = fmt("%s: the on-board record's alarm.rotor_side holds %d (0/1 expected)", file.where().c_str(),
+                     int(flags[c]));
+        return Status::kDimsInvalid;
+      }
+      mask |= std::uint32_t(flags[c]) << c;
+    }
+    r.rotor_classes = int(rs->count);
+  }
   r.params = StreamParams{static_cast<Profile>(d[0]), int(d[1]), int(d[2]), int(d[3]), int(d[4]), 0, double(dt),
-                          AlarmParams{threshold, pol[0], pol[1], pol[2], pol[3] != 0, pol[4], 0}};
+                          AlarmParams{threshold, pol[0], pol[1], pol[2], pol[3] != 0, pol[4], 0, mask}};
   r.cells_from_stream = d[5] != 0;
   r.hover_steady = int(d[6]);
   r.hover_settle = int(d[7]);

@@ -19,9 +19,11 @@
 // Output (stdout, or --out written atomically at the end): '#' comment lines, then one line per
 // stride:  index t status logit_1..K proba_1..K vote active raised cleared cls motor wmotor
 // (status decided | skipped | nohover; logits %.9g (float32 round trip), proba %.17g, NaN when
-// not decided; cls/motor the alarm's class and motor (core/alarm.py's rule), -1 while no alarm or,
-// for motor, without a motor head; wmotor this stride's motor-head argmax 0..3, -1 when not decided
-// or without a head). --info prints the on-board record as key=value lines.
+// not decided; cls/motor the alarm's class and reported motor (core/alarm.py's rules 4-5), -1 while no
+// alarm or, for motor, without a motor head or when the alarm's class is not rotor-side (the record's
+// alarm.rotor_side; a record without it: every class); wmotor this stride's motor-head argmax 0..3, -1 when not decided
+// or without a head). --info prints the on-board record as key=value lines (rotor_side: the 0/1
+// flags per class, or "all" for a record written before them).
 // --timings writes (samples,) float64 seconds per push (steady clock). Errors: one line, exit 2,
 // no output file; usage errors exit 1.
 #include <chrono>
@@ -106,6 +108,9 @@ void print_info(const fwref::OnboardRecord& r) {
               r.hover_settle, r.hover_limits[0], r.hover_limits[1], r.hover_limits[2]);
   std::printf("threshold=%.17g\nk=%d\nn=%d\nclear_m=%d\nlatch=%d\nhealthy=%d\n", p.alarm.threshold, p.alarm.k,
               p.alarm.n, p.alarm.clear_m, int(p.alarm.latch), p.alarm.healthy);
+  std::string rotor = r.rotor_classes == 0 ? "all" : "";  // "all": a record without alarm.rotor_side
+  for (int c = 0; c < r.rotor_classes; ++c) rotor += (c ? "," : "") + std::to_string((p.alarm.rotor_mask >> c) & 1u);
+  std::printf("rotor_side=%s\n", rotor.c_str());
   std::string raw, model;
   for (const std::string& s : r.raw_names) raw += (raw.empty() ? "" : ",") + s;
   for (const std::string& s : r.model_names) model += (model.empty() ? "" : ",") + s;
@@ -325,6 +330,10 @@ int main(int argc, char** argv) {
   if (!bind_stream_model(wf, model, int8, &m, &error)) return fail(error);
   if ((model != "sgru" && m.window_len != rec.params.window) || m.channels != rec.params.channels) {
     return fail("the on-board record's window/channels disagree with the " + model + " section of " + weights);
+  }
+  if (rec.rotor_classes != 0 && rec.rotor_classes != m.classes) {
+    return fail("the on-board record's alarm.rotor_side has " + std::to_string(rec.rotor_classes) + " classes, the " +
+                model + " section of " + weights + " " + std::to_string(m.classes));
   }
 
   Lines lines(m.classes, out.empty() ? stdout : nullptr);

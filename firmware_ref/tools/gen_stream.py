@@ -4,7 +4,8 @@ recorded flights (stream files, docs/formats.md "Stream file"), as C++ constants
     python firmware_ref/tools/gen_stream.py --weights W --out DIR STREAM.bin [STREAM.bin ...]
 
 Writes DIR/fwref_stream_limits.h (the stream's capacities: -DFWREF_STREAM_LIMITS_HEADER for every
-unit of the image), DIR/fwref_stream_data.hpp (the record as ``kParams``) and
+unit of the image), DIR/fwref_stream_data.hpp (the record as ``kParams``, its alarm.rotor_side as the alarm's
+``rotor_mask``: the image reports the motor under rule 5 as the host does) and
 DIR/fwref_stream_data.cpp (per flight: cells, times, samples). Exit 2 and
 one line on a file it cannot use. Used by firmware_ref/mcu (FWREF_STREAMS) for mcu/stream_main.cpp.
 
@@ -55,6 +56,17 @@ EXTRA = (("sgru", "fp32", "kSgruF32", "GruF32", "SGRU"), ("sgru", "int8", "kSgru
          ("gru_motor", "int8", "kGruMotorI8", "GruMotorI8", "GRU_MOTOR"))
 
 
+def rotor_mask(rec: dict, classes: int) -> str:
+    """The record's alarm.rotor_side as fwref::AlarmParams::rotor_mask (bit c: class c reports a motor;
+    every bit for a record written before the flags), hex; refused unless it covers the model's K classes."""
+    flags = rec.get("rotor_side")
+    if flags is None:
+        return "0xFFFFFFFF"
+    if len(flags) != classes:
+        raise QuadfdiError(f"the on-board record's alarm.rotor_side has {len(flags)} classes, the model {classes}")
+    return f"0x{sum(1 << c for c, f in enumerate(flags) if f):08X}"
+
+
 def header(rec: dict, classes: int, flights: int, extra: dict | None = None) -> str:
     a = rec["alarm"]
     assert rec["profile"] in ONBOARD_PROFILES
@@ -74,7 +86,7 @@ namespace fwref_stream_data {{
 constexpr fwref::StreamParams kParams{{fwref::Profile::{PROFILE_ENUM[rec['profile']]}, {rec['window']}, {rec['stride']},
     {len(rec['raw_channels'])}, {len(rec['channels'])}, {classes}, {rec['sample_dt_s']!r},
     fwref::AlarmParams{{{a['threshold']!r}, {a['k']}, {a['n']}, {a['clear_m']}, {str(a['latch']).lower()},
-                       {rec['healthy']}, {classes}}}}};
+                       {rec['healthy']}, {classes}, {rotor_mask(rec, classes)}u}}}};
 struct Flight {{
   const char* name;
   int cells;
@@ -136,6 +148,7 @@ def main(argv: list[str]) -> int:
             raise QuadfdiError(f"{args.weights} has no on-board record (re-run `quadfdi export`)")
         rec = onboard_dict(wf.onboard)
         classes = int(wf.section("cnode", "fp32").dims[2])
+        rotor_mask(rec, classes)  # refuses flags that do not cover the model's classes, before writing
         extra = extra_sections(wf, Path(args.weights).parent)
         streams = [read_stream(p) for p in args.streams]
         for p, rs in zip(args.streams, streams):

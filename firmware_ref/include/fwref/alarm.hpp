@@ -6,7 +6,10 @@
 //   clear   at i: active && valid_i && !latch && (consecutive non-voting valid windows) >= clear_m
 //   class   argmax over the fault columns of S, the summed proba of the episode's voting windows
 //           (at the raise: the voting windows among the last n); ties -> the lowest index;
-//   motor   likewise over the summed motor_proba (-1 without one).
+//   motor   likewise over the summed motor_proba (rule 4), REPORTED only when the alarm's class is
+//           rotor-side (rule 5, core.alarm.reported_motor: bit cls of rotor_mask set), else -1;
+//           -1 also without motor_proba. The default mask (every bit set) is rule 4 alone: what a
+//           weights.bin written before the record's alarm.rotor_side tensor gives.
 //
 // An invalid window (no decision: before the hover estimate froze, a skipped window) takes its
 // slot among the last n without voting, and neither raises, clears nor counts towards a clear.
@@ -29,17 +32,22 @@ struct AlarmParams {
   bool latch;        // never clear once raised
   int healthy;       // the Healthy class's column
   int classes;       // K
+  // Bit c set: class c is rotor-side and its alarm reports a motor (core.alarm rule 5; weights.bin's
+  // alarm.rotor_side). Every bit set by default: every class reports one (rule 4 alone).
+  std::uint32_t rotor_mask = 0xFFFFFFFFu;
 };
 
 struct AlarmStep {
   bool vote, active, raised, cleared;
   int cls;    // the alarm's class, -1 while inactive
-  int motor;  // its motor 0..3, -1 while inactive or without motor_proba
+  int motor;  // its reported motor 0..3 (rule 5), -1 while inactive, without motor_proba or for a class
+             // that is not rotor-side
 };
 
 template <int MaxN, int MaxClasses>
 class AlarmPolicy {
   static_assert(MaxN >= 1 && MaxClasses >= 2, "at least one window and two classes");
+  static_assert(MaxClasses <= 32, "AlarmParams::rotor_mask holds one bit per class");
 
  public:
   // False (and nothing changed) if the parameters are outside core.alarm.check_policy's ranges or
@@ -102,7 +110,7 @@ class AlarmPolicy {
       for (int c = 0; c < K; ++c) {
         if (c != p_.healthy && (out.cls < 0 || s_[c] > s_[out.cls])) out.cls = c;
       }
-      if (has_motor_) {
+      if (has_motor_ && out.cls >= 0 && ((p_.rotor_mask >> out.cls) & 1u) != 0) {  // rule 5
         out.motor = 0;
         for (int m = 1; m < 4; ++m) out.motor = sm_[m] > sm_[out.motor] ? m : out.motor;
       }

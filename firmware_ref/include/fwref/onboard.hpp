@@ -20,6 +20,10 @@ struct OnboardRecord {
   float hover_limits[3] = {};        // vz_max, tilt_max, cmd_min
   std::vector<std::string> raw_names;    // the stream's channels, in sample order
   std::vector<std::string> model_names;  // the model's input channels
+  // Classes the record's alarm.rotor_side covers (params.alarm.rotor_mask holds the flags), 0 when the
+  // record was written before that tensor (the mask is then every class: rule 4 alone). The bound
+  // model's K must equal it when it is not 0.
+  int rotor_classes = 0;
 };
 
 // kMissingSection: a weights.bin written before the record (re-run `quadfdi export`); kBadShape /

@@ -24,7 +24,9 @@
 //
 // A windowed model with its motor head (``WindowMotorFn``: infer_motor()) also gives, at every
 // kDecided stride, the motor logits: Decision::motor is their argmax (0..3), and the alarm policy
-// takes their softmax (core/alarm.py's motor rule), so Decision::alarm.motor is the alarm's motor.
+// takes their softmax (core/alarm.py's motor rule 4), so Decision::alarm.motor is the alarm's motor,
+// reported (rule 5) only while the alarm's class is rotor-side (StreamParams::alarm.rotor_mask, from
+// the record's alarm.rotor_side): a BatteryFault alarm reports -1, as `quadfdi detect` does.
 //
 // A per-sample model (``StepFn``: the streaming GRU, fwref/gru_step.hpp) steps on every usable
 // sample as it is pushed, with the sample's model row (the profile's values, hover columns divided
@@ -85,7 +87,7 @@ struct StreamParams {
   int channels;        // C, the model's
   int classes;         // K
   double sample_dt_s;  // the grid period
-  AlarmParams alarm;
+  AlarmParams alarm;   // rotor_mask: the record's alarm.rotor_side (every class without it)
 };
 
 enum class StrideStatus : int { kNone = 0, kNoHover = 1, kSkipped = 2, kDecided = 3 };
