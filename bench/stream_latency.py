@@ -22,10 +22,14 @@ def replay_timings(exe: Path, weights: Path, net: str, precision: str, path: Pat
     cmd = [*prefix, str(exe), "--weights", str(weights), "--model", net, "--in", str(path), "--out", str(lines),
            "--timings", str(secs)] + (["--int8"] if precision == "int8" else [])
     subprocess.run(cmd, capture_output=True, text=True, check=True)
-    t = np.fromfile(secs, dtype="<f8")
     rows = [ln.split() for ln in lines.read_text().splitlines() if ln and not ln.startswith("#")]
-    index = np.array([int(r[0]) for r in rows], np.int64)
-    decided = np.array([r[2] == "decided" for r in rows], bool)
+    return split_timings(np.fromfile(secs, dtype="<f8"), np.array([int(r[0]) for r in rows], np.int64),
+                         np.array([r[2] == "decided" for r in rows], bool))
+
+
+def split_timings(t: np.ndarray, index: np.ndarray, decided: np.ndarray) -> dict[str, np.ndarray]:
+    """``fwref_stream --timings``' seconds per push ``t`` split by what the push did, from its stride
+    lines (sample ``index`` of each stride, ``decided`` or not)."""
     kind = np.zeros(len(t), np.int8)  # 0 push, 1 decision, 2 other stride
     kind[index[~decided]] = 2
     kind[index[decided]] = 1

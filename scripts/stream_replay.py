@@ -21,7 +21,6 @@ largest difference between the stream's fp32 probabilities and that set's on the
 
 from __future__ import annotations
 
-import functools
 import subprocess
 import sys
 import tempfile
@@ -33,6 +32,7 @@ import sim.dataset as sim_dataset
 from core.alarm import run_alarm
 from core.contracts import FP32_CPP_REL_TOL
 from detect.run import softmax
+from bench.stream_latency import split_timings
 from detect.runtimes import cpp_logits, ort_logits
 from detect.streamfile import from_dataset, read_stream, record_of, write_stream
 from detect.streamref import read_lines, sgru_logits, stepped_of, windows_of
@@ -87,17 +87,15 @@ def replay(export: Path, path: Path, record: dict, manifest: dict, net: str, pre
     if not flips.any():
         assert (out["active"] == tr.active[0]).all() and (out["cls"] == tr.cls[0]).all()
     evaluation = _evaluation_gap(export, path, out) if net == "sgru" and prec == "fp32" else None
-    decides = np.zeros(len(t), bool)
-    decides[out["index"][out["status"] == "decided"]] = True
+    split = split_timings(t, out["index"], out["status"] == "decided")
     rel = float(np.abs(got - ort).max() / max(1.0, np.abs(ort).max())) if len(got) else 0.0
     return {"evaluation": evaluation, "rel": rel, "strides": len(sw.ends), "decided": int(sw.decided.sum()), "int8_diff": int((got != ort).any(axis=1).sum())
-            if prec == "int8" else 0, "flips": int(flips.sum()), "push": t[~decides], "decision": t[decides]}
+            if prec == "int8" else 0, "flips": int(flips.sum()), "push": split["push"], "decision": split["decision"]}
 
 
 def main(argv: list[str]) -> int:
     export, dataset = Path(argv[0]), Path(argv[1])
     per_class = int(argv[2]) if len(argv) > 2 else 2
-    sim_dataset.load_dataset = functools.lru_cache(None)(sim_dataset.load_dataset)  # one load for every flight
     build_host(HOST_BUILD, log=lambda _: None)
     record, manifest = record_of(export), load_manifest(export / "manifest.json")
     ds = sim_dataset.load_dataset(dataset)
@@ -109,7 +107,7 @@ def main(argv: list[str]) -> int:
         paths = []
         for f in flights:
             paths.append(tmp / f"f{f}.bin")
-            write_stream(paths[-1], from_dataset(dataset, f, record))
+            write_stream(paths[-1], from_dataset(dataset, f, record, ds))  # one load for every flight
         print(f"{export} ({record['profile']}): test flights {flights}")
         nets = ("cnode", "gru") + (("sgru",) if (export / "sgru_weights.bin").is_file() else ())
         for net in argv[3].split(",") if len(argv) > 3 else nets:

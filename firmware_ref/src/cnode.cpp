@@ -77,14 +77,7 @@ void quantize_all(const float* x, int n, float s, Q* q) {
 #if defined(__ARM_FEATURE_SAT) && defined(__ARM_FP) && !defined(FWREF_PORTABLE_KERNELS)
 // The int16 stage codes on Cortex-M: numerics.hpp's quantize (VDIV, VCVTR, SSAT #8) stored as int16
 // without its cast through int8 (a redundant SXTB after SSAT #8), two values per iteration.
-inline std::int16_t quantize_i16(float x, float scale) {
-  const float v = x / scale;
-  float r;
-  __asm__("vcvtr.s32.f32 %0, %1" : "=t"(r) : "t"(v));
-  std::int32_t i;
-  std::memcpy(&i, &r, 4);
-  return static_cast<std::int16_t>(__ssat(i, 8));
-}
+inline std::int16_t quantize_i16(float x, float scale) { return static_cast<std::int16_t>(quantize_code(x, scale)); }
 void quantize_all(const float* x, int n, float s, std::int16_t* q) {
   int i = 0;
   for (; i + 2 <= n; i += 2) q[i] = quantize_i16(x[i], s), q[i + 1] = quantize_i16(x[i + 1], s);

@@ -90,14 +90,17 @@ inline float logistic_approx(float x) {
 // clamps to [-128, 127]. Rounding then clamping equals clamping then rounding because the bounds
 // are integers and rounding is monotonic, so q = clamp(rne(x / s), -128, 127) as below, NaN -> 0.
 // The division stays a float32 division (x * (1/s) differs at ties).
-inline std::int8_t quantize(float x, float scale) {
+// quantize_code: the code as an int32 in [-128, 127] (a caller storing it wider, e.g. the CNODE's int16
+// stage codes, skips the SXTB that the cast through int8 costs).
+inline std::int32_t quantize_code(float x, float scale) {
   const float v = x / scale;
   float r;
   __asm__("vcvtr.s32.f32 %0, %1" : "=t"(r) : "t"(v));
   std::int32_t i;
   std::memcpy(&i, &r, 4);
-  return static_cast<std::int8_t>(__ssat(i, 8));
+  return __ssat(i, 8);
 }
+inline std::int8_t quantize(float x, float scale) { return static_cast<std::int8_t>(quantize_code(x, scale)); }
 #else
 inline std::int8_t quantize(float x, float scale) {
   float v = x / scale;
