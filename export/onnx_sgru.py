@@ -33,6 +33,16 @@ def sgru_params(model: torch.nn.Module) -> GruParams:
                      head_b=sd["head.bias"], window=1)
 
 
+def step_io(C: int, H: int, K: int) -> tuple[list, list]:
+    """The one-step graph's signature, both precisions: inputs sample (batch, C), h (batch, H);
+    outputs logits, proba (batch, K), h_new (batch, H)."""
+    inputs = [helper.make_tensor_value_info("sample", TensorProto.FLOAT, [BATCH, C]),
+              helper.make_tensor_value_info("h", TensorProto.FLOAT, [BATCH, H])]
+    outputs = [helper.make_tensor_value_info(n, TensorProto.FLOAT, [BATCH, d]) for n, d in
+               (("logits", K), ("proba", K), ("h_new", H))]
+    return inputs, outputs
+
+
 def build_sgru_fp32(p: GruParams, opset: int) -> Built:
     """The fp32 one-step graph (module docstring)."""
     C, H, K = p.n_channels, p.hidden, p.n_classes
@@ -50,10 +60,7 @@ def build_sgru_fp32(p: GruParams, opset: int) -> Built:
     logits = g.op("Add", g.op("MatMul", h_new, g.const("head.weight_t", p.head_w.T)), g.const("head.bias", p.head_b),
                   name="logits")
     g.op("Softmax", logits, name="proba", axis=-1)
-    inputs = [helper.make_tensor_value_info("sample", TensorProto.FLOAT, [BATCH, C]),
-              helper.make_tensor_value_info("h", TensorProto.FLOAT, [BATCH, H])]
-    outputs = [helper.make_tensor_value_info(n, TensorProto.FLOAT, [BATCH, d]) for n, d in
-               (("logits", K), ("proba", K), ("h_new", H))]
+    inputs, outputs = step_io(C, H, K)
     doc = (f"quadfdi streaming GRU (hidden {H}), fp32, one step: sample (batch, {C}) raw telemetry and state "
            f"h (batch, {H}) -> logits, proba (batch, {K}), h_new (batch, {H}); ONNX GRU linear_before_reset=1")
     return g.finish(inputs, outputs, opset, doc)

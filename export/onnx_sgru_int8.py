@@ -15,10 +15,10 @@ state does (a state the graph itself produced): its scale is the bound 1/127 as 
 from __future__ import annotations
 
 import numpy as np
-from onnx import TensorProto, helper
 
 from export.graph import BATCH, Built, Graph
 from export.onnx_gru import GruParams, GruQuant
+from export.onnx_sgru import step_io
 from export.quantize import (
     int8_linear,
     int8_matmul,
@@ -55,10 +55,7 @@ def build_sgru_int8(p: GruParams, q: GruQuant, opset: int) -> Built:
     out = int8_linear(g, h_new, s_h, "head", q.head, g.const("head.bias", p.head_b), q.act)
     g.op("Identity", out, name="logits")
     g.op("Softmax", "logits", name="proba", axis=-1)
-    inputs = [helper.make_tensor_value_info("sample", TensorProto.FLOAT, [BATCH, C]),
-              helper.make_tensor_value_info("h", TensorProto.FLOAT, [BATCH, H])]
-    outputs = [helper.make_tensor_value_info(nm, TensorProto.FLOAT, [BATCH, d]) for nm, d in
-               (("logits", K), ("proba", K), ("h_new", H))]
+    inputs, outputs = step_io(C, H, K)
     doc = (f"quadfdi streaming GRU (hidden {H}), int8 ({q.act} activations, MatMulIntegerToFloat, static scales), "
            f"one step: sample (batch, {C}), h (batch, {H}) -> logits, proba, h_new")
     return g.finish(inputs, outputs, opset, doc)
