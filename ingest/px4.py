@@ -2,8 +2,8 @@
 
 Topics: vehicle_local_position (x, y, z, vx, vy, vz; NED), vehicle_attitude (q; NED/FRD; PX4 < 1.10
 also rollspeed...), vehicle_angular_velocity (xyz; FRD), battery_status, actuator_motors or
-actuator_outputs (px4_motors.py), esc_status, vehicle_imu_status (accel_vibration_metric; PX4 < 1.11:
-estimator_status.vibe[2]), vehicle_land_detected, vehicle_status. Docs: docs/ingest.md.
+actuator_outputs (px4_motors.py), esc_status, vehicle_imu_status / vehicle_imu / estimator_status
+(the vibration metric in m/s^2: px4_vibration.py), vehicle_land_detected, vehicle_status. Docs: docs/ingest.md.
 """
 
 from __future__ import annotations
@@ -11,11 +11,11 @@ from __future__ import annotations
 import numpy as np
 
 from core.errors import QuadfdiError
-from ingest import battery, checks, frames, motors, px4_motors, segments
+from ingest import battery, checks, frames, motors, px4_motors, px4_vibration, segments
 from ingest.model import Channel, LogRead
 
 TOPICS = ["vehicle_local_position", "vehicle_attitude", "vehicle_angular_velocity", "battery_status",
-          "actuator_motors", "actuator_outputs", "esc_status", "vehicle_imu_status", "estimator_status",
+          "actuator_motors", "actuator_outputs", "esc_status", "vehicle_imu_status", "vehicle_imu", "estimator_status",
           "vehicle_land_detected", "vehicle_status"]
 STATE_TOPICS = {"vehicle_status", "vehicle_land_detected"}  # published on change: a sample holds until the next
 MULTIROTOR_MAV_TYPES = {2: "quadrotor", 3: "coaxial", 13: "hexarotor", 14: "octorotor", 15: "tricopter"}
@@ -55,10 +55,14 @@ class Topics:
 
 
 def open_ulog(path: str):
+    return open_ulog_topics(path, TOPICS)
+
+
+def open_ulog_topics(path: str, topics: list[str]):
     from pyulog import ULog
 
     try:
-        return ULog(str(path), message_name_filter_list=TOPICS)
+        return ULog(str(path), message_name_filter_list=topics)
     except Exception as exc:  # pyulog raises bare Exceptions for foreign or truncated files
         raise QuadfdiError(f"{path} is not a readable ULog: {str(exc).splitlines()[0] if str(exc) else type(exc).__name__}") from None
 
@@ -143,15 +147,10 @@ def battery_channels(tp: Topics, out: dict, status: dict) -> float:
     return float(np.nanmax(np.where(connected, v, np.nan)))
 
 
-def vibration_channel(tp: Topics, out: dict) -> None:
-    imu = tp.get("vehicle_imu_status")
-    if imu is not None and "accel_vibration_metric" in imu:
-        out["vib_acc"] = Channel("vib_acc", imu["t"], imu["accel_vibration_metric"].astype(float),
-                                 "vehicle_imu_status[0].accel_vibration_metric")
-        return
-    est = tp.get("estimator_status")
-    if est is not None and "vibe[2]" in est:
-        out["vib_acc"] = Channel("vib_acc", est["t"], est["vibe[2]"].astype(float), "estimator_status.vibe[2] (accel)")
+def read_topic(path: str, name: str) -> dict | None:
+    """Instance 0 of one topic, read from the log on demand (times as in Topics)."""
+    ulog = open_ulog_topics(path, [name])
+    return Topics(ulog, []).get(name)
 
 
 def flight_state(tp: Topics, lr: LogRead) -> None:
@@ -190,7 +189,7 @@ def read_px4(path: str) -> LogRead:
     position_channels(tp, lr.channels, lr.status)
     attitude_channels(tp, lr.channels)
     v_max = battery_channels(tp, lr.channels, lr.status)
-    vibration_channel(tp, lr.channels)
+    px4_vibration.vibration_channel(tp, ulog.msg_info_dict, lambda name: read_topic(path, name), lr)
     px4_motors.motor_channels(tp, params, mmap, lr)
     px4_motors.esc_channels(tp, mmap, lr)
     b = tp.get("battery_status")
