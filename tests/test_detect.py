@@ -1,6 +1,8 @@
 """quadfdi detect: a flightlog-min model with the motor head (tiny realistic run, trained and
 exported through the CLI) on real PX4 flights with both runtimes, and the refusals (one line, exit
-2, nothing written); the same export through `quadfdi parity` (the motor head's extra output)."""
+2, nothing written); the same export through `quadfdi parity` (the motor head's extra output). The
+real flight is the UAVCAN mission (PX4 1.9): its vibration metric converts to the profile's m/s^2
+(docs/ingest.md "Vibration"), so the profile can use it."""
 
 from __future__ import annotations
 
@@ -42,6 +44,17 @@ def test_manifest_carries_the_profile_and_the_policy(export):
     assert set(m["alarm"]) == {"threshold", "k", "n", "clear_m", "latch"}
     blob = torch.load(export.parent / "cnode.pt", weights_only=True)
     assert blob["profile"] == "flightlog-min"
+
+
+def test_mission_vibration_reaches_detect_in_m_s2(mission_npz):
+    """The PX4 1.9 mission's vibration is ECL's delta-velocity metric: flight.npz carries it divided
+    by the logged IMU interval (the profile's m/s^2), with the conversion in `vehicle` (docs/ingest.md)."""
+    z = np.load(mission_npz)
+    vib = json.loads(str(z["vehicle"]))["vibration"]
+    assert vib["source"] == "estimator_status.vibe[2]" and vib["integration_interval_s"] == pytest.approx(0.004)
+    j = [str(n) for n in z["channel_names"]].index("vib_acc")
+    assert "accelerometer_integral_dt" in str(z["channel_sources"][j]) and str(z["channel_status"][j]) == "ok"
+    assert 5 < np.nanmedian(z["telemetry"][:, j]) < 40  # m/s^2 (0.06 before: m/s read as m/s^2)
 
 
 def _detect(export, flight, out, *extra):
