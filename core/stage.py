@@ -110,6 +110,10 @@ class StageWriter:
         self._carried = getattr(self, "_carried", []) + keep
         return [e["path"] for e in keep]
 
+    def uncarry(self, rels: list[str]) -> None:
+        """Do not keep these outputs of the previous record after all (they leave on publish)."""
+        self._carried = [e for e in getattr(self, "_carried", []) if e["path"] not in set(rels)]
+
     def redo_previous(self, reads: tuple[str, ...]) -> None:
         """Rewrite some outputs of the previous record from its published ``reads`` (``quadfdi report``
         redraws the bench figures from bench.json): its inputs and config stay, and so do its other

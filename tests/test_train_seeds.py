@@ -44,12 +44,12 @@ def _fake_train_all(ds, cfg, kinds, log=print, predsets=True):
     return out
 
 
-def _train(run_dir, seed, extra=()):
+def _train(run_dir, seed, extra=(), model="both"):
     from core.rundir import open_run
     from train.run import train_run
 
     run, cfg = open_run(run_dir, TINY + list(extra))
-    train_run(run, cfg, "both", seed, log=lambda s: None)
+    train_run(run, cfg, model, seed, log=lambda s: None)
 
 
 def _sets(run_dir):
@@ -83,3 +83,11 @@ def test_another_seed_keeps_the_first_seeds_sets(seeded_run):
     assert set(after) == {("cnode", 1), ("gru", 1)}
     assert not (seeded_run / sets[("cnode", 0)]).exists()
     assert not np.array_equal(before, np.load(seeded_run / after[("cnode", 1)])["proba"])
+
+
+def test_one_model_with_another_train_config_drops_the_other_seeds_sets(seeded_run):
+    _train(seeded_run, 0)
+    _train(seeded_run, 1, ["train.lr=0.05"], model="cnode")  # carries gru.pt, but not seed 0's sets
+    assert set(_sets(seeded_run)) == {("cnode", 1)}
+    outputs = {e["path"] for e in load_record(seeded_run, "train")["outputs"]}
+    assert "gru.pt" in outputs and not any("_train0" in p for p in outputs)

@@ -156,6 +156,7 @@ def keep_other_seeds(st: StageWriter, cfg: Config, log: Callable[[str], None] = 
     if not same_inputs or old.get("sim") != want["sim"] or {**old.get("train", {}), "seed": cfg.train.seed} != want["train"]:
         log(f"train: the {len(sets)} prediction sets of other training seeds were made from another dataset or "
             "[train]: they are dropped")
+        st.uncarry(sets)  # also when train --model X carried the previous outputs (same dataset, other [train])
         return []
     return st.carry(sets)
 
