@@ -101,6 +101,19 @@ class StageWriter:
             self._carried = _intact(self.root, prev["outputs"])
         return same
 
+    def carry(self, rels: list[str]) -> list[str]:
+        """Keep these outputs of the previous record (those still intact) although this run does not
+        rewrite them (``quadfdi train --seed 1`` keeps seed 0's prediction sets); return those kept.
+        The caller decides that they still hold (same inputs, same config)."""
+        want = set(rels)
+        keep = [e for e in _intact(self.root, self.previous["outputs"]) if e["path"] in want] if self.previous else []
+        self._carried = getattr(self, "_carried", []) + keep
+        return [e["path"] for e in keep]
+
+    def uncarry(self, rels: list[str]) -> None:
+        """Do not keep these outputs of the previous record after all (they leave on publish)."""
+        self._carried = [e for e in getattr(self, "_carried", []) if e["path"] not in set(rels)]
+
     def redo_previous(self, reads: tuple[str, ...]) -> None:
         """Rewrite some outputs of the previous record from its published ``reads`` (``quadfdi report``
         redraws the bench figures from bench.json): its inputs and config stay, and so do its other

@@ -1,7 +1,8 @@
 """The alarm-policy sweep of an evaluation as markdown (docs/detect.md "The alarm policy for the
 profiled models"): per model the validation Pareto front (false alarms per flight-hour against mean
 delay from onset; no other grid policy has both lower), the policy chosen on validation by
-evaluate.policy's rule, and that policy's test figures with their intervals.
+evaluate.policy's rule, and that policy's test figures with their intervals; first, the healthy
+exposure behind them, of distinct flights and pooled over the runs.
 
     PYTHONPATH=. python scripts/policy_sweep_table.py RUN [SET]     (SET: test by default)
 """
@@ -26,9 +27,33 @@ def _ci(m: dict, nd: int = 2) -> str:
     return f"{m['value']:.{nd}f}" + (f" [{lo:.{nd}f}, {hi:.{nd}f}]" if lo is not None and hi is not None else "")
 
 
+def exposure_rows(ev: dict, sets: tuple[str, ...]) -> list[list[str]]:
+    """Per model and set: the healthy flights and decided healthy hours of DISTINCT flights (each
+    (sim seed, dataset) counted once: a flight seen by several train seeds is one flight), per sim
+    seed and summed, and the exposure pooled over every (sim seed, train seed) run, which the sweep uses."""
+    rows = []
+    for name in sorted(ev["models"]):
+        for test in sets:
+            runs = [r for r in ev["per_seed"] if r["model"] == name and r["set"] == test]
+            if not runs:
+                continue
+            by_sim: dict[tuple, dict] = {}
+            for r in runs:  # the train seeds of one dataset see the same flights and decided windows
+                by_sim.setdefault((r["sim_seed"], r["dataset"]), r)
+            parts = ", ".join(f"sim {k[0]}: {r['healthy']:.0f} flights, {r['exposure_h']:.2f} h"
+                              for k, r in sorted(by_sim.items()))
+            rows.append([name, test, parts, f"{sum(r['healthy'] for r in by_sim.values()):.0f}",
+                         f"{sum(r['exposure_h'] for r in by_sim.values()):.2f}",
+                         f"{len(runs)}", f"{sum(r['exposure_h'] for r in runs):.2f}"])
+    return rows
+
+
 def main(argv: list[str]) -> int:
     ev = read_json(Path(argv[0]) / "evaluation" / "evaluation.json")
     test = argv[1] if len(argv) > 1 else "test"
+    print("\n".join(md_table(["model", "set", "distinct healthy flights per sim seed (decided hours)",
+                              "distinct healthy flights", "distinct healthy h", "runs (sim x train seeds)",
+                              "pooled exposure h"], exposure_rows(ev, ("validation", test)))))
     rows = []
     for name, m in sorted(ev["models"].items()):
         sw = [r for r in m["sweep"] if r["fa_per_h"] is not None and r["delay_onset_s"] is not None]

@@ -23,7 +23,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--seed", type=int, default=None, help="training seed (default: train.seed)")
     add_config_args(p, config=False)
     p.set_defaults(func=run_train)
-    acts = p.add_subparsers(dest="action", metavar="{study,baselines,sgru}")
+    acts = p.add_subparsers(dest="action", metavar="{study,apply,baselines,sgru}")
     ps = acts.add_parser("study", help="train with several seeds: seeds.json and results.md (Tables 3-4)")
     ps.add_argument("--run", required=True, help="run folder holding dataset.npz")
     ps.add_argument("--seeds", default=None, help="comma-separated seeds (default: train.seeds)")
@@ -33,6 +33,16 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     add_config_args(ps, config=False)
     add_executor_args(ps)
     ps.set_defaults(func=run_study_cmd)
+    pa = acts.add_parser("apply", help="the run's networks (trained on its sim seed) predicting on other sim seeds' "
+                         "datasets, without retraining: prediction sets for evaluate")
+    pa.add_argument("--run", required=True, help="run folder holding dataset.npz and the train stage")
+    pa.add_argument("--seeds", default=None, help="comma-separated training seeds (default: train.seeds); a seed "
+                    "whose network the train stage does not hold is retrained (cached)")
+    pa.add_argument("--sim-seeds", required=True, help="comma-separated simulator seeds to predict on (other than "
+                    "the run's); each is simulated into <run>/sims/seed<S>/ when missing")
+    add_config_args(pa, config=False)
+    add_executor_args(pa)
+    pa.set_defaults(func=run_apply_cmd)
     pb = acts.add_parser("baselines", help="logreg (statistics), logreg (physics features), gradient-boosted trees: "
                                           "prediction sets tuned on validation")
     pb.add_argument("--run", required=True, help="run folder holding dataset.npz")
@@ -75,6 +85,19 @@ def run_study_cmd(args: argparse.Namespace) -> int:
     print(out["table"])
     if readme is not None:
         update_readme(readme, out["table"])
+    return 0
+
+
+def run_apply_cmd(args: argparse.Namespace) -> int:
+    from train.study_apply import run_apply
+
+    run, cfg = open_run(args.run, args.overrides, need=("dataset",))
+    seeds = _seed_list("--seeds", args.seeds, list(cfg.train.seeds))
+    summary = run_apply(run, cfg, seeds, _seed_list("--sim-seeds", args.sim_seeds, []), ExecSettings.from_args(args))
+    for s in summary["sets"]:
+        check = {True: ", reproduces its indexed set", False: ", DIFFERS from its indexed set", None: ""}
+        print(f"{s['predictions']}: {s['model']} train seed {s['train_seed']} ({s['network']}"
+              f"{check[s['reproduces_indexed_set']]}) on sim seed {s['sim_seed']}")
     return 0
 
 

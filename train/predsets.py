@@ -28,10 +28,12 @@ from train.profile_data import decided
 FLIGHTS_PER_CHUNK = 16  # 16 x 90 windows x 80 x 25 float32 = 11.5 MB at a time
 
 
-def prediction_set(model: torch.nn.Module, ds: Dataset, flights_per_chunk: int = FLIGHTS_PER_CHUNK) -> dict[str, np.ndarray]:
-    """``model``'s prediction set on ``ds``: every window of every evaluation flight, flight by
-    flight in dataset order, windows in time order (the order of ``sim.dataset.make_windows``)."""
-    rows = evaluation_rows(ds)
+def prediction_set(model: torch.nn.Module, ds: Dataset, flights_per_chunk: int = FLIGHTS_PER_CHUNK,
+                   max_flights: int | None = None) -> dict[str, np.ndarray]:
+    """``model``'s prediction set on ``ds``: every window of every evaluation flight (the first
+    ``max_flights`` of them when given: a check, not a set to publish), flight by flight in dataset
+    order, windows in time order (the order of ``sim.dataset.make_windows``)."""
+    rows = evaluation_rows(ds)[:max_flights]
     names = class_names(ds.arrays)
     keys = ("proba", "y_true", "traj", "t_end", "decided") + (("motor_proba",) if has_motor_head(model) else ())
     parts: dict[str, list[np.ndarray]] = {k: [] for k in keys}

@@ -3,11 +3,13 @@
 Writes into the run folder: ``<kind>.pt`` checkpoints, ``predictions_<kind>.npz`` (test split),
 ``metrics.json`` ({"cnode", "gru", "baseline"}; test split), ``history.json``, the figures, and each
 network's prediction set on every evaluation window (``predictions/<kind>_sim<S>_train<T>.npz``,
-core.predindex), listed in ``predictions/index.json`` once the stage is published.
+core.predindex), listed in ``predictions/index.json`` once the stage is published; the sets of
+other training seeds T published before with the same dataset and config stay (keep_other_seeds).
 """
 
 from __future__ import annotations
 
+import re
 import time
 from typing import Callable
 
@@ -21,7 +23,7 @@ from core.jsonio import read_json, write_json
 from core.npzio import write_npz
 from core.predindex import add_entries
 from core.rundir import RunDir
-from core.stage import stage
+from core.stage import StageWriter, stage
 from sim.dataset import Dataset, Windows, class_names, load_dataset
 from train.baseline import fit_baseline, predict_proba_baseline
 from train.checkpoint import save_checkpoint
@@ -44,9 +46,11 @@ def evaluate(ds: Dataset, test: Windows, proba: np.ndarray) -> dict:
                            class_names(ds.arrays))
 
 
-def train_all(ds: Dataset, cfg: Config, kinds: list[str], log: Callable[[str], None] = print) -> dict:
+def train_all(ds: Dataset, cfg: Config, kinds: list[str], log: Callable[[str], None] = print,
+              predsets: bool = True) -> dict:
     """Train ``kinds`` and the baseline on ``ds``; return models, histories, test probabilities,
-    metrics and each network's prediction set (every evaluation window, ``train.predsets``)."""
+    metrics and each network's prediction set (every evaluation window, ``train.predsets``; not
+    made when ``predsets`` is False: train.study_apply keeps only the network)."""
     torch.set_num_threads(cfg.train.threads)
     ds = profiled_dataset(ds, cfg.train.profile)  # the models' input channels (paper: ds itself)
     k = len(class_names(ds.arrays))
@@ -75,9 +79,10 @@ def train_all(ds: Dataset, cfg: Config, kinds: list[str], log: Callable[[str], N
         proba = predict_proba(model, splits.test.x)  # as before the prediction sets: the test metrics keep their bits
         out["models"][kind], out["history"][kind], out["proba"][kind] = model, hist, proba
         t0 = time.perf_counter()
-        out["predsets"][kind] = prediction_set(model, ds)
-        log(f"  {kind}: prediction set of {len(out['predsets'][kind]['traj'])} evaluation windows in "
-            f"{time.perf_counter() - t0:.1f} s")
+        if predsets:
+            out["predsets"][kind] = prediction_set(model, ds)
+            log(f"  {kind}: prediction set of {len(out['predsets'][kind]['traj'])} evaluation windows in "
+                f"{time.perf_counter() - t0:.1f} s")
         out["metrics"][kind] = evaluate(ds, splits.test, proba)
     base = fit_baseline(splits.train.x, splits.train.y, cfg.train.seed, k)
     out["proba"]["baseline"] = predict_proba_baseline(base, splits.test.x)
@@ -113,7 +118,8 @@ def write_outputs(out: RunDir, ds: Dataset, cfg: Config, result: dict, previous:
 def train_run(run: RunDir, cfg: Config, model: str = "both", seed: int | None = None,
               log: Callable[[str], None] = print) -> dict:
     """Train into a staging folder and publish every training output as one stage (core.stage):
-    a crash or Ctrl-C before the publish leaves the previous checkpoints and metrics untouched."""
+    a crash or Ctrl-C before the publish leaves the previous checkpoints and metrics untouched.
+    The other training seeds' prediction sets stay published and indexed (``keep_other_seeds``)."""
     if seed is not None:
         cfg = replace_section(cfg, "train", seed=seed)
     kinds = kinds_of(model)
@@ -124,12 +130,41 @@ def train_run(run: RunDir, cfg: Config, model: str = "both", seed: int | None = 
         check_config_matches(ds, cfg)
         result = train_all(ds, cfg, kinds, log)
         previous = run if len(kinds) < 2 and st.carry_previous() else None
+        keep_other_seeds(st, cfg, log)
         write_outputs(RunDir(st.out), ds, cfg, result, previous)
     # The index is not a stage output (the study adds to it too): entries are added once the
     # prediction sets they name are published.
     add_entries(run.root, [index_entry(k, cfg.sim.seed, cfg.train.seed) for k in kinds])
     drop_missing_entries(run.root)
     return result
+
+
+def keep_other_seeds(st: StageWriter, cfg: Config, log: Callable[[str], None] = print) -> list[str]:
+    """Carry the prediction sets of the other training seeds that the previous train stage published
+    (``quadfdi train --seed 1`` after ``--seed 0`` adds seed 1's sets and keeps seed 0's, as the
+    study does; a re-run of one seed replaces its own), when they were made from the same dataset with
+    the same [sim] and [train] but the seed. Otherwise they are dropped (and leave the index):
+    evaluate pools a model's seeds as one training recipe. Returns the sets kept."""
+    prev = st.previous
+    sets = [e["path"] for e in (prev or {}).get("outputs", []) if _set_seed(e["path"], cfg.sim.seed) not in
+            (None, cfg.train.seed)]
+    if not sets:
+        return []
+    old, want = prev.get("config", {}), cfg.to_dict()
+    same_inputs = {(i["path"], i["sha256"]) for i in prev.get("inputs", [])} == \
+        {(i["path"], i["sha256"]) for i in st.inputs.values()}
+    if not same_inputs or old.get("sim") != want["sim"] or {**old.get("train", {}), "seed": cfg.train.seed} != want["train"]:
+        log(f"train: the {len(sets)} prediction sets of other training seeds were made from another dataset or "
+            "[train]: they are dropped")
+        st.uncarry(sets)  # also when train --model X carried the previous outputs (same dataset, other [train])
+        return []
+    return st.carry(sets)
+
+
+def _set_seed(rel: str, sim_seed: int) -> int | None:
+    """The training seed of a train-stage prediction set path on ``sim_seed``'s dataset, else None."""
+    m = re.fullmatch(r"predictions/[a-z0-9_-]+_sim(\d+)_train(\d+)\.npz", rel)
+    return int(m.group(2)) if m and int(m.group(1)) == sim_seed else None
 
 
 def check_config_matches(ds: Dataset, cfg: Config) -> None:

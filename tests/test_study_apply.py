@@ -1,0 +1,55 @@
+"""``quadfdi train apply``: the train stage's networks predict on another simulator seed's flights
+without retraining; the sets are published by the stage ``apply`` and indexed under that seed."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from core.errors import QuadfdiError
+from core.predindex import read_index
+from tests.conftest import copy_run, random_weight_run
+
+
+@pytest.fixture()
+def applied_run(small_run, tmp_path):
+    """A run with random-weight checkpoints recorded as trained with its config (train seed 0), and a
+    second dataset under sims/seed1/ (the same flights, its sim record saying seed 1: the test is of
+    the plumbing, not of the simulator)."""
+    from core.config import load_config
+
+    cfg = load_config(small_run / "config.toml").to_dict()
+    run_dir = random_weight_run(small_run, tmp_path / "run", config=cfg)
+    sub = copy_run(small_run, run_dir / "sims" / "seed1")
+    rec = json.loads((sub / ".stages/sim.json").read_text())
+    rec["config"]["sim"]["seed"] = 1
+    (sub / ".stages/sim.json").write_text(json.dumps(rec))
+    return run_dir
+
+
+def test_apply_predicts_the_stage_networks_on_another_sim_seed(applied_run):
+    from core.executor import SERIAL
+    from core.rundir import open_run
+    from evaluate.load import load_run
+    from sim.dataset import load_dataset
+    from train.checkpoint import load_checkpoint
+    from train.predsets import prediction_set
+    from train.study_apply import SUMMARY, run_apply
+
+    run, cfg = open_run(applied_run)
+    summary = run_apply(run, cfg, [0], [1], SERIAL, log=lambda s: None)
+    assert [(s["model"], s["network"]) for s in summary["sets"]] == [("cnode", "train stage"), ("gru", "train stage")]
+    entries = {(e["model"], e["sim_seed"], e["train_seed"]): e for e in read_index(applied_run)}
+    assert set(entries) == {("cnode", 1, 0), ("gru", 1, 0)}
+    assert entries[("gru", 1, 0)]["dataset"] == "sims/seed1/dataset.npz"
+    model, _ = load_checkpoint(applied_run / "gru.pt", "gru")
+    want = prediction_set(model, load_dataset(applied_run / "sims/seed1/dataset.npz"))
+    got = np.load(applied_run / entries[("gru", 1, 0)]["predictions"])
+    assert np.array_equal(got["proba"], want["proba"]) and np.array_equal(got["traj"], want["traj"])
+    assert (applied_run / SUMMARY).is_file()
+    sets, infos = load_run(applied_run)  # evaluate reads them, with sim seed 1's dataset
+    assert {s.sim_seed for s in sets} == {1} and set(infos) == {"sims/seed1/dataset.npz"}
+    with pytest.raises(QuadfdiError, match="only the run's own simulator seed"):
+        run_apply(run, cfg, [0], [cfg.sim.seed], SERIAL, log=lambda s: None)

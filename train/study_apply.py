@@ -1,0 +1,202 @@
+"""``quadfdi train apply``: the networks trained on the run's own simulator seed, predicting on the
+datasets of other simulator seeds, without retraining: more independent flights for the same
+deployed networks (issue 14 point 4: the alarm policy is swept on >= 2 h of healthy validation
+flight; one sim seed's validation split holds 1.03 h).
+
+For each training seed T and network kind:
+
+- the network is the train stage's checkpoint ``<run>/<kind>.pt`` when that checkpoint was
+  trained with the run's ``[sim]`` and this ``[train]`` with seed T (its embedded config says so);
+- otherwise it is retrained deterministically on the run's dataset (a job keyed like the study's,
+  cached as a checkpoint in ``<run>/cache/study_net/<key>.bin``: the seed study keeps no weights);
+- either way its predictions on the run's first evaluation flights are compared, bit for bit, with
+  the indexed set of (kind, run's sim seed, T) when there is one: ``reproduces_indexed_set`` in
+  the summary (the applied network is the one evaluated on the run's own flights);
+- for every other simulator seed S (its dataset in ``<run>/sims/seed<S>/``, simulated when missing,
+  train.study_sims), a job computes the network's prediction set on every evaluation window of S's
+  dataset (train.predsets), cached in ``<run>/cache/study_apply/``.
+
+Published as the stage ``apply`` (core.stage): the sets at ``predictions/<kind>_sim<S>_train<T>.npz``
+and ``predictions/applied.json`` (which network made each set); then indexed (core.predindex),
+the entry's ``dataset`` being S's. The index's ``sim_seed`` is the seed of the flights predicted
+on; a set of ``quadfdi train study --sim-seeds`` (networks trained on S) has the same key and
+replaces it, and the reverse.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from core.config import Config, replace_section
+from core.errors import QuadfdiError
+from core.executor import SERIAL, ExecSettings, Job, run_jobs
+from core.jobcache import cache_path, job_key, read_result
+from core.rundir import RunDir
+from train.study_jobs import MODELS
+
+NET_KIND, APPLY_KIND = "study_net", "study_apply"
+SUMMARY = "predictions/applied.json"
+CHECK_FLIGHTS = 16  # evaluation flights re-predicted to show a retrained network is the indexed one
+
+
+def train_network(dataset: str, cfg: Config, kind: str, out: str) -> bytes:
+    """Train ``kind`` with ``cfg.train.seed`` on ``dataset`` (a job) and return its checkpoint's bytes
+    (the train stage's checkpoint format, train.checkpoint)."""
+    import tempfile
+
+    from sim.dataset import class_names, load_dataset
+    from train.checkpoint import save_checkpoint
+    from train.profile_data import PROFILE_KEY
+    from train.run import train_all
+
+    result = train_all(load_dataset(dataset), cfg, [kind], log=lambda _: None, predsets=False)
+    ds = result["ds"]
+    with tempfile.TemporaryDirectory(dir=Path(out).parent) as tmp:
+        path = Path(tmp) / f"{kind}.pt"
+        save_checkpoint(path, result["models"][kind], cfg.to_dict(), ds.channel_names,
+                        extra={"history": result["history"][kind].to_dict(times=False),
+                               PROFILE_KEY: cfg.train.profile}, class_names=class_names(ds.arrays))
+        return path.read_bytes()
+
+
+def apply_network(checkpoint: str, dataset: str, kind: str) -> dict:
+    """The prediction set (core.predindex format) of the network in ``checkpoint`` on every
+    evaluation window of ``dataset``, with the network's channel profile applied (a job)."""
+    from sim.dataset import class_names, load_dataset
+    from train.checkpoint import check_dataset_matches, checkpoint_class_names, load_checkpoint
+    from train.predsets import prediction_set
+    from train.profile_data import profile_of, profiled_dataset
+
+    model, blob = load_checkpoint(checkpoint, kind)
+    _threads(blob)
+    ds = profiled_dataset(load_dataset(dataset), profile_of(blob))
+    check_dataset_matches(blob, ds.channel_names, dataset)
+    if checkpoint_class_names(blob) != list(class_names(ds.arrays)):
+        raise QuadfdiError(f"{dataset}: its classes differ from those of the network in {checkpoint}")
+    return prediction_set(model, ds)
+
+
+def _threads(blob: dict) -> None:
+    """The training threads (1 by default): float sums, hence the bits, depend on them."""
+    import torch
+
+    torch.set_num_threads(int(blob.get("config", {}).get("train", {}).get("threads", 1)))
+
+
+def stage_checkpoint(run: RunDir, cfg: Config, kind: str) -> Path | None:
+    """``<run>/<kind>.pt`` when it was trained with ``cfg``'s [sim] and [train] (seed included)."""
+    from train.checkpoint import load_checkpoint
+
+    path = run.checkpoint(kind)
+    if not path.is_file():
+        return None
+    _, blob = load_checkpoint(path, kind)
+    want = cfg.to_dict()
+    got = blob.get("config", {})
+    return path if all(got.get(s) == want[s] for s in ("sim", "train")) else None
+
+
+def networks(run: RunDir, cfg: Config, seeds: list[int], settings: ExecSettings,
+             log: Callable[[str], None]) -> dict[tuple[str, int], tuple[Path, str]]:
+    """(kind, train seed) -> (checkpoint path, where it comes from): the train stage's or retrained."""
+    out, jobs = {}, []
+    for seed in seeds:
+        c = replace_section(cfg, "train", seed=seed)
+        for kind in MODELS:
+            own = stage_checkpoint(run, c, kind)
+            if own is not None:
+                out[(kind, seed)] = (own, "train stage")
+                continue
+            key = job_key(NET_KIND, c.to_dict(), {"model": kind}, {"dataset": run.dataset}, packages=("sim", "train"))
+            path = cache_path(run.root, NET_KIND, key, "bin")
+            path.parent.mkdir(parents=True, exist_ok=True)
+            jobs.append(Job(NET_KIND, key, train_network, (str(run.dataset), c, kind, str(path)), path,
+                            label=f"train seed {seed} {kind}", torch=True))
+            out[(kind, seed)] = (path, "retrained")
+    for r in run_jobs(jobs, settings, desc="networks", log=log):
+        if not r.ok:
+            raise QuadfdiError(f"training {r.job.label} failed: {r.error}")
+    return out
+
+
+def reproduces(run: RunDir, cfg: Config, kind: str, seed: int, checkpoint: Path) -> bool | None:
+    """Whether the network in ``checkpoint`` gives, bit for bit, the indexed prediction set of
+    (kind, run's sim seed, seed) on the run's first CHECK_FLIGHTS evaluation flights (None: no such set)."""
+    from core.npzio import read_npz
+    from core.predindex import read_index
+    from sim.dataset import load_dataset
+    from train.checkpoint import load_checkpoint
+    from train.predsets import prediction_set
+    from train.profile_data import profile_of, profiled_dataset
+
+    entry = next((e for e in read_index(run.root) if (e["model"], int(e["sim_seed"]), int(e["train_seed"]))
+                  == (kind, cfg.sim.seed, seed) and e["dataset"] == "dataset.npz"), None)
+    if entry is None or not (run.root / entry["predictions"]).is_file():
+        return None
+    model, blob = load_checkpoint(checkpoint, kind)
+    _threads(blob)
+    ds = profiled_dataset(load_dataset(run.dataset), profile_of(blob))
+    mine = prediction_set(model, ds, max_flights=CHECK_FLIGHTS)  # the set's first chunk: same batches, same bits
+    got = read_npz(run.root / entry["predictions"], "prediction set")
+    b = got["proba"][np.isin(got["traj"], np.unique(mine["traj"]))]
+    return bool(mine["proba"].shape == b.shape and np.array_equal(mine["proba"], b))
+
+
+def apply_jobs(run: RunDir, nets: dict[tuple[str, int], tuple[Path, str]], data) -> list[tuple[Job, str, int, object]]:
+    """(job, kind, train seed, StudyData) per network x other simulator seed, in (sim seed, train
+    seed, model) order."""
+    jobs = []
+    for d in data:
+        for (kind, seed), (path, _) in sorted(nets.items(), key=lambda kv: (kv[0][1], MODELS.index(kv[0][0]))):
+            key = job_key(APPLY_KIND, {}, {"model": kind}, {"checkpoint": path, "dataset": d.path},
+                          packages=("sim", "train"))
+            jobs.append((Job(APPLY_KIND, key, apply_network, (str(path), str(d.path), kind),
+                             cache_path(run.root, APPLY_KIND, key, "npz"),
+                             label=f"seed {seed} {kind} on sim {d.sim_seed}", torch=True), kind, seed, d))
+    return jobs
+
+
+def run_apply(run: RunDir, cfg: Config, seeds: list[int], sim_seeds: list[int], settings: ExecSettings = SERIAL,
+              log: Callable[[str], None] = print) -> dict:
+    """Publish the prediction sets of the run's networks (training seeds ``seeds``) on the datasets
+    of ``sim_seeds`` (other than the run's), as the stage ``apply``, and index them; return the summary."""
+    from core.jsonio import write_json
+    from core.predindex import add_entries
+    from core.stage import stage
+    from train.predsets import drop_missing_entries, index_entry, write_prediction_set
+    from train.study_sims import study_datasets
+
+    others = [s for s in sim_seeds if s != cfg.sim.seed]
+    if not others:
+        raise QuadfdiError(f"--sim-seeds names only the run's own simulator seed {cfg.sim.seed}: "
+                           "its prediction sets come from quadfdi train and quadfdi train study")
+    data = study_datasets(run, cfg, others, settings, log)
+    sections = cfg.to_dict()
+    with stage(run.root, "apply", {"sim": sections["sim"], "train": sections["train"]}, targets=(SUMMARY,)) as st:
+        st.consume("dataset.npz", ("sim",))
+        nets = networks(run, cfg, seeds, settings, log)
+        summary = {"sim_seed_trained_on": cfg.sim.seed, "sets": []}
+        checks = {}
+        for (kind, seed), (path, source) in sorted(nets.items()):
+            if source == "train stage":
+                st.consume(path.relative_to(run.root).as_posix())
+            checks[(kind, seed)] = reproduces(run, replace_section(cfg, "train", seed=seed), kind, seed, path)
+            log(f"apply: {kind} seed {seed} ({source}) reproduces its indexed set: {checks[(kind, seed)]}")
+        entries, jobs = [], apply_jobs(run, nets, data)
+        for r, (_, kind, seed, d) in zip(run_jobs([j[0] for j in jobs], settings, desc="apply", log=log), jobs):
+            if not r.ok:
+                raise QuadfdiError(f"prediction set of {r.job.label} failed: {r.error}")
+            entry = index_entry(kind, d.sim_seed, seed, d.rel)
+            write_prediction_set(st.out / entry["predictions"], read_result(r.job.out))
+            entries.append(entry)
+            summary["sets"].append({"model": kind, "train_seed": seed, "sim_seed": d.sim_seed,
+                                    "predictions": entry["predictions"], "network": nets[(kind, seed)][1],
+                                    "reproduces_indexed_set": checks.get((kind, seed))})
+        write_json(st.path(SUMMARY), summary, indent=2)
+    add_entries(run.root, entries)
+    drop_missing_entries(run.root)
+    return summary
+
