@@ -85,6 +85,7 @@ def compare(export: Path, streams: list[Path], strides: dict, k: int) -> list[st
 
 def report(perf: dict, cpu: str, stride: int, dt: float) -> list[str]:
     lines = []
+    per_second = {}  # (net, prec): instructions per second of flight (one decision + stride - 1 pushes per stride)
     for net in sorted({m for m, _, _ in perf}, key=("cnode", "gru", "sgru").index):
         for prec in ("fp32", "int8"):
             rows = [v for (m, p, _), v in perf.items() if (m, p) == (net, prec)]
@@ -93,11 +94,17 @@ def report(perf: dict, cpu: str, stride: int, dt: float) -> list[str]:
             mean_dec = tot["decide_sum"] / max(tot["decide_n"], 1)
             mhz = CLOCK_MHZ[cpu]
             worst_ms = worst["decide_max"] / mhz / 1000
-            duty = (mean_dec + (stride - 1) * tot["push_sum"] / max(tot["push_n"], 1)) / (stride * dt * mhz * 1e6)
+            per_second[(net, prec)] = (mean_dec + (stride - 1) * tot["push_sum"] / max(tot["push_n"], 1)) / (stride * dt)
+            duty = per_second[(net, prec)] / (mhz * 1e6)
             lines.append(f"{cpu} {net} {prec}: push {tot['push_sum'] / max(tot['push_n'], 1):.0f} (max "
                          f"{worst['push_max']}), decision {mean_dec:.0f} (max {worst['decide_max']}), no-decision "
                          f"stride max {worst['other_max']} instructions; worst decision {worst_ms:.2f} ms at {mhz:.0f} "
                          f"MHz ({'within' if worst_ms < dt * 1000 else 'OVER'} {dt * 1000:.0f} ms), duty {100 * duty:.2f} %")
+    for prec in ("fp32", "int8"):  # issue 16: the streaming GRU at no more than 1/6 of the windowed GRU's compute
+        if ("sgru", prec) in per_second and ("gru", prec) in per_second:
+            r = per_second[("sgru", prec)] / per_second[("gru", prec)]
+            lines.append(f"{cpu} sgru/gru {prec}: {per_second[('sgru', prec)]:.0f} / {per_second[('gru', prec)]:.0f} "
+                         f"instructions per second of flight = {r:.4f} ({'within' if r <= 1 / 6 else 'OVER'} 1/6)")
     return lines
 
 
@@ -114,7 +121,6 @@ def main(argv: list[str]) -> int:
     options = {"CMAKE_TOOLCHAIN_FILE": str(FW_ROOT / "mcu" / "toolchain-arm-none-eabi.cmake"), "FWREF_CPU": cpu,
                "FWREF_WEIGHTS": str(export / "weights.bin"), "FWREF_REFERENCE": str(export / "reference.bin"),
                "Python3_EXECUTABLE": sys.executable, "FWREF_STREAMS": ";".join(str(s) for s in streams)}
-    (build / "generated" / "stream.stamp").unlink(missing_ok=True)  # sgru_weights.bin is not a CMake dependency
     _configure_and_build(FW_ROOT / "mcu", build, options, f"the {cpu} stream image", ("fwref_mcu_stream",))
     res = subprocess.run(qemu_command(cpu, build / "fwref_mcu_stream.elf"), capture_output=True, text=True, check=False,
                          timeout=3600)

@@ -32,8 +32,9 @@ SANITIZER_MARKERS = ("AddressSanitizer", "runtime error", "LeakSanitizer", "Unde
 POLICIES = [(0.5, 2, 3, 3, False), (0.3, 1, 1, 1, False), (0.7, 3, 5, 2, True), (0.45, 4, 8, 6, False)]
 
 
-def _alarm_cpp(exe: Path, tmp: Path, proba, valid, policy, healthy=0, motor=None) -> np.ndarray:
-    """fwref_alarm on (F, W, K) proba: (F, W, 6) vote, active, raised, cleared, cls, motor."""
+def _alarm_cpp(exe: Path, tmp: Path, proba, valid, policy, healthy=0, motor=None, rotor=None) -> np.ndarray:
+    """fwref_alarm on (F, W, K) proba: (F, W, 6) vote, active, raised, cleared, cls, motor; ``rotor``
+    (K,) bool: the rotor-side classes (--rotor-mask; None: the default, every class)."""
     f, w, k = proba.shape
     parts = [valid[..., None].astype(np.float64), proba] + ([motor] if motor is not None else [])
     np.concatenate(parts, axis=2).astype("<f8").tofile(tmp / "seq.f64")
@@ -41,6 +42,8 @@ def _alarm_cpp(exe: Path, tmp: Path, proba, valid, policy, healthy=0, motor=None
     cmd = [str(exe / "fwref_alarm"), "--in", str(tmp / "seq.f64"), "--out", str(tmp / "steps.i32"), "--windows",
            str(w), "--classes", str(k), "--healthy", str(healthy), "--threshold", repr(thr), "--k", str(kk), "--n",
            str(n), "--clear-m", str(m)] + (["--latch"] if latch else []) + (["--motor"] if motor is not None else [])
+    if rotor is not None:
+        cmd += ["--rotor-mask", hex(sum(1 << c for c in np.flatnonzero(rotor)))]
     subprocess.run(cmd, check=True, capture_output=True)
     return np.fromfile(tmp / "steps.i32", "<i4").reshape(f, w, 6)
 
@@ -65,6 +68,12 @@ def test_alarm_mirror_on_random_sequences(host_build, tmp_path, policy):  # noqa
     trace = run_alarm(p_in, *policy, healthy=0, valid=valid, motor_proba=motor)
     _same_alarm(cpp, trace)
     assert trace.raised.sum() > 10 and (policy[4] or trace.cleared.sum() > 5)  # the sequences exercise the policy
+    # The rotor-side gate (rule 5): classes 1, 2 and 4 rotor-side, 3 not (a BatteryFault-like class).
+    rotor = np.array([False, True, True, False, True])
+    gated = _alarm_cpp(host_build, tmp_path, p_in, valid, policy, motor=motor, rotor=rotor)
+    np.testing.assert_array_equal(gated[..., :5], cpp[..., :5])  # the gate changes the motor only
+    np.testing.assert_array_equal(gated[..., 5], reported_motor(trace.cls, trace.motor, rotor))
+    assert ((trace.cls == 3) & (trace.motor >= 0)).any() and (gated[..., 5] >= 0).any()  # both sides of the gate
 
 
 @pytest.mark.skipif(not PREDICTIONS.is_file(), reason="the realistic run's prediction sets are not here")

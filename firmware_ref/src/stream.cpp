@@ -97,11 +97,12 @@ Status Stream::push_one(const float* sample, double t, StrideSink* sink) {
     ok = ok && h.airborne;
     airborne_prev_ = h.airborne;
   }
-  if (m_.step != nullptr && ok) ok = step_sample(x);
+  const std::int64_t end = next_;  // this sample's index
+  const bool ends_stride = end >= W - 1 && (end - (W - 1)) % p_.stride == 0;
+  if (m_.step != nullptr && ok) ok = step_sample(x, ends_stride);
   ok_[slot] = ok;
   ++next_;
-  const std::int64_t end = next_ - 1;  // this sample's index
-  if (end >= W - 1 && (end - (W - 1)) % p_.stride == 0) stride(t, sink);
+  if (ends_stride) stride(t, sink);
   return Status::kOk;
 }
 
@@ -159,8 +160,9 @@ void Stream::stride(double t, StrideSink* sink) {
 
 // The per-sample model on sample x (the prepared ring row): the model row (hover columns divided by
 // the frozen estimate), one step; false (the sample is unusable, the state held) when the estimate
-// has not frozen yet, a model value is not finite or the step fails.
-bool Stream::step_sample(const float* x) {
+// has not frozen yet, a model value is not finite or the step fails. The logits are asked for only
+// when the sample ends a stride (the only ones a decision reads; StepFn's null logits: no head).
+bool Stream::step_sample(const float* x, bool ends_stride) {
   const int C = p_.channels;
   if (p_.profile != Profile::kPaper) {
     if (!hover_.frozen()) return false;
@@ -171,7 +173,7 @@ bool Stream::step_sample(const float* x) {
   for (int c = 0; c < C; ++c) {
     if (!std::isfinite(x[c])) return false;
   }
-  if (m_.step(m_.ctx, x, step_logits_) != Status::kOk) return false;
+  if (m_.step(m_.ctx, x, ends_stride ? step_logits_ : nullptr) != Status::kOk) return false;
   ++steps_;
   return true;
 }

@@ -2,10 +2,12 @@
 // sequences, for tests/test_stream.py to hold it against core/alarm.py:
 //
 //   fwref_alarm --in SEQ.f64 --out STEPS.i32 --windows W --classes K --healthy H --threshold T --k K --n N
-//               --clear-m M [--latch] [--motor]
+//               --clear-m M [--latch] [--motor] [--rotor-mask BITS]
 //
 // SEQ.f64: flights x W windows x (valid 0/1, proba (K), motor_proba (4) with --motor) float64.
 // STEPS.i32: per window vote, active, raised, cleared, cls, motor (int32). Each flight starts reset.
+// --rotor-mask: AlarmParams::rotor_mask (bit c: class c is rotor-side, core.alarm rule 5; decimal or
+// 0x hex; default every bit, rule 4 alone): motor is the reported motor, -1 for other classes.
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
@@ -35,6 +37,14 @@ int main(int argc, char** argv) {
     else if (k == "--k") p.k = std::atoi(v);
     else if (k == "--n") p.n = std::atoi(v);
     else if (k == "--clear-m") p.clear_m = std::atoi(v);
+    else if (k == "--rotor-mask") {
+      char* end = nullptr;
+      const unsigned long long mask = std::strtoull(v, &end, 0);
+      if (end == v || *end != '\0' || mask > 0xFFFFFFFFull) {
+        return std::fprintf(stderr, "fwref_alarm: --rotor-mask must be a 32-bit unsigned integer\n"), 1;
+      }
+      p.rotor_mask = static_cast<std::uint32_t>(mask);
+    }
     else return std::fprintf(stderr, "fwref_alarm: unknown argument %s\n", k.c_str()), 1;
   }
   static fwref::AlarmPolicy<64, 16> alarm;

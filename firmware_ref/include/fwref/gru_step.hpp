@@ -30,6 +30,10 @@ struct GruStepState {
   std::int32_t acc_x[kMaxGruGates], acc_h[kMaxGruGates];  // int8 only: W_ih xq and W_hh hq, int32
   long steps = 0;  // samples stepped since the last reset
   long hq_at = -1;  // int8 only: hq = quantize(h, s_h) as of this step count (the head's, reused by the next step)
+  // int8 only: the recurrent rescale's multipliers f32(s_h * s_w_hh[o]) (rescale_i32's product, formed
+  // once by reset() or when the weights change, by address as w16_of below), not per sample.
+  float mh[kMaxGruGates];
+  const float* mh_of = nullptr;
 #if defined(FWREF_GRU_WHH_INT16)
   // int8 only, option FWREF_GRU_WHH_INT16 (on in firmware_ref/mcu and in the host build): W_hh and
   // W_ih sign-extended to int16 and packed for the platform's int16 kernel, as the windowed GRU's
@@ -41,6 +45,10 @@ struct GruStepState {
   alignas(8) std::int16_t whh16[kMaxGruGates * ((kMaxGruHidden + 7) & ~7)];  // LDRD needs word alignment
   alignas(8) std::int16_t wih16[kMaxGruGates * ((kMaxChannels + 7) & ~7)];
   const std::int8_t* w16_of = nullptr;
+  // The int16 kernels' inputs, written as int16 by the quantization itself (no widening pass per
+  // product): xq and hq's codes, zero after C / H up to the next multiple of 8 (zeroed by reset()).
+  alignas(32) std::int16_t xq16[(kMaxChannels + 7) & ~7];
+  alignas(32) std::int16_t hq16[(kMaxGruHidden + 7) & ~7];
 #endif
 };
 
@@ -51,7 +59,11 @@ void reset(const GruF32& m, GruStepState& s);
 
 // One new raw sample (C floats): advances h and writes the class logits (K). A sample holding NaN or
 // Inf returns kNonFiniteInput and leaves the state as it was (the sample is skipped, the caller says so).
+// logits == nullptr: h advances and the head is not run (kOk, no check of the state's finiteness):
+// the stream asks for logits only on the samples that end a stride (fwref/stream.hpp); head() gives
+// the logits of the current state later, the same bits as a step with logits.
 Status step(const GruF32& m, const float* sample, GruStepState& s, float* logits);
+Status head(const GruF32& m, GruStepState& s, float* logits);
 
 // int8 (export/onnx_sgru_int8.py, sgru_step.int8.onnx): the windowed int8 GRU's step (src/gru.cpp) with
 // the state carried: x_norm quantized per channel (folded into W_ih), h and the head input with s_h.
@@ -59,5 +71,6 @@ Status step(const GruF32& m, const float* sample, GruStepState& s, float* logits
 // model's: the step then uses the windowed GRU's int16 kernels (the same accumulators, bit for bit).
 void reset(const GruI8& m, GruStepState& s);
 Status step(const GruI8& m, const float* sample, GruStepState& s, float* logits);
+Status head(const GruI8& m, GruStepState& s, float* logits);
 
 }  // namespace fwref

@@ -35,10 +35,14 @@ namespace fwref {
 // does to the int8 results, the reason for the int8 tolerance.
 inline float tanh_approx(float x) { return std::tanh(x); }
 inline float logistic_approx(float x) { return 1.0f / (1.0f + std::exp(-x)); }
+inline float tanh_core(float x) { return tanh_approx(x); }
+inline float logistic_core(float x) { return logistic_approx(x); }
 #else
-inline float tanh_approx(float x) {
-  x = x < -9.0f ? -9.0f : x;  // NaN propagates (MLAS's two-step clamp)
-  x = x > 9.0f ? 9.0f : x;
+// tanh_core / logistic_core: the approximations on an x already inside the clamp range ([-9, 9],
+// [-18, 18]), where the clamps are no-ops: the same float operations as *_approx below, which call
+// them after clamping. A caller that knows the range cheaply (src/gru_step.cpp tests |x| on its
+// bits) skips the two compare-and-branch pairs.
+inline float tanh_core(float x) {
   const float x2 = x * x;
   float p = std::fma(x2, -2.76076847742355e-16f, 2.00018790482477e-13f);
   p = std::fma(p, x2, -8.60467152213735e-11f);
@@ -53,9 +57,13 @@ inline float tanh_approx(float x) {
   return p / q;
 }
 
-inline float logistic_approx(float x) {
-  x = x < -18.0f ? -18.0f : x;
-  x = x > 18.0f ? 18.0f : x;
+inline float tanh_approx(float x) {
+  x = x < -9.0f ? -9.0f : x;  // NaN propagates (MLAS's two-step clamp)
+  x = x > 9.0f ? 9.0f : x;
+  return tanh_core(x);
+}
+
+inline float logistic_core(float x) {
   const float x2 = x * x;
   float p = std::fma(x2, 4.37031012579801e-11f, 1.15627324459942e-07f);
   p = std::fma(p, x2, 6.08574864600143e-05f);
@@ -72,6 +80,12 @@ inline float logistic_approx(float x) {
   // tests/test_firmware.py::test_activations_match_onnx_runtime).
   const float r = p / q + 0.5f;
   return r < 0.0f ? 0.0f : r;
+}
+
+inline float logistic_approx(float x) {
+  x = x < -18.0f ? -18.0f : x;
+  x = x > 18.0f ? 18.0f : x;
+  return logistic_core(x);
 }
 #endif
 

@@ -109,7 +109,8 @@ struct Decision {
 using WindowFn = Status (*)(void* ctx, const float* window, float* logits);
 // The window path with its motor head: infer_motor(model, head, window, logits (K), motor (kMotors)).
 using WindowMotorFn = Status (*)(void* ctx, const float* window, float* logits, float* motor);
-// A per-sample model: one step on a usable sample's model row (C), the logits (K) of the new state.
+// A per-sample model: one step on a usable sample's model row (C), the logits (K) of the new state;
+// logits null (the sample ends no stride: no decision reads them) skips the head.
 using StepFn = Status (*)(void* ctx, const float* row, float* logits);
 using ResetFn = void (*)(void* ctx);  // the per-sample model's state back to take-off (h = 0)
 
@@ -188,7 +189,7 @@ class Stream {
  private:
   Status push_one(const float* sample, double t, StrideSink* sink);
   void stride(double t, StrideSink* sink);
-  bool step_sample(const float* x);
+  bool step_sample(const float* x, bool ends_stride);
   Status run_window(Decision& d);
 
   StreamParams p_{};
