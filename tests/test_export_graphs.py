@@ -179,8 +179,10 @@ def test_cnode_weights_stored_once(tiny):
     used = [n.input[0] if n.input[0] == "interp.q" else n.input[1] for n in tiny.cnode_int8.model.graph.node
             if n.op_type == "MatMulIntegerToFloat"]
     assert len(used) == 8 * tiny.steps + 4 and set(used) == {"interp.q"} | {f"{w}.weight_q" for w in names}
-    weights_q = {k: v for k, v in int8.items() if k.endswith(".weight_q") or k == "interp.q"}
-    assert len(weights_q) == 6 and all(v.dtype == np.int8 for v in weights_q.values())
+    weights_q = {k: v for k, v in int8.items() if k.endswith(".weight_q")}
+    assert len(weights_q) == 5 and all(v.dtype == np.int8 for v in weights_q.values())
+    # P_q is A of a u8 x s8 product (ONNX Runtime's fast kernel): uint8, the same codes as weights.bin's int8.
+    assert int8["interp.q"].dtype == np.uint8 and np.array_equal(int8["interp.q"], tiny.cq.interp_q)
     # No float weight matrix left in the int8 graph: every float constant is a vector (or (S, 1)).
     floats = {k: v for k, v in int8.items() if v.dtype == np.float32}
     assert all(sum(d > 1 for d in v.shape) <= 1 for v in floats.values()), {k: v.shape for k, v in floats.items()}
