@@ -246,8 +246,9 @@ def interp_code_type(interp_q: np.ndarray) -> type:
     """The element type of P_q in the graph: uint8 (zero point 0) when every code is >= 0, as for
     any interpolation matrix, else int8. The integers, and so the sums, are the same either way
     (weights.bin keeps int8), but u8 x s8 is ONNX Runtime's fast integer kernel and s8 x s8 its slow
-    one (the P @ x_norm product at batch 96: 953 -> 168 us, profiled). Exact on AVX2's pairwise
-    16-bit products (vpmaddubsw): |P_q| <= 127 and |x_q| <= 128 give 2 * 127 * 128 < 32767."""
+    one (P @ x_norm at batch 96 took 16 % of the int8 CNODE's kernel time, now 6 %: docs/bench.md).
+    Exact on AVX2's pairwise 16-bit products (vpmaddubsw): P_q <= 2N <= 126 for an exact P
+    (quantize_interp), and 2 * 126 * 128 < 32767; a rounded P's codes reach 127: 2 * 127 * 128 < 32767."""
     return np.uint8 if int(interp_q.min()) >= 0 else np.int8
 
 

@@ -189,6 +189,21 @@ def test_cnode_weights_stored_once(tiny):
     assert sum(v.nbytes for v in int8.values()) <= 0.45 * sum(v.nbytes for v in fp32.values())
 
 
+def test_every_integer_product_is_u8_by_s8(tiny):
+    """Both int8 graphs take ONNX Runtime's fast u8 x s8 kernel for every integer product (its s8 x s8
+    kernel took the CNODE's P @ x_norm from 16 % to 6 % of the batch-96 kernel time; docs/bench.md)."""
+    from export.onnx_cnode import interp_code_type
+
+    for built in (tiny.cnode_int8, tiny.gru_int8):
+        m = onnx.shape_inference.infer_shapes(built.model)
+        elem = {v.name: v.type.tensor_type.elem_type for v in list(m.graph.value_info) + list(m.graph.input)}
+        elem.update({t.name: t.data_type for t in m.graph.initializer})
+        pairs = Counter((elem[n.input[0]], elem[n.input[1]]) for n in m.graph.node
+                        if n.op_type in ("MatMulIntegerToFloat", "MatMulInteger"))
+        assert set(pairs) == {(TensorProto.UINT8, TensorProto.INT8)}, pairs
+    assert interp_code_type(np.array([[0, 3], [-1, 2]], np.int8)) is np.int8  # a negative code stays int8
+
+
 def test_gru_structure():
     t = make_tiny(steps=1)
     fp32, int8 = op_counts(t.gru_fp32.model), op_counts(t.gru_int8.model)
