@@ -33,6 +33,7 @@ class Graph:
     nodes: list = field(default_factory=list)
     inits: dict = field(default_factory=dict)  # name -> np.ndarray
     probes: dict = field(default_factory=dict)  # probe name -> (tensor name, elem type, shape)
+    probe_nodes: dict = field(default_factory=dict)  # probe name -> nodes only a model probing it runs
     _count: dict = field(default_factory=dict)
 
     def const(self, name: str, value: np.ndarray | float | int, dtype=np.float32) -> str:
@@ -63,6 +64,15 @@ class Graph:
         """Remember an intermediate tensor that calibration or reference.bin may read."""
         self.probes[key] = (tensor, elem, shape)
 
+    def probe_only(self, key: str, shape: list, build) -> None:
+        """A probe whose tensor the graph itself does not compute: ``build()`` adds the nodes and
+        returns the tensor; they leave the graph and only ``Built.with_probes([key])`` runs them."""
+        start = len(self.nodes)
+        tensor = build()
+        self.probe_nodes[key] = self.nodes[start:]
+        del self.nodes[start:]
+        self.probe(key, tensor, shape)
+
     def finish(self, inputs: list, outputs: list, opset: int, doc: str) -> "Built":
         """The ModelProto (IR version set) and the probes recorded while building it."""
         inits = [numpy_helper.from_array(v, k) for k, v in self.inits.items()]
@@ -73,7 +83,7 @@ class Graph:
         model = helper.make_model(g, opset_imports=opsets,
                                   producer_name="quadfdi.export", doc_string=doc)
         model.ir_version = IR_VERSION
-        return Built(model, dict(self.probes))
+        return Built(model, dict(self.probes), dict(self.probe_nodes))
 
 
 @dataclass(frozen=True)
@@ -82,6 +92,7 @@ class Built:
 
     model: onnx.ModelProto
     probes: dict
+    probe_nodes: dict = field(default_factory=dict)  # key -> nodes added with that probe (Graph.probe_only)
 
     def with_probes(self, keys: list[str]) -> onnx.ModelProto:
         """A copy of the model that also outputs the probe tensors ``keys`` (calibration, reference)."""
@@ -91,6 +102,7 @@ class Built:
         for key in keys:
             tensor, elem, shape = self.probes[key]
             if tensor not in have:
+                m.graph.node.extend(self.probe_nodes.get(key, []))  # inputs: graph input, initializers
                 m.graph.output.append(helper.make_tensor_value_info(tensor, elem, shape))
                 have.add(tensor)
         return m

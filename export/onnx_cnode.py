@@ -18,7 +18,8 @@ indexing. Because f's first layer is linear in [z; u], its u-part for all S stag
 the latent state (L x H) and adds its precomputed row of V. Every weight is one initializer that
 all 4N stages share. The int8 graph has the same topology with each product one
 com.microsoft.MatMulIntegerToFloat on int8 activations (export/quantize.py; the row of V a separate
-Add), the RK4 combination and the state kept in float32. Per RK4 step the combination is 9 nodes:
+Add), the RK4 combination and the state kept in float32; it normalises only the samples P reads
+(samples_read) and holds P_q as uint8 (interp_code_type). Per RK4 step the combination is 9 nodes:
 three stage inputs (Mul, Add), one Sum ((k1 + 2 k2) + 2 k3) + k4, a Mul by h/6 and an Add; the
 scaling of the field outputs lives in lin2's scales (exact, see GraphValue and field_scales); when
 N is a power of two the combination is 7 nodes per step.
@@ -242,6 +243,26 @@ def quantize_cnode(p: CnodeParams, ranges: dict[str, np.ndarray], act: str = "")
     )
 
 
+def interp_code_type(interp_q: np.ndarray) -> type:
+    """The element type of P_q in the graph: uint8 (zero point 0) when every code is >= 0, as for
+    any interpolation matrix, else int8. The integers, and so the sums, are the same either way
+    (weights.bin keeps int8), but u8 x s8 is ONNX Runtime's fast integer kernel and s8 x s8 its slow
+    one (P @ x_norm at batch 96 took 16 % of the int8 CNODE's kernel time, now 6 %: docs/bench.md).
+    Exact on AVX2's pairwise 16-bit products (vpmaddubsw): P_q <= 2N <= 126 for an exact P
+    (quantize_interp), and 2 * 126 * 128 < 32767; a rounded P's codes reach 127: 2 * 127 * 128 < 32767."""
+    return np.uint8 if int(interp_q.min()) >= 0 else np.int8
+
+
+def samples_read(interp_q: np.ndarray) -> np.ndarray:
+    """Indices (int64, ascending) of the window samples P has a nonzero weight for: at most 4N of the
+    80 for classic RK4 (samples 0 and 79, and the two neighbours of each of the 2N - 1 stage times
+    between: 32 for N = 8). The int8 graph normalises and quantizes only these: every value it uses is the same
+    float32 operation on the same sample, the other samples had weight 0 (their integer products
+    added 0), so the integers and outputs are unchanged; at batch 96 the int8 CNODE took 17 % less
+    CPU time (docs/bench.md)."""
+    return np.flatnonzero(np.any(np.asarray(interp_q) != 0, axis=0)).astype(np.int64)
+
+
 def calibration_probes(p: CnodeParams) -> dict[str, str]:
     """Probe key -> reduction ('channel' over the last axis, or 'tensor') for calibration."""
     out = {"x_norm": "channel", "u": "channel", "z1": "tensor"}
@@ -262,8 +283,9 @@ def _control_path(g: Graph, p: CnodeParams, q: CnodeQuant | None, xn: str, row0:
     else:
         # x_norm per channel -> int8; u[s, c] = f32(acc) * f32(s_P[s] * s_x[c]) (exact P when D <= 127):
         # one MatMulIntegerToFloat when s_P is one number (A = P_q, B = xq, per-column scale s_x).
-        xq = quantize_channels(g, xn, g.const("act.x_norm.scale", q.s_x), C)
-        pq = g.const("interp.q", q.interp_q, np.int8)
+        xq = quantize_channels(g, xn, g.const("act.x_norm.scale", q.s_x), C)  # xn: the samples P reads
+        pq_read = np.ascontiguousarray(q.interp_q[:, samples_read(q.interp_q)])
+        pq = g.const("interp.q", pq_read, interp_code_type(q.interp_q))
         if np.all(q.interp_scale == q.interp_scale[0]):
             u = g.op("MatMulIntegerToFloat", pq, xq, g.const("interp.scale", q.interp_scale[0]),
                      "act.x_norm.scale", domain=MS_DOMAIN, name="u")
@@ -302,8 +324,14 @@ def build_cnode(p: CnodeParams, opset: int, q: CnodeQuant | None = None) -> Buil
     bias or row of V folded in, and every int8 product one MatMulIntegerToFloat."""
     W, C, L, K, S, H = p.window, p.n_channels, p.latent, p.n_classes, len(p.times), p.hidden
     g = Graph(f"cnode_rk4_{p.steps}" + ("_int8" if q else ""))
-    xn = g.op("Div", g.op("Sub", "telemetry", g.const("norm.mean", p.mean)), g.const("norm.std", p.std), name="x_norm")
-    g.probe("x_norm", xn, [BATCH, W, C])
+    mean, std = g.const("norm.mean", p.mean), g.const("norm.std", p.std)
+    if q is None:
+        xn = g.op("Div", g.op("Sub", "telemetry", mean), std, name="x_norm")
+        g.probe("x_norm", xn, [BATCH, W, C])
+    else:  # only the samples P reads (samples_read); the whole x_norm only where a probe asks for it
+        read = g.op("Gather", "telemetry", g.const("window.samples_read", samples_read(q.interp_q), np.int64), axis=1)
+        xn = g.op("Div", g.op("Sub", read, mean), std)
+        g.probe_only("x_norm", [BATCH, W, C], lambda: g.op("Div", g.op("Sub", "telemetry", mean), std, name="x_norm"))
     row0 = g.const("gather.row0", np.int64(0), np.int64)
     v_shape = g.const("reshape.v", [0, S * H], np.int64)
 

@@ -143,8 +143,9 @@ def test_cnode_op_counts_grow_linearly_with_n(steps):
     for model in (t.cnode_fp32.model, t.cnode_int8.model):  # no control flow, no data-dependent indexing
         counts = op_counts(model)
         assert not {"Loop", "If", "Scan", "GatherElements", "GatherND"} & set(counts)
-        gathers = [n for n in model.graph.node if n.op_type == "Gather"]
-        assert len(gathers) == 1 and gathers[0].input[1] in inits(model)  # row 0 of U, a constant index
+        gathers = [n for n in model.graph.node if n.op_type == "Gather"]  # row 0 of U (+ int8: the samples P reads)
+        assert len(gathers) == (1 if model is t.cnode_fp32.model else 2)
+        assert all(n.input[1] in inits(model) for n in gathers)  # constant indices
 
 
 @pytest.mark.parametrize("steps", [1, 3, 8])
@@ -160,7 +161,7 @@ def test_ort_optimized_node_counts(steps):
              for k in ("cnode_fp32", "cnode_int8", "gru_fp32", "gru_int8")}
     pow2 = steps in (1, 2, 4, 8)  # 2 nodes fewer per step (field_scales)
     assert count["cnode_fp32"] == 11 + (15 if pow2 else 17) * steps  # N = 8: 131 (was 278)
-    assert count["cnode_int8"] == 16 + (31 if pow2 else 33) * steps  # N = 8: 264 (was 547)
+    assert count["cnode_int8"] == 17 + (31 if pow2 else 33) * steps  # N = 8: 265 (was 547; + Gather of the samples P reads)
     assert count["gru_int8"] == 12 + 12 * W  # 972 (was 1,372)
     assert count["gru_fp32"] <= 8
 
@@ -179,12 +180,45 @@ def test_cnode_weights_stored_once(tiny):
     used = [n.input[0] if n.input[0] == "interp.q" else n.input[1] for n in tiny.cnode_int8.model.graph.node
             if n.op_type == "MatMulIntegerToFloat"]
     assert len(used) == 8 * tiny.steps + 4 and set(used) == {"interp.q"} | {f"{w}.weight_q" for w in names}
-    weights_q = {k: v for k, v in int8.items() if k.endswith(".weight_q") or k == "interp.q"}
-    assert len(weights_q) == 6 and all(v.dtype == np.int8 for v in weights_q.values())
+    weights_q = {k: v for k, v in int8.items() if k.endswith(".weight_q")}
+    assert len(weights_q) == 5 and all(v.dtype == np.int8 for v in weights_q.values())
+    # P_q is A of a u8 x s8 product (ONNX Runtime's fast kernel): uint8, the same codes as weights.bin's int8.
+    read = int8["window.samples_read"]  # the int8 graph keeps P's columns of the samples it reads, no other
+    assert int8["interp.q"].dtype == np.uint8 and np.array_equal(int8["interp.q"], tiny.cq.interp_q[:, read])
+    assert tiny.cq.interp_q[:, read].any(axis=0).all() and not np.delete(tiny.cq.interp_q, read, axis=1).any()
+    assert len(read) <= 4 * tiny.steps  # 2 samples around each of the 2N - 1 inner stage times, + both ends
     # No float weight matrix left in the int8 graph: every float constant is a vector (or (S, 1)).
     floats = {k: v for k, v in int8.items() if v.dtype == np.float32}
     assert all(sum(d > 1 for d in v.shape) <= 1 for v in floats.values()), {k: v.shape for k, v in floats.items()}
     assert sum(v.nbytes for v in int8.values()) <= 0.45 * sum(v.nbytes for v in fp32.values())
+
+
+def test_every_integer_product_is_u8_by_s8(tiny):
+    """Both int8 graphs take ONNX Runtime's fast u8 x s8 kernel for every integer product (its s8 x s8
+    kernel took the CNODE's P @ x_norm from 16 % to 6 % of the batch-96 kernel time; docs/bench.md)."""
+    from export.onnx_cnode import interp_code_type
+
+    for built in (tiny.cnode_int8, tiny.gru_int8):
+        m = onnx.shape_inference.infer_shapes(built.model)
+        elem = {v.name: v.type.tensor_type.elem_type for v in list(m.graph.value_info) + list(m.graph.input)}
+        elem.update({t.name: t.data_type for t in m.graph.initializer})
+        pairs = Counter((elem[n.input[0]], elem[n.input[1]]) for n in m.graph.node
+                        if n.op_type in ("MatMulIntegerToFloat", "MatMulInteger"))
+        assert set(pairs) == {(TensorProto.UINT8, TensorProto.INT8)}, pairs
+    assert interp_code_type(np.array([[0, 3], [-1, 2]], np.int8)) is np.int8  # a negative code stays int8
+
+
+def test_int8_cnode_normalises_only_the_samples_p_reads_and_probes_all(tiny):
+    """The int8 graph runs Sub and Div on the Gather of the samples P reads; the x_norm probe (for
+    reference.bin) adds the whole (B, W, C) normalisation only to the probed copy, bit for bit."""
+    main = tiny.cnode_int8.model
+    (sub,) = [n for n in main.graph.node if n.op_type == "Sub"]
+    assert sub.input[0] != "telemetry" and "x_norm" not in {o for n in main.graph.node for o in n.output}
+    sess = session(tiny.cnode_int8.with_probes(["x_norm"]).SerializeToString())
+    logits, xn = sess.run(["logits", tiny.cnode_int8.probes["x_norm"][0]], {"telemetry": tiny.x})
+    expect = (tiny.x - tiny.cp.mean) / tiny.cp.std  # float32 numpy: the same two operations
+    assert xn.shape == tiny.x.shape and np.array_equal(xn, expect)
+    assert np.array_equal(logits, ort_outputs(session(main.SerializeToString()), tiny.x)[0])
 
 
 def test_gru_structure():
