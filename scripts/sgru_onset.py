@@ -28,7 +28,6 @@ from pathlib import Path
 import numpy as np
 
 from core.tables import md_table
-from evaluate.alarms import set_trace
 from evaluate.load import Flights, load_run
 from evaluate.outcomes import alarm_outcomes
 

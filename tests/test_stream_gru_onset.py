@@ -9,8 +9,8 @@ import torch
 
 
 def test_onset_weight_one_is_no_emphasis():
-    from train.stream_gru_onset import step_weighted_cross_entropy, step_weights
     from train.loop import weighted_cross_entropy
+    from train.stream_gru_onset import step_weighted_cross_entropy, step_weights
 
     lab = np.array([[0, 0, 2, 2, 2]])
     assert step_weights(lab, 1.0, 3) is None

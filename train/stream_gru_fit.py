@@ -35,7 +35,11 @@ from sim.dataset import Dataset, class_names, window_starts
 from train.data import class_weights, fit_normalisation
 from train.stream_gru import StreamGRU
 from train.stream_gru_config import StreamFitConfig
-from train.stream_gru_onset import step_weighted_cross_entropy, step_weights, weighted_class_weights
+from train.stream_gru_onset import (
+    step_weighted_cross_entropy,
+    step_weights,
+    weighted_class_weights,
+)
 
 
 @dataclass
