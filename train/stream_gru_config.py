@@ -23,6 +23,8 @@ class StreamFitConfig:
     weight_decay: float = 0.0  # AdamW's decoupled weight decay (0: Adam)
     head_dropout: float = 0.0  # dropout on h before the head, training only
     log_eps: float = 1e-8
+    onset_weight: float = 1.0  # loss weight of the first onset_span steps of a fault run (1: off; train/stream_gru_onset.py)
+    onset_span: int = 250  # steps (10 s at 25 Hz) after the label turns to a fault that get onset_weight
     seed: int = 0
     threads: int = 1
 
@@ -31,5 +33,8 @@ class StreamFitConfig:
             raise ValueError(f"stream GRU settings must be positive: {self}")
         if not (0 <= self.zero_start <= 1 and 0 <= self.noise_start <= 1 and 0 <= self.head_dropout < 1):
             raise ValueError("zero_start, noise_start and head_dropout are probabilities (head_dropout < 1)")
+        if self.onset_weight <= 0 or self.onset_span < 1:
+            raise ValueError(f"onset_weight must be positive and onset_span at least 1, found {self.onset_weight}, "
+                             f"{self.onset_span}")
         if self.weight_decay < 0:
             raise ValueError(f"weight_decay must not be negative, found {self.weight_decay}")

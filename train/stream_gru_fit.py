@@ -12,7 +12,9 @@ backpropagation through time, random start points and start states, a label at e
   (``sim.dataset.gather_windows``: the flight's class when ``severity[t] >= severity_threshold``,
   else Healthy): the label of a window ending at t is the label of step t.
 - Loss: Eq. (12)'s weighted cross-entropy over every labelled step, inverse-frequency class weights
-  from the training steps; Adam, cosine rate, gradient norm clipped at ``clip``.
+  from the training steps; Adam, cosine rate, gradient norm clipped at ``clip``. Optional onset
+  emphasis (``onset_weight`` > 1): more weight on the first ``onset_span`` steps of every fault run,
+  class shares kept (train/stream_gru_onset.py); off by default.
 - Selection: the epoch whose validation macro F1 (the stream's decision at the validation windows'
   ends, stream started at h = 0 at take-off) is best.
 """
@@ -31,9 +33,13 @@ from sklearn.metrics import f1_score
 from core.contracts import SPLIT_TRAIN, SPLIT_VALIDATION
 from sim.dataset import Dataset, class_names, window_starts
 from train.data import class_weights, fit_normalisation
-from train.loop import weighted_cross_entropy
 from train.stream_gru import StreamGRU
 from train.stream_gru_config import StreamFitConfig
+from train.stream_gru_onset import (
+    step_weighted_cross_entropy,
+    step_weights,
+    weighted_class_weights,
+)
 
 
 @dataclass
@@ -82,8 +88,9 @@ def _segments(rng: np.ndarray, n_samples: int, n: int, cfg: StreamFitConfig) -> 
 
 
 def _batch_loss(model: StreamGRU, opt, x: torch.Tensor, y: torch.Tensor, mask: torch.Tensor, h: torch.Tensor,
-                w: torch.Tensor, cfg: StreamFitConfig) -> float:
-    """One segment batch: chunks of ``tbptt`` steps, an optimiser step per chunk; the summed loss."""
+                w: torch.Tensor, cfg: StreamFitConfig, m: torch.Tensor | None = None) -> float:
+    """One segment batch: chunks of ``tbptt`` steps, an optimiser step per chunk; the summed loss.
+    ``m`` (B, T): the onset emphasis's step weights (train/stream_gru_onset.py), None without."""
     total = 0.0
     for c0 in range(0, x.shape[1], cfg.tbptt):
         sl = slice(c0, c0 + cfg.tbptt)
@@ -92,8 +99,9 @@ def _batch_loss(model: StreamGRU, opt, x: torch.Tensor, y: torch.Tensor, mask: t
         keep = mask[:, sl].reshape(-1)
         if not bool(keep.any()):
             continue
-        loss = weighted_cross_entropy(logits.reshape(-1, model.n_classes)[keep], y[:, sl].reshape(-1)[keep], w,
-                                      cfg.log_eps)
+        mk = None if m is None else m[:, sl].reshape(-1)[keep]
+        loss = step_weighted_cross_entropy(logits.reshape(-1, model.n_classes)[keep], y[:, sl].reshape(-1)[keep], w,
+                                           mk, cfg.log_eps)
         if not bool(torch.isfinite(loss)):
             raise ValueError(f"streaming GRU training diverged (non-finite loss) at lr {cfg.lr:g}: lower it")
         opt.zero_grad(set_to_none=True)
@@ -120,7 +128,8 @@ def fit_stream_gru(ds: Dataset, cfg: StreamFitConfig, log: Callable[[str], None]
     model.head_dropout = cfg.head_dropout
     tel = ds["telemetry"][train_rows]  # (n, T, C) float32, raw: the model normalises inside
     lab = step_labels(ds, train_rows)
-    w = torch.as_tensor(class_weights(lab.ravel(), n_classes))
+    sw = step_weights(lab, cfg.onset_weight, cfg.onset_span)  # None: no onset emphasis (the default)
+    w = torch.as_tensor(class_weights(lab.ravel(), n_classes) if sw is None else weighted_class_weights(lab, sw, n_classes))
     ends = window_end_index(ds)
     n_t = tel.shape[1]
     seg = min(cfg.segment, n_t)
@@ -142,7 +151,8 @@ def fit_stream_gru(ds: Dataset, cfg: StreamFitConfig, log: Callable[[str], None]
             mask[torch.from_numpy(mid), :cfg.warmup] = False
             noisy = mid & (rng.random(len(idx)) < cfg.noise_start)
             h0 = np.where(noisy[:, None], np.tanh(rng.standard_normal((len(idx), cfg.hidden))), 0.0)
-            total += _batch_loss(model, opt, x, y, mask, torch.as_tensor(h0, dtype=torch.float32), w, cfg)
+            m = None if sw is None else torch.from_numpy(sw[idx[:, None], cols])
+            total += _batch_loss(model, opt, x, y, mask, torch.as_tensor(h0, dtype=torch.float32), w, cfg, m)
             for _ in range(-(-seg // cfg.tbptt)):
                 sched.step()
             count += int(mask.sum())
