@@ -3,6 +3,7 @@
 
 #include "fwref/kernels_f32.hpp"
 #include "fwref/numerics.hpp"
+#include "fwref/vmath_f32.hpp"
 #include "model_common.hpp"
 #include "motor_common.hpp"
 
@@ -96,15 +97,15 @@ Status infer(const GruF32& m, const float* x, float* logits, GruWorkspace& ws, G
   for (int t = 0; t < W; ++t) {
     for (int c = 0; c < C; ++c) ws.xn[c] = normalise(x[t * C + c], m.mean[c], m.std[c]);
     if (tr != nullptr) trace_row(ws.xn, C, tr->x_norm == nullptr ? nullptr : tr->x_norm + t * C);
-    matvec_fast(m.w_ih, ws.xn, ws.gx);
+    matvec_f32(m.w_ih, ws.xn, ws.gx);
     ws.gx += b_ih;
-    matvec_fast(m.w_hh, ws.h, ws.gh);
+    matvec_f32(m.w_hh, ws.h, ws.gh);
     ws.gh += b_hh;
     gru_cell(ws.gx, ws.gh, H, ws.h);
     if (tr != nullptr) trace_row(ws.h, H, tr->h == nullptr ? nullptr : tr->h + t * H);
   }
   MapVec out(logits, d.classes);
-  matvec_fast(m.head_w, ws.h, out);
+  matvec_f32(m.head_w, ws.h, out);
   out += ConstMapVec(m.head_b, d.classes);
   return all_finite(logits, d.classes) ? Status::kOk : Status::kNonFiniteOutput;
 }

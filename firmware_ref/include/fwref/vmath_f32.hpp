@@ -1,0 +1,193 @@
+// fwref/vmath_f32.hpp -- scope: the host's fp32 vector math, bit-identical per element to the scalar
+// code it replaces: tanh_approx / logistic_approx (fwref/numerics.hpp) on 8 floats per AVX2 vector,
+// and y = W x with Eigen's lazyProduct reduction order, several rows per pass over x.
+//
+//   tanh_n(v, n), logistic_n(v, n)   v[i] = tanh_approx(v[i]) / logistic_approx(v[i]), in place
+//   gemv_f32_eigen(w, rows, cols, x, y)
+//                                    y[o] = map(W).lazyProduct(x)[o] bit for bit (fwref/linalg.hpp)
+//
+// Why bit-identical: each lane performs the scalar function's IEEE float32 operations in the same
+// order. The clamps: the scalar `x < -9 ? -9 : x` is `(-9 > x) ? -9 : x`, which is exactly MAXPS with
+// the constant as FIRST operand (MAXPS(a, b) = a > b ? a : b: a NaN x fails the comparison and comes
+// back, as in the scalar); `x > 9 ? 9 : x` is MINPS(9, x). The Horner steps are _mm256_fmadd_ps (one
+// rounding, as std::fma), the rest one MULPS / ADDPS / DIVPS each (correctly rounded, no contraction:
+// -ffp-contract=off). MXCSR is left as the program starts (no FTZ/DAZ), the same for scalar and vector
+// code, so denormals round identically. Checked by fwref_vmath (tests/test_vmath.py): the clamp edges,
+// +-0, NaN, +-inf, denormals and a walk over the float32 bit patterns.
+//
+// The gemv: Eigen 3.4's coefficient-based product computes each y[o] as the redux of row o .* x
+// (Redux.h, LinearVectorizedTraversal, NoUnrolling; the expression has no direct access, so no
+// alignment peeling): with P = 8 lanes, r0 = w[0:8] x[0:8], r1 = w[8:16] x[8:16], then pairs of packets
+// into r0 and r1, r0 = r0 + r1, one odd packet into r0, the horizontal sum ((lo + hi) then lanes
+// (0 + 2) + (1 + 3)), then the last cols % 8 products one by one; fewer than 8 columns: a plain
+// left-to-right sum starting from the first product. Here 4 rows share each load of x (Eigen's loop
+// does one row, one product per coefficient call, with its per-row set-up); the same operations per
+// row, so the same bits. Only where Eigen's float packet is 8 lanes (AVX without AVX-512): elsewhere
+// gemv_f32_eigen is Eigen's own product, and tanh_n / logistic_n the scalar loop (the Cortex-M build
+// keeps its own paths: fwref/kernels_f32.hpp, fwref/tanhq.hpp).
+#pragma once
+
+#include "fwref/kernels_f32.hpp"
+#include "fwref/linalg.hpp"
+#include "fwref/numerics.hpp"
+
+#if defined(__AVX2__) && defined(__FMA__) && !defined(FWREF_PORTABLE_KERNELS) && !defined(FWREF_LIBM_ACTIVATIONS)
+#include <immintrin.h>
+#define FWREF_VMATH_AVX2 1
+#endif
+
+namespace fwref {
+
+#if defined(FWREF_VMATH_AVX2)
+
+inline const char* vmath_f32_kernel_name() { return "avx2-fma"; }
+
+// tanh_approx on 8 lanes: the same constants and operations as numerics.hpp.
+inline __m256 tanh8(__m256 x) {
+  x = _mm256_max_ps(_mm256_set1_ps(-9.0f), x);  // (-9 > x) ? -9 : x, NaN kept
+  x = _mm256_min_ps(_mm256_set1_ps(9.0f), x);   // (9 < x) ? 9 : x, NaN kept
+  const __m256 x2 = _mm256_mul_ps(x, x);
+  __m256 p = _mm256_fmadd_ps(x2, _mm256_set1_ps(-2.76076847742355e-16f), _mm256_set1_ps(2.00018790482477e-13f));
+  p = _mm256_fmadd_ps(p, x2, _mm256_set1_ps(-8.60467152213735e-11f));
+  p = _mm256_fmadd_ps(p, x2, _mm256_set1_ps(5.12229709037114e-08f));
+  p = _mm256_fmadd_ps(p, x2, _mm256_set1_ps(1.48572235717979e-05f));
+  p = _mm256_fmadd_ps(p, x2, _mm256_set1_ps(6.37261928875436e-04f));
+  p = _mm256_fmadd_ps(p, x2, _mm256_set1_ps(4.89352455891786e-03f));
+  p = _mm256_mul_ps(p, x);
+  __m256 q = _mm256_fmadd_ps(x2, _mm256_set1_ps(1.19825839466702e-06f), _mm256_set1_ps(1.18534705686654e-04f));
+  q = _mm256_fmadd_ps(q, x2, _mm256_set1_ps(2.26843463243900e-03f));
+  q = _mm256_fmadd_ps(q, x2, _mm256_set1_ps(4.89352518554385e-03f));
+  return _mm256_div_ps(p, q);
+}
+
+// logistic_approx on 8 lanes, its final clamp `r < 0 ? 0 : r` as MAXPS(0, r).
+inline __m256 logistic8(__m256 x) {
+  x = _mm256_max_ps(_mm256_set1_ps(-18.0f), x);
+  x = _mm256_min_ps(_mm256_set1_ps(18.0f), x);
+  const __m256 x2 = _mm256_mul_ps(x, x);
+  __m256 p = _mm256_fmadd_ps(x2, _mm256_set1_ps(4.37031012579801e-11f), _mm256_set1_ps(1.15627324459942e-07f));
+  p = _mm256_fmadd_ps(p, x2, _mm256_set1_ps(6.08574864600143e-05f));
+  p = _mm256_fmadd_ps(p, x2, _mm256_set1_ps(8.51377133304701e-03f));
+  p = _mm256_fmadd_ps(p, x2, _mm256_set1_ps(2.48287947061529e-01f));
+  p = _mm256_mul_ps(p, x);
+  __m256 q = _mm256_fmadd_ps(x2, _mm256_set1_ps(6.10247389755681e-13f), _mm256_set1_ps(5.76102136993427e-09f));
+  q = _mm256_fmadd_ps(q, x2, _mm256_set1_ps(6.29106785017040e-06f));
+  q = _mm256_fmadd_ps(q, x2, _mm256_set1_ps(1.70198817374094e-03f));
+  q = _mm256_fmadd_ps(q, x2, _mm256_set1_ps(1.16817656904453e-01f));
+  q = _mm256_fmadd_ps(q, x2, _mm256_set1_ps(9.93151921023180e-01f));
+  const __m256 r = _mm256_add_ps(_mm256_div_ps(p, q), _mm256_set1_ps(0.5f));
+  return _mm256_max_ps(_mm256_setzero_ps(), r);  // (0 > r) ? 0 : r
+}
+
+inline void tanh_n(float* v, int n) {
+  int i = 0;
+  for (; i + 8 <= n; i += 8) _mm256_storeu_ps(v + i, tanh8(_mm256_loadu_ps(v + i)));
+  for (; i < n; ++i) v[i] = tanh_approx(v[i]);
+}
+
+inline void logistic_n(float* v, int n) {
+  int i = 0;
+  for (; i + 8 <= n; i += 8) _mm256_storeu_ps(v + i, logistic8(_mm256_loadu_ps(v + i)));
+  for (; i < n; ++i) v[i] = logistic_approx(v[i]);
+}
+
+#else
+
+inline const char* vmath_f32_kernel_name() { return "scalar"; }
+inline void tanh_n(float* v, int n) {
+  for (int i = 0; i < n; ++i) v[i] = tanh_approx(v[i]);
+}
+inline void logistic_n(float* v, int n) {
+  for (int i = 0; i < n; ++i) v[i] = logistic_approx(v[i]);
+}
+
+#endif
+
+// Eigen's float packet is 8 lanes exactly when it vectorises with AVX and not AVX-512.
+#if defined(FWREF_VMATH_AVX2) && defined(EIGEN_VECTORIZE_AVX) && !defined(EIGEN_VECTORIZE_AVX512)
+#define FWREF_GEMV_EIGEN_ORDER 1
+
+namespace vmath_detail {
+
+// Eigen's predux<Packet8f>: lo + hi, then tmp = a + movehl(a), then tmp[0] + tmp[1].
+inline float predux8(__m256 v) {
+  const __m128 a = _mm_add_ps(_mm256_castps256_ps128(v), _mm256_extractf128_ps(v, 1));
+  const __m128 t = _mm_add_ps(a, _mm_movehl_ps(a, a));
+  return _mm_cvtss_f32(_mm_add_ss(t, _mm_shuffle_ps(t, t, 1)));
+}
+
+// R rows (R <= 4) starting at w, each exactly as Eigen's redux (see the header comment); cols >= 8.
+template <int R>
+inline void rows_eigen_order(const float* w, int cols, const float* x, float* y) {
+  const int n8 = cols & ~7, n16 = cols & ~15;
+  __m256 r0[R], r1[R];
+  if (n8 > 8) {
+    const __m256 x0 = _mm256_loadu_ps(x), x1 = _mm256_loadu_ps(x + 8);
+    for (int r = 0; r < R; ++r) {
+      r0[r] = _mm256_mul_ps(_mm256_loadu_ps(w + r * cols), x0);
+      r1[r] = _mm256_mul_ps(_mm256_loadu_ps(w + r * cols + 8), x1);
+    }
+    for (int i = 16; i < n16; i += 16) {
+      const __m256 xa = _mm256_loadu_ps(x + i), xb = _mm256_loadu_ps(x + i + 8);
+      for (int r = 0; r < R; ++r) {
+        r0[r] = _mm256_add_ps(r0[r], _mm256_mul_ps(_mm256_loadu_ps(w + r * cols + i), xa));
+        r1[r] = _mm256_add_ps(r1[r], _mm256_mul_ps(_mm256_loadu_ps(w + r * cols + i + 8), xb));
+      }
+    }
+    for (int r = 0; r < R; ++r) r0[r] = _mm256_add_ps(r0[r], r1[r]);
+    if (n8 > n16) {
+      const __m256 xc = _mm256_loadu_ps(x + n16);
+      for (int r = 0; r < R; ++r) r0[r] = _mm256_add_ps(r0[r], _mm256_mul_ps(_mm256_loadu_ps(w + r * cols + n16), xc));
+    }
+  } else {
+    const __m256 x0 = _mm256_loadu_ps(x);
+    for (int r = 0; r < R; ++r) r0[r] = _mm256_mul_ps(_mm256_loadu_ps(w + r * cols), x0);
+  }
+  for (int r = 0; r < R; ++r) {
+    float s = predux8(r0[r]);
+    const float* wr = w + r * cols;
+    for (int i = n8; i < cols; ++i) s = s + wr[i] * x[i];
+    y[r] = s;
+  }
+}
+
+}  // namespace vmath_detail
+
+inline void gemv_f32_eigen(const float* w, int rows, int cols, const float* x, float* y) {
+  if (cols < 8) {  // Eigen: "too small to vectorize anything", res = coeff(0), then + coeff(i)
+    for (int o = 0; o < rows; ++o) {
+      const float* r = w + o * cols;
+      float s = r[0] * x[0];
+      for (int i = 1; i < cols; ++i) s = s + r[i] * x[i];
+      y[o] = s;
+    }
+    return;
+  }
+  int o = 0;
+  for (; o + 4 <= rows; o += 4) vmath_detail::rows_eigen_order<4>(w + o * cols, cols, x, y + o);
+  for (; o < rows; ++o) vmath_detail::rows_eigen_order<1>(w + o * cols, cols, x, y + o);
+}
+
+#else
+
+inline void gemv_f32_eigen(const float* w, int rows, int cols, const float* x, float* y) {
+  MapVec out(y, rows);
+  matvec(MatF{w, rows, cols}, ConstMapVec(x, cols), out);
+}
+
+#endif
+
+// y = W x for the fp32 models' Eigen vectors: gemv_f32_eigen where it reproduces Eigen's order,
+// else matvec_fast (Eigen's product on a host, the VFP kernel on Cortex-M). ``y`` is resized to W's
+// rows (a Map must already have that size); x and y are contiguous and do not alias.
+template <class Dst, class Src>
+inline void matvec_f32(const MatF& w, const Src& x, Dst&& y) {
+#if defined(FWREF_GEMV_EIGEN_ORDER)
+  y.resize(w.rows);
+  gemv_f32_eigen(w.data, w.rows, w.cols, x.data(), y.data());
+#else
+  matvec_fast(w, x, y);
+#endif
+}
+
+}  // namespace fwref
