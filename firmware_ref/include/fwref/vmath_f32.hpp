@@ -116,7 +116,38 @@ inline float predux8(__m256 v) {
   return _mm_cvtss_f32(_mm_add_ss(t, _mm_shuffle_ps(t, t, 1)));
 }
 
-// R rows (R <= 4) starting at w, each exactly as Eigen's redux (see the header comment); cols >= 8.
+// The packet sums r0[0..R) of R rows -> Eigen's redux result per row (predux8, then the tail
+// products one by one), with 4 rows in the lanes of one SSE vector when R = 4: the lanes hold the
+// rows, so each row sees exactly predux8's additions ((a0 + a2) + (a1 + a3), a = lo + hi) and then
+// s = s + w[i] * x[i] for i = n8 .. cols - 1, in order.
+template <int R>
+inline void finish_rows(const __m256* r0, const float* w, int cols, int n8, const float* x, float* y) {
+  if (R != 4) {
+    for (int r = 0; r < R; ++r) {
+      float s = predux8(r0[r]);
+      const float* wr = w + r * cols;
+      for (int i = n8; i < cols; ++i) s = s + wr[i] * x[i];
+      y[r] = s;
+    }
+    return;
+  }
+  __m128 a0 = _mm_add_ps(_mm256_castps256_ps128(r0[0]), _mm256_extractf128_ps(r0[0], 1));
+  __m128 a1 = _mm_add_ps(_mm256_castps256_ps128(r0[1]), _mm256_extractf128_ps(r0[1], 1));
+  __m128 a2 = _mm_add_ps(_mm256_castps256_ps128(r0[2]), _mm256_extractf128_ps(r0[2], 1));
+  __m128 a3 = _mm_add_ps(_mm256_castps256_ps128(r0[3]), _mm256_extractf128_ps(r0[3], 1));
+  _MM_TRANSPOSE4_PS(a0, a1, a2, a3);  // a_j = lane j of every row
+  __m128 s = _mm_add_ps(_mm_add_ps(a0, a2), _mm_add_ps(a1, a3));
+  const float* w1 = w + cols;
+  const float* w2 = w1 + cols;
+  const float* w3 = w2 + cols;
+  for (int i = n8; i < cols; ++i) {
+    const __m128 col = _mm_set_ps(w3[i], w2[i], w1[i], w[i]);
+    s = _mm_add_ps(s, _mm_mul_ps(col, _mm_set1_ps(x[i])));
+  }
+  _mm_storeu_ps(y, s);
+}
+
+// R rows (R = 1 or 4) starting at w, each exactly as Eigen's redux (see the header comment); cols >= 8.
 template <int R>
 inline void rows_eigen_order(const float* w, int cols, const float* x, float* y) {
   const int n8 = cols & ~7, n16 = cols & ~15;
@@ -143,12 +174,7 @@ inline void rows_eigen_order(const float* w, int cols, const float* x, float* y)
     const __m256 x0 = _mm256_loadu_ps(x);
     for (int r = 0; r < R; ++r) r0[r] = _mm256_mul_ps(_mm256_loadu_ps(w + r * cols), x0);
   }
-  for (int r = 0; r < R; ++r) {
-    float s = predux8(r0[r]);
-    const float* wr = w + r * cols;
-    for (int i = n8; i < cols; ++i) s = s + wr[i] * x[i];
-    y[r] = s;
-  }
+  finish_rows<R>(r0, w, cols, n8, x, y);
 }
 
 }  // namespace vmath_detail
