@@ -28,6 +28,8 @@ def test_vector_tanh_logistic_and_gemv_are_bit_identical_to_the_scalar_code(host
         assert m and int(m.group(1)) == 0 and int(m.group(2)) > 1_000_000, out
     m = re.search(r"^gemv: (\d+) of (\d+) differ$", out, re.M)
     assert m and int(m.group(1)) == 0 and int(m.group(2)) == 140 * sum(range(1, 10)), out
+    m = re.search(r"^all_finite: (\d+) of (\d+) differ$", out, re.M)
+    assert m and int(m.group(1)) == 0 and int(m.group(2)) > 3000, out
     flags = _cpu_flags()
     if {"avx2", "fma"} <= flags:  # the host build is -march=native: the vector path must be the one compared
         assert "vmath kernel: avx2-fma" in out, out

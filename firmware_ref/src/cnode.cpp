@@ -281,7 +281,7 @@ Status infer(const CnodeF32& m, const float* x, float* logits, CnodeWorkspace& w
   if (x == nullptr || logits == nullptr) return Status::kNullArgument;
   const CnodeDims& d = m.dims;
   const int C = d.channels, W = d.window, S = d.stage_times, H = d.hidden, L = d.latent;
-  if (!all_finite_f32(x, W * C)) return Status::kNonFiniteInput;
+  if (!all_finite_n(x, W * C)) return Status::kNonFiniteInput;
   if (tr != nullptr && tr->x_norm != nullptr) trace_x_norm(x, m.mean, m.std, W, C, tr->x_norm);
 
   const ConstMapVec b1(m.lin1_b, H), b2(m.lin2_b, L);

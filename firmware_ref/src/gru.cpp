@@ -103,7 +103,7 @@ Status infer(const GruF32& m, const float* x, float* logits, GruWorkspace& ws, G
   if (x == nullptr || logits == nullptr) return Status::kNullArgument;
   const GruDims& d = m.dims;
   const int C = d.channels, W = d.window, H = d.hidden;
-  if (!all_finite_f32(x, W * C)) return Status::kNonFiniteInput;
+  if (!all_finite_n(x, W * C)) return Status::kNonFiniteInput;
   const ConstMapVec b_ih(m.b_ih, 3 * H), b_hh(m.b_hh, 3 * H);
   ws.h.setZero(H);
   ws.xn.resize(C);

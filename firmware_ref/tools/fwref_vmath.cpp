@@ -9,6 +9,7 @@
 //    float's 8-lane vector and its scalar tail are both exercised (arrays of 8k + 5 values).
 // 2. gemv_f32_eigen against Eigen's lazyProduct (fwref/linalg.hpp's matvec) on random matrices of
 //    every column count from 1 to 140 and row counts 1..9 (the 4-row blocks and their remainders).
+// 3. all_finite_n against all_finite_f32 (one inf / NaN at every position of short windows).
 // Prints one line per check ("tanh: 0 of N differ") and the kernel name; exit 0 when nothing differs,
 // 1 otherwise.
 #include <cstdint>
@@ -97,6 +98,28 @@ long check_gemv(long* compared) {
   return bad;
 }
 
+// all_finite_n against all_finite_f32 on windows of every length 0..40 with one inf, -inf or NaN at
+// every position (and none): the number of answers that differ.
+long check_all_finite(long* compared) {
+  const float bad_values[] = {std::numeric_limits<float>::infinity(), -std::numeric_limits<float>::infinity(),
+                              std::numeric_limits<float>::quiet_NaN(), from_bits(0xffa00001u)};
+  long bad = 0;
+  for (int n = 0; n <= 40; ++n) {
+    std::vector<float> x(n + 1);
+    for (int i = 0; i < n; ++i) x[i] = i % 3 == 0 ? std::numeric_limits<float>::max() : from_bits(0x00000001u + i);
+    for (int pos = -1; pos < n; ++pos) {
+      for (float v : bad_values) {
+        std::vector<float> y(x);
+        if (pos >= 0) y[pos] = v;
+        bad += fwref::all_finite_n(y.data(), n) != fwref::all_finite_f32(y.data(), n);
+        ++*compared;
+        if (pos < 0) break;
+      }
+    }
+  }
+  return bad;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -124,5 +147,8 @@ int main(int argc, char** argv) {
   long compared = 0;
   const long bg = check_gemv(&compared);
   std::printf("gemv: %ld of %ld differ\n", bg, compared);
-  return bt == 0 && bl == 0 && bg == 0 ? 0 : 1;
+  long compared_f = 0;
+  const long bf = check_all_finite(&compared_f);
+  std::printf("all_finite: %ld of %ld differ\n", bf, compared_f);
+  return bt == 0 && bl == 0 && bg == 0 && bf == 0 ? 0 : 1;
 }

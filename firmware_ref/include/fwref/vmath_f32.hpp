@@ -3,6 +3,7 @@
 // and y = W x with Eigen's lazyProduct reduction order, several rows per pass over x.
 //
 //   tanh_n(v, n), logistic_n(v, n)   v[i] = tanh_approx(v[i]) / logistic_approx(v[i]), in place
+//   all_finite_n(x, n)               all_finite_f32(x, n), 8 floats per comparison
 //   gemv_f32_eigen(w, rows, cols, x, y)
 //                                    y[o] = map(W).lazyProduct(x)[o] bit for bit (fwref/linalg.hpp)
 //
@@ -26,6 +27,9 @@
 // gemv_f32_eigen is Eigen's own product, and tanh_n / logistic_n the scalar loop (the Cortex-M build
 // keeps its own paths: fwref/kernels_f32.hpp, fwref/tanhq.hpp).
 #pragma once
+
+#include <cmath>
+#include <limits>
 
 #include "fwref/kernels_f32.hpp"
 #include "fwref/linalg.hpp"
@@ -91,8 +95,25 @@ inline void logistic_n(float* v, int n) {
   for (; i < n; ++i) v[i] = logistic_approx(v[i]);
 }
 
+// all_finite_f32 (fwref/kernels_f32.hpp) 8 floats at a time: |x| < inf is false for an infinity
+// and (ordered comparison) for a NaN, so the answer is the same.
+inline bool all_finite_n(const float* x, int n) {
+  const __m256 abs_mask = _mm256_castsi256_ps(_mm256_set1_epi32(0x7fffffff));
+  const __m256 inf = _mm256_set1_ps(std::numeric_limits<float>::infinity());
+  int i = 0;
+  for (; i + 8 <= n; i += 8) {
+    const __m256 a = _mm256_and_ps(_mm256_loadu_ps(x + i), abs_mask);
+    if (_mm256_movemask_ps(_mm256_cmp_ps(a, inf, _CMP_LT_OQ)) != 0xff) return false;
+  }
+  for (; i < n; ++i) {
+    if (!std::isfinite(x[i])) return false;
+  }
+  return true;
+}
+
 #else
 
+inline bool all_finite_n(const float* x, int n) { return all_finite_f32(x, n); }
 inline const char* vmath_f32_kernel_name() { return "scalar"; }
 inline void tanh_n(float* v, int n) {
   for (int i = 0; i < n; ++i) v[i] = tanh_approx(v[i]);
