@@ -130,6 +130,10 @@ inline void logistic_n(float* v, int n) {
 
 namespace vmath_detail {
 
+// The row kernels' parts inlined into one loop body (GCC otherwise calls finish_rows with the packet
+// sums passed through memory).
+#define FWREF_VMATH_INLINE inline __attribute__((always_inline))
+
 // Eigen's predux<Packet8f>: lo + hi, then tmp = a + movehl(a), then tmp[0] + tmp[1].
 inline float predux8(__m256 v) {
   const __m128 a = _mm_add_ps(_mm256_castps256_ps128(v), _mm256_extractf128_ps(v, 1));
@@ -137,12 +141,32 @@ inline float predux8(__m256 v) {
   return _mm_cvtss_f32(_mm_add_ss(t, _mm_shuffle_ps(t, t, 1)));
 }
 
+// s (4 rows in its lanes) + the rows' last T products, one column at a time in increasing column
+// order: s = s + w[r][i] * x[i] per lane, i = cols - T .. cols - 1. The columns come from the rows'
+// last 8 floats (in bounds: cols >= 8), transposed (4x4 twice), instead of 4 scalar loads per column.
+template <int T>
+FWREF_VMATH_INLINE __m128 tail4(__m128 s, const float* w, int cols, const float* x) {
+  const float* e = w + cols - 8;
+  const __m256 t0 = _mm256_loadu_ps(e), t1 = _mm256_loadu_ps(e + cols);
+  const __m256 t2 = _mm256_loadu_ps(e + 2 * cols), t3 = _mm256_loadu_ps(e + 3 * cols);
+  __m128 c0 = _mm256_castps256_ps128(t0), c1 = _mm256_castps256_ps128(t1);
+  __m128 c2 = _mm256_castps256_ps128(t2), c3 = _mm256_castps256_ps128(t3);
+  __m128 c4 = _mm256_extractf128_ps(t0, 1), c5 = _mm256_extractf128_ps(t1, 1);
+  __m128 c6 = _mm256_extractf128_ps(t2, 1), c7 = _mm256_extractf128_ps(t3, 1);
+  _MM_TRANSPOSE4_PS(c0, c1, c2, c3);  // c_k = column cols - 8 + k of the 4 rows
+  _MM_TRANSPOSE4_PS(c4, c5, c6, c7);
+  const __m128 col[8] = {c0, c1, c2, c3, c4, c5, c6, c7};
+  const float* xe = x + cols - 8;
+  for (int k = 8 - T; k < 8; ++k) s = _mm_add_ps(s, _mm_mul_ps(col[k], _mm_set1_ps(xe[k])));
+  return s;
+}
+
 // The packet sums r0[0..R) of R rows -> Eigen's redux result per row (predux8, then the tail
 // products one by one), with 4 rows in the lanes of one SSE vector when R = 4: the lanes hold the
 // rows, so each row sees exactly predux8's additions ((a0 + a2) + (a1 + a3), a = lo + hi) and then
 // s = s + w[i] * x[i] for i = n8 .. cols - 1, in order.
 template <int R>
-inline void finish_rows(const __m256* r0, const float* w, int cols, int n8, const float* x, float* y) {
+FWREF_VMATH_INLINE void finish_rows(const __m256* r0, const float* w, int cols, int n8, const float* x, float* y) {
   if (R != 4) {
     for (int r = 0; r < R; ++r) {
       float s = predux8(r0[r]);
@@ -158,19 +182,22 @@ inline void finish_rows(const __m256* r0, const float* w, int cols, int n8, cons
   __m128 a3 = _mm_add_ps(_mm256_castps256_ps128(r0[3]), _mm256_extractf128_ps(r0[3], 1));
   _MM_TRANSPOSE4_PS(a0, a1, a2, a3);  // a_j = lane j of every row
   __m128 s = _mm_add_ps(_mm_add_ps(a0, a2), _mm_add_ps(a1, a3));
-  const float* w1 = w + cols;
-  const float* w2 = w1 + cols;
-  const float* w3 = w2 + cols;
-  for (int i = n8; i < cols; ++i) {
-    const __m128 col = _mm_set_ps(w3[i], w2[i], w1[i], w[i]);
-    s = _mm_add_ps(s, _mm_mul_ps(col, _mm_set1_ps(x[i])));
+  switch (cols - n8) {  // the tail's length as a constant, so that tail4 unrolls
+    case 1: s = tail4<1>(s, w, cols, x); break;
+    case 2: s = tail4<2>(s, w, cols, x); break;
+    case 3: s = tail4<3>(s, w, cols, x); break;
+    case 4: s = tail4<4>(s, w, cols, x); break;
+    case 5: s = tail4<5>(s, w, cols, x); break;
+    case 6: s = tail4<6>(s, w, cols, x); break;
+    case 7: s = tail4<7>(s, w, cols, x); break;
+    default: break;
   }
   _mm_storeu_ps(y, s);
 }
 
 // R rows (R = 1 or 4) starting at w, each exactly as Eigen's redux (see the header comment); cols >= 8.
 template <int R>
-inline void rows_eigen_order(const float* w, int cols, const float* x, float* y) {
+FWREF_VMATH_INLINE void rows_eigen_order(const float* w, int cols, const float* x, float* y) {
   const int n8 = cols & ~7, n16 = cols & ~15;
   __m256 r0[R], r1[R];
   if (n8 > 8) {
@@ -198,6 +225,7 @@ inline void rows_eigen_order(const float* w, int cols, const float* x, float* y)
   finish_rows<R>(r0, w, cols, n8, x, y);
 }
 
+#undef FWREF_VMATH_INLINE
 }  // namespace vmath_detail
 
 inline void gemv_f32_eigen(const float* w, int rows, int cols, const float* x, float* y) {
