@@ -47,8 +47,12 @@ def executed_macs(model: dict, steps: int) -> dict[str, int]:
 def kernel_name(function: str) -> str:
     """A callgrind function name without its file, argument lists and template arguments:
     '???:fwref::(anonymous namespace)::gemv_i8_avx2(signed char const*, ...) [/x/fwref_infer]'
-    -> 'gemv_i8_avx2'; lambdas keep the name of the function they live in, plus '{lambda}'."""
-    f = re.sub(r"\s*\[[^\]]*\]\s*$", "", function)
+    -> 'gemv_i8_avx2'; lambdas keep the name of the function they live in, plus '{lambda}'; a GCC
+    clone keeps its suffix: 'fwref::infer(fwref::CnodeF32 const&, ...) [clone .part.0] [/x]' ->
+    'infer [clone .part.0]' (a part of infer that GCC split off, counted apart from infer itself)."""
+    clones = re.findall(r"\[clone ([^\]]*)\]", function)
+    f = re.sub(r"\s*\[clone [^\]]*\]", "", function)
+    f = re.sub(r"\s*\[[^\]]*\]\s*$", "", f)
     f = f.split(":", 1)[1] if f.startswith(("???:", "./")) and ":" in f else f
     f = f.replace("(anonymous namespace)", "anon")
     lam = "{lambda" in f
@@ -64,7 +68,7 @@ def kernel_name(function: str) -> str:
     parts = [p for p in name.split("::") if p]
     keep = 2 if len(parts) >= 2 and parts[-2][:1].isupper() else 1  # a class's method keeps its class
     name = "::".join(parts[-keep:])
-    return (name or f[:60]) + (" {lambda}" if lam else "")
+    return (name or f[:60]) + (" {lambda}" if lam else "") + "".join(f" [clone {c}]" for c in clones)
 
 
 def _callgrind(fwref: str, weights: str, model: str, int8: bool, windows: Path, tmp: Path) -> tuple[int, dict]:

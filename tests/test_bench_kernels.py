@@ -24,6 +24,11 @@ def test_kernel_name_strips_file_arguments_templates_and_return_type():
     assert kernel_name("???:fwref::detail::rk4_integrate<Eigen::Matrix<float, -1, 1>, fwref::infer(fwref::CnodeI8 "
                        "const&)::{lambda(int)#1}>(float const*)::{lambda(float)#1}::operator()(float) const [/x]") \
         == "rk4_integrate {lambda}"
+    # GCC's split-off parts keep their clone suffix whole (it printed '.part.0]' before)
+    assert kernel_name("???:fwref::infer(fwref::CnodeF32 const&, float const*, float*, fwref::CnodeWorkspace&, "
+                       "fwref::CnodeTrace*) [clone .part.0] [/tmp/b/fwref_infer]") == "infer [clone .part.0]"
+    assert kernel_name("fwref::infer(fwref::GruF32 const&) [clone .isra.0] [clone .part.0]") \
+        == "infer [clone .isra.0] [clone .part.0]"
 
 
 def test_executed_macs_match_the_manifest_except_the_dense_interpolation():

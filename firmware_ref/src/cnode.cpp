@@ -7,6 +7,7 @@
 #include "fwref/kernels_i8_x2.hpp"
 #include "fwref/numerics.hpp"
 #include "fwref/tanhq.hpp"
+#include "fwref/vmath_f32.hpp"
 #include "model_common.hpp"
 #include "motor_common.hpp"
 
@@ -141,9 +142,10 @@ void lin1_tanh_quantize(const CnodeI8& m, const std::int16_t* w16, const Q* zq, 
   }
 }
 
+// v[i] = tanh_approx(v[i]): 8 lanes per AVX2 vector on the host, bit-identical (fwref/vmath_f32.hpp).
 template <class Vec>
 void tanh_inplace(Vec& v) {
-  for (Eigen::Index i = 0; i < v.size(); ++i) v[i] = tanh_approx(v[i]);
+  tanh_n(v.data(), static_cast<int>(v.size()));
 }
 
 template <class Vec>
@@ -279,7 +281,7 @@ Status infer(const CnodeF32& m, const float* x, float* logits, CnodeWorkspace& w
   if (x == nullptr || logits == nullptr) return Status::kNullArgument;
   const CnodeDims& d = m.dims;
   const int C = d.channels, W = d.window, S = d.stage_times, H = d.hidden, L = d.latent;
-  if (!all_finite_f32(x, W * C)) return Status::kNonFiniteInput;
+  if (!all_finite_n(x, W * C)) return Status::kNonFiniteInput;
   if (tr != nullptr && tr->x_norm != nullptr) trace_x_norm(x, m.mean, m.std, W, C, tr->x_norm);
 
   const ConstMapVec b1(m.lin1_b, H), b2(m.lin2_b, L);
@@ -294,10 +296,10 @@ Status infer(const CnodeF32& m, const float* x, float* logits, CnodeWorkspace& w
     }
     const ConstMapVec u(u_row, C);
     MapVec v(ws.v + s * H, H);
-    matvec_fast(m.lin1_u, u, v);
+    matvec_f32(m.lin1_u, u, v);
     v += b1;
     if (s == 0) {
-      matvec_fast(m.encoder_w, u, ws.z);
+      matvec_f32(m.encoder_w, u, ws.z);
       ws.z += ConstMapVec(m.encoder_b, L);
       tanh_inplace(ws.z);
     }
@@ -305,10 +307,10 @@ Status infer(const CnodeF32& m, const float* x, float* logits, CnodeWorkspace& w
   if (tr != nullptr) copy_out(ws.z, tr->z0);
 
   auto field = [&](int e, const CnodeWorkspace::Lat& z, CnodeWorkspace::Lat& k) {
-    matvec_fast(m.lin1_z, z, ws.a);
+    matvec_f32(m.lin1_z, z, ws.a);
     ws.a += ConstMapVec(ws.v + m.stage_index[e] * H, H);
     tanh_inplace(ws.a);
-    matvec_fast(m.lin2_w, ws.a, k);
+    matvec_f32(m.lin2_w, ws.a, k);
     k += b2;
   };
   detail::rk4_integrate(m.rk4, d.steps, ws.z, ws.k1, ws.k2, ws.k3, ws.k4, ws.state, field,
@@ -316,7 +318,7 @@ Status infer(const CnodeF32& m, const float* x, float* logits, CnodeWorkspace& w
   if (tr != nullptr) copy_out(ws.z, tr->z1);
 
   MapVec out(logits, d.classes);
-  matvec_fast(m.head_w, ws.z, out);
+  matvec_f32(m.head_w, ws.z, out);
   out += ConstMapVec(m.head_b, d.classes);
   return all_finite(logits, d.classes) ? Status::kOk : Status::kNonFiniteOutput;
 }
