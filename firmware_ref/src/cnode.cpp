@@ -240,26 +240,18 @@ void lin1_u_rows(const CnodeI8& m, const std::int16_t* lin1u16, CnodeWorkspace& 
 // The control path: U = interp_q @ quantize(x_norm, s_x[c]) in int32, u = f32(acc) * f32(s_P[s] *
 // s_x[c]), quantized per channel with s_u[c] into ws.uq; z0 = tanh(B(uq[0], encoder) + b); V[s] =
 // B(uq[s], lin1_u) + b1 (pattern B: s_u folded in). x_norm is requantized where a sample feeds two
-// rows (the same numbers both times), so no (W, C) buffer is needed. The per-channel work runs on
-// whole AVX2 vectors on the host (fwref/vmath_i8.hpp: acc has room for C rounded up to 8).
+// rows (the same numbers both times), so no (W, C) buffer is needed. The per-channel work and the
+// search for a row's nonzero weights run on AVX2 vectors on the host (fwref/vmath_i8.hpp).
 void control_path_i8(const CnodeI8& m, const float* x, const std::int16_t* lin1u16, CnodeWorkspace& ws,
                      CnodeTrace* tr) {
   const CnodeDims& d = m.dims;
   const int C = d.channels, W = d.window, S = d.stage_times, L = d.latent;
-  std::int32_t acc[(kMaxChannels + 7) & ~7];
+  std::int32_t acc[kMaxChannels];
   for (int s = 0; s < S; ++s) {
-    const std::int8_t* p_row = m.interp.q + s * W;
-    for (int c = 0; c < ((C + 7) & ~7); ++c) acc[c] = 0;
-    for (int w0 = 0; w0 < W; w0 += 8) {  // 8 weights at a time past the zeros (most of a row)
-      std::uint64_t eight = 1;
-      if (w0 + 8 <= W) std::memcpy(&eight, p_row + w0, 8);
-      if (eight == 0) continue;
-      for (int w = w0; w < W && w < w0 + 8; ++w) {
-        const std::int32_t p = p_row[w];
-        if (p == 0) continue;
-        accumulate_codes(x + w * C, m.mean, m.std, m.s_x, C, p, acc);
-      }
-    }
+    for (int c = 0; c < C; ++c) acc[c] = 0;
+    for_each_nonzero(m.interp.q + s * W, W, [&](int w, std::int32_t p) {
+      accumulate_codes(x + w * C, m.mean, m.std, m.s_x, C, p, acc);
+    });
     float* const u = tr != nullptr && tr->u != nullptr ? tr->u + s * C : nullptr;
     rescale_quantize_row(acc, m.interp.scale[s], m.s_x, m.s_u, C, u, ws.uq + s * C);
   }

@@ -13,6 +13,7 @@
 //   rescale_quantize_row(acc, s_p, s_x, s_u, n, u, q)
 //                                              u[i] = rescale_i32(acc[i], s_p, s_x[i]) (u may be null),
 //                                              q[i] = quantize(u[i], s_u[i])
+//   for_each_nonzero(p, n, f)                  f(i, p[i]) for each int8 p[i] != 0, increasing i
 //
 // Why bit-identical, lane by lane:
 // - int32 -> float: VCVTDQ2PS rounds in MXCSR's mode, as the scalar static_cast (VCVTSI2SS) does, so
@@ -28,14 +29,16 @@
 //   even by default, the mode in which the scalar's 1.5 * 2^23 trick rounds too (for |v| <= 128 both
 //   give rne(v) exactly; nothing here changes MXCSR). The codes are packed with signed saturation,
 //   a no-op in [-128, 127].
-// - masked tails (accumulate_codes, rescale_quantize_row): the lanes past n load 0.0 (VMASKMOVPS
-//   reads nothing there), which gives code 0 (0 / 0 = NaN -> 0) and adds p * 0; they are never stored.
+// - tails: quantize_n, rescale_tanh_quantize_n and rescale_bias_n finish with the scalar function;
+//   accumulate_codes and rescale_quantize_row (n >= 8) with the last 8 elements, overlapping the
+//   previous vector (see there); no load or store outside [0, n).
 // Checked by fwref_vmath (tests/test_vmath.py): round-half-even ties, the saturation bounds and
 // their neighbouring floats, +-0, +-inf, NaNs, denormals, a walk over the float32 bit patterns, and
 // random rows of every length 1..70.
 #pragma once
 
 #include <cstdint>
+#include <cstring>
 
 #include "fwref/numerics.hpp"
 #include "fwref/vmath_f32.hpp"
@@ -67,7 +70,7 @@ inline void store8(std::int8_t* q, __m256i c) {
   _mm_storel_epi64(reinterpret_cast<__m128i*>(q), _mm_packs_epi16(b, b));
 }
 
-// Lanes [0, n) of 8 set (n in 1..7): the tail's mask for VMASKMOVPS.
+// Lanes [0, n) of 8 set.
 inline __m256i tail_mask(int n) {
   return _mm256_cmpgt_epi32(_mm256_set1_epi32(n), _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7));
 }
@@ -105,54 +108,59 @@ inline void rescale_bias_n(const std::int32_t* acc, const float* mult, const flo
   for (; i < n; ++i) y[i] = static_cast<float>(acc[i]) * mult[i] + b[i];
 }
 
-// ``acc`` is read and written in whole vectors: it must have room for n rounded up to 8 (the lanes
-// past n get p * 0 added).
+// When n % 8 != 0 the last vector is the last 8 elements, overlapping the previous one: there p is
+// zeroed in the lanes already counted (they add p * 0), so every element is counted once.
 inline void accumulate_codes(const float* x, const float* mean, const float* std_, const float* s_x, int n,
                              std::int32_t p, std::int32_t* acc) {
-  const __m256i pv = _mm256_set1_epi32(p);
-  for (int i = 0; i < n; i += 8) {
-    __m256 xv, mv, sv, qv;
-    if (i + 8 <= n) {
-      xv = _mm256_loadu_ps(x + i), mv = _mm256_loadu_ps(mean + i);
-      sv = _mm256_loadu_ps(std_ + i), qv = _mm256_loadu_ps(s_x + i);
-    } else {
-      const __m256i k = vmath_i8_detail::tail_mask(n - i);
-      xv = _mm256_maskload_ps(x + i, k), mv = _mm256_maskload_ps(mean + i, k);
-      sv = _mm256_maskload_ps(std_ + i, k), qv = _mm256_maskload_ps(s_x + i, k);
-    }
-    const __m256i c = vmath_i8_detail::quantize8(_mm256_div_ps(_mm256_sub_ps(xv, mv), sv), qv);  // normalise
+  if (n < 8) {
+    for (int i = 0; i < n; ++i) acc[i] += p * quantize(normalise(x[i], mean[i], std_[i]), s_x[i]);
+    return;
+  }
+  __m256i pv = _mm256_set1_epi32(p);
+  for (int i = 0;;) {
+    const __m256 y = _mm256_div_ps(_mm256_sub_ps(_mm256_loadu_ps(x + i), _mm256_loadu_ps(mean + i)),
+                                   _mm256_loadu_ps(std_ + i));  // normalise
+    const __m256i c = vmath_i8_detail::quantize8(y, _mm256_loadu_ps(s_x + i));
     __m256i* a = reinterpret_cast<__m256i*>(acc + i);
     _mm256_storeu_si256(a, _mm256_add_epi32(_mm256_loadu_si256(a), _mm256_mullo_epi32(pv, c)));
+    if (i + 8 == n) return;
+    if (i + 16 <= n) {
+      i += 8;
+      continue;
+    }
+    const int counted = i + 8 - (n - 8);  // lanes of the last vector already counted, 1..7
+    pv = _mm256_andnot_si256(vmath_i8_detail::tail_mask(counted), pv);
+    i = n - 8;
   }
 }
 
-// ``acc`` as in accumulate_codes (n rounded up to 8 readable); ``u`` and ``q`` get exactly n values.
+// u[i] and q[i] for i in [0, n); when n % 8 != 0 the last vector is the last 8 elements (the lanes it
+// shares with the previous one are computed and stored again, the same values).
 inline void rescale_quantize_row(const std::int32_t* acc, float s_p, const float* s_x, const float* s_u, int n,
                                  float* u, std::int8_t* q) {
-  const __m256 pv = _mm256_set1_ps(s_p);
-  for (int i = 0; i < n; i += 8) {
-    const bool full = i + 8 <= n;
-    const __m256i k = vmath_i8_detail::tail_mask(full ? 8 : n - i);
-    const __m256 sx = full ? _mm256_loadu_ps(s_x + i) : _mm256_maskload_ps(s_x + i, k);
-    const __m256 su = full ? _mm256_loadu_ps(s_u + i) : _mm256_maskload_ps(s_u + i, k);
-    const __m256 a = _mm256_cvtepi32_ps(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(acc + i)));
-    const __m256 uv = _mm256_mul_ps(a, _mm256_mul_ps(pv, sx));  // rescale_i32(acc, s_p, s_x)
-    const __m256i c = vmath_i8_detail::quantize8(uv, su);
-    if (full) {
-      if (u != nullptr) _mm256_storeu_ps(u + i, uv);
-      vmath_i8_detail::store8(q + i, c);
-    } else {
-      if (u != nullptr) _mm256_maskstore_ps(u + i, k, uv);
-      alignas(8) std::int8_t t[8];
-      vmath_i8_detail::store8(t, c);
-      for (int j = 0; j < n - i; ++j) q[i + j] = t[j];
+  if (n < 8) {
+    for (int i = 0; i < n; ++i) {
+      const float v = rescale_i32(acc[i], s_p, s_x[i]);
+      if (u != nullptr) u[i] = v;
+      q[i] = quantize(v, s_u[i]);
     }
+    return;
+  }
+  const __m256 pv = _mm256_set1_ps(s_p);
+  for (int i = 0;;) {
+    const __m256 a = _mm256_cvtepi32_ps(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(acc + i)));
+    const __m256 uv = _mm256_mul_ps(a, _mm256_mul_ps(pv, _mm256_loadu_ps(s_x + i)));  // rescale_i32(acc, s_p, s_x)
+    if (u != nullptr) _mm256_storeu_ps(u + i, uv);
+    vmath_i8_detail::store8(q + i, vmath_i8_detail::quantize8(uv, _mm256_loadu_ps(s_u + i)));
+    if (i + 8 == n) return;
+    i = i + 16 <= n ? i + 8 : n - 8;
   }
 }
 
 #else
 
 inline const char* vmath_i8_kernel_name() { return "scalar"; }
+#define FWREF_VMATH_I8_AVX2 0
 
 template <class Q>
 inline void quantize_n(const float* x, int n, float s, Q* q) {
@@ -184,5 +192,31 @@ inline void rescale_quantize_row(const std::int32_t* acc, float s_p, const float
 }
 
 #endif
+
+// The interpolation rows are mostly zeros (two weights per row): on AVX2 32 weights per comparison,
+// then (and elsewhere throughout) 8 at a time past the zeros, one by one where a word is not zero.
+template <class F>
+inline void for_each_nonzero(const std::int8_t* p, int n, F&& f) {
+  int w0 = 0;
+#if FWREF_VMATH_I8_AVX2
+  for (; w0 + 32 <= n; w0 += 32) {
+    const __m256i v = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(p + w0));
+    std::uint32_t nz = ~static_cast<std::uint32_t>(_mm256_movemask_epi8(_mm256_cmpeq_epi8(v, _mm256_setzero_si256())));
+    for (; nz != 0; nz &= nz - 1) {
+      const int w = w0 + __builtin_ctz(nz);
+      f(w, static_cast<std::int32_t>(p[w]));
+    }
+  }
+#endif
+  for (; w0 < n; w0 += 8) {
+    std::uint64_t eight = 1;
+    if (w0 + 8 <= n) std::memcpy(&eight, p + w0, 8);
+    if (eight == 0) continue;
+    for (int w = w0; w < n && w < w0 + 8; ++w) {
+      const std::int32_t pw = p[w];
+      if (pw != 0) f(w, pw);
+    }
+  }
+}
 
 }  // namespace fwref
