@@ -45,6 +45,8 @@
 
 namespace fwref {
 
+// FWREF_VMATH_I8_AVX2: 1 where the vector code below is compiled (AVX2 + FMA, the activations
+// MLAS's; the same condition as vmath_f32.hpp's tanh8), else 0. Test it with #if, not #ifdef.
 #if defined(FWREF_VMATH_AVX2)
 #define FWREF_VMATH_I8_AVX2 1
 
