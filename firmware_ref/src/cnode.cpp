@@ -8,6 +8,7 @@
 #include "fwref/numerics.hpp"
 #include "fwref/tanhq.hpp"
 #include "fwref/vmath_f32.hpp"
+#include "fwref/vmath_i8.hpp"
 #include "model_common.hpp"
 #include "motor_common.hpp"
 
@@ -68,12 +69,13 @@ void trace_x_norm(const float* x, const float* mean, const float* std_, int wind
   }
 }
 
-// q[i] = quantize(x[i], s) and q[i] = quantize(tanh(x[i]), s) through plain pointers: an int8 store
-// may alias anything, so loops over Eigen vectors would reload their data pointer and size per element.
-// (``q`` int16 on the Cortex-M stage path: the same codes, stored widened for the int16 kernel.)
+// q[i] = quantize(x[i], s) through plain pointers: an int8 store may alias anything, so loops over
+// Eigen vectors would reload their data pointer and size per element. (``q`` int16 on the stage path
+// with the int16 kernel: the same codes, stored widened.) 8 lanes per AVX2 vector on the host,
+// bit-identical (fwref/vmath_i8.hpp).
 template <class Q>
 void quantize_all(const float* x, int n, float s, Q* q) {
-  for (int i = 0; i < n; ++i) q[i] = quantize(x[i], s);
+  quantize_n(x, n, s, q);
 }
 #if defined(__ARM_FEATURE_SAT) && defined(__ARM_FP) && !defined(FWREF_PORTABLE_KERNELS)
 // The int16 stage codes on Cortex-M: numerics.hpp's quantize (VDIV, VCVTR, SSAT #8) stored as int16
@@ -113,7 +115,7 @@ void stage_lin2(const CnodeI8& m, const std::int16_t* w16, const Q* q_hid, const
   for (int o0 = 0; o0 < L; o0 += kGemvRowBlock) {
     const int o1 = L - o0 < kGemvRowBlock ? L : o0 + kGemvRowBlock;
     stage_gemv(m.lin2_w.q, w16, o0, o1 - o0, H, q_hid, acc);
-    for (int o = o0; o < o1; ++o) k[o] = static_cast<float>(acc[o - o0]) * mult[o] + m.lin2_b[o];
+    rescale_bias_n(acc, mult + o0, m.lin2_b + o0, o1 - o0, k + o0);  // f32(acc) * mult + b, 8 lanes on AVX2
   }
 }
 
@@ -121,7 +123,8 @@ void stage_lin2(const CnodeI8& m, const std::int16_t* w16, const Q* q_hid, const
 // s_w[o]) + v[o]), s_hid), the operations of linear_i8_tensor then quantize(tanh_approx(.)) in the
 // same order, without a float buffer in between. On Cortex-M, with s_hid = 1/127 (always: the bound
 // scale), tanh then quantize is fwref/tanhq.hpp's exact table (a few integer operations instead of
-// the rational function and two divisions); elsewhere the direct loop, which the host vectorises.
+// the rational function and two divisions); elsewhere the direct loop (8 lanes per AVX2 vector on
+// the host, fwref/vmath_i8.hpp).
 template <class Q>
 void lin1_tanh_quantize(const CnodeI8& m, const std::int16_t* w16, const Q* zq, float s_z, const float* v, Q* q_hid) {
   const int H = m.dims.hidden, L = m.dims.latent;
@@ -136,9 +139,7 @@ void lin1_tanh_quantize(const CnodeI8& m, const std::int16_t* w16, const Q* zq, 
       continue;
     }
 #endif
-    for (int o = o0; o < o1; ++o) {
-      q_hid[o] = quantize(tanh_approx(rescale_i32(acc[o - o0], s_z, s_w[o]) + v[o]), m.s_hidden);
-    }
+    rescale_tanh_quantize_n(acc, s_z, s_w + o0, v + o0, m.s_hidden, o1 - o0, q_hid + o0);
   }
 }
 
@@ -239,31 +240,20 @@ void lin1_u_rows(const CnodeI8& m, const std::int16_t* lin1u16, CnodeWorkspace& 
 // The control path: U = interp_q @ quantize(x_norm, s_x[c]) in int32, u = f32(acc) * f32(s_P[s] *
 // s_x[c]), quantized per channel with s_u[c] into ws.uq; z0 = tanh(B(uq[0], encoder) + b); V[s] =
 // B(uq[s], lin1_u) + b1 (pattern B: s_u folded in). x_norm is requantized where a sample feeds two
-// rows (the same numbers both times), so no (W, C) buffer is needed.
+// rows (the same numbers both times), so no (W, C) buffer is needed. The per-channel work and the
+// search for a row's nonzero weights run on AVX2 vectors on the host (fwref/vmath_i8.hpp).
 void control_path_i8(const CnodeI8& m, const float* x, const std::int16_t* lin1u16, CnodeWorkspace& ws,
                      CnodeTrace* tr) {
   const CnodeDims& d = m.dims;
   const int C = d.channels, W = d.window, S = d.stage_times, L = d.latent;
   std::int32_t acc[kMaxChannels];
   for (int s = 0; s < S; ++s) {
-    const std::int8_t* p_row = m.interp.q + s * W;
     for (int c = 0; c < C; ++c) acc[c] = 0;
-    for (int w0 = 0; w0 < W; w0 += 8) {  // 8 weights at a time past the zeros (most of a row)
-      std::uint64_t eight = 1;
-      if (w0 + 8 <= W) std::memcpy(&eight, p_row + w0, 8);
-      if (eight == 0) continue;
-      for (int w = w0; w < W && w < w0 + 8; ++w) {
-        const std::int32_t p = p_row[w];
-        if (p == 0) continue;
-        const float* xw = x + w * C;
-        for (int c = 0; c < C; ++c) acc[c] += p * quantize(normalise(xw[c], m.mean[c], m.std[c]), m.s_x[c]);
-      }
-    }
-    for (int c = 0; c < C; ++c) {
-      const float u = rescale_i32(acc[c], m.interp.scale[s], m.s_x[c]);
-      if (tr != nullptr && tr->u != nullptr) tr->u[s * C + c] = u;
-      ws.uq[s * C + c] = quantize(u, m.s_u[c]);
-    }
+    for_each_nonzero(m.interp.q + s * W, W, [&](int w, std::int32_t p) {
+      accumulate_codes(x + w * C, m.mean, m.std, m.s_x, C, p, acc);
+    });
+    float* const u = tr != nullptr && tr->u != nullptr ? tr->u + s * C : nullptr;
+    rescale_quantize_row(acc, m.interp.scale[s], m.s_x, m.s_u, C, u, ws.uq + s * C);
   }
   ws.z.resize(L);
   linear_i8_folded(m.encoder_w.q, m.encoder_w.scale, L, C, ws.uq, m.encoder_b, ws.z.data());
@@ -327,7 +317,7 @@ Status infer(const CnodeI8& m, const float* x, float* logits, CnodeWorkspace& ws
   if (x == nullptr || logits == nullptr) return Status::kNullArgument;
   const CnodeDims& d = m.dims;
   const int C = d.channels, W = d.window, H = d.hidden, L = d.latent, K = d.classes;
-  if (!all_finite_f32(x, W * C)) return Status::kNonFiniteInput;
+  if (!all_finite_n(x, W * C)) return Status::kNonFiniteInput;
   if (tr != nullptr && tr->x_norm != nullptr) trace_x_norm(x, m.mean, m.std, W, C, tr->x_norm);
 
   const StageWeights16 w16 = int16_copies(m, ws);

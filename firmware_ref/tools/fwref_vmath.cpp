@@ -10,7 +10,10 @@
 // 2. gemv_f32_eigen against Eigen's lazyProduct (fwref/linalg.hpp's matvec) on random matrices of
 //    every column count from 1 to 140 and row counts 1..9 (the 4-row blocks and their remainders).
 // 3. all_finite_n against all_finite_f32 (one inf / NaN at every position of short windows).
-// Prints one line per check ("tanh: 0 of N differ") and the kernel name; exit 0 when nothing differs,
+// 4. the int8 vector math (fwref/vmath_i8.hpp) against numerics.hpp's scalar expressions: quantize
+//    (round-half-even ties, saturation bounds, NaN, the bit-pattern walk), rescale + tanh + quantize,
+//    rescale + bias, the control path's per-channel work, the nonzero search (tools/fwref_vmath_i8.hpp).
+// Prints one line per check ("tanh: 0 of N differ") and the kernel names; exit 0 when nothing differs,
 // 1 otherwise.
 #include <cstdint>
 #include <cstdio>
@@ -22,6 +25,7 @@
 #include <vector>
 
 #include "fwref/vmath_f32.hpp"
+#include "fwref_vmath_i8.hpp"
 
 namespace {
 
@@ -150,5 +154,21 @@ int main(int argc, char** argv) {
   long compared_f = 0;
   const long bf = check_all_finite(&compared_f);
   std::printf("all_finite: %ld of %ld differ\n", bf, compared_f);
-  return bt == 0 && bl == 0 && bg == 0 && bf == 0 ? 0 : 1;
+  std::printf("vmath_i8 kernel: %s\n", fwref::vmath_i8_kernel_name());
+  long bad_i8 = 0;
+  const auto report = [&](const char* name, long (*check)(long*)) {
+    long n = 0;
+    const long b = check(&n);
+    std::printf("%s: %ld of %ld differ\n", name, b, n);
+    bad_i8 += b;
+  };
+  long compared_q = 0;
+  const long bq = vmath_i8_check::check_quantize(in, &compared_q);
+  std::printf("quantize: %ld of %ld differ\n", bq, compared_q);
+  bad_i8 += bq;
+  report("rescale_tanh_quantize+rescale_bias", vmath_i8_check::check_rescale);
+  report("hidden_rows", vmath_i8_check::check_hidden_rows);
+  report("control_row", vmath_i8_check::check_control_row);
+  report("nonzero", vmath_i8_check::check_nonzero);
+  return bt == 0 && bl == 0 && bg == 0 && bf == 0 && bad_i8 == 0 ? 0 : 1;
 }
