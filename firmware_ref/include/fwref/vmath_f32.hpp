@@ -110,6 +110,28 @@ inline bool all_finite_n(const float* x, int n) {
   return true;
 }
 
+// Bit k (k < 8) set iff !(p[k] == 0.0f): the scalar zero test (-0 is zero, a NaN is not), 8 at once.
+inline unsigned nonzero8(const float* p) {
+  return static_cast<unsigned>(_mm256_movemask_ps(_mm256_cmp_ps(_mm256_loadu_ps(p), _mm256_setzero_ps(), _CMP_NEQ_UQ)));
+}
+
+// u[c] = u[c] + p * normalise(x[c], mean[c], std_[c]) for c < n, 8 lanes at a time: per lane the
+// scalar expression's SUBPS, DIVPS, MULPS, ADDPS (no FMA), so bit-identical to the scalar loop.
+inline void add_scaled_normalised_n(float* u, float p, const float* x, const float* mean, const float* std_, int n) {
+  const __m256 pv = _mm256_set1_ps(p);
+  int c = 0;
+  for (; c + 8 <= n; c += 8) {
+    const __m256 xn = _mm256_div_ps(_mm256_sub_ps(_mm256_loadu_ps(x + c), _mm256_loadu_ps(mean + c)), _mm256_loadu_ps(std_ + c));
+    _mm256_storeu_ps(u + c, _mm256_add_ps(_mm256_loadu_ps(u + c), _mm256_mul_ps(pv, xn)));
+  }
+  if (c < n) {  // the last n % 8 through masked loads and a masked store (the other lanes untouched)
+    const __m256i m = _mm256_cmpgt_epi32(_mm256_set1_epi32(n - c), _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7));
+    const __m256 xn = _mm256_div_ps(_mm256_sub_ps(_mm256_maskload_ps(x + c, m), _mm256_maskload_ps(mean + c, m)),
+                                    _mm256_maskload_ps(std_ + c, m));
+    _mm256_maskstore_ps(u + c, m, _mm256_add_ps(_mm256_maskload_ps(u + c, m), _mm256_mul_ps(pv, xn)));
+  }
+}
+
 #else
 
 inline bool all_finite_n(const float* x, int n) { return all_finite_f32(x, n); }
@@ -149,8 +171,11 @@ FWREF_VMATH_INLINE __m256 sum8(const __m256* a) {
 // R rows (R <= 8) starting at w: lane j of row r's accumulator is the FMA chain over the columns
 // i = j, j + 8, j + 16, ... (the first packet a plain product, the last cols % 8 columns through masked
 // loads, whose zero lanes add zeros), then sum8, then + b[r] when b is given; y[0..R) written.
-template <int R>
-FWREF_VMATH_INLINE void rows_fma(const float* w, int cols, const float* x, __m256i tail, const float* b, float* y) {
+// COLS > 0: cols as a compile-time constant (every weight address a fixed offset from w, the packet
+// loop unrolled); 0: cols at run time.
+template <int R, int COLS>
+FWREF_VMATH_INLINE void rows_fma(const float* w, int cols_rt, const float* x, __m256i tail, const float* b, float* y) {
+  const int cols = COLS > 0 ? COLS : cols_rt;
   const int n8 = cols & ~7;
   __m256 acc[8];
   for (int r = R; r < 8; ++r) acc[r] = _mm256_setzero_ps();
@@ -162,6 +187,7 @@ FWREF_VMATH_INLINE void rows_fma(const float* w, int cols, const float* x, __m25
   } else {
     for (int r = 0; r < R; ++r) acc[r] = _mm256_setzero_ps();
   }
+#pragma GCC unroll 16
   for (; i < n8; i += 8) {
     const __m256 xv = _mm256_loadu_ps(x + i);
     for (int r = 0; r < R; ++r) acc[r] = _mm256_fmadd_ps(_mm256_loadu_ps(w + r * cols + i), xv, acc[r]);
@@ -181,6 +207,18 @@ FWREF_VMATH_INLINE void rows_fma(const float* w, int cols, const float* x, __m25
   }
 }
 
+// All rows of W, COLS as rows_fma's.
+template <int COLS>
+void gemv_fma_cols(const float* w, int rows, int cols_rt, const float* x, const float* b, float* y) {
+  const int cols = COLS > 0 ? COLS : cols_rt;
+  const __m256i tail = _mm256_cmpgt_epi32(_mm256_set1_epi32(cols & 7), _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7));
+  int o = 0;
+  for (; o + 8 <= rows; o += 8) rows_fma<8, COLS>(w + o * cols, cols, x, tail, b ? b + o : nullptr, y + o);
+  if (o + 4 <= rows) rows_fma<4, COLS>(w + o * cols, cols, x, tail, b ? b + o : nullptr, y + o), o += 4;
+  if (o + 2 <= rows) rows_fma<2, COLS>(w + o * cols, cols, x, tail, b ? b + o : nullptr, y + o), o += 2;
+  if (o < rows) rows_fma<1, COLS>(w + o * cols, cols, x, tail, b ? b + o : nullptr, y + o);
+}
+
 #undef FWREF_VMATH_INLINE
 }  // namespace vmath_detail
 
@@ -193,13 +231,19 @@ FWREF_VMATH_INLINE void rows_fma(const float* w, int cols, const float* x, __m25
 //   y[o] = ((a_0 + a_1) + (a_2 + a_3)) + ((a_4 + a_5) + (a_6 + a_7)), then y[o] + b[o].
 // Error: |y[o] - sum_i w[o][i] x[i]| <= gamma(ceil(cols / 8) + 3) * sum_i |w[o][i] x[i]| (gamma(n) = n u / (1 - n u),
 // u = 2^-24): each product meets at most ceil(cols / 8) roundings in its lane's chain and 3 in the tree.
+// The column counts of the paper models' products (channels 23 and 25, latent 40, hidden 64 and 80)
+// are compiled with cols as a constant; any other count takes the run-time loop. Both perform the
+// same operations in the same order, so the choice never changes a result.
 inline void gemv_f32_fma(const float* w, int rows, int cols, const float* x, const float* b, float* y) {
-  const __m256i tail = _mm256_cmpgt_epi32(_mm256_set1_epi32(cols & 7), _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7));
-  int o = 0;
-  for (; o + 8 <= rows; o += 8) vmath_detail::rows_fma<8>(w + o * cols, cols, x, tail, b ? b + o : nullptr, y + o);
-  if (o + 4 <= rows) vmath_detail::rows_fma<4>(w + o * cols, cols, x, tail, b ? b + o : nullptr, y + o), o += 4;
-  if (o + 2 <= rows) vmath_detail::rows_fma<2>(w + o * cols, cols, x, tail, b ? b + o : nullptr, y + o), o += 2;
-  if (o < rows) vmath_detail::rows_fma<1>(w + o * cols, cols, x, tail, b ? b + o : nullptr, y + o);
+  using vmath_detail::gemv_fma_cols;
+  switch (cols) {
+    case 23: return gemv_fma_cols<23>(w, rows, cols, x, b, y);
+    case 25: return gemv_fma_cols<25>(w, rows, cols, x, b, y);
+    case 40: return gemv_fma_cols<40>(w, rows, cols, x, b, y);
+    case 64: return gemv_fma_cols<64>(w, rows, cols, x, b, y);
+    case 80: return gemv_fma_cols<80>(w, rows, cols, x, b, y);
+    default: return gemv_fma_cols<0>(w, rows, cols, x, b, y);
+  }
 }
 
 #else
