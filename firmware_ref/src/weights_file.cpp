@@ -84,7 +84,7 @@ class Binder {
  private:
   // Each float32 tensor's copy starts on a 64-byte boundary (15 floats of slack): a matrix whose rows
   // are a multiple of 8 floats then never has a 32-byte load of the host fp32 gemv straddle two cache
-  // lines (docs/bench.md: CNODE fp32 8.7 -> 7.1 us). The values are the same, so are the results.
+  // lines (docs/bench.md: CNODE fp32 8.8 -> 7.4 us). The values are the same, so are the results.
   const float* f32(const TensorInfo& t) {
     wf_.f32_.emplace_back(t.count + 15);
     const std::uintptr_t a = reinterpret_cast<std::uintptr_t>(wf_.f32_.back().data());  // 4-byte aligned
