@@ -1,10 +1,19 @@
-"""The host's fp32 vector math (fwref/vmath_f32.hpp) is bit-identical to the scalar code it replaces:
-fwref_vmath compares tanh_n / logistic_n with tanh_approx / logistic_approx (clamp edges, +-0, NaN,
-+-inf, denormals, a walk over the float32 bit patterns) and gemv_f32_eigen with Eigen's lazyProduct
-(every column count 1..140, rows 1..9), bit for bit; and the CNODE's int8 vector math
-(fwref/vmath_i8.hpp) with numerics.hpp's scalar expressions: QuantizeLinear's round-half-even ties,
-saturation bounds and NaN, rescale + tanh + quantize, rescale + bias, the control path's channels
-and its nonzero search; it exits 1 on any difference."""
+"""The host's fp32 vector math (fwref/vmath_f32.hpp): fwref_vmath compares tanh_n / logistic_n with
+tanh_approx / logistic_approx bit for bit (clamp edges, +-0, NaN, +-inf, denormals, a walk over the
+float32 bit patterns), and the fp32 gemv (matvec_f32 / matvec_bias_f32; every column count 1..140,
+rows 1..17, with and without bias) two ways; it exits 1 on any failure.
+
+The gemv is no longer Eigen's order (issue 15: FMA chains, 8 rows per pass), so it is not compared with
+Eigen's product bit for bit. What it promises instead, and what is checked:
+- its order, stated in fwref/vmath_f32.hpp, bit for bit against a scalar statement of that order
+  (so its results do not depend on the row blocking, alignment or which rows % 8 path ran);
+- its accuracy: within the rounding-error bound of that order, gamma(ceil(cols/8) + 3) * sum |w x|,
+  of a double-precision sum; a bound, not a tolerance picked to pass (the worst ratio is printed).
+How far that moves the models from ONNX Runtime is `quadfdi parity`'s check (FP32_CPP_REL_TOL).
+
+And the CNODE's int8 vector math (fwref/vmath_i8.hpp) with numerics.hpp's scalar expressions, bit
+for bit: QuantizeLinear's round-half-even ties, saturation bounds and NaN, rescale + tanh + quantize,
+rescale + bias, the control path's channels and its nonzero search."""
 
 from __future__ import annotations
 
@@ -22,15 +31,19 @@ def _cpu_flags() -> set[str]:
     return set()
 
 
-def test_vector_tanh_logistic_and_gemv_are_bit_identical_to_the_scalar_code(host_build):
+def test_vector_tanh_logistic_bit_identical_and_gemv_in_its_order_and_bound(host_build):
     res = subprocess.run([str(host_build / "fwref_vmath")], capture_output=True, text=True, timeout=60)
     assert res.returncode == 0, res.stdout + res.stderr
     out = res.stdout
     for fn in ("tanh", "logistic"):
         m = re.search(rf"^{fn}: (\d+) of (\d+) differ$", out, re.M)
         assert m and int(m.group(1)) == 0 and int(m.group(2)) > 1_000_000, out
-    m = re.search(r"^gemv: (\d+) of (\d+) differ$", out, re.M)
-    assert m and int(m.group(1)) == 0 and int(m.group(2)) == 140 * sum(range(1, 10)), out
+    rows_checked = 140 * sum(range(1, 18))
+    m = re.search(r"^gemv order: (\d+) of (\d+) differ$", out, re.M)  # compared only for the FMA kernel
+    fma_kernel = "gemv kernel: fma-avx2-8row" in out
+    assert m and int(m.group(1)) == 0 and int(m.group(2)) == (rows_checked if fma_kernel else 0), out
+    m = re.search(r"^gemv bound: (\d+) of (\d+) exceed \(worst error / bound ([0-9.]+)\)$", out, re.M)
+    assert m and int(m.group(1)) == 0 and int(m.group(2)) == rows_checked and float(m.group(3)) <= 1.0, out
     m = re.search(r"^all_finite: (\d+) of (\d+) differ$", out, re.M)
     assert m and int(m.group(1)) == 0 and int(m.group(2)) > 3000, out
     i8_min = {"quantize": 10_000_000, "rescale_tanh_quantize+rescale_bias": 19_000, "hidden_rows": 3_000_000,
@@ -41,5 +54,4 @@ def test_vector_tanh_logistic_and_gemv_are_bit_identical_to_the_scalar_code(host
     flags = _cpu_flags()
     if {"avx2", "fma"} <= flags:  # the host build is -march=native: the vector path must be the one compared
         assert "vmath kernel: avx2-fma" in out and "vmath_i8 kernel: avx2" in out, out
-        if "avx512f" not in flags:  # Eigen's packet is 8 floats: the 4-row kernel replaces its product
-            assert "gemv kernel: eigen-order-avx2-4row" in out, out
+        assert "gemv kernel: fma-avx2-8row" in out, out

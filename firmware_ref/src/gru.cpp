@@ -104,22 +104,18 @@ Status infer(const GruF32& m, const float* x, float* logits, GruWorkspace& ws, G
   const GruDims& d = m.dims;
   const int C = d.channels, W = d.window, H = d.hidden;
   if (!all_finite_n(x, W * C)) return Status::kNonFiniteInput;
-  const ConstMapVec b_ih(m.b_ih, 3 * H), b_hh(m.b_hh, 3 * H);
   ws.h.setZero(H);
   ws.xn.resize(C);
   for (int t = 0; t < W; ++t) {
     for (int c = 0; c < C; ++c) ws.xn[c] = normalise(x[t * C + c], m.mean[c], m.std[c]);
     if (tr != nullptr) trace_row(ws.xn, C, tr->x_norm == nullptr ? nullptr : tr->x_norm + t * C);
-    matvec_f32(m.w_ih, ws.xn, ws.gx);
-    ws.gx += b_ih;
-    matvec_f32(m.w_hh, ws.h, ws.gh);
-    ws.gh += b_hh;
+    matvec_bias_f32(m.w_ih, ws.xn, m.b_ih, ws.gx);  // MatMul then Add, as ws.gx = W_ih xn; ws.gx += b_ih
+    matvec_bias_f32(m.w_hh, ws.h, m.b_hh, ws.gh);
     gru_cell(ws.gx, ws.gh, H, ws.h);
     if (tr != nullptr) trace_row(ws.h, H, tr->h == nullptr ? nullptr : tr->h + t * H);
   }
   MapVec out(logits, d.classes);
-  matvec_f32(m.head_w, ws.h, out);
-  out += ConstMapVec(m.head_b, d.classes);
+  matvec_bias_f32(m.head_w, ws.h, m.head_b, out);
   return all_finite(logits, d.classes) ? Status::kOk : Status::kNonFiniteOutput;
 }
 

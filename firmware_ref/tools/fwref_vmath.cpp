@@ -1,5 +1,5 @@
 // tools/fwref_vmath.cpp -- scope: checks the host's fp32 vector math (fwref/vmath_f32.hpp) against
-// the scalar code it replaces, bit for bit, and prints what it compared.
+// the scalar code it replaces (bit for bit) and the gemv against its stated order and error bound, and prints what it compared.
 //
 //   fwref_vmath [--stride N]
 //
@@ -7,14 +7,17 @@
 //    their neighbouring floats), +-0, +-inf, quiet and signalling NaNs of both signs, denormals, and
 //    every N-th float32 bit pattern (default 4099: about a million floats of every exponent). A
 //    float's 8-lane vector and its scalar tail are both exercised (arrays of 8k + 5 values).
-// 2. gemv_f32_eigen against Eigen's lazyProduct (fwref/linalg.hpp's matvec) on random matrices of
-//    every column count from 1 to 140 and row counts 1..9 (the 4-row blocks and their remainders).
+// 2. matvec_f32 / matvec_bias_f32 (gemv_f32_fma on an AVX2 host) on random matrices of every column
+//    count from 1 to 140 and row counts 1..17: bit for bit against a scalar statement of the kernel's
+//    summation order, and against a double-precision sum within the order's rounding-error bound.
 // 3. all_finite_n against all_finite_f32 (one inf / NaN at every position of short windows).
 // 4. the int8 vector math (fwref/vmath_i8.hpp) against numerics.hpp's scalar expressions: quantize
 //    (round-half-even ties, saturation bounds, NaN, the bit-pattern walk), rescale + tanh + quantize,
 //    rescale + bias, the control path's per-channel work, the nonzero search (tools/fwref_vmath_i8.hpp).
 // Prints one line per check ("tanh: 0 of N differ") and the kernel names; exit 0 when nothing differs,
 // 1 otherwise.
+#include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <cstdio>
 #include <cstdlib>
@@ -76,30 +79,77 @@ long compare(const std::vector<float>& in, Vec vec, Scalar scalar) {
   return bad;
 }
 
-long check_gemv(long* compared) {
-  std::mt19937 rng(1234);
+#if defined(FWREF_GEMV_FMA)
+// The order gemv_f32_fma promises (fwref/vmath_f32.hpp), stated one scalar operation at a time.
+float gemv_row_order(const float* w, int cols, const float* x) {
+  float a[8] = {0, 0, 0, 0, 0, 0, 0, 0};
+  for (int j = 0; j < 8 && j < cols; ++j) a[j] = cols >= 8 ? w[j] * x[j] : std::fma(w[j], x[j], 0.0f);
+  for (int i = 8; i < cols; ++i) a[i % 8] = std::fma(w[i], x[i], a[i % 8]);
+  return ((a[0] + a[1]) + (a[2] + a[3])) + ((a[4] + a[5]) + (a[6] + a[7]));
+}
+#endif
+
+// gemv with and without a bias on random matrices of every column count 1..140 and row counts 1..17
+// (the 8-row passes and the 4 / 2 / 1 remainders), rows and x unaligned as weights.bin's views may be.
+// order: rows whose bits differ from gemv_row_order (+ b) -- only where gemv_f32_fma is the kernel;
+// bound: rows farther from the double-precision sum than the error bound gamma(ceil(cols / 8) + 3) *
+// sum |w x| (+ u |y| for the bias add); with Eigen's product the bound is gamma(cols) (any order).
+struct GemvCheck {
+  long compared = 0, order_compared = 0, order_bad = 0, bound_bad = 0;
+  double worst = 0.0;  // largest |error| / bound seen
+};
+
+void check_gemv_one(std::mt19937& rng, int rows, int cols, bool bias, GemvCheck& c) {
   std::normal_distribution<float> nd(0.0f, 1.0f);
-  long bad = 0;
-  for (int cols = 1; cols <= 140; ++cols) {
-    for (int rows = 1; rows <= 9; ++rows) {
-      std::vector<float> w(rows * cols + 1), x(cols + 1), y(rows);
-      for (float& f : w) f = nd(rng);
-      for (float& f : x) f = nd(rng);
-      // offset by one float: unaligned rows and x, as weights.bin's views may be
-      const fwref::MatF m{w.data() + 1, rows, cols};
-      Eigen::Matrix<float, Eigen::Dynamic, 1> ref(rows);
-      fwref::matvec(m, fwref::ConstMapVec(x.data() + 1, cols), ref);
-      fwref::gemv_f32_eigen(m.data, rows, cols, x.data() + 1, y.data());
-      for (int o = 0; o < rows; ++o) {
-        if (bits(ref[o]) != bits(y[o])) {
-          if (bad < 5) std::printf("  gemv rows=%d cols=%d row %d: %a vs Eigen %a\n", rows, cols, o, y[o], ref[o]);
-          ++bad;
-        }
-      }
-      *compared += rows;
-    }
+  std::vector<float> w(rows * cols + 1), x(cols + 1), b(rows + 1);
+  for (float& f : w) f = nd(rng);
+  for (float& f : x) f = nd(rng);
+  for (float& f : b) f = nd(rng);
+  const fwref::MatF m{w.data() + 1, rows, cols};
+  const float* bp = bias ? b.data() + 1 : nullptr;
+  Eigen::Matrix<float, Eigen::Dynamic, 1> y(rows);
+  if (bias) {
+    fwref::matvec_bias_f32(m, fwref::ConstMapVec(x.data() + 1, cols), bp, y);
+  } else {
+    fwref::matvec_f32(m, fwref::ConstMapVec(x.data() + 1, cols), y);
   }
-  return bad;
+  const double u = std::ldexp(1.0, -24);
+#if defined(FWREF_GEMV_FMA)
+  const double n = (cols + 7) / 8 + 3;
+#else
+  const double n = cols;
+#endif
+  const double gamma = n * u / (1.0 - n * u);
+  for (int o = 0; o < rows; ++o) {
+    const float* r = m.data + o * cols;
+    const float* xv = x.data() + 1;
+    double exact = 0.0, mag = 0.0;
+    for (int i = 0; i < cols; ++i) exact += double(r[i]) * xv[i], mag += std::fabs(double(r[i]) * xv[i]);
+    double bound = gamma * mag;
+    if (bias) exact += bp[o], bound = bound * (1.0 + u) + u * std::fabs(exact);
+    const double err = std::fabs(double(y[o]) - exact);
+    if (err > bound) ++c.bound_bad;
+    if (bound > 0) c.worst = std::max(c.worst, err / bound);
+#if defined(FWREF_GEMV_FMA)
+    float want = gemv_row_order(r, cols, xv);
+    if (bias) want = want + bp[o];
+    if (bits(want) != bits(y[o])) {
+      if (c.order_bad < 5) std::printf("  gemv rows=%d cols=%d row %d: %a, the stated order %a\n", rows, cols, o, y[o], want);
+      ++c.order_bad;
+    }
+    ++c.order_compared;
+#endif
+    ++c.compared;
+  }
+}
+
+GemvCheck check_gemv() {
+  std::mt19937 rng(1234);
+  GemvCheck c;
+  for (int cols = 1; cols <= 140; ++cols) {
+    for (int rows = 1; rows <= 17; ++rows) check_gemv_one(rng, rows, cols, rows % 2 == 0, c);
+  }
+  return c;
 }
 
 // all_finite_n against all_finite_f32 on windows of every length 0..40 with one inf, -inf or NaN at
@@ -139,18 +189,15 @@ int main(int argc, char** argv) {
   for (std::uint64_t u = 0; u <= 0xffffffffull; u += stride) in.push_back(from_bits(static_cast<std::uint32_t>(u)));
   for (int i = 0; in.size() % 8 != 5; ++i) in.push_back(static_cast<float>(i) * 0.37f);  // a scalar tail
   std::printf("vmath kernel: %s\n", fwref::vmath_f32_kernel_name());
-#if defined(FWREF_GEMV_EIGEN_ORDER)
-  std::printf("gemv kernel: eigen-order-avx2-4row\n");
-#else
-  std::printf("gemv kernel: eigen\n");
-#endif
+  std::printf("gemv kernel: %s\n", fwref::matvec_f32_kernel_name());
   const long bt = compare(in, fwref::tanh_n, fwref::tanh_approx);
   std::printf("tanh: %ld of %zu differ\n", bt, in.size());
   const long bl = compare(in, fwref::logistic_n, fwref::logistic_approx);
   std::printf("logistic: %ld of %zu differ\n", bl, in.size());
-  long compared = 0;
-  const long bg = check_gemv(&compared);
-  std::printf("gemv: %ld of %ld differ\n", bg, compared);
+  const GemvCheck g = check_gemv();
+  std::printf("gemv order: %ld of %ld differ\n", g.order_bad, g.order_compared);  // 0 of 0: Eigen's product
+  std::printf("gemv bound: %ld of %ld exceed (worst error / bound %.3f)\n", g.bound_bad, g.compared, g.worst);
+  const long bg = g.order_bad + g.bound_bad;
   long compared_f = 0;
   const long bf = check_all_finite(&compared_f);
   std::printf("all_finite: %ld of %ld differ\n", bf, compared_f);

@@ -1,13 +1,14 @@
-// fwref/vmath_f32.hpp -- scope: the host's fp32 vector math, bit-identical per element to the scalar
-// code it replaces: tanh_approx / logistic_approx (fwref/numerics.hpp) on 8 floats per AVX2 vector,
-// and y = W x with Eigen's lazyProduct reduction order, several rows per pass over x.
+// fwref/vmath_f32.hpp -- scope: the host's fp32 vector math: tanh_approx / logistic_approx
+// (fwref/numerics.hpp) on 8 floats per AVX2 vector, bit-identical per element to the scalar code, and
+// y = W x (+ b) with FMA chains, 8 rows per pass over x.
 //
 //   tanh_n(v, n), logistic_n(v, n)   v[i] = tanh_approx(v[i]) / logistic_approx(v[i]), in place
 //   all_finite_n(x, n)               all_finite_f32(x, n), 8 floats per comparison
-//   gemv_f32_eigen(w, rows, cols, x, y)
-//                                    y[o] = map(W).lazyProduct(x)[o] bit for bit (fwref/linalg.hpp)
+//   gemv_f32_fma(w, rows, cols, x, b, y)
+//                                    y = W x (+ b), the summation order stated above its definition
+//   matvec_f32(w, x, y), matvec_bias_f32(w, x, b, y)   the models' products (Eigen vectors in, out)
 //
-// Why bit-identical: each lane performs the scalar function's IEEE float32 operations in the same
+// Why tanh / logistic are bit-identical: each lane performs the scalar function's IEEE float32 operations in the same
 // order. The clamps: the scalar `x < -9 ? -9 : x` is `(-9 > x) ? -9 : x`, which is exactly MAXPS with
 // the constant as FIRST operand (MAXPS(a, b) = a > b ? a : b: a NaN x fails the comparison and comes
 // back, as in the scalar); `x > 9 ? 9 : x` is MINPS(9, x). The Horner steps are _mm256_fmadd_ps (one
@@ -16,16 +17,14 @@
 // code, so denormals round identically. Checked by fwref_vmath (tests/test_vmath.py): the clamp edges,
 // +-0, NaN, +-inf, denormals and a walk over the float32 bit patterns.
 //
-// The gemv: Eigen 3.4's coefficient-based product computes each y[o] as the redux of row o .* x
-// (Redux.h, LinearVectorizedTraversal, NoUnrolling; the expression has no direct access, so no
-// alignment peeling): with P = 8 lanes, r0 = w[0:8] x[0:8], r1 = w[8:16] x[8:16], then pairs of packets
-// into r0 and r1, r0 = r0 + r1, one odd packet into r0, the horizontal sum ((lo + hi) then lanes
-// (0 + 2) + (1 + 3)), then the last cols % 8 products one by one; fewer than 8 columns: a plain
-// left-to-right sum starting from the first product. Here 4 rows share each load of x (Eigen's loop
-// does one row, one product per coefficient call, with its per-row set-up); the same operations per
-// row, so the same bits. Only where Eigen's float packet is 8 lanes (AVX without AVX-512): elsewhere
-// gemv_f32_eigen is Eigen's own product, and tanh_n / logistic_n the scalar loop (the Cortex-M build
-// keeps its own paths: fwref/kernels_f32.hpp, fwref/tanhq.hpp).
+// The gemv is NOT Eigen's order (it was until issue 15's fp32 pass: Eigen's lazyProduct has no fused
+// multiply-add and pays a horizontal sum per row, on the CNODE's short rows of 23, 40 and 64 columns):
+// per row 8 FMA chains, one per lane, and one tree of additions, the horizontal sums of 8 rows done
+// together (sum8). Its roundings differ from Eigen's and from ONNX Runtime's MLAS, within the fp32
+// tolerance (core/contracts.py FP32_CPP_REL_TOL; `quadfdi parity`); it is deterministic: the same
+// inputs give the same bits on every AVX2 host (no dependence on alignment or on rows % 8). Hosts
+// without AVX2 + FMA keep Eigen's product (matvec_fast), and tanh_n / logistic_n the scalar loop (the
+// Cortex-M build keeps its own paths: fwref/kernels_f32.hpp, fwref/tanhq.hpp).
 #pragma once
 
 #include <cmath>
@@ -111,6 +110,28 @@ inline bool all_finite_n(const float* x, int n) {
   return true;
 }
 
+// Bit k (k < 8) set iff !(p[k] == 0.0f): the scalar zero test (-0 is zero, a NaN is not), 8 at once.
+inline unsigned nonzero8(const float* p) {
+  return static_cast<unsigned>(_mm256_movemask_ps(_mm256_cmp_ps(_mm256_loadu_ps(p), _mm256_setzero_ps(), _CMP_NEQ_UQ)));
+}
+
+// u[c] = u[c] + p * normalise(x[c], mean[c], std_[c]) for c < n, 8 lanes at a time: per lane the
+// scalar expression's SUBPS, DIVPS, MULPS, ADDPS (no FMA), so bit-identical to the scalar loop.
+inline void add_scaled_normalised_n(float* u, float p, const float* x, const float* mean, const float* std_, int n) {
+  const __m256 pv = _mm256_set1_ps(p);
+  int c = 0;
+  for (; c + 8 <= n; c += 8) {
+    const __m256 xn = _mm256_div_ps(_mm256_sub_ps(_mm256_loadu_ps(x + c), _mm256_loadu_ps(mean + c)), _mm256_loadu_ps(std_ + c));
+    _mm256_storeu_ps(u + c, _mm256_add_ps(_mm256_loadu_ps(u + c), _mm256_mul_ps(pv, xn)));
+  }
+  if (c < n) {  // the last n % 8 through masked loads and a masked store (the other lanes untouched)
+    const __m256i m = _mm256_cmpgt_epi32(_mm256_set1_epi32(n - c), _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7));
+    const __m256 xn = _mm256_div_ps(_mm256_sub_ps(_mm256_maskload_ps(x + c, m), _mm256_maskload_ps(mean + c, m)),
+                                    _mm256_maskload_ps(std_ + c, m));
+    _mm256_maskstore_ps(u + c, m, _mm256_add_ps(_mm256_maskload_ps(u + c, m), _mm256_mul_ps(pv, xn)));
+  }
+}
+
 #else
 
 inline bool all_finite_n(const float* x, int n) { return all_finite_f32(x, n); }
@@ -124,144 +145,141 @@ inline void logistic_n(float* v, int n) {
 
 #endif
 
-// Eigen's float packet is 8 lanes exactly when it vectorises with AVX and not AVX-512.
-#if defined(FWREF_VMATH_AVX2) && defined(EIGEN_VECTORIZE_AVX) && !defined(EIGEN_VECTORIZE_AVX512)
-#define FWREF_GEMV_EIGEN_ORDER 1
+#if defined(FWREF_VMATH_AVX2)
+#define FWREF_GEMV_FMA 1
+
+// What matvec_f32 / matvec_bias_f32 run.
+inline const char* matvec_f32_kernel_name() { return "fma-avx2-8row"; }
 
 namespace vmath_detail {
 
-// The row kernels' parts inlined into one loop body (GCC otherwise calls finish_rows with the packet
-// sums passed through memory).
+// The row kernel's parts inlined into one loop body (GCC otherwise passes the accumulators through memory).
 #define FWREF_VMATH_INLINE inline __attribute__((always_inline))
 
-// Eigen's predux<Packet8f>: lo + hi, then tmp = a + movehl(a), then tmp[0] + tmp[1].
-inline float predux8(__m256 v) {
-  const __m128 a = _mm_add_ps(_mm256_castps256_ps128(v), _mm256_extractf128_ps(v, 1));
-  const __m128 t = _mm_add_ps(a, _mm_movehl_ps(a, a));
-  return _mm_cvtss_f32(_mm_add_ss(t, _mm_shuffle_ps(t, t, 1)));
+// Eight 8-lane accumulators -> one vector whose lane r is the sum of a[r]'s lanes l0..l7, as
+// ((l0 + l1) + (l2 + l3)) + ((l4 + l5) + (l6 + l7)): 6 HADDPS, 2 VPERM2F128 and 1 ADDPS for 8 rows.
+FWREF_VMATH_INLINE __m256 sum8(const __m256* a) {
+  const __m256 t0 = _mm256_hadd_ps(a[0], a[1]);  // [a0 l0+l1, a0 l2+l3, a1 l0+l1, a1 l2+l3 | the same, l4..l7]
+  const __m256 t1 = _mm256_hadd_ps(a[2], a[3]);
+  const __m256 t2 = _mm256_hadd_ps(a[4], a[5]);
+  const __m256 t3 = _mm256_hadd_ps(a[6], a[7]);
+  const __m256 u0 = _mm256_hadd_ps(t0, t1);  // [a0..a3 (l0+l1)+(l2+l3) | a0..a3 (l4+l5)+(l6+l7)]
+  const __m256 u1 = _mm256_hadd_ps(t2, t3);  // the same for a4..a7
+  return _mm256_add_ps(_mm256_permute2f128_ps(u0, u1, 0x20), _mm256_permute2f128_ps(u0, u1, 0x31));
 }
 
-// s (4 rows in its lanes) + the rows' last T products, one column at a time in increasing column
-// order: s = s + w[r][i] * x[i] per lane, i = cols - T .. cols - 1. The columns come from the rows'
-// last 8 floats (in bounds: cols >= 8), transposed (4x4 twice), instead of 4 scalar loads per column.
-template <int T>
-FWREF_VMATH_INLINE __m128 tail4(__m128 s, const float* w, int cols, const float* x) {
-  const float* e = w + cols - 8;
-  const __m256 t0 = _mm256_loadu_ps(e), t1 = _mm256_loadu_ps(e + cols);
-  const __m256 t2 = _mm256_loadu_ps(e + 2 * cols), t3 = _mm256_loadu_ps(e + 3 * cols);
-  __m128 c0 = _mm256_castps256_ps128(t0), c1 = _mm256_castps256_ps128(t1);
-  __m128 c2 = _mm256_castps256_ps128(t2), c3 = _mm256_castps256_ps128(t3);
-  __m128 c4 = _mm256_extractf128_ps(t0, 1), c5 = _mm256_extractf128_ps(t1, 1);
-  __m128 c6 = _mm256_extractf128_ps(t2, 1), c7 = _mm256_extractf128_ps(t3, 1);
-  _MM_TRANSPOSE4_PS(c0, c1, c2, c3);  // c_k = column cols - 8 + k of the 4 rows
-  _MM_TRANSPOSE4_PS(c4, c5, c6, c7);
-  const __m128 col[8] = {c0, c1, c2, c3, c4, c5, c6, c7};
-  const float* xe = x + cols - 8;
-  for (int k = 8 - T; k < 8; ++k) s = _mm_add_ps(s, _mm_mul_ps(col[k], _mm_set1_ps(xe[k])));
-  return s;
-}
-
-// The packet sums r0[0..R) of R rows -> Eigen's redux result per row (predux8, then the tail
-// products one by one), with 4 rows in the lanes of one SSE vector when R = 4: the lanes hold the
-// rows, so each row sees exactly predux8's additions ((a0 + a2) + (a1 + a3), a = lo + hi) and then
-// s = s + w[i] * x[i] for i = n8 .. cols - 1, in order.
-template <int R>
-FWREF_VMATH_INLINE void finish_rows(const __m256* r0, const float* w, int cols, int n8, const float* x, float* y) {
-  if (R != 4) {
-    for (int r = 0; r < R; ++r) {
-      float s = predux8(r0[r]);
-      const float* wr = w + r * cols;
-      for (int i = n8; i < cols; ++i) s = s + wr[i] * x[i];
-      y[r] = s;
-    }
-    return;
-  }
-  __m128 a0 = _mm_add_ps(_mm256_castps256_ps128(r0[0]), _mm256_extractf128_ps(r0[0], 1));
-  __m128 a1 = _mm_add_ps(_mm256_castps256_ps128(r0[1]), _mm256_extractf128_ps(r0[1], 1));
-  __m128 a2 = _mm_add_ps(_mm256_castps256_ps128(r0[2]), _mm256_extractf128_ps(r0[2], 1));
-  __m128 a3 = _mm_add_ps(_mm256_castps256_ps128(r0[3]), _mm256_extractf128_ps(r0[3], 1));
-  _MM_TRANSPOSE4_PS(a0, a1, a2, a3);  // a_j = lane j of every row
-  __m128 s = _mm_add_ps(_mm_add_ps(a0, a2), _mm_add_ps(a1, a3));
-  switch (cols - n8) {  // the tail's length as a constant, so that tail4 unrolls
-    case 1: s = tail4<1>(s, w, cols, x); break;
-    case 2: s = tail4<2>(s, w, cols, x); break;
-    case 3: s = tail4<3>(s, w, cols, x); break;
-    case 4: s = tail4<4>(s, w, cols, x); break;
-    case 5: s = tail4<5>(s, w, cols, x); break;
-    case 6: s = tail4<6>(s, w, cols, x); break;
-    case 7: s = tail4<7>(s, w, cols, x); break;
-    default: break;
-  }
-  _mm_storeu_ps(y, s);
-}
-
-// R rows (R = 1 or 4) starting at w, each exactly as Eigen's redux (see the header comment); cols >= 8.
-template <int R>
-FWREF_VMATH_INLINE void rows_eigen_order(const float* w, int cols, const float* x, float* y) {
-  const int n8 = cols & ~7, n16 = cols & ~15;
-  __m256 r0[R], r1[R];
-  if (n8 > 8) {
-    const __m256 x0 = _mm256_loadu_ps(x), x1 = _mm256_loadu_ps(x + 8);
-    for (int r = 0; r < R; ++r) {
-      r0[r] = _mm256_mul_ps(_mm256_loadu_ps(w + r * cols), x0);
-      r1[r] = _mm256_mul_ps(_mm256_loadu_ps(w + r * cols + 8), x1);
-    }
-    for (int i = 16; i < n16; i += 16) {
-      const __m256 xa = _mm256_loadu_ps(x + i), xb = _mm256_loadu_ps(x + i + 8);
-      for (int r = 0; r < R; ++r) {
-        r0[r] = _mm256_add_ps(r0[r], _mm256_mul_ps(_mm256_loadu_ps(w + r * cols + i), xa));
-        r1[r] = _mm256_add_ps(r1[r], _mm256_mul_ps(_mm256_loadu_ps(w + r * cols + i + 8), xb));
-      }
-    }
-    for (int r = 0; r < R; ++r) r0[r] = _mm256_add_ps(r0[r], r1[r]);
-    if (n8 > n16) {
-      const __m256 xc = _mm256_loadu_ps(x + n16);
-      for (int r = 0; r < R; ++r) r0[r] = _mm256_add_ps(r0[r], _mm256_mul_ps(_mm256_loadu_ps(w + r * cols + n16), xc));
-    }
+// R rows (R <= 8) starting at w: lane j of row r's accumulator is the FMA chain over the columns
+// i = j, j + 8, j + 16, ... (the first packet a plain product, the last cols % 8 columns through masked
+// loads, whose zero lanes add zeros), then sum8, then + b[r] when b is given; y[0..R) written.
+// COLS > 0: cols as a compile-time constant (every weight address a fixed offset from w, the packet
+// loop unrolled); 0: cols at run time.
+template <int R, int COLS>
+FWREF_VMATH_INLINE void rows_fma(const float* w, int cols_rt, const float* x, __m256i tail, const float* b, float* y) {
+  const int cols = COLS > 0 ? COLS : cols_rt;
+  const int n8 = cols & ~7;
+  __m256 acc[8];
+  for (int r = R; r < 8; ++r) acc[r] = _mm256_setzero_ps();
+  int i = 0;
+  if (n8 > 0) {
+    const __m256 xv = _mm256_loadu_ps(x);
+    for (int r = 0; r < R; ++r) acc[r] = _mm256_mul_ps(_mm256_loadu_ps(w + r * cols), xv);
+    i = 8;
   } else {
-    const __m256 x0 = _mm256_loadu_ps(x);
-    for (int r = 0; r < R; ++r) r0[r] = _mm256_mul_ps(_mm256_loadu_ps(w + r * cols), x0);
+    for (int r = 0; r < R; ++r) acc[r] = _mm256_setzero_ps();
   }
-  finish_rows<R>(r0, w, cols, n8, x, y);
+#pragma GCC unroll 16
+  for (; i < n8; i += 8) {
+    const __m256 xv = _mm256_loadu_ps(x + i);
+    for (int r = 0; r < R; ++r) acc[r] = _mm256_fmadd_ps(_mm256_loadu_ps(w + r * cols + i), xv, acc[r]);
+  }
+  if (n8 < cols) {
+    const __m256 xv = _mm256_maskload_ps(x + n8, tail);
+    for (int r = 0; r < R; ++r) acc[r] = _mm256_fmadd_ps(_mm256_maskload_ps(w + r * cols + n8, tail), xv, acc[r]);
+  }
+  __m256 s = sum8(acc);
+  if (R == 8) {
+    if (b != nullptr) s = _mm256_add_ps(s, _mm256_loadu_ps(b));
+    _mm256_storeu_ps(y, s);
+  } else {
+    const __m256i m = _mm256_cmpgt_epi32(_mm256_set1_epi32(R), _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7));
+    if (b != nullptr) s = _mm256_add_ps(s, _mm256_maskload_ps(b, m));
+    _mm256_maskstore_ps(y, m, s);
+  }
+}
+
+// All rows of W, COLS as rows_fma's.
+template <int COLS>
+void gemv_fma_cols(const float* w, int rows, int cols_rt, const float* x, const float* b, float* y) {
+  const int cols = COLS > 0 ? COLS : cols_rt;
+  const __m256i tail = _mm256_cmpgt_epi32(_mm256_set1_epi32(cols & 7), _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7));
+  int o = 0;
+  for (; o + 8 <= rows; o += 8) rows_fma<8, COLS>(w + o * cols, cols, x, tail, b ? b + o : nullptr, y + o);
+  if (o + 4 <= rows) rows_fma<4, COLS>(w + o * cols, cols, x, tail, b ? b + o : nullptr, y + o), o += 4;
+  if (o + 2 <= rows) rows_fma<2, COLS>(w + o * cols, cols, x, tail, b ? b + o : nullptr, y + o), o += 2;
+  if (o < rows) rows_fma<1, COLS>(w + o * cols, cols, x, tail, b ? b + o : nullptr, y + o);
 }
 
 #undef FWREF_VMATH_INLINE
 }  // namespace vmath_detail
 
-inline void gemv_f32_eigen(const float* w, int rows, int cols, const float* x, float* y) {
-  if (cols < 8) {  // Eigen: "too small to vectorize anything", res = coeff(0), then + coeff(i)
-    for (int o = 0; o < rows; ++o) {
-      const float* r = w + o * cols;
-      float s = r[0] * x[0];
-      for (int i = 1; i < cols; ++i) s = s + r[i] * x[i];
-      y[o] = s;
-    }
-    return;
+// y = W x (+ b when b is not null), W (rows, cols) row-major, any rows >= 1 and cols >= 1; x, b, y
+// unaligned, y not aliasing x. 8 rows per pass share each load of x; the last rows % 8 in passes of
+// 4, 2, 1. Each y[o] is computed in this order (fwref_vmath checks it bit for bit against a scalar
+// statement of it, and against a double-precision sum within its error bound):
+//   lane j (0..7): a_j = fma(w[o][i], x[i], a_j) for i = j + 8, j + 16, ... < cols, from a_j = w[o][j] * x[j]
+//                  (a_j = 0 where j >= cols: the masked lanes contribute w = x = 0);
+//   y[o] = ((a_0 + a_1) + (a_2 + a_3)) + ((a_4 + a_5) + (a_6 + a_7)), then y[o] + b[o].
+// Error: |y[o] - sum_i w[o][i] x[i]| <= gamma(ceil(cols / 8) + 3) * sum_i |w[o][i] x[i]| (gamma(n) = n u / (1 - n u),
+// u = 2^-24): each product meets at most ceil(cols / 8) roundings in its lane's chain and 3 in the tree.
+// The column counts of the paper models' products (channels 23 and 25, latent 40, hidden 64 and 80)
+// are compiled with cols as a constant; any other count takes the run-time loop. Both perform the
+// same operations in the same order, so the choice never changes a result.
+inline void gemv_f32_fma(const float* w, int rows, int cols, const float* x, const float* b, float* y) {
+  using vmath_detail::gemv_fma_cols;
+  switch (cols) {
+    case 23: return gemv_fma_cols<23>(w, rows, cols, x, b, y);
+    case 25: return gemv_fma_cols<25>(w, rows, cols, x, b, y);
+    case 40: return gemv_fma_cols<40>(w, rows, cols, x, b, y);
+    case 64: return gemv_fma_cols<64>(w, rows, cols, x, b, y);
+    case 80: return gemv_fma_cols<80>(w, rows, cols, x, b, y);
+    default: return gemv_fma_cols<0>(w, rows, cols, x, b, y);
   }
-  int o = 0;
-  for (; o + 4 <= rows; o += 4) vmath_detail::rows_eigen_order<4>(w + o * cols, cols, x, y + o);
-  for (; o < rows; ++o) vmath_detail::rows_eigen_order<1>(w + o * cols, cols, x, y + o);
 }
 
 #else
 
-inline void gemv_f32_eigen(const float* w, int rows, int cols, const float* x, float* y) {
-  MapVec out(y, rows);
-  matvec(MatF{w, rows, cols}, ConstMapVec(x, cols), out);
+inline const char* matvec_f32_kernel_name() {
+#if defined(FWREF_F32_KERNEL_M)
+  return gemv_f32_kernel_name();  // matvec_fast's Cortex-M kernel
+#else
+  return "eigen";
+#endif
 }
 
 #endif
 
-// y = W x for the fp32 models' Eigen vectors: gemv_f32_eigen where it reproduces Eigen's order,
-// else matvec_fast (Eigen's product on a host, the VFP kernel on Cortex-M). ``y`` is resized to W's
-// rows (a Map must already have that size); x and y are contiguous and do not alias.
+// y = W x for the fp32 models' Eigen vectors: gemv_f32_fma on an AVX2 host, else matvec_fast (Eigen's
+// product on a host, the VFP kernel on Cortex-M). ``y`` is resized to W's rows (a Map must already
+// have that size); x and y are contiguous and do not alias.
 template <class Dst, class Src>
 inline void matvec_f32(const MatF& w, const Src& x, Dst&& y) {
-#if defined(FWREF_GEMV_EIGEN_ORDER)
+#if defined(FWREF_GEMV_FMA)
   y.resize(w.rows);
-  gemv_f32_eigen(w.data, w.rows, w.cols, x.data(), y.data());
+  gemv_f32_fma(w.data, w.rows, w.cols, x.data(), nullptr, y.data());
 #else
   matvec_fast(w, x, y);
+#endif
+}
+
+// y = W x + b (ONNX's MatMul then Add: the bias added to each finished sum, as y += b after matvec_f32).
+template <class Dst, class Src>
+inline void matvec_bias_f32(const MatF& w, const Src& x, const float* b, Dst&& y) {
+#if defined(FWREF_GEMV_FMA)
+  y.resize(w.rows);
+  gemv_f32_fma(w.data, w.rows, w.cols, x.data(), b, y.data());
+#else
+  matvec_fast(w, x, y);
+  y += ConstMapVec(b, w.rows);
 #endif
 }
 
