@@ -1,0 +1,44 @@
+"""The spread of the C++ reference's batch-1 p50 from one process to the next (docs/bench.md).
+
+    PYTHONPATH=. python scripts/cpp_process_spread.py RUN [N]
+
+Runs ``firmware_ref/build/fwref_infer`` N times (default 15) per model and precision on the same
+windows (20 warm-up, then the run's first 400 test windows, each timed once with ``--repeat 1`` as
+bench/runtimes/cpp_rt.py times them) and prints the median, min, max and every process's p50.
+"""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from sim.dataset import load_dataset, make_windows
+
+EXE = Path(__file__).resolve().parents[1] / "firmware_ref" / "build" / "fwref_infer"
+
+
+def main() -> None:
+    run, n = Path(sys.argv[1]), int(sys.argv[2]) if len(sys.argv) > 2 else 15
+    x = make_windows(load_dataset(run / "dataset.npz"), "test").x
+    idx = np.r_[np.arange(20), np.arange(400)] % len(x)
+    with tempfile.TemporaryDirectory(prefix="quadfdi-spread-") as tmp:
+        w, t = Path(tmp) / "w.f32", Path(tmp) / "t.f64"
+        np.ascontiguousarray(x[idx], dtype="<f4").tofile(w)
+        for model, extra in (("cnode", []), ("cnode", ["--int8"]), ("gru", []), ("gru", ["--int8"])):
+            p = []
+            for _ in range(n):
+                subprocess.run([str(EXE), "--weights", str(run / "export" / "weights.bin"), "--model", model, *extra,
+                                "--in", str(w), "--out", str(Path(tmp) / "o.f32"), "--repeat", "1",
+                                "--timings", str(t)], check=True)
+                p.append(float(np.median(np.fromfile(t, "<f8")[20:] * 1e6)))
+            q = np.sort(np.array(p))
+            print(f"{model} {'int8' if extra else 'fp32'}: {n} processes, median p50 {np.median(q):.2f} us, "
+                  f"min {q[0]:.2f}, max {q[-1]:.2f}: " + " ".join(f"{v:.1f}" for v in q))
+
+
+if __name__ == "__main__":
+    main()
