@@ -84,6 +84,12 @@ def test_bench_json_holds_every_field(benched):
     assert settings == expected
     assert all(r.get("spinning") is False for r in recs if r["runtime"] == "ort")
     assert all(r.get("spinning") is None for r in recs if r["runtime"] != "ort")
+    from bench.latency import Counts
+    from bench.runtimes.cpp_rt import CPP_PROCESSES  # the C++ timings pool several processes (its module doc)
+    from core.config import BenchConfig
+    quick = Counts.of(BenchConfig(), quick=True)
+    assert all(r["n_calls"] == CPP_PROCESSES * (quick.n if r["batch"] == 1 else quick.batches)
+               for r in recs if r["runtime"] == "cpp")
     assert len([r for r in recs if r["batch"] == 1]) == len([r for r in recs if r["batch"] == 96])
     assert all("x_floor" in r for r in recs if r["batch"] == 1)
     assert {(f["model"], f["precision"]) for f in bench["floors"]} == {(m, p) for m in ("cnode", "gru")
