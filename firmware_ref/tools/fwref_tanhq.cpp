@@ -35,18 +35,6 @@ namespace {
 
 constexpr int kShift = 15;  // 8 mantissa bits per bucket
 
-std::uint32_t bits_of(float a) {
-  std::uint32_t b;
-  std::memcpy(&b, &a, 4);
-  return b;
-}
-
-float float_of(std::uint32_t b) {
-  float a;
-  std::memcpy(&a, &b, 4);
-  return a;
-}
-
 int direct(float a) { return fwref::quantize(fwref::tanh_approx(a), 1.0f / 127.0f); }
 
 // The float range split into chunks scanned on every core (the scan and the check each walk about
@@ -83,7 +71,7 @@ struct Scan {
 
 void scan(std::uint32_t lo, std::uint32_t hi, Scan& s) {
   for (std::uint32_t b = lo; b < hi; ++b) {
-    const int q = direct(float_of(b));
+    const int q = direct(fwref::bits_float(b));
     if (q < 0) {
       if (!s.negative) s.negative = true, s.negative_at = b;
       continue;
@@ -95,7 +83,7 @@ void scan(std::uint32_t lo, std::uint32_t hi, Scan& s) {
 }
 
 int generate() {
-  const std::uint32_t end = bits_of(9.0f);
+  const std::uint32_t end = fwref::float_bits(9.0f);
   std::vector<Scan> scans(kChunks);
   parallel_chunks(kChunks, [&](std::size_t c) { scan(chunk_lo(end, c), chunk_lo(end, c + 1), scans[c]); });
   // Merge in order: F[k] from the first chunk that reaches k; L[k] - 1 from the last chunk that has
@@ -106,7 +94,7 @@ int generate() {
   for (std::size_t c = 0; c < kChunks; ++c) {
     const Scan& s = scans[c];
     const std::uint32_t lo = chunk_lo(end, c), hi = chunk_lo(end, c + 1);
-    if (s.negative) return std::fprintf(stderr, "fwref_tanhq: q(%a) < 0\n", float_of(s.negative_at)), 1;
+    if (s.negative) return std::fprintf(stderr, "fwref_tanhq: q(%a) < 0\n", fwref::bits_float(s.negative_at)), 1;
     if (lo == hi) continue;
     for (int k = 1; k <= 127; ++k) {
       if (seen[k]) {
@@ -167,7 +155,7 @@ int generate() {
 
 int check() {
 #ifdef FWREF_HAVE_TANHQ
-  const std::uint32_t end = bits_of(9.5f);
+  const std::uint32_t end = fwref::float_bits(9.5f);
   struct Count {
     std::uint64_t n = 0, fallback = 0;
     bool bad = false;
@@ -178,7 +166,7 @@ int check() {
     Count& r = counts[c];
     const std::uint32_t hi = c + 1 == kChunks ? end + 1 : chunk_lo(end, c + 1);
     for (std::uint32_t b = chunk_lo(end, c); b < hi && !r.bad; ++b) {
-      for (const float a : {float_of(b), -float_of(b)}) {
+      for (const float a : {fwref::bits_float(b), -fwref::bits_float(b)}) {
         ++r.n;
         if (fwref::tanh_quantize_bound(a) != direct(a)) r.bad = true, r.at = a;
       }
@@ -193,7 +181,7 @@ int check() {
     }
     n += r.n, fallback += r.fallback;
   }
-  const float special[] = {1e30f, -1e30f, float_of(0x7f800000u), float_of(0xff800000u), float_of(0x7fc00000u)};
+  const float special[] = {1e30f, -1e30f, fwref::bits_float(0x7f800000u), fwref::bits_float(0xff800000u), fwref::bits_float(0x7fc00000u)};
   for (const float a : special) {
     if (fwref::tanh_quantize_bound(a) != direct(a)) return std::fprintf(stderr, "fwref_tanhq: differs at %a\n", a), 1;
   }

@@ -32,18 +32,6 @@
 
 namespace {
 
-std::uint32_t bits(float f) {
-  std::uint32_t u;
-  std::memcpy(&u, &f, 4);
-  return u;
-}
-
-float from_bits(std::uint32_t u) {
-  float f;
-  std::memcpy(&f, &u, 4);
-  return f;
-}
-
 std::vector<float> special_inputs() {
   std::vector<float> v;
   const float edges[] = {9.0f, 18.0f, 0.0f, 1.0f, 1e-20f};
@@ -58,7 +46,7 @@ std::vector<float> special_inputs() {
   for (std::uint32_t u : {0x00000000u, 0x80000000u, 0x7f800000u, 0xff800000u, 0x7fc00000u, 0xffc00000u,
                           0x7fa00001u, 0xffa00001u, 0x7fffffffu, 0x00000001u, 0x80000001u, 0x007fffffu,
                           0x807fffffu, 0x00400000u, 0x7f7fffffu, 0xff7fffffu}) {
-    v.push_back(from_bits(u));
+    v.push_back(fwref::bits_float(u));
   }
   return v;
 }
@@ -71,8 +59,8 @@ long compare(const std::vector<float>& in, Vec vec, Scalar scalar) {
   long bad = 0;
   for (std::size_t i = 0; i < in.size(); ++i) {
     const float want = scalar(in[i]);
-    if (bits(want) != bits(y[i])) {
-      if (bad < 5) std::printf("  x=%a (0x%08x): vector 0x%08x, scalar 0x%08x\n", in[i], bits(in[i]), bits(y[i]), bits(want));
+    if (fwref::float_bits(want) != fwref::float_bits(y[i])) {
+      if (bad < 5) std::printf("  x=%a (0x%08x): vector 0x%08x, scalar 0x%08x\n", in[i], fwref::float_bits(in[i]), fwref::float_bits(y[i]), fwref::float_bits(want));
       ++bad;
     }
   }
@@ -133,7 +121,7 @@ void check_gemv_one(std::mt19937& rng, int rows, int cols, bool bias, GemvCheck&
 #if defined(FWREF_GEMV_FMA)
     float want = gemv_row_order(r, cols, xv);
     if (bias) want = want + bp[o];
-    if (bits(want) != bits(y[o])) {
+    if (fwref::float_bits(want) != fwref::float_bits(y[o])) {
       if (c.order_bad < 5) std::printf("  gemv rows=%d cols=%d row %d: %a, the stated order %a\n", rows, cols, o, y[o], want);
       ++c.order_bad;
     }
@@ -156,11 +144,11 @@ GemvCheck check_gemv() {
 // every position (and none): the number of answers that differ.
 long check_all_finite(long* compared) {
   const float bad_values[] = {std::numeric_limits<float>::infinity(), -std::numeric_limits<float>::infinity(),
-                              std::numeric_limits<float>::quiet_NaN(), from_bits(0xffa00001u)};
+                              std::numeric_limits<float>::quiet_NaN(), fwref::bits_float(0xffa00001u)};
   long bad = 0;
   for (int n = 0; n <= 40; ++n) {
     std::vector<float> x(n + 1);
-    for (int i = 0; i < n; ++i) x[i] = i % 3 == 0 ? std::numeric_limits<float>::max() : from_bits(0x00000001u + i);
+    for (int i = 0; i < n; ++i) x[i] = i % 3 == 0 ? std::numeric_limits<float>::max() : fwref::bits_float(0x00000001u + i);
     for (int pos = -1; pos < n; ++pos) {
       for (float v : bad_values) {
         std::vector<float> y(x);
@@ -186,7 +174,7 @@ int main(int argc, char** argv) {
   }
   if (stride == 0) stride = 1;
   std::vector<float> in = special_inputs();
-  for (std::uint64_t u = 0; u <= 0xffffffffull; u += stride) in.push_back(from_bits(static_cast<std::uint32_t>(u)));
+  for (std::uint64_t u = 0; u <= 0xffffffffull; u += stride) in.push_back(fwref::bits_float(static_cast<std::uint32_t>(u)));
   for (int i = 0; in.size() % 8 != 5; ++i) in.push_back(static_cast<float>(i) * 0.37f);  // a scalar tail
   std::printf("vmath kernel: %s\n", fwref::vmath_f32_kernel_name());
   std::printf("gemv kernel: %s\n", fwref::matvec_f32_kernel_name());

@@ -30,18 +30,6 @@
 
 namespace vmath_i8_check {
 
-inline std::uint32_t fbits(float f) {
-  std::uint32_t u;
-  std::memcpy(&u, &f, 4);
-  return u;
-}
-
-inline float fnum(std::uint32_t u) {
-  float f;
-  std::memcpy(&f, &u, 4);
-  return f;
-}
-
 // Inputs x such that x / s hits the quantizer's edges for the scale s.
 inline std::vector<float> quantize_edges(float s) {
   std::vector<float> v;
@@ -54,7 +42,7 @@ inline std::vector<float> quantize_edges(float s) {
   for (float b : {-128.5f, -128.0f, 127.0f, 127.5f, 1e9f, -1e9f}) with_neighbours(b * s);
   for (std::uint32_t u : {0x00000000u, 0x80000000u, 0x7f800000u, 0xff800000u, 0x7fc00000u, 0xffc00000u,
                           0x7fa00001u, 0xffa00001u, 0x00000001u, 0x80000001u, 0x007fffffu, 0x7f7fffffu, 0xff7fffffu}) {
-    v.push_back(fnum(u));
+    v.push_back(fwref::bits_float(u));
   }
   return v;
 }
@@ -90,7 +78,7 @@ inline long check_quantize(const std::vector<float>& walk, long* compared) {
 // Random floats of a row: mostly N(0, sigma), sometimes one of the special values.
 inline float pick(std::mt19937& rng, float sigma) {
   const float special[] = {0.0f, -0.0f, std::numeric_limits<float>::infinity(), -std::numeric_limits<float>::infinity(),
-                           std::numeric_limits<float>::quiet_NaN(), 1e30f, -1e30f, fnum(0x00000001u)};
+                           std::numeric_limits<float>::quiet_NaN(), 1e30f, -1e30f, fwref::bits_float(0x00000001u)};
   if (rng() % 16 == 0) return special[rng() % 8];
   return std::normal_distribution<float>(0.0f, sigma)(rng);
 }
@@ -116,11 +104,11 @@ inline long check_rescale(long* compared) {
       std::vector<std::int16_t> q(n + 1, 77);
       fwref::rescale_tanh_quantize_n(acc.data(), s_a, s_w.data(), v.data(), s_q, n, q.data());
       fwref::rescale_bias_n(acc.data(), s_w.data(), b.data(), n, y.data());
-      bad += (q[n] != 77) + (fbits(y[n]) != fbits(7.0f));
+      bad += (q[n] != 77) + (fwref::float_bits(y[n]) != fwref::float_bits(7.0f));
       for (int i = 0; i < n; ++i) {
         const std::int16_t want = fwref::quantize(fwref::tanh_approx(fwref::rescale_i32(acc[i], s_a, s_w[i]) + v[i]), s_q);
         const float want_y = static_cast<float>(acc[i]) * s_w[i] + b[i];
-        if (q[i] != want || fbits(y[i]) != fbits(want_y)) {
+        if (q[i] != want || fwref::float_bits(y[i]) != fwref::float_bits(want_y)) {
           if (bad < 5) std::printf("  rescale n=%d i=%d acc=%d: code %d vs %d, y %a vs %a\n", n, i, acc[i], q[i], want, y[i], want_y);
           ++bad;
         }
@@ -181,11 +169,11 @@ inline long check_control_row(long* compared) {
       std::vector<float> u(n + 1, 7.0f);
       std::vector<std::int8_t> q(n + 1, 77);
       fwref::rescale_quantize_row(acc.data(), s_p, s_x.data(), s_u.data(), n, rep == 2 ? nullptr : u.data(), q.data());
-      bad += (q[n] != 77) + (fbits(u[n]) != fbits(7.0f));
+      bad += (q[n] != 77) + (fwref::float_bits(u[n]) != fwref::float_bits(7.0f));
       for (int i = 0; i < n; ++i) {
         const float want_u = fwref::rescale_i32(acc[i], s_p, s_x[i]);
         const std::int8_t want_q = fwref::quantize(want_u, s_u[i]);
-        if (q[i] != want_q || (rep != 2 && fbits(u[i]) != fbits(want_u))) {
+        if (q[i] != want_q || (rep != 2 && fwref::float_bits(u[i]) != fwref::float_bits(want_u))) {
           if (bad < 5) std::printf("  control row n=%d i=%d: code %d vs %d, u %a vs %a\n", n, i, q[i], want_q, u[i], want_u);
           ++bad;
         }

@@ -19,6 +19,18 @@
 
 namespace fwref {
 
+// A float's bit pattern and back (std::bit_cast is C++20): for checks and tools that walk the floats.
+inline std::uint32_t float_bits(float f) {
+  std::uint32_t u;
+  std::memcpy(&u, &f, 4);
+  return u;
+}
+inline float bits_float(std::uint32_t u) {
+  float f;
+  std::memcpy(&f, &u, 4);
+  return f;
+}
+
 // ---------------------------------------------------------------------------------------------
 // Activations. ONNX Runtime's Tanh and Sigmoid (and its GRU operator) call MLAS, which evaluates
 // Eigen's rational approximations p(x)/q(x) on x clamped to [-9, 9] (tanh) or [-18, 18]
