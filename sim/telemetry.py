@@ -67,10 +67,14 @@ def vibration(F: np.ndarray, cut: np.ndarray, residual_g: np.ndarray, mass: np.n
               dt: float) -> tuple[np.ndarray, np.ndarray]:
     """Logged-metric values (n_rec, B) of vib_px4 and vib_ap before their sampling noise: the closed forms
     of sim.propeller, through PX4's EMA (time constant 1 / (alpha f_integ) = 0.5 s) and ArduPilot's
-    2 Hz low-pass of the squared deviation."""
+    2 Hz low-pass of the squared deviation. The healthy floor (B,) is the hover level: it scales with the
+    mean rotor thrust over the hover thrust (the broadband rotor forcing grows as Omega^2 ~ thrust, as
+    the imbalance force does), so a climb or a gust shakes the IMU more, as on the real quads, whose
+    metric follows their throttle (docs/params.md "Vibration floor")."""
     rT = propeller.thrust_factor(cut)
     A, f = propeller.accel_amplitude(F, rT, propeller.imbalance_kgm(cut, residual_g), mass[..., None])
-    px4, ap = propeller.metrics(A, f, floor)
+    load = np.clip(F.mean(-1) / (mass * P.NOMINAL.g / 4.0), 0.0, None)
+    px4, ap = propeller.metrics(A, f, floor * load**P.VIB_FLOOR_THRUST_EXP)
     px4 = _lag(px4, 1.0 / (P.PX4_VIB_ALPHA * P.IMU_INTEG_HZ), dt)
     ap = np.sqrt(_lag(ap * ap, 1.0 / (2 * np.pi * P.AP_VIBE_HZ), dt))
     return px4, ap

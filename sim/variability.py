@@ -52,7 +52,7 @@ def _vehicle(rng: np.random.Generator, group: int, duration: float) -> dict:
         "capacity": rng.uniform(*P.PACK_MASS_SHARE) * m0 * P.PACK_WH_PER_KG / (3.7 * cells),
         "age": rng.uniform(*P.AGE), "soc0": rng.uniform(*P.SOC_BOOT),
         "t_amb": rng.uniform(*P.T_AMB_C), "motor_tau": rng.uniform(*P.MOTOR_TAU_S, 4),
-        "vib_floor": rng.uniform(*P.VIB_FLOOR), "imbalance_g": rng.uniform(*P.IMBALANCE_G, 4),
+        "vib_floor": float(np.exp(rng.uniform(*np.log(P.VIB_FLOOR)))), "imbalance_g": rng.uniform(*P.IMBALANCE_G, 4),
         "thrust_to_weight": rng.uniform(*P.THRUST_TO_WEIGHT),
     }
 
