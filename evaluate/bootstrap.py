@@ -25,7 +25,7 @@ def draw_weights(units: list[tuple[str, int]], replicates: int, seed: int) -> np
     return rng.multinomial(f, np.full(f, 1.0 / f), size=replicates).astype(np.float64)
 
 
-def _interval(samples: np.ndarray, ci: float) -> tuple[float | None, float | None]:
+def percentile_interval(samples: np.ndarray, ci: float) -> tuple[float | None, float | None]:
     ok = samples[np.isfinite(samples)]
     if ok.size < 0.5 * samples.size:  # undefined in most replicates (e.g. no fault flight drawn)
         return None, None
@@ -45,7 +45,7 @@ def intervals(stats: dict[str, np.ndarray], weights: np.ndarray, ci: float) -> d
     reps = metrics_from_sums(sum_flights(stats, weights))
     out = {}
     for name in HEADLINE:
-        lo, hi = _interval(reps[name], ci)
+        lo, hi = percentile_interval(reps[name], ci)
         out[name] = {"value": _num(point[name]), "lo": lo, "hi": hi}
     return out
 
@@ -61,6 +61,6 @@ def paired(a: tuple[dict, dict], b: tuple[dict, dict], ci: float, names: tuple[s
     (pa, ra), (pb, rb) = a, b
     out = {}
     for name in names:
-        lo, hi = _interval(ra[name] - rb[name], ci)
+        lo, hi = percentile_interval(ra[name] - rb[name], ci)
         out[name] = {"diff": _num(pa[name] - pb[name]), "lo": lo, "hi": hi}
     return out

@@ -18,6 +18,7 @@ from core.errors import QuadfdiError
 from evaluate import policy as pol
 from evaluate.bootstrap import draw_weights, intervals, paired, point_and_replicates
 from evaluate.ceiling import expected_confusion
+from evaluate.common_delay import common_delay
 from evaluate.load import DatasetInfo, Flights
 from evaluate.metrics import COUNTS, garwood, macro_f1_accuracy, metrics_from_sums, sum_flights
 from evaluate.outcomes import flight_outcomes
@@ -145,8 +146,10 @@ def evaluate_sets(sets: list[Flights], infos: dict[str, DatasetInfo], cfg: Confi
 
 def _paired(pooled: dict, models: list[str], ev) -> list[dict]:
     """Every pair of models on every set, on the flights both were evaluated on (replicate metrics of a
-    model on a flight list are computed once and shared by all its pairs)."""
+    model on a flight list are computed once and shared by all its pairs), with the delay from onset
+    on the fault flights both detect (evaluate.common_delay) under the same replicates."""
     weights: dict[tuple, np.ndarray] = {}
+    subs: dict[tuple, dict] = {}
     reps: dict[tuple, tuple] = {}
 
     def rep(model: str, name: str, common: list) -> tuple:
@@ -156,7 +159,8 @@ def _paired(pooled: dict, models: list[str], ev) -> list[dict]:
             index = {u: i for i, u in enumerate(units)}
             if tuple(common) not in weights:
                 weights[tuple(common)] = draw_weights(common, ev.bootstrap, ev.seed)
-            reps[key] = point_and_replicates(_pick(stats, np.array([index[u] for u in common])), weights[tuple(common)])
+            subs[key] = _pick(stats, np.array([index[u] for u in common]))
+            reps[key] = point_and_replicates(subs[key], weights[tuple(common)])
         return reps[key]
 
     out = []
@@ -166,8 +170,11 @@ def _paired(pooled: dict, models: list[str], ev) -> list[dict]:
                 continue
             common = sorted(set(pooled[(a, name)][0]) & set(pooled[(b, name)][0]))
             if common:
-                out.append({"a": a, "b": b, "set": name, "flights": len(common),
-                            "diff": paired(rep(a, name, common), rep(b, name, common), ev.ci, PAIRED_METRICS)})
+                diff = paired(rep(a, name, common), rep(b, name, common), ev.ci, PAIRED_METRICS)
+                key = tuple(common)
+                both = common_delay(subs[(a, name, key)], subs[(b, name, key)], weights[key], ev.ci)
+                out.append({"a": a, "b": b, "set": name, "flights": len(common), "diff": diff,
+                            "common_delay_onset": both})
     return out
 
 

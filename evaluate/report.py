@@ -79,9 +79,21 @@ def _paired_table(ev: dict) -> list[str]:
             f"{d[k]['diff']:+.{nd}f}" + ("" if d[k]["lo"] is None else f" [{d[k]['lo']:+.{nd}f}, {d[k]['hi']:+.{nd}f}]"))
         tag = " (best baseline)" if ev["best_baseline"] in (p["a"], p["b"]) and ({p["a"], p["b"]} & nets) else ""
         rows.append([f"{p['a']} − {p['b']}{tag}", p["set"], p["flights"], fmt("macro_f1"), fmt("detection_rate"),
-                     fmt("fa_per_h", 2), fmt("delay_onset_s", 2)])
+                     fmt("fa_per_h", 2), fmt("delay_onset_s", 2), *_common_cells(p.get("common_delay_onset"))])
     return md_table(["pair (a − b)", "set", "flights", "Δ macro F1", "Δ detected", "Δ false alarms / h",
-                     "Δ delay from onset s"], rows)
+                     "Δ delay from onset s", "faults both detect", "delay on them s: a", "b",
+                     "Δ delay on them s"], rows)
+
+
+def _common_cells(c: dict | None) -> list[str]:
+    """The delay from onset on the fault flights both models detect (evaluate.common_delay): the
+    number of such flights, each model's mean delay on them and the paired difference a - b."""
+    if c is None:
+        return ["—"] * 4
+    d = c["diff"]
+    diff = "—" if d["diff"] is None else (
+        f"{d['diff']:+.2f}" + ("" if d["lo"] is None else f" [{d['lo']:+.2f}, {d['hi']:+.2f}]"))
+    return [str(c["flights"]), _ci(c["a"], 2), _ci(c["b"], 2), diff]
 
 
 def _goal_table(ev: dict) -> list[str]:

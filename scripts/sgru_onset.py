@@ -16,7 +16,10 @@ lists (every sim seed and train seed). Per flight, train seeds averaged (as eval
 
 Printed (markdown): per set x class x mode the flight count, detections and mean delays of both
 models; the mean delay on the flights BOTH detect (every seed of each) with the paired difference
-a - b and a flight-bootstrap interval; the rise of the fault probability after onset.
+a - b and its flight-bootstrap interval, computed by ``evaluate.common_delay`` (the definition
+``quadfdi evaluate`` reports per pair and set, docs/evaluation.md "Delay on common flights"; here
+resampling the group's fault flights, with evaluation.json's bootstrap settings), and below each
+table the set's figure as evaluation.json holds it; the rise of the fault probability after onset.
 """
 
 from __future__ import annotations
@@ -28,6 +31,8 @@ from pathlib import Path
 import numpy as np
 
 from core.tables import md_table
+from evaluate.bootstrap import draw_weights
+from evaluate.common_delay import common_delay
 from evaluate.load import Flights, load_run
 from evaluate.outcomes import alarm_outcomes
 
@@ -80,12 +85,17 @@ def _fmt(x: float, nd: int = 2) -> str:
     return "—" if not np.isfinite(x) else f"{x:.{nd}f}"
 
 
-def _boot(diff: np.ndarray, reps: int = 2000, seed: int = 0) -> tuple[float, float]:
-    if diff.size < 2:
-        return float("nan"), float("nan")
-    rng = np.random.default_rng(seed)
-    means = diff[rng.integers(0, diff.size, size=(reps, diff.size))].mean(axis=1)
-    return float(np.percentile(means, 2.5)), float(np.percentile(means, 97.5))
+def _stats(t: dict, us: list) -> dict[str, np.ndarray]:
+    """The per-flight counts evaluate pools (train seeds averaged) that evaluate.common_delay reads."""
+    det = np.array([t[u]["det"].mean() for u in us])
+    delay = np.array([np.where(t[u]["det"] > 0, np.nan_to_num(t[u]["delay"]), 0.0).mean() for u in us])
+    return {"fault": np.ones(len(us)), "detected": det, "delay_onset": delay}
+
+
+def _ci(m: dict, key: str = "value") -> str:
+    f = "+.2f" if key == "diff" else ".2f"
+    v = "—" if m[key] is None else format(m[key], f)
+    return v if m["lo"] is None else f"{v} [{format(m['lo'], f)}, {format(m['hi'], f)}]"
 
 
 def _units(infos: dict, tab_a: dict, set_name: str) -> list[tuple[str, int]]:
@@ -117,28 +127,29 @@ def _group(infos: dict, u: tuple[str, int]) -> str:
     return f"{cls.replace('Fault', '')} / {mode}"
 
 
-def set_report(name: str, units: list, infos: dict, ta: dict, tb: dict, a: str, b: str) -> list[str]:
+def set_report(name: str, units: list, infos: dict, ta: dict, tb: dict, a: str, b: str, ev: dict) -> list[str]:
     """The per-set lines: groups, common-detection paired delay, rise of the fault probability."""
     groups = sorted({_group(infos, u) for u in units}) + ["all"]
+    proto = ev["protocol"]
     rows = []
     for g in groups:
         us = [u for u in units if g == "all" or _group(infos, u) == g]
-        det_a = np.array([ta[u]["det"].mean() for u in us])
-        det_b = np.array([tb[u]["det"].mean() for u in us])
-        dl_a = np.array([_nanmean(ta[u]["delay"]) for u in us])
-        dl_b = np.array([_nanmean(tb[u]["delay"]) for u in us])
-        both = (np.array([ta[u]["det"].min() for u in us]) > 0) & (np.array([tb[u]["det"].min() for u in us]) > 0)
-        d = dl_a[both] - dl_b[both]
-        lo, hi = _boot(d)
-        own_a = np.nansum(dl_a * det_a) / det_a.sum() if det_a.sum() else float("nan")
-        own_b = np.nansum(dl_b * det_b) / det_b.sum() if det_b.sum() else float("nan")
-        rows.append([g, len(us), _fmt(det_a.sum(), 1), _fmt(det_b.sum(), 1), _fmt(own_a), _fmt(own_b), int(both.sum()),
-                     _fmt(_nanmean(dl_a[both]) if both.any() else np.nan),
-                     _fmt(_nanmean(dl_b[both]) if both.any() else np.nan),
-                     f"{_fmt(float(d.mean()) if d.size else np.nan)} [{_fmt(lo)}, {_fmt(hi)}]"])
+        sa, sb = _stats(ta, us), _stats(tb, us)
+        det_a, det_b = sa["detected"], sb["detected"]
+        own_a = sa["delay_onset"].sum() / det_a.sum() if det_a.sum() else float("nan")
+        own_b = sb["delay_onset"].sum() / det_b.sum() if det_b.sum() else float("nan")
+        c = common_delay(sa, sb, draw_weights(us, proto["bootstrap"], proto["seed"]), proto["ci"])
+        rows.append([g, len(us), _fmt(det_a.sum(), 1), _fmt(det_b.sum(), 1), _fmt(own_a), _fmt(own_b), c["flights"],
+                     _ci(c["a"]), _ci(c["b"]), _ci(c["diff"], "diff")])
     lines = [f"### {name}", ""]
     lines += md_table(["class / mode", "fault flights", f"det {a}", f"det {b}", f"delay {a} (own)", f"delay {b} (own)",
                        "both detect", f"delay {a} (both)", f"delay {b} (both)", f"Δ {a} − {b} (both) [95 %]"], rows)
+    pair = next((p for p in ev.get("paired", []) if p["set"] == name and {p["a"], p["b"]} == {a, b}), None)
+    if pair is not None and "common_delay_onset" in pair:
+        c = pair["common_delay_onset"]
+        sign = "" if pair["a"] == a else f" (as {pair['a']} − {pair['b']})"
+        lines += [f"evaluation.json, {name}: {c['flights']} fault flights both detect; delay {pair['a']} "
+                  f"{_ci(c['a'])}, {pair['b']} {_ci(c['b'])}, Δ {_ci(c['diff'], 'diff')}{sign}", ""]
     rise = []
     for m, t in ((a, ta), (b, tb)):
         vals = {k: np.array([_nanmean(t[u][k]) for u in units]) for k in t[units[0]] if k.startswith("pf")}
@@ -168,7 +179,7 @@ def main(argv: list[str] | None = None) -> int:
     for name in args.sets.split(","):
         units = [u for u in _units(infos, tabs[args.a], name) if u in tabs[args.b]]
         if units:
-            print("\n".join(set_report(name, units, infos, tabs[args.a], tabs[args.b], args.a, args.b)))
+            print("\n".join(set_report(name, units, infos, tabs[args.a], tabs[args.b], args.a, args.b, ev)))
     return 0
 
 

@@ -124,6 +124,15 @@ def test_paired_differences_are_antisymmetric_in_value_and_paired(run):
     b = next(r for r in ev["results"] if r["model"] == p["b"] and r["set"] == "test")["metrics"]["macro_f1"]["value"]
     assert p["diff"]["macro_f1"]["diff"] == pytest.approx(a - b)
     assert p["diff"]["macro_f1"]["lo"] <= p["diff"]["macro_f1"]["hi"]
+    # The delay on the fault flights both detect (evaluate.common_delay): a flight counts only when
+    # every train seed of both models detects it, so at most what each single run detects.
+    c = p["common_delay_onset"]
+    for m in (p["a"], p["b"]):
+        for seed in (0, 1):
+            runs = [r for r in ev["per_seed"] if r["model"] == m and r["set"] == "test" and r["train_seed"] == seed]
+            assert c["flights"] <= sum(r["detected"] for r in runs)
+    assert all("common_delay_onset" in q for q in ev["paired"])
+    assert "| faults both detect |" in (run / "evaluation/evaluation.md").read_text()
 
 
 def test_policy_is_chosen_without_looking_at_test(run, tmp_path):

@@ -433,6 +433,61 @@ def test_nan_samples_skip_their_windows_and_gaps_are_held(flightlog_export, stre
     assert "dropped=1 " in outs["backwards"][1] and clean["index"][0] == 39  # no decision before W samples
 
 
+def _llround(q: float) -> int:
+    """C's llround on a positive double, exactly (halves away from zero)."""
+    from fractions import Fraction
+    import math
+
+    return math.floor(Fraction(q) + Fraction(1, 2))
+
+
+def test_timestamp_steps_at_the_period_gates_edges(flightlog_export, streams, host_build, tmp_path):  # noqa: F811
+    """Stream::push's step t - t_prev against the bounds of fwref/period.hpp (no division): the first
+    step set to one ulp below / at lo (half a period) and hi (1.5 periods), the rest of the flight on
+    the shifted grid. Expected, by the division's rule computed here: below lo the sample is refused;
+    [lo, hi) one period (the clean run); at hi a gap of 2 (a NaN sample filled in)."""
+    import math
+
+    from detect.streamfile import read_stream, record_of, write_stream
+    from detect.streamref import read_lines
+
+    rs0 = read_stream(streams["sim"])
+    dt, dt_rec = rs0.sample_dt_s, record_of(flightlog_export)["sample_dt_s"]  # the record's: float32(0.04)
+    gate = subprocess.run([str(host_build / "fwref_period"), float.hex(dt_rec)], capture_output=True, text=True)
+    row = dict(kv.split("=", 1) for kv in gate.stdout.split())
+    lo, hi = float.fromhex(row["lo"]), float.fromhex(row["hi"])
+    below = lambda x: math.nextafter(x, -math.inf)  # noqa: E731
+
+    def run(rs, name):
+        write_stream(tmp_path / name, rs)
+        res = _fwref_stream(host_build, flightlog_export, "--model", "cnode", "--int8", "--in", str(tmp_path / name))
+        assert res.returncode == 0, res.stderr
+        return read_lines(res.stdout, 5), res.stdout
+
+    def stream(times, values):
+        rs = read_stream(streams["sim"])
+        rs.time, rs.values = np.asarray(times, np.float64), values
+        return rs
+
+    n, v = len(rs0.time), rs0.values
+    nan_row = np.full((1, v.shape[1]), np.nan, np.float32)
+    nan_row[0, rs0.names.index("airborne")] = 1.0 if v[0, rs0.names.index("airborne")] >= 0.5 else 0.0
+    grid = lambda m: dt * np.arange(m)  # noqa: E731
+    clean, _ = run(stream(grid(n), v), "clean.bin")
+    filled, _ = run(stream(grid(n + 1), np.concatenate([v[:1], nan_row, v[1:]])), "filled.bin")
+    first_after_drop = _llround((below(lo) + dt) / dt_rec)  # sample 1 refused: sample 2's step from sample 0
+    dropped, _ = run(stream(grid(n - 1), np.delete(v, 1, axis=0)) if first_after_drop == 1 else
+                     stream(grid(n), np.concatenate([v[:1], nan_row, v[2:]])), "dropped.bin")
+    for d, want, drops in ((below(lo), dropped, 1), (lo, clean, 0), (below(hi), clean, 0), (hi, filled, 0)):
+        times = np.concatenate([[0.0], d + dt * np.arange(n - 1)])
+        steps = np.diff(times)
+        assert steps[0] == d and ((steps[1:] >= lo) & (steps[1:] < hi)).all()  # the edge is the first step only
+        got, text = run(stream(times, v), "edge.bin")
+        assert f"dropped={drops} " in text, d
+        for key in ("index", "status", "logits", "active", "cls"):
+            np.testing.assert_array_equal(got[key], want[key], err_msg=f"{d.hex()} {key}")
+
+
 def test_stream_file_refusals_are_one_line_and_write_nothing(flightlog_export, tmp_path):
     out = tmp_path / "s.bin"
     cases = [(["--dataset", str(flightlog_export.parent / "dataset.npz"), "--flight", "999"], "has flights 0..")]

@@ -49,6 +49,7 @@ Status Stream::init(const StreamParams& p, int cells, const StreamModel& m) {
   p_.alarm = a;
   cells_ = static_cast<float>(cells);
   m_ = m;
+  gate_.init(p.sample_dt_s);
   for (int c = 0; c < kMaxRawChannels; ++c) nan_sample_[c] = NAN;
   reset();
   return Status::kOk;
@@ -71,9 +72,10 @@ Status Stream::push(const float* sample, double t, StrideSink* sink) {
   }
   if (!std::isfinite(t)) return Status::kBadInput;
   if (next_ > 0) {
-    const double periods = (t - t_prev_) / p_.sample_dt_s;
-    if (!(periods >= 0.5)) return Status::kBadInput;  // also NaN
-    const std::int64_t steps = static_cast<std::int64_t>(std::llround(periods));
+    // llround((t - t_prev) / dt), refused below half a period: the division only off the one-period
+    // path (fwref/period.hpp says why the result is the same for every t).
+    const std::int64_t steps = gate_.steps(t - t_prev_);
+    if (steps < 0) return Status::kBadInput;
     for (std::int64_t g = 1; g < steps; ++g) {  // a gap: the missing samples are unusable (held, not reset)
       nan_sample_[p_.raw_channels - 1] = airborne_prev_ ? 1.0f : 0.0f;
       push_one(nan_sample_, t_prev_ + double(g) * p_.sample_dt_s, sink);

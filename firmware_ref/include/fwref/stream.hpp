@@ -48,7 +48,8 @@
 // This is what the window path does with an ingested flight (whose grid marks a logging gap as
 // masked samples), so both decide the same; a reset would throw away the frozen hover estimate,
 // which belongs to the vehicle, not to the gap. A time that does not advance by at least half a
-// period is refused (kBadInput, the sample is dropped).
+// period is refused (kBadInput, the sample is dropped). The count of periods, llround((t - t_prev) / dt),
+// is fwref/period.hpp's PeriodGate: the same decision for every t, no division on the one-period path.
 #pragma once
 
 #include <cstdint>
@@ -58,6 +59,7 @@
 #include "fwref/gru_step.hpp"
 #include "fwref/hover.hpp"
 #include "fwref/motor.hpp"
+#include "fwref/period.hpp"
 #include "fwref/profile.hpp"
 #include "fwref/status.hpp"
 
@@ -207,6 +209,7 @@ class Stream {
   Decision last_;
   std::int64_t next_ = 0, decided_ = 0, skipped_ = 0, steps_ = 0;
   double t_prev_ = 0.0;
+  PeriodGate gate_;  // the timestamp step's period count, bounds formed once by init()
   bool airborne_prev_ = false;
 };
 
