@@ -1,11 +1,20 @@
 // src/gru.cpp -- scope: GRU inference, fp32 and int8 (fwref/gru.hpp), and its weight checks.
 #include "fwref/gru.hpp"
 
+#include <cstring>
+
 #include "fwref/kernels_f32.hpp"
 #include "fwref/numerics.hpp"
 #include "fwref/vmath_f32.hpp"
 #include "model_common.hpp"
 #include "motor_common.hpp"
+
+// The host's int8 step (x86-64 with the int16 weight copies): see infer_i8_host below. Elsewhere (the
+// Cortex-M build, FWREF_PORTABLE_KERNELS) the portable path of infer(const GruI8&) runs.
+#if defined(FWREF_GRU_WHH_INT16) && defined(__x86_64__) && !defined(FWREF_PORTABLE_KERNELS)
+#define FWREF_GRU_I8_HOST 1
+#include "fwref/vmath_gru_i8.hpp"
+#endif
 
 namespace fwref {
 
@@ -119,24 +128,60 @@ Status infer(const GruF32& m, const float* x, float* logits, GruWorkspace& ws, G
   return all_finite(logits, d.classes) ? Status::kOk : Status::kNonFiniteOutput;
 }
 
-Status infer(const GruI8& m, const float* x, float* logits, GruWorkspace& ws, GruTrace* tr) {
-  if (x == nullptr || logits == nullptr) return Status::kNullArgument;
-  const GruDims& d = m.dims;
-  const int C = d.channels, W = d.window, H = d.hidden;
-  if (!all_finite_f32(x, W * C)) return Status::kNonFiniteInput;
-  ws.h.setZero(H);
-  ws.gx.resize(3 * H);
-  ws.gh.resize(3 * H);
-  const std::int16_t *whh16 = nullptr, *wih16 = nullptr;
+namespace {
+
+// The int16 copies of W_ih and W_hh (fwref/kernels_i8.hpp's packed layout), made at the first int8
+// inference of a model (ws.w16_of, fwref/gru.hpp); nullptr when this build has no int16 kernel.
+void w16_copies(const GruI8& m, GruWorkspace& ws, const std::int16_t** wih16, const std::int16_t** whh16) {
+  *wih16 = *whh16 = nullptr;
 #if defined(FWREF_GRU_WHH_INT16) && defined(FWREF_HAS_W16_KERNEL)
+  const int C = m.dims.channels, H = m.dims.hidden;
   if (ws.w16_of != m.w_hh.q) {
     expand_i8_to_i16(m.w_hh.q, 3 * H, H, ws.whh16);
     expand_i8_to_i16(m.w_ih.q, 3 * H, C, ws.wih16);
     ws.w16_of = m.w_hh.q;
   }
-  whh16 = ws.whh16;
-  wih16 = ws.wih16;
+  *whh16 = ws.whh16;
+  *wih16 = ws.wih16;
+#else
+  (void)m, (void)ws;
 #endif
+}
+
+#if defined(FWREF_GRU_I8_HOST)
+// The host's steps: the input codes quantized straight into int16, both products' accumulators over
+// all 3H rows (the packed int16 kernel chosen at run time, fwref/kernels_i8.hpp), then the gates, the
+// state update and the state's next codes in one pass (fwref/vmath_gru_i8.hpp: 8 lanes per AVX2
+// vector). The same operations in the same order as the portable path in infer() below, so the same
+// bits (checked by fwref_vmath, and against ONNX Runtime by the parity tests).
+void steps_i8_host(const GruI8& m, const float* x, GruWorkspace& ws, GruTrace* tr) {
+  const int C = m.dims.channels, W = m.dims.window, H = m.dims.hidden;
+  const std::int16_t *wih16, *whh16;
+  w16_copies(m, ws, &wih16, &whh16);
+  alignas(32) std::int16_t x16[w16_stride(kMaxChannels)] = {};   // zero after C: the kernel's padding
+  alignas(32) std::int16_t h16[w16_stride(kMaxGruHidden)] = {};  // quantize(h0 = 0, s_h) = 0
+  alignas(32) std::int32_t acc_x[kMaxGruGates], acc_h[kMaxGruGates];
+  const GruGateInputs g{acc_x, m.w_ih.scale, m.b_ih, acc_h, m.s_h, m.w_hh.scale, m.b_hh};
+  float* h = ws.h.data();
+  for (int t = 0; t < W; ++t) {
+    float* xn = tr != nullptr && tr->x_norm != nullptr ? tr->x_norm + t * C : nullptr;
+    normalise_quantize_row(x + t * C, m.mean, m.std, m.s_x, C, xn, x16);
+    gemv_w16_x16(wih16, 3 * H, C, x16, acc_x);  // GX row t (s_x folded into W_ih')
+    gemv_w16_x16(whh16, 3 * H, H, h16, acc_h);
+    gru_gates_i8(g, H, h, h16);
+    if (tr != nullptr) trace_row(ws.h, H, tr->h == nullptr ? nullptr : tr->h + t * H);
+  }
+  for (int j = 0; j < H; ++j) ws.hq[j] = static_cast<std::int8_t>(h16[j]);  // quantize(h_W, s_h)
+}
+#endif
+
+// The portable steps (the reference; the Cortex-M build's path).
+void steps_i8(const GruI8& m, const float* x, GruWorkspace& ws, GruTrace* tr) {
+  const int C = m.dims.channels, W = m.dims.window, H = m.dims.hidden;
+  ws.gx.resize(3 * H);
+  ws.gh.resize(3 * H);
+  const std::int16_t *wih16, *whh16;
+  w16_copies(m, ws, &wih16, &whh16);
   for (int t = 0; t < W; ++t) {
     for (int c = 0; c < C; ++c) {
       const float xn = normalise(x[t * C + c], m.mean[c], m.std[c]);
@@ -151,7 +196,28 @@ Status infer(const GruI8& m, const float* x, float* logits, GruWorkspace& ws, Gr
     if (tr != nullptr) trace_row(ws.h, H, tr->h == nullptr ? nullptr : tr->h + t * H);
   }
   quantize_all(ws.h.data(), H, m.s_h, ws.hq);
-  linear_i8_tensor(m.head_w.q, m.head_w.scale, d.classes, H, ws.hq, m.s_h, m.head_b, logits);
+}
+
+}  // namespace
+
+Status infer(const GruI8& m, const float* x, float* logits, GruWorkspace& ws, GruTrace* tr) {
+  if (x == nullptr || logits == nullptr) return Status::kNullArgument;
+  const GruDims& d = m.dims;
+  if (!all_finite_n(x, d.window * d.channels)) return Status::kNonFiniteInput;
+  ws.h.setZero(d.hidden);
+#if defined(FWREF_GRU_I8_HOST)
+  // FWREF_I8_KERNEL=portable (fwref/kernels_i8.hpp) runs the reference path here too: the whole
+  // model's two paths compared by tests/test_firmware.py
+  if (std::strcmp(gemv_i8_kernel_name(), "portable") != 0) {
+    steps_i8_host(m, x, ws, tr);
+  } else {
+    steps_i8(m, x, ws, tr);
+  }
+#else
+  steps_i8(m, x, ws, tr);
+#endif
+  // ws.hq: quantize(h_W, s_h)
+  linear_i8_tensor(m.head_w.q, m.head_w.scale, d.classes, d.hidden, ws.hq, m.s_h, m.head_b, logits);
   return all_finite(logits, d.classes) ? Status::kOk : Status::kNonFiniteOutput;
 }
 
