@@ -149,29 +149,69 @@ void w16_copies(const GruI8& m, GruWorkspace& ws, const std::int16_t** wih16, co
 }
 
 #if defined(FWREF_GRU_I8_HOST)
-// The host's steps: the input codes quantized straight into int16, both products' accumulators over
-// all 3H rows (the packed int16 kernel chosen at run time, fwref/kernels_i8.hpp), then the gates, the
-// state update and the state's next codes in one pass (fwref/vmath_gru_i8.hpp: 8 lanes per AVX2
-// vector). The same operations in the same order as the portable path in infer() below, so the same
-// bits (checked by fwref_vmath, and against ONNX Runtime by the parity tests).
-void steps_i8_host(const GruI8& m, const float* x, GruWorkspace& ws, GruTrace* tr) {
+// The host's two products per step, from one of two packed copies (both exact, so the same integers):
+// W16 the int16 copies (vpmaddwd, any x86-64: its kernel chosen at run time, fwref/kernels_i8.hpp)
+// fed int16 codes; W8 on a CPU whose run-time choice is avx512vnni, the int8 copies for vpdpbusd
+// (fwref/kernels_w8_vnni.hpp) fed int8 codes, offset to u8 here.
+struct W16Products {
+  using Code = std::int16_t;
+  const std::int16_t *wih, *whh;
+  void run(const std::int16_t* w, int rows, int cols, const Code* q, std::int32_t* acc) const {
+    gemv_w16_x16(w, rows, cols, q, acc);
+  }
+};
+struct W8Products {
+  using Code = std::int8_t;
+  const std::uint8_t *wih, *whh;
+  GemvW8Fn fn;
+  void run(const std::uint8_t* w, int rows, int cols, const Code* q, std::int32_t* acc) const {
+    alignas(64) std::uint8_t xu[w8_cols(kMaxGemvCols)];
+    offset_codes_u8(q, cols, xu);
+    for (int i = cols; i < w8_cols(cols); ++i) xu[i] = 128;  // read, times zero weights
+    fn(w, rows, cols, xu, acc);
+  }
+};
+
+// The host's steps: the input codes quantized straight into the products' code type, both products'
+// accumulators over all 3H rows, then the gates, the state update and the state's next codes in one
+// pass (fwref/vmath_gru_i8.hpp: 8 lanes per AVX2 vector). The same operations in the same order as
+// the portable path below, so the same bits (checked by fwref_vmath, and against ONNX Runtime by the
+// parity tests).
+template <class Products>
+void steps_i8_host(const GruI8& m, const Products& prod, const float* x, GruWorkspace& ws, GruTrace* tr) {
+  using Code = typename Products::Code;
   const int C = m.dims.channels, W = m.dims.window, H = m.dims.hidden;
-  const std::int16_t *wih16, *whh16;
-  w16_copies(m, ws, &wih16, &whh16);
-  alignas(32) std::int16_t x16[w16_stride(kMaxChannels)] = {};   // zero after C: the kernel's padding
-  alignas(32) std::int16_t h16[w16_stride(kMaxGruHidden)] = {};  // quantize(h0 = 0, s_h) = 0
+  alignas(32) Code xq[w16_stride(kMaxChannels)] = {};   // zero after C: the int16 kernel's padding
+  alignas(32) Code hq[w16_stride(kMaxGruHidden)] = {};  // quantize(h0 = 0, s_h) = 0
   alignas(32) std::int32_t acc_x[kMaxGruGates], acc_h[kMaxGruGates];
   const GruGateInputs g{acc_x, m.w_ih.scale, m.b_ih, acc_h, m.s_h, m.w_hh.scale, m.b_hh};
   float* h = ws.h.data();
   for (int t = 0; t < W; ++t) {
     float* xn = tr != nullptr && tr->x_norm != nullptr ? tr->x_norm + t * C : nullptr;
-    normalise_quantize_row(x + t * C, m.mean, m.std, m.s_x, C, xn, x16);
-    gemv_w16_x16(wih16, 3 * H, C, x16, acc_x);  // GX row t (s_x folded into W_ih')
-    gemv_w16_x16(whh16, 3 * H, H, h16, acc_h);
-    gru_gates_i8(g, H, h, h16);
+    normalise_quantize_row(x + t * C, m.mean, m.std, m.s_x, C, xn, xq);
+    prod.run(prod.wih, 3 * H, C, xq, acc_x);  // GX row t (s_x folded into W_ih')
+    prod.run(prod.whh, 3 * H, H, hq, acc_h);
+    gru_gates_i8(g, H, h, hq);
     if (tr != nullptr) trace_row(ws.h, H, tr->h == nullptr ? nullptr : tr->h + t * H);
   }
-  for (int j = 0; j < H; ++j) ws.hq[j] = static_cast<std::int8_t>(h16[j]);  // quantize(h_W, s_h)
+  for (int j = 0; j < H; ++j) ws.hq[j] = static_cast<std::int8_t>(hq[j]);  // quantize(h_W, s_h)
+}
+
+// The faster copy this CPU runs: W8 where the run-time choice is avx512vnni, else W16.
+void steps_i8_host(const GruI8& m, const float* x, GruWorkspace& ws, GruTrace* tr) {
+  const int C = m.dims.channels, H = m.dims.hidden;
+  if (const GemvW8Fn fn = gemv_w8_kernel()) {
+    if (ws.w8_of != m.w_hh.q) {
+      pack_i8_w8(m.w_ih.q, 3 * H, C, ws.wih8);
+      pack_i8_w8(m.w_hh.q, 3 * H, H, ws.whh8);
+      ws.w8_of = m.w_hh.q;
+    }
+    steps_i8_host(m, W8Products{ws.wih8, ws.whh8, fn}, x, ws, tr);
+    return;
+  }
+  W16Products prod{};
+  w16_copies(m, ws, &prod.wih, &prod.whh);
+  steps_i8_host(m, prod, x, ws, tr);
 }
 #endif
 

@@ -5,7 +5,9 @@
 //                                           loop: the same int32 accumulators on random and extreme data
 //
 // --info lines (key: value): cpu_flags, fp32_build, int8_kernel (the dispatched one), int8_kernels
-// (name=runs|no for each kernel this build has). --check prints one line per kernel,
+// (name=runs|no for each kernel this build has), gru_int8_products (the host GRU's packed copy: w8 on
+// vpdpbusd, w16 on vpmaddwd, portable the reference path). Besides each kernel, --check runs its packed
+// int16 path (w16:NAME) and, for avx512vnni and portable, the packed int8 one (w8:NAME). --check prints one line per kernel,
 //   CHECK <name> cases=<n> mismatches=<m> OK|NOT_OK
 // and exits 0 when all match, 1 on a mismatch, 3 when NAME is unknown or the CPU cannot run it.
 #include <cstdint>
@@ -17,6 +19,7 @@
 #include <vector>
 
 #include "fwref/kernels_i8.hpp"
+#include "fwref/kernels_w8_vnni.hpp"
 #include "kernel_info.hpp"
 
 namespace {
@@ -86,6 +89,22 @@ struct W16AsI8 {
 };
 #endif
 
+#if defined(FWREF_HAS_W8_VNNI)
+// The packed int8 copy for vpdpbusd (fwref/kernels_w8_vnni.hpp) as an int8 kernel: pack the weights and
+// offset x into exact-size blocks (w8_bytes(rows, cols), w8_cols(cols)), then the w8 kernel.
+struct W8AsI8 {
+  fwref::GemvW8Fn w8;
+  void operator()(const std::int8_t* w, int rows, int cols, const std::int8_t* x, std::int32_t* acc) const {
+    std::vector<std::int32_t> words((fwref::w8_bytes(rows, cols) + 3) / 4);  // 4-byte aligned
+    std::uint8_t* wp = reinterpret_cast<std::uint8_t*>(words.data());
+    std::vector<std::uint8_t> xu(fwref::w8_cols(cols), 128);
+    fwref::pack_i8_w8(w, rows, cols, wp);
+    fwref::offset_codes_u8(x, cols, xu.data());
+    w8(wp, rows, cols, xu.data(), acc);
+  }
+};
+#endif
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -132,6 +151,15 @@ int main(int argc, char** argv) {
     const long bad16 = check_kernel(W16AsI8{ks[k].w16}, seed + 2, &cases);  // its packed int16 path
     std::printf("CHECK w16:%s cases=%ld mismatches=%ld %s\n", ks[k].name, cases, bad16, bad16 ? "NOT_OK" : "OK");
     failed += bad16 ? 1 : 0;
+#endif
+#if defined(FWREF_HAS_W8_VNNI)
+    // the packed int8 copy's kernel where this instruction set has one (its layout's reference with portable)
+    const bool vnni = std::strcmp(ks[k].name, "avx512vnni") == 0, portable = std::strcmp(ks[k].name, "portable") == 0;
+    if (vnni || portable) {
+      const long bad8 = check_kernel(W8AsI8{vnni ? fwref::gemv_w8_avx512vnni : fwref::gemv_w8_portable}, seed + 3, &cases);
+      std::printf("CHECK w8:%s cases=%ld mismatches=%ld %s\n", ks[k].name, cases, bad8, bad8 ? "NOT_OK" : "OK");
+      failed += bad8 ? 1 : 0;
+    }
 #endif
   }
   // and the dispatched entry point itself
