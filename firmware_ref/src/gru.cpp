@@ -128,13 +128,12 @@ Status infer(const GruF32& m, const float* x, float* logits, GruWorkspace& ws, G
   return all_finite(logits, d.classes) ? Status::kOk : Status::kNonFiniteOutput;
 }
 
+#if defined(FWREF_GRU_I8_HOST)
 namespace {
 
 // The int16 copies of W_ih and W_hh (fwref/kernels_i8.hpp's packed layout), made at the first int8
-// inference of a model (ws.w16_of, fwref/gru.hpp); nullptr when this build has no int16 kernel.
+// inference of a model (ws.w16_of, fwref/gru.hpp).
 void w16_copies(const GruI8& m, GruWorkspace& ws, const std::int16_t** wih16, const std::int16_t** whh16) {
-  *wih16 = *whh16 = nullptr;
-#if defined(FWREF_GRU_WHH_INT16) && defined(FWREF_HAS_W16_KERNEL)
   const int C = m.dims.channels, H = m.dims.hidden;
   if (ws.w16_of != m.w_hh.q) {
     expand_i8_to_i16(m.w_hh.q, 3 * H, H, ws.whh16);
@@ -143,12 +142,8 @@ void w16_copies(const GruI8& m, GruWorkspace& ws, const std::int16_t** wih16, co
   }
   *whh16 = ws.whh16;
   *wih16 = ws.wih16;
-#else
-  (void)m, (void)ws;
-#endif
 }
 
-#if defined(FWREF_GRU_I8_HOST)
 // The host's two products per step, from one of two packed copies (both exact, so the same integers):
 // W16 the int16 copies (vpmaddwd, any x86-64: its kernel chosen at run time, fwref/kernels_i8.hpp)
 // fed int16 codes; W8 on a CPU whose run-time choice is avx512vnni, the int8 copies for vpdpbusd
@@ -197,9 +192,14 @@ void steps_i8_host(const GruI8& m, const Products& prod, const float* x, GruWork
   for (int j = 0; j < H; ++j) ws.hq[j] = static_cast<std::int8_t>(hq[j]);  // quantize(h_W, s_h)
 }
 
-// The faster copy this CPU runs: W8 where the run-time choice is avx512vnni, else W16.
-void steps_i8_host(const GruI8& m, const float* x, GruWorkspace& ws, GruTrace* tr) {
-  const int C = m.dims.channels, H = m.dims.hidden;
+// The host's int8 inference (infer() below sends it every call unless FWREF_I8_KERNEL=portable): the
+// steps on the faster copy this CPU runs (W8 where the run-time choice is avx512vnni, else W16), then
+// the head as the portable path computes it.
+Status infer_i8_host(const GruI8& m, const float* x, float* logits, GruWorkspace& ws, GruTrace* tr) {
+  const GruDims& d = m.dims;
+  const int C = d.channels, H = d.hidden;
+  if (!all_finite_n(x, d.window * C)) return Status::kNonFiniteInput;
+  ws.h.setZero(H);
   if (const GemvW8Fn fn = gemv_w8_kernel()) {
     if (ws.w8_of != m.w_hh.q) {
       pack_i8_w8(m.w_ih.q, 3 * H, C, ws.wih8);
@@ -207,21 +207,41 @@ void steps_i8_host(const GruI8& m, const float* x, GruWorkspace& ws, GruTrace* t
       ws.w8_of = m.w_hh.q;
     }
     steps_i8_host(m, W8Products{ws.wih8, ws.whh8, fn}, x, ws, tr);
-    return;
+  } else {
+    W16Products prod{};
+    w16_copies(m, ws, &prod.wih, &prod.whh);
+    steps_i8_host(m, prod, x, ws, tr);
   }
-  W16Products prod{};
-  w16_copies(m, ws, &prod.wih, &prod.whh);
-  steps_i8_host(m, prod, x, ws, tr);
+  linear_i8_tensor(m.head_w.q, m.head_w.scale, d.classes, H, ws.hq, m.s_h, m.head_b, logits);  // ws.hq: quantize(h_W)
+  return all_finite(logits, d.classes) ? Status::kOk : Status::kNonFiniteOutput;
 }
+
+}  // namespace
 #endif
 
-// The portable steps (the reference; the Cortex-M build's path).
-void steps_i8(const GruI8& m, const float* x, GruWorkspace& ws, GruTrace* tr) {
-  const int C = m.dims.channels, W = m.dims.window, H = m.dims.hidden;
+Status infer(const GruI8& m, const float* x, float* logits, GruWorkspace& ws, GruTrace* tr) {
+  if (x == nullptr || logits == nullptr) return Status::kNullArgument;
+#if defined(FWREF_GRU_I8_HOST)
+  // FWREF_I8_KERNEL=portable (fwref/kernels_i8.hpp) runs the portable path below on the host too: the
+  // whole model's paths compared by tests/test_firmware.py
+  if (std::strcmp(gemv_i8_kernel_name(), "portable") != 0) return infer_i8_host(m, x, logits, ws, tr);
+#endif
+  const GruDims& d = m.dims;
+  const int C = d.channels, W = d.window, H = d.hidden;
+  if (!all_finite_f32(x, W * C)) return Status::kNonFiniteInput;
+  ws.h.setZero(H);
   ws.gx.resize(3 * H);
   ws.gh.resize(3 * H);
-  const std::int16_t *wih16, *whh16;
-  w16_copies(m, ws, &wih16, &whh16);
+  const std::int16_t *whh16 = nullptr, *wih16 = nullptr;
+#if defined(FWREF_GRU_WHH_INT16) && defined(FWREF_HAS_W16_KERNEL)
+  if (ws.w16_of != m.w_hh.q) {
+    expand_i8_to_i16(m.w_hh.q, 3 * H, H, ws.whh16);
+    expand_i8_to_i16(m.w_ih.q, 3 * H, C, ws.wih16);
+    ws.w16_of = m.w_hh.q;
+  }
+  whh16 = ws.whh16;
+  wih16 = ws.wih16;
+#endif
   for (int t = 0; t < W; ++t) {
     for (int c = 0; c < C; ++c) {
       const float xn = normalise(x[t * C + c], m.mean[c], m.std[c]);
@@ -236,28 +256,7 @@ void steps_i8(const GruI8& m, const float* x, GruWorkspace& ws, GruTrace* tr) {
     if (tr != nullptr) trace_row(ws.h, H, tr->h == nullptr ? nullptr : tr->h + t * H);
   }
   quantize_all(ws.h.data(), H, m.s_h, ws.hq);
-}
-
-}  // namespace
-
-Status infer(const GruI8& m, const float* x, float* logits, GruWorkspace& ws, GruTrace* tr) {
-  if (x == nullptr || logits == nullptr) return Status::kNullArgument;
-  const GruDims& d = m.dims;
-  if (!all_finite_n(x, d.window * d.channels)) return Status::kNonFiniteInput;
-  ws.h.setZero(d.hidden);
-#if defined(FWREF_GRU_I8_HOST)
-  // FWREF_I8_KERNEL=portable (fwref/kernels_i8.hpp) runs the reference path here too: the whole
-  // model's two paths compared by tests/test_firmware.py
-  if (std::strcmp(gemv_i8_kernel_name(), "portable") != 0) {
-    steps_i8_host(m, x, ws, tr);
-  } else {
-    steps_i8(m, x, ws, tr);
-  }
-#else
-  steps_i8(m, x, ws, tr);
-#endif
-  // ws.hq: quantize(h_W, s_h)
-  linear_i8_tensor(m.head_w.q, m.head_w.scale, d.classes, d.hidden, ws.hq, m.s_h, m.head_b, logits);
+  linear_i8_tensor(m.head_w.q, m.head_w.scale, d.classes, H, ws.hq, m.s_h, m.head_b, logits);
   return all_finite(logits, d.classes) ? Status::kOk : Status::kNonFiniteOutput;
 }
 
