@@ -13,28 +13,40 @@
 
 namespace fwref {
 
+// Both walk the layout (fwref/kernels_w8_vnni.hpp) block by block: row i of the block at r0 is row
+// r0 + i, its byte of column c at block + (c / 4) * 4 * nr + 4 * i + c % 4.
 void pack_i8_w8(const std::int8_t* q, int rows, int cols, std::uint8_t* out) {
   const int c4 = w8_cols(cols);
-  for (int r = 0; r < rows; ++r) {
-    std::int32_t sum = 0;
-    for (int c = 0; c < c4; ++c) {
-      const std::int8_t v = c < cols ? q[r * cols + c] : 0;
-      sum += v;
-      out[w8_index(r, c, rows, cols)] = static_cast<std::uint8_t>(v);
+  for (int r0 = 0; r0 < rows; r0 += 16) {
+    const int nr = rows - r0 < 16 ? rows - r0 : 16;
+    std::uint8_t* block = out + 4L * rows + long(r0) * c4;
+    for (int i = 0; i < nr; ++i) {
+      const std::int8_t* row = q + long(r0 + i) * cols;
+      std::int32_t sum = 0;
+      for (int c = 0; c < c4; ++c) {
+        const std::int8_t v = c < cols ? row[c] : 0;
+        sum += v;
+        block[(c / 4) * 4 * nr + 4 * i + c % 4] = static_cast<std::uint8_t>(v);
+      }
+      const std::int32_t corr = -128 * sum;
+      std::memcpy(out + 4L * (r0 + i), &corr, 4);
     }
-    const std::int32_t corr = -128 * sum;
-    std::memcpy(out + 4L * r, &corr, 4);
   }
 }
 
 void gemv_w8_portable(const std::uint8_t* w8, int rows, int cols, const std::uint8_t* xu, std::int32_t* acc) {
-  for (int r = 0; r < rows; ++r) {
-    std::int32_t s;
-    std::memcpy(&s, w8 + 4L * r, 4);
-    for (int c = 0; c < cols; ++c) {
-      s += static_cast<std::int32_t>(static_cast<std::int8_t>(w8[w8_index(r, c, rows, cols)])) * xu[c];
+  const int c4 = w8_cols(cols);
+  for (int r0 = 0; r0 < rows; r0 += 16) {
+    const int nr = rows - r0 < 16 ? rows - r0 : 16;
+    const std::uint8_t* block = w8 + 4L * rows + long(r0) * c4;
+    for (int i = 0; i < nr; ++i) {
+      std::int32_t s;
+      std::memcpy(&s, w8 + 4L * (r0 + i), 4);
+      for (int c = 0; c < cols; ++c) {
+        s += static_cast<std::int32_t>(static_cast<std::int8_t>(block[(c / 4) * 4 * nr + 4 * i + c % 4])) * xu[c];
+      }
+      acc[r0 + i] = s;
     }
-    acc[r] = s;
   }
 }
 

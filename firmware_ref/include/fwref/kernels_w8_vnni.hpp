@@ -13,7 +13,8 @@
 // then the weights in blocks of 16 rows (the last block: the remaining nr rows), each block the
 // w8_cols(cols) / 4 column quads in order, each quad the block's rows' 4 bytes W[r][4k .. 4k + 3]
 // (row i of the block at byte 4i: lane i of a vector); columns past cols are zero. Block b starts at
-// byte 4 * rows + 16 * b * w8_cols(cols), where row 16b of a row-major copy would.
+// byte 4 * rows + 16 * b * w8_cols(cols), where row 16b of a row-major copy would: W[16b + i][c] is at
+// 4 * rows + 16 * b * w8_cols(cols) + (c / 4) * 4 * nr + 4 * i + c % 4 (nr: the block's rows).
 //
 // gemv_w8_kernel() returns the kernel only when the run-time choice of fwref/kernels_i8.hpp is
 // avx512vnni (so FWREF_I8_KERNEL=avx2 / portable turn it off), else nullptr: callers then use their
@@ -30,11 +31,6 @@ namespace fwref {
 constexpr int w8_cols(int cols) { return (cols + 3) & ~3; }
 // Bytes of the packed copy of a (rows, cols) matrix.
 constexpr long w8_bytes(int rows, int cols) { return 4L * rows + long(rows) * w8_cols(cols); }
-// Byte offset of W[r][c] in the copy.
-inline long w8_index(int r, int c, int rows, int cols) {
-  const int b = r / 16, nr = rows - 16 * b < 16 ? rows - 16 * b : 16;
-  return 4L * rows + 16L * b * w8_cols(cols) + long(c / 4) * nr * 4 + (r % 16) * 4 + c % 4;
-}
 // (rows, cols) int8 -> the packed copy above (w8_bytes(rows, cols) bytes; ``out`` 4-byte aligned).
 void pack_i8_w8(const std::int8_t* q, int rows, int cols, std::uint8_t* out);
 
