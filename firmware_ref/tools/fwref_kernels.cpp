@@ -3,6 +3,8 @@
 //   fwref_kernels --info                    which kernel runs, which ones the CPU runs, the fp32 build's ISA
 //   fwref_kernels --check [--kernel NAME]   every kernel the CPU runs (or NAME) against the portable
 //                                           loop: the same int32 accumulators on random and extreme data
+//   fwref_kernels --bench                   x86-64: ns per product on each kernel the CPU runs, for the
+//                                           paper models' shapes (tools/kernel_bench.hpp; exit 3 elsewhere)
 //
 // --info lines (key: value): cpu_flags, fp32_build, int8_kernel (the dispatched one), int8_kernels
 // (name=runs|no for each kernel this build has), gru_int8_products (the host GRU's packed copy: w8 on
@@ -20,6 +22,7 @@
 
 #include "fwref/kernels_i8.hpp"
 #include "fwref/kernels_w8_vnni.hpp"
+#include "kernel_bench.hpp"
 #include "kernel_info.hpp"
 
 namespace {
@@ -105,10 +108,24 @@ struct W8AsI8 {
 };
 #endif
 
+// --bench: the GRU's W_ih (3H, C) and W_hh (3H, H) and the CNODE's lin1_z (H, L) and lin2 (L, H) at the
+// paper sizes (C = 23, H = 80; L = 40, H = 64).
+int run_bench() {
+#if defined(__x86_64__) && !defined(FWREF_PORTABLE_KERNELS)
+  std::printf("int8_kernel: %s\n", fwref::gemv_i8_kernel_name());
+  const int shapes[][2] = {{240, 23}, {240, 80}, {64, 40}, {40, 64}};
+  for (const auto& s : shapes) kernel_bench::bench_shape(s[0], s[1]);
+  return 0;
+#else
+  std::printf("BENCH unavailable (x86-64 kernels only)\n");
+  return 3;
+#endif
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
-  bool info = false, check = false;
+  bool info = false, check = false, bench = false;
   std::string only;
   unsigned seed = 12345;
   for (int i = 1; i < argc; ++i) {
@@ -117,15 +134,18 @@ int main(int argc, char** argv) {
       info = true;
     } else if (a == "--check") {
       check = true;
+    } else if (a == "--bench") {
+      bench = true;
     } else if (a == "--kernel" && i + 1 < argc) {
       only = argv[++i];
     } else if (a == "--seed" && i + 1 < argc) {
       seed = unsigned(std::strtoul(argv[++i], nullptr, 10));
     } else {
-      std::fprintf(stderr, "usage: fwref_kernels --info | --check [--kernel NAME] [--seed S]\n");
+      std::fprintf(stderr, "usage: fwref_kernels --info | --check [--kernel NAME] [--seed S] | --bench\n");
       return 1;
     }
   }
+  if (bench) return run_bench();
   if (!info && !check) info = true;
   if (info) fwref::host::print_kernel_info(stdout);
   if (!check) return 0;
