@@ -28,6 +28,12 @@ from core.errors import QuadfdiError
 from core.tables import md_table
 
 WINDOWS_LONG, WINDOWS_SHORT = 8, 4
+# What to do when valgrind cannot decode the build's instructions: on an AVX-512 CPU the host build's
+# -march=native emits AVX-512, which valgrind does not implement (it hides AVX-512 from cpuid, so the
+# run-time kernel choice falls back to AVX2 by itself; only the compiled-in ISA is the problem).
+VALGRIND_ISA_HINT = ("valgrind cannot decode an instruction of this build (AVX-512 from -march=native on an "
+                     "AVX-512 CPU?); count an AVX2 build instead: cmake -S firmware_ref -B B -DFWREF_NATIVE=OFF "
+                     "'-DCMAKE_CXX_FLAGS=-march=x86-64-v3 -fno-trapping-math' && cmake --build B, then --fwref B/fwref_infer")
 PAIRS = (("cnode", "fp32"), ("cnode", "int8"), ("gru", "fp32"), ("gru", "int8"))
 
 
@@ -77,8 +83,10 @@ def _callgrind(fwref: str, weights: str, model: str, int8: bool, windows: Path, 
            fwref, "--weights", weights, "--model", model, "--in", str(windows), "--out", str(tmp / "o.f32")]
     res = subprocess.run(cmd + (["--int8"] if int8 else []), capture_output=True, text=True, timeout=900)
     if res.returncode != 0 or not out.is_file():
-        raise QuadfdiError(f"callgrind of {fwref} --model {model}{' --int8' if int8 else ''} failed: "
-                           + (res.stderr.strip().splitlines() or ["no output"])[-1])
+        what = f"callgrind of {fwref} --model {model}{' --int8' if int8 else ''} failed: "
+        if "unhandled instruction" in res.stderr:  # e.g. AVX-512, which valgrind 3.19 (this machine) cannot decode
+            raise QuadfdiError(what + VALGRIND_ISA_HINT)
+        raise QuadfdiError(what + (res.stderr.strip().splitlines() or ["no output"])[-1])
     ann = subprocess.run(["callgrind_annotate", "--threshold=100", str(out)], capture_output=True, text=True,
                          timeout=300, check=True)
     total, rows = parse_callgrind_annotate(ann.stdout)

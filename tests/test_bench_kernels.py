@@ -54,6 +54,10 @@ def test_bench_kernels_command_counts_every_model_and_names_the_int8_kernel(fw_r
     out = tmp_path / "kernels.json"
     res = quadfdi("bench", "kernels", "--run", str(fw_run), "--fwref", str(host_build / "fwref_infer"),
                   "--json", str(out), timeout=1800)
+    if "valgrind cannot decode an instruction of this build" in res.stderr:  # bench.kernels.VALGRIND_ISA_HINT
+        assert "avx512f" in _cpu_flags(), res.stderr  # only the AVX-512 a -march=native build has may do this
+        pytest.skip("valgrind cannot run this CPU's -march=native host build (AVX-512 instructions); "
+                    "docs/bench.md counts an AVX2 build instead")
     assert res.returncode == 0, res.stderr
     doc = json.loads(out.read_text())
     recs = {(r["model"], r["precision"]): r for r in doc["records"]}

@@ -13,7 +13,11 @@ How far that moves the models from ONNX Runtime is `quadfdi parity`'s check (FP3
 
 And the CNODE's int8 vector math (fwref/vmath_i8.hpp) with numerics.hpp's scalar expressions, bit
 for bit: QuantizeLinear's round-half-even ties, saturation bounds and NaN, rescale + tanh + quantize,
-rescale + bias, the control path's channels and its nonzero search."""
+rescale + bias, the control path's channels and its nonzero search; and the GRU's int8 step
+(fwref/vmath_gru_i8.hpp) with its portable path's expressions: the input codes (ties, saturation
+bounds, NaN/inf), the gates from the accumulators with the state update and the state's codes (every
+hidden size 1..70 with the int32 extremes and NaN/inf mixed in, and millions of units of the GRU's
+own shape)."""
 
 from __future__ import annotations
 
@@ -47,7 +51,8 @@ def test_vector_tanh_logistic_bit_identical_and_gemv_in_its_order_and_bound(host
     m = re.search(r"^all_finite: (\d+) of (\d+) differ$", out, re.M)
     assert m and int(m.group(1)) == 0 and int(m.group(2)) > 3000, out
     i8_min = {"quantize": 10_000_000, "rescale_tanh_quantize+rescale_bias": 19_000, "hidden_rows": 3_000_000,
-              "control_row": 14_000, "nonzero": 300}
+              "control_row": 14_000, "nonzero": 300,
+              "gru_input_row": 19_000, "gru_gates": 19_000, "gru_gate_rows": 3_000_000}
     for check, least in i8_min.items():  # int8: codes and floats element for element, guards after n kept
         m = re.search(rf"^{re.escape(check)}: (\d+) of (\d+) differ$", out, re.M)
         assert m and int(m.group(1)) == 0 and int(m.group(2)) >= least, out

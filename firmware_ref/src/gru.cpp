@@ -1,11 +1,20 @@
 // src/gru.cpp -- scope: GRU inference, fp32 and int8 (fwref/gru.hpp), and its weight checks.
 #include "fwref/gru.hpp"
 
+#include <cstring>
+
 #include "fwref/kernels_f32.hpp"
 #include "fwref/numerics.hpp"
 #include "fwref/vmath_f32.hpp"
 #include "model_common.hpp"
 #include "motor_common.hpp"
+
+// The host's int8 step (x86-64 with the int16 weight copies): see infer_i8_host below. Elsewhere (the
+// Cortex-M build, FWREF_PORTABLE_KERNELS) the portable path of infer(const GruI8&) runs.
+#if defined(FWREF_GRU_WHH_INT16) && defined(__x86_64__) && !defined(FWREF_PORTABLE_KERNELS)
+#define FWREF_GRU_I8_HOST 1
+#include "fwref/vmath_gru_i8.hpp"
+#endif
 
 namespace fwref {
 
@@ -119,8 +128,104 @@ Status infer(const GruF32& m, const float* x, float* logits, GruWorkspace& ws, G
   return all_finite(logits, d.classes) ? Status::kOk : Status::kNonFiniteOutput;
 }
 
+#if defined(FWREF_GRU_I8_HOST)
+namespace {
+
+// The int16 copies of W_ih and W_hh (fwref/kernels_i8.hpp's packed layout), made at the first int8
+// inference of a model (ws.w16_of, fwref/gru.hpp).
+void w16_copies(const GruI8& m, GruWorkspace& ws, const std::int16_t** wih16, const std::int16_t** whh16) {
+  const int C = m.dims.channels, H = m.dims.hidden;
+  if (ws.w16_of != m.w_hh.q) {
+    expand_i8_to_i16(m.w_hh.q, 3 * H, H, ws.whh16);
+    expand_i8_to_i16(m.w_ih.q, 3 * H, C, ws.wih16);
+    ws.w16_of = m.w_hh.q;
+  }
+  *whh16 = ws.whh16;
+  *wih16 = ws.wih16;
+}
+
+// The host's two products per step, from one of two packed copies (both exact, so the same integers):
+// W16 the int16 copies (vpmaddwd, any x86-64: its kernel chosen at run time, fwref/kernels_i8.hpp)
+// fed int16 codes; W8 on a CPU whose run-time choice is avx512vnni, the int8 copies for vpdpbusd
+// (fwref/kernels_w8_vnni.hpp) fed int8 codes, offset to u8 here.
+struct W16Products {
+  using Code = std::int16_t;
+  const std::int16_t *wih, *whh;
+  void run(const std::int16_t* w, int rows, int cols, const Code* q, std::int32_t* acc) const {
+    gemv_w16_x16(w, rows, cols, q, acc);
+  }
+};
+struct W8Products {
+  using Code = std::int8_t;
+  const std::uint8_t *wih, *whh;
+  GemvW8Fn fn;
+  void run(const std::uint8_t* w, int rows, int cols, const Code* q, std::int32_t* acc) const {
+    alignas(64) std::uint8_t xu[w8_cols(kMaxGemvCols)];
+    offset_codes_u8(q, cols, xu);
+    for (int i = cols; i < w8_cols(cols); ++i) xu[i] = 128;  // read, times zero weights
+    fn(w, rows, cols, xu, acc);
+  }
+};
+
+// The host's steps: the input codes quantized straight into the products' code type, both products'
+// accumulators over all 3H rows, then the gates, the state update and the state's next codes in one
+// pass (fwref/vmath_gru_i8.hpp: 8 lanes per AVX2 vector). The same operations in the same order as
+// the portable path below, so the same bits (checked by fwref_vmath, and against ONNX Runtime by the
+// parity tests).
+template <class Products>
+void steps_i8_host(const GruI8& m, const Products& prod, const float* x, GruWorkspace& ws, GruTrace* tr) {
+  using Code = typename Products::Code;
+  const int C = m.dims.channels, W = m.dims.window, H = m.dims.hidden;
+  alignas(32) Code xq[w16_stride(kMaxChannels)] = {};   // zero after C: the int16 kernel's padding
+  alignas(32) Code hq[w16_stride(kMaxGruHidden)] = {};  // quantize(h0 = 0, s_h) = 0
+  alignas(32) std::int32_t acc_x[kMaxGruGates], acc_h[kMaxGruGates];
+  const GruGateInputs g{acc_x, m.w_ih.scale, m.b_ih, acc_h, m.s_h, m.w_hh.scale, m.b_hh};
+  float* h = ws.h.data();
+  for (int t = 0; t < W; ++t) {
+    float* xn = tr != nullptr && tr->x_norm != nullptr ? tr->x_norm + t * C : nullptr;
+    normalise_quantize_row(x + t * C, m.mean, m.std, m.s_x, C, xn, xq);
+    prod.run(prod.wih, 3 * H, C, xq, acc_x);  // GX row t (s_x folded into W_ih')
+    prod.run(prod.whh, 3 * H, H, hq, acc_h);
+    gru_gates_i8(g, H, h, hq);
+    if (tr != nullptr) trace_row(ws.h, H, tr->h == nullptr ? nullptr : tr->h + t * H);
+  }
+  for (int j = 0; j < H; ++j) ws.hq[j] = static_cast<std::int8_t>(hq[j]);  // quantize(h_W, s_h)
+}
+
+// The host's int8 inference (infer() below sends it every call unless FWREF_I8_KERNEL=portable): the
+// steps on the faster copy this CPU runs (W8 where the run-time choice is avx512vnni, else W16), then
+// the head as the portable path computes it.
+Status infer_i8_host(const GruI8& m, const float* x, float* logits, GruWorkspace& ws, GruTrace* tr) {
+  const GruDims& d = m.dims;
+  const int C = d.channels, H = d.hidden;
+  if (!all_finite_n(x, d.window * C)) return Status::kNonFiniteInput;
+  ws.h.setZero(H);
+  if (const GemvW8Fn fn = gemv_w8_kernel()) {
+    if (ws.w8_of != m.w_hh.q) {
+      pack_i8_w8(m.w_ih.q, 3 * H, C, ws.wih8);
+      pack_i8_w8(m.w_hh.q, 3 * H, H, ws.whh8);
+      ws.w8_of = m.w_hh.q;
+    }
+    steps_i8_host(m, W8Products{ws.wih8, ws.whh8, fn}, x, ws, tr);
+  } else {
+    W16Products prod{};
+    w16_copies(m, ws, &prod.wih, &prod.whh);
+    steps_i8_host(m, prod, x, ws, tr);
+  }
+  linear_i8_tensor(m.head_w.q, m.head_w.scale, d.classes, H, ws.hq, m.s_h, m.head_b, logits);  // ws.hq: quantize(h_W)
+  return all_finite(logits, d.classes) ? Status::kOk : Status::kNonFiniteOutput;
+}
+
+}  // namespace
+#endif
+
 Status infer(const GruI8& m, const float* x, float* logits, GruWorkspace& ws, GruTrace* tr) {
   if (x == nullptr || logits == nullptr) return Status::kNullArgument;
+#if defined(FWREF_GRU_I8_HOST)
+  // FWREF_I8_KERNEL=portable (fwref/kernels_i8.hpp) runs the portable path below on the host too: the
+  // whole model's paths compared by tests/test_firmware.py
+  if (std::strcmp(gemv_i8_kernel_name(), "portable") != 0) return infer_i8_host(m, x, logits, ws, tr);
+#endif
   const GruDims& d = m.dims;
   const int C = d.channels, W = d.window, H = d.hidden;
   if (!all_finite_f32(x, W * C)) return Status::kNonFiniteInput;

@@ -3,9 +3,13 @@
 //   fwref_kernels --info                    which kernel runs, which ones the CPU runs, the fp32 build's ISA
 //   fwref_kernels --check [--kernel NAME]   every kernel the CPU runs (or NAME) against the portable
 //                                           loop: the same int32 accumulators on random and extreme data
+//   fwref_kernels --bench                   x86-64: ns per product on each kernel the CPU runs, for the
+//                                           paper models' shapes (tools/kernel_bench.hpp; exit 3 elsewhere)
 //
 // --info lines (key: value): cpu_flags, fp32_build, int8_kernel (the dispatched one), int8_kernels
-// (name=runs|no for each kernel this build has). --check prints one line per kernel,
+// (name=runs|no for each kernel this build has), gru_int8_products (the host GRU's packed copy: w8 on
+// vpdpbusd, w16 on vpmaddwd, portable the reference path). Besides each kernel, --check runs its packed
+// int16 path (w16:NAME) and, for avx512vnni and portable, the packed int8 one (w8:NAME). --check prints one line per kernel,
 //   CHECK <name> cases=<n> mismatches=<m> OK|NOT_OK
 // and exits 0 when all match, 1 on a mismatch, 3 when NAME is unknown or the CPU cannot run it.
 #include <cstdint>
@@ -17,6 +21,8 @@
 #include <vector>
 
 #include "fwref/kernels_i8.hpp"
+#include "fwref/kernels_w8_vnni.hpp"
+#include "kernel_bench.hpp"
 #include "kernel_info.hpp"
 
 namespace {
@@ -86,10 +92,40 @@ struct W16AsI8 {
 };
 #endif
 
+#if defined(FWREF_HAS_W8_VNNI)
+// The packed int8 copy for vpdpbusd (fwref/kernels_w8_vnni.hpp) as an int8 kernel: pack the weights and
+// offset x into exact-size blocks (w8_bytes(rows, cols), w8_cols(cols)), then the w8 kernel.
+struct W8AsI8 {
+  fwref::GemvW8Fn w8;
+  void operator()(const std::int8_t* w, int rows, int cols, const std::int8_t* x, std::int32_t* acc) const {
+    std::vector<std::int32_t> words((fwref::w8_bytes(rows, cols) + 3) / 4);  // 4-byte aligned
+    std::uint8_t* wp = reinterpret_cast<std::uint8_t*>(words.data());
+    std::vector<std::uint8_t> xu(fwref::w8_cols(cols), 128);
+    fwref::pack_i8_w8(w, rows, cols, wp);
+    fwref::offset_codes_u8(x, cols, xu.data());
+    w8(wp, rows, cols, xu.data(), acc);
+  }
+};
+#endif
+
+// --bench: the GRU's W_ih (3H, C) and W_hh (3H, H) and the CNODE's lin1_z (H, L) and lin2 (L, H) at the
+// paper sizes (C = 23, H = 80; L = 40, H = 64).
+int run_bench() {
+#if defined(__x86_64__) && !defined(FWREF_PORTABLE_KERNELS)
+  std::printf("int8_kernel: %s\n", fwref::gemv_i8_kernel_name());
+  const int shapes[][2] = {{240, 23}, {240, 80}, {64, 40}, {40, 64}};
+  for (const auto& s : shapes) kernel_bench::bench_shape(s[0], s[1]);
+  return 0;
+#else
+  std::printf("BENCH unavailable (x86-64 kernels only)\n");
+  return 3;
+#endif
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
-  bool info = false, check = false;
+  bool info = false, check = false, bench = false;
   std::string only;
   unsigned seed = 12345;
   for (int i = 1; i < argc; ++i) {
@@ -98,15 +134,18 @@ int main(int argc, char** argv) {
       info = true;
     } else if (a == "--check") {
       check = true;
+    } else if (a == "--bench") {
+      bench = true;
     } else if (a == "--kernel" && i + 1 < argc) {
       only = argv[++i];
     } else if (a == "--seed" && i + 1 < argc) {
       seed = unsigned(std::strtoul(argv[++i], nullptr, 10));
     } else {
-      std::fprintf(stderr, "usage: fwref_kernels --info | --check [--kernel NAME] [--seed S]\n");
+      std::fprintf(stderr, "usage: fwref_kernels --info | --check [--kernel NAME] [--seed S] | --bench\n");
       return 1;
     }
   }
+  if (bench) return run_bench();
   if (!info && !check) info = true;
   if (info) fwref::host::print_kernel_info(stdout);
   if (!check) return 0;
@@ -132,6 +171,15 @@ int main(int argc, char** argv) {
     const long bad16 = check_kernel(W16AsI8{ks[k].w16}, seed + 2, &cases);  // its packed int16 path
     std::printf("CHECK w16:%s cases=%ld mismatches=%ld %s\n", ks[k].name, cases, bad16, bad16 ? "NOT_OK" : "OK");
     failed += bad16 ? 1 : 0;
+#endif
+#if defined(FWREF_HAS_W8_VNNI)
+    // the packed int8 copy's kernel where this instruction set has one (its layout's reference with portable)
+    const bool vnni = std::strcmp(ks[k].name, "avx512vnni") == 0, portable = std::strcmp(ks[k].name, "portable") == 0;
+    if (vnni || portable) {
+      const long bad8 = check_kernel(W8AsI8{vnni ? fwref::gemv_w8_avx512vnni : fwref::gemv_w8_portable}, seed + 3, &cases);
+      std::printf("CHECK w8:%s cases=%ld mismatches=%ld %s\n", ks[k].name, cases, bad8, bad8 ? "NOT_OK" : "OK");
+      failed += bad8 ? 1 : 0;
+    }
 #endif
   }
   // and the dispatched entry point itself

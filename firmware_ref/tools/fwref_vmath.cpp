@@ -14,6 +14,9 @@
 // 4. the int8 vector math (fwref/vmath_i8.hpp) against numerics.hpp's scalar expressions: quantize
 //    (round-half-even ties, saturation bounds, NaN, the bit-pattern walk), rescale + tanh + quantize,
 //    rescale + bias, the control path's per-channel work, the nonzero search (tools/fwref_vmath_i8.hpp).
+// 5. the GRU's int8 step math (fwref/vmath_gru_i8.hpp) against the portable path's scalar expressions:
+//    the input codes, the gates from the accumulators with the state update and its codes
+//    (tools/fwref_vmath_gru.hpp).
 // Prints one line per check ("tanh: 0 of N differ") and the kernel names; exit 0 when nothing differs,
 // 1 otherwise.
 #include <algorithm>
@@ -28,6 +31,7 @@
 #include <vector>
 
 #include "fwref/vmath_f32.hpp"
+#include "fwref_vmath_gru.hpp"
 #include "fwref_vmath_i8.hpp"
 
 namespace {
@@ -205,5 +209,8 @@ int main(int argc, char** argv) {
   report("hidden_rows", vmath_i8_check::check_hidden_rows);
   report("control_row", vmath_i8_check::check_control_row);
   report("nonzero", vmath_i8_check::check_nonzero);
+  report("gru_input_row", vmath_gru_check::check_input_row);
+  report("gru_gates", vmath_gru_check::check_gates);
+  report("gru_gate_rows", vmath_gru_check::check_gate_rows);
   return bt == 0 && bl == 0 && bg == 0 && bf == 0 && bad_i8 == 0 ? 0 : 1;
 }

@@ -15,6 +15,7 @@
 #include <cstdint>
 
 #include "fwref/config.hpp"
+#include "fwref/kernels_w8_vnni.hpp"
 #include "fwref/linalg.hpp"
 #include "fwref/motor.hpp"
 #include "fwref/status.hpp"
@@ -78,6 +79,14 @@ struct GruWorkspace {
   alignas(8) std::int16_t whh16[kMaxGruGates * ((kMaxGruHidden + 7) & ~7)];  // LDRD needs word alignment
   alignas(8) std::int16_t wih16[kMaxGruGates * ((kMaxChannels + 7) & ~7)];
   const std::int8_t* w16_of = nullptr;
+#endif
+#if defined(FWREF_HAS_W8_VNNI)
+  // x86-64 hosts whose int8 kernel is avx512vnni (chosen at run time, fwref/kernels_i8.hpp): W_ih and
+  // W_hh packed for vpdpbusd (fwref/kernels_w8_vnni.hpp), made at the first int8 inference of a
+  // model; w8_of: which weights, by address, as w16_of.
+  alignas(64) std::uint8_t wih8[w8_bytes(kMaxGruGates, kMaxChannels)];
+  alignas(64) std::uint8_t whh8[w8_bytes(kMaxGruGates, kMaxGruHidden)];
+  const std::int8_t* w8_of = nullptr;
 #endif
 };
 

@@ -11,7 +11,8 @@
 //               checked at load) with vpmaddubsw; each pair sum is at most 2 * 128 * 127 = 32512 <
 //               32767, so its 16-bit saturation never triggers; vpmaddwd widens to int32;
 //   avx512vnni  x86-64 AVX-512 VNNI (+VL), the same operands with vpdpbusd (u8 x s8, four products
-//               summed into int32 without saturation) on 256-bit vectors (the rows are short);
+//               summed into int32 without saturation) on 256-bit vectors (the rows are short); where
+//               it is the choice, the host GRU's products use fwref/kernels_w8_vnni.hpp's packed copy;
 //   cortex-m    ARMv7E-M DSP (Cortex-M4/M7), 4 rows per pass: x sign-extended once per call into
 //               int16 pairs (SXTB16), then per row and 4 columns one LDR, two SXTB16 and two SMLAD
 //               (CMSIS-NN's arm_nn_vec_mat_mult_t_s8 loop shape, written for this code base).
