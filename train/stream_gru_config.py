@@ -25,6 +25,7 @@ class StreamFitConfig:
     log_eps: float = 1e-8
     onset_weight: float = 1.0  # loss weight of the first onset_span steps of a fault run (1: off; train/stream_gru_onset.py)
     onset_span: int = 250  # steps (10 s at 25 Hz) after the label turns to a fault that get onset_weight
+    ema_decay: float = 0.0  # weight moving average per optimiser step, validated and kept (0: off; train/stream_gru_ema.py)
     seed: int = 0
     threads: int = 1
 
@@ -36,5 +37,7 @@ class StreamFitConfig:
         if self.onset_weight <= 0 or self.onset_span < 1:
             raise ValueError(f"onset_weight must be positive and onset_span at least 1, found {self.onset_weight}, "
                              f"{self.onset_span}")
+        if not 0 <= self.ema_decay < 1:
+            raise ValueError(f"ema_decay must lie in [0, 1), found {self.ema_decay}")
         if self.weight_decay < 0:
             raise ValueError(f"weight_decay must not be negative, found {self.weight_decay}")
