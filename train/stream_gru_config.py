@@ -11,7 +11,7 @@ from dataclasses import dataclass
 @dataclass(frozen=True)
 class StreamFitConfig:
     hidden: int = 60  # 3H(C+H)+HK = 15 600 MACs per sample at C = 25, K = 5: under 1/6 of the windowed GRU per second
-    epochs: int = 30  # the realistic suite: best validation epoch 25 of 30 (docs/training.md "Streaming GRU")
+    epochs: int = 30  # the realistic suite: 15 lost on validation (docs/training.md "Tried on the new simulator")
     batch: int = 32  # flights per batch
     segment: int = 1000  # samples per training segment (40 s at 25 Hz)
     tbptt: int = 125  # samples per truncated-backpropagation chunk (5 s)
