@@ -11,7 +11,7 @@ from dataclasses import dataclass
 @dataclass(frozen=True)
 class StreamFitConfig:
     hidden: int = 60  # 3H(C+H)+HK = 15 600 MACs per sample at C = 25, K = 5: under 1/6 of the windowed GRU per second
-    epochs: int = 30  # the realistic suite: best validation epoch 25 of 30 (docs/training.md "Streaming GRU")
+    epochs: int = 30  # the realistic suite: 15 lost on validation (docs/training.md "Tried on the new simulator")
     batch: int = 32  # flights per batch
     segment: int = 1000  # samples per training segment (40 s at 25 Hz)
     tbptt: int = 125  # samples per truncated-backpropagation chunk (5 s)
@@ -25,6 +25,7 @@ class StreamFitConfig:
     log_eps: float = 1e-8
     onset_weight: float = 1.0  # loss weight of the first onset_span steps of a fault run (1: off; train/stream_gru_onset.py)
     onset_span: int = 250  # steps (10 s at 25 Hz) after the label turns to a fault that get onset_weight
+    ema_decay: float = 0.0  # weight moving average per optimiser step, validated and kept (0: off; train/stream_gru_ema.py)
     seed: int = 0
     threads: int = 1
 
@@ -36,5 +37,7 @@ class StreamFitConfig:
         if self.onset_weight <= 0 or self.onset_span < 1:
             raise ValueError(f"onset_weight must be positive and onset_span at least 1, found {self.onset_weight}, "
                              f"{self.onset_span}")
+        if not 0 <= self.ema_decay < 1:
+            raise ValueError(f"ema_decay must lie in [0, 1), found {self.ema_decay}")
         if self.weight_decay < 0:
             raise ValueError(f"weight_decay must not be negative, found {self.weight_decay}")

@@ -16,7 +16,9 @@ backpropagation through time, random start points and start states, a label at e
   emphasis (``onset_weight`` > 1): more weight on the first ``onset_span`` steps of every fault run,
   class shares kept (train/stream_gru_onset.py); off by default.
 - Selection: the epoch whose validation macro F1 (the stream's decision at the validation windows'
-  ends, stream started at h = 0 at take-off) is best.
+  ends, stream started at h = 0 at take-off) is best. With ``ema_decay`` > 0 the weights validated
+  and kept are an exponential moving average of the trained ones (train/stream_gru_ema.py); off by
+  default.
 """
 
 from __future__ import annotations
@@ -35,6 +37,7 @@ from sim.dataset import Dataset, class_names, window_starts
 from train.data import class_weights, fit_normalisation
 from train.stream_gru import StreamGRU
 from train.stream_gru_config import StreamFitConfig
+from train.stream_gru_ema import WeightAverage
 from train.stream_gru_onset import (
     step_weighted_cross_entropy,
     step_weights,
@@ -79,6 +82,15 @@ def _val_f1(model: StreamGRU, ds: Dataset, rows: np.ndarray, ends: np.ndarray) -
                           average="macro", zero_division=0))
 
 
+def _val_f1_state(model: StreamGRU, ema: WeightAverage | None, ds: Dataset, rows: np.ndarray,
+                  ends: np.ndarray) -> tuple[float, dict]:
+    """Validation macro F1 of the weights the epoch would keep (the average's with ``ema``), and a copy of them."""
+    if ema is None:
+        return _val_f1(model, ds, rows, ends), copy.deepcopy(model.state_dict())
+    with ema.swapped():
+        return _val_f1(model, ds, rows, ends), copy.deepcopy(ema.shadow)
+
+
 def _segments(rng: np.ndarray, n_samples: int, n: int, cfg: StreamFitConfig) -> tuple[np.ndarray, np.ndarray]:
     """(start sample, mid-flight) per flight of a batch."""
     seg = min(cfg.segment, n_samples)
@@ -88,9 +100,11 @@ def _segments(rng: np.ndarray, n_samples: int, n: int, cfg: StreamFitConfig) -> 
 
 
 def _batch_loss(model: StreamGRU, opt, x: torch.Tensor, y: torch.Tensor, mask: torch.Tensor, h: torch.Tensor,
-                w: torch.Tensor, cfg: StreamFitConfig, m: torch.Tensor | None = None) -> float:
+                w: torch.Tensor, cfg: StreamFitConfig, m: torch.Tensor | None = None,
+                ema: WeightAverage | None = None) -> float:
     """One segment batch: chunks of ``tbptt`` steps, an optimiser step per chunk; the summed loss.
-    ``m`` (B, T): the onset emphasis's step weights (train/stream_gru_onset.py), None without."""
+    ``m`` (B, T): the onset emphasis's step weights (train/stream_gru_onset.py), None without;
+    ``ema``: the weight average updated after every optimiser step, None without."""
     total = 0.0
     for c0 in range(0, x.shape[1], cfg.tbptt):
         sl = slice(c0, c0 + cfg.tbptt)
@@ -108,6 +122,8 @@ def _batch_loss(model: StreamGRU, opt, x: torch.Tensor, y: torch.Tensor, mask: t
         loss.backward()
         torch.nn.utils.clip_grad_norm_(model.parameters(), cfg.clip)
         opt.step()
+        if ema is not None:
+            ema.update()
         total += loss.item() * int(keep.sum())
     return total
 
@@ -137,6 +153,7 @@ def fit_stream_gru(ds: Dataset, cfg: StreamFitConfig, log: Callable[[str], None]
     n_opt = cfg.epochs * (-(-len(train_rows) // cfg.batch)) * (-(-seg // cfg.tbptt))
     sched = torch.optim.lr_scheduler.CosineAnnealingLR(opt, T_max=n_opt)
     hist, best_f1, best_state = StreamHistory(), -1.0, None
+    ema = WeightAverage(model, cfg.ema_decay) if cfg.ema_decay > 0 else None
     for epoch in range(cfg.epochs):
         model.train()
         t0, total, count = time.perf_counter(), 0.0, 0
@@ -152,16 +169,16 @@ def fit_stream_gru(ds: Dataset, cfg: StreamFitConfig, log: Callable[[str], None]
             noisy = mid & (rng.random(len(idx)) < cfg.noise_start)
             h0 = np.where(noisy[:, None], np.tanh(rng.standard_normal((len(idx), cfg.hidden))), 0.0)
             m = None if sw is None else torch.from_numpy(sw[idx[:, None], cols])
-            total += _batch_loss(model, opt, x, y, mask, torch.as_tensor(h0, dtype=torch.float32), w, cfg, m)
+            total += _batch_loss(model, opt, x, y, mask, torch.as_tensor(h0, dtype=torch.float32), w, cfg, m, ema)
             for _ in range(-(-seg // cfg.tbptt)):
                 sched.step()
             count += int(mask.sum())
         hist.epoch_s.append(time.perf_counter() - t0)
         hist.loss.append(total / max(count, 1))
-        f1 = _val_f1(model, ds, val_rows, ends)
+        f1, state = _val_f1_state(model, ema, ds, val_rows, ends)
         hist.val_macro_f1.append(f1)
         if f1 > best_f1:
-            best_f1, best_state, hist.best_epoch = f1, copy.deepcopy(model.state_dict()), epoch
+            best_f1, best_state, hist.best_epoch = f1, state, epoch
         log(f"  epoch {epoch + 1:2d}/{cfg.epochs}: loss {hist.loss[-1]:.4f}, val macro F1 {f1:.4f}, "
             f"{hist.epoch_s[-1]:.1f} s")
     model.load_state_dict(best_state)
