@@ -146,6 +146,19 @@ def test_average_control_cnode_is_a_hand_written_euler_loop():
     assert all(torch.equal(a, b) for a, b in zip(point.state_dict().values(), avg.state_dict().values()))
 
 
+def test_a_cnode_with_a_motor_head_rebuilds_under_every_setting():
+    """The realistic suite's CNODE carries a motor head (train.motor): the solver study rebuilds it
+    (quadfdi run on configs/realistic.toml failed here on n_motors) and keeps the head's weights."""
+    from train.motor import attach_motor_head
+
+    m = attach_motor_head(_model(5))
+    for setting in (Setting("rk4", steps=8), Setting("euler", steps=4, control="average"),
+                    Setting("dopri5", rtol=1e-3, atol=1e-5, jump_t=True, restart=True)):
+        r = with_setting(m, setting)
+        assert r.motor_head is not None
+        assert all(torch.equal(a, b) for a, b in zip(m.state_dict().values(), r.state_dict().values()))
+
+
 def test_signature_records_the_control_and_a_checkpoint_loads_either(tmp_path):
     from train.checkpoint import load_checkpoint, save_checkpoint
     from train.models import model_from_signature, model_signature

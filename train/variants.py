@@ -18,6 +18,7 @@ import copy
 
 import numpy as np
 import torch
+from torch import nn
 
 from train.control import interp_matrix
 from train.models import CNODE, model_signature
@@ -151,8 +152,11 @@ def rebuild(model: CNODE, solver: SolverSpec, control: str = "point", knot_resta
     sig = model_signature(model)
     sig.pop("kind")
     sig.pop("control")
+    n_motors = sig.pop("n_motors", None)  # the motor head is a layer added after construction (train.models)
     cls = KnotRestartCNODE if knot_restart else CNODE_CLASSES[control]
     out = cls(**sig, solver=solver)
+    if n_motors is not None:
+        out.motor_head = nn.Linear(out.head.in_features, n_motors)
     out.load_state_dict(copy.deepcopy(model.state_dict()))
     out = out.to(dtype)
     out.eval()
