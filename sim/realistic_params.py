@@ -65,7 +65,6 @@ MOTOR_TAU_S = (0.020, 0.040)  # motor + ESC first-order thrust lag (2212-class m
 # monitor disconnected) and 14.8 m/s^2 (6S UAVCAN mission) by that metric (docs/params.md "Vibration
 # floor"); the earlier 1-4 m/s^2 (metric 1.1-4.4) covered none of the large 6S quads.
 VIB_FLOOR = (2.0, 15.0)
-VIB_FLOOR_THRUST_EXP = 1.0  # floor ~ (mean rotor thrust / hover thrust)^1: broadband rotor forcing grows as Omega^2
 IMBALANCE_G = (0.0, 0.05)  # g at 0.1 m: residual imbalance of a healthy balanced prop
 
 # --- wind (sim/wind.py) -----------------------------------------------------------------------

@@ -74,7 +74,7 @@ def vibration(F: np.ndarray, cut: np.ndarray, residual_g: np.ndarray, mass: np.n
     rT = propeller.thrust_factor(cut)
     A, f = propeller.accel_amplitude(F, rT, propeller.imbalance_kgm(cut, residual_g), mass[..., None])
     load = np.clip(F.mean(-1) / (mass * P.NOMINAL.g / 4.0), 0.0, None)
-    px4, ap = propeller.metrics(A, f, floor * load**P.VIB_FLOOR_THRUST_EXP)
+    px4, ap = propeller.metrics(A, f, floor * load)
     px4 = _lag(px4, 1.0 / (P.PX4_VIB_ALPHA * P.IMU_INTEG_HZ), dt)
     ap = np.sqrt(_lag(ap * ap, 1.0 / (2 * np.pi * P.AP_VIBE_HZ), dt))
     return px4, ap

@@ -12,6 +12,8 @@ Only the group's own quantity changes range; every other draw is the same functi
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from core.config import SimConfig
@@ -52,7 +54,9 @@ def _vehicle(rng: np.random.Generator, group: int, duration: float) -> dict:
         "capacity": rng.uniform(*P.PACK_MASS_SHARE) * m0 * P.PACK_WH_PER_KG / (3.7 * cells),
         "age": rng.uniform(*P.AGE), "soc0": rng.uniform(*P.SOC_BOOT),
         "t_amb": rng.uniform(*P.T_AMB_C), "motor_tau": rng.uniform(*P.MOTOR_TAU_S, 4),
-        "vib_floor": float(np.exp(rng.uniform(*np.log(P.VIB_FLOOR)))), "imbalance_g": rng.uniform(*P.IMBALANCE_G, 4),
+        # log-uniform, with libm's exp: numpy's AVX-512 exp rounds otherwise than AVX2 machines' (ISA-independent data)
+        "vib_floor": math.exp(rng.uniform(math.log(P.VIB_FLOOR[0]), math.log(P.VIB_FLOOR[1]))),
+        "imbalance_g": rng.uniform(*P.IMBALANCE_G, 4),
         "thrust_to_weight": rng.uniform(*P.THRUST_TO_WEIGHT),
     }
 
