@@ -54,44 +54,27 @@ namespace {
 
 // NB whole blocks of 16 rows (block j's quads at p + j * 16 * c4, 64 bytes each) and, when TAIL, the last
 // nr < 16 rows after them (their quads at p + NB * 16 * c4, 4 * nr bytes each: masked loads, nothing read
-// past the block, and a masked store). Per pair of column quads one broadcast of xu's 4 bytes each serves
-// every block; each block keeps two accumulators (even and odd quads, summed at the end: exact int32), so
-// its chain of dependent vpdpbusd is half as long (what bounds the CNODE's short products: 40 x 64 is two
-// blocks and a tail, 16 quads).
+// past the block, and a masked store), so that the tail's chain of vpdpbusd runs beside the blocks'
+// instead of after them (the CNODE's 40-row lin2 and encoder: two blocks and a tail). Per column quad one
+// broadcast of xu's 4 bytes serves every block, the accumulators starting at the rows' corrections.
 template <int NB, bool TAIL>
 __attribute__((target("avx512f,avx512vnni"))) inline void w8_panel(const std::uint8_t* p, const std::int32_t* corr,
                                                                     int nr, const std::uint8_t* xu, int c4,
                                                                     std::int32_t* acc) {
-  constexpr int kN = NB > 0 ? NB : 1;
   const __mmask16 m = TAIL ? static_cast<__mmask16>((1u << nr) - 1) : 0;
   const std::uint8_t* pt = p + 16L * NB * c4;
-  __m512i a[kN], b[kN], ta = _mm512_setzero_si512(), tb = _mm512_setzero_si512();
-  for (int j = 0; j < NB; ++j) a[j] = _mm512_loadu_si512(corr + 16 * j), b[j] = _mm512_setzero_si512();
-  if (TAIL) ta = _mm512_maskz_loadu_epi32(m, corr + 16 * NB);
-  int k = 0;
-  for (; k + 8 <= c4; k += 8) {
-    std::int32_t x0, x1;
-    std::memcpy(&x0, xu + k, 4);
-    std::memcpy(&x1, xu + k + 4, 4);
-    const __m512i xb0 = _mm512_set1_epi32(x0), xb1 = _mm512_set1_epi32(x1);
-    for (int j = 0; j < NB; ++j) {
-      a[j] = _mm512_dpbusd_epi32(a[j], xb0, _mm512_loadu_si512(p + 16L * j * c4 + 16 * k));
-      b[j] = _mm512_dpbusd_epi32(b[j], xb1, _mm512_loadu_si512(p + 16L * j * c4 + 16 * (k + 4)));
-    }
-    if (TAIL) {
-      ta = _mm512_dpbusd_epi32(ta, xb0, _mm512_maskz_loadu_epi32(m, pt + k * nr));
-      tb = _mm512_dpbusd_epi32(tb, xb1, _mm512_maskz_loadu_epi32(m, pt + (k + 4) * nr));
-    }
+  __m512i a[NB > 0 ? NB : 1], t = _mm512_setzero_si512();
+  for (int j = 0; j < NB; ++j) a[j] = _mm512_loadu_si512(corr + 16 * j);
+  if (TAIL) t = _mm512_maskz_loadu_epi32(m, corr + 16 * NB);
+  for (int k = 0; k < c4; k += 4) {
+    std::int32_t xq;
+    std::memcpy(&xq, xu + k, 4);
+    const __m512i xb = _mm512_set1_epi32(xq);
+    for (int j = 0; j < NB; ++j) a[j] = _mm512_dpbusd_epi32(a[j], xb, _mm512_loadu_si512(p + 16L * j * c4 + 16 * k));
+    if (TAIL) t = _mm512_dpbusd_epi32(t, xb, _mm512_maskz_loadu_epi32(m, pt + k * nr));
   }
-  if (k < c4) {  // the last quad when c4 / 4 is odd
-    std::int32_t x0;
-    std::memcpy(&x0, xu + k, 4);
-    const __m512i xb0 = _mm512_set1_epi32(x0);
-    for (int j = 0; j < NB; ++j) a[j] = _mm512_dpbusd_epi32(a[j], xb0, _mm512_loadu_si512(p + 16L * j * c4 + 16 * k));
-    if (TAIL) ta = _mm512_dpbusd_epi32(ta, xb0, _mm512_maskz_loadu_epi32(m, pt + k * nr));
-  }
-  for (int j = 0; j < NB; ++j) _mm512_storeu_si512(acc + 16 * j, _mm512_add_epi32(a[j], b[j]));
-  if (TAIL) _mm512_mask_storeu_epi32(acc + 16 * NB, m, _mm512_add_epi32(ta, tb));
+  for (int j = 0; j < NB; ++j) _mm512_storeu_si512(acc + 16 * j, a[j]);
+  if (TAIL) _mm512_mask_storeu_epi32(acc + 16 * NB, m, t);
 }
 
 }  // namespace
