@@ -407,7 +407,8 @@ def _check_lines(res: subprocess.CompletedProcess) -> dict[str, str]:
 def test_every_int8_kernel_this_cpu_runs_gives_the_portable_accumulators(host_build, asan_build):
     """fwref_kernels --check: each kernel the CPU runs (and the dispatched entry point) against the
     portable loop on random data, every column count 1..100 and longer ones (not multiples of the
-    vector width), 1..13, 24, 40, 64 and 240 rows, and the extremes (x = -128 against w = +-127, x = 127, zeros).
+    vector width), 1..13, 16, 24, 32, 40, 56, 64 and 240 rows (the w8 kernel's panels of 1..4 blocks of 16
+    rows, with and without a tail), and the extremes (x = -128 against w = +-127, x = 127, zeros).
     Under the sanitizer build too, where the inputs are exact-size heap blocks (no read past a row)."""
     for build in (host_build, asan_build):
         res = _kernels(build, "--check")
@@ -419,7 +420,7 @@ def test_every_int8_kernel_this_cpu_runs_gives_the_portable_accumulators(host_bu
             assert "avx2" in lines, res.stdout
         # the packed int16 copies (FWREF_CNODE_W_INT16 / FWREF_GRU_WHH_INT16, on by default) per kernel
         assert {f"w16:{k}" for k in lines if not k.startswith(("dispatched:", "w16:", "w8:"))} <= set(lines), res.stdout
-        # the GRU's packed int8 copy for vpdpbusd (fwref/kernels_w8_vnni.hpp): its layout's reference, and
+        # the GRU's and CNODE's packed int8 copy for vpdpbusd (fwref/kernels_w8_vnni.hpp): its layout's reference, and
         # the kernel itself wherever the CPU runs avx512vnni
         assert "w8:portable" in lines and (("w8:avx512vnni" in lines) == ("avx512vnni" in lines)), res.stdout
         assert not any(m in res.stderr for m in SANITIZER_MARKERS), res.stderr
@@ -432,7 +433,7 @@ def test_avx512_vnni_kernel_gives_the_portable_accumulators(host_build):
                     "(/proc/cpuinfo flags lack avx512_vnni or avx512vl)")
     res = _kernels(host_build, "--check", "--kernel", "avx512vnni")
     assert res.returncode == 0 and "CHECK avx512vnni" in res.stdout and " OK" in res.stdout, res.stdout
-    lines = _check_lines(res)  # and the GRU's packed int8 copy on vpdpbusd (fwref/kernels_w8_vnni.hpp)
+    lines = _check_lines(res)  # and the models' packed int8 copy on vpdpbusd (fwref/kernels_w8_vnni.hpp)
     assert lines["w8:avx512vnni"].endswith(" OK") and "mismatches=0" in lines["w8:avx512vnni"], res.stdout
 
 
@@ -440,9 +441,10 @@ def test_kernel_info_names_the_cpu_flags_and_the_dispatched_kernel(host_build):
     res = subprocess.run([str(host_build / "fwref_parity"), "--kernel-info"], capture_output=True, text=True)
     assert res.returncode == 0, res.stderr
     info = dict(ln.split(": ", 1) for ln in res.stdout.splitlines() if ": " in ln)
-    assert set(info) >= {"cpu_flags", "fp32_build", "int8_kernel", "int8_kernels", "gru_int8_products"}, res.stdout
+    assert set(info) >= {"cpu_flags", "fp32_build", "int8_kernel", "int8_kernels", "gru_int8_products",
+                         "cnode_int8_products"}, res.stdout
     want = {"avx512vnni": "w8-vpdpbusd", "portable": "portable"}.get(info["int8_kernel"], "w16-vpmaddwd")
-    assert info["gru_int8_products"] == want, res.stdout
+    assert info["gru_int8_products"] == want and info["cnode_int8_products"] == want, res.stdout
     runs = {kv.split("=")[0] for kv in info["int8_kernels"].split() if kv.endswith("=runs")}
     assert info["int8_kernel"] in runs and "portable" in runs
     if "avx2" in _cpu_flags():
@@ -451,11 +453,19 @@ def test_kernel_info_names_the_cpu_flags_and_the_dispatched_kernel(host_build):
 
 def test_forced_portable_kernel_gives_the_same_logits(fw_run, host_build, windows_file, tmp_path):
     """FWREF_I8_KERNEL=portable (the reference loop; for the GRU the whole portable step, src/gru.cpp),
-    avx2 (the host GRU step on the int16 copies) and the dispatched kernel (on an AVX-512 VNNI CPU the
-    GRU step on the int8 copies): identical int8 logits."""
+    avx2 (the host steps on the int16 copies) and the dispatched kernel (on an AVX-512 VNNI CPU both
+    models' products on the int8 copies, src/gru.cpp and src/cnode_w8.cpp): identical int8 logits, each
+    setting on the product path it names."""
     import os
 
     weights = fw_run / "export" / "weights.bin"
+    for kernel in ("portable", "avx2", ""):  # which path each setting runs (fwref_parity --kernel-info)
+        res = subprocess.run([str(host_build / "fwref_parity"), "--kernel-info"], capture_output=True, text=True,
+                             env=dict(os.environ, FWREF_I8_KERNEL=kernel))
+        info = dict(ln.split(": ", 1) for ln in res.stdout.splitlines() if ": " in ln)
+        vnni = info["int8_kernel"] == "avx512vnni"
+        want = {"portable": "portable", "avx2": "w16-vpmaddwd"}.get(kernel, "w8-vpdpbusd" if vnni else "w16-vpmaddwd")
+        assert info["cnode_int8_products"] == want == info["gru_int8_products"], (kernel, res.stdout)
     for model in ("cnode", "gru"):
         outs = []
         for kernel in ("portable", "avx2", ""):

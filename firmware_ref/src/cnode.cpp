@@ -11,6 +11,9 @@
 #include "fwref/vmath_i8.hpp"
 #include "model_common.hpp"
 #include "motor_common.hpp"
+#if defined(FWREF_HAS_W8_VNNI)
+#include "cnode_w8.hpp"
+#endif
 
 namespace fwref {
 
@@ -318,6 +321,10 @@ Status infer(const CnodeF32& m, const float* x, float* logits, CnodeWorkspace& w
 
 Status infer(const CnodeI8& m, const float* x, float* logits, CnodeWorkspace& ws, CnodeTrace* tr) {
   if (x == nullptr || logits == nullptr) return Status::kNullArgument;
+#if defined(FWREF_HAS_W8_VNNI)
+  // x86-64 with the run-time int8 kernel avx512vnni: every product on the packed int8 copies (src/cnode_w8.cpp)
+  if (const GemvW8Fn fn = gemv_w8_kernel()) return detail::infer_i8_w8(m, x, logits, ws, tr, fn);
+#endif
   const CnodeDims& d = m.dims;
   const int C = d.channels, W = d.window, H = d.hidden, L = d.latent, K = d.classes;
   if (!all_finite_n(x, W * C)) return Status::kNonFiniteInput;

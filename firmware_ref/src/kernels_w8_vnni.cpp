@@ -52,51 +52,52 @@ void gemv_w8_portable(const std::uint8_t* w8, int rows, int cols, const std::uin
 
 namespace {
 
-// NB whole blocks of 16 rows (block j's quads at p + j * 16 * c4, 64 bytes each): per column quad one
-// broadcast of xu's 4 bytes serves NB vpdpbusd, the NB accumulators starting at the rows' corrections.
-template <int NB>
+// NB whole blocks of 16 rows (block j's quads at p + j * 16 * c4, 64 bytes each) and, when TAIL, the last
+// nr < 16 rows after them (their quads at p + NB * 16 * c4, 4 * nr bytes each: masked loads, nothing read
+// past the block, and a masked store), so that the tail's chain of vpdpbusd runs beside the blocks'
+// instead of after them (the CNODE's 40-row lin2 and encoder: two blocks and a tail). Per column quad one
+// broadcast of xu's 4 bytes serves every block, the accumulators starting at the rows' corrections.
+template <int NB, bool TAIL>
 __attribute__((target("avx512f,avx512vnni"))) inline void w8_panel(const std::uint8_t* p, const std::int32_t* corr,
-                                                                    const std::uint8_t* xu, int c4, std::int32_t* acc) {
-  __m512i a[NB];
+                                                                    int nr, const std::uint8_t* xu, int c4,
+                                                                    std::int32_t* acc) {
+  const __mmask16 m = TAIL ? static_cast<__mmask16>((1u << nr) - 1) : 0;
+  const std::uint8_t* pt = p + 16L * NB * c4;
+  __m512i a[NB > 0 ? NB : 1], t = _mm512_setzero_si512();
   for (int j = 0; j < NB; ++j) a[j] = _mm512_loadu_si512(corr + 16 * j);
+  if (TAIL) t = _mm512_maskz_loadu_epi32(m, corr + 16 * NB);
   for (int k = 0; k < c4; k += 4) {
     std::int32_t xq;
     std::memcpy(&xq, xu + k, 4);
     const __m512i xb = _mm512_set1_epi32(xq);
     for (int j = 0; j < NB; ++j) a[j] = _mm512_dpbusd_epi32(a[j], xb, _mm512_loadu_si512(p + 16L * j * c4 + 16 * k));
+    if (TAIL) t = _mm512_dpbusd_epi32(t, xb, _mm512_maskz_loadu_epi32(m, pt + k * nr));
   }
   for (int j = 0; j < NB; ++j) _mm512_storeu_si512(acc + 16 * j, a[j]);
-}
-
-// The last nr < 16 rows: masked loads (nothing read past the block) and a masked store.
-__attribute__((target("avx512f,avx512vnni"))) void w8_tail(const std::uint8_t* p, const std::int32_t* corr, int nr,
-                                                            const std::uint8_t* xu, int c4, std::int32_t* acc) {
-  const __mmask16 m = static_cast<__mmask16>((1u << nr) - 1);
-  __m512i a = _mm512_maskz_loadu_epi32(m, corr);
-  for (int k = 0; k < c4; k += 4, p += 4 * nr) {
-    std::int32_t xq;
-    std::memcpy(&xq, xu + k, 4);
-    a = _mm512_dpbusd_epi32(a, _mm512_set1_epi32(xq), _mm512_maskz_loadu_epi32(m, p));
-  }
-  _mm512_mask_storeu_epi32(acc, m, a);
+  if (TAIL) _mm512_mask_storeu_epi32(acc + 16 * NB, m, t);
 }
 
 }  // namespace
 
+// Panels of 4 whole blocks, then the last 0..3 whole blocks together with the tail rows, if any.
 __attribute__((target("avx512f,avx512vnni"))) void gemv_w8_avx512vnni(const std::uint8_t* w8, int rows, int cols,
                                                                        const std::uint8_t* xu, std::int32_t* acc) {
-  const int c4 = w8_cols(cols), blocks = rows / 16;
+  const int c4 = w8_cols(cols), blocks = rows / 16, nr = rows % 16;
   const std::int32_t* corr = reinterpret_cast<const std::int32_t*>(w8);
   const std::uint8_t* p = w8 + 4L * rows;
   int b = 0;
-  for (; b + 4 <= blocks; b += 4) w8_panel<4>(p + 16L * b * c4, corr + 16 * b, xu, c4, acc + 16 * b);
-  switch (blocks - b) {
-    case 3: w8_panel<3>(p + 16L * b * c4, corr + 16 * b, xu, c4, acc + 16 * b); break;
-    case 2: w8_panel<2>(p + 16L * b * c4, corr + 16 * b, xu, c4, acc + 16 * b); break;
-    case 1: w8_panel<1>(p + 16L * b * c4, corr + 16 * b, xu, c4, acc + 16 * b); break;
+  for (; b + 4 <= blocks; b += 4) w8_panel<4, false>(p + 16L * b * c4, corr + 16 * b, 0, xu, c4, acc + 16 * b);
+  p += 16L * b * c4, corr += 16 * b, acc += 16 * b;
+  switch (4 * (blocks - b) + (nr != 0 ? 1 : 0)) {
+    case 13: w8_panel<3, true>(p, corr, nr, xu, c4, acc); break;
+    case 12: w8_panel<3, false>(p, corr, nr, xu, c4, acc); break;
+    case 9: w8_panel<2, true>(p, corr, nr, xu, c4, acc); break;
+    case 8: w8_panel<2, false>(p, corr, nr, xu, c4, acc); break;
+    case 5: w8_panel<1, true>(p, corr, nr, xu, c4, acc); break;
+    case 4: w8_panel<1, false>(p, corr, nr, xu, c4, acc); break;
+    case 1: w8_panel<0, true>(p, corr, nr, xu, c4, acc); break;
     default: break;
   }
-  if (rows % 16 != 0) w8_tail(p + 16L * blocks * c4, corr + 16 * blocks, rows % 16, xu, c4, acc + 16 * blocks);
 }
 
 GemvW8Fn gemv_w8_kernel() {

@@ -7,8 +7,8 @@
 //                                           paper models' shapes (tools/kernel_bench.hpp; exit 3 elsewhere)
 //
 // --info lines (key: value): cpu_flags, fp32_build, int8_kernel (the dispatched one), int8_kernels
-// (name=runs|no for each kernel this build has), gru_int8_products (the host GRU's packed copy: w8 on
-// vpdpbusd, w16 on vpmaddwd, portable the reference path). Besides each kernel, --check runs its packed
+// (name=runs|no for each kernel this build has), gru_int8_products and cnode_int8_products (the host
+// models' packed copies: w8 on vpdpbusd, w16 on vpmaddwd, portable the reference path). Besides each kernel, --check runs its packed
 // int16 path (w16:NAME) and, for avx512vnni and portable, the packed int8 one (w8:NAME). --check prints one line per kernel,
 //   CHECK <name> cases=<n> mismatches=<m> OK|NOT_OK
 // and exits 0 when all match, 1 on a mismatch, 3 when NAME is unknown or the CPU cannot run it.
@@ -35,9 +35,10 @@ constexpr bool kDispatch = false;
 
 using Fn = void (*)(const std::int8_t*, int, int, const std::int8_t*, std::int32_t*);
 
-// Random shapes (every column count 1..100 and a few long ones, row counts around the 4-row
-// blocks), uniform values, and the extremes: x = -128 everywhere against w = +-127 (the largest
-// pair sums of the sign trick), alternating signs, zeros.
+// Random shapes (every column count 1..100 and a few long ones, row counts around the 4-row blocks
+// and the w8 kernel's 16-row blocks, panels of 1..4 blocks and tails), uniform values, and the
+// extremes: x = -128 everywhere against w = +-127 (the largest pair sums of the sign trick),
+// alternating signs, zeros.
 template <class F>
 long check_kernel(F fn, unsigned seed, long* cases) {
   std::mt19937 rng(seed);
@@ -49,7 +50,7 @@ long check_kernel(F fn, unsigned seed, long* cases) {
   for (int c : {127, 128, 129, 200, 255, 256}) {
     if (c <= fwref::kMaxGemvCols) col_counts.push_back(c);
   }
-  const int row_counts[] = {1, 2, 3, 4, 5, 7, 8, 9, 13, 24, 40, 64, 240};
+  const int row_counts[] = {1, 2, 3, 4, 5, 7, 8, 9, 13, 16, 24, 32, 40, 56, 64, 240};
   for (int cols : col_counts) {
     for (int rows : row_counts) {
       for (int pattern = 0; pattern < 5; ++pattern) {

@@ -5,6 +5,7 @@
 //   int8_kernel: avx2
 //   int8_kernels: portable=runs avx2=runs avx512vnni=no
 //   gru_int8_products: w16-vpmaddwd             (x86-64 only: w8-vpdpbusd with avx512vnni)
+//   cnode_int8_products: w16-vpmaddwd           (x86-64 only: the same choice for the CNODE's products)
 #pragma once
 
 #include <cstdio>
@@ -36,9 +37,11 @@ inline void print_kernel_info(std::FILE* out) {
   std::fprintf(out, "int8_kernels:");
   for (int k = 0; k < n; ++k) std::fprintf(out, " %s=%s", ks[k].name, ks[k].cpu_runs ? "runs" : "no");
   std::fprintf(out, "\n");
-  // which packed copy the host GRU's int8 products run on (src/gru.cpp, fwref/kernels_w8_vnni.hpp)
+  // which packed copy the host GRU's and CNODE's int8 products run on (src/gru.cpp, src/cnode.cpp and
+  // src/cnode_w8.cpp, fwref/kernels_w8_vnni.hpp): one run-time choice for both models
   const bool portable = std::strcmp(gemv_i8_kernel_name(), "portable") == 0;
-  std::fprintf(out, "gru_int8_products: %s\n", gemv_w8_kernel() != nullptr ? "w8-vpdpbusd" : portable ? "portable" : "w16-vpmaddwd");
+  const char* products = gemv_w8_kernel() != nullptr ? "w8-vpdpbusd" : portable ? "portable" : "w16-vpmaddwd";
+  std::fprintf(out, "gru_int8_products: %s\ncnode_int8_products: %s\n", products, products);
 #else
   std::fprintf(out, "fp32_build: generic\nint8_kernel: %s\nint8_kernels: %s=runs\n", gemv_i8_kernel_name(),
                gemv_i8_kernel_name());

@@ -18,6 +18,7 @@
 #include <cstdint>
 
 #include "fwref/config.hpp"
+#include "fwref/kernels_w8_vnni.hpp"
 #include "fwref/linalg.hpp"
 #include "fwref/motor.hpp"
 #include "fwref/status.hpp"
@@ -130,6 +131,18 @@ struct CnodeWorkspace {
   alignas(8) std::int16_t lin1u16[kMaxCnodeHidden * ((kMaxChannels + 7) & ~7)];
 #endif
   const std::int8_t* w16_of = nullptr;
+#endif
+#if defined(FWREF_HAS_W8_VNNI)
+  // x86-64 hosts whose int8 kernel is avx512vnni (chosen at run time, fwref/kernels_i8.hpp): every int8
+  // product's weights (encoder, lin1_u, lin1_z, lin2, head) packed for vpdpbusd (fwref/kernels_w8_vnni.hpp),
+  // made at the first int8 inference of a model (src/cnode_w8.cpp); w8_of: which weights, by address, as
+  // w16_of (a caller reusing a workspace for other weights at the same address sets it to nullptr).
+  alignas(64) std::uint8_t enc8[w8_bytes(kMaxLatent, kMaxChannels)];
+  alignas(64) std::uint8_t lin1u8[w8_bytes(kMaxCnodeHidden, kMaxChannels)];
+  alignas(64) std::uint8_t lin1z8[w8_bytes(kMaxCnodeHidden, kMaxLatent)];
+  alignas(64) std::uint8_t lin2w8[w8_bytes(kMaxLatent, kMaxCnodeHidden)];
+  alignas(64) std::uint8_t head8[w8_bytes(kMaxClasses, kMaxLatent)];
+  const std::int8_t* w8_of = nullptr;
 #endif
 };
 
