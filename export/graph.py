@@ -128,6 +128,12 @@ def contrib_ops(model: onnx.ModelProto) -> list[str]:
     return sorted({f"{n.domain}.{n.op_type}" for n in all_nodes(model.graph) if n.domain not in ("", "ai.onnx")})
 
 
+def subgraph_ops(model: onnx.ModelProto) -> list[str]:
+    """Sorted op types of ``model`` that run a subgraph (the int8 GRU's ``Scan``; for the manifest)."""
+    return sorted({n.op_type for n in all_nodes(model.graph)
+                   if any(a.type == onnx.AttributeProto.GRAPH for a in n.attribute)})
+
+
 def all_nodes(graph: onnx.GraphProto) -> list:
     """The nodes of ``graph`` and, recursively, of its nodes' subgraphs (a Scan's body)."""
     out = []
