@@ -15,7 +15,7 @@ import numpy as np
 import onnx
 from onnx import TensorProto, helper, numpy_helper
 
-from export.graph import BATCH
+from export.graph import BATCH, all_initializers
 
 # Targets of an int8 graph against its fp32 graph: nearly all multiply-accumulates in int8; and
 # constant bytes: int8 weights take a quarter of their fp32 bytes, the scales, biases and
@@ -81,7 +81,7 @@ def tensor_shapes(model: onnx.ModelProto) -> dict[str, tuple[int, list]]:
     for vi in _value_infos(inferred.graph):
         t = vi.type.tensor_type
         out[vi.name] = (t.elem_type, [d.dim_param if d.dim_param else d.dim_value for d in t.shape.dim])
-    for init in inferred.graph.initializer:
+    for init in all_initializers(inferred.graph):
         out[init.name] = (init.data_type, list(init.dims))
     return out
 
@@ -135,9 +135,9 @@ def node_precision(node: onnx.NodeProto, shapes: dict) -> str:
 
 
 def fp32_constants(model: onnx.ModelProto) -> list[dict]:
-    """The float initializers of a graph, each with the reason it stays float."""
+    """The float initializers of a graph (a Scan body's included), each with the reason it stays float."""
     out = []
-    for init in model.graph.initializer:
+    for init in all_initializers(model.graph):
         if init.data_type != TensorProto.FLOAT:
             continue
         why = next((r for key, r in FP32_REASONS if key in init.name), "float constant")
@@ -158,7 +158,7 @@ def coverage(model: onnx.ModelProto) -> dict:
     total = sum(r["macs"] for r in rows.values())
     int8 = sum(r["macs"] for (op, prec), r in rows.items() if prec == "int8")
     init_bytes: dict[str, int] = defaultdict(int)
-    for init in model.graph.initializer:
+    for init in all_initializers(model.graph):
         init_bytes[_TYPE.get(init.data_type, str(init.data_type))] += int(numpy_helper.to_array(init).nbytes)
     return {
         "ops": [{"op": op, "precision": prec, "count": r["count"], "macs": r["macs"],

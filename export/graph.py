@@ -141,3 +141,9 @@ def all_nodes(graph: onnx.GraphProto) -> list:
         out.append(n)
         out += [m for a in n.attribute if a.type == onnx.AttributeProto.GRAPH for m in all_nodes(a.g)]
     return out
+
+
+def all_initializers(graph: onnx.GraphProto) -> list:
+    """The initializers of ``graph`` and of its subgraphs (a Scan body's own constants)."""
+    return list(graph.initializer) + [t for n in graph.node for a in n.attribute
+                                      if a.type == onnx.AttributeProto.GRAPH for t in all_initializers(a.g)]

@@ -83,8 +83,8 @@ def profile_ops(file: Path, x: np.ndarray, reps: int) -> dict[str, float]:
 
 
 def nodes_text(n: dict[str, int]) -> str:
-    """'972', or '14 + 12 in the Scan body' (the body's nodes run once per step)."""
-    return f"{n['total']}" + (f" + {n['body']} in the Scan body" if n["body"] else "")
+    """'972', or '14 + 12 in the body' (a Scan's or Loop's body: its nodes run once per step)."""
+    return f"{n['total']}" + (f" + {n['body']} in the body" if n["body"] else "")
 
 
 def main(argv: list[str] | None = None) -> None:

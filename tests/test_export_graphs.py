@@ -17,7 +17,7 @@ from onnx import TensorProto, numpy_helper
 
 from export.calibrate import WindowReader, collect_ranges
 from export.coverage import tensor_shapes
-from export.graph import Built, all_nodes
+from export.graph import Built, all_initializers, all_nodes
 from export.onnx_cnode import build_cnode, calibration_probes, cnode_params, quantize_cnode
 from export.onnx_gru import CALIBRATION_PROBES, build_gru_fp32, build_gru_int8, gru_params, quantize_gru
 from export.verify import int8_vs_fp32, ort_outputs, parity, session, torch_logits
@@ -240,14 +240,15 @@ def test_gru_structure():
     body = Counter(n.op_type for n in next(a.g for a in scan.attribute if a.name == "body").node)
     assert body == {"QuantizeLinear": 1, "MatMulIntegerToFloat": 1, "Split": 2, "Add": 3, "Sigmoid": 1, "Mul": 2,
                     "Tanh": 1, "Sub": 1}  # r and z in one Sigmoid per step
-    weights_q = {k: v for k, v in inits(t.gru_int8.model).items() if v.dtype == np.int8 and v.ndim == 2}
-    assert set(weights_q) == {"gru.ih_rz.weight_q", "gru.ih_n.weight_q", "gru.hh.weight_q", "head.weight_q"}
+    every = {i.name: numpy_helper.to_array(i) for i in all_initializers(t.gru_int8.model.graph)}  # + the body's
+    weights_q = {k: v for k, v in every.items() if v.dtype == np.int8 and v.ndim == 2}
+    assert set(weights_q) == {"gru.ih_rz.weight_q", "gru.ih_n.weight_q", "step/gru.hh.weight_q", "head.weight_q"}
     assert np.array_equal(np.concatenate([weights_q["gru.ih_rz.weight_q"], weights_q["gru.ih_n.weight_q"]], 1).T,
                           t.gq.w_ih.q)  # W_ih stored once, split by rows
     # uint8 activations (zero point 128) beside 7-bit weights: u8 x s8 sums exact on every CPU.
     assert all(np.abs(v.astype(int)).max() <= 63 for v in weights_q.values())
     quant = [n for n in all_nodes(t.gru_int8.model.graph) if n.op_type == "QuantizeLinear"]
-    zps = inits(t.gru_int8.model)
+    zps = every
     assert all(len(zps[n.input[1]].shape) == 0 for n in quant)  # per-tensor: no per-axis QuantizeLinear
     assert all(zps[n.input[2]].dtype == np.uint8 and np.all(zps[n.input[2]] == 128) for n in quant)
 
