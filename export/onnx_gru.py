@@ -1,4 +1,4 @@
-"""The GRU baseline as ONNX: an fp32 graph on the ONNX ``GRU`` operator, an int8 graph unrolled.
+"""The GRU baseline as ONNX: an fp32 graph on the ONNX ``GRU`` operator, an int8 graph in one ``Scan``.
 
 fp32: x_norm -> Transpose to (W, B, C) -> GRU(linear_before_reset=1) -> last hidden -> head.
 PyTorch's GRU multiplies the reset gate AFTER the recurrent product,
@@ -7,17 +7,20 @@ default 0 computes W_hn (r * h) instead, a different function (an exporter once 
 ONNX orders the gates z, r, h where PyTorch orders them r, z, n: the rows are permuted here.
 
 int8: ONNX Runtime has no quantized GRU operator (a ``GRU`` node stays fp32 whatever a quantizer
-is told), so the int8 graph unrolls the W = 80 steps into operators that quantize:
+is told), so the int8 graph writes the W = 80 steps in operators that quantize, one ``Scan`` whose
+body is one step (issue 15: ONNX Runtime's cost per node; until then unrolled, 972 nodes,
+export/onnx_gru_unrolled.py, bit-identical):
 
-    GX = int8(x_norm) @ W_ih^T + b_ih (one MatMulIntegerToFloat for all steps)  (B, W, 3H)
+    GX = int8(x_norm) @ W_ih^T + b_ih (MatMulIntegerToFloat, rows r,z and rows n)  (W, B, 3H)
          (x_norm quantized per channel, the channel scales folded into W_ih)
-    step t:  gh = int8(h) @ W_hh^T + b_hh (MatMulIntegerToFloat, W_hh stored once) (B, 1, 3H)
+    step t:  gh = int8(h) @ W_hh^T + b_hh (MatMulIntegerToFloat, W_hh stored once)  (B, 3H)
              [r, z] = sigmoid(gx_rz + gh_rz)   (one Add, one Sigmoid over 2H, one Split)
              n = tanh(gx_n + r * gh_n),  h' = (h - n) * z + n     (PyTorch's GRU cell, in that order)
 
 Activations are uint8 with zero point 128 and 7-bit weights (GRU_ACT; the integer sums equal the
 int8 ones, see export/quantize.py). h starts at 0 and is a convex combination of tanh outputs, so
-|h| < 1: its scale is the bound 1/127, no calibration needed; only x_norm's scales are calibrated.
+|h| <= 1 (up to float32 rounding): its scale is the bound 1/127, no calibration needed; only
+x_norm's scales are calibrated.
 """
 
 from __future__ import annotations
