@@ -89,3 +89,19 @@ def test_motor_head_equals_the_unrolled_graph():
     scan, ref = _outputs(graphs["gru_int8"].model, x), _outputs(build_gru_int8_unrolled(gp, gq, OPSET).model, x)
     assert len(scan) == 3  # logits, proba, motor_logits
     assert all(a.tobytes() == b.tobytes() for a, b in zip(scan, ref))
+
+
+def test_bench_profile_counts_the_body_per_step_and_not_the_scan(tiny, tmp_path):
+    """bench's ONNX Runtime profile summary: the body's nodes once per step; the Scan's own event
+    (which spans its body) left out, so the kernel shares still sum to one."""
+    from bench.runtimes.ort_rt import summarise_ort_profile
+    from export.ort_session import session as ort_session
+
+    s = ort_session(tiny.gru_int8.model.SerializeToString(), profile_prefix=str(tmp_path / "prof"))
+    for _ in range(2):
+        s.run(None, {"telemetry": tiny.x[:1]})
+    summary = summarise_ort_profile(s.end_profiling())
+    ops = {r["op"]: r for r in summary["by_op"]}
+    assert "Scan" not in ops and ops["Sigmoid"]["nodes_per_call"] == W and ops["Tanh"]["nodes_per_call"] == W
+    assert ops["MatMulIntegerToFloat"]["nodes_per_call"] == W + 3
+    assert abs(sum(r["kernel_share"] for r in summary["by_op"]) - 1.0) < 1e-9
