@@ -77,7 +77,8 @@ def _graphs_section(bench: dict) -> list[str]:
     g = bench.get("graphs") or {}
     if not g:
         return []
-    rows = [[k, str(v["nodes"]), str(v["ort_nodes"]),
+    rows = [[k, str(v["nodes"]), str(v["ort_nodes"]) + (f" + {v['ort_body_nodes']} in a Scan body (run per step)"
+                                                        if v.get("ort_body_nodes") else ""),
              ", ".join(f"{op} {n}" for op, n in sorted(v["ort_ops"].items(), key=lambda kv: -kv[1])[:6])]
             for k, v in g.items()]
     return (["### ONNX graphs", "", "Nodes as exported and after ONNX Runtime's optimizer (ORT_ENABLE_ALL, CPU; "

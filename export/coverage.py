@@ -3,7 +3,7 @@
 Counted from the ONNX file itself (shape inference with the symbolic batch axis), not from the
 builder's intentions, so a product that silently stayed float shows up. MACs are per window:
 a (MatMul | MatMulInteger) node contributes K * prod(output dims other than the batch axis); a
-GRU node W * 3H * (C + H). Elementwise operators (normalisation, tanh, sigmoid, the RK4
+GRU node W * 3H * (C + H); a node in a Scan's body its own count times the Scan's steps. Elementwise operators (normalisation, tanh, sigmoid, the RK4
 combinations, the rescales) are counted as nodes, not as MACs.
 """
 
@@ -15,7 +15,7 @@ import numpy as np
 import onnx
 from onnx import TensorProto, helper, numpy_helper
 
-from export.graph import BATCH
+from export.graph import BATCH, all_initializers
 
 # Targets of an int8 graph against its fp32 graph: nearly all multiply-accumulates in int8; and
 # constant bytes: int8 weights take a quarter of their fp32 bytes, the scales, biases and
@@ -38,34 +38,65 @@ FP32_REASONS = (
 )
 
 
-def _standard_only(model: onnx.ModelProto) -> onnx.ModelProto:
-    """A copy for ONNX's shape inference, which knows no contrib operator: each
-    com.microsoft.MatMulIntegerToFloat becomes MatMulInteger -> Cast(float), same output name."""
-    m = onnx.ModelProto()
-    m.CopyFrom(model)
+def _standard_nodes(graph: onnx.GraphProto) -> None:
+    """In place: each com.microsoft.MatMulIntegerToFloat of ``graph`` and of its subgraphs (a Scan's
+    body) becomes MatMulInteger -> Cast(float), same output name."""
     nodes = []
-    for n in m.graph.node:
+    for n in graph.node:
+        for a in n.attribute:
+            if a.type == onnx.AttributeProto.GRAPH:
+                _standard_nodes(a.g)
         if n.op_type != "MatMulIntegerToFloat":
             nodes.append(n)
             continue
         tmp = n.output[0] + ".acc"
         nodes += [helper.make_node("MatMulInteger", list(n.input[:2]), [tmp]),
                   helper.make_node("Cast", [tmp], list(n.output), to=TensorProto.FLOAT)]
-    del m.graph.node[:]
-    m.graph.node.extend(nodes)
+    del graph.node[:]
+    graph.node.extend(nodes)
+
+
+def _standard_only(model: onnx.ModelProto) -> onnx.ModelProto:
+    """A copy for ONNX's shape inference, which knows no contrib operator (``_standard_nodes``)."""
+    m = onnx.ModelProto()
+    m.CopyFrom(model)
+    _standard_nodes(m.graph)
     del m.opset_import[:]
     m.opset_import.extend([o for o in model.opset_import if o.domain in ("", "ai.onnx")])
     return m
 
 
-def _shapes(model: onnx.ModelProto) -> dict[str, tuple[int, list]]:
+def _value_infos(graph: onnx.GraphProto) -> list:
+    """The typed values of ``graph`` and of its subgraphs (their names are unique in our graphs)."""
+    out = list(graph.value_info) + list(graph.input) + list(graph.output)
+    for n in graph.node:
+        out += [vi for a in n.attribute if a.type == onnx.AttributeProto.GRAPH for vi in _value_infos(a.g)]
+    return out
+
+
+def tensor_shapes(model: onnx.ModelProto) -> dict[str, tuple[int, list]]:
+    """Name -> (element type, dims) of every typed tensor of ``model``, subgraphs included."""
     inferred = onnx.shape_inference.infer_shapes(_standard_only(model), strict_mode=True)
     out: dict[str, tuple[int, list]] = {}
-    for vi in list(inferred.graph.value_info) + list(inferred.graph.input) + list(inferred.graph.output):
+    for vi in _value_infos(inferred.graph):
         t = vi.type.tensor_type
         out[vi.name] = (t.elem_type, [d.dim_param if d.dim_param else d.dim_value for d in t.shape.dim])
-    for init in inferred.graph.initializer:
+    for init in all_initializers(inferred.graph):
         out[init.name] = (init.data_type, list(init.dims))
+    return out
+
+
+def executed_nodes(graph: onnx.GraphProto, shapes: dict) -> list[tuple[onnx.NodeProto, int]]:
+    """(node, times it runs per window): 1 for a node of ``graph``; a Scan's body nodes run once per
+    step (its first scanned input's length along axis 0, the default scan axis), the Scan itself once."""
+    out = []
+    for node in graph.node:
+        out.append((node, 1))
+        if node.op_type == "Scan":
+            n_state = len(node.input) - next(a.i for a in node.attribute if a.name == "num_scan_inputs")
+            steps = int(shapes[node.input[n_state]][1][0])
+            body = next(a.g for a in node.attribute if a.name == "body")
+            out += [(n, steps * k) for n, k in executed_nodes(body, shapes)]
     return out
 
 
@@ -104,9 +135,9 @@ def node_precision(node: onnx.NodeProto, shapes: dict) -> str:
 
 
 def fp32_constants(model: onnx.ModelProto) -> list[dict]:
-    """The float initializers of a graph, each with the reason it stays float."""
+    """The float initializers of a graph (a Scan body's included), each with the reason it stays float."""
     out = []
-    for init in model.graph.initializer:
+    for init in all_initializers(model.graph):
         if init.data_type != TensorProto.FLOAT:
             continue
         why = next((r for key, r in FP32_REASONS if key in init.name), "float constant")
@@ -116,17 +147,18 @@ def fp32_constants(model: onnx.ModelProto) -> list[dict]:
 
 
 def coverage(model: onnx.ModelProto) -> dict:
-    """Ops per (type, precision) with counts and MACs; int8 MAC share; initializer bytes by type."""
-    shapes = _shapes(model)
+    """Ops per (type, precision) with counts (executions per window: a Scan body's node counts once
+    per step) and MACs; int8 MAC share; initializer bytes by type; ``nodes``, the graph's own nodes."""
+    shapes = tensor_shapes(model)
     rows: dict[tuple[str, str], dict] = defaultdict(lambda: {"count": 0, "macs": 0})
-    for node in model.graph.node:
+    for node, times in executed_nodes(model.graph, shapes):
         key = (node.op_type, node_precision(node, shapes))
-        rows[key]["count"] += 1
-        rows[key]["macs"] += node_macs(node, shapes)
+        rows[key]["count"] += times
+        rows[key]["macs"] += times * node_macs(node, shapes)
     total = sum(r["macs"] for r in rows.values())
     int8 = sum(r["macs"] for (op, prec), r in rows.items() if prec == "int8")
     init_bytes: dict[str, int] = defaultdict(int)
-    for init in model.graph.initializer:
+    for init in all_initializers(model.graph):
         init_bytes[_TYPE.get(init.data_type, str(init.data_type))] += int(numpy_helper.to_array(init).nbytes)
     return {
         "ops": [{"op": op, "precision": prec, "count": r["count"], "macs": r["macs"],

@@ -124,5 +124,26 @@ def class_outputs(n_classes: int) -> list:
 
 
 def contrib_ops(model: onnx.ModelProto) -> list[str]:
-    """Sorted op types of ``model`` outside the default ONNX domain (for the manifest)."""
-    return sorted({f"{n.domain}.{n.op_type}" for n in model.graph.node if n.domain not in ("", "ai.onnx")})
+    """Sorted op types of ``model`` outside the default ONNX domain, subgraphs included (for the manifest)."""
+    return sorted({f"{n.domain}.{n.op_type}" for n in all_nodes(model.graph) if n.domain not in ("", "ai.onnx")})
+
+
+def subgraph_ops(model: onnx.ModelProto) -> list[str]:
+    """Sorted op types of ``model`` that run a subgraph (the int8 GRU's ``Scan``; for the manifest)."""
+    return sorted({n.op_type for n in all_nodes(model.graph)
+                   if any(a.type == onnx.AttributeProto.GRAPH for a in n.attribute)})
+
+
+def all_nodes(graph: onnx.GraphProto) -> list:
+    """The nodes of ``graph`` and, recursively, of its nodes' subgraphs (a Scan's body)."""
+    out = []
+    for n in graph.node:
+        out.append(n)
+        out += [m for a in n.attribute if a.type == onnx.AttributeProto.GRAPH for m in all_nodes(a.g)]
+    return out
+
+
+def all_initializers(graph: onnx.GraphProto) -> list:
+    """The initializers of ``graph`` and of its subgraphs (a Scan body's own constants)."""
+    return list(graph.initializer) + [t for n in graph.node for a in n.attribute
+                                      if a.type == onnx.AttributeProto.GRAPH for t in all_initializers(a.g)]

@@ -43,12 +43,13 @@ INT8_SCHEME = (
 
 def encoding_of(act: str, weight_qmax: int, model) -> dict:
     """quantization.encoding.<model>: the activation type and zero point, the weights' range, and
-    the operators outside the ONNX domain that the int8 graph uses."""
-    from export.graph import contrib_ops
+    the operators outside the ONNX domain that the int8 graph uses, and those that run a subgraph
+    (``Scan``: the int8 GRU's recurrence)."""
+    from export.graph import contrib_ops, subgraph_ops
 
     return {"activations": act, "activation_zero_point": 128 if act == "uint8" else 0,
             "weight_bits": 7 if weight_qmax == 63 else 8, "weight_range": [-int(weight_qmax), int(weight_qmax)],
-            "contrib_ops": contrib_ops(model)}
+            "contrib_ops": contrib_ops(model), "subgraph_ops": subgraph_ops(model)}
 
 
 def artifact_names(steps: int) -> dict[str, str]:

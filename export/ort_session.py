@@ -40,7 +40,9 @@ def session(model: bytes | str | Path, threads: int = THREADS, *, spinning: bool
 def optimized_nodes(model: bytes | str | Path) -> dict[str, int]:
     """Node count of ``model`` after ONNX Runtime's graph optimizer (the default level, ORT_ENABLE_ALL,
     on the CPU provider): the session writes its optimized graph (``optimized_model_filepath``) and
-    the nodes of that file are counted, in total and per op type (``"total"`` key)."""
+    the nodes of that file are counted, in total and per op type (``"total"`` key), the graph's own
+    nodes only; ``"body"`` counts the nodes inside subgraphs (a Scan's body), each body once, though
+    it runs once per step."""
     import tempfile
     from collections import Counter
 
@@ -56,4 +58,12 @@ def optimized_nodes(model: bytes | str | Path) -> dict[str, int]:
         ort.InferenceSession(source, opts, providers=["CPUExecutionProvider"])
         nodes = onnx.load(str(out), load_external_data=False).graph.node
     counts = Counter(n.op_type for n in nodes)
-    return {"total": len(nodes), **dict(sorted(counts.items()))}
+    return {"total": len(nodes), "body": _subgraph_nodes(nodes), **dict(sorted(counts.items()))}
+
+
+def _subgraph_nodes(nodes) -> int:
+    """Nodes inside the subgraph attributes of ``nodes``, recursively."""
+    import onnx
+
+    graphs = [a.g for n in nodes for a in n.attribute if a.type == onnx.AttributeProto.GRAPH]
+    return sum(len(g.node) + _subgraph_nodes(g.node) for g in graphs)

@@ -98,10 +98,8 @@ def gru_fp32_tensors(model: torch.nn.Module, x: np.ndarray) -> dict[str, np.ndar
 
 
 def gru_int8_tensors(built: Built, p: GruParams, x: np.ndarray) -> dict[str, np.ndarray]:
-    keys = ["x_norm"] + [f"h{t}" for t in range(p.window)]
-    r = _run_probes(built, keys, x)
-    flat = lambda a: a.reshape(-1, a.shape[-1])  # noqa: E731  (B, H) from (B, 1, H) or (1, B, H)
-    return {"x_norm": r["x_norm"], "h": np.stack([flat(r[f"h{t}"]) for t in range(p.window)], axis=1),
+    r = _run_probes(built, ["x_norm", "h_all"], x)  # h_all: (W, B, H), every step's hidden state
+    return {"x_norm": r["x_norm"], "h": np.ascontiguousarray(r["h_all"].transpose(1, 0, 2)),
             "logits": r["logits"], "proba": r["proba"]}
 
 

@@ -14,7 +14,9 @@ beside it. Only ratios within one invocation mean anything.
 each operator type (10th percentile per node over the rounds, summed; the profiler's own cost per
 node is left out), as a share of the sum over nodes. Input windows are the first ``--batch``
 windows of 80 samples cut from the run's dataset (deterministic; timings do not depend on values).
-``--extra NAME=FILE`` times another graph of the first model beside it (a prototype).
+``--extra NAME=FILE`` times another graph of the first model beside it (a prototype). "ORT nodes":
+after ONNX Runtime's optimizer, the graph's own, and those of a Scan body (which run once per step)
+said apart.
 """
 
 from __future__ import annotations
@@ -80,6 +82,11 @@ def profile_ops(file: Path, x: np.ndarray, reps: int) -> dict[str, float]:
     return {op: v / total for op, v in sorted(by_op.items(), key=lambda kv: -kv[1])}
 
 
+def nodes_text(n: dict[str, int]) -> str:
+    """'972', or '14 + 12 in the body' (a Scan's or Loop's body: its nodes run once per step)."""
+    return f"{n['total']}" + (f" + {n['body']} in the body" if n["body"] else "")
+
+
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("run", type=Path)
@@ -98,7 +105,7 @@ def main(argv: list[str] | None = None) -> None:
         if k == 0:
             files.update({e.split("=", 1)[0]: Path(e.split("=", 1)[1]) for e in a.extra})
         t = time_graphs(files, x, a.reps)
-        rows = [[model, name, optimized_nodes(f)["total"], f"{v['cpu_us']:,.1f}", f"{v['cpu_p10_us']:,.1f}",
+        rows = [[model, name, nodes_text(optimized_nodes(f)), f"{v['cpu_us']:,.1f}", f"{v['cpu_p10_us']:,.1f}",
                  f"{v['wall_us']:,.1f}", f"{t['fp32']['cpu_us'] / v['cpu_us']:.2f}x"] for name, v in
                 (it for it in t.items()) for f in [files[name]]]
         print("\n".join(md_table(["model", "graph", "ORT nodes", "CPU us (median)", "CPU us (p10)",

@@ -56,8 +56,9 @@ def test_export_writes_every_file_and_a_passing_manifest(exported):
     enc = m["quantization"]["encoding"]  # which activation type per model, and which contrib ops
     assert enc["cnode"]["activations"] == "uint8" and enc["cnode"]["weight_bits"] == 7
     assert enc["gru"] == {"activations": "uint8", "activation_zero_point": 128, "weight_bits": 7,
-                          "weight_range": [-63, 63], "contrib_ops": ["com.microsoft.MatMulIntegerToFloat"]}
-    assert enc["cnode"]["contrib_ops"] == ["com.microsoft.MatMulIntegerToFloat"]
+                          "weight_range": [-63, 63], "contrib_ops": ["com.microsoft.MatMulIntegerToFloat"],
+                          "subgraph_ops": ["Scan"]}  # the recurrence in one Scan (issue 15)
+    assert enc["cnode"]["contrib_ops"] == ["com.microsoft.MatMulIntegerToFloat"] and enc["cnode"]["subgraph_ops"] == []
     w = read_weights(folder / "weights.bin")
     assert w.section("cnode", "int8").dims[5] == 2
     ref = read_reference(folder / "reference.bin")

@@ -16,7 +16,8 @@ import torch
 from onnx import TensorProto, numpy_helper
 
 from export.calibrate import WindowReader, collect_ranges
-from export.graph import Built
+from export.coverage import tensor_shapes
+from export.graph import Built, all_initializers, all_nodes
 from export.onnx_cnode import build_cnode, calibration_probes, cnode_params, quantize_cnode
 from export.onnx_gru import CALIBRATION_PROBES, build_gru_fp32, build_gru_int8, gru_params, quantize_gru
 from export.verify import int8_vs_fp32, ort_outputs, parity, session, torch_logits
@@ -153,16 +154,21 @@ def test_ort_optimized_node_counts(steps):
     """Nodes after ONNX Runtime's optimizer (what it dispatches per call, ~0.4 us each): fp32 fuses
     each stage's Gemm + Tanh (FusedGemm), 2 nodes per evaluation + 9 per RK4 step; int8 has 6 per
     evaluation (QuantizeLinear, MatMulIntegerToFloat, Add row of V, Tanh, QuantizeLinear,
-    MatMulIntegerToFloat) + the same 9 (7 when N is a power of two); the int8 GRU 12 per time step."""
+    MatMulIntegerToFloat) + the same 9 (7 when N is a power of two); the int8 GRU one Scan whose body
+    (12 nodes, run once per step) is not in the graph's own count."""
     from export.ort_session import optimized_nodes
 
     t = make_tiny(steps=steps)
-    count = {k: optimized_nodes(getattr(t, k).model.SerializeToString())["total"]
-             for k in ("cnode_fp32", "cnode_int8", "gru_fp32", "gru_int8")}
+    full = {k: optimized_nodes(getattr(t, k).model.SerializeToString())
+            for k in ("cnode_fp32", "cnode_int8", "gru_fp32", "gru_int8")}
+    count = {k: v["total"] for k, v in full.items()}
     pow2 = steps in (1, 2, 4, 8)  # 2 nodes fewer per step (field_scales)
     assert count["cnode_fp32"] == 11 + (15 if pow2 else 17) * steps  # N = 8: 131 (was 278)
     assert count["cnode_int8"] == 17 + (31 if pow2 else 33) * steps  # N = 8: 265 (was 547; + Gather of the samples P reads)
-    assert count["gru_int8"] == 12 + 12 * W  # 972 (was 1,372)
+    # int8 GRU: 972 nodes (12 per step x 80 + 12) unrolled, now the 80 steps in one Scan (issue 15:
+    # ONNX Runtime's per-node cost): 14 nodes, the 12-node step once in its body.
+    assert count["gru_int8"] == 14 and full["gru_int8"]["Scan"] == 1 and full["gru_int8"]["body"] == 12
+    assert all(full[k]["body"] == 0 for k in ("cnode_fp32", "cnode_int8", "gru_fp32"))
     assert count["gru_fp32"] <= 8
 
 
@@ -199,12 +205,11 @@ def test_every_integer_product_is_u8_by_s8(tiny):
     from export.onnx_cnode import interp_code_type
 
     for built in (tiny.cnode_int8, tiny.gru_int8):
-        m = onnx.shape_inference.infer_shapes(built.model)
-        elem = {v.name: v.type.tensor_type.elem_type for v in list(m.graph.value_info) + list(m.graph.input)}
-        elem.update({t.name: t.data_type for t in m.graph.initializer})
-        pairs = Counter((elem[n.input[0]], elem[n.input[1]]) for n in m.graph.node
+        elem = {k: v[0] for k, v in tensor_shapes(built.model).items()}  # the Scan body's tensors too
+        pairs = Counter((elem[n.input[0]], elem[n.input[1]]) for n in all_nodes(built.model.graph)
                         if n.op_type in ("MatMulIntegerToFloat", "MatMulInteger"))
         assert set(pairs) == {(TensorProto.UINT8, TensorProto.INT8)}, pairs
+    assert sum(n.op_type == "MatMulIntegerToFloat" for n in all_nodes(tiny.gru_int8.model.graph)) == 4  # body: 1
     assert interp_code_type(np.array([[0, 3], [-1, 2]], np.int8)) is np.int8  # a negative code stays int8
 
 
@@ -227,18 +232,23 @@ def test_gru_structure():
     assert fp32["GRU"] == 1
     (node,) = [n for n in t.gru_fp32.model.graph.node if n.op_type == "GRU"]
     assert {a.name: a.i for a in node.attribute}["linear_before_reset"] == 1
-    # int8: unrolled over W steps; the input projection of all steps is one integer product.
-    assert int8["GRU"] == 0 and int8["MatMul"] == 0 and int8["MatMulInteger"] == 0
-    assert int8["MatMulIntegerToFloat"] == W + 3  # x projection (rows r,z and rows n), one per step, head
-    assert int8["Sigmoid"] == W and int8["Tanh"] == W  # r and z in one Sigmoid per step
-    weights_q = {k: v for k, v in inits(t.gru_int8.model).items() if v.dtype == np.int8 and v.ndim == 2}
-    assert set(weights_q) == {"gru.ih_rz.weight_q", "gru.ih_n.weight_q", "gru.hh.weight_q", "head.weight_q"}
+    # int8: one Scan over the W steps, its body one step; the input projection of all steps is one
+    # integer product (two: rows r,z and rows n), outside the Scan.
+    assert int8["GRU"] == 0 and int8["MatMul"] == 0 and int8["MatMulInteger"] == 0 and int8["Scan"] == 1
+    assert int8["MatMulIntegerToFloat"] == 3  # x projection (rows r,z and rows n), head
+    (scan,) = [n for n in t.gru_int8.model.graph.node if n.op_type == "Scan"]
+    body = Counter(n.op_type for n in next(a.g for a in scan.attribute if a.name == "body").node)
+    assert body == {"QuantizeLinear": 1, "MatMulIntegerToFloat": 1, "Split": 2, "Add": 3, "Sigmoid": 1, "Mul": 2,
+                    "Tanh": 1, "Sub": 1}  # r and z in one Sigmoid per step
+    every = {i.name: numpy_helper.to_array(i) for i in all_initializers(t.gru_int8.model.graph)}  # + the body's
+    weights_q = {k: v for k, v in every.items() if v.dtype == np.int8 and v.ndim == 2}
+    assert set(weights_q) == {"gru.ih_rz.weight_q", "gru.ih_n.weight_q", "step/gru.hh.weight_q", "head.weight_q"}
     assert np.array_equal(np.concatenate([weights_q["gru.ih_rz.weight_q"], weights_q["gru.ih_n.weight_q"]], 1).T,
                           t.gq.w_ih.q)  # W_ih stored once, split by rows
     # uint8 activations (zero point 128) beside 7-bit weights: u8 x s8 sums exact on every CPU.
     assert all(np.abs(v.astype(int)).max() <= 63 for v in weights_q.values())
-    quant = [n for n in t.gru_int8.model.graph.node if n.op_type == "QuantizeLinear"]
-    zps = inits(t.gru_int8.model)
+    quant = [n for n in all_nodes(t.gru_int8.model.graph) if n.op_type == "QuantizeLinear"]
+    zps = every
     assert all(len(zps[n.input[1]].shape) == 0 for n in quant)  # per-tensor: no per-axis QuantizeLinear
     assert all(zps[n.input[2]].dtype == np.uint8 and np.all(zps[n.input[2]] == 128) for n in quant)
 

@@ -23,21 +23,27 @@ def ort_runtime(args) -> tuple[Callable, Callable, dict]:
     return call, call, {"onnxruntime": ort.__version__, "convert": None}
 
 
+SUBGRAPH_OPS = ("Scan", "Loop", "If")  # operators whose kernel time includes their subgraph's nodes
+
+
 def summarise_ort_profile(path: str) -> dict:
     """Share of kernel time and nodes per call by operator type, from an ONNX Runtime profile.
 
     Node events are ``<node>_kernel_time`` with ``args.op_name``; ``model_run`` events are whole
     calls. Only shares are meaningful: the profiler itself costs several microseconds per node
     (it records memory statistics for each), so profiled calls are many times slower than
-    unprofiled ones (``profiled_call_p50_us`` says how much).
+    unprofiled ones (``profiled_call_p50_us`` says how much). A node that runs a subgraph (the
+    int8 GRU's ``Scan``) is left out: its time is its body's nodes' (profiled each step, counted
+    here) and its own, which would count the body twice.
     """
     events = json.loads(Path(path).read_text())
     runs = [float(e["dur"]) for e in events if e.get("cat") == "Session" and e.get("name") == "model_run"]
     n_runs = max(1, len(runs))
     by_op: dict[str, dict] = {}
     for e in events:
-        if e.get("cat") == "Node" and str(e.get("name", "")).endswith("_kernel_time"):
-            d = by_op.setdefault(e.get("args", {}).get("op_name", "?"), {"calls": 0, "us": 0.0})
+        op = e.get("args", {}).get("op_name", "?")
+        if e.get("cat") == "Node" and str(e.get("name", "")).endswith("_kernel_time") and op not in SUBGRAPH_OPS:
+            d = by_op.setdefault(op, {"calls": 0, "us": 0.0})
             d["calls"] += 1
             d["us"] += float(e["dur"])
     total = sum(d["us"] for d in by_op.values()) or 1.0
