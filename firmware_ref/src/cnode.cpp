@@ -9,6 +9,7 @@
 #include "fwref/tanhq.hpp"
 #include "fwref/vmath_f32.hpp"
 #include "fwref/vmath_i8.hpp"
+#include "cnode_controls.hpp"
 #include "model_common.hpp"
 #include "motor_common.hpp"
 #if defined(FWREF_HAS_W8_VNNI)
@@ -258,16 +259,9 @@ void lin1_u_rows(const CnodeI8& m, const std::int16_t* lin1u16, CnodeWorkspace& 
 void control_path_i8(const CnodeI8& m, const float* x, const std::int16_t* lin1u16, CnodeWorkspace& ws,
                      CnodeTrace* tr) {
   const CnodeDims& d = m.dims;
-  const int C = d.channels, W = d.window, S = d.stage_times, L = d.latent;
+  const int C = d.channels, L = d.latent;
   std::int32_t acc[kMaxChannels];
-  for (int s = 0; s < S; ++s) {
-    for (int c = 0; c < C; ++c) acc[c] = 0;
-    for_each_nonzero(m.interp.q + s * W, W, [&](int w, std::int32_t p) {
-      accumulate_codes(x + w * C, m.mean, m.std, m.s_x, C, p, acc);
-    });
-    float* const u = tr != nullptr && tr->u != nullptr ? tr->u + s * C : nullptr;
-    rescale_quantize_row(acc, m.interp.scale[s], m.s_x, m.s_u, C, u, ws.uq + s * C);
-  }
+  detail::quantize_stage_controls(m, x, acc, ws, tr);
   ws.z.resize(L);
   linear_i8_folded(m.encoder_w.q, m.encoder_w.scale, L, C, ws.uq, m.encoder_b, ws.z.data());
   tanh_inplace(ws.z);

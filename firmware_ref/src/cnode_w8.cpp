@@ -11,6 +11,7 @@
 #include "fwref/numerics.hpp"
 #include "fwref/vmath_f32.hpp"
 #include "fwref/vmath_i8.hpp"
+#include "cnode_controls.hpp"
 #include "model_common.hpp"
 
 namespace fwref {
@@ -50,16 +51,9 @@ struct W8Product {
 // with the folded scales as multipliers), V[s] = f32(acc) * s_w' + b1 for every row s.
 void control_path_w8(const CnodeI8& m, const float* x, const W8Product& prod, CnodeWorkspace& ws, CnodeTrace* tr) {
   const CnodeDims& d = m.dims;
-  const int C = d.channels, W = d.window, S = d.stage_times, L = d.latent, H = d.hidden;
+  const int C = d.channels, S = d.stage_times, L = d.latent, H = d.hidden;
   alignas(64) std::int32_t acc[kAccLen];
-  for (int s = 0; s < S; ++s) {
-    for (int c = 0; c < C; ++c) acc[c] = 0;
-    for_each_nonzero(m.interp.q + s * W, W, [&](int w, std::int32_t p) {
-      accumulate_codes(x + w * C, m.mean, m.std, m.s_x, C, p, acc);
-    });
-    float* const u = tr != nullptr && tr->u != nullptr ? tr->u + s * C : nullptr;
-    rescale_quantize_row(acc, m.interp.scale[s], m.s_x, m.s_u, C, u, ws.uq + s * C);
-  }
+  quantize_stage_controls(m, x, acc, ws, tr);
   ws.z.resize(L);
   prod(ws.enc8, L, C, ws.uq, acc);
   rescale_bias_n(acc, m.encoder_w.scale, m.encoder_b, L, ws.z.data());
