@@ -39,10 +39,7 @@ void w8_copies(const CnodeI8& m, CnodeWorkspace& ws) {
 struct W8Product {
   GemvW8Fn fn;
   void operator()(const std::uint8_t* w8, int rows, int cols, const std::int8_t* q, std::int32_t* acc) const {
-    alignas(64) std::uint8_t xu[w8_cols(kMaxGemvCols)];
-    offset_codes_u8(q, cols, xu);
-    for (int i = cols; i < w8_cols(cols); ++i) xu[i] = 128;
-    fn(w8, rows, cols, xu, acc);
+    gemv_w8_codes(fn, w8, rows, cols, q, acc);
   }
 };
 

@@ -128,9 +128,8 @@ Status infer(const GruF32& m, const float* x, float* logits, GruWorkspace& ws, G
   return all_finite(logits, d.classes) ? Status::kOk : Status::kNonFiniteOutput;
 }
 
-#if defined(FWREF_GRU_I8_HOST)
+#if defined(FWREF_GRU_WHH_INT16) && defined(FWREF_HAS_W16_KERNEL)
 namespace {
-
 // The int16 copies of W_ih and W_hh (fwref/kernels_i8.hpp's packed layout), made at the first int8
 // inference of a model (ws.w16_of, fwref/gru.hpp).
 void w16_copies(const GruI8& m, GruWorkspace& ws, const std::int16_t** wih16, const std::int16_t** whh16) {
@@ -143,6 +142,11 @@ void w16_copies(const GruI8& m, GruWorkspace& ws, const std::int16_t** wih16, co
   *whh16 = ws.whh16;
   *wih16 = ws.wih16;
 }
+}  // namespace
+#endif
+
+#if defined(FWREF_GRU_I8_HOST)
+namespace {
 
 // The host's two products per step, from one of two packed copies (both exact, so the same integers):
 // W16 the int16 copies (vpmaddwd, any x86-64: its kernel chosen at run time, fwref/kernels_i8.hpp)
@@ -160,10 +164,7 @@ struct W8Products {
   const std::uint8_t *wih, *whh;
   GemvW8Fn fn;
   void run(const std::uint8_t* w, int rows, int cols, const Code* q, std::int32_t* acc) const {
-    alignas(64) std::uint8_t xu[w8_cols(kMaxGemvCols)];
-    offset_codes_u8(q, cols, xu);
-    for (int i = cols; i < w8_cols(cols); ++i) xu[i] = 128;  // read, times zero weights
-    fn(w, rows, cols, xu, acc);
+    gemv_w8_codes(fn, w, rows, cols, q, acc);
   }
 };
 
@@ -234,13 +235,7 @@ Status infer(const GruI8& m, const float* x, float* logits, GruWorkspace& ws, Gr
   ws.gh.resize(3 * H);
   const std::int16_t *whh16 = nullptr, *wih16 = nullptr;
 #if defined(FWREF_GRU_WHH_INT16) && defined(FWREF_HAS_W16_KERNEL)
-  if (ws.w16_of != m.w_hh.q) {
-    expand_i8_to_i16(m.w_hh.q, 3 * H, H, ws.whh16);
-    expand_i8_to_i16(m.w_ih.q, 3 * H, C, ws.wih16);
-    ws.w16_of = m.w_hh.q;
-  }
-  whh16 = ws.whh16;
-  wih16 = ws.wih16;
+  w16_copies(m, ws, &wih16, &whh16);
 #endif
   for (int t = 0; t < W; ++t) {
     for (int c = 0; c < C; ++c) {

@@ -23,6 +23,8 @@
 
 #include <cstdint>
 
+#include "fwref/kernels_i8.hpp"  // kMaxGemvCols
+
 namespace fwref {
 
 #if defined(__x86_64__) && !defined(FWREF_PORTABLE_KERNELS)
@@ -46,6 +48,16 @@ void gemv_w8_avx512vnni(const std::uint8_t* w8, int rows, int cols, const std::u
 // xu[i] = x[i] + 128 as u8 (the int8 code's byte with its top bit flipped), i < n.
 inline void offset_codes_u8(const std::int8_t* x, int n, std::uint8_t* xu) {
   for (int i = 0; i < n; ++i) xu[i] = static_cast<std::uint8_t>(static_cast<std::uint8_t>(x[i]) ^ 0x80u);
+}
+
+// acc[r] = sum_c W[r][c] * q[c] for int8 codes q (cols <= kMaxGemvCols) on the copy ``w8``, by ``fn``:
+// the codes offset to u8 here, the padding up to w8_cols(cols) set to 128 (read against zero weights).
+inline void gemv_w8_codes(GemvW8Fn fn, const std::uint8_t* w8, int rows, int cols, const std::int8_t* q,
+                          std::int32_t* acc) {
+  alignas(64) std::uint8_t xu[w8_cols(kMaxGemvCols)];
+  offset_codes_u8(q, cols, xu);
+  for (int i = cols; i < w8_cols(cols); ++i) xu[i] = 128;
+  fn(w8, rows, cols, xu, acc);
 }
 #endif
 
