@@ -22,6 +22,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", default=None, help="folder to write flight.npz and ingest.json into")
     p.add_argument("--min-airborne", type=float, default=None,
                    help="refuse logs with less airborne time, s (default: 2)")
+    p.add_argument("--gap-factor", type=float, default=None,
+                   help="a channel's run ends at an interval above this many times its median interval "
+                        "(default: 3; docs/ingest.md \"Gaps\")")
     p.add_argument("--repeat", type=int, default=3, help="bench: timed repetitions per log (default: %(default)s)")
     p.set_defaults(func=run)
 
@@ -57,7 +60,10 @@ def run(args: argparse.Namespace) -> int:
     if args.out is None:
         raise QuadfdiError("quadfdi ingest needs --out <folder>")
     min_air = segments.MIN_AIRBORNE_S if args.min_airborne is None else args.min_airborne
-    lr, arrays = ingest(args.logs[0], min_air)  # refusals raise before anything is written
+    from ingest.resample import GAP_FACTOR
+
+    gap = GAP_FACTOR if args.gap_factor is None else args.gap_factor
+    lr, arrays = ingest(args.logs[0], min_air, gap)  # refusals raise before anything is written
     out = Path(args.out)
     write_flight(out / "flight.npz", arrays)
     write_json(out / "ingest.json", summary(lr, arrays))

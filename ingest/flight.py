@@ -43,7 +43,7 @@ def _segments_array(iv) -> np.ndarray:
     return np.array(iv, dtype=np.float64).reshape(-1, 2)
 
 
-def build(lr: LogRead, log_path: str | Path) -> dict[str, np.ndarray]:
+def build(lr: LogRead, log_path: str | Path, gap_factor: float = resample.GAP_FACTOR) -> dict[str, np.ndarray]:
     t0, t1 = flight_span(lr)
     grid = resample.make_grid(t0, t1)
     n, c = len(grid), len(CHANNEL_NAMES)
@@ -59,7 +59,7 @@ def build(lr: LogRead, log_path: str | Path) -> dict[str, np.ndarray]:
         keep = (ch.t >= t0) & (ch.t <= t1)
         arrays[f"raw.{name}.t"] = ch.t[keep].astype(np.float64)
         arrays[f"raw.{name}.v"] = ch.v[keep].astype(np.float64)
-        tel[:, j], mask[:, j] = resample.resample(ch.t, ch.v, grid, angle=name in ANGLE_CHANNELS)
+        tel[:, j], mask[:, j] = resample.resample(ch.t, ch.v, grid, angle=name in ANGLE_CHANNELS, gap_factor=gap_factor)
         sources.append(ch.source)
         status.append(lr.status.get(name, "ok"))
         rates[j], counts[j] = ch.rate_hz, int(keep.sum())
@@ -76,7 +76,7 @@ def build(lr: LogRead, log_path: str | Path) -> dict[str, np.ndarray]:
         "autopilot": np.array(lr.autopilot),
         "vehicle": np.array(json.dumps(dict(lr.vehicle, airborne_source=lr.airborne_source,
                                             data_span_s=list(lr.data_span)), sort_keys=True, default=float)),
-        "resampling": np.array(json.dumps(resample.spec(), sort_keys=True)),
+        "resampling": np.array(json.dumps(resample.spec(gap_factor), sort_keys=True)),
         "notes": np.array(json.dumps(lr.notes)),
     })
     return arrays
@@ -100,14 +100,16 @@ def read_log(path: str | Path):
     raise QuadfdiError(f"{p} is neither a PX4 ULog nor an ArduPilot DataFlash log (first bytes {head[:4]!r})")
 
 
-def ingest(log: str | Path, min_airborne_s: float = segments.MIN_AIRBORNE_S) -> tuple[LogRead, dict[str, np.ndarray]]:
+def ingest(log: str | Path, min_airborne_s: float = segments.MIN_AIRBORNE_S,
+           gap_factor: float = resample.GAP_FACTOR) -> tuple[LogRead, dict[str, np.ndarray]]:
     """Read, check and assemble one log; raises QuadfdiError (one line) for a refused log."""
+    resample.check_gap_factor(gap_factor)
     try:
         lr = read_log(log)
         segments.check_airborne(lr.airborne, min_airborne_s, lr.data_span)
     except QuadfdiError as exc:
         raise QuadfdiError(f"{Path(log).name}: refused: {exc}") from None
-    return lr, build(lr, log)
+    return lr, build(lr, log, gap_factor)
 
 
 def write_flight(path: str | Path, arrays: dict[str, np.ndarray]) -> None:

@@ -10,7 +10,11 @@ folding frequency is 12.5 Hz; content at 15 Hz (which would alias onto 10 Hz) is
 
 Gaps: a run of samples ends where two samples lie more than GAP_FACTOR times the channel's median
 interval apart, or where the log marked samples invalid (NaN). Grid points outside every run are
-masked (mask False, value NaN): nothing is interpolated across a gap.
+masked (mask False, value NaN): nothing is interpolated across a gap. ``quadfdi ingest --gap-factor``
+sets another factor for one flight (recorded in flight.npz ``resampling``): a logger that drops
+messages under load leaves gaps in slow, smoothed channels (PX4 1.9's ``estimator_status`` on the
+UAVCAN mission: median interval 0.21 s, 11 intervals above 0.62 s, the longest 1.41 s) that a
+user may choose to bridge; the simulator always uses GAP_FACTOR.
 """
 
 from __future__ import annotations
@@ -19,6 +23,7 @@ from functools import lru_cache
 
 import numpy as np
 
+from core.errors import QuadfdiError
 from ingest.frames import wrap
 
 GRID_DT = 0.04  # s: the simulator's telemetry sample interval (configs/paper.toml sim.sample_dt_s)
@@ -27,11 +32,11 @@ ORDER = 6
 GAP_FACTOR = 3.0  # a missing sample or two is jitter; three in a row is a gap
 
 
-def spec() -> dict:
+def spec(gap_factor: float = GAP_FACTOR) -> dict:
     """The resampler's settings, stored in flight.npz (``resampling``)."""
     return {"grid_dt_s": GRID_DT, "filter": "butterworth lowpass, zero-phase (scipy.signal.sosfiltfilt)",
             "order": ORDER, "cutoff_hz": CUTOFF_HZ, "applied_when": "logged rate > 25 Hz",
-            "gap_factor": GAP_FACTOR, "interpolation": "linear within a run of samples; masked across gaps"}
+            "gap_factor": gap_factor, "interpolation": "linear within a run of samples; masked across gaps"}
 
 
 def make_grid(t0: float, t1: float) -> np.ndarray:
@@ -65,7 +70,13 @@ def _lowpass(ts: np.ndarray, vs: np.ndarray, dt: float) -> tuple[np.ndarray, np.
     return tu, sosfiltfilt(_sos(round(1.0 / dt, 6)), vu, padlen=min(3 * (2 * ORDER + 1), len(vu) - 1))
 
 
-def resample(t: np.ndarray, v: np.ndarray, grid: np.ndarray, angle: bool = False) -> tuple[np.ndarray, np.ndarray]:
+def check_gap_factor(gap_factor: float) -> None:
+    if not (np.isfinite(gap_factor) and gap_factor >= 1.5):
+        raise QuadfdiError(f"--gap-factor must be at least 1.5 (times a channel's median interval), found {gap_factor}")
+
+
+def resample(t: np.ndarray, v: np.ndarray, grid: np.ndarray, angle: bool = False,
+             gap_factor: float = GAP_FACTOR) -> tuple[np.ndarray, np.ndarray]:
     """Values (NaN where masked) and mask of one channel on ``grid``."""
     out = np.full(len(grid), np.nan)
     mask = np.zeros(len(grid), bool)
@@ -78,7 +89,7 @@ def resample(t: np.ndarray, v: np.ndarray, grid: np.ndarray, angle: bool = False
     if angle:
         v = np.unwrap(v)
     dt = float(np.median(np.diff(t)))
-    gap = GAP_FACTOR * dt
+    gap = gap_factor * dt
     for i0, i1 in runs(t, gap):
         if i1 <= i0:
             continue
