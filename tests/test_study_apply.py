@@ -53,3 +53,41 @@ def test_apply_predicts_the_stage_networks_on_another_sim_seed(applied_run):
     assert {s.sim_seed for s in sets} == {1} and set(infos) == {"sims/seed1/dataset.npz"}
     with pytest.raises(QuadfdiError, match="only the run's own simulator seed"):
         run_apply(run, cfg, [0], [cfg.sim.seed], SERIAL, log=lambda s: None)
+
+
+def test_apply_uses_the_stage_networks_train_settings_and_refuses_another_network(small_run, tmp_path):
+    """`quadfdi train --set train.X=...` is not stored in config.toml: apply takes [train] from the
+    stage's networks (seed aside, its own --set train.* kept), so it applies THEM instead of silently
+    retraining with config.toml's [train]; a network that does not reproduce the run's indexed set
+    (another network than the one evaluated) is refused."""
+    from core.config import load_config, replace_section
+    from core.executor import SERIAL
+    from core.predindex import add_entries
+    from core.rundir import open_run
+    from sim.dataset import load_dataset
+    from train.checkpoint import load_checkpoint
+    from train.predsets import index_entry, prediction_set, write_prediction_set
+    from train.study_apply import run_apply, with_stage_train
+
+    base = load_config(small_run / "config.toml")
+    trained = replace_section(base, "train", epochs=base.train.epochs + 5)  # as `quadfdi train --set train.epochs=...`
+    run_dir = random_weight_run(small_run, tmp_path / "run", config=trained.to_dict())
+    sub = copy_run(small_run, run_dir / "sims" / "seed1")
+    rec = json.loads((sub / ".stages/sim.json").read_text())
+    rec["config"]["sim"]["seed"] = 1
+    (sub / ".stages/sim.json").write_text(json.dumps(rec))
+    run, cfg = open_run(run_dir)
+    assert cfg.train.epochs == base.train.epochs
+    assert with_stage_train(run, cfg, {"epochs"}, log=lambda s: None) == cfg  # the command's own --set wins
+    adopted = with_stage_train(run, cfg, log=lambda s: None)
+    assert adopted.train.epochs == trained.train.epochs and adopted.train.seed == cfg.train.seed
+    summary = run_apply(run, adopted, [0], [1], SERIAL, log=lambda s: None)
+    assert {s["network"] for s in summary["sets"]} == {"train stage"}
+    model, _ = load_checkpoint(run_dir / "cnode.pt", "cnode")  # an indexed set this network does not give
+    other = prediction_set(model, load_dataset(run_dir / "dataset.npz"))
+    other["proba"] = np.roll(other["proba"], 1, axis=1)
+    entry = index_entry("cnode", cfg.sim.seed, 0)
+    write_prediction_set(run_dir / entry["predictions"], other)
+    add_entries(run_dir, [entry])
+    with pytest.raises(QuadfdiError, match="does not reproduce the run's indexed cnode prediction set"):
+        run_apply(run, adopted, [0], [1], SERIAL, log=lambda s: None)

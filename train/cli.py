@@ -89,9 +89,10 @@ def run_study_cmd(args: argparse.Namespace) -> int:
 
 
 def run_apply_cmd(args: argparse.Namespace) -> int:
-    from train.study_apply import run_apply
+    from train.study_apply import run_apply, with_stage_train
 
     run, cfg = open_run(args.run, args.overrides, need=("dataset",))
+    cfg = with_stage_train(run, cfg, {o.split("=", 1)[0][len("train."):] for o in args.overrides if o.startswith("train.")})
     seeds = _seed_list("--seeds", args.seeds, list(cfg.train.seeds))
     summary = run_apply(run, cfg, seeds, _seed_list("--sim-seeds", args.sim_seeds, []), ExecSettings.from_args(args))
     for s in summary["sets"]:

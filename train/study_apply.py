@@ -99,6 +99,32 @@ def stage_checkpoint(run: RunDir, cfg: Config, kind: str) -> Path | None:
     return path if all(got.get(s) == want[s] for s in ("sim", "train")) else None
 
 
+def with_stage_train(run: RunDir, cfg: Config, keep: set[str] = frozenset(),
+                     log: Callable[[str], None] = print) -> Config:
+    """``cfg`` with [train] taken from the train stage's networks (their seed aside, and the keys in
+    ``keep``: the apply command's own ``--set train.*``) when they were trained on ``cfg``'s [sim].
+    ``quadfdi train --set train.profile=...`` is not written into config.toml, and apply must apply
+    THOSE networks and retrain other seeds like them, not the run's stored [train]."""
+    from train.checkpoint import load_checkpoint
+
+    want = cfg.to_dict()
+    for kind in MODELS:
+        path = run.checkpoint(kind)
+        if not path.is_file():
+            continue
+        got = load_checkpoint(path, kind)[1].get("config", {})
+        if got.get("sim") != want["sim"] or "train" not in got:
+            continue
+        changed = {k: (tuple(v) if isinstance(v, list) else v) for k, v in got["train"].items()
+                   if k != "seed" and k not in keep and k in want["train"] and want["train"][k] != v}
+        if changed:
+            log(f"apply: [train] of the train stage's {path.name}, not config.toml's: "
+                + ", ".join(f"train.{k}={v!r}" for k, v in sorted(changed.items())))
+            return replace_section(cfg, "train", **changed)
+        return cfg
+    return cfg
+
+
 def networks(run: RunDir, cfg: Config, seeds: list[int], settings: ExecSettings,
              log: Callable[[str], None]) -> dict[tuple[str, int], tuple[Path, str]]:
     """(kind, train seed) -> (checkpoint path, where it comes from): the train stage's or retrained."""
@@ -185,6 +211,10 @@ def run_apply(run: RunDir, cfg: Config, seeds: list[int], sim_seeds: list[int], 
                 st.consume(path.relative_to(run.root).as_posix())
             checks[(kind, seed)] = reproduces(run, replace_section(cfg, "train", seed=seed), kind, seed, path)
             log(f"apply: {kind} seed {seed} ({source}) reproduces its indexed set: {checks[(kind, seed)]}")
+            if checks[(kind, seed)] is False:  # a network other than the evaluated one: its sets would mislead
+                raise QuadfdiError(f"apply: the {source} {kind} network of train seed {seed} does not reproduce the "
+                                   f"run's indexed {kind} prediction set: it is not the network the run evaluated "
+                                   f"(give apply the same --set train.* as quadfdi train)")
         entries, jobs = [], apply_jobs(run, nets, data)
         for r, (_, kind, seed, d) in zip(run_jobs([j[0] for j in jobs], settings, desc="apply", log=log), jobs):
             if not r.ok:
