@@ -175,6 +175,12 @@ def onboard_dict(s: Section) -> dict:
                 if int(r[0]) == code}}
 
 
+def max_alarm_n(record: dict) -> int:
+    """The largest n of ``onboard_dict``'s policies (the single one and every alarm.models row): the
+    alarm ring a stream that runs any of the record's models needs (FWREF_MAX_ALARM_N)."""
+    return max([record["alarm"]["n"]] + [p["n"] for p in (record.get("alarm_models") or {}).values()])
+
+
 def policy_of(record: dict, net: str) -> tuple[dict, str]:
     """(policy, where from) of ``net`` in ``onboard_dict``'s record: its alarm.models row ("alarm.models"),
     else the record's single policy ("alarm.policy": a record without the table or a network it omits)."""

@@ -36,7 +36,7 @@ from core.errors import QuadfdiError
 from detect.streamfile import read_stream
 from export.onboard_record import onboard_dict
 from export.weights_bin import read_weights
-from export.onboard_record import ONBOARD_PROFILES, policy_of
+from export.onboard_record import ONBOARD_PROFILES, max_alarm_n, policy_of
 
 PROFILE_ENUM = {"paper": "kPaper", "flightlog-min": "kFlightlogMin", "flightlog-nocur": "kFlightlogNocur",
                 "flightlog-esc": "kFlightlogEsc"}
@@ -75,11 +75,6 @@ def params(rec: dict, classes: int, a: dict) -> str:
     {len(rec['raw_channels'])}, {len(rec['channels'])}, {classes}, {rec['sample_dt_s']!r},
     fwref::AlarmParams{{{a['threshold']!r}, {a['k']}, {a['n']}, {a['clear_m']}, {str(a['latch']).lower()},
                        {rec['healthy']}, {classes}, {rotor_mask(rec, classes)}u}}}}"""
-
-
-def max_alarm_n(rec: dict) -> int:
-    """The largest n of the record's policies (the default and every alarm.models row): FWREF_MAX_ALARM_N."""
-    return max([rec["alarm"]["n"]] + [p["n"] for p in (rec.get("alarm_models") or {}).values()])
 
 
 def header(rec: dict, classes: int, flights: int, extra: dict | None = None) -> str:
