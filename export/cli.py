@@ -42,11 +42,14 @@ def run_export_sgru(args: argparse.Namespace) -> int:
 
 def run_export(args: argparse.Namespace) -> int:
     from core.errors import QuadfdiError
-    from export.run import export_run
+    from export.alarm_policies import policies_per_model
 
     if args.run is None:
         raise QuadfdiError("quadfdi export needs --run <run folder>")
     run, cfg = open_run(args.run, args.overrides, need=("dataset",))
+    policies_per_model(run.root, cfg.alarm, args.alarm_from)  # a refusal before torch and onnx are imported
+    from export.run import export_run
+
     if args.steps is not None:
         cfg = replace_section(cfg, "export", steps=args.steps)
     manifest = export_run(run, cfg, alarm_from=args.alarm_from)

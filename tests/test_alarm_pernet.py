@@ -164,28 +164,41 @@ def test_alarm_from_evaluation_refuses_a_missing_file_or_network(run_copy, capsy
     shutil.rmtree(run_copy / "evaluation")
 
 
-def test_alarm_from_evaluation_writes_the_chosen_policies(run_copy):
+CHOSEN = {"cnode": {"threshold": 0.97, "k": 3, "n": 5, "clear_m": 8, "latch": False},
+          "gru": {"threshold": 0.7, "k": 1, "n": 1, "clear_m": 3, "latch": True},
+          "sgru": {"threshold": 0.9, "k": 2, "n": 3, "clear_m": 3, "latch": False}}
+
+
+@pytest.fixture(scope="module")
+def chosen_export(flightlog_export, tmp_path_factory):
+    """Another copy of the run exported with --alarm-from evaluation (an evaluation.json choosing CHOSEN):
+    (run folder, manifest, evaluation.json's sha256, the config). In process, in the fixture: the export
+    imports torch and onnx, seconds on a loaded machine."""
+    from core.rundir import open_run
+    from export.run import export_run
+
+    dst = tmp_path_factory.mktemp("pernet_chosen") / "run"
+    shutil.copytree(flightlog_export.parent, dst)
+    sha = _eval_json(dst, CHOSEN)
+    run, cfg = open_run(dst, [])
+    return dst, export_run(run, cfg, log=lambda s: None, alarm_from="evaluation"), sha, cfg
+
+
+def test_alarm_from_evaluation_writes_the_chosen_policies(chosen_export):
     """Each network's validation-chosen policy in the manifest (with evaluation.json's sha256) and in
     weights.bin's table; the default ``alarm`` stays the config's; detect runs each network's own."""
-    from core.rundir import open_run
     from detect.run import detect
-    from export.run import export_run
     from export.onboard_record import onboard_dict
     from export.weights_bin import read_weights
     from sim.dataset import load_dataset
     from sim.flight_npz import flight_arrays
 
-    chosen = {"cnode": {"threshold": 0.97, "k": 3, "n": 5, "clear_m": 8, "latch": False},
-              "gru": {"threshold": 0.7, "k": 1, "n": 1, "clear_m": 3, "latch": True},
-              "sgru": {"threshold": 0.9, "k": 2, "n": 3, "clear_m": 3, "latch": False}}
-    sha = _eval_json(run_copy, chosen)
-    run, cfg = open_run(run_copy, [])
-    m = export_run(run, cfg, log=lambda s: None, alarm_from="evaluation")
-    assert {net: e["policy"] for net, e in m["alarm_per_model"].items()} == chosen
+    run, m, sha, cfg = chosen_export
+    assert {net: e["policy"] for net, e in m["alarm_per_model"].items()} == CHOSEN
     assert {e["source"] for e in m["alarm_per_model"].values()} == {f"evaluation.json sha256 {sha}"}
     assert m["alarm"] == cfg.alarm.policy()
-    assert onboard_dict(read_weights(run_copy / "export" / "weights.bin").onboard)["alarm_models"] == chosen
-    flight = flight_arrays(load_dataset(run_copy / "dataset.npz").arrays, 0, "dataset.npz")
+    assert onboard_dict(read_weights(run / "export" / "weights.bin").onboard)["alarm_models"] == CHOSEN
+    flight = flight_arrays(load_dataset(run / "dataset.npz").arrays, 0, "dataset.npz")
     for net in ("cnode", "gru"):
-        rec = detect(run_copy / "export", flight, net=net)["record"]
-        assert rec["policy"] == chosen[net] and rec["policy_source"] == f"evaluation.json sha256 {sha}"
+        rec = detect(run / "export", flight, net=net)["record"]
+        assert rec["policy"] == CHOSEN[net] and rec["policy_source"] == f"evaluation.json sha256 {sha}"
