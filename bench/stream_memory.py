@@ -24,9 +24,11 @@ PROBE_CPP = f'#include "fwref/stream.hpp"\nfwref::Stream {PROBE};\n'
 
 def limit_macros(record: dict, manifest: dict) -> dict[str, int]:
     """The FWREF_MAX_* values that size fwref::Stream for this model (what gen_weights/gen_stream set)."""
+    from export.onboard_record import max_alarm_n
+
     return {"FWREF_MAX_WINDOW": int(record["window"]), "FWREF_MAX_CHANNELS": int(manifest["n_channels"]),
             "FWREF_MAX_CLASSES": len(manifest["class_names"]), "FWREF_MAX_RAW_CHANNELS": len(record["raw_channels"]),
-            "FWREF_MAX_ALARM_N": int(record["alarm"]["n"])}
+            "FWREF_MAX_ALARM_N": max_alarm_n(record)}  # the largest n of the record's per-network policies
 
 
 def eigen_include() -> list[str]:

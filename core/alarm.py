@@ -32,10 +32,11 @@ own policy parameters: the validation sweep stacks the grid along rows) and loop
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
+from core.coerce import coerce
 from core.errors import QuadfdiError
 
 # The rotor-side classes by name (train.motor.ROTOR_SIDE_CLASSES; core cannot import train: a test
@@ -48,18 +49,66 @@ def rotor_columns(names, rotor_side_classes=ROTOR_SIDE_CLASSES) -> np.ndarray:
     return np.array([str(n) in rotor_side_classes for n in names], dtype=bool)
 
 
+POLICY_KEYS = ("threshold", "k", "n", "clear_m", "latch")  # one policy's parameters
+NETWORKS = ("cnode", "gru", "sgru")  # the networks an [alarm.<net>] table may name
+
+
 @dataclass(frozen=True)
 class AlarmConfig:
-    """The [alarm] section: the default policy (``quadfdi evaluate`` chooses one on validation)."""
+    """The [alarm] section: the default policy (``quadfdi evaluate`` chooses one on validation), and
+    optional per-network tables [alarm.cnode], [alarm.gru], [alarm.sgru] overriding any of its keys
+    for that network (``policy_for``; ``quadfdi export`` writes each network's policy)."""
 
     threshold: float = 0.5  # p_fault >= threshold votes fault
     k: int = 2  # votes among ...
     n: int = 3  # ... the last n windows raise
     clear_m: int = 3  # consecutive non-voting windows clear
     latch: bool = False  # never clear once raised
+    cnode: dict = field(default_factory=dict)  # [alarm.cnode]: the keys above it overrides
+    gru: dict = field(default_factory=dict)
+    sgru: dict = field(default_factory=dict)
 
     def validate(self) -> None:
         check_policy(self.threshold, self.k, self.n, self.clear_m, "alarm.")
+        for net in NETWORKS:
+            if getattr(self, net):
+                p = self.policy_for(net)
+                check_policy(p["threshold"], p["k"], p["n"], p["clear_m"], f"alarm.{net}.")
+
+    def policy(self) -> dict:
+        """The default policy: threshold, k, n, clear_m, latch."""
+        return {key: getattr(self, key) for key in POLICY_KEYS}
+
+    def policy_for(self, net: str) -> dict:
+        """``net``'s policy: the default with its table's keys."""
+        return {**self.policy(), **(getattr(self, net) if net in NETWORKS else {})}
+
+    @staticmethod
+    def fold_tables(body: dict, source: str) -> dict:
+        """[alarm]'s parsed keys with ``--set alarm.<net>.<key>=v`` (a dotted key) folded into ``<net>``'s table."""
+        out = {k: (dict(v) if isinstance(v, dict) else v) for k, v in body.items() if "." not in k}
+        for key, value in ((k, v) for k, v in body.items() if "." in k):
+            net, _, sub = key.partition(".")
+            if net not in NETWORKS:
+                raise QuadfdiError(f"{source}: unknown key alarm.{key}; per-network tables are alarm.{'/'.join(NETWORKS)}")
+            if not isinstance(out.setdefault(net, {}), dict):
+                raise QuadfdiError(f"{source}: alarm.{net} must be a table of {', '.join(POLICY_KEYS)}")
+            out[net][sub] = value
+        return out
+
+    @staticmethod
+    def coerce_key(value, typ, where: str):
+        """core.config's check of one [alarm] key; a per-network table's keys are checked as the default's."""
+        net = where.rsplit(".", 1)[-1]
+        if net not in NETWORKS:
+            return coerce(value, typ, where)
+        if not isinstance(value, dict):
+            raise QuadfdiError(f"{where} must be a table of {', '.join(POLICY_KEYS)}, found {value!r}")
+        unknown = sorted(set(value) - set(POLICY_KEYS))
+        if unknown:
+            raise QuadfdiError(f"unknown key {where}.{unknown[0]}; valid keys of [{where}]: {', '.join(POLICY_KEYS)}")
+        hints = {"threshold": float, "k": int, "n": int, "clear_m": int, "latch": bool}
+        return {key: coerce(value[key], hints[key], f"{where}.{key}") for key in POLICY_KEYS if key in value}
 
 
 def check_policy(threshold: float, k: int, n: int, clear_m: int, where: str = "") -> None:

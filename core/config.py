@@ -8,11 +8,10 @@ config used by a run is stored in the run folder (``config.toml``) and inside ev
 from __future__ import annotations
 
 import dataclasses
-import math
 import tomllib
 from dataclasses import dataclass, field, fields
 from pathlib import Path
-from typing import Any, get_args, get_origin, get_type_hints
+from typing import Any, get_type_hints
 
 from core.errors import QuadfdiError
 from core.tomlio import dumps_toml  # noqa: F401 (re-exported: the run folder writes it)
@@ -20,6 +19,7 @@ from core.limits import FIRMWARE_MAX_STEPS, MAX_THREADS, check_dataset_memory, d
 from core.evalconfig import AlarmConfig, EvaluateConfig  # [alarm], [evaluate], [run]: own modules (400-line cap)
 from core.runconfig import RunConfig
 from core.overrides import parse_override as _parse_override  # own module (400-line cap)
+from core.coerce import coerce as _coerce  # own module (400-line cap)
 from core.profiles import check_profile
 
 
@@ -276,7 +276,9 @@ class Config:
 
 
 def _section_dict(section: Any) -> dict[str, Any]:
-    return {f.name: (list(v) if isinstance(v := getattr(section, f.name), tuple) else v) for f in fields(section)}
+    """The section's keys (tuples as lists); an empty table ([alarm.<net>] not given) is left out."""
+    return {f.name: (list(v) if isinstance(v := getattr(section, f.name), tuple) else v) for f in fields(section)
+            if getattr(section, f.name) != {}}
 
 
 def _positive(section: Any, *names: str) -> None:
@@ -313,37 +315,6 @@ def _section_name(section: Any) -> str:
     return type(section).__name__
 
 
-def _coerce(value: Any, typ: Any, where: str) -> Any:
-    """Check ``value`` (parsed from TOML) against the dataclass field type ``typ``."""
-    origin = get_origin(typ)
-    if origin is tuple:
-        args = get_args(typ)
-        if not isinstance(value, (list, tuple)):
-            raise QuadfdiError(f"{where} must be a list, found {value!r}")
-        if len(args) == 2 and args[1] is Ellipsis:
-            return tuple(_coerce(v, args[0], where) for v in value)
-        if len(value) != len(args):
-            raise QuadfdiError(f"{where} must be a list of {len(args)} values, found {list(value)!r}")
-        return tuple(_coerce(v, a, where) for v, a in zip(value, args))
-    if typ is bool:
-        if not isinstance(value, bool):
-            raise QuadfdiError(f"{where} must be true or false, found {value!r}")
-        return value
-    if typ is int:
-        if isinstance(value, bool) or not isinstance(value, int):
-            raise QuadfdiError(f"{where} must be an integer, found {value!r}")
-        return value
-    if typ is float:
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-            raise QuadfdiError(f"{where} must be a finite number, found {value!r}")
-        return float(value)
-    if typ is str:
-        if not isinstance(value, str):
-            raise QuadfdiError(f"{where} must be a string, found {value!r}")
-        return value
-    raise TypeError(f"unsupported config type {typ} for {where}")
-
-
 def build_config(data: dict[str, Any], overrides: list[str] | tuple[str, ...] = (), source: str = "config") -> Config:
     """Config from a parsed TOML mapping plus ``section.key=value`` overrides, checked."""
     merged: dict[str, dict[str, Any]] = {}
@@ -364,10 +335,13 @@ def build_config(data: dict[str, Any], overrides: list[str] | tuple[str, ...] = 
         hints = get_type_hints(cls)
         valid = [f.name for f in fields(cls)]
         kwargs = {}
-        for key, value in merged.get(name, {}).items():
+        body = merged.get(name, {})
+        if hasattr(cls, "fold_tables"):  # [alarm]: per-network tables ([alarm.cnode], --set alarm.cnode.k=3)
+            body = cls.fold_tables(body, source)
+        for key, value in body.items():
             if key not in hints:
                 raise QuadfdiError(f"{source}: unknown key {name}.{key}; valid keys of [{name}]: {', '.join(valid)}")
-            kwargs[key] = _coerce(value, hints[key], f"{name}.{key}")
+            kwargs[key] = getattr(cls, "coerce_key", _coerce)(value, hints[key], f"{name}.{key}")
         built[name] = cls(**kwargs)
     cfg = Config(**built)
     cfg.validate()

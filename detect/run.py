@@ -2,7 +2,8 @@
 timeline under the policy (core.alarm) and the alarms (docs/detect.md).
 
 Writes into OUT (only once everything is computed; a refusal writes nothing):
-- ``alarms.json``: the flight, model, precision, runtime, profile, policy, hover estimate,
+- ``alarms.json``: the flight, model, precision, runtime, profile, the net's policy and where it came
+  from (``policy_source``: the manifest's ``alarm_per_model`` source, or "manifest alarm"), hover estimate,
   exposure (flight-seconds covered by decided windows) and the alarms (start_s, end_s, class,
   motor, peak_p_fault);
 - ``windows.npz``: per window on the grid ``t_end``, ``decided``, ``proba`` (NaN if undecided),
@@ -35,11 +36,17 @@ def load_export(folder: str | Path) -> dict:
     return manifest
 
 
-def policy_of(manifest: dict) -> dict:
-    """The manifest's alarm policy, or the [alarm] defaults for an export that predates it."""
-    pol = {**AlarmConfig().__dict__, **(manifest.get("alarm") or {})}
-    check_policy(pol["threshold"], pol["k"], pol["n"], pol["clear_m"], "manifest alarm.")
-    return pol
+def policy_of(manifest: dict, net: str = "cnode") -> tuple[dict, str]:
+    """(policy, source) of ``net``: its manifest ``alarm_per_model`` entry (source "config" or
+    "evaluation.json sha256 ..."), else the manifest's ``alarm`` ("manifest alarm": an export written
+    before the per-network policies, or a network it does not list), else the [alarm] defaults."""
+    entry = (manifest.get("alarm_per_model") or {}).get(net)
+    if entry is not None:
+        pol, source = {**AlarmConfig().policy(), **entry["policy"]}, str(entry["source"])
+    else:
+        pol, source = {**AlarmConfig().policy(), **(manifest.get("alarm") or {})}, "manifest alarm"
+    check_policy(pol["threshold"], pol["k"], pol["n"], pol["clear_m"], f"manifest alarm ({net}).")
+    return pol, source
 
 
 def softmax(logits: np.ndarray) -> np.ndarray:
@@ -100,7 +107,7 @@ def detect(model: str | Path, flight: str | Path | dict, net: str = "cnode", pre
     if motor_logits is not None:
         motor_p = np.full((n, 4), np.nan)
         motor_p[fi.decided] = softmax(motor_logits)
-    pol = policy_of(manifest)
+    pol, pol_source = policy_of(manifest, net)
     healthy = names.index("Healthy")
     p_in = np.where(fi.decided[:, None], proba, 0.0)
     p_in[~fi.decided, healthy] = 1.0  # undecided windows never vote (and are marked not valid)
@@ -112,6 +119,7 @@ def detect(model: str | Path, flight: str | Path | dict, net: str = "cnode", pre
     alarms = alarm_records(trace, t_end[None], p_in[None], names, rotor=rotor)
     record = {"flight": fi.name, "model": str(folder), "net": net, "precision": precision, "runtime": runtime,
               "profile": profile, "policy": pol,
+              "policy_source": pol_source,
               "hover": {"cmd": float(fi.hover.cmd),
                         "cur_a": None if not np.isfinite(fi.hover.cur) else float(fi.hover.cur),
                         "freeze_s": float(fi.time[fi.hover.freeze]), "cells": fi.cells},

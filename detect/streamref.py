@@ -92,15 +92,19 @@ def sgru_logits(onnx_path, x: np.ndarray, stepped: np.ndarray, hidden: int) -> n
     return out if out is not None else np.zeros((len(x), 0), np.float32)
 
 
-def stream_alarm(record: dict, decided: np.ndarray, logits: np.ndarray, motor_logits: np.ndarray | None = None):
+def stream_alarm(record: dict, decided: np.ndarray, logits: np.ndarray, motor_logits: np.ndarray | None = None,
+                 net: str | None = None):
     """What the stream decides from the decided strides' class logits (n_decided, K) and, for a net with
     its motor head, motor logits (n_decided, 4): the probabilities (n, K) (an undecided stride all
     Healthy: it never votes) and core.alarm's trace under the record's policy, whose ``motor`` is the
     alarm's REPORTED motor (core.alarm rule 5, reported_motor: the summed head softmax's argmax where
     the alarm's class is rotor-side by the record's ``rotor_side``, -1 otherwise; a record without the
     flags: every class rotor-side) as fwref/stream.hpp's Decision::alarm.motor, and the stride's motor
-    (n,) (the head's argmax, -1 where undecided or without a head: Decision::motor)."""
+    (n,) (the head's argmax, -1 where undecided or without a head: Decision::motor). The policy: ``net``'s
+    (the record's alarm.models row, export/onboard_record.policy_of, as fwref_stream --model picks it), or
+    the record's single policy when ``net`` is None."""
     from core.alarm import reported_motor, run_alarm
+    from export.onboard_record import policy_of
 
     def softmax(z):
         z = np.asarray(z, np.float64)
@@ -116,7 +120,7 @@ def stream_alarm(record: dict, decided: np.ndarray, logits: np.ndarray, motor_lo
         motor_p = np.zeros((n, 4))
         motor_p[decided] = softmax(motor_logits)
         wmotor[decided] = np.argmax(motor_logits, axis=1)
-    a = record["alarm"]
+    a = record["alarm"] if net is None else policy_of(record, net)[0]
     trace = run_alarm(proba[None], a["threshold"], a["k"], a["n"], a["clear_m"], a["latch"], healthy=record["healthy"],
                       valid=np.asarray(decided)[None], motor_proba=None if motor_p is None else motor_p[None])
     rotor = record.get("rotor_side")

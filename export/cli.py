@@ -19,6 +19,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--run", default=None, help="run folder holding dataset.npz, cnode.pt and gru.pt")
     p.add_argument("--steps", type=int, default=None,
                    help="N, classic RK4 steps of the unrolled CNODE graph (default: the config's export.steps)")
+    p.add_argument("--alarm-from", choices=("config", "evaluation"), default="config",
+                   help="each network's alarm policy: the config's [alarm] / [alarm.<net>] (default) or the one "
+                        "`quadfdi evaluate` chose on validation (RUN/evaluation/evaluation.json)")
     p.set_defaults(func=run_export)
     acts = p.add_subparsers(dest="action", metavar="{sgru}")
     ps = acts.add_parser("sgru", help="the streaming GRU: one-step ONNX graph, checked on a replayed flight")
@@ -39,14 +42,17 @@ def run_export_sgru(args: argparse.Namespace) -> int:
 
 def run_export(args: argparse.Namespace) -> int:
     from core.errors import QuadfdiError
-    from export.run import export_run
+    from export.alarm_policies import policies_per_model
 
     if args.run is None:
         raise QuadfdiError("quadfdi export needs --run <run folder>")
     run, cfg = open_run(args.run, args.overrides, need=("dataset",))
+    policies_per_model(run.root, cfg.alarm, args.alarm_from)  # a refusal before torch and onnx are imported
+    from export.run import export_run
+
     if args.steps is not None:
         cfg = replace_section(cfg, "export", steps=args.steps)
-    manifest = export_run(run, cfg)
+    manifest = export_run(run, cfg, alarm_from=args.alarm_from)
     ok = manifest["verification"]["passed"]
     print(f"export: verification {'passed' if ok else 'FAILED'}; manifest {run.export / 'manifest.json'}")
     return 0 if ok else 1

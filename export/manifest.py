@@ -7,7 +7,9 @@ tensors), ``artifacts`` (cnode_fp32, cnode_int8, gru_fp32, gru_int8 -> file name
 export folder), ``files`` (name -> sha256, bytes), ``models`` (architecture, MACs),
 ``quantization`` (scheme, calibration, coverage), ``verification``, ``metrics`` (test split, per
 artifact), ``reference`` (the test windows in reference.bin), ``config``, ``profile`` (the input
-channels, ``profile_entry``), ``alarm`` (the alarm policy: core.alarm, the [alarm] section), and
+channels, ``profile_entry``), ``alarm`` (the default alarm policy: core.alarm, the [alarm] section's
+keys; what a reader that predates ``alarm_per_model`` runs), ``alarm_per_model`` (network -> {policy,
+source}: export/alarm_policies.py; absent in an export written before it), and
 only for models with a motor head (train.motor) ``motor_head`` (``motor_entry``; ``io.outputs``
 then also lists ``motor_logits``).
 A reader must check ``schema_version`` first: ``load_manifest`` refuses any other version.
@@ -108,7 +110,7 @@ def build_manifest(*, ds: Any, config: dict, checkpoints: dict[str, dict], windo
                    coverage: dict[str, dict], calib_windows: int, interp_exact: bool, verification: dict,
                    metrics: dict, reference_index: np.ndarray, reference_labels: np.ndarray,
                    encoding: dict | None = None, profile: dict | None = None, alarm: dict | None = None,
-                   motor: dict | None = None) -> dict:
+                   motor: dict | None = None, alarm_per_model: dict | None = None) -> dict:
     """The manifest of one export (the keys listed in this module's docstring, in that order).
 
     ``ds``: the run's ``sim.dataset.Dataset``; ``checkpoints``: "cnode"/"gru" -> checkpoint blob
@@ -144,8 +146,10 @@ def build_manifest(*, ds: Any, config: dict, checkpoints: dict[str, dict], windo
                       "labels": np.asarray(reference_labels).tolist()},
         "config": config,
         "profile": profile or profile_entry("paper"),
-        "alarm": alarm if alarm is not None else AlarmConfig().__dict__,
+        "alarm": alarm if alarm is not None else AlarmConfig().policy(),
     }
+    if alarm_per_model is not None:
+        out["alarm_per_model"] = alarm_per_model
     if motor is not None:
         out["motor_head"] = motor
     return out

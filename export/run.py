@@ -33,6 +33,7 @@ from export.reference_bin import pick_windows, reference_bytes
 from export.verify import (batch_independence, int8_vs_fp32, motor_verification, ort_outputs, parity, session,
                            torch_logits)
 from export.onboard_record import onboard_section
+from export.alarm_policies import policies_per_model
 from export.weights_bin import weights_bytes
 from sim.dataset import Dataset, class_names, load_dataset, make_windows
 from train.profile_data import profile_of, profiled_dataset
@@ -122,20 +123,23 @@ def coverage_of(graphs: Graphs, log: Callable[[str], None]) -> dict[str, dict]:
     return cov
 
 
-def export_run(run: RunDir, cfg: Config, log: Callable[[str], None] = print) -> dict:
+def export_run(run: RunDir, cfg: Config, log: Callable[[str], None] = print, alarm_from: str = "config") -> dict:
     """Build, calibrate, verify and publish every export artifact of ``run`` as one stage
     (core.stage: staged, then moved into export/ with the stage record); return the manifest.
-    Files of an earlier export the new one does not have (another --steps) are removed."""
+    Files of an earlier export the new one does not have (another --steps) are removed.
+    ``alarm_from``: each network's alarm policy from the config or evaluation.json (export.alarm_policies;
+    refused before anything is written)."""
+    policies = policies_per_model(run.root, cfg.alarm, alarm_from)
     sections = cfg.to_dict()
     with stage(run.root, "export", {"sim": sections["sim"], "export": sections["export"]},
                targets=("export/manifest.json", "export/weights.bin", "export/reference.bin")) as st:
         st.consume("dataset.npz", ("sim",))
         for kind in MODEL_KINDS:
             st.consume(f"{kind}.pt", ("sim",))
-        return _export_into(run, cfg, RunDir(st.out), log)
+        return _export_into(run, cfg, RunDir(st.out), log, policies)
 
 
-def _export_into(run: RunDir, cfg: Config, dest: RunDir, log: Callable[[str], None]) -> dict:
+def _export_into(run: RunDir, cfg: Config, dest: RunDir, log: Callable[[str], None], policies: dict) -> dict:
     t0 = time.perf_counter()
     ecfg = cfg.export
     steps, opset = ecfg.steps, ecfg.opset
@@ -162,7 +166,8 @@ def _export_into(run: RunDir, cfg: Config, dest: RunDir, log: Callable[[str], No
     ref_idx = pick_windows(test_w.y, ecfg.reference_windows)
     files = {names[k]: blobs[k] for k in names}
     onboard = onboard_section(profile, ds.channel_names, int(cnode.window), cfg.sim.stride, ds.config.sim.sample_dt_s,
-                              cfg.to_dict()["alarm"], manifest_class_names({"cnode": cblob}))
+                              cfg.alarm.policy(), manifest_class_names({"cnode": cblob}),
+                              {net: p["policy"] for net, p in policies.items()})
     files["weights.bin"] = weights_bytes(cp, cq, gp, gq, onboard)
     files["reference.bin"] = reference_bytes(test_w.x[ref_idx], test_w.y[ref_idx], ref_idx, cnode, cp,
                                              graphs.cnode_int8, gru, gp, graphs.gru_int8)
@@ -173,7 +178,7 @@ def _export_into(run: RunDir, cfg: Config, dest: RunDir, log: Callable[[str], No
         steps=steps, opset=opset, ir_version=IR_VERSION, stage_times=cp.times, files=files, coverage=cov,
         calib_windows=len(calib_idx), interp_exact=cq.interp_exact, verification=verification,
         metrics=metrics, reference_index=ref_idx, reference_labels=test_w.y[ref_idx],
-        profile=profile_entry(profile, cblob, gblob), alarm=cfg.to_dict()["alarm"],
+        profile=profile_entry(profile, cblob, gblob), alarm=cfg.alarm.policy(), alarm_per_model=policies,
         motor=motor_entry({"cnode": cblob, "gru": gblob}, list(ROTOR_SIDE_CLASSES)),
         encoding={"cnode": encoding_of(cq.act, weight_qmax(cq.act), graphs.cnode_int8.model),
                   "gru": encoding_of(gq.act, weight_qmax(gq.act), graphs.gru_int8.model)})

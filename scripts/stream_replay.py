@@ -30,6 +30,7 @@ import numpy as np
 
 import sim.dataset as sim_dataset
 from core.alarm import run_alarm
+from export.onboard_record import policy_of
 from core.contracts import FP32_CPP_REL_TOL
 from detect.run import softmax
 from bench.stream_latency import split_timings
@@ -80,7 +81,7 @@ def replay(export: Path, path: Path, record: dict, manifest: dict, net: str, pre
     proba = np.zeros((len(sw.ends), ort.shape[1]))
     proba[:, record["healthy"]] = 1.0
     proba[sw.decided] = softmax(ort)
-    a = record["alarm"]
+    a = policy_of(record, net)[0]  # the net's policy (alarm.models), as fwref_stream --model picks it
     tr = run_alarm(proba[None], a["threshold"], a["k"], a["n"], a["clear_m"], a["latch"], healthy=record["healthy"],
                    valid=sw.decided[None])
     flips = out["vote"] != tr.votes[0]

@@ -71,13 +71,14 @@ def random_weight_run(src: Path, out: Path, kinds: tuple[str, ...] = ("cnode", "
     return out
 
 
-def trained_export_run(src: Path, out: Path, *train_sets: str) -> Path:
+def trained_export_run(src: Path, out: Path, *train_sets: str, export_sets: tuple[str, ...] = ()) -> Path:
     """A copy of the run ``src`` trained through the real CLI (``--set`` values ``train_sets``) and
-    exported: the files that parity, the firmware and export checks on a trained model need."""
+    exported (``--set`` values ``export_sets``): the files that parity, the firmware and export checks
+    on a trained model need."""
     copy_run(src, out)
     res = quadfdi("train", "--run", str(out), *[a for v in train_sets for a in ("--set", v)])
     assert res.returncode == 0, res.stderr
-    res = quadfdi("export", "--run", str(out))
+    res = quadfdi("export", "--run", str(out), *[a for v in export_sets for a in ("--set", v)])
     assert res.returncode == 0, res.stderr
     return out
 
@@ -96,6 +97,9 @@ def small_run(tmp_path_factory) -> Path:
 FLIGHTLOG_TINY = ["sim.n_traj=20", "sim.ood_traj=2", "sim.duration_s=12.0", "sim.chunk=14", "sim.window=40"]
 FLIGHTLOG_TRAIN = ["train.epochs=1", "train.latent=8", "train.hidden=16", "train.gru_hidden=16",
                    "train.max_train_windows=60", "train.profile=flightlog-min", "train.motor_head=auto"]
+# The GRU's own alarm policy ([alarm.gru]), unlike the CNODE's (the [alarm] default): the stream's and
+# detect's parity tests then hold each network to its own policy (weights.bin's alarm.models).
+FLIGHTLOG_ALARM = ["alarm.gru.threshold=0.4", "alarm.gru.k=1", "alarm.gru.n=2", "alarm.gru.clear_m=2"]
 
 
 @pytest.fixture(scope="session")
@@ -105,7 +109,8 @@ def flightlog_export(tmp_path_factory) -> Path:
     res = quadfdi("sim", "--config", str(ROOT / "configs/realistic.toml"), "--out", str(sim), "--workers", "1",
                   *[a for v in FLIGHTLOG_TINY for a in ("--set", v)])
     assert res.returncode == 0, res.stderr
-    return trained_export_run(sim, tmp_path_factory.mktemp("flightlog_run") / "run", *FLIGHTLOG_TRAIN) / "export"
+    return trained_export_run(sim, tmp_path_factory.mktemp("flightlog_run") / "run", *FLIGHTLOG_TRAIN,
+                              export_sets=tuple(FLIGHTLOG_ALARM)) / "export"
 
 
 # ---- the fault-injection suite's runs (tests/test_faults*.py)

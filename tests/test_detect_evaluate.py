@@ -26,7 +26,7 @@ def detected(flightlog_export, tmp_path_factory):
     sets, infos = load_run(run)
     fl = next(s for s in sets if s.model == "cnode")
     info = infos[fl.dataset]
-    pol = policy_of(json.loads((flightlog_export / "manifest.json").read_text()))
+    pol = policy_of(json.loads((flightlog_export / "manifest.json").read_text()), "cnode")[0]  # detect's default net
     test = np.flatnonzero(fl.split == info.split_names.index("test"))
     row = max(test, key=lambda r: (len(flight_alarms(fl, pol, r)), info.arrays["fault_class"][fl.rows[r]] > 0, -r))
     out = tmp_path_factory.mktemp("detect_eval")

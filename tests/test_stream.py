@@ -202,7 +202,7 @@ def _window_path(export: Path, exe: Path, tmp: Path, rs, record: dict, net: str,
     ort, motor = model_logits(export, manifest, net, precision, "ort", x)
     assert (motor is not None) == has_motor(manifest, net)
     cpp = _infer(exe, export, net, precision == "int8", x, tmp)
-    proba, trace, _ = stream_alarm(record, sw.decided, ort, motor)  # the stream's alarm and motor rules, in Python
+    proba, trace, _ = stream_alarm(record, sw.decided, ort, motor, net=net)  # the stream's rules, in Python
     return sw, ort, cpp, proba, trace, motor
 
 
@@ -572,7 +572,7 @@ def _sgru_mirror(export: Path, rs, record: dict, precision: str, hidden: int):
     stepped, decided = stepped_of(sw, record["window"])
     onnx = export / ("sgru_step.int8.onnx" if precision == "int8" else "sgru_step.onnx")
     logits = sgru_logits(onnx, sw.x, stepped, hidden)[sw.ends]
-    _, trace, _ = stream_alarm(record, decided, logits[decided])
+    _, trace, _ = stream_alarm(record, decided, logits[decided], net="sgru")
     return sw, stepped, decided, logits, trace
 
 

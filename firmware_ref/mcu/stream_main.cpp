@@ -72,12 +72,14 @@ double g_ratio = 0.0;
 // when it changes).
 bool replay(const fwref::StreamModel& sm, const char* model, const char* prec) {
   using namespace fwref_stream_data;
-  const int R = kParams.raw_channels, K = kParams.classes;
+  // the model's own alarm policy (the record's alarm.models row, gen_stream.py), as fwref_stream --model
+  const fwref::StreamParams& params = model[0] == 'c' ? kParamsCnode : model[0] == 'g' ? kParamsGru : kParamsSgru;
+  const int R = params.raw_channels, K = params.classes;
   for (int f = 0; f < kFlightCount; ++f) {
     const Flight& fl = kFlights[f];
     if (f > 0 && fl.cells == kFlights[f - 1].cells) {
       g_stream.reset();
-    } else if (g_stream.init(kParams, fl.cells, sm) != fwref::Status::kOk) {
+    } else if (g_stream.init(params, fl.cells, sm) != fwref::Status::kOk) {
       return false;
     }
     Stat push, decide, other;

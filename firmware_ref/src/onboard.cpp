@@ -24,7 +24,57 @@ std::vector<std::string> names_of(const std::vector<std::int32_t>& codes) {
   return out;
 }
 
+double threshold_of(std::int32_t lo, std::int32_t hi) {
+  std::uint64_t bits = std::uint32_t(lo) | (std::uint64_t(std::uint32_t(hi)) << 32);
+  double threshold;
+  std::memcpy(&threshold, &bits, sizeof threshold);
+  return threshold;
+}
+
+// alarm.models (optional): int32 (M, 7) rows model, k, n, clear_m, latch, threshold lo, hi; each
+// model at most once, each row a valid policy (core.alarm.check_policy).
+Status read_policies(const Container& file, const SectionInfo& sec, const AlarmParams& base, OnboardRecord* r,
+                     std::string* error) {
+  r->model_policies.clear();
+  const TensorInfo* t = sec.find("alarm.models");
+  if (t == nullptr) return Status::kOk;
+  if (t->dtype != DType::kI32 || t->ndim != 2 || t->shape[1] != 7 || t->shape[0] > 8) {
+    *error = fmt("%s: the on-board record's alarm.models is not int32 (M, 7) with M <= 8", file.where().c_str());
+    return Status::kBadShape;
+  }
+  std::vector<std::int32_t> v(t->count);
+  file.copy_i32(*t, v.data());
+  for (int i = 0; i < t->shape[0]; ++i) {
+    const std::int32_t* row = &v[std::size_t(i) * 7];
+    const std::uint32_t model = std::uint32_t(row[0]);
+    AlarmParams a = base;
+    a.threshold = threshold_of(row[5], row[6]);
+    a.k = row[1], a.n = row[2], a.clear_m = row[3], a.latch = row[4] != 0;
+    bool known = model == kModelCnode || model == kModelGru || model == kModelSgru;
+    for (const OnboardRecord::ModelPolicy& seen : r->model_policies) known = known && seen.model != model;
+    if (!known || row[4] < 0 || row[4] > 1 || a.k < 1 || a.k > a.n || a.clear_m < 1 || !(a.threshold > 0.0) ||
+        !(a.threshold <= 1.0)) {
+      *error = fmt("%s: the on-board record's alarm.models row %d (model %d) is not a valid policy of a distinct "
+                   "model", file.where().c_str(), i, int(row[0]));
+      return Status::kDimsInvalid;
+    }
+    r->model_policies.push_back({model, a});
+  }
+  return Status::kOk;
+}
+
 }  // namespace
+
+AlarmParams policy_for(const OnboardRecord& r, std::uint32_t model, bool* from_table) {
+  for (const OnboardRecord::ModelPolicy& p : r.model_policies) {
+    if (p.model == model) {
+      if (from_table != nullptr) *from_table = true;
+      return p.alarm;
+    }
+  }
+  if (from_table != nullptr) *from_table = false;
+  return r.params.alarm;
+}
 
 Status read_onboard(const WeightsFile& wf, OnboardRecord* out, std::string* error) {
   const Container& file = wf.container();
@@ -64,9 +114,7 @@ Status read_onboard(const WeightsFile& wf, OnboardRecord* out, std::string* erro
                  d[0]);
     return Status::kDimsInvalid;
   }
-  std::uint64_t bits = std::uint32_t(thr[0]) | (std::uint64_t(std::uint32_t(thr[1])) << 32);
-  double threshold;
-  std::memcpy(&threshold, &bits, sizeof threshold);
+  const double threshold = threshold_of(thr[0], thr[1]);
   std::uint32_t mask = 0xFFFFFFFFu;  // no alarm.rotor_side (a record written before it): every class
   r.rotor_classes = 0;
   if (const TensorInfo* rs = sec->find("alarm.rotor_side")) {
@@ -89,6 +137,8 @@ Status read_onboard(const WeightsFile& wf, OnboardRecord* out, std::string* erro
   }
   r.params = StreamParams{static_cast<Profile>(d[0]), int(d[1]), int(d[2]), int(d[3]), int(d[4]), 0, double(dt),
                           AlarmParams{threshold, pol[0], pol[1], pol[2], pol[3] != 0, pol[4], 0, mask}};
+  const Status pol_status = read_policies(file, *sec, r.params.alarm, &r, error);
+  if (pol_status != Status::kOk) return pol_status;
   r.cells_from_stream = d[5] != 0;
   r.hover_steady = int(d[6]);
   r.hover_settle = int(d[7]);

@@ -3,8 +3,10 @@
 //
 //   fwref_stream --weights <weights.bin> --model cnode|gru|sgru [--int8] --in <stream.bin | -> [--out <lines.txt>]
 //                [--manifest <manifest.json>] [--timings <seconds.f64>]
-//   fwref_stream --weights <weights.bin> --info
+//   fwref_stream --weights <weights.bin> --info [--model cnode|gru|sgru]
 //
+// The alarm policy is the bound model's: its row of the record's alarm.models (one policy per network),
+// else the record's single policy (a record written before the table, or a model it omits).
 // --model sgru: the streaming GRU, one step per usable sample (fwref/gru_step.hpp); --weights is then
 // the export's sgru_weights.bin (export/sgru_weights.py: the sgru sections and a copy of weights.bin's
 // on-board record). cnode / gru with a motor head (sections cnode_motor / gru_motor in weights.bin)
@@ -23,7 +25,9 @@
 // alarm or, for motor, without a motor head or when the alarm's class is not rotor-side (the record's
 // alarm.rotor_side; a record without it: every class); wmotor this stride's motor-head argmax 0..3, -1 when not decided
 // or without a head). --info prints the on-board record as key=value lines (rotor_side: the 0/1
-// flags per class, or "all" for a record written before them).
+// flags per class, or "all" for a record written before them); threshold..latch are --model's policy
+// (without --model: the record's single policy), policy_from says where from (alarm.models | alarm.policy)
+// and alarm_models lists the table as model:threshold,k,n,clear_m,latch;... ("none" without it).
 // --timings writes (samples,) float64 seconds per push (steady clock). Errors: one line, exit 2,
 // no output file; usage errors exit 1.
 #include <chrono>
@@ -43,8 +47,8 @@
 namespace {
 
 const char* const kUsage =
-    "usage: fwref_stream --weights <weights.bin> (--info | --model cnode|gru|sgru [--int8] --in <stream.bin|-> "
-    "[--out <lines.txt>] [--manifest <manifest.json>] [--timings <seconds.f64>])";
+    "usage: fwref_stream --weights <weights.bin> (--info [--model cnode|gru|sgru] | --model cnode|gru|sgru [--int8] "
+    "--in <stream.bin|-> [--out <lines.txt>] [--manifest <manifest.json>] [--timings <seconds.f64>])";
 constexpr char kMagic[9] = "QFDISTR";  // + NUL: 8 bytes
 constexpr std::uint32_t kVersion = 1;
 constexpr std::size_t kFixedHeader = 128;  // magic .. source; the channel names follow
@@ -100,7 +104,15 @@ bool read_header(std::FILE* f, const std::string& where, Header* h, std::string*
   return true;
 }
 
-void print_info(const fwref::OnboardRecord& r) {
+std::uint32_t model_code(const std::string& model) {
+  return model == "cnode" ? fwref::kModelCnode : model == "gru" ? fwref::kModelGru : fwref::kModelSgru;
+}
+
+const char* model_name(std::uint32_t code) {
+  return code == fwref::kModelCnode ? "cnode" : code == fwref::kModelGru ? "gru" : "sgru";
+}
+
+void print_info(const fwref::OnboardRecord& r, bool from_table) {
   const fwref::StreamParams& p = r.params;
   std::printf("profile=%s\nwindow=%d\nstride=%d\nsample_dt_s=%.9g\ncells_from_stream=%d\n",
               fwref::profile_spec(p.profile).name, p.window, p.stride, p.sample_dt_s, int(r.cells_from_stream));
@@ -110,7 +122,15 @@ void print_info(const fwref::OnboardRecord& r) {
               p.alarm.n, p.alarm.clear_m, int(p.alarm.latch), p.alarm.healthy);
   std::string rotor = r.rotor_classes == 0 ? "all" : "";  // "all": a record without alarm.rotor_side
   for (int c = 0; c < r.rotor_classes; ++c) rotor += (c ? "," : "") + std::to_string((p.alarm.rotor_mask >> c) & 1u);
-  std::printf("rotor_side=%s\n", rotor.c_str());
+  std::printf("rotor_side=%s\npolicy_from=%s\n", rotor.c_str(), from_table ? "alarm.models" : "alarm.policy");
+  std::string table = r.model_policies.empty() ? "none" : "";
+  for (const fwref::OnboardRecord::ModelPolicy& m : r.model_policies) {
+    char buf[128];
+    std::snprintf(buf, sizeof buf, "%s%s:%.17g,%d,%d,%d,%d", table.empty() ? "" : ";", model_name(m.model),
+                  m.alarm.threshold, m.alarm.k, m.alarm.n, m.alarm.clear_m, int(m.alarm.latch));
+    table += buf;
+  }
+  std::printf("alarm_models=%s\n", table.c_str());
   std::string raw, model;
   for (const std::string& s : r.raw_names) raw += (raw.empty() ? "" : ",") + s;
   for (const std::string& s : r.model_names) model += (model.empty() ? "" : ",") + s;
@@ -302,7 +322,9 @@ int main(int argc, char** argv) {
     if (dst == &in) ins.push_back(in);
   }
   if (weights.empty() || (!info && (model.empty() || ins.empty()))) return usage_error("missing arguments");
-  if (!info && model != "cnode" && model != "gru" && model != "sgru") return usage_error("--model must be cnode, gru or sgru");
+  if ((!info || !model.empty()) && model != "cnode" && model != "gru" && model != "sgru") {
+    return usage_error("--model must be cnode, gru or sgru");
+  }
   std::string error;
   for (const std::string* o : {&out, &timings}) {
     for (const std::string& one : ins) {
@@ -325,7 +347,9 @@ int main(int argc, char** argv) {
   if (wf.load(weights, &error) != fwref::Status::kOk) return fail(error);
   fwref::OnboardRecord rec;
   if (fwref::read_onboard(wf, &rec, &error) != fwref::Status::kOk) return fail(error);
-  if (info) return print_info(rec), 0;
+  bool from_table = false;  // the bound model's policy (alarm.models), else the record's single one
+  if (!model.empty()) rec.params.alarm = fwref::policy_for(rec, model_code(model), &from_table);
+  if (info) return print_info(rec, from_table), 0;
   static Bound m;  // the sgru state and the bound structs: not on the stack
   if (!bind_stream_model(wf, model, int8, &m, &error)) return fail(error);
   if ((model != "sgru" && m.window_len != rec.params.window) || m.channels != rec.params.channels) {

@@ -24,7 +24,19 @@ struct OnboardRecord {
   // record was written before that tensor (the mask is then every class: rule 4 alone). The bound
   // model's K must equal it when it is not 0.
   int rotor_classes = 0;
+  // The record's alarm.models: one policy per network (model code kModelCnode / kModelGru / kModelSgru;
+  // threshold, k, n, clear_m, latch; healthy, classes and rotor_mask are params.alarm's). Empty in a
+  // record written before the table: every model runs params.alarm.
+  struct ModelPolicy {
+    std::uint32_t model;
+    AlarmParams alarm;
+  };
+  std::vector<ModelPolicy> model_policies;
 };
+
+// The policy of the model ``model`` (container.hpp's model code): its alarm.models row, else the
+// record's single policy (params.alarm); ``*from_table`` (if given) says which.
+AlarmParams policy_for(const OnboardRecord& r, std::uint32_t model, bool* from_table = nullptr);
 
 // kMissingSection: a weights.bin written before the record (re-run `quadfdi export`); kBadShape /
 // kDimsInvalid: a record this build cannot run. ``*error`` is one line naming the file.
