@@ -30,7 +30,9 @@ import numpy as np
 THERMAL_SPAWN = 6  # spawn_key (6, i): flight i's ESC thermal draws (1..5 are taken; 5: sim.esc_telemetry)
 RHO_AIR = 1.225  # kg/m^3
 PROP_R_M = 0.127  # m: the suite's 10" prop (sim.realistic_params.PROP_R_M)
-C_J_PER_K = (4.0, 20.0)  # board heat capacity: 30 A ESC in heat-shrink ~5 g .. 6S 40-60 A ESC with a heat sink ~20 g
+# the node the sensor sits on: a small ESC's MCU/FET corner (~2 g, the 6S tip-over flight's 15-20 s time
+# constant) .. a 6S 40-60 A ESC with a heat sink (~20 g, the UAVCAN mission's slow rise); docs/params.md
+C_J_PER_K = (2.0, 20.0)
 R_OHM = (0.010, 0.030)  # conduction loss per input-current squared (2 x R_ds(on) 2-5 mOhm + copper, over duty^2)
 R_SPREAD = 0.10  # +- per ESC: MOSFET R_ds(on) tolerance
 S_SW = (1.0e-3, 4.0e-3)  # switching loss per input power: (t_r + t_f) f_pwm / (2 duty), 50-150 ns at 24-48 kHz
@@ -38,7 +40,7 @@ I_Q_A = (0.010, 0.030)  # logic + gate driver supply current drawn from the bus 
 G_STILL = (0.020, 0.050)  # W/K: natural convection of a 15-25 cm^2 board (h ~ 10-15 W/m^2/K) + leads
 G_FLOW = (0.020, 0.080)  # W/K per sqrt(m/s): flat-plate forced convection (0.03 bare board, x2-3 heat sink)
 G_SPREAD = 0.20  # +- per ESC: where on the arm it sits in the wash (as the motors' cooling spread)
-PRE_S = (20.0, 60.0)  # s armed, taking off and climbing before the simulated flight's t = 0
+PRE_S = (5.0, 30.0)  # s armed, taking off and climbing before the simulated flight's t = 0
 OFFSET_C = 1.0  # +- per ESC: uncalibrated sensor (MCU die sensor, +-1-2 degC after factory trim)
 STEP_C = 1.0  # degC per telemetry unit (BLHeli_32 / KISS telemetry byte)
 NAMES = ("esc_temp1", "esc_temp2", "esc_temp3", "esc_temp4")
