@@ -152,3 +152,22 @@ def test_detect_inputs_read_esc_channels_and_refuse_a_flight_without(tmp_path):
     np.testing.assert_array_equal(fi.x, pe["telemetry"][1])
     with pytest.raises(QuadfdiError, match="needs channel 'rpm1', which is absent: not simulated"):
         flight_inputs(flight_arrays(_dataset(tmp_path, False).arrays, 1, "d.npz"), "flightlog-esc", 20, 10)
+
+
+def test_detect_refuses_a_flight_whose_escs_report_no_temperature(tmp_path):
+    """rpm and current but no temperature (ingest: "absent: ESC reports no temperature (always 0)"):
+    flightlog-esc refuses it in one line naming the channel."""
+    from core.errors import QuadfdiError
+    from detect.inputs import flight_inputs
+    from sim.flight_npz import flight_arrays
+
+    arrays = flight_arrays(_dataset(tmp_path, True).arrays, 1, "d.npz")
+    names = list(arrays["channel_names"])
+    status = arrays["channel_status"].astype(object)
+    for k in range(1, 5):
+        j = names.index(f"esc_temp{k}")
+        status[j] = "absent: ESC reports no temperature (always 0)"
+        arrays["mask"][:, j], arrays["telemetry"][:, j] = False, np.nan
+    arrays["channel_status"] = np.array(list(status))
+    with pytest.raises(QuadfdiError, match="needs channel 'esc_temp1', which is absent: ESC reports no temperature"):
+        flight_inputs(arrays, "flightlog-esc", 20, 10)
