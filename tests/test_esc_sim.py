@@ -68,3 +68,18 @@ def test_warm_start_and_a_busier_esc_in_flight():
                              {"t_amb": np.array([10.0]), "wind_ms": np.array([0.0]), "wind_dir": np.array([0.0])}, d, 0.02)
     end = np.array([out[f"esc_temp{k}"][-1, 0] for k in range(1, 5)])
     assert end.argmax() == 2 and end[2] > end[0] and out["esc_temp1"][0, 0] >= 10.0
+
+
+def test_a_cut_blade_heats_its_esc_more():
+    """A cut blade's rotor draws more current for the same thrust (sim.esc_telemetry.esc_current), so its
+    ESC loses more and settles warmer; the same conductance (same thrust, same wash)."""
+    from sim.esc_telemetry import esc_current
+
+    d = _draws(1)
+    d["R"][:], d["G_flow"][:] = 0.02, 0.05
+    F, V = np.full((1, 1, 4), 4.0), np.full((1, 1), 15.0)
+    cut = np.array([[[0.0, 0.0, 0.3, 0.0]]])
+    I = esc_current(F, cut, V)
+    assert I[0, 0, 2] > 1.1 * I[0, 0, 0]
+    rise = E.losses(I, V, d) / E.conductance(F, np.zeros((1, 1)), d)  # steady state above ambient
+    assert rise[0, 0, 2] > rise[0, 0, 0]
