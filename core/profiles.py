@@ -14,8 +14,9 @@ flights) and ``detect`` (ingested real flights); the profile's name is stored in
 - ``flightlog-esc``: ``flightlog-min`` plus ESC telemetry: each ESC's rpm and each ESC's current over
   the four ESCs' collective of the same sample (``(((a1 + a2) + a3) + a4) * 0.25``): a per-motor
   share, no vehicle scale, no state, and no calibration between the ESCs' current sensing and the
-  battery monitor (on the UAVCAN mission the ESC currents sum to 0.53 of I_b). No ESC temperature
-  (docs/profiles.md says why).
+  battery monitor (on the UAVCAN mission the ESC currents sum to 0.53 of I_b); and each ESC's
+  temperature MINUS the four's collective of the same sample (K): no ambient, no common heating,
+  no state (docs/profiles.md says why not "relative to ambient").
 
 Raw names are the simulator's (sim/telemetry.py); an ingested flight's ``vib_acc`` is mapped to
 ``vib_px4`` only when the log is a PX4 log (``raw_from_flight``, detect/).
@@ -62,11 +63,14 @@ ESC_CHANNELS = MIN_CHANNELS + (
                      f"rpm{k} / ((((rpm1 + rpm2) + rpm3) + rpm4) * 0.25)") for k in range(1, 5)),
     *(ProfileChannel(f"esc{k}_i_rel", "-", ("esc_cur1", "esc_cur2", "esc_cur3", "esc_cur4"),
                      f"esc_cur{k} / ((((esc_cur1 + esc_cur2) + esc_cur3) + esc_cur4) * 0.25)") for k in range(1, 5)),
+    *(ProfileChannel(f"esc{k}_t_rel", "K", ("esc_temp1", "esc_temp2", "esc_temp3", "esc_temp4"),
+                     f"esc_temp{k} - ((((esc_temp1 + esc_temp2) + esc_temp3) + esc_temp4) * 0.25)") for k in range(1, 5)),
 )
 PROFILES = {"paper": None, "flightlog-min": MIN_CHANNELS, "flightlog-nocur": NOCUR_CHANNELS,
             "flightlog-esc": ESC_CHANNELS}
 VIBRATION = {"flightlog-min": "px4", "flightlog-nocur": "px4", "flightlog-esc": "px4"}  # which vibration quantity
-ESC_RAW = ("rpm1", "rpm2", "rpm3", "rpm4", "esc_cur1", "esc_cur2", "esc_cur3", "esc_cur4")  # sim.esc_telemetry's
+ESC_RAW = ("rpm1", "rpm2", "rpm3", "rpm4", "esc_cur1", "esc_cur2", "esc_cur3", "esc_cur4",
+           "esc_temp1", "esc_temp2", "esc_temp3", "esc_temp4")  # sim.esc_telemetry's
 
 
 def check_profile(name: str) -> None:
@@ -133,4 +137,9 @@ def apply_profile(name: str, raw: dict[str, np.ndarray], cells, hover_cmd, hover
             with np.errstate(divide="ignore", invalid="ignore"):  # motors stopped: NaN / inf, an undecided window
                 for k in range(1, 5):
                     values[out.format(k)] = a[k - 1] / collective
+    if "esc_temp1" in f32:  # each ESC above (or below) the four's common temperature: a difference, never undefined
+        a = [f32[f"esc_temp{k}"] for k in range(1, 5)]
+        collective = (((a[0] + a[1]) + a[2]) + a[3]) * np.float32(0.25)
+        for k in range(1, 5):
+            values[f"esc{k}_t_rel"] = a[k - 1] - collective
     return np.stack([values[ch.name] for ch in spec], axis=-1).astype(np.float32)

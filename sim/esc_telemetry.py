@@ -15,9 +15,9 @@ From the 50 Hz record (docs/params.md "ESC telemetry"):
   per-ESC gain error (uncalibrated shunt/hall sensing, +-ESC_CUR_GAIN uniform) plus white noise
   (ESC_CUR_NOISE_A), quantised to 0.01 A (the telemetry unit).
 
-No ESC temperature: the model has no ESC thermal state (the motor winding temperature T1-4 is
-another quantity), and a first-order ESC model would need a MOSFET loss and cooling the suite does
-not draw (the UAVCAN mission, the 6S vibration flight and the SITL log do report ESC temperatures).
+- ``esc_temp_k``: the ESC board temperature of sim.esc_thermal (a first-order node per ESC heated by
+  the current above, cooled to the flight's ambient through the prop wash), 1 degC units. It is not
+  the motor winding temperature T1-4 (another quantity, sim.thermal).
 
 Random numbers come from a NEW stream per flight, ``SeedSequence(seed, spawn_key=(ESC_SPAWN, i))``:
 no earlier draw moves, so every existing array of a dataset stays bit-identical (tests/test_esc_sim.py).
@@ -31,8 +31,9 @@ from sim import propeller
 from sim import realistic_params as P
 
 ESC_SPAWN = 5  # spawn_key (5, i): flight i's ESC telemetry noise (1..4 are taken: sim.draws, variability, telemetry)
-ESC_CHANNEL_NAMES = ("rpm1", "rpm2", "rpm3", "rpm4", "esc_cur1", "esc_cur2", "esc_cur3", "esc_cur4")
-ESC_CHANNEL_UNITS = ("rpm",) * 4 + ("A",) * 4
+ESC_CHANNEL_NAMES = ("rpm1", "rpm2", "rpm3", "rpm4", "esc_cur1", "esc_cur2", "esc_cur3", "esc_cur4",
+                     "esc_temp1", "esc_temp2", "esc_temp3", "esc_temp4")
+ESC_CHANNEL_UNITS = ("rpm",) * 4 + ("A",) * 4 + ("degC",) * 4
 ESC_RATE_OF = {n: "esc" for n in ESC_CHANNEL_NAMES}  # sim.realistic_params.LOG_HZ["esc"]: 5 Hz
 POLE_PAIRS = 7  # 14-pole outrunner (2212 / 2216 class)
 ERPM_STEP = 100.0  # eRPM per telemetry unit (BLHeli_32 / KISS ESC telemetry frame)
@@ -65,11 +66,13 @@ def esc_current(F: np.ndarray, cut: np.ndarray, V: np.ndarray) -> np.ndarray:
 
 
 def esc_series(F: np.ndarray, cut: np.ndarray, V: np.ndarray, white: np.ndarray,
-               gain: np.ndarray) -> dict[str, np.ndarray]:
-    """The ESC channels at the 50 Hz record, name -> (n_rec, B): F (n_rec, B, 4) produced thrust, cut
-    (n_rec, B, 4), V (n_rec, B) bus voltage, noise from ``esc_noise``."""
+               gain: np.ndarray, true_cur: np.ndarray | None = None) -> dict[str, np.ndarray]:
+    """The rpm and current channels at the 50 Hz record, name -> (n_rec, B): F (n_rec, B, 4) produced
+    thrust, cut (n_rec, B, 4), V (n_rec, B) bus voltage, noise from ``esc_noise``; ``true_cur``:
+    ``esc_current(F, cut, V)`` if the caller has it."""
     rpm = rpm_of(F, cut)
-    cur = esc_current(F, cut, V) * gain[None] + ESC_CUR_NOISE_A * white
+    true_cur = esc_current(F, cut, V) if true_cur is None else true_cur
+    cur = true_cur * gain[None] + ESC_CUR_NOISE_A * white
     cur = np.round(cur / ESC_CUR_STEP_A) * ESC_CUR_STEP_A
     out = {f"rpm{k + 1}": rpm[..., k] for k in range(4)}
     out.update({f"esc_cur{k + 1}": cur[..., k] for k in range(4)})

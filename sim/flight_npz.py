@@ -4,9 +4,10 @@
     python -m sim.flight_npz DATASET.npz INDEX OUT/flight.npz
 
 Every ingest channel the dataset has is copied from ``telemetry`` or ``esc_telemetry`` (the realistic
-suite's ESC channels, sim.esc_telemetry) with a full mask; ``vib_acc`` is the PX4 metric ``vib_px4``
-(``autopilot`` "px4", the quantity the flightlog profiles read); the others (ESC temperatures, and
-the ESC channels of a dataset without them) are absent, fully masked, with that reason. The flight
+suite's ESC rpm, current and temperature, sim.esc_telemetry) with a full mask; ``vib_acc`` is the PX4
+metric ``vib_px4`` (``autopilot`` "px4", the quantity the flightlog profiles read); the others (the
+ESC channels of a dataset without them, ESC temperatures of one made before sim.esc_thermal) are
+absent, fully masked, with that reason. The flight
 is airborne throughout (every simulated flight starts in the air); the vehicle is a quadrotor with
 the dataset's ``pack_cells``. ``log_sha256`` is the sha256 of the flight's float32 telemetry.
 """

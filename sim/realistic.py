@@ -18,7 +18,7 @@ import numpy as np
 
 from core.config import SimConfig
 from core.errors import QuadfdiError
-from sim import esc_telemetry, mission, propeller, sensors, telemetry
+from sim import esc_telemetry, esc_thermal, mission, propeller, sensors, telemetry
 from sim import realistic_dynamics as rd
 from sim import realistic_faults as rf
 from sim import realistic_loop as rl
@@ -76,13 +76,19 @@ def _series(rec: rl.Record, fp: rf.FaultPlan, draws: list[dict], veh, noise: np.
     return out
 
 
-def _esc(rec: rl.Record, fp: rf.FaultPlan, seed: int, idx: np.ndarray, t_rec: np.ndarray,
+def _esc(rec: rl.Record, fp: rf.FaultPlan, draws: list[dict], seed: int, idx: np.ndarray, t_rec: np.ndarray,
          time: np.ndarray) -> np.ndarray:
-    """ESC telemetry (sim.esc_telemetry) on the grid, (B, T, 8): its own noise stream, after everything else."""
+    """ESC telemetry (sim.esc_telemetry, sim.esc_thermal) on the grid, (B, T, 12): their own noise and
+    draw streams, after everything else."""
     s = rf.physical_severity(fp, t_rec)
     cut = propeller.cut_of_severity(s * fp.kind[:, 4])[..., None] * fp.onehot
     white, gain = esc_telemetry.esc_noise(seed, idx, len(t_rec))
-    series = esc_telemetry.esc_series(rec.x[..., 17:21].astype(np.float64), cut, rec.V.astype(np.float64), white, gain)
+    F, V = rec.x[..., 17:21].astype(np.float64), rec.V.astype(np.float64)
+    I = esc_telemetry.esc_current(F, cut, V)
+    series = esc_telemetry.esc_series(F, cut, V, white, gain, I)
+    flight = stack(draws, ("t_amb", "wind_ms", "wind_dir"))
+    series.update(esc_thermal.esc_temperatures(F, I, V, rec.x[..., 3:6].astype(np.float64), flight,
+                                               esc_thermal.draw(seed, idx), float(t_rec[1] - t_rec[0])))
     return telemetry.to_grid(series, time, esc_telemetry.ESC_CHANNEL_NAMES, esc_telemetry.ESC_RATE_OF)
 
 
@@ -104,7 +110,7 @@ def _chunk(cfg: SimConfig, idx: np.ndarray, cls: np.ndarray, split: np.ndarray, 
     t_rec = np.arange(rec.x.shape[0]) * dt_rec
     noise = telemetry.sensor_noise(cfg.seed, idx, rec.x.shape[0])
     tel = telemetry.to_grid(_series(rec, fp, draws, veh, noise, t_rec, dt_rec), time)
-    esc = _esc(rec, fp, cfg.seed, idx, t_rec, time)
+    esc = _esc(rec, fp, draws, cfg.seed, idx, t_rec, time)
     if not (np.isfinite(tel).all() and np.isfinite(esc).all()):
         raise QuadfdiError("sim: a logged channel does not cover the telemetry grid (resampler mask)")
     sev = rf.label_severity(fp, time).T  # (B, T)

@@ -31,23 +31,30 @@ def _raw(t: int, seed: int = 0) -> dict[str, np.ndarray]:
         raw[f"thr{k}"] = rng.uniform(0.2, 0.9, t).astype(np.float32)
         raw[f"rpm{k}"] = np.round(rng.uniform(3000.0, 12000.0, t) / (100 / 7)).astype(np.float32) * np.float32(100 / 7)
         raw[f"esc_cur{k}"] = rng.uniform(-0.1, 12.0, t).astype(np.float32)
+        raw[f"esc_temp{k}"] = np.round(rng.uniform(-10.0, 90.0, t)).astype(np.float32)  # whole degC, as reported
+    raw["esc_temp2"][::3] += np.float32(0.25)  # UAVCAN's float16 kelvin steps too
     return raw
 
 
-def test_flightlog_esc_is_flightlog_min_plus_rpm_shares_and_esc_currents():
+def test_flightlog_esc_is_flightlog_min_plus_rpm_shares_esc_currents_and_temperatures():
     names = channel_names("flightlog-esc", [])
-    assert names[:15] == channel_names("flightlog-min", []) and len(names) == 23
+    assert names[:15] == channel_names("flightlog-min", []) and len(names) == 27
     assert set(ESC_RAW) <= set(required_raw("flightlog-esc")) and not {"T1", "SoC", "x"} & set(required_raw("flightlog-esc"))
     raw = _raw(50)
     raw["rpm1"][:], raw["rpm2"][:], raw["rpm3"][:], raw["rpm4"][:] = 6000.0, 5000.0, 5000.0, 4000.0
     raw["esc_cur1"][:], raw["esc_cur2"][:], raw["esc_cur3"][:], raw["esc_cur4"][:] = 3.0, 3.0, 6.0, 4.0
+    raw["esc_temp1"][:], raw["esc_temp2"][:], raw["esc_temp3"][:], raw["esc_temp4"][:] = 30.0, 31.0, 35.0, 28.0
     x = apply_profile("flightlog-esc", raw, cells=4, hover_cmd=0.5, hover_cur=12.0)
     col = {n: x[:, names.index(n)] for n in names}
     np.testing.assert_array_equal(x[:, :15], apply_profile("flightlog-min", raw, 4, 0.5, 12.0))
     np.testing.assert_allclose([col[f"rpm{k}_rel"][0] for k in range(1, 5)], [1.2, 1.0, 1.0, 0.8], rtol=1e-6)
     np.testing.assert_allclose([col[f"esc{k}_i_rel"][0] for k in range(1, 5)], [0.75, 0.75, 1.5, 1.0], rtol=1e-6)
+    np.testing.assert_array_equal([col[f"esc{k}_t_rel"][0] for k in range(1, 5)], [-1.0, 0.0, 4.0, -3.0])
     # no battery-monitor scale: the ESC shares do not move with the hover current
     np.testing.assert_array_equal(x[:, 19:], apply_profile("flightlog-esc", raw, 4, 0.5, 30.0)[:, 19:])
+    # no ambient: the same ESCs 25 K warmer (a hot day, a long flight's common heating) read the same
+    warm = {**raw, **{f"esc_temp{k}": raw[f"esc_temp{k}"] + np.float32(25.0) for k in range(1, 5)}}
+    np.testing.assert_array_equal(x, apply_profile("flightlog-esc", warm, 4, 0.5, 12.0))
     raw["rpm1"][0] = raw["rpm2"][0] = raw["rpm3"][0] = raw["rpm4"][0] = 0.0  # motors stopped: undefined, not 0
     assert not np.isfinite(apply_profile("flightlog-esc", raw, 4, 0.5, 12.0)[0, 15:19]).any()
 
@@ -64,7 +71,7 @@ def _dataset(tmp_path, with_esc: bool) -> Dataset:
               "pack_cells": np.array([3, 6], np.int8), "time": np.arange(t) * 0.04}
     if with_esc:
         arrays.update(esc_telemetry=np.stack([np.stack([r[k] for k in ESC_RAW], 1) for r in raws]),
-                      esc_channel_names=np.array(ESC_RAW), esc_channel_units=np.array(["rpm"] * 4 + ["A"] * 4))
+                      esc_channel_names=np.array(ESC_RAW), esc_channel_units=np.array(["rpm"] * 4 + ["A"] * 4 + ["degC"] * 4))
     return Dataset(tmp_path / "d.npz", arrays, cfg)
 
 
@@ -77,7 +84,7 @@ def test_the_esc_key_changes_no_other_profiles_inputs(tmp_path):
     for key in ("telemetry", "hover_cmd", "hover_cur", "hover_freeze"):
         np.testing.assert_array_equal(profiled_dataset(esc, "flightlog-min")[key], profiled_dataset(plain, "flightlog-min")[key])
     pe = profiled_dataset(esc, "flightlog-esc")
-    assert pe.channel_names == channel_names("flightlog-esc", []) and pe["telemetry"].shape == (2, 120, 23)
+    assert pe.channel_names == channel_names("flightlog-esc", []) and pe["telemetry"].shape == (2, 120, 27)
     np.testing.assert_array_equal(pe["telemetry"][..., :15], profiled_dataset(plain, "flightlog-min")["telemetry"])
     with pytest.raises(Exception, match="needs raw channels rpm1"):
         profiled_dataset(plain, "flightlog-esc")
@@ -88,7 +95,7 @@ MIRROR = r"""
 #include <cstdlib>
 #include <vector>
 #include "fwref/profile.hpp"
-int main(int argc, char** argv) {  // in: n x 25 raw float32; cells hover_cmd hover_cur as argv; out: n x 23
+int main(int argc, char** argv) {  // in: n x 29 raw float32; cells hover_cmd hover_cur as argv; out: n x 27
   const float cells = std::strtof(argv[3], nullptr), cmd = std::strtof(argv[4], nullptr), cur = std::strtof(argv[5], nullptr);
   const fwref::ProfileSpec& s = fwref::profile_spec(fwref::Profile::kFlightlogEsc);
   FILE* f = std::fopen(argv[1], "rb");
@@ -108,7 +115,8 @@ int main(int argc, char** argv) {  // in: n x 25 raw float32; cells hover_cmd ho
 
 @pytest.mark.skipif(shutil.which("c++") is None, reason="no C++ compiler")
 def test_cpp_mirror_is_bit_identical(tmp_path):
-    """profile.hpp's prep + hover steps on 4000 random samples (every yaw, zero-rpm and zero-current rows) give
+    """profile.hpp's prep + hover steps on 4000 random samples (every yaw, zero-rpm and zero-current rows,
+    whole-degree and quarter-kelvin ESC temperatures from -10 to 90 degC) give
     apply_profile's float32 bits, NaN where Python has NaN."""
     src, exe = tmp_path / "m.cpp", tmp_path / "m"
     src.write_text(MIRROR)
@@ -123,9 +131,9 @@ def test_cpp_mirror_is_bit_identical(tmp_path):
     np.stack([raw[k] for k in STREAM], 1).astype("<f4").tofile(tmp_path / "raw.f32")
     subprocess.run([str(exe), str(tmp_path / "raw.f32"), str(tmp_path / "x.f32"), str(cells), repr(float(cmd)),
                     repr(float(cur))], check=True)
-    got = np.fromfile(tmp_path / "x.f32", "<f4").reshape(4000, 23)
+    got = np.fromfile(tmp_path / "x.f32", "<f4").reshape(4000, 27)
     want = apply_profile("flightlog-esc", raw, cells, cmd, cur)
-    assert np.isnan(want[:20, 15:19]).all() and np.isnan(want[10:30, 19:]).all()
+    assert np.isnan(want[:20, 15:19]).all() and np.isnan(want[10:30, 19:23]).all() and np.isfinite(want[:, 23:]).all()
     np.testing.assert_array_equal(got.view(np.uint32)[np.isfinite(want)], want.view(np.uint32)[np.isfinite(want)])
     assert (np.isfinite(got) == np.isfinite(want)).all()
 
@@ -144,3 +152,22 @@ def test_detect_inputs_read_esc_channels_and_refuse_a_flight_without(tmp_path):
     np.testing.assert_array_equal(fi.x, pe["telemetry"][1])
     with pytest.raises(QuadfdiError, match="needs channel 'rpm1', which is absent: not simulated"):
         flight_inputs(flight_arrays(_dataset(tmp_path, False).arrays, 1, "d.npz"), "flightlog-esc", 20, 10)
+
+
+def test_detect_refuses_a_flight_whose_escs_report_no_temperature(tmp_path):
+    """rpm and current but no temperature (ingest: "absent: ESC reports no temperature (always 0)"):
+    flightlog-esc refuses it in one line naming the channel."""
+    from core.errors import QuadfdiError
+    from detect.inputs import flight_inputs
+    from sim.flight_npz import flight_arrays
+
+    arrays = flight_arrays(_dataset(tmp_path, True).arrays, 1, "d.npz")
+    names = list(arrays["channel_names"])
+    status = arrays["channel_status"].astype(object)
+    for k in range(1, 5):
+        j = names.index(f"esc_temp{k}")
+        status[j] = "absent: ESC reports no temperature (always 0)"
+        arrays["mask"][:, j], arrays["telemetry"][:, j] = False, np.nan
+    arrays["channel_status"] = np.array(list(status))
+    with pytest.raises(QuadfdiError, match="needs channel 'esc_temp1', which is absent: ESC reports no temperature"):
+        flight_inputs(arrays, "flightlog-esc", 20, 10)

@@ -129,8 +129,30 @@ def test_esc_channels_change_no_earlier_array(ds):
             a = np.ascontiguousarray(ds[k])
             h.update(k.encode()), h.update(str(a.dtype).encode()), h.update(a.tobytes())
     assert h.hexdigest() == PRE_ESC_SHA256
-    assert list(ds["esc_channel_names"]) == [f"rpm{k}" for k in range(1, 5)] + [f"esc_cur{k}" for k in range(1, 5)]
-    assert ds["esc_telemetry"].shape == ds["telemetry"].shape[:2] + (8,) and np.isfinite(ds["esc_telemetry"]).all()
+    assert list(ds["esc_channel_names"]) == [f"rpm{k}" for k in range(1, 5)] + [f"esc_cur{k}" for k in range(1, 5)] \
+        + [f"esc_temp{k}" for k in range(1, 5)]
+    assert ds["esc_telemetry"].shape == ds["telemetry"].shape[:2] + (12,) and np.isfinite(ds["esc_telemetry"]).all()
+
+
+# the rpm and current columns of esc_telemetry (its first 8): computed with main at 89a6b5e (before the
+# ESC temperature columns existed) and with the code that added them: equal, so the temperatures' own
+# stream (sim.esc_thermal, spawn key 6) moved none of them.
+ESC_RPM_CUR_SHA256 = "a9a2bf6aeee02ba1b0b516b5a75602b6201f87ee13a3cc445633fdbe73854838"
+
+
+def test_esc_temperatures_move_no_rpm_or_current_column(ds):
+    import hashlib
+
+    a = np.ascontiguousarray(ds["esc_telemetry"][..., :8])
+    assert a.dtype == np.float32 and hashlib.sha256(a.tobytes()).hexdigest() == ESC_RPM_CUR_SHA256
+
+
+def test_esc_temperatures_sit_near_the_flights_ambient(ds):
+    """Every simulated ESC reads within its sensor offset (+-1 degC) and one telemetry unit below the
+    flight's ambient at worst, and a few kelvin above it (12 s flights, hover-class currents)."""
+    temp = ds["esc_telemetry"][..., 8:].astype(np.float64) - ds["t_amb"][:, None, None]
+    assert temp.min() >= -1.5 and temp.max() < 15.0, (temp.min(), temp.max())
+    assert np.median(temp) > 0.0  # they run above ambient
 
 
 def test_esc_telemetry_physics(ds):
@@ -141,7 +163,7 @@ def test_esc_telemetry_physics(ds):
     names = list(ds["channel_names"])
     esc, tel = ds["esc_telemetry"].astype(np.float64), ds["telemetry"].astype(np.float64)
     want = (tel[..., names.index("I_b")] - NOMINAL.P_av / tel[..., names.index("V_b")]).mean(axis=1)
-    got = esc[..., 4:].sum(axis=2).mean(axis=1)
+    got = esc[..., 4:8].sum(axis=2).mean(axis=1)
     assert np.all(np.abs(got / want - 1.0) < 0.08), np.abs(got / want - 1.0).max()
     rpm = esc[..., :4]
     assert 2000 < np.median(rpm) < 12000

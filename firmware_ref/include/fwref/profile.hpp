@@ -5,11 +5,12 @@
 // this order for the profiles with a hover estimate (``airborne`` 0/1 last):
 //   flightlog-min:   roll pitch p q r vx vy yaw vz V_b I_b thr1 thr2 thr3 thr4 vib_px4 airborne
 //   flightlog-nocur: roll pitch p q r vx vy yaw vz V_b     thr1 thr2 thr3 thr4 vib_px4 airborne
-//   flightlog-esc:   flightlog-min's, then rpm1..rpm4 esc_cur1..esc_cur4 before airborne
+//   flightlog-esc:   flightlog-min's, then rpm1..rpm4 esc_cur1..esc_cur4 esc_temp1..esc_temp4 before airborne
 // and the model's own channels for ``paper`` (the identity). The model channels, as Python:
 //   roll pitch p q r | vx_h = c vx + s vy | vy_h = -s vx + c vy | vz | v_cell = V_b / cells |
 //   i_rel = I_b / hover_cur (min, esc) | m1..4_rel = thr / hover_cmd | vib = vib_px4 |
-//   (esc only) rpmk_rel = rpmk / ((((rpm1 + rpm2) + rpm3) + rpm4) * 0.25f), esck_i_rel likewise over esc_cur1..4
+//   (esc only) rpmk_rel = rpmk / ((((rpm1 + rpm2) + rpm3) + rpm4) * 0.25f), esck_i_rel likewise over esc_cur1..4,
+//   esck_t_rel = esc_tempk - ((((esc_temp1 + esc_temp2) + esc_temp3) + esc_temp4) * 0.25f)
 // with c = float(cos(double(yaw))), s = float(sin(double(yaw))) (libm, correctly rounded; core/profiles.py
 // does the same), every other operation one float32 operation. ``prep`` computes a sample's values
 // that do not depend on the hover estimate (at push); ``hover`` divides the hover columns once the
@@ -32,7 +33,7 @@ struct ProfileSpec {
   const char* const* model_names;
   int i_b;          // raw column of the current (-1: none)
   int thr;          // raw column of thr1 (thr1..thr4 follow)
-  int rpm;          // raw column of rpm1 (rpm1..4, then esc_cur1..4 follow; -1: none)
+  int rpm;          // raw column of rpm1 (rpm1..4, then esc_cur1..4, then esc_temp1..4 follow; -1: none)
 };
 
 namespace profile_tables {
@@ -47,16 +48,17 @@ constexpr const char* kNocurModel[] = {"roll", "pitch", "p", "q", "r", "vx_h", "
 constexpr const char* kEscRaw[] = {"roll", "pitch", "p", "q", "r", "vx", "vy", "yaw", "vz",
                                    "V_b", "I_b", "thr1", "thr2", "thr3", "thr4", "vib_px4",
                                    "rpm1", "rpm2", "rpm3", "rpm4", "esc_cur1", "esc_cur2", "esc_cur3", "esc_cur4",
-                                   "airborne"};
+                                   "esc_temp1", "esc_temp2", "esc_temp3", "esc_temp4", "airborne"};
 constexpr const char* kEscModel[] = {"roll", "pitch", "p", "q", "r", "vx_h", "vy_h", "vz", "v_cell",
                                      "i_rel", "m1_rel", "m2_rel", "m3_rel", "m4_rel", "vib",
                                      "rpm1_rel", "rpm2_rel", "rpm3_rel", "rpm4_rel",
-                                     "esc1_i_rel", "esc2_i_rel", "esc3_i_rel", "esc4_i_rel"};
+                                     "esc1_i_rel", "esc2_i_rel", "esc3_i_rel", "esc4_i_rel",
+                                     "esc1_t_rel", "esc2_t_rel", "esc3_t_rel", "esc4_t_rel"};
 constexpr ProfileSpec kSpecs[kProfileCount] = {
     {"paper", 0, 0, nullptr, nullptr, -1, -1, -1},
     {"flightlog-min", 17, 15, kMinRaw, kMinModel, 10, 11, -1},
     {"flightlog-nocur", 16, 14, kNocurRaw, kNocurModel, -1, 10, -1},
-    {"flightlog-esc", 25, 23, kEscRaw, kEscModel, 10, 11, 16},
+    {"flightlog-esc", 29, 27, kEscRaw, kEscModel, 10, 11, 16},
 };
 }  // namespace profile_tables
 
@@ -101,6 +103,9 @@ inline void profile_prep(Profile p, const float* raw, int raw_n, float cells, fl
       const float collective = (((a[0] + a[1]) + a[2]) + a[3]) * 0.25f;
       for (int k = 0; k < 4; ++k) x[j++] = a[k] / collective;
     }
+    const float* t = raw + s.rpm + 8;  // esc_temp1..4: each minus the four's collective of this sample
+    const float common = (((t[0] + t[1]) + t[2]) + t[3]) * 0.25f;
+    for (int k = 0; k < 4; ++k) x[j++] = t[k] - common;
   }
 }
 
