@@ -1,11 +1,12 @@
 """Which inputs make a model call a real flight faulty: `quadfdi detect`'s path with one channel group
 replaced, per export and group (an occlusion test; diagnostic, nothing written).
 
-    PYTHONPATH=. python scripts/real_occlusion.py FLIGHT --export NAME=EXPORT:NET [...] [--kind median|smooth]
+    PYTHONPATH=. python scripts/real_occlusion.py FLIGHT --export NAME=EXPORT:NET [...] [--kind median|smooth|zero]
 
 FLIGHT: a log or an ingested flight.npz. Each group's channels are replaced, on the decided samples,
 by the flight's own median (``median``: no level change within the flight, no jitter) or by a 1 s
-moving average (``smooth``: jitter removed, slow part kept). Printed per group and export: the
+moving average (``smooth``: jitter removed, slow part kept), or by 0 (``zero``: for the per-sample
+shares of flightlog-esc, ``esc*_t_rel`` = 0 is each ESC at the four's mean temperature). Printed per group and export: the
 alarms under the export's policy and the mean p(fault) = 1 - p(Healthy) over the decided windows.
 A group that a profile lacks (``i_rel`` in flightlog-nocur) is left out for that export.
 """
@@ -21,7 +22,8 @@ from detect import inputs as detect_inputs
 
 GROUPS = {"none": [], "attitude": ["roll", "pitch"], "rates": ["p", "q", "r"], "velocity": ["vx_h", "vy_h", "vz"],
           "v_cell": ["v_cell"], "i_rel": ["i_rel"], "motors": ["m1_rel", "m2_rel", "m3_rel", "m4_rel"],
-          "vib": ["vib"], "all but motors": ["roll", "pitch", "p", "q", "r", "vx_h", "vy_h", "vz", "v_cell", "i_rel", "vib"]}
+          "vib": ["vib"], "rpm": [f"rpm{k}_rel" for k in range(1, 5)], "esc_i": [f"esc{k}_i_rel" for k in range(1, 5)],
+          "esc_t": [f"esc{k}_t_rel" for k in range(1, 5)], "all but motors": ["roll", "pitch", "p", "q", "r", "vx_h", "vy_h", "vz", "v_cell", "i_rel", "vib"]}
 SMOOTH_SAMPLES = 25  # 1 s at 25 Hz
 
 
@@ -29,6 +31,8 @@ def replaced(v: np.ndarray, kind: str) -> np.ndarray:
     out, ok = v.copy(), np.isfinite(v)
     if kind == "median":
         out[ok] = np.median(v[ok])
+    elif kind == "zero":
+        out[ok] = 0.0
     else:
         box = np.ones(SMOOTH_SAMPLES)
         num = np.convolve(np.where(ok, v, 0.0), box, "same")
@@ -55,14 +59,15 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("flight")
     ap.add_argument("--export", action="append", required=True, help="NAME=EXPORT_DIR:NET")
-    ap.add_argument("--kind", choices=("median", "smooth"), default="median")
+    ap.add_argument("--kind", choices=("median", "smooth", "zero"), default="median")
     args = ap.parse_args()
     exports = []
     for spec in args.export:
         name, rest = spec.split("=", 1)
         folder, net = rest.rsplit(":", 1)
         exports.append((name, folder, net))
-    print(f"{args.flight}, each group replaced by {'its flight median' if args.kind == 'median' else 'a 1 s moving average'}\n")
+    how = {"median": "its flight median", "smooth": "a 1 s moving average", "zero": "0"}[args.kind]
+    print(f"{args.flight}, each group replaced by {how}\n")
     print("| group | " + " | ".join(name for name, _, _ in exports) + " |")
     print("|---|" + "---|" * len(exports))
     original = detect_run.flight_inputs
