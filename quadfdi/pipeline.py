@@ -80,7 +80,9 @@ def _evaluate(run: RunDir, cfg: Config) -> None:
 def _export(run: RunDir, cfg: Config) -> None:
     from export.run import export_run
 
-    export_run(run, cfg)
+    # the evaluate stage just chose each network's alarm policy on validation: the export carries those
+    chosen = (run.root / "evaluation" / "evaluation.json").is_file()
+    export_run(run, cfg, alarm_from="evaluation" if chosen else "config")
 
 
 def _parity(run: RunDir, cfg: Config) -> None:

@@ -50,6 +50,11 @@ def test_run_writes_every_stage_file_and_report_section(whole_run):
     assert "Not run" not in text
     stored = tomllib.loads((whole_run / "config.toml").read_text())  # the overrides are stored
     assert stored["bench"]["windows"] == 6 and stored["train"]["epochs"] == 1
+    chosen = json.loads((whole_run / "evaluation/evaluation.json").read_text())["models"]
+    per_net = json.loads((whole_run / "export/manifest.json").read_text())["alarm_per_model"]
+    for net in ("cnode", "gru"):  # the export carries the policy evaluate chose for each network
+        assert per_net[net]["source"].startswith("evaluation.json sha256 ")
+        assert per_net[net]["policy"] == chosen[net]["policy"]
 
 
 def test_readme_block_is_rewritten_from_the_run(whole_run, tmp_path):
