@@ -7,8 +7,9 @@
 //    their neighbouring floats), +-0, +-inf, quiet and signalling NaNs of both signs, denormals, and
 //    every N-th float32 bit pattern (default 4099: about a million floats of every exponent). A
 //    float's 8-lane vector and its scalar tail are both exercised (arrays of 8k + 5 values).
-// 2. matvec_f32 / matvec_bias_f32 (gemv_f32_fma on an AVX2 host) on random matrices of every column
-//    count from 1 to 140 and row counts 1..17: bit for bit against a scalar statement of the kernel's
+// 2. matvec_f32 / matvec_bias_f32 on random matrices of every column count from 1 to 140 and row
+//    counts 1..17, for each kernel the CPU runs (gemv_f32_fma on an AVX2 host, gemv_f32_avx512 too on
+//    an AVX-512F one, each selected in turn): bit for bit against a scalar statement of that kernel's
 //    summation order, and against a double-precision sum within the order's rounding-error bound.
 // 3. all_finite_n against all_finite_f32 (one inf / NaN at every position of short windows).
 // 4. the int8 vector math (fwref/vmath_i8.hpp) against numerics.hpp's scalar expressions: quantize
@@ -72,26 +73,37 @@ long compare(const std::vector<float>& in, Vec vec, Scalar scalar) {
 }
 
 #if defined(FWREF_GEMV_FMA)
-// The order gemv_f32_fma promises (fwref/vmath_f32.hpp), stated one scalar operation at a time.
-float gemv_row_order(const float* w, int cols, const float* x) {
-  float a[8] = {0, 0, 0, 0, 0, 0, 0, 0};
-  for (int j = 0; j < 8 && j < cols; ++j) a[j] = cols >= 8 ? w[j] * x[j] : std::fma(w[j], x[j], 0.0f);
-  for (int i = 8; i < cols; ++i) a[i % 8] = std::fma(w[i], x[i], a[i % 8]);
-  return ((a[0] + a[1]) + (a[2] + a[3])) + ((a[4] + a[5]) + (a[6] + a[7]));
+// The order the host's gemv kernels promise (fwref/vmath_f32.hpp: 8 lanes, adjacent pairs folded;
+// fwref/kernels_f32_avx512.hpp: 16 lanes, halves folded), stated one scalar operation at a time. The
+// masked tail's lanes past cols meet fma(0, 0, a) as in the kernels.
+float gemv_row_order(const float* w, int cols, const float* x, int lanes) {
+  float a[16] = {};
+  for (int j = 0; j < lanes && j < cols; ++j) a[j] = cols >= lanes ? w[j] * x[j] : std::fma(w[j], x[j], 0.0f);
+  for (int i = lanes; i < cols; ++i) a[i % lanes] = std::fma(w[i], x[i], a[i % lanes]);
+  if (cols % lanes != 0) {
+    for (int j = cols % lanes; j < lanes; ++j) a[j] = std::fma(0.0f, 0.0f, a[j]);
+  }
+  if (lanes == 8) return ((a[0] + a[1]) + (a[2] + a[3])) + ((a[4] + a[5]) + (a[6] + a[7]));
+  for (int half = 8; half >= 1; half /= 2) {
+    for (int k = 0; k < half; ++k) a[k] = a[k] + a[k + half];
+  }
+  return a[0];
 }
 #endif
 
 // gemv with and without a bias on random matrices of every column count 1..140 and row counts 1..17
-// (the 8-row passes and the 4 / 2 / 1 remainders), rows and x unaligned as weights.bin's views may be.
-// order: rows whose bits differ from gemv_row_order (+ b) -- only where gemv_f32_fma is the kernel;
-// bound: rows farther from the double-precision sum than the error bound gamma(ceil(cols / 8) + 3) *
-// sum |w x| (+ u |y| for the bias add); with Eigen's product the bound is gamma(cols) (any order).
+// (the 16- and 8-row passes and the 4 / 2 / 1 remainders), rows and x unaligned as weights.bin's views
+// may be, for each kernel this CPU runs (``lanes``: 8 for the AVX2 kernel, 16 for the AVX-512 one, 0
+// for Eigen's product).
+// order: rows whose bits differ from gemv_row_order (+ b) -- only for the FMA kernels;
+// bound: rows farther from the double-precision sum than the error bound gamma(ceil(cols / lanes) + log2
+// lanes) * sum |w x| (+ u |y| for the bias add); with Eigen's product the bound is gamma(cols) (any order).
 struct GemvCheck {
   long compared = 0, order_compared = 0, order_bad = 0, bound_bad = 0;
   double worst = 0.0;  // largest |error| / bound seen
 };
 
-void check_gemv_one(std::mt19937& rng, int rows, int cols, bool bias, GemvCheck& c) {
+void check_gemv_one(std::mt19937& rng, int rows, int cols, bool bias, int lanes, GemvCheck& c) {
   std::normal_distribution<float> nd(0.0f, 1.0f);
   std::vector<float> w(rows * cols + 1), x(cols + 1), b(rows + 1);
   for (float& f : w) f = nd(rng);
@@ -106,11 +118,7 @@ void check_gemv_one(std::mt19937& rng, int rows, int cols, bool bias, GemvCheck&
     fwref::matvec_f32(m, fwref::ConstMapVec(x.data() + 1, cols), y);
   }
   const double u = std::ldexp(1.0, -24);
-#if defined(FWREF_GEMV_FMA)
-  const double n = (cols + 7) / 8 + 3;
-#else
-  const double n = cols;
-#endif
+  const double n = lanes > 0 ? (cols + lanes - 1) / lanes + (lanes == 16 ? 4 : 3) : cols;
   const double gamma = n * u / (1.0 - n * u);
   for (int o = 0; o < rows; ++o) {
     const float* r = m.data + o * cols;
@@ -123,10 +131,10 @@ void check_gemv_one(std::mt19937& rng, int rows, int cols, bool bias, GemvCheck&
     if (err > bound) ++c.bound_bad;
     if (bound > 0) c.worst = std::max(c.worst, err / bound);
 #if defined(FWREF_GEMV_FMA)
-    float want = gemv_row_order(r, cols, xv);
+    float want = gemv_row_order(r, cols, xv, lanes);
     if (bias) want = want + bp[o];
     if (fwref::float_bits(want) != fwref::float_bits(y[o])) {
-      if (c.order_bad < 5) std::printf("  gemv rows=%d cols=%d row %d: %a, the stated order %a\n", rows, cols, o, y[o], want);
+      if (c.order_bad < 5) std::printf("  gemv %d lanes rows=%d cols=%d row %d: %a, the stated order %a\n", lanes, rows, cols, o, y[o], want);
       ++c.order_bad;
     }
     ++c.order_compared;
@@ -135,12 +143,31 @@ void check_gemv_one(std::mt19937& rng, int rows, int cols, bool bias, GemvCheck&
   }
 }
 
-GemvCheck check_gemv() {
+void check_gemv_kernel(int lanes, GemvCheck& c) {
   std::mt19937 rng(1234);
-  GemvCheck c;
   for (int cols = 1; cols <= 140; ++cols) {
-    for (int rows = 1; rows <= 17; ++rows) check_gemv_one(rng, rows, cols, rows % 2 == 0, c);
+    for (int rows = 1; rows <= 17; ++rows) check_gemv_one(rng, rows, cols, rows % 2 == 0, lanes, c);
   }
+}
+
+// Every kernel this CPU runs, each selected in turn (the run-time choice restored after); prints
+// "gemv kernels checked: NAME..." and returns the pooled counts.
+GemvCheck check_gemv() {
+  GemvCheck c;
+  std::printf("gemv kernels checked:");
+#if defined(FWREF_GEMV_FMA)
+  const bool was512 = fwref::gemv_f32_avx512_active();
+  for (const char* k : {"avx2", "avx512"}) {
+    if (!fwref::gemv_f32_select(k)) continue;
+    std::printf(" %s", fwref::matvec_f32_kernel_name());
+    check_gemv_kernel(std::strcmp(k, "avx2") == 0 ? 8 : 16, c);
+  }
+  fwref::gemv_f32_select(was512 ? "avx512" : "avx2");
+#else
+  std::printf(" %s", fwref::matvec_f32_kernel_name());
+  check_gemv_kernel(0, c);
+#endif
+  std::printf("\n");
   return c;
 }
 

@@ -1,0 +1,129 @@
+// src/kernels_f32_avx512.cpp -- scope: the AVX-512F fp32 product of fwref/kernels_f32_avx512.hpp
+// (compiled with a target attribute, run only on a CPU that has AVX-512F) and its run-time choice.
+#include "fwref/kernels_f32_avx512.hpp"
+
+#if defined(FWREF_HAS_F32_AVX512)
+
+// GCC 12 warns that _mm512_shuffle_f32x4's own _mm512_undefined_ps() "may be used uninitialized"
+// (a false positive inside the intrinsic's header, GCC bug 105593): silenced for this file only.
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+#include <immintrin.h>
+
+#include <cstdlib>
+#include <cstring>
+
+namespace fwref {
+
+namespace {
+
+#define FWREF_Z512 __attribute__((target("avx512f"), always_inline)) inline
+
+// fold16's input slot s holds row kSlotRow[s]: then lane r of its result is row r's sum (the shuffles
+// below leave the rows in this order; the permutation is its own inverse).
+constexpr int kSlotRow[16] = {0, 2, 1, 3, 8, 10, 9, 11, 4, 6, 5, 7, 12, 14, 13, 15};
+
+// 16 slots of 16 lanes -> one vector of 16 row sums, each row's lanes folded as the header states
+// (a_k + a_{k+8}, then + 4, + 2, + 1): 8 + 4 + 2 + 1 additions, each of two shuffles of two vectors.
+FWREF_Z512 __m512 fold16(const __m512* s) {
+  __m512 b[8], c[4], d[2];
+  for (int r = 0; r < 8; ++r) {  // 256-bit halves: b[r] = [row r: a_k + a_{k+8} | row r+8: the same]
+    b[r] = _mm512_add_ps(_mm512_shuffle_f32x4(s[r], s[r + 8], 0x44), _mm512_shuffle_f32x4(s[r], s[r + 8], 0xEE));
+  }
+  for (int r = 0; r < 4; ++r) {  // 128-bit quarters: each quarter one row's 4 partial sums
+    c[r] = _mm512_add_ps(_mm512_shuffle_f32x4(b[r], b[r + 4], 0x88), _mm512_shuffle_f32x4(b[r], b[r + 4], 0xDD));
+  }
+  for (int r = 0; r < 2; ++r) {  // within quarters: pairs
+    d[r] = _mm512_add_ps(_mm512_shuffle_ps(c[r], c[r + 2], 0x44), _mm512_shuffle_ps(c[r], c[r + 2], 0xEE));
+  }
+  return _mm512_add_ps(_mm512_shuffle_ps(d[0], d[1], 0x88), _mm512_shuffle_ps(d[0], d[1], 0xDD));
+}
+
+// R rows (R <= 16) at w: the order of the header; y[0..R) = the sums (+ b[0..R) when b is not null).
+// COLS > 0: cols as a compile-time constant (fixed weight offsets, the packet loop unrolled).
+template <int R, int COLS>
+FWREF_Z512 void rows16(const float* w, int cols_rt, const float* x, __mmask16 tail, const float* b, float* y) {
+  const int cols = COLS > 0 ? COLS : cols_rt;
+  const int n16 = cols & ~15;
+  __m512 acc[16];
+  for (int r = 0; r < 16; ++r) acc[r] = _mm512_setzero_ps();
+  int i = 0;
+  if (n16 > 0) {
+    const __m512 xv = _mm512_loadu_ps(x);
+    for (int r = 0; r < R; ++r) acc[r] = _mm512_mul_ps(_mm512_loadu_ps(w + r * cols), xv);
+    i = 16;
+  }
+#pragma GCC unroll 16
+  for (; i < n16; i += 16) {
+    const __m512 xv = _mm512_loadu_ps(x + i);
+    for (int r = 0; r < R; ++r) acc[r] = _mm512_fmadd_ps(_mm512_loadu_ps(w + r * cols + i), xv, acc[r]);
+  }
+  if (n16 < cols) {
+    const __m512 xv = _mm512_maskz_loadu_ps(tail, x + n16);
+    for (int r = 0; r < R; ++r) acc[r] = _mm512_fmadd_ps(_mm512_maskz_loadu_ps(tail, w + r * cols + n16), xv, acc[r]);
+  }
+  __m512 slot[16];
+  for (int s = 0; s < 16; ++s) slot[s] = acc[kSlotRow[s]];
+  __m512 sum = fold16(slot);
+  const __mmask16 m = static_cast<__mmask16>(R == 16 ? 0xffffu : (1u << R) - 1u);
+  if (b != nullptr) sum = _mm512_add_ps(sum, _mm512_maskz_loadu_ps(m, b));
+  _mm512_mask_storeu_ps(y, m, sum);
+}
+
+template <int COLS>
+__attribute__((target("avx512f"))) void gemv_cols(const float* w, int rows, int cols_rt, const float* x, const float* b,
+                                                  float* y) {
+  const int cols = COLS > 0 ? COLS : cols_rt;
+  const __mmask16 tail = static_cast<__mmask16>((1u << (cols & 15)) - 1u);
+  int o = 0;
+  const auto bias = [&](int row) { return b != nullptr ? b + row : nullptr; };
+  for (; o + 16 <= rows; o += 16) rows16<16, COLS>(w + o * cols, cols, x, tail, bias(o), y + o);
+  if (o + 8 <= rows) rows16<8, COLS>(w + o * cols, cols, x, tail, bias(o), y + o), o += 8;
+  if (o + 4 <= rows) rows16<4, COLS>(w + o * cols, cols, x, tail, bias(o), y + o), o += 4;
+  if (o + 2 <= rows) rows16<2, COLS>(w + o * cols, cols, x, tail, bias(o), y + o), o += 2;
+  if (o < rows) rows16<1, COLS>(w + o * cols, cols, x, tail, bias(o), y + o);
+}
+
+#undef FWREF_Z512
+
+bool cpu_avx512f() {
+  __builtin_cpu_init();
+  return __builtin_cpu_supports("avx512f");
+}
+
+// Before main: AVX-512F when the CPU has it, unless FWREF_F32_KERNEL=avx2 asks for the AVX2 kernel.
+bool init_choice() {
+  const char* want = std::getenv("FWREF_F32_KERNEL");
+  return cpu_avx512f() && !(want != nullptr && std::strcmp(want, "avx2") == 0);
+}
+
+}  // namespace
+
+namespace detail {
+bool g_f32_avx512 = init_choice();
+}
+
+// The column counts of the paper models' products (channels 23 and 25, latent 40, hidden 64 and 80)
+// compiled with cols a constant, any other count in the run-time loop: the same operations in the
+// same order either way.
+void gemv_f32_avx512(const float* w, int rows, int cols, const float* x, const float* b, float* y) {
+  switch (cols) {
+    case 23: return gemv_cols<23>(w, rows, cols, x, b, y);
+    case 25: return gemv_cols<25>(w, rows, cols, x, b, y);
+    case 40: return gemv_cols<40>(w, rows, cols, x, b, y);
+    case 64: return gemv_cols<64>(w, rows, cols, x, b, y);
+    case 80: return gemv_cols<80>(w, rows, cols, x, b, y);
+    default: return gemv_cols<0>(w, rows, cols, x, b, y);
+  }
+}
+
+bool gemv_f32_avx512_active() { return detail::g_f32_avx512; }
+
+bool gemv_f32_select(const char* name) {
+  if (std::strcmp(name, "avx2") == 0) return !(detail::g_f32_avx512 = false);
+  if (std::strcmp(name, "avx512") == 0 && cpu_avx512f()) return (detail::g_f32_avx512 = true);
+  return false;
+}
+
+}  // namespace fwref
+
+#endif
