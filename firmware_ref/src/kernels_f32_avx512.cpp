@@ -38,10 +38,20 @@ FWREF_Z512 __m512 fold16(const __m512* s) {
   return _mm512_add_ps(_mm512_shuffle_ps(d[0], d[1], 0x88), _mm512_shuffle_ps(d[0], d[1], 0xDD));
 }
 
+// Column i of 16 rows from p (row stride cols) into L1.
+FWREF_Z512 void prefetch_rows(const float* p, int cols, int i) {
+  for (int r = 0; r < 16; ++r) _mm_prefetch(reinterpret_cast<const char*>(p + r * cols + i), _MM_HINT_T0);
+}
+
 // R rows (R <= 16) at w: the order of the header; y[0..R) = the sums (+ b[0..R) when b is not null).
 // COLS > 0: cols as a compile-time constant (fixed weight offsets, the packet loop unrolled).
-template <int R, int COLS>
-FWREF_Z512 void rows16(const float* w, int cols_rt, const float* x, __mmask16 tail, const float* b, float* y) {
+// PF (a matrix larger than L1d, streamed from L2: the GRU's W_hh): each 16-row pass also prefetches
+// the rows two passes ahead in its direction (w + pf), one line per weight packet it loads (the
+// hardware prefetcher alone kept a 240 x 80 product at about half the L2 probe's bandwidth). A
+// prefetch never faults, so the lines past the matrix's ends that the last passes name are harmless.
+template <int R, int COLS, bool PF>
+FWREF_Z512 void rows16(const float* w, int cols_rt, const float* x, __mmask16 tail, const float* b, float* y,
+                       long pf) {
   const int cols = COLS > 0 ? COLS : cols_rt;
   const int n16 = cols & ~15;
   __m512 acc[16];
@@ -50,18 +60,21 @@ FWREF_Z512 void rows16(const float* w, int cols_rt, const float* x, __mmask16 ta
   if (n16 > 0) {
     const __m512 xv = _mm512_loadu_ps(x);
     for (int r = 0; r < R; ++r) acc[r] = _mm512_mul_ps(_mm512_loadu_ps(w + r * cols), xv);
+    if (PF && R == 16) prefetch_rows(w + pf, cols, 0);
     i = 16;
   }
 #pragma GCC unroll 16
   for (; i < n16; i += 16) {
     const __m512 xv = _mm512_loadu_ps(x + i);
     for (int r = 0; r < R; ++r) acc[r] = _mm512_fmadd_ps(_mm512_loadu_ps(w + r * cols + i), xv, acc[r]);
+    if (PF && R == 16) prefetch_rows(w + pf, cols, i);
   }
   if (n16 < cols) {
     const __m512 xv = _mm512_maskz_loadu_ps(tail, x + n16);
     for (int r = 0; r < R; ++r) acc[r] = _mm512_fmadd_ps(_mm512_maskz_loadu_ps(tail, w + r * cols + n16), xv, acc[r]);
   }
   __m512 slot[16];
+  if (PF && R == 16 && n16 < cols) prefetch_rows(w + pf, cols, n16);
   for (int s = 0; s < 16; ++s) slot[s] = acc[kSlotRow[s]];
   __m512 sum = fold16(slot);
   const __mmask16 m = static_cast<__mmask16>(R == 16 ? 0xffffu : (1u << R) - 1u);
@@ -69,18 +82,29 @@ FWREF_Z512 void rows16(const float* w, int cols_rt, const float* x, __mmask16 ta
   _mm512_mask_storeu_ps(y, m, sum);
 }
 
-template <int COLS>
+// All rows: passes of 16, then of 8, 4, 2, 1; REV: the same passes in the opposite order (last first).
+template <int COLS, bool PF, bool REV>
 __attribute__((target("avx512f"))) void gemv_cols(const float* w, int rows, int cols_rt, const float* x, const float* b,
                                                   float* y) {
   const int cols = COLS > 0 ? COLS : cols_rt;
   const __mmask16 tail = static_cast<__mmask16>((1u << (cols & 15)) - 1u);
-  int o = 0;
+  const long pf = (REV ? -32L : 32L) * cols;
+  const int full = rows & ~15;
   const auto bias = [&](int row) { return b != nullptr ? b + row : nullptr; };
-  for (; o + 16 <= rows; o += 16) rows16<16, COLS>(w + o * cols, cols, x, tail, bias(o), y + o);
-  if (o + 8 <= rows) rows16<8, COLS>(w + o * cols, cols, x, tail, bias(o), y + o), o += 8;
-  if (o + 4 <= rows) rows16<4, COLS>(w + o * cols, cols, x, tail, bias(o), y + o), o += 4;
-  if (o + 2 <= rows) rows16<2, COLS>(w + o * cols, cols, x, tail, bias(o), y + o), o += 2;
-  if (o < rows) rows16<1, COLS>(w + o * cols, cols, x, tail, bias(o), y + o);
+  const auto rest = [&] {
+    int o = full;
+    if (o + 8 <= rows) rows16<8, COLS, PF>(w + o * cols, cols, x, tail, bias(o), y + o, pf), o += 8;
+    if (o + 4 <= rows) rows16<4, COLS, PF>(w + o * cols, cols, x, tail, bias(o), y + o, pf), o += 4;
+    if (o + 2 <= rows) rows16<2, COLS, PF>(w + o * cols, cols, x, tail, bias(o), y + o, pf), o += 2;
+    if (o < rows) rows16<1, COLS, PF>(w + o * cols, cols, x, tail, bias(o), y + o, pf);
+  };
+  if (REV) {
+    rest();
+    for (int o = full - 16; o >= 0; o -= 16) rows16<16, COLS, PF>(w + o * cols, cols, x, tail, bias(o), y + o, pf);
+  } else {
+    for (int o = 0; o < full; o += 16) rows16<16, COLS, PF>(w + o * cols, cols, x, tail, bias(o), y + o, pf);
+    rest();
+  }
 }
 
 #undef FWREF_Z512
@@ -96,24 +120,33 @@ bool init_choice() {
   return cpu_avx512f() && !(want != nullptr && std::strcmp(want, "avx2") == 0);
 }
 
-}  // namespace
-
-namespace detail {
-bool g_f32_avx512 = init_choice();
-}
-
 // The column counts of the paper models' products (channels 23 and 25, latent 40, hidden 64 and 80)
 // compiled with cols a constant, any other count in the run-time loop: the same operations in the
 // same order either way.
-void gemv_f32_avx512(const float* w, int rows, int cols, const float* x, const float* b, float* y) {
+template <bool PF, bool REV>
+void gemv_pf(const float* w, int rows, int cols, const float* x, const float* b, float* y) {
   switch (cols) {
-    case 23: return gemv_cols<23>(w, rows, cols, x, b, y);
-    case 25: return gemv_cols<25>(w, rows, cols, x, b, y);
-    case 40: return gemv_cols<40>(w, rows, cols, x, b, y);
-    case 64: return gemv_cols<64>(w, rows, cols, x, b, y);
-    case 80: return gemv_cols<80>(w, rows, cols, x, b, y);
-    default: return gemv_cols<0>(w, rows, cols, x, b, y);
+    case 23: return gemv_cols<23, PF, REV>(w, rows, cols, x, b, y);
+    case 25: return gemv_cols<25, PF, REV>(w, rows, cols, x, b, y);
+    case 40: return gemv_cols<40, PF, REV>(w, rows, cols, x, b, y);
+    case 64: return gemv_cols<64, PF, REV>(w, rows, cols, x, b, y);
+    case 80: return gemv_cols<80, PF, REV>(w, rows, cols, x, b, y);
+    default: return gemv_cols<0, PF, REV>(w, rows, cols, x, b, y);
   }
+}
+
+}  // namespace
+
+// The prefetching instances for matrices over 32 KiB (more than an L1d holds beside the rest), which
+// come from L2 at every call; the result is the same either way, and in either pass order.
+void gemv_f32_avx512(const float* w, int rows, int cols, const float* x, const float* b, float* y, bool reverse) {
+  if (long(rows) * cols <= 8192) return gemv_pf<false, false>(w, rows, cols, x, b, y);
+  if (reverse) return gemv_pf<true, true>(w, rows, cols, x, b, y);
+  gemv_pf<true, false>(w, rows, cols, x, b, y);
+}
+
+namespace detail {
+bool g_f32_avx512 = init_choice();
 }
 
 bool gemv_f32_avx512_active() { return detail::g_f32_avx512; }

@@ -103,7 +103,7 @@ struct GemvCheck {
   double worst = 0.0;  // largest |error| / bound seen
 };
 
-void check_gemv_one(std::mt19937& rng, int rows, int cols, bool bias, int lanes, GemvCheck& c) {
+void check_gemv_one(std::mt19937& rng, int rows, int cols, bool bias, int lanes, GemvCheck& c, bool reverse = false) {
   std::normal_distribution<float> nd(0.0f, 1.0f);
   std::vector<float> w(rows * cols + 1), x(cols + 1), b(rows + 1);
   for (float& f : w) f = nd(rng);
@@ -112,6 +112,11 @@ void check_gemv_one(std::mt19937& rng, int rows, int cols, bool bias, int lanes,
   const fwref::MatF m{w.data() + 1, rows, cols};
   const float* bp = bias ? b.data() + 1 : nullptr;
   Eigen::Matrix<float, Eigen::Dynamic, 1> y(rows);
+#if defined(FWREF_GEMV_FMA)
+  if (reverse) {
+    fwref::gemv_f32_host(m.data, rows, cols, x.data() + 1, bp, y.data(), true);
+  } else
+#endif
   if (bias) {
     fwref::matvec_bias_f32(m, fwref::ConstMapVec(x.data() + 1, cols), bp, y);
   } else {
@@ -143,10 +148,16 @@ void check_gemv_one(std::mt19937& rng, int rows, int cols, bool bias, int lanes,
   }
 }
 
+// Then matrices over 32 KiB (the AVX-512 kernel's prefetching instances), in both pass orders: a GRU
+// W_hh (240 x 80), and run-time column counts with rows % 16 = 10 and 1.
+constexpr int kLargeShapes[3][2] = {{240, 80}, {250, 97}, {129, 70}};
 void check_gemv_kernel(int lanes, GemvCheck& c) {
   std::mt19937 rng(1234);
   for (int cols = 1; cols <= 140; ++cols) {
     for (int rows = 1; rows <= 17; ++rows) check_gemv_one(rng, rows, cols, rows % 2 == 0, lanes, c);
+  }
+  for (const auto& rc : kLargeShapes) {
+    for (bool reverse : {false, true}) check_gemv_one(rng, rc[0], rc[1], true, lanes, c, reverse);
   }
 }
 

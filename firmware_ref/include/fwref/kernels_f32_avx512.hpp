@@ -3,8 +3,12 @@
 // fwref/vmath_f32.hpp (gemv_f32_fma) stays the path of every other x86-64 host and the reference the
 // tests compare against.
 //
-//   gemv_f32_avx512(w, rows, cols, x, b, y)   W (rows, cols) row-major, any rows, cols >= 1; x, b, y
-//                                             unaligned, y not aliasing x; b may be null
+//   gemv_f32_avx512(w, rows, cols, x, b, y, reverse)
+//                                             W (rows, cols) row-major, any rows, cols >= 1; x, b, y
+//                                             unaligned, y not aliasing x; b may be null. reverse: the
+//                                             row passes last to first (the same results): a caller
+//                                             that alternates the direction from call to call finds
+//                                             the rows it read last still in L1 (the GRU's W_hh)
 //   gemv_f32_avx512_active()                  true when matvec_f32 runs it (the CPU has AVX-512F and
 //                                             FWREF_F32_KERNEL is not "avx2")
 //   gemv_f32_select(name)                     "avx2" or "avx512": switch the choice (false when the CPU
@@ -30,7 +34,7 @@
 
 namespace fwref {
 
-void gemv_f32_avx512(const float* w, int rows, int cols, const float* x, const float* b, float* y);
+void gemv_f32_avx512(const float* w, int rows, int cols, const float* x, const float* b, float* y, bool reverse = false);
 bool gemv_f32_avx512_active();
 bool gemv_f32_select(const char* name);
 

@@ -251,9 +251,11 @@ inline void gemv_f32_fma(const float* w, int rows, int cols, const float* x, con
 }
 
 // The host's product: the run-time choice between the two kernels (one predictable branch; the AVX2
-// kernel stays inlined at its call sites).
-inline void gemv_f32_host(const float* w, int rows, int cols, const float* x, const float* b, float* y) {
-  if (detail::g_f32_avx512) return gemv_f32_avx512(w, rows, cols, x, b, y);
+// kernel stays inlined at its call sites). ``reverse`` (the AVX-512 kernel's pass order, see
+// fwref/kernels_f32_avx512.hpp) changes no result.
+inline void gemv_f32_host(const float* w, int rows, int cols, const float* x, const float* b, float* y,
+                          bool reverse = false) {
+  if (detail::g_f32_avx512) return gemv_f32_avx512(w, rows, cols, x, b, y, reverse);
   gemv_f32_fma(w, rows, cols, x, b, y);
 }
 
