@@ -67,3 +67,10 @@ def test_vector_tanh_logistic_bit_identical_and_gemv_in_its_order_and_bound(host
         # the AVX-512F kernel is chosen at run time where the CPU has it (the AVX2 one stays checked)
         want = "fma-avx512-16row" if "avx512f" in flags else "fma-avx2-8row"
         assert f"gemv kernel: {want}" in out and (want in kernels), out
+    if "avx512f" in flags:  # the CNODE's column-major copies and fused field (fwref/kernels_f32_avx512.hpp)
+        m = re.search(r"^gemv_t order: (\d+) of (\d+) differ$", out, re.M)
+        assert m and int(m.group(1)) == 0 and int(m.group(2)) == 140 * (sum(range(1, 21)) + 33 + 40 + 64 + 65 + 100), out
+        m = re.search(r"^gemv_t bound: (\d+) of (\d+) exceed \(worst error / bound ([0-9.]+)\)$", out, re.M)
+        assert m and int(m.group(1)) == 0 and float(m.group(3)) <= 1.0, out
+        m = re.search(r"^field_t: (\d+) of (\d+) differ$", out, re.M)
+        assert m and int(m.group(1)) == 0 and int(m.group(2)) == 64 * sum(range(1, 65)), out

@@ -4,9 +4,11 @@
 
 #if defined(FWREF_HAS_F32_AVX512)
 
-// GCC 12 warns that _mm512_shuffle_f32x4's own _mm512_undefined_ps() "may be used uninitialized"
+// GCC 12 warns that the _mm512_undefined_ps() inside _mm512_shuffle_f32x4 / _max_ps / _min_ps "may be /
+// is used uninitialized"
 // (a false positive inside the intrinsic's header, GCC bug 105593): silenced for this file only.
 #pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+#pragma GCC diagnostic ignored "-Wuninitialized"
 #include <immintrin.h>
 
 #include <cstdlib>
@@ -107,6 +109,100 @@ __attribute__((target("avx512f"))) void gemv_cols(const float* w, int rows, int 
   }
 }
 
+// The column-major copy: NB blocks of 16 rows (rows <= 16 NB; the last block's lanes past rows masked
+// on the bias load and the store), 4 chains per block over the columns i = p (mod 4), each column's x[i]
+// broadcast once for the NB blocks; then ((s0 + s1) + (s2 + s3)) + b, as the header states.
+template <int NB>
+FWREF_Z512 void col_fma(const float* wt, int rp, int i, const float* x, __m512* s) {
+  const __m512 xv = _mm512_set1_ps(x[i]);
+  for (int j = 0; j < NB; ++j) s[j] = _mm512_fmadd_ps(_mm512_load_ps(wt + i * rp + 16 * j), xv, s[j]);
+}
+
+// The 4 chains of NB blocks of the copy over cols columns, summed: out[j] = ((s0 + s1) + (s2 + s3)).
+template <int NB>
+FWREF_Z512 void chains_t(const float* wt, int rp, int cols, const float* x, __m512* out) {
+  // s0..s3 named (not an array indexed at run time, which GCC kept on the stack)
+  __m512 s0[NB], s1[NB], s2[NB], s3[NB];
+  for (int j = 0; j < NB; ++j) s0[j] = s1[j] = s2[j] = s3[j] = _mm512_setzero_ps();
+  __m512* const chain[4] = {s0, s1, s2, s3};
+  for (int p = 0; p < 4; ++p) {  // the first product of each chain: a plain product
+    if (p >= cols) break;
+    const __m512 xv = _mm512_set1_ps(x[p]);
+    for (int j = 0; j < NB; ++j) chain[p][j] = _mm512_mul_ps(_mm512_load_ps(wt + p * rp + 16 * j), xv);
+  }
+  int i = 4;
+  for (; i + 4 <= cols; i += 4) {
+    col_fma<NB>(wt, rp, i, x, s0);
+    col_fma<NB>(wt, rp, i + 1, x, s1);
+    col_fma<NB>(wt, rp, i + 2, x, s2);
+    col_fma<NB>(wt, rp, i + 3, x, s3);
+  }
+  if (i < cols) col_fma<NB>(wt, rp, i, x, s0);
+  if (i + 1 < cols) col_fma<NB>(wt, rp, i + 1, x, s1);
+  if (i + 2 < cols) col_fma<NB>(wt, rp, i + 2, x, s2);
+  for (int j = 0; j < NB; ++j) out[j] = _mm512_add_ps(_mm512_add_ps(s0[j], s1[j]), _mm512_add_ps(s2[j], s3[j]));
+}
+
+// y = sum + b over NB blocks of rows: whole blocks with plain loads and stores (a masked store's value
+// is not forwarded to a later load of y, which then waits for it to retire), a last partial one masked.
+template <int NB>
+FWREF_Z512 void store_rows(__m512* sum, int rows, const float* b, float* y) {
+  for (int j = 0; j < NB; ++j) {
+    const int left = rows - 16 * j;
+    if (left >= 16) {
+      if (b != nullptr) sum[j] = _mm512_add_ps(sum[j], _mm512_loadu_ps(b + 16 * j));
+      _mm512_storeu_ps(y + 16 * j, sum[j]);
+      continue;
+    }
+    const __mmask16 m = static_cast<__mmask16>((1u << left) - 1u);
+    if (b != nullptr) sum[j] = _mm512_add_ps(sum[j], _mm512_maskz_loadu_ps(m, b + 16 * j));
+    _mm512_mask_storeu_ps(y + 16 * j, m, sum[j]);
+  }
+}
+
+template <int NB>
+FWREF_Z512 void cols_t(const float* wt, int rp, int rows, int cols, const float* x, const float* b, float* y) {
+  __m512 sum[NB];
+  chains_t<NB>(wt, rp, cols, x, sum);
+  store_rows<NB>(sum, rows, b, y);
+}
+
+// tanh_approx (fwref/numerics.hpp) on 16 lanes: vmath_f32.hpp's tanh8, the same operations per lane.
+FWREF_Z512 __m512 tanh16(__m512 x) {
+  x = _mm512_max_ps(_mm512_set1_ps(-9.0f), x);  // (-9 > x) ? -9 : x, NaN kept (MAXPS returns the 2nd operand)
+  x = _mm512_min_ps(_mm512_set1_ps(9.0f), x);
+  const __m512 x2 = _mm512_mul_ps(x, x);
+  __m512 p = _mm512_fmadd_ps(x2, _mm512_set1_ps(-2.76076847742355e-16f), _mm512_set1_ps(2.00018790482477e-13f));
+  p = _mm512_fmadd_ps(p, x2, _mm512_set1_ps(-8.60467152213735e-11f));
+  p = _mm512_fmadd_ps(p, x2, _mm512_set1_ps(5.12229709037114e-08f));
+  p = _mm512_fmadd_ps(p, x2, _mm512_set1_ps(1.48572235717979e-05f));
+  p = _mm512_fmadd_ps(p, x2, _mm512_set1_ps(6.37261928875436e-04f));
+  p = _mm512_fmadd_ps(p, x2, _mm512_set1_ps(4.89352455891786e-03f));
+  p = _mm512_mul_ps(p, x);
+  __m512 q = _mm512_fmadd_ps(x2, _mm512_set1_ps(1.19825839466702e-06f), _mm512_set1_ps(1.18534705686654e-04f));
+  q = _mm512_fmadd_ps(q, x2, _mm512_set1_ps(2.26843463243900e-03f));
+  q = _mm512_fmadd_ps(q, x2, _mm512_set1_ps(4.89352518554385e-03f));
+  return _mm512_div_ps(p, q);
+}
+
+// The fused field: a = tanh(W1 z + v) in NBH registers (stored once to an aligned buffer whose lanes
+// lin2 broadcasts), k = W2 a + b2.
+template <int NBH, int NBL>
+__attribute__((target("avx512f"))) void field_t(const float* w1t, const float* w2t, int H, int L, const float* z,
+                                                const float* v, const float* b2, float* k) {
+  __m512 a[NBH];
+  chains_t<NBH>(w1t, f32_t_stride(H), L, z, a);
+  alignas(64) float ab[16 * NBH];
+  for (int j = 0; j < NBH; ++j) {
+    const int left = H - 16 * j;
+    const __mmask16 m = static_cast<__mmask16>(left >= 16 ? 0xffffu : (1u << left) - 1u);
+    _mm512_store_ps(ab + 16 * j, tanh16(_mm512_add_ps(a[j], _mm512_maskz_loadu_ps(m, v + 16 * j))));
+  }
+  __m512 sum[NBL];
+  chains_t<NBL>(w2t, f32_t_stride(L), H, ab, sum);
+  store_rows<NBL>(sum, L, b2, k);
+}
+
 #undef FWREF_Z512
 
 bool cpu_avx512f() {
@@ -143,6 +239,41 @@ void gemv_f32_avx512(const float* w, int rows, int cols, const float* x, const f
   if (long(rows) * cols <= 8192) return gemv_pf<false, false>(w, rows, cols, x, b, y);
   if (reverse) return gemv_pf<true, true>(w, rows, cols, x, b, y);
   gemv_pf<true, false>(w, rows, cols, x, b, y);
+}
+
+void pack_f32_t(const float* w, int rows, int cols, float* wt) {
+  const int rp = f32_t_stride(rows);
+  for (int i = 0; i < cols; ++i) {
+    for (int o = 0; o < rp; ++o) wt[i * rp + o] = o < rows ? w[o * cols + i] : 0.0f;
+  }
+}
+
+// 64 rows (4 blocks) per pass over the copy, the last 1..4 blocks in one pass.
+__attribute__((target("avx512f"))) void gemv_f32_t_avx512(const float* wt, int rows, int cols, const float* x,
+                                                          const float* b, float* y) {
+  const int rp = f32_t_stride(rows);
+  for (int o = 0; o < rows; o += 64) {
+    const int n = rows - o, nb = n >= 64 ? 4 : (n + 15) / 16;
+    const float* bo = b != nullptr ? b + o : nullptr;
+    switch (nb) {
+      case 4: cols_t<4>(wt + o, rp, n, cols, x, bo, y + o); break;
+      case 3: cols_t<3>(wt + o, rp, n, cols, x, bo, y + o); break;
+      case 2: cols_t<2>(wt + o, rp, n, cols, x, bo, y + o); break;
+      default: cols_t<1>(wt + o, rp, n, cols, x, bo, y + o); break;
+    }
+  }
+}
+
+bool field_f32_t_avx512(const float* w1t, const float* w2t, int H, int L, const float* z, const float* v,
+                        const float* b2, float* k) {
+  using Fn = void (*)(const float*, const float*, int, int, const float*, const float*, const float*, float*);
+  static constexpr Fn kFns[4][4] = {{field_t<1, 1>, field_t<1, 2>, field_t<1, 3>, field_t<1, 4>},
+                                    {field_t<2, 1>, field_t<2, 2>, field_t<2, 3>, field_t<2, 4>},
+                                    {field_t<3, 1>, field_t<3, 2>, field_t<3, 3>, field_t<3, 4>},
+                                    {field_t<4, 1>, field_t<4, 2>, field_t<4, 3>, field_t<4, 4>}};
+  if (H < 1 || L < 1 || H > 64 || L > 64) return false;
+  kFns[(H - 1) / 16][(L - 1) / 16](w1t, w2t, H, L, z, v, b2, k);
+  return true;
 }
 
 namespace detail {

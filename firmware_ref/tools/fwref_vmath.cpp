@@ -182,6 +182,87 @@ GemvCheck check_gemv() {
   return c;
 }
 
+#if defined(FWREF_HAS_F32_AVX512)
+// gemv_f32_t_avx512 (fwref/kernels_f32_avx512.hpp's column-major copy) on random matrices of every
+// column count 1..140 and the row counts 1..20, 33, 40, 64, 65, 100: bit for bit against a scalar
+// statement of its order and within its bound gamma(ceil(cols / 4) + 2) * sum |w x| (+ the bias add's u |y|).
+// Returns false (nothing compared) on a CPU without AVX-512F.
+bool check_gemv_t(GemvCheck& c) {
+  if (!__builtin_cpu_supports("avx512f")) return false;
+  std::mt19937 rng(4321);
+  std::normal_distribution<float> nd(0.0f, 1.0f);
+  const double u = std::ldexp(1.0, -24);
+  std::vector<int> row_counts;
+  for (int r = 1; r <= 20; ++r) row_counts.push_back(r);
+  for (int r : {33, 40, 64, 65, 100}) row_counts.push_back(r);
+  for (int cols = 1; cols <= 140; ++cols) {
+    for (int rows : row_counts) {
+      std::vector<float> w(rows * cols), x(cols), b(rows), y(rows + 1, 7.0f);
+      for (float& f : w) f = nd(rng);
+      for (float& f : x) f = nd(rng);
+      for (float& f : b) f = nd(rng);
+      std::vector<float, Eigen::aligned_allocator<float>> wt(std::size_t(cols) * fwref::f32_t_stride(rows));
+      fwref::pack_f32_t(w.data(), rows, cols, wt.data());
+      const bool bias = (rows + cols) % 2 == 0;
+      fwref::gemv_f32_t_avx512(wt.data(), rows, cols, x.data(), bias ? b.data() : nullptr, y.data());
+      const double n = (cols + 3) / 4 + 2, gamma = n * u / (1.0 - n * u);
+      for (int o = 0; o < rows; ++o) {
+        float sp[4] = {};
+        double exact = 0.0, mag = 0.0;
+        for (int i = 0; i < cols; ++i) {
+          const float wi = w[o * cols + i];
+          sp[i % 4] = i < 4 ? wi * x[i] : std::fma(wi, x[i], sp[i % 4]);
+          exact += double(wi) * x[i], mag += std::fabs(double(wi) * x[i]);
+        }
+        float want = (sp[0] + sp[1]) + (sp[2] + sp[3]);
+        double bound = gamma * mag;
+        if (bias) want = want + b[o], exact += b[o], bound = bound * (1.0 + u) + u * std::fabs(exact);
+        if (fwref::float_bits(want) != fwref::float_bits(y[o])) {
+          if (c.order_bad < 5) std::printf("  gemv_t rows=%d cols=%d row %d: %a, the stated order %a\n", rows, cols, o, y[o], want);
+          ++c.order_bad;
+        }
+        const double err = std::fabs(double(y[o]) - exact);
+        if (err > bound) ++c.bound_bad;
+        if (bound > 0) c.worst = std::max(c.worst, err / bound);
+        ++c.order_compared, ++c.compared;
+      }
+      if (y[rows] != 7.0f) ++c.order_bad;  // nothing written past the rows
+    }
+  }
+  return true;
+}
+
+// field_f32_t_avx512 against its three steps (gemv_f32_t_avx512, tanh_n, gemv_f32_t_avx512) for every
+// H, L in 1..64 (x in [-3, 3] so tanh's clamp is crossed too): elements whose bits differ.
+long check_field_t(long* compared) {
+  std::mt19937 rng(99);
+  std::normal_distribution<float> nd(0.0f, 1.0f);
+  long bad = 0;
+  for (int H = 1; H <= 64; ++H) {
+    for (int L = 1; L <= 64; ++L) {
+      std::vector<float> w1(H * L), w2(L * H), z(L), v(H), b2(L), a(H), want(L), got(L + 1, 7.0f);
+      for (float& f : w1) f = nd(rng);
+      for (float& f : w2) f = nd(rng);
+      for (float& f : z) f = 3.0f * nd(rng) / std::sqrt(float(L));
+      for (float& f : v) f = nd(rng);
+      for (float& f : b2) f = nd(rng);
+      std::vector<float, Eigen::aligned_allocator<float>> t1(std::size_t(L) * fwref::f32_t_stride(H)),
+          t2(std::size_t(H) * fwref::f32_t_stride(L));
+      fwref::pack_f32_t(w1.data(), H, L, t1.data());
+      fwref::pack_f32_t(w2.data(), L, H, t2.data());
+      fwref::gemv_f32_t_avx512(t1.data(), H, L, z.data(), v.data(), a.data());
+      fwref::tanh_n(a.data(), H);
+      fwref::gemv_f32_t_avx512(t2.data(), L, H, a.data(), b2.data(), want.data());
+      if (!fwref::field_f32_t_avx512(t1.data(), t2.data(), H, L, z.data(), v.data(), b2.data(), got.data())) return -1;
+      for (int o = 0; o < L; ++o) bad += fwref::float_bits(want[o]) != fwref::float_bits(got[o]);
+      bad += got[L] != 7.0f;  // nothing written past k
+      *compared += L;
+    }
+  }
+  return bad;
+}
+#endif
+
 // all_finite_n against all_finite_f32 on windows of every length 0..40 with one inf, -inf or NaN at
 // every position (and none): the number of answers that differ.
 long check_all_finite(long* compared) {
@@ -227,7 +308,19 @@ int main(int argc, char** argv) {
   const GemvCheck g = check_gemv();
   std::printf("gemv order: %ld of %ld differ\n", g.order_bad, g.order_compared);  // 0 of 0: Eigen's product
   std::printf("gemv bound: %ld of %ld exceed (worst error / bound %.3f)\n", g.bound_bad, g.compared, g.worst);
-  const long bg = g.order_bad + g.bound_bad;
+  long bg = g.order_bad + g.bound_bad;
+#if defined(FWREF_HAS_F32_AVX512)
+  GemvCheck gt;
+  if (check_gemv_t(gt)) {
+    std::printf("gemv_t order: %ld of %ld differ\n", gt.order_bad, gt.order_compared);
+    std::printf("gemv_t bound: %ld of %ld exceed (worst error / bound %.3f)\n", gt.bound_bad, gt.compared, gt.worst);
+    bg += gt.order_bad + gt.bound_bad;
+    long compared_field = 0;
+    const long bfield = check_field_t(&compared_field);
+    std::printf("field_t: %ld of %ld differ\n", bfield, compared_field);
+    bg += bfield != 0 ? 1 : 0;
+  }
+#endif
   long compared_f = 0;
   const long bf = check_all_finite(&compared_f);
   std::printf("all_finite: %ld of %ld differ\n", bf, compared_f);
