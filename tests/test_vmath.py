@@ -3,13 +3,16 @@ tanh_approx / logistic_approx bit for bit (clamp edges, +-0, NaN, +-inf, denorma
 float32 bit patterns), and the fp32 gemv (matvec_f32 / matvec_bias_f32; every column count 1..140,
 rows 1..17, with and without bias) two ways; it exits 1 on any failure.
 
-The gemv is no longer Eigen's order (issue 15: FMA chains, 8 rows per pass), so it is not compared with
-Eigen's product bit for bit. What it promises instead, and what is checked:
+The gemv is no longer Eigen's order (issue 15: FMA chains, 8 rows per pass; 16 per pass on an AVX-512F
+CPU, chosen at run time, both kernels checked there), so it is not compared with Eigen's product bit
+for bit. What each kernel promises instead, and what is checked:
 - its order, stated in fwref/vmath_f32.hpp, bit for bit against a scalar statement of that order
   (so its results do not depend on the row blocking, alignment or which rows % 8 path ran);
 - its accuracy: within the rounding-error bound of that order, gamma(ceil(cols/8) + 3) * sum |w x|,
   of a double-precision sum; a bound, not a tolerance picked to pass (the worst ratio is printed).
 How far that moves the models from ONNX Runtime is `quadfdi parity`'s check (FP32_CPP_REL_TOL).
+On an AVX-512F CPU also the CNODE's column-major kernel (gemv_t: its order and bound) and its fused
+field (bit for bit against the kernel's three separate steps).
 
 And the CNODE's int8 vector math (fwref/vmath_i8.hpp) with numerics.hpp's scalar expressions, bit
 for bit: QuantizeLinear's round-half-even ties, saturation bounds and NaN, rescale + tanh + quantize,

@@ -10,6 +10,7 @@
 #include "fwref/vmath_f32.hpp"
 #include "fwref/vmath_i8.hpp"
 #include "cnode_controls.hpp"
+#include "cnode_f32_t.hpp"
 #include "model_common.hpp"
 #include "motor_common.hpp"
 #if defined(FWREF_HAS_W8_VNNI)
@@ -269,41 +270,6 @@ void control_path_i8(const CnodeI8& m, const float* x, const std::int16_t* lin1u
   lin1_u_rows(m, lin1u16, ws);
 }
 
-#if defined(FWREF_HAS_F32_AVX512)
-// The column-major copies of the fp32 field's weights (fwref/kernels_f32_avx512.hpp) when the run-time
-// fp32 choice is AVX-512F, made at the first inference of a model (ws.t_of); else all null.
-struct F32Copies {
-  const float* lin1z = nullptr;
-  const float* lin2 = nullptr;
-  const float* lin1u = nullptr;
-};
-
-F32Copies f32_copies(const CnodeF32& m, CnodeWorkspace& ws) {
-  if (!gemv_f32_avx512_active()) return {};
-  if (ws.t_of != m.lin1_z.data) {
-    pack_f32_t(m.lin1_z.data, m.lin1_z.rows, m.lin1_z.cols, ws.lin1z_t);
-    pack_f32_t(m.lin2_w.data, m.lin2_w.rows, m.lin2_w.cols, ws.lin2_t);
-    pack_f32_t(m.lin1_u.data, m.lin1_u.rows, m.lin1_u.cols, ws.lin1u_t);
-    ws.t_of = m.lin1_z.data;
-  }
-  return {ws.lin1z_t, ws.lin2_t, ws.lin1u_t};
-}
-
-// One evaluation of the vector field on the copies: a = tanh(lin1_z z + v), k = lin2 a + b2 (the
-// operations of infer's field below, the products in gemv_f32_t_avx512's order): fused in one call
-// when H and L are at most 64 (the paper's 64 and 40), else the three steps.
-template <class Lat, class Hid>
-void field_t(const CnodeF32& m, const F32Copies& t, const float* v, const Lat& z, Hid& a, Lat& k) {
-  const int H = m.dims.hidden, L = m.dims.latent;
-  k.resize(L);
-  if (field_f32_t_avx512(t.lin1z, t.lin2, H, L, z.data(), v, m.lin2_b, k.data())) return;  // H, L <= 64
-  a.resize(H);
-  gemv_f32_t_avx512(t.lin1z, H, L, z.data(), v, a.data());
-  tanh_n(a.data(), H);
-  gemv_f32_t_avx512(t.lin2, L, H, a.data(), m.lin2_b, k.data());
-}
-#endif
-
 }  // namespace
 
 Status check(const CnodeF32& m) { return check_any(m); }
@@ -317,7 +283,7 @@ Status infer(const CnodeF32& m, const float* x, float* logits, CnodeWorkspace& w
   if (tr != nullptr && tr->x_norm != nullptr) trace_x_norm(x, m.mean, m.std, W, C, tr->x_norm);
 
 #if defined(FWREF_HAS_F32_AVX512)
-  const F32Copies tc = f32_copies(m, ws);
+  const detail::F32Copies tc = detail::f32_copies(m, ws);
 #endif
   ws.a.resize(CnodeWorkspace::kURowInA ? C : 0);
   float* const u_row = CnodeWorkspace::kURowInA ? ws.a.data() : ws.u_row;
@@ -344,7 +310,7 @@ Status infer(const CnodeF32& m, const float* x, float* logits, CnodeWorkspace& w
 
   auto field = [&](int e, const CnodeWorkspace::Lat& z, CnodeWorkspace::Lat& k) {
 #if defined(FWREF_HAS_F32_AVX512)
-    if (tc.lin1z != nullptr) return field_t(m, tc, ws.v + m.stage_index[e] * H, z, ws.a, k);
+    if (tc.lin1z != nullptr) return detail::field_t(m, tc, ws.v + m.stage_index[e] * H, z, ws.a, k);
 #endif
     matvec_bias_f32(m.lin1_z, z, ws.v + m.stage_index[e] * H, ws.a);  // + V[stage_index[e]]
     tanh_inplace(ws.a);

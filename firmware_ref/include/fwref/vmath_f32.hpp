@@ -22,9 +22,11 @@
 // per row 8 FMA chains, one per lane, and one tree of additions, the horizontal sums of 8 rows done
 // together (sum8). Its roundings differ from Eigen's and from ONNX Runtime's MLAS, within the fp32
 // tolerance (core/contracts.py FP32_CPP_REL_TOL; `quadfdi parity`); it is deterministic: the same
-// inputs give the same bits on every AVX2 host (no dependence on alignment or on rows % 8). Hosts
-// without AVX2 + FMA keep Eigen's product (matvec_fast), and tanh_n / logistic_n the scalar loop (the
-// Cortex-M build keeps its own paths: fwref/kernels_f32.hpp, fwref/tanhq.hpp).
+// inputs give the same bits on every AVX2 host (no dependence on alignment or on rows % 8). On a CPU
+// with AVX-512F the products run fwref/kernels_f32_avx512.hpp's kernel instead (chosen at run time,
+// 16 lanes: its own stated order, the same bits on every AVX-512F host; FWREF_F32_KERNEL=avx2 keeps
+// this one). Hosts without AVX2 + FMA keep Eigen's product (matvec_fast), and tanh_n / logistic_n the
+// scalar loop (the Cortex-M build keeps its own paths: fwref/kernels_f32.hpp, fwref/tanhq.hpp).
 #pragma once
 
 #include <cmath>
