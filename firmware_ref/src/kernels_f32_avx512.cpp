@@ -84,6 +84,19 @@ FWREF_Z512 void rows16(const float* w, int cols_rt, const float* x, __mmask16 ta
   _mm512_mask_storeu_ps(y, m, sum);
 }
 
+// The last rows % 16 rows (from row ``full``) in passes of 8, 4, 2, 1. (A function, not a lambda in
+// gemv_cols: a lambda has no target attribute, so on a build without -mavx512f it could not inline
+// rows16.)
+template <int COLS, bool PF>
+FWREF_Z512 void rest_rows(const float* w, int full, int rows, int cols, const float* x, __mmask16 tail, const float* b,
+                          float* y, long pf) {
+  int o = full;
+  if (o + 8 <= rows) rows16<8, COLS, PF>(w + o * cols, cols, x, tail, b ? b + o : nullptr, y + o, pf), o += 8;
+  if (o + 4 <= rows) rows16<4, COLS, PF>(w + o * cols, cols, x, tail, b ? b + o : nullptr, y + o, pf), o += 4;
+  if (o + 2 <= rows) rows16<2, COLS, PF>(w + o * cols, cols, x, tail, b ? b + o : nullptr, y + o, pf), o += 2;
+  if (o < rows) rows16<1, COLS, PF>(w + o * cols, cols, x, tail, b ? b + o : nullptr, y + o, pf);
+}
+
 // All rows: passes of 16, then of 8, 4, 2, 1; REV: the same passes in the opposite order (last first).
 template <int COLS, bool PF, bool REV>
 __attribute__((target("avx512f"))) void gemv_cols(const float* w, int rows, int cols_rt, const float* x, const float* b,
@@ -92,20 +105,14 @@ __attribute__((target("avx512f"))) void gemv_cols(const float* w, int rows, int 
   const __mmask16 tail = static_cast<__mmask16>((1u << (cols & 15)) - 1u);
   const long pf = (REV ? -32L : 32L) * cols;
   const int full = rows & ~15;
-  const auto bias = [&](int row) { return b != nullptr ? b + row : nullptr; };
-  const auto rest = [&] {
-    int o = full;
-    if (o + 8 <= rows) rows16<8, COLS, PF>(w + o * cols, cols, x, tail, bias(o), y + o, pf), o += 8;
-    if (o + 4 <= rows) rows16<4, COLS, PF>(w + o * cols, cols, x, tail, bias(o), y + o, pf), o += 4;
-    if (o + 2 <= rows) rows16<2, COLS, PF>(w + o * cols, cols, x, tail, bias(o), y + o, pf), o += 2;
-    if (o < rows) rows16<1, COLS, PF>(w + o * cols, cols, x, tail, bias(o), y + o, pf);
-  };
   if (REV) {
-    rest();
-    for (int o = full - 16; o >= 0; o -= 16) rows16<16, COLS, PF>(w + o * cols, cols, x, tail, bias(o), y + o, pf);
+    rest_rows<COLS, PF>(w, full, rows, cols, x, tail, b, y, pf);
+    for (int o = full - 16; o >= 0; o -= 16) {
+      rows16<16, COLS, PF>(w + o * cols, cols, x, tail, b ? b + o : nullptr, y + o, pf);
+    }
   } else {
-    for (int o = 0; o < full; o += 16) rows16<16, COLS, PF>(w + o * cols, cols, x, tail, bias(o), y + o, pf);
-    rest();
+    for (int o = 0; o < full; o += 16) rows16<16, COLS, PF>(w + o * cols, cols, x, tail, b ? b + o : nullptr, y + o, pf);
+    rest_rows<COLS, PF>(w, full, rows, cols, x, tail, b, y, pf);
   }
 }
 

@@ -183,6 +183,14 @@ GemvCheck check_gemv() {
 }
 
 #if defined(FWREF_HAS_F32_AVX512)
+// n floats starting on a 64-byte boundary inside ``v`` (the column-major copies' alignment, which
+// Eigen's aligned_allocator gives only in a build whose own vectors are 512-bit).
+float* floats64(std::vector<float>& v, std::size_t n) {
+  v.assign(n + 16, 0.0f);
+  const std::uintptr_t a = reinterpret_cast<std::uintptr_t>(v.data());
+  return v.data() + ((64 - a % 64) % 64) / sizeof(float);
+}
+
 // gemv_f32_t_avx512 (fwref/kernels_f32_avx512.hpp's column-major copy) on random matrices of every
 // column count 1..140 and the row counts 1..20, 33, 40, 64, 65, 100: bit for bit against a scalar
 // statement of its order and within its bound gamma(ceil(cols / 4) + 2) * sum |w x| (+ the bias add's u |y|).
@@ -201,10 +209,11 @@ bool check_gemv_t(GemvCheck& c) {
       for (float& f : w) f = nd(rng);
       for (float& f : x) f = nd(rng);
       for (float& f : b) f = nd(rng);
-      std::vector<float, Eigen::aligned_allocator<float>> wt(std::size_t(cols) * fwref::f32_t_stride(rows));
-      fwref::pack_f32_t(w.data(), rows, cols, wt.data());
+      std::vector<float> wt_store;
+      float* const wt = floats64(wt_store, std::size_t(cols) * fwref::f32_t_stride(rows));
+      fwref::pack_f32_t(w.data(), rows, cols, wt);
       const bool bias = (rows + cols) % 2 == 0;
-      fwref::gemv_f32_t_avx512(wt.data(), rows, cols, x.data(), bias ? b.data() : nullptr, y.data());
+      fwref::gemv_f32_t_avx512(wt, rows, cols, x.data(), bias ? b.data() : nullptr, y.data());
       const double n = (cols + 3) / 4 + 2, gamma = n * u / (1.0 - n * u);
       for (int o = 0; o < rows; ++o) {
         float sp[4] = {};
@@ -246,14 +255,15 @@ long check_field_t(long* compared) {
       for (float& f : z) f = 3.0f * nd(rng) / std::sqrt(float(L));
       for (float& f : v) f = nd(rng);
       for (float& f : b2) f = nd(rng);
-      std::vector<float, Eigen::aligned_allocator<float>> t1(std::size_t(L) * fwref::f32_t_stride(H)),
-          t2(std::size_t(H) * fwref::f32_t_stride(L));
-      fwref::pack_f32_t(w1.data(), H, L, t1.data());
-      fwref::pack_f32_t(w2.data(), L, H, t2.data());
-      fwref::gemv_f32_t_avx512(t1.data(), H, L, z.data(), v.data(), a.data());
+      std::vector<float> s1, s2;
+      float* const t1 = floats64(s1, std::size_t(L) * fwref::f32_t_stride(H));
+      float* const t2 = floats64(s2, std::size_t(H) * fwref::f32_t_stride(L));
+      fwref::pack_f32_t(w1.data(), H, L, t1);
+      fwref::pack_f32_t(w2.data(), L, H, t2);
+      fwref::gemv_f32_t_avx512(t1, H, L, z.data(), v.data(), a.data());
       fwref::tanh_n(a.data(), H);
-      fwref::gemv_f32_t_avx512(t2.data(), L, H, a.data(), b2.data(), want.data());
-      if (!fwref::field_f32_t_avx512(t1.data(), t2.data(), H, L, z.data(), v.data(), b2.data(), got.data())) return -1;
+      fwref::gemv_f32_t_avx512(t2, L, H, a.data(), b2.data(), want.data());
+      if (!fwref::field_f32_t_avx512(t1, t2, H, L, z.data(), v.data(), b2.data(), got.data())) return -1;
       for (int o = 0; o < L; ++o) bad += fwref::float_bits(want[o]) != fwref::float_bits(got[o]);
       bad += got[L] != 7.0f;  // nothing written past k
       *compared += L;
