@@ -3,13 +3,16 @@ tanh_approx / logistic_approx bit for bit (clamp edges, +-0, NaN, +-inf, denorma
 float32 bit patterns), and the fp32 gemv (matvec_f32 / matvec_bias_f32; every column count 1..140,
 rows 1..17, with and without bias) two ways; it exits 1 on any failure.
 
-The gemv is no longer Eigen's order (issue 15: FMA chains, 8 rows per pass), so it is not compared with
-Eigen's product bit for bit. What it promises instead, and what is checked:
+The gemv is no longer Eigen's order (issue 15: FMA chains, 8 rows per pass; 16 per pass on an AVX-512F
+CPU, chosen at run time, both kernels checked there), so it is not compared with Eigen's product bit
+for bit. What each kernel promises instead, and what is checked:
 - its order, stated in fwref/vmath_f32.hpp, bit for bit against a scalar statement of that order
   (so its results do not depend on the row blocking, alignment or which rows % 8 path ran);
 - its accuracy: within the rounding-error bound of that order, gamma(ceil(cols/8) + 3) * sum |w x|,
   of a double-precision sum; a bound, not a tolerance picked to pass (the worst ratio is printed).
 How far that moves the models from ONNX Runtime is `quadfdi parity`'s check (FP32_CPP_REL_TOL).
+On an AVX-512F CPU also the CNODE's column-major kernel (gemv_t: its order and bound) and its fused
+field (bit for bit against the kernel's three separate steps).
 
 And the CNODE's int8 vector math (fwref/vmath_i8.hpp) with numerics.hpp's scalar expressions, bit
 for bit: QuantizeLinear's round-half-even ties, saturation bounds and NaN, rescale + tanh + quantize,
@@ -42,12 +45,16 @@ def test_vector_tanh_logistic_bit_identical_and_gemv_in_its_order_and_bound(host
     for fn in ("tanh", "logistic"):
         m = re.search(rf"^{fn}: (\d+) of (\d+) differ$", out, re.M)
         assert m and int(m.group(1)) == 0 and int(m.group(2)) > 1_000_000, out
-    rows_checked = 140 * sum(range(1, 18))
-    m = re.search(r"^gemv order: (\d+) of (\d+) differ$", out, re.M)  # compared only for the FMA kernel
-    fma_kernel = "gemv kernel: fma-avx2-8row" in out
-    assert m and int(m.group(1)) == 0 and int(m.group(2)) == (rows_checked if fma_kernel else 0), out
+    # per kernel: every cols 1..140 x rows 1..17, then 3 matrices over 32 KiB (240, 250, 129 rows) in both
+    # pass orders; each kernel the CPU runs (fma-avx2-8row, and fma-avx512-16row on an AVX-512F CPU)
+    rows_checked = 140 * sum(range(1, 18)) + 2 * (240 + 250 + 129)
+    kernels = re.search(r"^gemv kernels checked: (.*)$", out, re.M).group(1).split()
+    fma = [k for k in kernels if k.startswith("fma-")]
+    m = re.search(r"^gemv order: (\d+) of (\d+) differ$", out, re.M)  # compared only for the FMA kernels
+    assert m and int(m.group(1)) == 0 and int(m.group(2)) == rows_checked * len(fma), out
     m = re.search(r"^gemv bound: (\d+) of (\d+) exceed \(worst error / bound ([0-9.]+)\)$", out, re.M)
-    assert m and int(m.group(1)) == 0 and int(m.group(2)) == rows_checked and float(m.group(3)) <= 1.0, out
+    assert m and int(m.group(1)) == 0 and int(m.group(2)) == rows_checked * len(kernels), out
+    assert float(m.group(3)) <= 1.0, out
     m = re.search(r"^all_finite: (\d+) of (\d+) differ$", out, re.M)
     assert m and int(m.group(1)) == 0 and int(m.group(2)) > 3000, out
     i8_min = {"quantize": 10_000_000, "rescale_tanh_quantize+rescale_bias": 19_000, "hidden_rows": 3_000_000,
@@ -59,4 +66,14 @@ def test_vector_tanh_logistic_bit_identical_and_gemv_in_its_order_and_bound(host
     flags = _cpu_flags()
     if {"avx2", "fma"} <= flags:  # the host build is -march=native: the vector path must be the one compared
         assert "vmath kernel: avx2-fma" in out and "vmath_i8 kernel: avx2" in out, out
-        assert "gemv kernel: fma-avx2-8row" in out, out
+        assert "fma-avx2-8row" in kernels, out
+        # the AVX-512F kernel is chosen at run time where the CPU has it (the AVX2 one stays checked)
+        want = "fma-avx512-16row" if "avx512f" in flags else "fma-avx2-8row"
+        assert f"gemv kernel: {want}" in out and (want in kernels), out
+    if "avx512f" in flags:  # the CNODE's column-major copies and fused field (fwref/kernels_f32_avx512.hpp)
+        m = re.search(r"^gemv_t order: (\d+) of (\d+) differ$", out, re.M)
+        assert m and int(m.group(1)) == 0 and int(m.group(2)) == 140 * (sum(range(1, 21)) + 33 + 40 + 64 + 65 + 100), out
+        m = re.search(r"^gemv_t bound: (\d+) of (\d+) exceed \(worst error / bound ([0-9.]+)\)$", out, re.M)
+        assert m and int(m.group(1)) == 0 and float(m.group(3)) <= 1.0, out
+        m = re.search(r"^field_t: (\d+) of (\d+) differ$", out, re.M)
+        assert m and int(m.group(1)) == 0 and int(m.group(2)) == 64 * sum(range(1, 65)), out

@@ -10,6 +10,7 @@
 #include "fwref/vmath_f32.hpp"
 #include "fwref/vmath_i8.hpp"
 #include "cnode_controls.hpp"
+#include "cnode_f32_t.hpp"
 #include "model_common.hpp"
 #include "motor_common.hpp"
 #if defined(FWREF_HAS_W8_VNNI)
@@ -281,6 +282,9 @@ Status infer(const CnodeF32& m, const float* x, float* logits, CnodeWorkspace& w
   if (!all_finite_n(x, W * C)) return Status::kNonFiniteInput;
   if (tr != nullptr && tr->x_norm != nullptr) trace_x_norm(x, m.mean, m.std, W, C, tr->x_norm);
 
+#if defined(FWREF_HAS_F32_AVX512)
+  const detail::F32Copies tc = detail::f32_copies(m, ws);
+#endif
   ws.a.resize(CnodeWorkspace::kURowInA ? C : 0);
   float* const u_row = CnodeWorkspace::kURowInA ? ws.a.data() : ws.u_row;
   // U row by row, each row straight into V = lin1_u U + b1 (MatMul, then Add); row 0 also feeds
@@ -291,7 +295,12 @@ Status infer(const CnodeF32& m, const float* x, float* logits, CnodeWorkspace& w
       for (int c = 0; c < C; ++c) tr->u[s * C + c] = u_row[c];
     }
     const ConstMapVec u(u_row, C);
-    matvec_bias_f32(m.lin1_u, u, m.lin1_b, MapVec(ws.v + s * H, H));
+#if defined(FWREF_HAS_F32_AVX512)
+    if (tc.lin1u != nullptr) {
+      gemv_f32_t_avx512(tc.lin1u, H, C, u_row, m.lin1_b, ws.v + s * H);
+    } else
+#endif
+      matvec_bias_f32(m.lin1_u, u, m.lin1_b, MapVec(ws.v + s * H, H));
     if (s == 0) {
       matvec_bias_f32(m.encoder_w, u, m.encoder_b, ws.z);
       tanh_inplace(ws.z);
@@ -300,6 +309,9 @@ Status infer(const CnodeF32& m, const float* x, float* logits, CnodeWorkspace& w
   if (tr != nullptr) copy_out(ws.z, tr->z0);
 
   auto field = [&](int e, const CnodeWorkspace::Lat& z, CnodeWorkspace::Lat& k) {
+#if defined(FWREF_HAS_F32_AVX512)
+    if (tc.lin1z != nullptr) return detail::field_t(m, tc, ws.v + m.stage_index[e] * H, z, ws.a, k);
+#endif
     matvec_bias_f32(m.lin1_z, z, ws.v + m.stage_index[e] * H, ws.a);  // + V[stage_index[e]]
     tanh_inplace(ws.a);
     matvec_bias_f32(m.lin2_w, ws.a, m.lin2_b, k);

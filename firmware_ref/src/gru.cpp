@@ -48,11 +48,7 @@ Status check_common(const Model& m) {
 // int8 graph's operator order: r = sigmoid(gx_r + gh_r), z = sigmoid(gx_z + gh_z),
 // n = tanh(gx_n + gh_n * r), h = (h - n) * z + n. h[j] depends on the old h[j] only (gh holds the
 // recurrent product of the old h), so the update is in place.
-template <class Hid, class Gates>
-void gru_cell(const Gates& gx_, const Gates& gh_, int hidden, Hid& h_) {
-  const float* gx = gx_.data();
-  const float* gh = gh_.data();
-  float* h = h_.data();
+void gru_cell(const float* gx, const float* gh, int hidden, float* h) {
   int j = 0;
 #if defined(FWREF_VMATH_AVX2)
   // 8 units per AVX2 vector, each lane the scalar loop's operations below (fwref/vmath_f32.hpp's
@@ -108,6 +104,44 @@ Status check_any(const Model& m) {
 Status check(const GruF32& m) { return check_any(m); }
 Status check(const GruI8& m) { return check_any(m); }
 
+#if defined(FWREF_HAS_W8_VNNI)
+namespace {
+// gh = W_hh h + b_hh. With the AVX2 + FMA build, odd steps ask for the row passes in reverse (used by
+// the AVX-512 kernel): W_hh (3H x H floats, 77 KB for H = 80) does not fit L1d, but the rows a step
+// read last are still there when the next step starts with them. The same results in either order.
+void recurrent_product(const GruF32& m, GruWorkspace& ws, bool reverse) {
+#if defined(FWREF_GEMV_FMA)
+  ws.gh.resize(m.w_hh.rows);
+  gemv_f32_host(m.w_hh.data, m.w_hh.rows, m.w_hh.cols, ws.h.data(), m.b_hh, ws.gh.data(), reverse);
+#else
+  (void)reverse;
+  matvec_bias_f32(m.w_hh, ws.h, m.b_hh, ws.gh);
+#endif
+}
+
+// The fp32 steps on an x86-64 host: blocks of GruWorkspace::kGxSteps steps, first the block's input
+// gates (W_ih held in L1 across them), then its recurrent steps (only W_hh streams from L2). Every
+// product and cell is the one of the step-by-step loop below, so the same bits.
+void steps_f32_blocked(const GruF32& m, const float* x, GruWorkspace& ws, GruTrace* tr) {
+  const int C = m.dims.channels, W = m.dims.window, H = m.dims.hidden;
+  for (int t0 = 0; t0 < W; t0 += GruWorkspace::kGxSteps) {
+    const int nt = W - t0 < GruWorkspace::kGxSteps ? W - t0 : GruWorkspace::kGxSteps;
+    for (int k = 0; k < nt; ++k) {
+      const int t = t0 + k;
+      for (int c = 0; c < C; ++c) ws.xn[c] = normalise(x[t * C + c], m.mean[c], m.std[c]);
+      if (tr != nullptr) trace_row(ws.xn, C, tr->x_norm == nullptr ? nullptr : tr->x_norm + t * C);
+      matvec_bias_f32(m.w_ih, ws.xn, m.b_ih, MapVec(ws.gx_block + k * 3 * H, 3 * H));
+    }
+    for (int k = 0; k < nt; ++k) {
+      recurrent_product(m, ws, ((t0 + k) & 1) != 0);
+      gru_cell(ws.gx_block + k * 3 * H, ws.gh.data(), H, ws.h.data());
+      if (tr != nullptr) trace_row(ws.h, H, tr->h == nullptr ? nullptr : tr->h + (t0 + k) * H);
+    }
+  }
+}
+}  // namespace
+#endif
+
 Status infer(const GruF32& m, const float* x, float* logits, GruWorkspace& ws, GruTrace* tr) {
   if (x == nullptr || logits == nullptr) return Status::kNullArgument;
   const GruDims& d = m.dims;
@@ -115,14 +149,18 @@ Status infer(const GruF32& m, const float* x, float* logits, GruWorkspace& ws, G
   if (!all_finite_n(x, W * C)) return Status::kNonFiniteInput;
   ws.h.setZero(H);
   ws.xn.resize(C);
+#if defined(FWREF_HAS_W8_VNNI)
+  steps_f32_blocked(m, x, ws, tr);
+#else
   for (int t = 0; t < W; ++t) {
     for (int c = 0; c < C; ++c) ws.xn[c] = normalise(x[t * C + c], m.mean[c], m.std[c]);
     if (tr != nullptr) trace_row(ws.xn, C, tr->x_norm == nullptr ? nullptr : tr->x_norm + t * C);
     matvec_bias_f32(m.w_ih, ws.xn, m.b_ih, ws.gx);  // MatMul then Add, as ws.gx = W_ih xn; ws.gx += b_ih
     matvec_bias_f32(m.w_hh, ws.h, m.b_hh, ws.gh);
-    gru_cell(ws.gx, ws.gh, H, ws.h);
+    gru_cell(ws.gx.data(), ws.gh.data(), H, ws.h.data());
     if (tr != nullptr) trace_row(ws.h, H, tr->h == nullptr ? nullptr : tr->h + t * H);
   }
+#endif
   MapVec out(logits, d.classes);
   matvec_bias_f32(m.head_w, ws.h, m.head_b, out);
   return all_finite(logits, d.classes) ? Status::kOk : Status::kNonFiniteOutput;
@@ -247,7 +285,7 @@ Status infer(const GruI8& m, const float* x, float* logits, GruWorkspace& ws, Gr
     linear_i8_folded(m.w_ih.q, m.w_ih.scale, 3 * H, C, ws.xq, m.b_ih, ws.gx.data(), wih16);
     quantize_all(ws.h.data(), H, m.s_h, ws.hq);
     linear_i8_tensor(m.w_hh.q, m.w_hh.scale, 3 * H, H, ws.hq, m.s_h, m.b_hh, ws.gh.data(), whh16);
-    gru_cell(ws.gx, ws.gh, H, ws.h);
+    gru_cell(ws.gx.data(), ws.gh.data(), H, ws.h.data());
     if (tr != nullptr) trace_row(ws.h, H, tr->h == nullptr ? nullptr : tr->h + t * H);
   }
   quantize_all(ws.h.data(), H, m.s_h, ws.hq);

@@ -7,8 +7,9 @@
 //    their neighbouring floats), +-0, +-inf, quiet and signalling NaNs of both signs, denormals, and
 //    every N-th float32 bit pattern (default 4099: about a million floats of every exponent). A
 //    float's 8-lane vector and its scalar tail are both exercised (arrays of 8k + 5 values).
-// 2. matvec_f32 / matvec_bias_f32 (gemv_f32_fma on an AVX2 host) on random matrices of every column
-//    count from 1 to 140 and row counts 1..17: bit for bit against a scalar statement of the kernel's
+// 2. matvec_f32 / matvec_bias_f32 on random matrices of every column count from 1 to 140 and row
+//    counts 1..17, for each kernel the CPU runs (gemv_f32_fma on an AVX2 host, gemv_f32_avx512 too on
+//    an AVX-512F one, each selected in turn): bit for bit against a scalar statement of that kernel's
 //    summation order, and against a double-precision sum within the order's rounding-error bound.
 // 3. all_finite_n against all_finite_f32 (one inf / NaN at every position of short windows).
 // 4. the int8 vector math (fwref/vmath_i8.hpp) against numerics.hpp's scalar expressions: quantize
@@ -72,26 +73,37 @@ long compare(const std::vector<float>& in, Vec vec, Scalar scalar) {
 }
 
 #if defined(FWREF_GEMV_FMA)
-// The order gemv_f32_fma promises (fwref/vmath_f32.hpp), stated one scalar operation at a time.
-float gemv_row_order(const float* w, int cols, const float* x) {
-  float a[8] = {0, 0, 0, 0, 0, 0, 0, 0};
-  for (int j = 0; j < 8 && j < cols; ++j) a[j] = cols >= 8 ? w[j] * x[j] : std::fma(w[j], x[j], 0.0f);
-  for (int i = 8; i < cols; ++i) a[i % 8] = std::fma(w[i], x[i], a[i % 8]);
-  return ((a[0] + a[1]) + (a[2] + a[3])) + ((a[4] + a[5]) + (a[6] + a[7]));
+// The order the host's gemv kernels promise (fwref/vmath_f32.hpp: 8 lanes, adjacent pairs folded;
+// fwref/kernels_f32_avx512.hpp: 16 lanes, halves folded), stated one scalar operation at a time. The
+// masked tail's lanes past cols meet fma(0, 0, a) as in the kernels.
+float gemv_row_order(const float* w, int cols, const float* x, int lanes) {
+  float a[16] = {};
+  for (int j = 0; j < lanes && j < cols; ++j) a[j] = cols >= lanes ? w[j] * x[j] : std::fma(w[j], x[j], 0.0f);
+  for (int i = lanes; i < cols; ++i) a[i % lanes] = std::fma(w[i], x[i], a[i % lanes]);
+  if (cols % lanes != 0) {
+    for (int j = cols % lanes; j < lanes; ++j) a[j] = std::fma(0.0f, 0.0f, a[j]);
+  }
+  if (lanes == 8) return ((a[0] + a[1]) + (a[2] + a[3])) + ((a[4] + a[5]) + (a[6] + a[7]));
+  for (int half = 8; half >= 1; half /= 2) {
+    for (int k = 0; k < half; ++k) a[k] = a[k] + a[k + half];
+  }
+  return a[0];
 }
 #endif
 
 // gemv with and without a bias on random matrices of every column count 1..140 and row counts 1..17
-// (the 8-row passes and the 4 / 2 / 1 remainders), rows and x unaligned as weights.bin's views may be.
-// order: rows whose bits differ from gemv_row_order (+ b) -- only where gemv_f32_fma is the kernel;
-// bound: rows farther from the double-precision sum than the error bound gamma(ceil(cols / 8) + 3) *
-// sum |w x| (+ u |y| for the bias add); with Eigen's product the bound is gamma(cols) (any order).
+// (the 16- and 8-row passes and the 4 / 2 / 1 remainders), rows and x unaligned as weights.bin's views
+// may be, for each kernel this CPU runs (``lanes``: 8 for the AVX2 kernel, 16 for the AVX-512 one, 0
+// for Eigen's product).
+// order: rows whose bits differ from gemv_row_order (+ b) -- only for the FMA kernels;
+// bound: rows farther from the double-precision sum than the error bound gamma(ceil(cols / lanes) + log2
+// lanes) * sum |w x| (+ u |y| for the bias add); with Eigen's product the bound is gamma(cols) (any order).
 struct GemvCheck {
   long compared = 0, order_compared = 0, order_bad = 0, bound_bad = 0;
   double worst = 0.0;  // largest |error| / bound seen
 };
 
-void check_gemv_one(std::mt19937& rng, int rows, int cols, bool bias, GemvCheck& c) {
+void check_gemv_one(std::mt19937& rng, int rows, int cols, bool bias, int lanes, GemvCheck& c, bool reverse = false) {
   std::normal_distribution<float> nd(0.0f, 1.0f);
   std::vector<float> w(rows * cols + 1), x(cols + 1), b(rows + 1);
   for (float& f : w) f = nd(rng);
@@ -100,17 +112,18 @@ void check_gemv_one(std::mt19937& rng, int rows, int cols, bool bias, GemvCheck&
   const fwref::MatF m{w.data() + 1, rows, cols};
   const float* bp = bias ? b.data() + 1 : nullptr;
   Eigen::Matrix<float, Eigen::Dynamic, 1> y(rows);
+#if defined(FWREF_GEMV_FMA)
+  if (reverse) {
+    fwref::gemv_f32_host(m.data, rows, cols, x.data() + 1, bp, y.data(), true);
+  } else
+#endif
   if (bias) {
     fwref::matvec_bias_f32(m, fwref::ConstMapVec(x.data() + 1, cols), bp, y);
   } else {
     fwref::matvec_f32(m, fwref::ConstMapVec(x.data() + 1, cols), y);
   }
   const double u = std::ldexp(1.0, -24);
-#if defined(FWREF_GEMV_FMA)
-  const double n = (cols + 7) / 8 + 3;
-#else
-  const double n = cols;
-#endif
+  const double n = lanes > 0 ? (cols + lanes - 1) / lanes + (lanes == 16 ? 4 : 3) : cols;
   const double gamma = n * u / (1.0 - n * u);
   for (int o = 0; o < rows; ++o) {
     const float* r = m.data + o * cols;
@@ -123,10 +136,10 @@ void check_gemv_one(std::mt19937& rng, int rows, int cols, bool bias, GemvCheck&
     if (err > bound) ++c.bound_bad;
     if (bound > 0) c.worst = std::max(c.worst, err / bound);
 #if defined(FWREF_GEMV_FMA)
-    float want = gemv_row_order(r, cols, xv);
+    float want = gemv_row_order(r, cols, xv, lanes);
     if (bias) want = want + bp[o];
     if (fwref::float_bits(want) != fwref::float_bits(y[o])) {
-      if (c.order_bad < 5) std::printf("  gemv rows=%d cols=%d row %d: %a, the stated order %a\n", rows, cols, o, y[o], want);
+      if (c.order_bad < 5) std::printf("  gemv %d lanes rows=%d cols=%d row %d: %a, the stated order %a\n", lanes, rows, cols, o, y[o], want);
       ++c.order_bad;
     }
     ++c.order_compared;
@@ -135,14 +148,130 @@ void check_gemv_one(std::mt19937& rng, int rows, int cols, bool bias, GemvCheck&
   }
 }
 
-GemvCheck check_gemv() {
+// Then matrices over 32 KiB (the AVX-512 kernel's prefetching instances), in both pass orders: a GRU
+// W_hh (240 x 80), and run-time column counts with rows % 16 = 10 and 1.
+constexpr int kLargeShapes[3][2] = {{240, 80}, {250, 97}, {129, 70}};
+void check_gemv_kernel(int lanes, GemvCheck& c) {
   std::mt19937 rng(1234);
-  GemvCheck c;
   for (int cols = 1; cols <= 140; ++cols) {
-    for (int rows = 1; rows <= 17; ++rows) check_gemv_one(rng, rows, cols, rows % 2 == 0, c);
+    for (int rows = 1; rows <= 17; ++rows) check_gemv_one(rng, rows, cols, rows % 2 == 0, lanes, c);
   }
+  for (const auto& rc : kLargeShapes) {
+    for (bool reverse : {false, true}) check_gemv_one(rng, rc[0], rc[1], true, lanes, c, reverse);
+  }
+}
+
+// Every kernel this CPU runs, each selected in turn (the run-time choice restored after); prints
+// "gemv kernels checked: NAME..." and returns the pooled counts.
+GemvCheck check_gemv() {
+  GemvCheck c;
+  std::printf("gemv kernels checked:");
+#if defined(FWREF_GEMV_FMA)
+  const bool was512 = fwref::gemv_f32_avx512_active();
+  for (const char* k : {"avx2", "avx512"}) {
+    if (!fwref::gemv_f32_select(k)) continue;
+    std::printf(" %s", fwref::matvec_f32_kernel_name());
+    check_gemv_kernel(std::strcmp(k, "avx2") == 0 ? 8 : 16, c);
+  }
+  fwref::gemv_f32_select(was512 ? "avx512" : "avx2");
+#else
+  std::printf(" %s", fwref::matvec_f32_kernel_name());
+  check_gemv_kernel(0, c);
+#endif
+  std::printf("\n");
   return c;
 }
+
+#if defined(FWREF_HAS_F32_AVX512)
+// n floats starting on a 64-byte boundary inside ``v`` (the column-major copies' alignment, which
+// Eigen's aligned_allocator gives only in a build whose own vectors are 512-bit).
+float* floats64(std::vector<float>& v, std::size_t n) {
+  v.assign(n + 16, 0.0f);
+  const std::uintptr_t a = reinterpret_cast<std::uintptr_t>(v.data());
+  return v.data() + ((64 - a % 64) % 64) / sizeof(float);
+}
+
+// gemv_f32_t_avx512 (fwref/kernels_f32_avx512.hpp's column-major copy) on random matrices of every
+// column count 1..140 and the row counts 1..20, 33, 40, 64, 65, 100: bit for bit against a scalar
+// statement of its order and within its bound gamma(ceil(cols / 4) + 2) * sum |w x| (+ the bias add's u |y|).
+// Returns false (nothing compared) on a CPU without AVX-512F.
+bool check_gemv_t(GemvCheck& c) {
+  if (!__builtin_cpu_supports("avx512f")) return false;
+  std::mt19937 rng(4321);
+  std::normal_distribution<float> nd(0.0f, 1.0f);
+  const double u = std::ldexp(1.0, -24);
+  std::vector<int> row_counts;
+  for (int r = 1; r <= 20; ++r) row_counts.push_back(r);
+  for (int r : {33, 40, 64, 65, 100}) row_counts.push_back(r);
+  for (int cols = 1; cols <= 140; ++cols) {
+    for (int rows : row_counts) {
+      std::vector<float> w(rows * cols), x(cols), b(rows), y(rows + 1, 7.0f);
+      for (float& f : w) f = nd(rng);
+      for (float& f : x) f = nd(rng);
+      for (float& f : b) f = nd(rng);
+      std::vector<float> wt_store;
+      float* const wt = floats64(wt_store, std::size_t(cols) * fwref::f32_t_stride(rows));
+      fwref::pack_f32_t(w.data(), rows, cols, wt);
+      const bool bias = (rows + cols) % 2 == 0;
+      fwref::gemv_f32_t_avx512(wt, rows, cols, x.data(), bias ? b.data() : nullptr, y.data());
+      const double n = (cols + 3) / 4 + 2, gamma = n * u / (1.0 - n * u);
+      for (int o = 0; o < rows; ++o) {
+        float sp[4] = {};
+        double exact = 0.0, mag = 0.0;
+        for (int i = 0; i < cols; ++i) {
+          const float wi = w[o * cols + i];
+          sp[i % 4] = i < 4 ? wi * x[i] : std::fma(wi, x[i], sp[i % 4]);
+          exact += double(wi) * x[i], mag += std::fabs(double(wi) * x[i]);
+        }
+        float want = (sp[0] + sp[1]) + (sp[2] + sp[3]);
+        double bound = gamma * mag;
+        if (bias) want = want + b[o], exact += b[o], bound = bound * (1.0 + u) + u * std::fabs(exact);
+        if (fwref::float_bits(want) != fwref::float_bits(y[o])) {
+          if (c.order_bad < 5) std::printf("  gemv_t rows=%d cols=%d row %d: %a, the stated order %a\n", rows, cols, o, y[o], want);
+          ++c.order_bad;
+        }
+        const double err = std::fabs(double(y[o]) - exact);
+        if (err > bound) ++c.bound_bad;
+        if (bound > 0) c.worst = std::max(c.worst, err / bound);
+        ++c.order_compared, ++c.compared;
+      }
+      if (y[rows] != 7.0f) ++c.order_bad;  // nothing written past the rows
+    }
+  }
+  return true;
+}
+
+// field_f32_t_avx512 against its three steps (gemv_f32_t_avx512, tanh_n, gemv_f32_t_avx512) for every
+// H, L in 1..64 (x in [-3, 3] so tanh's clamp is crossed too): elements whose bits differ.
+long check_field_t(long* compared) {
+  std::mt19937 rng(99);
+  std::normal_distribution<float> nd(0.0f, 1.0f);
+  long bad = 0;
+  for (int H = 1; H <= 64; ++H) {
+    for (int L = 1; L <= 64; ++L) {
+      std::vector<float> w1(H * L), w2(L * H), z(L), v(H), b2(L), a(H), want(L), got(L + 1, 7.0f);
+      for (float& f : w1) f = nd(rng);
+      for (float& f : w2) f = nd(rng);
+      for (float& f : z) f = 3.0f * nd(rng) / std::sqrt(float(L));
+      for (float& f : v) f = nd(rng);
+      for (float& f : b2) f = nd(rng);
+      std::vector<float> s1, s2;
+      float* const t1 = floats64(s1, std::size_t(L) * fwref::f32_t_stride(H));
+      float* const t2 = floats64(s2, std::size_t(H) * fwref::f32_t_stride(L));
+      fwref::pack_f32_t(w1.data(), H, L, t1);
+      fwref::pack_f32_t(w2.data(), L, H, t2);
+      fwref::gemv_f32_t_avx512(t1, H, L, z.data(), v.data(), a.data());
+      fwref::tanh_n(a.data(), H);
+      fwref::gemv_f32_t_avx512(t2, L, H, a.data(), b2.data(), want.data());
+      if (!fwref::field_f32_t_avx512(t1, t2, H, L, z.data(), v.data(), b2.data(), got.data())) return -1;
+      for (int o = 0; o < L; ++o) bad += fwref::float_bits(want[o]) != fwref::float_bits(got[o]);
+      bad += got[L] != 7.0f;  // nothing written past k
+      *compared += L;
+    }
+  }
+  return bad;
+}
+#endif
 
 // all_finite_n against all_finite_f32 on windows of every length 0..40 with one inf, -inf or NaN at
 // every position (and none): the number of answers that differ.
@@ -189,7 +318,19 @@ int main(int argc, char** argv) {
   const GemvCheck g = check_gemv();
   std::printf("gemv order: %ld of %ld differ\n", g.order_bad, g.order_compared);  // 0 of 0: Eigen's product
   std::printf("gemv bound: %ld of %ld exceed (worst error / bound %.3f)\n", g.bound_bad, g.compared, g.worst);
-  const long bg = g.order_bad + g.bound_bad;
+  long bg = g.order_bad + g.bound_bad;
+#if defined(FWREF_HAS_F32_AVX512)
+  GemvCheck gt;
+  if (check_gemv_t(gt)) {
+    std::printf("gemv_t order: %ld of %ld differ\n", gt.order_bad, gt.order_compared);
+    std::printf("gemv_t bound: %ld of %ld exceed (worst error / bound %.3f)\n", gt.bound_bad, gt.compared, gt.worst);
+    bg += gt.order_bad + gt.bound_bad;
+    long compared_field = 0;
+    const long bfield = check_field_t(&compared_field);
+    std::printf("field_t: %ld of %ld differ\n", bfield, compared_field);
+    bg += bfield != 0 ? 1 : 0;
+  }
+#endif
   long compared_f = 0;
   const long bf = check_all_finite(&compared_f);
   std::printf("all_finite: %ld of %ld differ\n", bf, compared_f);

@@ -2,6 +2,7 @@
 // fp32 build support (fwref_kernels --info, fwref_parity --kernel-info; bench records them):
 //   cpu_flags: sse4.2=1 avx=1 avx2=1 fma=1 avx512f=0 avx512vl=0 avx512vnni=0
 //   fp32_build: x86-64 sse4.2 avx avx2 fma
+//   fp32_kernel: fma-avx2-8row                  (fma-avx512-16row on an AVX-512F CPU)
 //   int8_kernel: avx2
 //   int8_kernels: portable=runs avx2=runs avx512vnni=no
 //   gru_int8_products: w16-vpmaddwd             (x86-64 only: w8-vpdpbusd with avx512vnni)
@@ -14,6 +15,7 @@
 
 #include "fwref/kernels_i8.hpp"
 #include "fwref/kernels_w8_vnni.hpp"
+#include "fwref/vmath_f32.hpp"
 
 namespace fwref {
 namespace host {
@@ -31,6 +33,8 @@ inline void print_kernel_info(std::FILE* out) {
 #endif
 #if defined(__x86_64__) && !defined(FWREF_PORTABLE_KERNELS)
   std::fprintf(out, "fp32_build: %s\n", fp32_build_isa());
+  // the fp32 products' kernel, chosen at run time (fwref/kernels_f32_avx512.hpp; FWREF_F32_KERNEL=avx2)
+  std::fprintf(out, "fp32_kernel: %s\n", matvec_f32_kernel_name());
   std::fprintf(out, "int8_kernel: %s\n", gemv_i8_kernel_name());
   const GemvI8Kernel* ks = nullptr;
   const int n = gemv_i8_kernels(&ks);

@@ -18,6 +18,7 @@
 #include <cstdint>
 
 #include "fwref/config.hpp"
+#include "fwref/kernels_f32_avx512.hpp"
 #include "fwref/kernels_w8_vnni.hpp"
 #include "fwref/linalg.hpp"
 #include "fwref/motor.hpp"
@@ -131,6 +132,15 @@ struct CnodeWorkspace {
   alignas(8) std::int16_t lin1u16[kMaxCnodeHidden * ((kMaxChannels + 7) & ~7)];
 #endif
   const std::int8_t* w16_of = nullptr;
+#endif
+#if defined(FWREF_HAS_F32_AVX512)
+  // x86-64 hosts whose fp32 choice is AVX-512F (fwref/kernels_f32_avx512.hpp): lin1_z, lin2 and lin1_u
+  // copied column-major for gemv_f32_t_avx512 (no horizontal folds on the latency-bound field chain),
+  // made at the first fp32 inference of a model; t_of: which weights, by address, as w16_of.
+  alignas(64) float lin1z_t[kMaxLatent * f32_t_stride(kMaxCnodeHidden)];
+  alignas(64) float lin2_t[kMaxCnodeHidden * f32_t_stride(kMaxLatent)];
+  alignas(64) float lin1u_t[kMaxChannels * f32_t_stride(kMaxCnodeHidden)];
+  const float* t_of = nullptr;
 #endif
 #if defined(FWREF_HAS_W8_VNNI)
   // x86-64 hosts whose int8 kernel is avx512vnni (chosen at run time, fwref/kernels_i8.hpp): every int8

@@ -81,6 +81,11 @@ struct GruWorkspace {
   const std::int8_t* w16_of = nullptr;
 #endif
 #if defined(FWREF_HAS_W8_VNNI)
+  // x86-64 hosts, fp32: the input gates gx = W_ih x_norm_t + b_ih of kGxSteps steps, computed before
+  // those steps' recurrent products (src/gru.cpp), so W_ih stays in L1 for the block and only W_hh
+  // streams during the recurrence: the same products, so the same bits as one step at a time.
+  static constexpr int kGxSteps = 8;
+  float gx_block[kGxSteps * kMaxGruGates];
   // x86-64 hosts whose int8 kernel is avx512vnni (chosen at run time, fwref/kernels_i8.hpp): W_ih and
   // W_hh packed for vpdpbusd (fwref/kernels_w8_vnni.hpp), made at the first int8 inference of a
   // model; w8_of: which weights, by address, as w16_of.

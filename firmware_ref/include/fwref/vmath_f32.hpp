@@ -22,15 +22,18 @@
 // per row 8 FMA chains, one per lane, and one tree of additions, the horizontal sums of 8 rows done
 // together (sum8). Its roundings differ from Eigen's and from ONNX Runtime's MLAS, within the fp32
 // tolerance (core/contracts.py FP32_CPP_REL_TOL; `quadfdi parity`); it is deterministic: the same
-// inputs give the same bits on every AVX2 host (no dependence on alignment or on rows % 8). Hosts
-// without AVX2 + FMA keep Eigen's product (matvec_fast), and tanh_n / logistic_n the scalar loop (the
-// Cortex-M build keeps its own paths: fwref/kernels_f32.hpp, fwref/tanhq.hpp).
+// inputs give the same bits on every AVX2 host (no dependence on alignment or on rows % 8). On a CPU
+// with AVX-512F the products run fwref/kernels_f32_avx512.hpp's kernel instead (chosen at run time,
+// 16 lanes: its own stated order, the same bits on every AVX-512F host; FWREF_F32_KERNEL=avx2 keeps
+// this one). Hosts without AVX2 + FMA keep Eigen's product (matvec_fast), and tanh_n / logistic_n the
+// scalar loop (the Cortex-M build keeps its own paths: fwref/kernels_f32.hpp, fwref/tanhq.hpp).
 #pragma once
 
 #include <cmath>
 #include <limits>
 
 #include "fwref/kernels_f32.hpp"
+#include "fwref/kernels_f32_avx512.hpp"
 #include "fwref/linalg.hpp"
 #include "fwref/numerics.hpp"
 
@@ -148,8 +151,11 @@ inline void logistic_n(float* v, int n) {
 #if defined(FWREF_VMATH_AVX2)
 #define FWREF_GEMV_FMA 1
 
-// What matvec_f32 / matvec_bias_f32 run.
-inline const char* matvec_f32_kernel_name() { return "fma-avx2-8row"; }
+// What matvec_f32 / matvec_bias_f32 run: the AVX-512F kernel (fwref/kernels_f32_avx512.hpp) where the
+// run-time choice is AVX-512, else gemv_f32_fma below.
+inline const char* matvec_f32_kernel_name() {
+  return gemv_f32_avx512_active() ? "fma-avx512-16row" : "fma-avx2-8row";
+}
 
 namespace vmath_detail {
 
@@ -246,6 +252,15 @@ inline void gemv_f32_fma(const float* w, int rows, int cols, const float* x, con
   }
 }
 
+// The host's product: the run-time choice between the two kernels (one predictable branch; the AVX2
+// kernel stays inlined at its call sites). ``reverse`` (the AVX-512 kernel's pass order, see
+// fwref/kernels_f32_avx512.hpp) changes no result.
+inline void gemv_f32_host(const float* w, int rows, int cols, const float* x, const float* b, float* y,
+                          bool reverse = false) {
+  if (detail::g_f32_avx512) return gemv_f32_avx512(w, rows, cols, x, b, y, reverse);
+  gemv_f32_fma(w, rows, cols, x, b, y);
+}
+
 #else
 
 inline const char* matvec_f32_kernel_name() {
@@ -258,14 +273,15 @@ inline const char* matvec_f32_kernel_name() {
 
 #endif
 
-// y = W x for the fp32 models' Eigen vectors: gemv_f32_fma on an AVX2 host, else matvec_fast (Eigen's
+// y = W x for the fp32 models' Eigen vectors: gemv_f32_host on an AVX2 host (AVX-512 or AVX2, chosen at
+// run time), else matvec_fast (Eigen's
 // product on a host, the VFP kernel on Cortex-M). ``y`` is resized to W's rows (a Map must already
 // have that size); x and y are contiguous and do not alias.
 template <class Dst, class Src>
 inline void matvec_f32(const MatF& w, const Src& x, Dst&& y) {
 #if defined(FWREF_GEMV_FMA)
   y.resize(w.rows);
-  gemv_f32_fma(w.data, w.rows, w.cols, x.data(), nullptr, y.data());
+  gemv_f32_host(w.data, w.rows, w.cols, x.data(), nullptr, y.data());
 #else
   matvec_fast(w, x, y);
 #endif
@@ -276,7 +292,7 @@ template <class Dst, class Src>
 inline void matvec_bias_f32(const MatF& w, const Src& x, const float* b, Dst&& y) {
 #if defined(FWREF_GEMV_FMA)
   y.resize(w.rows);
-  gemv_f32_fma(w.data, w.rows, w.cols, x.data(), b, y.data());
+  gemv_f32_host(w.data, w.rows, w.cols, x.data(), b, y.data());
 #else
   matvec_fast(w, x, y);
   y += ConstMapVec(b, w.rows);
