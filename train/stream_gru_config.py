@@ -26,6 +26,9 @@ class StreamFitConfig:
     onset_weight: float = 1.0  # loss weight of the first onset_span steps of a fault run (1: off; train/stream_gru_onset.py)
     onset_span: int = 250  # steps (10 s at 25 Hz) after the label turns to a fault that get onset_weight
     ema_decay: float = 0.0  # weight moving average per optimiser step, validated and kept (0: off; train/stream_gru_ema.py)
+    class_mix: str = "steps"  # class weights over every training step, or "sampled": the sampler's steps (train/stream_gru_segments.py)
+    onset_segments: float = 0.0  # share of fault flights' mid-flight segments placed around the onset (0: off)
+    motor_aux: float = 0.0  # weight of a training-only motor head's loss (0: off; train/stream_gru_motor.py)
     seed: int = 0
     threads: int = 1
 
@@ -39,5 +42,13 @@ class StreamFitConfig:
                              f"{self.onset_span}")
         if not 0 <= self.ema_decay < 1:
             raise ValueError(f"ema_decay must lie in [0, 1), found {self.ema_decay}")
+        if self.class_mix not in ("steps", "sampled"):
+            raise ValueError(f"class_mix must be 'steps' or 'sampled', found {self.class_mix!r}")
+        if self.class_mix == "sampled" and self.onset_weight != 1.0:
+            raise ValueError("class_mix 'sampled' and onset_weight != 1 each set the class weights: choose one")
+        if not 0 <= self.onset_segments <= 1:
+            raise ValueError(f"onset_segments is a probability, found {self.onset_segments}")
+        if self.motor_aux < 0:
+            raise ValueError(f"motor_aux must not be negative, found {self.motor_aux}")
         if self.weight_decay < 0:
             raise ValueError(f"weight_decay must not be negative, found {self.weight_decay}")
