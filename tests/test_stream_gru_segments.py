@@ -50,8 +50,27 @@ def test_onset_segments_put_the_first_fault_step_inside_after_the_warmup():
 def test_loss_mask_spares_only_the_warmup_of_mid_flight_segments():
     from train.stream_gru_segments import loss_mask
 
-    mask = loss_mask(np.array([0, 7]), np.array([False, True]), 20, 5)
+    mask = loss_mask(np.array([0, 7]), np.array([False, True]), 20, 5, 100)
     assert mask[0].all() and not mask[1, :5].any() and mask[1, 5:].all()
+
+
+def test_start_span_any_reaches_the_flight_end_and_masks_past_it():
+    from train.stream_gru_config import StreamFitConfig
+    from train.stream_gru_segments import draw_segments, loss_mask, segment_columns
+
+    cfg = StreamFitConfig(segment=100, warmup=10, zero_start=0.0, start_span="any")
+    start, mid = draw_segments(np.random.default_rng(1), 300, np.full(4000, -1), cfg)
+    assert start.min() == 0 and start.max() == 289  # any sample that leaves the 10 warm-up steps
+    mask = loss_mask(start, mid, 100, 10, 300)
+    cols = segment_columns(start, 100, 300)
+    assert cols.max() == 299 and (cols[mask] == (start[:, None] + np.arange(100))[mask]).all()
+    assert not mask[start == 289, 11:].any() and mask[start == 289, 10].all()  # one loss step: the last sample
+    # every sample past the first segment lies in about as many segments as any other (uniform starts)
+    cover = np.bincount(cols[mask], minlength=300)[100:]
+    assert cover.min() > 0.85 * cover.max()
+    fit = StreamFitConfig(segment=100, warmup=10, zero_start=0.0)
+    start_fit, _ = draw_segments(np.random.default_rng(1), 300, np.full(4000, -1), fit)
+    assert start_fit.max() == 200  # the default: a whole segment fits
 
 
 def test_sampled_class_weights_balance_the_drawn_steps():
@@ -75,6 +94,8 @@ def test_bad_segment_settings_are_refused():
 
     with pytest.raises(ValueError, match="class_mix"):
         StreamFitConfig(class_mix="windows").validate()
+    with pytest.raises(ValueError, match="start_span"):
+        StreamFitConfig(start_span="end").validate()
     with pytest.raises(ValueError, match="onset_segments"):
         StreamFitConfig(onset_segments=1.5).validate()
     with pytest.raises(ValueError, match="choose one"):

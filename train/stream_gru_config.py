@@ -28,6 +28,7 @@ class StreamFitConfig:
     ema_decay: float = 0.0  # weight moving average per optimiser step, validated and kept (0: off; train/stream_gru_ema.py)
     class_mix: str = "steps"  # class weights over every training step, or "sampled": the sampler's steps (train/stream_gru_segments.py)
     onset_segments: float = 0.0  # share of fault flights' mid-flight segments placed around the onset (0: off)
+    start_span: str = "fit"  # mid-flight segment starts: where a whole segment fits, or "any" sample (cut at the end)
     motor_aux: float = 0.0  # weight of a training-only motor head's loss (0: off; train/stream_gru_motor.py)
     seed: int = 0
     threads: int = 1
@@ -48,6 +49,8 @@ class StreamFitConfig:
             raise ValueError("class_mix 'sampled' and onset_weight != 1 each set the class weights: choose one")
         if not 0 <= self.onset_segments <= 1:
             raise ValueError(f"onset_segments is a probability, found {self.onset_segments}")
+        if self.start_span not in ("fit", "any"):
+            raise ValueError(f"start_span must be 'fit' or 'any', found {self.start_span!r}")
         if self.motor_aux < 0:
             raise ValueError(f"motor_aux must not be negative, found {self.motor_aux}")
         if self.weight_decay < 0:

@@ -45,7 +45,13 @@ from train.stream_gru_onset import (
     step_weights,
     weighted_class_weights,
 )
-from train.stream_gru_segments import draw_segments, first_fault, loss_mask, sampled_class_weights
+from train.stream_gru_segments import (
+    draw_segments,
+    first_fault,
+    loss_mask,
+    sampled_class_weights,
+    segment_columns,
+)
 
 
 @dataclass
@@ -182,10 +188,10 @@ def fit_stream_gru(ds: Dataset, cfg: StreamFitConfig, log: Callable[[str], None]
         for b0 in range(0, len(perm), cfg.batch):
             idx = perm[b0:b0 + cfg.batch]
             start, mid = draw_segments(rng, n_t, onset[idx], cfg)
-            cols = start[:, None] + np.arange(seg)[None, :]
+            cols = segment_columns(start, seg, n_t)
             x = torch.from_numpy(np.ascontiguousarray(tel[idx[:, None], cols]))
             y = torch.from_numpy(lab[idx[:, None], cols])
-            mask = torch.from_numpy(loss_mask(start, mid, seg, cfg.warmup))
+            mask = torch.from_numpy(loss_mask(start, mid, seg, cfg.warmup, n_t))
             noisy = mid & (rng.random(len(idx)) < cfg.noise_start)
             h0 = np.where(noisy[:, None], np.tanh(rng.standard_normal((len(idx), cfg.hidden))), 0.0)
             m = None if sw is None else torch.from_numpy(sw[idx[:, None], cols])
