@@ -29,7 +29,7 @@ class StreamFitConfig:
     class_mix: str = "steps"  # class weights over every training step, or "sampled": the sampler's steps (train/stream_gru_segments.py)
     onset_segments: float = 0.0  # share of fault flights' mid-flight segments placed around the onset (0: off)
     start_span: str = "fit"  # mid-flight segment starts: where a whole segment fits, or "any" sample (cut at the end)
-    motor_aux: float = 0.0  # weight of a training-only motor head's loss (0: off; train/stream_gru_motor.py)
+    motor_aux: float = 0.5  # weight of a training-only motor head's loss (0: off; train/stream_gru_motor.py); 0.5 chosen on validation (docs/training.md)
     seed: int = 0
     threads: int = 1
 

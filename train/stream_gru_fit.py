@@ -18,7 +18,7 @@ backpropagation through time, random start points and start states, a label at e
 - Options (train/stream_gru_segments.py, train/stream_gru_motor.py): segments placed around the onset
   (``onset_segments``), starting anywhere and cut at the flight's end (``start_span = "any"``), class
   weights over the drawn steps (``class_mix = "sampled"``), a training-only motor head whose loss is
-  added (``motor_aux``; the logged loss includes it).
+  added (``motor_aux``, on by default since wt-sgrub; the logged loss includes it).
 - Selection: the epoch whose validation macro F1 (the stream's decision at the validation windows'
   ends, stream started at h = 0 at take-off) is best. With ``ema_decay`` > 0 the weights validated
   and kept are an exponential moving average of the trained ones (train/stream_gru_ema.py); off by

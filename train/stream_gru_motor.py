@@ -1,4 +1,4 @@
-"""The streaming GRU's auxiliary motor head (``--motor-aux W``; 0: off, the default): a training-only
+"""The streaming GRU's auxiliary motor head (``--motor-aux W``; 0.5 by default, 0: off): a training-only
 Linear(H, 4) that reads the stream's hidden state at every step and is trained to name the faulty rotor
 at the steps whose label is rotor-side (Motor, Overheat, Propeller: train/motor.py), its cross-entropy
 added to the class loss with weight W (the windowed networks' ``train.motor_loss_weight`` is 0.5).
