@@ -53,14 +53,24 @@ class StreamGRU(nn.Module):
             self.mean.copy_(m)
             self.std.copy_(s.clamp_min(STD_FLOOR))
 
-    def forward(self, x_raw: torch.Tensor, h0: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor]:
+    def features(self, x_raw: torch.Tensor, h0: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor]:
+        """The hidden state at every step (B, T, H) and h_T (B, H): what the head reads (and, in training
+        only, the stream's auxiliary motor head: train/stream_gru_motor.py)."""
         if x_raw.ndim != 3 or x_raw.shape[2] != self.n_channels:
             raise ValueError(f"telemetry must be (batch, samples, {self.n_channels}), found {tuple(x_raw.shape)}")
         x = (x_raw.to(self.mean.dtype) - self.mean) / self.std
         hs, h_last = self.gru(x, None if h0 is None else h0[None])
+        return hs, h_last[0]
+
+    def classify(self, hs: torch.Tensor) -> torch.Tensor:
+        """Logits (B, T, K) of hidden states (B, T, H); dropout on h before the head in training only."""
         if self.training and self.head_dropout > 0:
             hs = nn.functional.dropout(hs, self.head_dropout, training=True)
-        return self.head(hs), h_last[0]
+        return self.head(hs)
+
+    def forward(self, x_raw: torch.Tensor, h0: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor]:
+        hs, h_last = self.features(x_raw, h0)
+        return self.classify(hs), h_last
 
     @torch.no_grad()
     def step(self, sample: torch.Tensor, h: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:

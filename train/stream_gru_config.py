@@ -11,9 +11,9 @@ from dataclasses import dataclass
 @dataclass(frozen=True)
 class StreamFitConfig:
     hidden: int = 60  # 3H(C+H)+HK = 15 600 MACs per sample at C = 25, K = 5: under 1/6 of the windowed GRU per second
-    epochs: int = 30  # the realistic suite: 15 lost on validation (docs/training.md "Tried on the new simulator")
+    epochs: int = 120  # with 250-sample segments: the optimiser steps of 30 epochs of 1,000 (docs/training.md)
     batch: int = 32  # flights per batch
-    segment: int = 1000  # samples per training segment (40 s at 25 Hz)
+    segment: int = 250  # samples per training segment (10 s at 25 Hz; 1,000 until wt-sgrub: validation chose 250)
     tbptt: int = 125  # samples per truncated-backpropagation chunk (5 s)
     warmup: int = 50  # loss-free steps at the start of a mid-flight segment (2 s)
     zero_start: float = 0.5  # share of segments that start at take-off
@@ -26,6 +26,10 @@ class StreamFitConfig:
     onset_weight: float = 1.0  # loss weight of the first onset_span steps of a fault run (1: off; train/stream_gru_onset.py)
     onset_span: int = 250  # steps (10 s at 25 Hz) after the label turns to a fault that get onset_weight
     ema_decay: float = 0.0  # weight moving average per optimiser step, validated and kept (0: off; train/stream_gru_ema.py)
+    class_mix: str = "steps"  # class weights over every training step, or "sampled": the sampler's steps (train/stream_gru_segments.py)
+    onset_segments: float = 0.0  # share of fault flights' mid-flight segments placed around the onset (0: off)
+    start_span: str = "fit"  # mid-flight segment starts: where a whole segment fits, or "any" sample (cut at the end)
+    motor_aux: float = 0.5  # weight of a training-only motor head's loss (0: off; train/stream_gru_motor.py); 0.5 chosen on validation (docs/training.md)
     seed: int = 0
     threads: int = 1
 
@@ -39,5 +43,15 @@ class StreamFitConfig:
                              f"{self.onset_span}")
         if not 0 <= self.ema_decay < 1:
             raise ValueError(f"ema_decay must lie in [0, 1), found {self.ema_decay}")
+        if self.class_mix not in ("steps", "sampled"):
+            raise ValueError(f"class_mix must be 'steps' or 'sampled', found {self.class_mix!r}")
+        if self.class_mix == "sampled" and self.onset_weight != 1.0:
+            raise ValueError("class_mix 'sampled' and onset_weight != 1 each set the class weights: choose one")
+        if not 0 <= self.onset_segments <= 1:
+            raise ValueError(f"onset_segments is a probability, found {self.onset_segments}")
+        if self.start_span not in ("fit", "any"):
+            raise ValueError(f"start_span must be 'fit' or 'any', found {self.start_span!r}")
+        if self.motor_aux < 0:
+            raise ValueError(f"motor_aux must not be negative, found {self.motor_aux}")
         if self.weight_decay < 0:
             raise ValueError(f"weight_decay must not be negative, found {self.weight_decay}")

@@ -15,6 +15,10 @@ backpropagation through time, random start points and start states, a label at e
   from the training steps; Adam, cosine rate, gradient norm clipped at ``clip``. Optional onset
   emphasis (``onset_weight`` > 1): more weight on the first ``onset_span`` steps of every fault run,
   class shares kept (train/stream_gru_onset.py); off by default.
+- Options (train/stream_gru_segments.py, train/stream_gru_motor.py): segments placed around the onset
+  (``onset_segments``), starting anywhere and cut at the flight's end (``start_span = "any"``), class
+  weights over the drawn steps (``class_mix = "sampled"``), a training-only motor head whose loss is
+  added (``motor_aux``, on by default since wt-sgrub; the logged loss includes it).
 - Selection: the epoch whose validation macro F1 (the stream's decision at the validation windows'
   ends, stream started at h = 0 at take-off) is best. With ``ema_decay`` > 0 the weights validated
   and kept are an exponential moving average of the trained ones (train/stream_gru_ema.py); off by
@@ -35,13 +39,22 @@ from sklearn.metrics import f1_score
 from core.contracts import SPLIT_TRAIN, SPLIT_VALIDATION
 from sim.dataset import Dataset, class_names, window_starts
 from train.data import class_weights, fit_normalisation
+from train.motor import rotor_side
 from train.stream_gru import StreamGRU
 from train.stream_gru_config import StreamFitConfig
 from train.stream_gru_ema import WeightAverage
+from train.stream_gru_motor import MotorAux, step_motor_targets
 from train.stream_gru_onset import (
     step_weighted_cross_entropy,
     step_weights,
     weighted_class_weights,
+)
+from train.stream_gru_segments import (
+    draw_segments,
+    first_fault,
+    loss_mask,
+    sampled_class_weights,
+    segment_columns,
 )
 
 
@@ -91,24 +104,19 @@ def _val_f1_state(model: StreamGRU, ema: WeightAverage | None, ds: Dataset, rows
         return _val_f1(model, ds, rows, ends), copy.deepcopy(ema.shadow)
 
 
-def _segments(rng: np.ndarray, n_samples: int, n: int, cfg: StreamFitConfig) -> tuple[np.ndarray, np.ndarray]:
-    """(start sample, mid-flight) per flight of a batch."""
-    seg = min(cfg.segment, n_samples)
-    mid = rng.random(n) >= cfg.zero_start
-    start = np.where(mid, rng.integers(0, n_samples - seg + 1, size=n), 0)
-    return start.astype(np.int64), mid & (start > 0)
-
-
 def _batch_loss(model: StreamGRU, opt, x: torch.Tensor, y: torch.Tensor, mask: torch.Tensor, h: torch.Tensor,
                 w: torch.Tensor, cfg: StreamFitConfig, m: torch.Tensor | None = None,
-                ema: WeightAverage | None = None) -> float:
+                ema: WeightAverage | None = None, aux: MotorAux | None = None, ym: torch.Tensor | None = None) -> float:
     """One segment batch: chunks of ``tbptt`` steps, an optimiser step per chunk; the summed loss.
     ``m`` (B, T): the onset emphasis's step weights (train/stream_gru_onset.py), None without;
-    ``ema``: the weight average updated after every optimiser step, None without."""
+    ``ema``: the weight average updated after every optimiser step, None without; ``aux``, ``ym`` (B, T):
+    the training-only motor head and its step targets (train/stream_gru_motor.py; its loss is in the sum)."""
     total = 0.0
+    params = [p for g in opt.param_groups for p in g["params"]]
     for c0 in range(0, x.shape[1], cfg.tbptt):
         sl = slice(c0, c0 + cfg.tbptt)
-        logits, h = model(x[:, sl], h)
+        hs, h = model.features(x[:, sl], h)
+        logits = model.classify(hs)
         h = h.detach()
         keep = mask[:, sl].reshape(-1)
         if not bool(keep.any()):
@@ -116,16 +124,36 @@ def _batch_loss(model: StreamGRU, opt, x: torch.Tensor, y: torch.Tensor, mask: t
         mk = None if m is None else m[:, sl].reshape(-1)[keep]
         loss = step_weighted_cross_entropy(logits.reshape(-1, model.n_classes)[keep], y[:, sl].reshape(-1)[keep], w,
                                            mk, cfg.log_eps)
+        if aux is not None:
+            loss = loss + aux.loss(hs.reshape(-1, hs.shape[-1])[keep], ym[:, sl].reshape(-1)[keep])
         if not bool(torch.isfinite(loss)):
             raise ValueError(f"streaming GRU training diverged (non-finite loss) at lr {cfg.lr:g}: lower it")
         opt.zero_grad(set_to_none=True)
         loss.backward()
-        torch.nn.utils.clip_grad_norm_(model.parameters(), cfg.clip)
+        torch.nn.utils.clip_grad_norm_(params, cfg.clip)
         opt.step()
         if ema is not None:
             ema.update()
         total += loss.item() * int(keep.sum())
     return total
+
+
+def _class_weights(lab: np.ndarray, sw: np.ndarray | None, cfg: StreamFitConfig, n_classes: int) -> np.ndarray:
+    """Eq. (12)'s class weights: over every training step (default), the onset emphasis's weighted steps,
+    or (``class_mix = "sampled"``) the steps the segment sampler draws (train/stream_gru_segments.py)."""
+    if sw is not None:
+        return weighted_class_weights(lab, sw, n_classes)
+    if cfg.class_mix == "sampled":
+        return sampled_class_weights(lab, cfg, n_classes)
+    return class_weights(lab.ravel(), n_classes)
+
+
+def _motor_aux(ds: Dataset, cfg: StreamFitConfig, lab: np.ndarray, rows: np.ndarray) -> MotorAux | None:
+    """The training-only motor head (``motor_aux`` > 0 and a rotor-side class in the data), else None."""
+    names = class_names(ds.arrays)
+    if cfg.motor_aux <= 0 or not rotor_side(names).any():
+        return None
+    return MotorAux(cfg.hidden, cfg.motor_aux, step_motor_targets(lab, rows, ds["fault_motor"], names))
 
 
 def fit_stream_gru(ds: Dataset, cfg: StreamFitConfig, log: Callable[[str], None] = print) -> tuple[StreamGRU, StreamHistory]:
@@ -145,11 +173,14 @@ def fit_stream_gru(ds: Dataset, cfg: StreamFitConfig, log: Callable[[str], None]
     tel = ds["telemetry"][train_rows]  # (n, T, C) float32, raw: the model normalises inside
     lab = step_labels(ds, train_rows)
     sw = step_weights(lab, cfg.onset_weight, cfg.onset_span)  # None: no onset emphasis (the default)
-    w = torch.as_tensor(class_weights(lab.ravel(), n_classes) if sw is None else weighted_class_weights(lab, sw, n_classes))
+    w = torch.as_tensor(_class_weights(lab, sw, cfg, n_classes))
+    onset = first_fault(lab)
     ends = window_end_index(ds)
     n_t = tel.shape[1]
     seg = min(cfg.segment, n_t)
-    opt = torch.optim.AdamW(model.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
+    aux = _motor_aux(ds, cfg, lab, train_rows)
+    params = list(model.parameters()) + ([] if aux is None else list(aux.parameters()))
+    opt = torch.optim.AdamW(params, lr=cfg.lr, weight_decay=cfg.weight_decay)
     n_opt = cfg.epochs * (-(-len(train_rows) // cfg.batch)) * (-(-seg // cfg.tbptt))
     sched = torch.optim.lr_scheduler.CosineAnnealingLR(opt, T_max=n_opt)
     hist, best_f1, best_state = StreamHistory(), -1.0, None
@@ -160,16 +191,16 @@ def fit_stream_gru(ds: Dataset, cfg: StreamFitConfig, log: Callable[[str], None]
         perm = rng.permutation(len(train_rows))
         for b0 in range(0, len(perm), cfg.batch):
             idx = perm[b0:b0 + cfg.batch]
-            start, mid = _segments(rng, n_t, len(idx), cfg)
-            cols = start[:, None] + np.arange(seg)[None, :]
+            start, mid = draw_segments(rng, n_t, onset[idx], cfg)
+            cols = segment_columns(start, seg, n_t)
             x = torch.from_numpy(np.ascontiguousarray(tel[idx[:, None], cols]))
             y = torch.from_numpy(lab[idx[:, None], cols])
-            mask = torch.ones(len(idx), seg, dtype=torch.bool)
-            mask[torch.from_numpy(mid), :cfg.warmup] = False
+            mask = torch.from_numpy(loss_mask(start, mid, seg, cfg.warmup, n_t))
             noisy = mid & (rng.random(len(idx)) < cfg.noise_start)
             h0 = np.where(noisy[:, None], np.tanh(rng.standard_normal((len(idx), cfg.hidden))), 0.0)
             m = None if sw is None else torch.from_numpy(sw[idx[:, None], cols])
-            total += _batch_loss(model, opt, x, y, mask, torch.as_tensor(h0, dtype=torch.float32), w, cfg, m, ema)
+            ym = None if aux is None else torch.from_numpy(aux.targets[idx[:, None], cols])
+            total += _batch_loss(model, opt, x, y, mask, torch.as_tensor(h0, dtype=torch.float32), w, cfg, m, ema, aux, ym)
             for _ in range(-(-seg // cfg.tbptt)):
                 sched.step()
             count += int(mask.sum())
