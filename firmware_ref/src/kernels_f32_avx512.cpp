@@ -14,6 +14,8 @@
 #include <cstdlib>
 #include <cstring>
 
+#include "fwref/numerics.hpp"
+
 namespace fwref {
 
 namespace {
@@ -178,17 +180,18 @@ FWREF_Z512 void cols_t(const float* wt, int rp, int rows, int cols, const float*
 FWREF_Z512 __m512 tanh16(__m512 x) {
   x = _mm512_max_ps(_mm512_set1_ps(-9.0f), x);  // (-9 > x) ? -9 : x, NaN kept (MAXPS returns the 2nd operand)
   x = _mm512_min_ps(_mm512_set1_ps(9.0f), x);
+  using T = TanhRational;
   const __m512 x2 = _mm512_mul_ps(x, x);
-  __m512 p = _mm512_fmadd_ps(x2, _mm512_set1_ps(-2.76076847742355e-16f), _mm512_set1_ps(2.00018790482477e-13f));
-  p = _mm512_fmadd_ps(p, x2, _mm512_set1_ps(-8.60467152213735e-11f));
-  p = _mm512_fmadd_ps(p, x2, _mm512_set1_ps(5.12229709037114e-08f));
-  p = _mm512_fmadd_ps(p, x2, _mm512_set1_ps(1.48572235717979e-05f));
-  p = _mm512_fmadd_ps(p, x2, _mm512_set1_ps(6.37261928875436e-04f));
-  p = _mm512_fmadd_ps(p, x2, _mm512_set1_ps(4.89352455891786e-03f));
+  __m512 p = _mm512_fmadd_ps(x2, _mm512_set1_ps(T::p[0]), _mm512_set1_ps(T::p[1]));
+  p = _mm512_fmadd_ps(p, x2, _mm512_set1_ps(T::p[2]));
+  p = _mm512_fmadd_ps(p, x2, _mm512_set1_ps(T::p[3]));
+  p = _mm512_fmadd_ps(p, x2, _mm512_set1_ps(T::p[4]));
+  p = _mm512_fmadd_ps(p, x2, _mm512_set1_ps(T::p[5]));
+  p = _mm512_fmadd_ps(p, x2, _mm512_set1_ps(T::p[6]));
   p = _mm512_mul_ps(p, x);
-  __m512 q = _mm512_fmadd_ps(x2, _mm512_set1_ps(1.19825839466702e-06f), _mm512_set1_ps(1.18534705686654e-04f));
-  q = _mm512_fmadd_ps(q, x2, _mm512_set1_ps(2.26843463243900e-03f));
-  q = _mm512_fmadd_ps(q, x2, _mm512_set1_ps(4.89352518554385e-03f));
+  __m512 q = _mm512_fmadd_ps(x2, _mm512_set1_ps(T::q[0]), _mm512_set1_ps(T::q[1]));
+  q = _mm512_fmadd_ps(q, x2, _mm512_set1_ps(T::q[2]));
+  q = _mm512_fmadd_ps(q, x2, _mm512_set1_ps(T::q[3]));
   return _mm512_div_ps(p, q);
 }
 

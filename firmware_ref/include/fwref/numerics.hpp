@@ -41,6 +41,17 @@ inline float bits_float(std::uint32_t u) {
 // approximation error against the exact function is a few float32 ulps, far below the fp32 parity
 // tolerance. On a Cortex-M4F/M7 std::fma is one VFMA.F32 instruction (correctly rounded, as on x86).
 
+// tanh_approx's rational function p(x)/q(x), Horner order (highest power of x^2 first): one table for
+// the scalar form below and the 8- and 16-lane forms (vmath_f32.hpp tanh8, kernels_f32_avx512.cpp
+// tanh16), so the three cannot drift apart.
+struct TanhRational {
+  static constexpr float p[7] = {-2.76076847742355e-16f, 2.00018790482477e-13f, -8.60467152213735e-11f,
+                                 5.12229709037114e-08f,  1.48572235717979e-05f, 6.37261928875436e-04f,
+                                 4.89352455891786e-03f};
+  static constexpr float q[4] = {1.19825839466702e-06f, 1.18534705686654e-04f, 2.26843463243900e-03f,
+                                 4.89352518554385e-03f};
+};
+
 #ifdef FWREF_LIBM_ACTIVATIONS
 // Measurement only (cmake -DFWREF_LIBM_ACTIVATIONS=ON): libm's functions, which differ from ONNX
 // Runtime's by an ulp at times; docs/firmware.md uses this build to show what such a difference
@@ -55,17 +66,18 @@ inline float logistic_core(float x) { return logistic_approx(x); }
 // them after clamping. A caller that knows the range cheaply (src/gru_step.cpp tests |x| on its
 // bits) skips the two compare-and-branch pairs.
 inline float tanh_core(float x) {
+  using T = TanhRational;
   const float x2 = x * x;
-  float p = std::fma(x2, -2.76076847742355e-16f, 2.00018790482477e-13f);
-  p = std::fma(p, x2, -8.60467152213735e-11f);
-  p = std::fma(p, x2, 5.12229709037114e-08f);
-  p = std::fma(p, x2, 1.48572235717979e-05f);
-  p = std::fma(p, x2, 6.37261928875436e-04f);
-  p = std::fma(p, x2, 4.89352455891786e-03f);
+  float p = std::fma(x2, T::p[0], T::p[1]);
+  p = std::fma(p, x2, T::p[2]);
+  p = std::fma(p, x2, T::p[3]);
+  p = std::fma(p, x2, T::p[4]);
+  p = std::fma(p, x2, T::p[5]);
+  p = std::fma(p, x2, T::p[6]);
   p = p * x;
-  float q = std::fma(x2, 1.19825839466702e-06f, 1.18534705686654e-04f);
-  q = std::fma(q, x2, 2.26843463243900e-03f);
-  q = std::fma(q, x2, 4.89352518554385e-03f);
+  float q = std::fma(x2, T::q[0], T::q[1]);
+  q = std::fma(q, x2, T::q[2]);
+  q = std::fma(q, x2, T::q[3]);
   return p / q;
 }
 

@@ -52,17 +52,18 @@ inline const char* vmath_f32_kernel_name() { return "avx2-fma"; }
 inline __m256 tanh8(__m256 x) {
   x = _mm256_max_ps(_mm256_set1_ps(-9.0f), x);  // (-9 > x) ? -9 : x, NaN kept
   x = _mm256_min_ps(_mm256_set1_ps(9.0f), x);   // (9 < x) ? 9 : x, NaN kept
+  using T = TanhRational;
   const __m256 x2 = _mm256_mul_ps(x, x);
-  __m256 p = _mm256_fmadd_ps(x2, _mm256_set1_ps(-2.76076847742355e-16f), _mm256_set1_ps(2.00018790482477e-13f));
-  p = _mm256_fmadd_ps(p, x2, _mm256_set1_ps(-8.60467152213735e-11f));
-  p = _mm256_fmadd_ps(p, x2, _mm256_set1_ps(5.12229709037114e-08f));
-  p = _mm256_fmadd_ps(p, x2, _mm256_set1_ps(1.48572235717979e-05f));
-  p = _mm256_fmadd_ps(p, x2, _mm256_set1_ps(6.37261928875436e-04f));
-  p = _mm256_fmadd_ps(p, x2, _mm256_set1_ps(4.89352455891786e-03f));
+  __m256 p = _mm256_fmadd_ps(x2, _mm256_set1_ps(T::p[0]), _mm256_set1_ps(T::p[1]));
+  p = _mm256_fmadd_ps(p, x2, _mm256_set1_ps(T::p[2]));
+  p = _mm256_fmadd_ps(p, x2, _mm256_set1_ps(T::p[3]));
+  p = _mm256_fmadd_ps(p, x2, _mm256_set1_ps(T::p[4]));
+  p = _mm256_fmadd_ps(p, x2, _mm256_set1_ps(T::p[5]));
+  p = _mm256_fmadd_ps(p, x2, _mm256_set1_ps(T::p[6]));
   p = _mm256_mul_ps(p, x);
-  __m256 q = _mm256_fmadd_ps(x2, _mm256_set1_ps(1.19825839466702e-06f), _mm256_set1_ps(1.18534705686654e-04f));
-  q = _mm256_fmadd_ps(q, x2, _mm256_set1_ps(2.26843463243900e-03f));
-  q = _mm256_fmadd_ps(q, x2, _mm256_set1_ps(4.89352518554385e-03f));
+  __m256 q = _mm256_fmadd_ps(x2, _mm256_set1_ps(T::q[0]), _mm256_set1_ps(T::q[1]));
+  q = _mm256_fmadd_ps(q, x2, _mm256_set1_ps(T::q[2]));
+  q = _mm256_fmadd_ps(q, x2, _mm256_set1_ps(T::q[3]));
   return _mm256_div_ps(p, q);
 }
 
