@@ -8,6 +8,7 @@
 
 #if defined(FWREF_HAS_W8_VNNI)
 
+#include "fwref/field_w8_vnni.hpp"
 #include "fwref/numerics.hpp"
 #include "fwref/vmath_f32.hpp"
 #include "fwref/vmath_i8.hpp"
@@ -81,12 +82,14 @@ Status infer_i8_w8(const CnodeI8& m, const float* x, float* logits, CnodeWorkspa
   alignas(64) std::int32_t acc[kAccLen];
   // One evaluation: the stage's QuantizeLinear, lin1 (all H rows) then rescale + V + tanh + the hidden
   // QuantizeLinear, lin2 (all L rows) then rescale + bias: lin1_tanh_quantize's and stage_lin2's operations.
+  const FieldW8 fused{ws.lin1z8, ws.lin2w8, H, L, m.lin1_z.scale, m.s_hidden, lin2_mult, m.lin2_b};
   auto field = [&](int e, const CnodeWorkspace::Lat& z, CnodeWorkspace::Lat& k) {
     const float s_z = m.s_stage[e];
+    k.resize(L);
+    if (field_w8_avx512vnni(fused, z.data(), s_z, ws.v + m.stage_index[e] * H, k.data())) return;  // H, L <= 64
     quantize_n(z.data(), L, s_z, ws.q_lat);
     prod(ws.lin1z8, H, L, ws.q_lat, acc);
     rescale_tanh_quantize_n(acc, s_z, m.lin1_z.scale, ws.v + m.stage_index[e] * H, m.s_hidden, H, ws.q_hid);
-    k.resize(L);
     prod(ws.lin2w8, L, H, ws.q_hid, acc);
     rescale_bias_n(acc, lin2_mult, m.lin2_b, L, k.data());
   };
