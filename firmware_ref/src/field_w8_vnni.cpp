@@ -36,8 +36,9 @@ FWREF_W8F __m128i quantize_u8(__m512 x, __m512 scale) {
 // acc[j] (block j: rows 16j .. 16j + 15) = sum_c W[r][c] * (x[c] + 128) + corr[r] over the packed copy w8 of a
 // (rows, cols) matrix (fwref/kernels_w8_vnni.hpp's layout; NB blocks, the last with rows - 16 (NB - 1) rows
 // through masked loads), xu: the w8_cols(cols) offset codes. Two chains per block over even / odd column quads.
-template <int NB>
-FWREF_W8F void product(const std::uint8_t* w8, int rows, int cols, const std::uint8_t* xu, __m512i* acc) {
+template <int NB, int COLS>
+FWREF_W8F void product(const std::uint8_t* w8, int rows, int cols_rt, const std::uint8_t* xu, __m512i* acc) {
+  const int cols = COLS > 0 ? COLS : cols_rt;
   const int c4 = w8_cols(cols), nr = rows - 16 * (NB - 1);
   const __mmask16 m = lanes(nr);
   const std::uint8_t* p = w8 + 4L * rows;
@@ -70,10 +71,10 @@ FWREF_W8F void product(const std::uint8_t* w8, int rows, int cols, const std::ui
 }
 
 // NBL blocks of the latent (L) and NBH of the hidden layer (H).
-template <int NBH, int NBL>
+template <int NBH, int NBL, int HC = 0, int LC = 0>
 __attribute__((target("avx512f,avx512vnni"))) void field(const FieldW8& f, const float* z, float s_z, const float* v,
                                                          float* k) {
-  const int H = f.hidden, L = f.latent;
+  const int H = HC > 0 ? HC : f.hidden, L = LC > 0 ? LC : f.latent;
   alignas(64) std::uint8_t xz[64], xh[64];  // the offset codes of z and of the hidden layer
   const __m512 sz = _mm512_set1_ps(s_z);
   for (int j = 0; j < NBL; ++j) {
@@ -81,7 +82,7 @@ __attribute__((target("avx512f,avx512vnni"))) void field(const FieldW8& f, const
     _mm_store_si128(reinterpret_cast<__m128i*>(xz + 16 * j), quantize_u8(x, sz));
   }
   __m512i acc[NBH > NBL ? NBH : NBL];
-  product<NBH>(f.lin1z8, H, L, xz, acc);
+  product<NBH, LC>(f.lin1z8, H, L, xz, acc);
   const __m512 sh = _mm512_set1_ps(f.s_hidden);
   for (int j = 0; j < NBH; ++j) {
     const __mmask16 m = lanes(H - 16 * j);
@@ -89,7 +90,7 @@ __attribute__((target("avx512f,avx512vnni"))) void field(const FieldW8& f, const
     const __m512 y = _mm512_add_ps(_mm512_mul_ps(_mm512_cvtepi32_ps(acc[j]), mult), _mm512_maskz_loadu_ps(m, v + 16 * j));
     _mm_store_si128(reinterpret_cast<__m128i*>(xh + 16 * j), quantize_u8(tanh16(y), sh));
   }
-  product<NBL>(f.lin2w8, L, H, xh, acc);
+  product<NBL, HC>(f.lin2w8, L, H, xh, acc);
   for (int j = 0; j < NBL; ++j) {
     const int left = L - 16 * j;
     const __mmask16 m = lanes(left);
@@ -117,6 +118,7 @@ constexpr FieldFn kFields[4][4] = {{field<1, 1>, field<1, 2>, field<1, 3>, field
 
 bool field_w8_avx512vnni(const FieldW8& f, const float* z, float s_z, const float* v, float* k) {
   if (f.hidden < 1 || f.latent < 1 || f.hidden > 64 || f.latent > 64) return false;
+  if (f.hidden == 64 && f.latent == 40) return field<4, 3, 64, 40>(f, z, s_z, v, k), true;  // the paper's shape
   kFields[(f.hidden - 1) / 16][(f.latent - 1) / 16](f, z, s_z, v, k);
   return true;
 }
