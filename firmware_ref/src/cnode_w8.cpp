@@ -8,6 +8,7 @@
 
 #if defined(FWREF_HAS_W8_VNNI)
 
+#include "fwref/controls_avx512.hpp"
 #include "fwref/field_w8_vnni.hpp"
 #include "fwref/numerics.hpp"
 #include "fwref/vmath_f32.hpp"
@@ -45,13 +46,21 @@ struct W8Product {
 };
 
 // src/cnode.cpp's control_path_i8 with the encoder and lin1_u products on the copies: U's codes row by
-// row (the same helpers), z0 = tanh(f32(acc) * s_w' + b) (linear_i8_folded's operations: rescale_bias_n
+// row (control_row_avx512 when C <= 32: the same codes as the helpers of cnode_controls.hpp), z0 = tanh(f32(acc) * s_w' + b) (linear_i8_folded's operations: rescale_bias_n
 // with the folded scales as multipliers), V[s] = f32(acc) * s_w' + b1 for every row s.
 void control_path_w8(const CnodeI8& m, const float* x, const W8Product& prod, CnodeWorkspace& ws, CnodeTrace* tr) {
   const CnodeDims& d = m.dims;
   const int C = d.channels, S = d.stage_times, L = d.latent, H = d.hidden;
   alignas(64) std::int32_t acc[kAccLen];
-  quantize_stage_controls(m, x, acc, ws, tr);
+  if (C <= 32) {  // U's codes row by row with the channels in registers (fwref/controls_avx512.hpp)
+    for (int s = 0; s < S; ++s) {
+      float* const u = tr != nullptr && tr->u != nullptr ? tr->u + s * C : nullptr;
+      control_row_avx512(m.interp.q + s * d.window, d.window, x, C, m.mean, m.std, m.s_x, m.interp.scale[s], m.s_u, u,
+                         ws.uq + s * C);
+    }
+  } else {
+    quantize_stage_controls(m, x, acc, ws, tr);
+  }
   ws.z.resize(L);
   prod(ws.enc8, L, C, ws.uq, acc);
   rescale_bias_n(acc, m.encoder_w.scale, m.encoder_b, L, ws.z.data());

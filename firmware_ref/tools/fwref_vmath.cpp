@@ -19,7 +19,8 @@
 //    the input codes, the gates from the accumulators with the state update and its codes
 //    (tools/fwref_vmath_gru.hpp).
 // 6. where the int8 kernel is avx512vnni: the CNODE int8 field in one call (fwref/field_w8_vnni.hpp)
-//    against the separate steps, every H, L in 1..64 (tools/fwref_vmath_w8.hpp).
+//    against the separate steps, every H, L in 1..64; and (AVX-512F) the control rows of that path,
+//    control_row_avx512, against the AVX2 helpers (tools/fwref_vmath_w8.hpp).
 // Prints one line per check ("tanh: 0 of N differ") and the kernel names; exit 0 when nothing differs,
 // 1 otherwise.
 #include <algorithm>
@@ -361,6 +362,7 @@ int main(int argc, char** argv) {
   const long bw8 = vmath_w8_check::check_field(&compared_w8);
   if (bw8 >= 0) std::printf("field_w8: %ld of %ld differ\n", bw8, compared_w8);
   bad_i8 += bw8 > 0 ? bw8 : 0;
+  if (bw8 >= 0) report("control_row_avx512", vmath_w8_check::check_control);  // the same CPU condition
 #endif
   return bt == 0 && bl == 0 && bg == 0 && bf == 0 && bad_i8 == 0 ? 0 : 1;
 }
