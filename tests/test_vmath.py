@@ -12,7 +12,9 @@ for bit. What each kernel promises instead, and what is checked:
   of a double-precision sum; a bound, not a tolerance picked to pass (the worst ratio is printed).
 How far that moves the models from ONNX Runtime is `quadfdi parity`'s check (FP32_CPP_REL_TOL).
 On an AVX-512F CPU also the CNODE's column-major kernel (gemv_t: its order and bound) and its fused
-field (bit for bit against the kernel's three separate steps).
+field (bit for bit against the kernel's three separate steps); on an AVX-512 VNNI CPU the int8 CNODE's
+field in one call (fwref/field_w8_vnni.hpp) against its five separate steps, and its control rows
+(fwref/controls_avx512.hpp) against the AVX2 helpers, bit for bit.
 
 And the CNODE's int8 vector math (fwref/vmath_i8.hpp) with numerics.hpp's scalar expressions, bit
 for bit: QuantizeLinear's round-half-even ties, saturation bounds and NaN, rescale + tanh + quantize,
@@ -77,3 +79,8 @@ def test_vector_tanh_logistic_bit_identical_and_gemv_in_its_order_and_bound(host
         assert m and int(m.group(1)) == 0 and float(m.group(3)) <= 1.0, out
         m = re.search(r"^field_t: (\d+) of (\d+) differ$", out, re.M)
         assert m and int(m.group(1)) == 0 and int(m.group(2)) == 64 * sum(range(1, 65)), out
+    if {"avx512f", "avx512vl", "avx512_vnni"} <= flags:  # the int8 CNODE field in one call (fwref/field_w8_vnni.hpp)
+        m = re.search(r"^field_w8: (\d+) of (\d+) differ$", out, re.M)
+        assert m and int(m.group(1)) == 0 and int(m.group(2)) == 64 * sum(range(1, 65)), out
+        m = re.search(r"^control_row_avx512: (\d+) of (\d+) differ$", out, re.M)  # and its control rows
+        assert m and int(m.group(1)) == 0 and int(m.group(2)) == sum(range(1, 33)) * (39 + 9), out

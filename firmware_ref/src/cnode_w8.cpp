@@ -8,6 +8,8 @@
 
 #if defined(FWREF_HAS_W8_VNNI)
 
+#include "fwref/controls_avx512.hpp"
+#include "fwref/field_w8_vnni.hpp"
 #include "fwref/numerics.hpp"
 #include "fwref/vmath_f32.hpp"
 #include "fwref/vmath_i8.hpp"
@@ -44,13 +46,21 @@ struct W8Product {
 };
 
 // src/cnode.cpp's control_path_i8 with the encoder and lin1_u products on the copies: U's codes row by
-// row (the same helpers), z0 = tanh(f32(acc) * s_w' + b) (linear_i8_folded's operations: rescale_bias_n
+// row (control_row_avx512 when C <= 32: the same codes as the helpers of cnode_controls.hpp), z0 = tanh(f32(acc) * s_w' + b) (linear_i8_folded's operations: rescale_bias_n
 // with the folded scales as multipliers), V[s] = f32(acc) * s_w' + b1 for every row s.
 void control_path_w8(const CnodeI8& m, const float* x, const W8Product& prod, CnodeWorkspace& ws, CnodeTrace* tr) {
   const CnodeDims& d = m.dims;
   const int C = d.channels, S = d.stage_times, L = d.latent, H = d.hidden;
   alignas(64) std::int32_t acc[kAccLen];
-  quantize_stage_controls(m, x, acc, ws, tr);
+  if (C <= 32) {  // U's codes row by row with the channels in registers (fwref/controls_avx512.hpp)
+    for (int s = 0; s < S; ++s) {
+      float* const u = tr != nullptr && tr->u != nullptr ? tr->u + s * C : nullptr;
+      control_row_avx512(m.interp.q + s * d.window, d.window, x, C, m.mean, m.std, m.s_x, m.interp.scale[s], m.s_u, u,
+                         ws.uq + s * C);
+    }
+  } else {
+    quantize_stage_controls(m, x, acc, ws, tr);
+  }
   ws.z.resize(L);
   prod(ws.enc8, L, C, ws.uq, acc);
   rescale_bias_n(acc, m.encoder_w.scale, m.encoder_b, L, ws.z.data());
@@ -81,12 +91,14 @@ Status infer_i8_w8(const CnodeI8& m, const float* x, float* logits, CnodeWorkspa
   alignas(64) std::int32_t acc[kAccLen];
   // One evaluation: the stage's QuantizeLinear, lin1 (all H rows) then rescale + V + tanh + the hidden
   // QuantizeLinear, lin2 (all L rows) then rescale + bias: lin1_tanh_quantize's and stage_lin2's operations.
+  const FieldW8 fused{ws.lin1z8, ws.lin2w8, H, L, m.lin1_z.scale, m.s_hidden, lin2_mult, m.lin2_b};
   auto field = [&](int e, const CnodeWorkspace::Lat& z, CnodeWorkspace::Lat& k) {
     const float s_z = m.s_stage[e];
+    k.resize(L);
+    if (field_w8_avx512vnni(fused, z.data(), s_z, ws.v + m.stage_index[e] * H, k.data())) return;  // H, L <= 64
     quantize_n(z.data(), L, s_z, ws.q_lat);
     prod(ws.lin1z8, H, L, ws.q_lat, acc);
     rescale_tanh_quantize_n(acc, s_z, m.lin1_z.scale, ws.v + m.stage_index[e] * H, m.s_hidden, H, ws.q_hid);
-    k.resize(L);
     prod(ws.lin2w8, L, H, ws.q_hid, acc);
     rescale_bias_n(acc, lin2_mult, m.lin2_b, L, k.data());
   };

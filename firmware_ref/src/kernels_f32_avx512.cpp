@@ -11,10 +11,10 @@
 #pragma GCC diagnostic ignored "-Wuninitialized"
 #include <immintrin.h>
 
+#include "fwref/tanh16_avx512.hpp"
+
 #include <cstdlib>
 #include <cstring>
-
-#include "fwref/numerics.hpp"
 
 namespace fwref {
 
@@ -174,25 +174,6 @@ FWREF_Z512 void cols_t(const float* wt, int rp, int rows, int cols, const float*
   __m512 sum[NB];
   chains_t<NB>(wt, rp, cols, x, sum);
   store_rows<NB>(sum, rows, b, y);
-}
-
-// tanh_approx (fwref/numerics.hpp) on 16 lanes: vmath_f32.hpp's tanh8, the same operations per lane.
-FWREF_Z512 __m512 tanh16(__m512 x) {
-  x = _mm512_max_ps(_mm512_set1_ps(-9.0f), x);  // (-9 > x) ? -9 : x, NaN kept (MAXPS returns the 2nd operand)
-  x = _mm512_min_ps(_mm512_set1_ps(9.0f), x);
-  using T = TanhRational;
-  const __m512 x2 = _mm512_mul_ps(x, x);
-  __m512 p = _mm512_fmadd_ps(x2, _mm512_set1_ps(T::p[0]), _mm512_set1_ps(T::p[1]));
-  p = _mm512_fmadd_ps(p, x2, _mm512_set1_ps(T::p[2]));
-  p = _mm512_fmadd_ps(p, x2, _mm512_set1_ps(T::p[3]));
-  p = _mm512_fmadd_ps(p, x2, _mm512_set1_ps(T::p[4]));
-  p = _mm512_fmadd_ps(p, x2, _mm512_set1_ps(T::p[5]));
-  p = _mm512_fmadd_ps(p, x2, _mm512_set1_ps(T::p[6]));
-  p = _mm512_mul_ps(p, x);
-  __m512 q = _mm512_fmadd_ps(x2, _mm512_set1_ps(T::q[0]), _mm512_set1_ps(T::q[1]));
-  q = _mm512_fmadd_ps(q, x2, _mm512_set1_ps(T::q[2]));
-  q = _mm512_fmadd_ps(q, x2, _mm512_set1_ps(T::q[3]));
-  return _mm512_div_ps(p, q);
 }
 
 // The fused field: a = tanh(W1 z + v) in NBH registers (stored once to an aligned buffer whose lanes

@@ -18,6 +18,9 @@
 // 5. the GRU's int8 step math (fwref/vmath_gru_i8.hpp) against the portable path's scalar expressions:
 //    the input codes, the gates from the accumulators with the state update and its codes
 //    (tools/fwref_vmath_gru.hpp).
+// 6. where the int8 kernel is avx512vnni: the CNODE int8 field in one call (fwref/field_w8_vnni.hpp)
+//    against the separate steps, every H, L in 1..64; and (AVX-512F) the control rows of that path,
+//    control_row_avx512, against the AVX2 helpers (tools/fwref_vmath_w8.hpp).
 // Prints one line per check ("tanh: 0 of N differ") and the kernel names; exit 0 when nothing differs,
 // 1 otherwise.
 #include <algorithm>
@@ -34,6 +37,7 @@
 #include "fwref/vmath_f32.hpp"
 #include "fwref_vmath_gru.hpp"
 #include "fwref_vmath_i8.hpp"
+#include "fwref_vmath_w8.hpp"
 
 namespace {
 
@@ -353,5 +357,12 @@ int main(int argc, char** argv) {
   report("gru_input_row", vmath_gru_check::check_input_row);
   report("gru_gates", vmath_gru_check::check_gates);
   report("gru_gate_rows", vmath_gru_check::check_gate_rows);
+#if defined(FWREF_HAS_W8_VNNI)
+  long compared_w8 = 0;
+  const long bw8 = vmath_w8_check::check_field(&compared_w8);
+  if (bw8 >= 0) std::printf("field_w8: %ld of %ld differ\n", bw8, compared_w8);
+  bad_i8 += bw8 > 0 ? bw8 : 0;
+  if (bw8 >= 0) report("control_row_avx512", vmath_w8_check::check_control);  // the same CPU condition
+#endif
   return bt == 0 && bl == 0 && bg == 0 && bf == 0 && bad_i8 == 0 ? 0 : 1;
 }
