@@ -144,6 +144,10 @@ class TrainConfig:
     # The motor head (train.motor, docs/training.md): "auto" = on when the data has a rotor-side class, "off" never.
     motor_head: str = "off"
     motor_loss_weight: float = 0.5  # weight of the motor cross-entropy added to the class loss
+    # Training-only motor-share wander (train.augment, docs/detect.md): the largest per-window
+    # amplitude of the multiplicative noise on m1_rel..m4_rel (0 = off) and its correlation time.
+    share_wander: float = 0.0
+    share_wander_tau_s: float = 0.3
 
     def validate(self) -> None:
         _positive(self, "epochs", "batch_size", "lr", "latent", "hidden", "gru_hidden", "steps", "rtol", "atol", "threads", "gru_lr")
@@ -156,7 +160,8 @@ class TrainConfig:
         _choice(self, "solver", ("dopri5", "bosh3", "rk4", "euler", "midpoint"))
         check_profile(self.profile)
         _choice(self, "motor_head", ("auto", "off"))
-        _not_negative(self, "motor_loss_weight")
+        _not_negative(self, "motor_loss_weight", "share_wander")
+        _positive(self, "share_wander_tau_s")
 
 
 @dataclass(frozen=True)

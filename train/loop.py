@@ -76,12 +76,14 @@ def _stop_if_diverged(value: torch.Tensor, model: torch.nn.Module, cfg: TrainCon
 
 
 def train_model(model: torch.nn.Module, train: Windows, val: Windows, cfg: TrainConfig, weights: np.ndarray,
-                log: Callable[[str], None] = print, motor: np.ndarray | None = None) -> History:
+                log: Callable[[str], None] = print, motor: np.ndarray | None = None,
+                augment: Callable[[torch.Tensor, int, int], torch.Tensor] | None = None) -> History:
     """Train ``model`` in place for ``cfg.epochs`` epochs; keep the best-validation weights.
 
     A model with a motor head (train.motor) needs ``motor``, (n,) the target motor of each training
     window (-1: no motor loss); its loss is the class loss + cfg.motor_loss_weight x the motor
-    cross-entropy. The epoch is still chosen on the validation macro F1 of the classes."""
+    cross-entropy. The epoch is still chosen on the validation macro F1 of the classes.
+    ``augment(x, epoch, batch)`` (train.augment) changes each training batch, never the validation."""
     if has_motor_head(model) and (motor is None or len(motor) != len(train)):
         raise ValueError("a model with a motor head needs one target motor per training window")
     torch.manual_seed(cfg.seed)
@@ -102,10 +104,11 @@ def train_model(model: torch.nn.Module, train: Windows, val: Windows, cfg: Train
         model.train()
         t0 = time.perf_counter()
         losses, nfes = [], []
-        for idx in batch_order(len(train), cfg.batch_size, cfg.seed, epoch):
+        for bi, idx in enumerate(batch_order(len(train), cfg.batch_size, cfg.seed, epoch)):
             idx_t = torch.from_numpy(idx)
-            z = model.features(x_all[idx_t]) if m_all is not None else None
-            logits = model(x_all[idx_t]) if z is None else model.head(z)
+            xb = x_all[idx_t] if augment is None else augment(x_all[idx_t], epoch, bi)
+            z = model.features(xb) if m_all is not None else None
+            logits = model(xb) if z is None else model.head(z)
             if hasattr(model, "nfe"):
                 nfes.append(float(model.nfe))
             loss = weighted_cross_entropy(logits, y_all[idx_t], w, cfg.log_eps)

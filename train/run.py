@@ -25,6 +25,7 @@ from core.predindex import add_entries
 from core.rundir import RunDir
 from core.stage import StageWriter, stage
 from sim.dataset import Dataset, Windows, class_names, load_dataset
+from train.augment import share_wander_for
 from train.baseline import fit_baseline, predict_proba_baseline
 from train.checkpoint import save_checkpoint
 from train.data import class_weights, fit_normalisation, split_windows
@@ -60,6 +61,7 @@ def train_all(ds: Dataset, cfg: Config, kinds: list[str], log: Callable[[str], N
             raise QuadfdiError(f"the dataset has no {name} windows: raise sim.n_traj or sim.duration_s")
     mean, std = fit_normalisation(ds)
     weights = class_weights(splits.train.y, k)
+    augment = share_wander_for(cfg.train, ds.channel_names, float(ds["time"][1] - ds["time"][0]))
     out: dict = {"models": {}, "history": {}, "proba": {}, "metrics": {}, "splits": splits, "predsets": {},
                  "ds": ds}
     for kind in kinds:
@@ -74,7 +76,7 @@ def train_all(ds: Dataset, cfg: Config, kinds: list[str], log: Callable[[str], N
         log(f"train {kind} (seed {cfg.train.seed}, {sum(p.numel() for p in model.parameters())} parameters"
             f"{', motor head' if motor is not None else ''}):")
         t0 = time.perf_counter()
-        hist = train_model(model, splits.train, splits.validation, cfg.train, weights, log, motor=motor)
+        hist = train_model(model, splits.train, splits.validation, cfg.train, weights, log, motor=motor, augment=augment)
         log(f"  {kind}: trained in {time.perf_counter() - t0:.1f} s (best epoch {hist.best_epoch + 1})")
         proba = predict_proba(model, splits.test.x)  # as before the prediction sets: the test metrics keep their bits
         out["models"][kind], out["history"][kind], out["proba"][kind] = model, hist, proba
