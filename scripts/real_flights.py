@@ -1,10 +1,10 @@
 """`quadfdi detect` on every real quad log of ../shared/data/flightlogs (issue 14 point 6), then the table.
 
     PYTHONPATH=. python scripts/real_flights.py OUT --export min=EXPORT [--export esc=EXPORT]
-        [--export nocur=EXPORT] [--logs DIR] [LOG ...]
+        [--export nocur=EXPORT] [--logs DIR] [--gap-factor F] [LOG ...]
 
 Each log is ingested once (``quadfdi ingest``); each export (a profile's realistic-suite model)
-then runs ``quadfdi detect`` for both nets, both runtimes (ort, cpp) and both precisions, into
+(``--gap-factor F``: ``quadfdi ingest --gap-factor F``, bridging logging gaps) then runs ``quadfdi detect`` for both nets, both runtimes (ort, cpp) and both precisions, into
 ``OUT/<profile>/<flight>/<net>/<runtime>/<precision>/`` (alarms.json ...; a refused flight leaves
 its one-line reason in ``<precision>.stderr``). The flightlog-esc model runs only on logs with ESC
 telemetry. Printed: per profile, flight and net, the ORT fp32 alarms, decided windows and exposure,
@@ -37,12 +37,12 @@ def _quiet(argv: list[str]) -> tuple[int, str]:
     return rc, err.getvalue()
 
 
-def run_all(out: Path, exports: dict[str, str], logs_dir: Path, logs: list[str]) -> None:
+def run_all(out: Path, exports: dict[str, str], logs_dir: Path, logs: list[str], gap: str | None = None) -> None:
     for log in logs:
         stem = log.split(".")[0]
         ing = out / "ingest" / stem
         shutil.rmtree(ing, ignore_errors=True)
-        rc, _ = _quiet(["ingest", str(logs_dir / log), "--out", str(ing)])
+        rc, _ = _quiet(["ingest", str(logs_dir / log), "--out", str(ing)] + (["--gap-factor", gap] if gap else []))
         src = ing / "flight.npz" if rc == 0 else logs_dir / log  # refused by ingest: detect says why
         for prof, export in exports.items():
             if prof == "esc" and log not in ESC_LOGS:
@@ -105,13 +105,14 @@ def cli() -> None:
     ap.add_argument("--export", action="append", default=[], metavar="PROFILE=DIR",
                     help="min=, esc= or nocur= and a realistic-suite export folder")
     ap.add_argument("--logs", type=Path, default=Path(__file__).resolve().parents[1] / "../shared/data/flightlogs")
+    ap.add_argument("--gap-factor", help="passed to quadfdi ingest (bridge logging gaps up to F x the median interval)")
     ap.add_argument("log", nargs="*", help="log file names under --logs (default: every real quad log)")
-    args = ap.parse_args()
+    args = ap.parse_intermixed_args()  # OUT --export ... LOG: the logs may follow the options
     exports = dict(e.split("=", 1) for e in args.export)
     if not exports or set(exports) - set(PROFILES):
         ap.error(f"--export PROFILE=DIR with PROFILE in {sorted(PROFILES)}")
     args.out.mkdir(parents=True, exist_ok=True)
-    run_all(args.out, exports, args.logs.resolve(), args.log or LOGS)
+    run_all(args.out, exports, args.logs.resolve(), args.log or LOGS, args.gap_factor)
     print(table(args.out))
 
 
