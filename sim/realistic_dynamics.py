@@ -14,6 +14,8 @@ Per evaluation, with the motor outputs u held over the 5 ms step (zero-order hol
   rigid body: Eq. 2 with the flight's m(t) (payload step), J, and moments about the shifted CG
               Mx = sum F_i (y_i - c_y), My = -sum F_i (x_i - c_x), Mz = gamma sum s_i (rho_Q/rho_T)_i F_i;
               drag on the airspeed: -k_L (v - w)
+              forward-flight rotor moment (blade flapping, wake on the trailing rotors) about the
+              body axes: Mx += D T v_air,y,  My -= D T v_air,x  (v_air in the body frame, T = sum F_i)
 
 The paper's equations (sim/dynamics.py) stay as published for ``scenario = "paper"``; the differences
 are listed in docs/realistic.md. Elementwise numpy over the batch, as there.
@@ -46,6 +48,7 @@ class Vehicle(NamedTuple):
     rx: np.ndarray  # (B, 4) rotor x positions [m]
     ry: np.ndarray  # (B, 4)
     cg: np.ndarray  # (B, 2)
+    flap: np.ndarray  # (B,) D [m per m/s]: forward-flight rotor moment arm (realistic_params.FLAP_PER_MS)
     fmax: np.ndarray  # (B, 4) F_max kf_i: the build's full thrust (thrust-to-weight draw) x the motor's spread
     h: np.ndarray  # (B, 4) healthy cooling h_nom cool_i
     tau_m: np.ndarray  # (B, 4)
@@ -64,12 +67,13 @@ def rotor_positions(frame: np.ndarray, arm: np.ndarray) -> tuple[np.ndarray, np.
 
 def vehicle(draws: list[dict]) -> Vehicle:
     d = stack(draws, ("mass", "payload_kg", "payload_t", "frame", "arm", "cells", "cg", "kf", "cool", "capacity",
-                      "age", "t_amb", "motor_tau", "thrust_to_weight"))
+                      "age", "t_amb", "motor_tau", "thrust_to_weight", "flap"))
     F_max = d["thrust_to_weight"] * d["mass"] * NOM.g / 4.0  # the build's propulsion (realistic_params)
     rx, ry = rotor_positions(d["frame"], d["arm"])
     scale = (d["mass"] / NOM.m) * (d["arm"] / NOM.L) ** 2  # point-mass scaling of the inertia
     R = d["cells"] * P.R_CELL_5AH * (5.0 / d["capacity"]) * (1 + P.AGE_R_GROWTH * d["age"]) + P.R_LEADS
     return Vehicle(d["mass"], d["payload_kg"], d["payload_t"], NOM.J[None, :] * scale[:, None], rx, ry, d["cg"],
+                   d["flap"] * d["arm"] / np.sqrt(2.0),
                    F_max[:, None] * d["kf"], NOM.h_nom * d["cool"], d["motor_tau"], d["cells"], R,
                    d["capacity"] * (1 - P.AGE_FADE * d["age"]), d["capacity"], d["t_amb"][:, None])
 
@@ -113,13 +117,29 @@ def deriv(x: np.ndarray, u: Held, veh: Vehicle) -> tuple[np.ndarray, tuple]:
     Mx = (F * (veh.ry - veh.cg[:, 1:2])).sum(axis=1)
     My = -(F * (veh.rx - veh.cg[:, 0:1])).sum(axis=1)
     Mz = (F * u.yaw_k).sum(axis=1)
-    rigid_body._deriv(x, F.sum(axis=1), Mx, My, Mz, u.phys, dx[:, :12])
+    T = F.sum(axis=1)
+    ax, ay = body_airspeed(x, u.wind)
+    Mx = Mx + veh.flap * T * ay
+    My = My - veh.flap * T * ax
+    rigid_body._deriv(x, T, Mx, My, Mz, u.phys, dx[:, :12])
     dx[:, 3:6] += (NOM.k_L / u.phys.m)[:, None] * u.wind
     dx[:, 12] = -I / (3600.0 * u.C)
     I_m = thermal.motor_currents(F, I)
     dx[:, 13:17] = thermal.deriv(T_m, I_m, F, u.h, u.Q_f, veh.T_amb, NOM)
     dx[:, 17:21] = (u.F_base * d - F) / veh.tau_m
     return dx, (V, I, lim, d)
+
+
+def body_airspeed(x: np.ndarray, wind: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Body-frame x and y components (B,) of the airspeed v - w: the first two rows of R^T (v - w)
+    with R = Rz Ry Rx (sim.rigid_body.rotation)."""
+    a = x[:, 3:6] - wind
+    sn, cn = np.sin(x[:, 6:9]), np.cos(x[:, 6:9])
+    sp, st, ss = sn[:, 0], sn[:, 1], sn[:, 2]
+    cp, ct, cs = cn[:, 0], cn[:, 1], cn[:, 2]
+    bx = cs * ct * a[:, 0] + ss * ct * a[:, 1] - st * a[:, 2]
+    by = (cs * st * sp - ss * cp) * a[:, 0] + (ss * st * sp + cs * cp) * a[:, 1] + ct * sp * a[:, 2]
+    return bx, by
 
 
 def held_inputs(thr: np.ndarray, kappa: np.ndarray, s: np.ndarray, ev: np.ndarray, fp: FaultPlan, veh: Vehicle,

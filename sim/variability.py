@@ -2,7 +2,9 @@
 
 Flight i draws everything here from ``default_rng(SeedSequence(seed, spawn_key=(FLIGHT_SPAWN, i)))``
 in a fixed order; its in-flight noise (turbulence, state-estimate errors) comes from a second
-stream, spawn_key (NOISE_SPAWN, i) (sim/realistic_dynamics.py). The paper's streams are
+stream, spawn_key (NOISE_SPAWN, i) (sim/realistic_dynamics.py), and its forward-flight rotor moment
+from a third, spawn_key (AERO_SPAWN, i), added after the others so that no earlier draw moved.
+The paper's streams are
 (1, i) (sim/draws.py) and (0xA55,) (sim/assign.py): none of them is touched.
 
 ``group`` is the flight's test group (sim/realistic_assign.py): 0 in distribution, 1 held-out
@@ -22,6 +24,7 @@ from sim import realistic_params as P
 
 FLIGHT_SPAWN = 2
 NOISE_SPAWN = 3
+AERO_SPAWN = 7  # 4..6 are taken (sim.telemetry, sim.esc_telemetry, sim.esc_thermal)
 OOD_MISSION, OOD_VEHICLE, OOD_WIND, OOD_INCIPIENT = 1, 2, 3, 4
 
 # onset modes (fault_mode in dataset.npz)
@@ -98,6 +101,8 @@ def draw_flight(cfg: SimConfig, i: int, group: int) -> dict:
     kind = int(kinds[int(rng.integers(0, len(kinds)))])
     d["mission"] = mission.draw(rng, kind)
     d.update(_fault(rng, cfg, group))
+    d["flap"] = float(np.random.default_rng(np.random.SeedSequence(cfg.seed, spawn_key=(AERO_SPAWN, int(i))))
+                      .uniform(*P.FLAP_PER_MS))
     d["group"] = group
     return d
 

@@ -113,8 +113,10 @@ def test_sharded_generation_keeps_every_flight(cfg, ds, tmp_path):
 # hashed with the code before the ESC channels existed (main at 66fa8db: c2e7df13...a690f420), which
 # proved the ESC stream changes no earlier array; re-pinned when the healthy vibration floor and boot
 # SoC were widened on purpose (sim/realistic_params.py, docs/params.md "Vibration floor"), so it now
-# guards those arrays against any unintended change, the ESC channels' included.
-PRE_ESC_SHA256 = "2dda902baab0e2ba30d5698e28003dc1586b4daf9e43c7f7d5fed46ae19f5e1d"
+# guards those arrays against any unintended change, the ESC channels' included. Re-pinned again when
+# the forward-flight rotor moment entered the physics on purpose (sim/realistic_params.FLAP_PER_MS,
+# docs/params.md "Forward-flight rotor moment"): every trajectory of a translating vehicle moves.
+PRE_ESC_SHA256 = "3e9fb693147886e39222335c99be363086598ba000fca5ef22f590b599784ccc"
 
 
 def test_esc_channels_change_no_earlier_array(ds):
@@ -136,8 +138,9 @@ def test_esc_channels_change_no_earlier_array(ds):
 
 # the rpm and current columns of esc_telemetry (its first 8): computed with main at 89a6b5e (before the
 # ESC temperature columns existed) and with the code that added them: equal, so the temperatures' own
-# stream (sim.esc_thermal, spawn key 6) moved none of them.
-ESC_RPM_CUR_SHA256 = "a9a2bf6aeee02ba1b0b516b5a75602b6201f87ee13a3cc445633fdbe73854838"
+# stream (sim.esc_thermal, spawn key 6) moved none of them. Re-pinned with PRE_ESC_SHA256 when the
+# forward-flight rotor moment changed the thrusts these columns follow (before: a9a2bf6a...73854838); from then on a regression pin of those columns.
+ESC_RPM_CUR_SHA256 = "3af77fbd9353e576fe75c9028f373a1e498aedd7714bc2753990c5f6b2cbf12a"
 
 
 def test_esc_temperatures_move_no_rpm_or_current_column(ds):

@@ -45,7 +45,8 @@ def test_vehicle_draws_within_their_ranges(draws):
     share = _arr(draws, "capacity") * 3.7 * _arr(draws, "cells") / (m * P.PACK_WH_PER_KG)
     assert share.min() >= P.PACK_MASS_SHARE[0] - 1e-12 and share.max() <= P.PACK_MASS_SHARE[1] + 1e-12
     for key, (lo, hi) in (("thrust_to_weight", P.THRUST_TO_WEIGHT), ("age", P.AGE), ("t_amb", P.T_AMB_C), ("soc0", P.SOC_BOOT),
-                          ("motor_tau", P.MOTOR_TAU_S), ("vib_floor", P.VIB_FLOOR), ("wind_ms", P.WIND_MS)):
+                          ("motor_tau", P.MOTOR_TAU_S), ("vib_floor", P.VIB_FLOOR), ("wind_ms", P.WIND_MS),
+                          ("flap", P.FLAP_PER_MS)):
         v = _arr(draws, key)
         assert v.min() >= lo and v.max() <= hi and np.ptp(v) > 0.9 * (hi - lo), key
     assert set(_arr(draws, "motor")) == {0, 1, 2, 3}
@@ -147,7 +148,7 @@ def test_mixer_inverts_the_moments_of_both_frames():
     B = 2
     frame, arm = np.array([0.0, 1.0]), np.array([0.225, 0.225])
     rx, ry = rd.rotor_positions(frame, arm)
-    veh = rd.Vehicle(*(np.zeros(B) for _ in range(3)), np.ones((B, 3)), rx, ry, np.zeros((B, 2)),
+    veh = rd.Vehicle(*(np.zeros(B) for _ in range(3)), np.ones((B, 3)), rx, ry, np.zeros((B, 2)), np.zeros(B),
                      *(np.ones((B, 4)) for _ in range(3)), np.full(B, 3.0), *(np.ones(B) for _ in range(3)),
                      np.zeros((B, 1)))
     T, tau = np.array([15.0, 15.0]), np.array([[0.1, -0.05, 0.02], [0.1, -0.05, 0.02]])
@@ -157,6 +158,53 @@ def test_mixer_inverts_the_moments_of_both_frames():
     assert np.allclose(rd.NOM.gamma * (F * rd.SPIN).sum(1), tau[:, 2])
     # the plus frame is the paper's geometry
     assert np.allclose(rx[0], [0.225, 0, -0.225, 0], atol=1e-12) and np.allclose(ry[0], [0, 0.225, 0, -0.225], atol=1e-12)
+
+
+def test_forward_flight_moment_lifts_the_leading_side():
+    """sim/realistic_dynamics.py: M = -D T (e_z x v_air) in the body frame. Level flight forward (+x)
+    pitches the nose up (My < 0 in FLU), flight to the left (+y) rolls the left side up (Mx > 0); a
+    90 deg yaw turns a world-frame +y airspeed into body +x; the moment scales with D, T and the
+    airspeed and vanishes in still air; with D = 0 the rotor moments are untouched."""
+    B = 4
+    frame, arm = np.ones(B), np.full(B, 0.225)
+    rx, ry = rd.rotor_positions(frame, arm)
+    D = np.array([0.002, 0.002, 0.004, 0.0])
+    veh = rd.Vehicle(np.full(B, 1.5), np.zeros(B), np.full(B, np.inf), np.ones((B, 3)), rx, ry, np.zeros((B, 2)), D,
+                     *(np.ones((B, 4)) for _ in range(3)), np.full(B, 3.0), *(np.ones(B) for _ in range(3)),
+                     np.full((B, 1), 20.0))
+    x = np.zeros((B, rd.N_X))
+    x[:, 12], x[:, 13:17], x[:, 17:21] = 0.8, 20.0, 4.0  # SoC, motor temperatures, 16 N of equal thrusts
+    x[0, 3] = 5.0  # 5 m/s forward
+    x[1, 4] = 5.0  # 5 m/s to the left
+    x[2, 3], x[2, 8] = 0.0, np.pi / 2  # heading +y ...
+    x[2, 4] = 5.0  # ... flying along it: body +x airspeed
+    x[3, 3] = 5.0  # D = 0
+    u = rd.held_inputs(np.full((B, 4), 0.5), np.ones(B), np.zeros(B), np.zeros(B), _no_fault(B), veh,
+                       np.zeros((B, 3)), 0.0)
+    dx, _ = rd.deriv(x, u, veh)
+    J = veh.J
+    Mx, My = dx[:, 9] * J[:, 0], dx[:, 10] * J[:, 1]  # p = q = r = 0: J omega_dot = M
+    T = 16.0
+    assert np.allclose(My[0], -0.002 * T * 5.0) and abs(Mx[0]) < 1e-12
+    assert np.allclose(Mx[1], 0.002 * T * 5.0) and abs(My[1]) < 1e-12
+    assert np.allclose(My[2], -0.004 * T * 5.0) and abs(Mx[2]) < 1e-12
+    assert abs(Mx[3]) < 1e-12 and abs(My[3]) < 1e-12
+    # the same airspeed from wind alone (vehicle still, wind blowing backwards): the same moment
+    u_w = u._replace(wind=np.array([[-5.0, 0, 0]] * B))
+    x_w = x.copy()
+    x_w[0, 3] = 0.0
+    assert np.allclose(rd.deriv(x_w, u_w, veh)[0][0, 10] * J[0, 1], My[0])
+
+
+def _no_fault(B: int):
+    """A healthy batch's FaultPlan: kind one-hot on healthy, nothing else."""
+    from sim.realistic_faults import FaultPlan
+
+    kind = np.zeros((B, 5))
+    kind[:, 0] = 1.0
+    z = np.zeros(B)
+    return FaultPlan(kind, np.zeros((B, 4)), z.astype(int), np.zeros((B, 3)), z, z, z, np.full((B, 1), np.inf),
+                     np.zeros((B, 1)), z)
 
 
 def test_thrust_curve_inverse():
