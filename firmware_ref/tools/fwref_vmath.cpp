@@ -21,6 +21,9 @@
 // 6. where the int8 kernel is avx512vnni: the CNODE int8 field in one call (fwref/field_w8_vnni.hpp)
 //    against the separate steps, every H, L in 1..64; and (AVX-512F) the control rows of that path,
 //    control_row_avx512, against the AVX2 helpers (tools/fwref_vmath_w8.hpp).
+// 7. where the CPU runs the avx2field int8 kernel (AVX2 + FMA): the CNODE int8 field in one call on AVX2
+//    (fwref/field_w16_avx2.hpp) against the separate steps, every H, L multiple of 8 up to 64, the other
+//    shapes refused (tools/fwref_vmath_w16.hpp).
 // Prints one line per check ("tanh: 0 of N differ") and the kernel names; exit 0 when nothing differs,
 // 1 otherwise.
 #include <algorithm>
@@ -37,6 +40,7 @@
 #include "fwref/vmath_f32.hpp"
 #include "fwref_vmath_gru.hpp"
 #include "fwref_vmath_i8.hpp"
+#include "fwref_vmath_w16.hpp"
 #include "fwref_vmath_w8.hpp"
 
 namespace {
@@ -363,6 +367,12 @@ int main(int argc, char** argv) {
   if (bw8 >= 0) std::printf("field_w8: %ld of %ld differ\n", bw8, compared_w8);
   bad_i8 += bw8 > 0 ? bw8 : 0;
   if (bw8 >= 0) report("control_row_avx512", vmath_w8_check::check_control);  // the same CPU condition
+#endif
+#if defined(FWREF_HAS_FIELD_W16_AVX2)
+  long compared_w16 = 0;
+  const long bw16 = vmath_w16_check::check_field(&compared_w16);
+  if (bw16 >= 0) std::printf("field_w16: %ld of %ld differ\n", bw16, compared_w16);
+  bad_i8 += bw16 > 0 ? bw16 : 0;
 #endif
   return bt == 0 && bl == 0 && bg == 0 && bf == 0 && bad_i8 == 0 ? 0 : 1;
 }
