@@ -24,6 +24,9 @@
 // 7. where the CPU runs the avx2field int8 kernel (AVX2 + FMA): the CNODE int8 field in one call on AVX2
 //    (fwref/field_w16_avx2.hpp) against the separate steps, every H, L multiple of 8 up to 64, the other
 //    shapes refused (tools/fwref_vmath_w16.hpp).
+// 8. where the CPU runs AVX2 + FMA: the fp32 CNODE field in one call on AVX2 (fwref/field_f32_avx2.hpp)
+//    against a scalar statement of its order, bit for bit, and within its bound, every H, L in 1..64
+//    (tools/fwref_vmath_f32t.hpp).
 // Prints one line per check ("tanh: 0 of N differ") and the kernel names; exit 0 when nothing differs,
 // 1 otherwise.
 #include <algorithm>
@@ -40,6 +43,7 @@
 #include "fwref/vmath_f32.hpp"
 #include "fwref_vmath_gru.hpp"
 #include "fwref_vmath_i8.hpp"
+#include "fwref_vmath_f32t.hpp"
 #include "fwref_vmath_w16.hpp"
 #include "fwref_vmath_w8.hpp"
 
@@ -337,6 +341,16 @@ int main(int argc, char** argv) {
     const long bfield = check_field_t(&compared_field);
     std::printf("field_t: %ld of %ld differ\n", bfield, compared_field);
     bg += bfield != 0 ? 1 : 0;
+  }
+#endif
+#if defined(FWREF_HAS_F32_FIELD_AVX2)
+  long compared_f2 = 0, bound_f2 = 0;
+  double worst_f2 = 0.0;
+  const long bfield2 = vmath_f32t_check::check_field(&compared_f2, &bound_f2, &worst_f2);
+  if (bfield2 >= 0) {
+    std::printf("field_f32_avx2 order: %ld of %ld differ\n", bfield2, compared_f2);
+    std::printf("field_f32_avx2 bound: %ld exceed (worst error / bound %.3f)\n", bound_f2, worst_f2);
+    bg += bfield2 != 0 || bound_f2 != 0 ? 1 : 0;
   }
 #endif
   long compared_f = 0;
