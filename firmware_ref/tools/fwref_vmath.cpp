@@ -43,6 +43,7 @@
 #include "fwref/vmath_f32.hpp"
 #include "fwref_vmath_gru.hpp"
 #include "fwref_vmath_i8.hpp"
+#include "fwref_vmath_ctl2.hpp"
 #include "fwref_vmath_f32t.hpp"
 #include "fwref_vmath_w16.hpp"
 #include "fwref_vmath_w8.hpp"
@@ -372,6 +373,9 @@ int main(int argc, char** argv) {
   report("hidden_rows", vmath_i8_check::check_hidden_rows);
   report("control_row", vmath_i8_check::check_control_row);
   report("nonzero", vmath_i8_check::check_nonzero);
+#if defined(FWREF_HAS_CONTROLS_AVX2)
+  report("control_row_avx2", vmath_ctl2_check::check_control);  // the int8 control rows in registers
+#endif
   report("gru_input_row", vmath_gru_check::check_input_row);
   report("gru_gates", vmath_gru_check::check_gates);
   report("gru_gate_rows", vmath_gru_check::check_gate_rows);
