@@ -418,6 +418,8 @@ def test_every_int8_kernel_this_cpu_runs_gives_the_portable_accumulators(host_bu
         assert all(ln.endswith(" OK") and "mismatches=0" in ln for ln in lines.values()), res.stdout
         if "avx2" in _cpu_flags():
             assert "avx2" in lines, res.stdout
+        if {"avx2", "fma"} <= _cpu_flags():  # the CNODE field in one call's entry (the avx2 products)
+            assert "avx2field" in lines, res.stdout
         # the packed int16 copies (FWREF_CNODE_W_INT16 / FWREF_GRU_WHH_INT16, on by default) per kernel
         assert {f"w16:{k}" for k in lines if not k.startswith(("dispatched:", "w16:", "w8:"))} <= set(lines), res.stdout
         # the GRU's and CNODE's packed int8 copy for vpdpbusd (fwref/kernels_w8_vnni.hpp): its layout's reference, and
@@ -444,38 +446,48 @@ def test_kernel_info_names_the_cpu_flags_and_the_dispatched_kernel(host_build):
     assert set(info) >= {"cpu_flags", "fp32_build", "int8_kernel", "int8_kernels", "gru_int8_products",
                          "cnode_int8_products"}, res.stdout
     want = {"avx512vnni": "w8-vpdpbusd", "portable": "portable"}.get(info["int8_kernel"], "w16-vpmaddwd")
-    assert info["gru_int8_products"] == want and info["cnode_int8_products"] == want, res.stdout
+    field = "-field" if info["int8_kernel"] == "avx2field" else ""  # the CNODE's field in one call on AVX2
+    assert info["gru_int8_products"] == want and info["cnode_int8_products"] == want + field, res.stdout
     runs = {kv.split("=")[0] for kv in info["int8_kernels"].split() if kv.endswith("=runs")}
     assert info["int8_kernel"] in runs and "portable" in runs
-    if "avx2" in _cpu_flags():
-        assert info["int8_kernel"] in ("avx2", "avx512vnni") and "avx2=1" in info["cpu_flags"]
+    flags = _cpu_flags()
+    if "avx2" in flags:
+        assert info["int8_kernel"] in ("avx2", "avx2field", "avx512vnni") and "avx2=1" in info["cpu_flags"]
+    if {"avx2", "fma"} <= flags and "avx512_vnni" not in flags:  # an AVX2-only host: the fused field is the choice
+        assert info["int8_kernel"] == "avx2field" and "avx2field" in runs, res.stdout
 
 
 def test_forced_portable_kernel_gives_the_same_logits(fw_run, host_build, windows_file, tmp_path):
     """FWREF_I8_KERNEL=portable (the reference loop; for the GRU the whole portable step, src/gru.cpp),
-    avx2 (the host steps on the int16 copies) and the dispatched kernel (on an AVX-512 VNNI CPU both
+    avx2 (the host steps on the int16 copies), avx2field (the same, the CNODE's field in one call on them,
+    fwref/field_w16_avx2.hpp) and the dispatched kernel (on an AVX-512 VNNI CPU both
     models' products on the int8 copies, src/gru.cpp and src/cnode_w8.cpp): identical int8 logits, each
     setting on the product path it names."""
     import os
 
     weights = fw_run / "export" / "weights.bin"
-    for kernel in ("portable", "avx2", ""):  # which path each setting runs (fwref_parity --kernel-info)
+    kernels = ("portable", "avx2", "avx2field", "")
+    for kernel in kernels:  # which path each setting runs (fwref_parity --kernel-info)
         res = subprocess.run([str(host_build / "fwref_parity"), "--kernel-info"], capture_output=True, text=True,
                              env=dict(os.environ, FWREF_I8_KERNEL=kernel))
         info = dict(ln.split(": ", 1) for ln in res.stdout.splitlines() if ": " in ln)
         vnni = info["int8_kernel"] == "avx512vnni"
-        want = {"portable": "portable", "avx2": "w16-vpmaddwd"}.get(kernel, "w8-vpdpbusd" if vnni else "w16-vpmaddwd")
-        assert info["cnode_int8_products"] == want == info["gru_int8_products"], (kernel, res.stdout)
+        want = {"portable": "portable", "avx2": "w16-vpmaddwd", "avx2field": "w16-vpmaddwd"}.get(
+            kernel, "w8-vpdpbusd" if vnni else "w16-vpmaddwd")
+        field = "-field" if info["int8_kernel"] == "avx2field" else ""
+        assert info["cnode_int8_products"] == want + field and want == info["gru_int8_products"], (kernel, res.stdout)
+        if kernel == "avx2field" and {"avx2", "fma"} <= _cpu_flags():
+            assert field, res.stdout
     for model in ("cnode", "gru"):
         outs = []
-        for kernel in ("portable", "avx2", ""):
+        for kernel in kernels:
             out = tmp_path / f"{model}{kernel}.f32"
             res = subprocess.run([str(host_build / "fwref_infer"), "--weights", str(weights), "--model", model, "--int8",
                                   "--in", str(windows_file), "--out", str(out)], capture_output=True, text=True,
                                  env=dict(os.environ, FWREF_I8_KERNEL=kernel))
             assert res.returncode == 0, res.stderr
             outs.append(np.fromfile(out, "<f4"))
-        assert np.array_equal(outs[0], outs[1]) and np.array_equal(outs[0], outs[2]), model
+        assert all(np.array_equal(outs[0], o) for o in outs[1:]), model
 
 
 # ------------------------------------------------------------------------------ the generator

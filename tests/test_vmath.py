@@ -14,7 +14,11 @@ How far that moves the models from ONNX Runtime is `quadfdi parity`'s check (FP3
 On an AVX-512F CPU also the CNODE's column-major kernel (gemv_t: its order and bound) and its fused
 field (bit for bit against the kernel's three separate steps); on an AVX-512 VNNI CPU the int8 CNODE's
 field in one call (fwref/field_w8_vnni.hpp) against its five separate steps, and its control rows
-(fwref/controls_avx512.hpp) against the AVX2 helpers, bit for bit.
+(fwref/controls_avx512.hpp) against the AVX2 helpers, bit for bit; on an AVX2 + FMA CPU the int8 CNODE's
+field in one call on AVX2 (fwref/field_w16_avx2.hpp) against the five separate steps of FWREF_I8_KERNEL=avx2,
+bit for bit, its control rows in registers (fwref/controls_avx2.hpp) against the helpers; and the fp32 CNODE's
+field in one call on AVX2 (fwref/field_f32_avx2.hpp), bit for bit against a
+scalar statement of its order and within that order's bound.
 
 And the CNODE's int8 vector math (fwref/vmath_i8.hpp) with numerics.hpp's scalar expressions, bit
 for bit: QuantizeLinear's round-half-even ties, saturation bounds and NaN, rescale + tanh + quantize,
@@ -79,6 +83,19 @@ def test_vector_tanh_logistic_bit_identical_and_gemv_in_its_order_and_bound(host
         assert m and int(m.group(1)) == 0 and float(m.group(3)) <= 1.0, out
         m = re.search(r"^field_t: (\d+) of (\d+) differ$", out, re.M)
         assert m and int(m.group(1)) == 0 and int(m.group(2)) == 64 * sum(range(1, 65)), out
+    if {"avx2", "fma"} <= flags:  # the fp32 CNODE field in one call on AVX2 (fwref/field_f32_avx2.hpp)
+        m = re.search(r"^field_f32_avx2 order: (\d+) of (\d+) differ$", out, re.M)  # every H, L in 1..64
+        assert m and int(m.group(1)) == 0 and int(m.group(2)) == 64 * sum(range(1, 65)), out
+        m = re.search(r"^field_f32_avx2 bound: (\d+) exceed \(worst error / bound ([0-9.]+)\)$", out, re.M)
+        assert m and int(m.group(1)) == 0 and float(m.group(2)) <= 1.0, out
+    if {"avx2", "fma"} <= flags:  # the int8 control rows in registers on AVX2 (fwref/controls_avx2.hpp)
+        m = re.search(r"^control_row_avx2: (\d+) of (\d+) differ$", out, re.M)
+        assert m and int(m.group(1)) == 0 and int(m.group(2)) == sum(range(1, 33)) * (39 + 9), out
+    if {"avx2", "fma"} <= flags:  # the int8 CNODE field in one call on AVX2 (fwref/field_w16_avx2.hpp)
+        m = re.search(r"^field_w16: (\d+) of (\d+) differ$", out, re.M)  # 6 draws of every H, L in 8, 16, .., 64
+        assert m and int(m.group(1)) == 0 and int(m.group(2)) == 6 * 8 * sum(range(8, 65, 8)), out
+    else:
+        print("skipped field_w16 and field_f32_avx2: this CPU has no AVX2 + FMA (the AVX2 fields cannot run here)")
     if {"avx512f", "avx512vl", "avx512_vnni"} <= flags:  # the int8 CNODE field in one call (fwref/field_w8_vnni.hpp)
         m = re.search(r"^field_w8: (\d+) of (\d+) differ$", out, re.M)
         assert m and int(m.group(1)) == 0 and int(m.group(2)) == 64 * sum(range(1, 65)), out

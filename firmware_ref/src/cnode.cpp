@@ -11,6 +11,7 @@
 #include "fwref/vmath_i8.hpp"
 #include "cnode_controls.hpp"
 #include "cnode_f32_t.hpp"
+#include "cnode_field16.hpp"
 #include "model_common.hpp"
 #include "motor_common.hpp"
 #if defined(FWREF_HAS_W8_VNNI)
@@ -351,11 +352,13 @@ Status infer(const CnodeI8& m, const float* x, float* logits, CnodeWorkspace& ws
   static_assert(kStageX16 == (sizeof *zq == 2), "int16 stage codes only with the int16 kernel");
   float lin2_mult[kMaxLatent];
   for (int o = 0; o < L; ++o) lin2_mult[o] = m.s_hidden * m.lin2_w.scale[o];  // rescale_i32's multiplier
+  const detail::Field16 one_call = detail::field16(m, w16.lin1z, w16.lin2, lin2_mult);  // AVX2: avx2field
   auto field = [&](int e, const CnodeWorkspace::Lat& z, CnodeWorkspace::Lat& k) {
     const float s_z = m.s_stage[e];
+    k.resize(L);
+    if (one_call(z.data(), s_z, ws.v + m.stage_index[e] * H, k.data())) return;  // the same steps in one call
     quantize_all(z.data(), L, s_z, zq);
     lin1_tanh_quantize(m, w16.lin1z, zq, s_z, ws.v + m.stage_index[e] * H, hq);
-    k.resize(L);
     stage_lin2(m, w16.lin2, hq, lin2_mult, k.data());
   };
   detail::rk4_integrate(m.rk4, d.steps, ws.z, ws.k1, ws.k2, ws.k3, ws.k4, ws.state, field,

@@ -2,6 +2,8 @@
 // (compiled with a target attribute, run only on a CPU that has AVX-512F) and its run-time choice.
 #include "fwref/kernels_f32_avx512.hpp"
 
+#include "fwref/field_f32_avx2.hpp"  // gemv_f32_select switches its choice too
+
 #if defined(FWREF_HAS_F32_AVX512)
 
 // GCC 12 warns that the _mm512_undefined_ps() inside _mm512_shuffle_f32x4 / _max_ps / _min_ps "may be /
@@ -201,10 +203,11 @@ bool cpu_avx512f() {
   return __builtin_cpu_supports("avx512f");
 }
 
-// Before main: AVX-512F when the CPU has it, unless FWREF_F32_KERNEL=avx2 asks for the AVX2 kernel.
+// Before main: AVX-512F when the CPU has it, unless FWREF_F32_KERNEL=avx2 asks for the AVX2 kernel (or
+// avx2field for the CNODE's AVX2 field in one call, fwref/field_f32_avx2.hpp).
 bool init_choice() {
   const char* want = std::getenv("FWREF_F32_KERNEL");
-  return cpu_avx512f() && !(want != nullptr && std::strcmp(want, "avx2") == 0);
+  return cpu_avx512f() && !(want != nullptr && (std::strcmp(want, "avx2") == 0 || std::strcmp(want, "avx2field") == 0));
 }
 
 // The column counts of the paper models' products (channels 23 and 25, latent 40, hidden 64 and 80)
@@ -274,8 +277,9 @@ bool g_f32_avx512 = init_choice();
 bool gemv_f32_avx512_active() { return detail::g_f32_avx512; }
 
 bool gemv_f32_select(const char* name) {
-  if (std::strcmp(name, "avx2") == 0) return !(detail::g_f32_avx512 = false);
-  if (std::strcmp(name, "avx512") == 0 && cpu_avx512f()) return (detail::g_f32_avx512 = true);
+  if (std::strcmp(name, "avx2") == 0) return detail::field_f32_avx2_set(false), !(detail::g_f32_avx512 = false);
+  if (std::strcmp(name, "avx2field") == 0) return detail::field_f32_avx2_set(true) && !(detail::g_f32_avx512 = false);
+  if (std::strcmp(name, "avx512") == 0 && cpu_avx512f()) return detail::field_f32_avx2_set(false), (detail::g_f32_avx512 = true);
   return false;
 }
 

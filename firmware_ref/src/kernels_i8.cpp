@@ -5,6 +5,8 @@
 
 #if defined(__x86_64__) && !defined(FWREF_PORTABLE_KERNELS)
 
+#include "fwref/field_w16_avx2.hpp"  // FWREF_HAS_FIELD_W16_AVX2
+
 #include <immintrin.h>
 
 #include <cstdlib>
@@ -157,20 +159,31 @@ bool cpu_vnni() {
          __builtin_cpu_supports("avx512vl") && __builtin_cpu_supports("avx512vnni");
 }
 
-// (VNNI has no int16 dot product beyond vpmaddwd's: its int16 path is the AVX2 one.)
+// (VNNI has no int16 dot product beyond vpmaddwd's: its int16 path is the AVX2 one.) avx2field: the avx2
+// products, and the int8 CNODE's field in one call on them (fwref/field_w16_avx2.hpp); the best choice of
+// an AVX2 CPU without VNNI, FWREF_I8_KERNEL=avx2 keeping the separate steps.
 GemvI8Kernel g_kernels[] = {
     {"portable", gemv_i8_portable, true, gemv_w16_portable},
     {"avx2", gemv_i8_avx2, false, gemv_w16_avx2},
+#if defined(FWREF_HAS_FIELD_W16_AVX2)
+    {"avx2field", gemv_i8_avx2, false, gemv_w16_avx2},
+#endif
     {"avx512vnni", gemv_i8_avx512vnni, false, gemv_w16_avx2},
 };
 constexpr int kKernels = sizeof g_kernels / sizeof g_kernels[0];
 int g_active = 0;
 
+bool cpu_runs(const char* name) {
+  if (std::strcmp(name, "portable") == 0) return true;
+  if (std::strcmp(name, "avx512vnni") == 0) return cpu_vnni();
+  if (std::strcmp(name, "avx2field") == 0) return cpu_avx2() && __builtin_cpu_supports("fma");
+  return cpu_avx2();
+}
+
 // Runs before main (static initialisation of g_gemv_i8): detect, pick the best, honour FWREF_I8_KERNEL.
 GemvI8Fn init_dispatch() {
-  g_kernels[1].cpu_runs = cpu_avx2();
-  g_kernels[2].cpu_runs = cpu_vnni();
   for (int k = 0; k < kKernels; ++k) {
+    g_kernels[k].cpu_runs = cpu_runs(g_kernels[k].name);
     if (g_kernels[k].cpu_runs) g_active = k;
   }
   const char* want = std::getenv("FWREF_I8_KERNEL");
@@ -193,6 +206,10 @@ int gemv_i8_kernels(const GemvI8Kernel** out) {
 }
 
 const char* gemv_i8_kernel_name() { return g_kernels[g_active].name; }
+
+#if defined(FWREF_HAS_FIELD_W16_AVX2)
+bool field_w16_avx2_active() { return std::strcmp(g_kernels[g_active].name, "avx2field") == 0; }
+#endif
 
 bool gemv_i8_select(const char* name) {
   for (int k = 0; k < kKernels; ++k) {

@@ -21,6 +21,12 @@
 // 6. where the int8 kernel is avx512vnni: the CNODE int8 field in one call (fwref/field_w8_vnni.hpp)
 //    against the separate steps, every H, L in 1..64; and (AVX-512F) the control rows of that path,
 //    control_row_avx512, against the AVX2 helpers (tools/fwref_vmath_w8.hpp).
+// 7. where the CPU runs the avx2field int8 kernel (AVX2 + FMA): the CNODE int8 field in one call on AVX2
+//    (fwref/field_w16_avx2.hpp) against the separate steps, every H, L multiple of 8 up to 64, the other
+//    shapes refused (tools/fwref_vmath_w16.hpp).
+// 8. where the CPU runs AVX2 + FMA: the fp32 CNODE field in one call on AVX2 (fwref/field_f32_avx2.hpp)
+//    against a scalar statement of its order, bit for bit, and within its bound, every H, L in 1..64
+//    (tools/fwref_vmath_f32t.hpp).
 // Prints one line per check ("tanh: 0 of N differ") and the kernel names; exit 0 when nothing differs,
 // 1 otherwise.
 #include <algorithm>
@@ -37,6 +43,9 @@
 #include "fwref/vmath_f32.hpp"
 #include "fwref_vmath_gru.hpp"
 #include "fwref_vmath_i8.hpp"
+#include "fwref_vmath_ctl2.hpp"
+#include "fwref_vmath_f32t.hpp"
+#include "fwref_vmath_w16.hpp"
 #include "fwref_vmath_w8.hpp"
 
 namespace {
@@ -335,6 +344,16 @@ int main(int argc, char** argv) {
     bg += bfield != 0 ? 1 : 0;
   }
 #endif
+#if defined(FWREF_HAS_F32_FIELD_AVX2)
+  long compared_f2 = 0, bound_f2 = 0;
+  double worst_f2 = 0.0;
+  const long bfield2 = vmath_f32t_check::check_field(&compared_f2, &bound_f2, &worst_f2);
+  if (bfield2 >= 0) {
+    std::printf("field_f32_avx2 order: %ld of %ld differ\n", bfield2, compared_f2);
+    std::printf("field_f32_avx2 bound: %ld exceed (worst error / bound %.3f)\n", bound_f2, worst_f2);
+    bg += bfield2 != 0 || bound_f2 != 0 ? 1 : 0;
+  }
+#endif
   long compared_f = 0;
   const long bf = check_all_finite(&compared_f);
   std::printf("all_finite: %ld of %ld differ\n", bf, compared_f);
@@ -354,6 +373,9 @@ int main(int argc, char** argv) {
   report("hidden_rows", vmath_i8_check::check_hidden_rows);
   report("control_row", vmath_i8_check::check_control_row);
   report("nonzero", vmath_i8_check::check_nonzero);
+#if defined(FWREF_HAS_CONTROLS_AVX2)
+  report("control_row_avx2", vmath_ctl2_check::check_control);  // the int8 control rows in registers
+#endif
   report("gru_input_row", vmath_gru_check::check_input_row);
   report("gru_gates", vmath_gru_check::check_gates);
   report("gru_gate_rows", vmath_gru_check::check_gate_rows);
@@ -363,6 +385,12 @@ int main(int argc, char** argv) {
   if (bw8 >= 0) std::printf("field_w8: %ld of %ld differ\n", bw8, compared_w8);
   bad_i8 += bw8 > 0 ? bw8 : 0;
   if (bw8 >= 0) report("control_row_avx512", vmath_w8_check::check_control);  // the same CPU condition
+#endif
+#if defined(FWREF_HAS_FIELD_W16_AVX2)
+  long compared_w16 = 0;
+  const long bw16 = vmath_w16_check::check_field(&compared_w16);
+  if (bw16 >= 0) std::printf("field_w16: %ld of %ld differ\n", bw16, compared_w16);
+  bad_i8 += bw16 > 0 ? bw16 : 0;
 #endif
   return bt == 0 && bl == 0 && bg == 0 && bf == 0 && bad_i8 == 0 ? 0 : 1;
 }

@@ -11,8 +11,10 @@
 //                                             the rows it read last still in L1 (the GRU's W_hh)
 //   gemv_f32_avx512_active()                  true when matvec_f32 runs it (the CPU has AVX-512F and
 //                                             FWREF_F32_KERNEL is not "avx2")
-//   gemv_f32_select(name)                     "avx2" or "avx512": switch the choice (false when the CPU
-//                                             does not run it); for the checks (tools/fwref_vmath.cpp)
+//   gemv_f32_select(name)                     "avx2", "avx2field" (the AVX2 kernel, and the CNODE's field in
+//                                             one call on AVX2, fwref/field_f32_avx2.hpp) or "avx512": switch
+//                                             the choice (false when the CPU does not run it); for the checks
+//                                             (tools/fwref_vmath.cpp)
 //
 // Summation order (checked bit for bit by fwref_vmath against a scalar statement of it): 16 rows per
 // pass share each load of x (the last rows % 16 in passes of 8, 4, 2, 1); per row 16 lanes,

@@ -10,6 +10,9 @@
 //               sign(x) * w (vpsignb, s8: exact because weights are in [-127, 127], docs/formats.md,
 //               checked at load) with vpmaddubsw; each pair sum is at most 2 * 128 * 127 = 32512 <
 //               32767, so its 16-bit saturation never triggers; vpmaddwd widens to int32;
+//   avx2field   the avx2 kernels, and the int8 CNODE's vector field evaluated in one call on the int16
+//               copies (fwref/field_w16_avx2.hpp; the same integers and floats, so the same logits): the
+//               choice of an AVX2 + FMA CPU without VNNI; FWREF_I8_KERNEL=avx2 keeps the separate steps;
 //   avx512vnni  x86-64 AVX-512 VNNI (+VL), the same operands with vpdpbusd (u8 x s8, four products
 //               summed into int32 without saturation) on 256-bit vectors (the rows are short); where
 //               it is the choice, the host GRU's products use fwref/kernels_w8_vnni.hpp's packed copy;
@@ -18,7 +21,7 @@
 //               (CMSIS-NN's arm_nn_vec_mat_mult_t_s8 loop shape, written for this code base).
 // On x86-64 the kernel is chosen at run time (cpuid through __builtin_cpu_supports, once):
 // the best one the CPU runs, or the one named by the environment variable FWREF_I8_KERNEL
-// (portable, avx2, avx512vnni) when the CPU runs it. Elsewhere the portable loop (or the Cortex-M one).
+// (portable, avx2, avx2field, avx512vnni) when the CPU runs it. Elsewhere the portable loop (or the Cortex-M one).
 #pragma once
 
 #include <cstdint>

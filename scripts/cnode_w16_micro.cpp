@@ -1,0 +1,104 @@
+// scripts/cnode_w16_micro.cpp -- the int8 CNODE field on an AVX2 host timed alone (docs/bench.md, "The CNODE field
+// on an AVX2 host"): the field as src/cnode.cpp evaluates it with FWREF_I8_KERNEL=avx2 (quantize z to int16 codes,
+// lin1_z on the int16 copy with gemv_w16_avx2, rescale + V + tanh + requantize, lin2, rescale + bias: 64 x 40 and
+// 40 x 64, the paper's shapes) as a serial chain of 32 evaluations, each part alone, and the fused call
+// (field_w16_avx2). Medians of 2,000 timed chains (std::chrono::steady_clock) after 200 warm-up ones; random
+// weights and scales that keep the state in the codes' range.
+//
+//   g++ -O3 -std=c++17 -march=native -ffp-contract=off -fno-trapping-math -DFWREF_CNODE_W_INT16 -Ifirmware_ref/include
+//       -I/usr/include/eigen3 scripts/cnode_w16_micro.cpp firmware_ref/src/kernels_i8.cpp
+//       firmware_ref/src/field_w16_avx2.cpp -o /tmp/cnode_w16_micro
+//   FWREF_I8_KERNEL=avx2field taskset -c 1 /tmp/cnode_w16_micro
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <cstring>
+#include <random>
+#include <vector>
+
+#include "fwref/field_w16_avx2.hpp"
+#include "fwref/kernels_i8.hpp"
+#include "fwref/vmath_i8.hpp"
+
+namespace {
+
+constexpr int H = 64, L = 40, E = 32;
+
+template <class F>
+double median_ns(F f) {
+  std::vector<double> t;
+  for (int r = 0; r < 200; ++r) f();
+  for (int r = 0; r < 2000; ++r) {
+    const auto a = std::chrono::steady_clock::now();
+    f();
+    t.push_back(std::chrono::duration<double, std::nano>(std::chrono::steady_clock::now() - a).count());
+  }
+  std::sort(t.begin(), t.end());
+  return t[t.size() / 2] / E;  // per evaluation
+}
+
+struct Model {
+  alignas(64) std::int16_t w1[H * L], w2[L * H];
+  float s_w1[H], s_w2[H], mult2[L], b2[L], v[H], s_z[E], s_hid = 1.0f / 127.0f;
+};
+
+}  // namespace
+
+int main() {
+  if (!fwref::field_w16_avx2_active()) {
+    std::printf("cnode_w16_micro: run with FWREF_I8_KERNEL=avx2field on an AVX2 + FMA CPU\n");
+    return 1;
+  }
+  std::mt19937 rng(1);
+  std::uniform_int_distribution<int> wd(-127, 127);
+  std::normal_distribution<float> nd(0.0f, 1.0f);
+  static Model m;
+  std::vector<std::int8_t> q1(H * L), q2(L * H);
+  for (auto& q : q1) q = static_cast<std::int8_t>(wd(rng));
+  for (auto& q : q2) q = static_cast<std::int8_t>(wd(rng));
+  fwref::expand_i8_to_i16(q1.data(), H, L, m.w1);
+  fwref::expand_i8_to_i16(q2.data(), L, H, m.w2);
+  for (int i = 0; i < H; ++i) m.s_w1[i] = 0.01f / 127.0f, m.v[i] = 0.3f * nd(rng);
+  for (int i = 0; i < L; ++i) m.s_w2[i] = 0.02f / 127.0f, m.mult2[i] = m.s_hid * m.s_w2[i], m.b2[i] = 0.1f * nd(rng);
+  for (int e = 0; e < E; ++e) m.s_z[e] = 2.0f / 127.0f;
+  alignas(64) float z[64] = {}, k[64] = {};
+  alignas(64) std::int16_t zq[64], hq[64];
+  alignas(64) std::int32_t acc[64];
+  for (int i = 0; i < L; ++i) z[i] = nd(rng);
+  auto quant = [&](int e) { fwref::quantize_n(z, L, m.s_z[e], zq); };
+  auto lin1 = [&] { fwref::gemv_w16_x16(m.w1, H, L, zq, acc); };
+  auto act = [&](int e) { fwref::rescale_tanh_quantize_n(acc, m.s_z[e], m.s_w1, m.v, m.s_hid, H, hq); };
+  auto lin2 = [&] { fwref::gemv_w16_x16(m.w2, L, H, hq, acc); };
+  auto out = [&] { fwref::rescale_bias_n(acc, m.mult2, m.b2, L, k), std::memcpy(z, k, sizeof(float) * L); };
+  const double full = median_ns([&] {
+    for (int e = 0; e < E; ++e) quant(e), lin1(), act(e), lin2(), out();
+  });
+  std::printf("separate steps, serial chain: %.1f ns per evaluation\n", full);
+  const double a0 = median_ns([&] { for (int e = 0; e < E; ++e) quant(e); });
+  const double a1 = median_ns([&] { for (int e = 0; e < E; ++e) lin1(); });
+  const double a2 = median_ns([&] { for (int e = 0; e < E; ++e) act(e); });
+  const double a3 = median_ns([&] { for (int e = 0; e < E; ++e) lin2(); });
+  const double a4 = median_ns([&] { for (int e = 0; e < E; ++e) out(); });
+  std::printf("  alone: quantize %.1f, lin1_z %.1f, rescale+tanh+requantize %.1f, lin2 %.1f, rescale+bias %.1f ns\n",
+              a0, a1, a2, a3, a4);
+  const fwref::FieldW16 f{m.w1, m.w2, H, L, m.s_w1, m.s_hid, m.mult2, m.b2};
+  const double fused = median_ns([&] {
+    for (int e = 0; e < E; ++e) fwref::field_w16_avx2(f, z, m.s_z[e], m.v, z);
+  });
+  std::printf("fused call, serial chain: %.1f ns per evaluation\n", fused);
+  // the two interleaved, 9 rounds (a shared machine's slow phases hit both alike): medians of the rounds
+  std::vector<double> sep, one;
+  for (int r = 0; r < 9; ++r) {
+    sep.push_back(median_ns([&] {
+      for (int e = 0; e < E; ++e) quant(e), lin1(), act(e), lin2(), out();
+    }));
+    one.push_back(median_ns([&] {
+      for (int e = 0; e < E; ++e) fwref::field_w16_avx2(f, z, m.s_z[e], m.v, z);
+    }));
+  }
+  std::sort(sep.begin(), sep.end());
+  std::sort(one.begin(), one.end());
+  std::printf("interleaved, 9 rounds: separate steps %.1f ns, fused call %.1f ns per evaluation (medians)\n", sep[4],
+              one[4]);
+  return 0;
+}
