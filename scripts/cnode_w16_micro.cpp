@@ -19,6 +19,7 @@
 #include "fwref/field_w16_avx2.hpp"
 #include "fwref/kernels_i8.hpp"
 #include "fwref/vmath_i8.hpp"
+#include "micro_timing.hpp"
 
 namespace {
 
@@ -26,15 +27,7 @@ constexpr int H = 64, L = 40, E = 32;
 
 template <class F>
 double median_ns(F f) {
-  std::vector<double> t;
-  for (int r = 0; r < 200; ++r) f();
-  for (int r = 0; r < 2000; ++r) {
-    const auto a = std::chrono::steady_clock::now();
-    f();
-    t.push_back(std::chrono::duration<double, std::nano>(std::chrono::steady_clock::now() - a).count());
-  }
-  std::sort(t.begin(), t.end());
-  return t[t.size() / 2] / E;  // per evaluation
+  return median_call_ns(f) / E;  // per evaluation
 }
 
 struct Model {

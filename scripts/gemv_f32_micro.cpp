@@ -4,7 +4,7 @@
 // of 2,000 timed calls (std::chrono::steady_clock) after 200 warm-up calls; random weights.
 //
 //   g++ -O3 -std=c++17 -march=native -ffp-contract=off -fno-trapping-math -Ifirmware_ref/include \
-//       -I/usr/include/eigen3 scripts/gemv_f32_micro.cpp firmware_ref/src/kernels_f32_avx512.cpp -o /tmp/gemv_f32_micro
+//       -I/usr/include/eigen3 scripts/gemv_f32_micro.cpp firmware_ref/src/kernels_f32_avx512.cpp firmware_ref/src/field_f32_avx2.cpp -o /tmp/gemv_f32_micro
 //   taskset -c 1 /tmp/gemv_f32_micro
 #include <algorithm>
 #include <chrono>
@@ -14,18 +14,11 @@
 
 #include "fwref/kernels_f32_avx512.hpp"
 #include "fwref/vmath_f32.hpp"
+#include "micro_timing.hpp"
 
 template <class F>
 double median_ns(F f) {
-  std::vector<double> t;
-  for (int r = 0; r < 200; ++r) f();
-  for (int r = 0; r < 2000; ++r) {
-    const auto a = std::chrono::steady_clock::now();
-    f();
-    t.push_back(std::chrono::duration<double, std::nano>(std::chrono::steady_clock::now() - a).count());
-  }
-  std::sort(t.begin(), t.end());
-  return t[t.size() / 2];
+  return median_call_ns(f);
 }
 
 int main() {
