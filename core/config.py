@@ -144,7 +144,7 @@ class TrainConfig:
     # The motor head (train.motor, docs/training.md): "auto" = on when the data has a rotor-side class, "off" never.
     motor_head: str = "off"
     motor_loss_weight: float = 0.5  # weight of the motor cross-entropy added to the class loss
-    # Training-only motor-share wander (train.augment, docs/detect.md): the largest per-window
+    # Training-only motor-share wander (train.augment, docs/training.md "Motor-share wander"): the largest per-window
     # amplitude of the multiplicative noise on m1_rel..m4_rel (0 = off) and its correlation time.
     share_wander: float = 0.0
     share_wander_tau_s: float = 0.3
