@@ -5,6 +5,7 @@
 
 #include "fwref/kernels_f32.hpp"
 #include "fwref/kernels_i8_x2.hpp"
+#include "fwref/linear_w16_avx2.hpp"
 #include "fwref/numerics.hpp"
 #include "fwref/tanhq.hpp"
 #include "fwref/vmath_f32.hpp"
@@ -226,12 +227,20 @@ StageWeights16 int16_copies(const CnodeI8& m, CnodeWorkspace& ws) {
   return w;
 }
 
-// V[s] = B(uq[s], lin1_u) + b1 for every row s of U: linear_i8_folded's operations. On Cortex-M
+// V[s] = B(uq[s], lin1_u) + b1 for every row s of U: linear_i8_folded's operations. With the int8 kernel
+// avx2field, all S rows in one call on lin1_u's int16 copy (fwref/linear_w16_avx2.hpp). On Cortex-M
 // (without an int16 copy of lin1_u) two rows of U per pass over the weights (fwref/kernels_i8_x2.hpp),
 // then the same rescale, f32(acc) * s_w' + b, row by row.
 void lin1_u_rows(const CnodeI8& m, const std::int16_t* lin1u16, CnodeWorkspace& ws) {
   const CnodeDims& d = m.dims;
   const int C = d.channels, S = d.stage_times, H = d.hidden;
+#if defined(FWREF_HAS_LINEAR_W16_AVX2)
+  // avx2field: the S rows in one call on the int16 copy (fwref/linear_w16_avx2.hpp: the same bits)
+  if (lin1u16 != nullptr && field_w16_avx2_active() &&
+      linear_folded_w16_avx2(lin1u16, H, C, ws.uq, S, m.lin1_u.scale, m.lin1_b, ws.v)) {
+    return;
+  }
+#endif
   int s = 0;
 #if defined(FWREF_HAS_I8_X2)
   if (lin1u16 == nullptr) {
