@@ -72,7 +72,7 @@ int main(int argc, char** argv) {
   CnodeWorkspace& f = *wsf;
   CnodeWorkspace& q = *wsq;
   std::int32_t acc[kMaxChannels];
-  const StageWeights16 w16 = int16_copies(mq, q);
+  const detail::StageWeights16 w16 = detail::int16_copies(mq, q);
   float lin2_mult[kMaxLatent];
   for (int o = 0; o < L; ++o) lin2_mult[o] = mq.s_hidden * mq.lin2_w.scale[o];
   const detail::Field16 one_call = detail::field16(mq, w16.lin1z, w16.lin2, lin2_mult);
@@ -128,7 +128,10 @@ int main(int argc, char** argv) {
       detail::quantize_stage_controls(mq, x, acc, q, nullptr);
       c[2] = Clock::now();
       q.z.resize(L);
-      linear_i8_folded(mq.encoder_w.q, mq.encoder_w.scale, L, d.channels, q.uq, mq.encoder_b, q.z.data());
+#if defined(FWREF_HAS_LINEAR_W16_AVX2)  // control_path_i8's encoder step
+      if (!linear_folded_w16_avx2(w16.enc, L, d.channels, q.uq, 1, mq.encoder_w.scale, mq.encoder_b, q.z.data()))
+#endif
+        linear_i8_folded(mq.encoder_w.q, mq.encoder_w.scale, L, d.channels, q.uq, mq.encoder_b, q.z.data());
       tanh_inplace(q.z);
       c[3] = Clock::now();
       lin1_u_rows(mq, w16.lin1u, q);
