@@ -5,7 +5,7 @@
 // interleaved within a round, medians in ns per window. The parts call cnode.cpp's own functions: this file
 // includes src/cnode.cpp (measurement only), so it times the code that ships, not a copy of it.
 //
-//   g++ -O3 -std=c++17 -march=native -ffp-contract=off -fno-trapping-math -DFWREF_CNODE_W_INT16
+//   g++ -O3 -DNDEBUG -std=c++17 -march=native -ffp-contract=off -fno-trapping-math -DFWREF_CNODE_W_INT16
 //       -DFWREF_CNODE_U_INT16 -DEIGEN_RUNTIME_NO_MALLOC -Ifirmware_ref/include -Ifirmware_ref/src
 //       -I/usr/include/eigen3 scripts/cnode_parts_micro.cpp $(ls firmware_ref/src/*.cpp | grep -v cnode.cpp)
 //       -o /tmp/cnode_parts_micro
