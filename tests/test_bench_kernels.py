@@ -64,6 +64,7 @@ def test_bench_kernels_command_counts_every_model_and_names_the_int8_kernel(fw_r
     assert set(recs) == {("cnode", "fp32"), ("cnode", "int8"), ("gru", "fp32"), ("gru", "int8")}
     ran = next(line.split(":", 1)[1].strip() for line in doc["kernel_info"].splitlines()
                if line.startswith("int8_kernel:"))
+    chosen = ran
     ran = {"avx2field": "avx2"}.get(ran, ran)  # avx2field's products are gemv_i8_avx2 (plus the CNODE's fused field)
     for (model, precision), r in recs.items():
         parts = sum(k["ir_per_window"] for k in r["kernels"])
@@ -79,4 +80,7 @@ def test_bench_kernels_command_counts_every_model_and_names_the_int8_kernel(fw_r
     if {"avx2", "fma"} <= _cpu_flags():
         gemv = [k for k in recs[("gru", "fp32")]["kernels"] if k["kernel"].startswith("gemv_fma_cols")]
         assert gemv and sum(k["ir_per_window"] for k in gemv) <= 0.3 * recs[("gru", "fp32")]["macs"]["total"], recs
-    assert f"gemv_i8_{ran}" in res.stdout and "**total**" in res.stdout
+    # The printout names the kernel that ran (fwref_kernels --info's line). Its table lists kernels at >= 0.5 % of
+    # a window, and with avx2field gemv_i8_avx2 is left with the two heads alone (the CNODE's encoder and lin1_u
+    # rows run linear_folded_w16_avx2): under that share in both models, so it is checked in the records above.
+    assert f"int8_kernel: {chosen}" in res.stdout and "**total**" in res.stdout

@@ -16,7 +16,8 @@ field (bit for bit against the kernel's three separate steps); on an AVX-512 VNN
 field in one call (fwref/field_w8_vnni.hpp) against its five separate steps, and its control rows
 (fwref/controls_avx512.hpp) against the AVX2 helpers, bit for bit; on an AVX2 + FMA CPU the int8 CNODE's
 field in one call on AVX2 (fwref/field_w16_avx2.hpp) against the five separate steps of FWREF_I8_KERNEL=avx2,
-bit for bit, its control rows in registers (fwref/controls_avx2.hpp) against the helpers; and the fp32 CNODE's
+bit for bit, its control rows in registers (fwref/controls_avx2.hpp) against the helpers and its lin1_u rows in one
+call (fwref/linear_w16_avx2.hpp) against linear_i8_folded; and the fp32 CNODE's
 field in one call on AVX2 (fwref/field_f32_avx2.hpp), bit for bit against a
 scalar statement of its order and within that order's bound.
 
@@ -94,8 +95,11 @@ def test_vector_tanh_logistic_bit_identical_and_gemv_in_its_order_and_bound(host
     if {"avx2", "fma"} <= flags:  # the int8 CNODE field in one call on AVX2 (fwref/field_w16_avx2.hpp)
         m = re.search(r"^field_w16: (\d+) of (\d+) differ$", out, re.M)  # 6 draws of every H, L in 8, 16, .., 64
         assert m and int(m.group(1)) == 0 and int(m.group(2)) == 6 * 8 * sum(range(8, 65, 8)), out
+        m = re.search(r"^linear_w16: (\d+) of (\d+) differ$", out, re.M)  # its lin1_u rows (fwref/linear_w16_avx2.hpp)
+        n_rows = sum(r * (1 + (r + c + d) % 3) for r in range(8, 65, 8) for c in range(1, 33) for d in range(2))
+        assert m and int(m.group(1)) == 0 and int(m.group(2)) == n_rows, out
     else:
-        print("skipped field_w16 and field_f32_avx2: this CPU has no AVX2 + FMA (the AVX2 fields cannot run here)")
+        print("skipped field_w16, linear_w16 and field_f32_avx2: this CPU has no AVX2 + FMA (the AVX2 paths cannot run here)")
     if {"avx512f", "avx512vl", "avx512_vnni"} <= flags:  # the int8 CNODE field in one call (fwref/field_w8_vnni.hpp)
         m = re.search(r"^field_w8: (\d+) of (\d+) differ$", out, re.M)
         assert m and int(m.group(1)) == 0 and int(m.group(2)) == 64 * sum(range(1, 65)), out

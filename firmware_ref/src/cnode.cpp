@@ -5,11 +5,13 @@
 
 #include "fwref/kernels_f32.hpp"
 #include "fwref/kernels_i8_x2.hpp"
+#include "fwref/linear_w16_avx2.hpp"
 #include "fwref/numerics.hpp"
 #include "fwref/tanhq.hpp"
 #include "fwref/vmath_f32.hpp"
 #include "fwref/vmath_i8.hpp"
 #include "cnode_controls.hpp"
+#include "cnode_copies16.hpp"
 #include "cnode_f32_t.hpp"
 #include "cnode_field16.hpp"
 #include "model_common.hpp"
@@ -26,6 +28,8 @@ using detail::all_finite;
 using detail::all_positive_finite;
 using detail::dim_ok;
 using detail::view_ok;
+using detail::int16_copies;
+using detail::StageWeights16;
 
 Status check_dims(const CnodeDims& d) {
   if (d.channels <= 0 || d.window < 2 || d.classes <= 0 || d.hidden <= 0 || d.latent <= 0 || d.steps <= 0 ||
@@ -195,43 +199,20 @@ Status check_any(const Model& m) {
                              [&] { return scales_ok(m) ? check_common(m) : Status::kBadWeights; });
 }
 
-// The int16 copies of the weights (null where this build has none), made by the first int8
-// inference of a model (ws.w16_of: which weights they are).
-struct StageWeights16 {
-  const std::int16_t* lin1z = nullptr;
-  const std::int16_t* lin2 = nullptr;
-  const std::int16_t* lin1u = nullptr;
-};
-
-StageWeights16 int16_copies(const CnodeI8& m, CnodeWorkspace& ws) {
-  StageWeights16 w;
-#if defined(FWREF_CNODE_W_INT16) && defined(FWREF_HAS_W16_KERNEL)
-  const CnodeDims& d = m.dims;
-  if (ws.w16_of != m.lin1_z.q) {
-    expand_i8_to_i16(m.lin1_z.q, d.hidden, d.latent, ws.lin1z16);
-    expand_i8_to_i16(m.lin2_w.q, d.latent, d.hidden, ws.lin2w16);
-#if defined(FWREF_CNODE_U_INT16)
-    expand_i8_to_i16(m.lin1_u.q, d.hidden, d.channels, ws.lin1u16);
-#endif
-    ws.w16_of = m.lin1_z.q;
-  }
-  w.lin1z = ws.lin1z16;
-  w.lin2 = ws.lin2w16;
-#if defined(FWREF_CNODE_U_INT16)
-  w.lin1u = ws.lin1u16;
-#endif
-#else
-  (void)m, (void)ws;
-#endif
-  return w;
-}
-
-// V[s] = B(uq[s], lin1_u) + b1 for every row s of U: linear_i8_folded's operations. On Cortex-M
+// V[s] = B(uq[s], lin1_u) + b1 for every row s of U: linear_i8_folded's operations. With the int8 kernel
+// avx2field, all S rows in one call on lin1_u's int16 copy (fwref/linear_w16_avx2.hpp). On Cortex-M
 // (without an int16 copy of lin1_u) two rows of U per pass over the weights (fwref/kernels_i8_x2.hpp),
 // then the same rescale, f32(acc) * s_w' + b, row by row.
 void lin1_u_rows(const CnodeI8& m, const std::int16_t* lin1u16, CnodeWorkspace& ws) {
   const CnodeDims& d = m.dims;
   const int C = d.channels, S = d.stage_times, H = d.hidden;
+#if defined(FWREF_HAS_LINEAR_W16_AVX2)
+  // avx2field: the S rows in one call on the int16 copy (fwref/linear_w16_avx2.hpp: the same bits)
+  if (lin1u16 != nullptr && field_w16_avx2_active() &&
+      linear_folded_w16_avx2(lin1u16, H, C, ws.uq, S, m.lin1_u.scale, m.lin1_b, ws.v)) {
+    return;
+  }
+#endif
   int s = 0;
 #if defined(FWREF_HAS_I8_X2)
   if (lin1u16 == nullptr) {
@@ -258,17 +239,22 @@ void lin1_u_rows(const CnodeI8& m, const std::int16_t* lin1u16, CnodeWorkspace& 
 // B(uq[s], lin1_u) + b1 (pattern B: s_u folded in). x_norm is requantized where a sample feeds two
 // rows (the same numbers both times), so no (W, C) buffer is needed. The per-channel work and the
 // search for a row's nonzero weights run on AVX2 vectors on the host (fwref/vmath_i8.hpp).
-void control_path_i8(const CnodeI8& m, const float* x, const std::int16_t* lin1u16, CnodeWorkspace& ws,
+void control_path_i8(const CnodeI8& m, const float* x, const StageWeights16& w16, CnodeWorkspace& ws,
                      CnodeTrace* tr) {
   const CnodeDims& d = m.dims;
   const int C = d.channels, L = d.latent;
   std::int32_t acc[kMaxChannels];
   detail::quantize_stage_controls(m, x, acc, ws, tr);
   ws.z.resize(L);
-  linear_i8_folded(m.encoder_w.q, m.encoder_w.scale, L, C, ws.uq, m.encoder_b, ws.z.data());
+  bool encoded = false;
+#if defined(FWREF_HAS_LINEAR_W16_AVX2)
+  encoded = w16.enc != nullptr && field_w16_avx2_active() &&  // avx2field: on the int16 copy, the same bits
+            linear_folded_w16_avx2(w16.enc, L, C, ws.uq, 1, m.encoder_w.scale, m.encoder_b, ws.z.data());
+#endif
+  if (!encoded) linear_i8_folded(m.encoder_w.q, m.encoder_w.scale, L, C, ws.uq, m.encoder_b, ws.z.data());
   tanh_inplace(ws.z);
   if (tr != nullptr) copy_out(ws.z, tr->z0);
-  lin1_u_rows(m, lin1u16, ws);
+  lin1_u_rows(m, w16.lin1u, ws);
 }
 
 }  // namespace
@@ -338,7 +324,7 @@ Status infer(const CnodeI8& m, const float* x, float* logits, CnodeWorkspace& ws
   if (tr != nullptr && tr->x_norm != nullptr) trace_x_norm(x, m.mean, m.std, W, C, tr->x_norm);
 
   const StageWeights16 w16 = int16_copies(m, ws);
-  control_path_i8(m, x, w16.lin1u, ws, tr);
+  control_path_i8(m, x, w16, ws, tr);
   // The stage codes: int8, or int16 in uq's RAM (free now) with zero padding for the int16 kernel.
 #if defined(FWREF_CNODE_W_INT16) && defined(FWREF_HAS_W16_KERNEL)
   std::int16_t* const zq = ws.x16.lat;

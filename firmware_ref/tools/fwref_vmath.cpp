@@ -23,7 +23,7 @@
 //    control_row_avx512, against the AVX2 helpers (tools/fwref_vmath_w8.hpp).
 // 7. where the CPU runs the avx2field int8 kernel (AVX2 + FMA): the CNODE int8 field in one call on AVX2
 //    (fwref/field_w16_avx2.hpp) against the separate steps, every H, L multiple of 8 up to 64, the other
-//    shapes refused (tools/fwref_vmath_w16.hpp).
+//    shapes refused (tools/fwref_vmath_w16.hpp); its lin1_u rows in one call (tools/fwref_vmath_lin16.hpp).
 // 8. where the CPU runs AVX2 + FMA: the fp32 CNODE field in one call on AVX2 (fwref/field_f32_avx2.hpp)
 //    against a scalar statement of its order, bit for bit, and within its bound, every H, L in 1..64
 //    (tools/fwref_vmath_f32t.hpp).
@@ -45,6 +45,7 @@
 #include "fwref_vmath_i8.hpp"
 #include "fwref_vmath_ctl2.hpp"
 #include "fwref_vmath_f32t.hpp"
+#include "fwref_vmath_lin16.hpp"
 #include "fwref_vmath_w16.hpp"
 #include "fwref_vmath_w8.hpp"
 
@@ -391,6 +392,8 @@ int main(int argc, char** argv) {
   const long bw16 = vmath_w16_check::check_field(&compared_w16);
   if (bw16 >= 0) std::printf("field_w16: %ld of %ld differ\n", bw16, compared_w16);
   bad_i8 += bw16 > 0 ? bw16 : 0;
+  long compared_l16 = 0, bl16 = bw16 >= 0 ? vmath_lin16_check::check_linear(&compared_l16) : -1;  // avx2field's CPU
+  if (bl16 >= 0) std::printf("linear_w16: %ld of %ld differ\n", bl16, compared_l16), bad_i8 += bl16;
 #endif
   return bt == 0 && bl == 0 && bg == 0 && bf == 0 && bad_i8 == 0 ? 0 : 1;
 }

@@ -127,9 +127,11 @@ struct CnodeWorkspace {
   alignas(8) std::int16_t lin1z16[kMaxCnodeHidden * ((kMaxLatent + 7) & ~7)];  // LDRD needs word alignment
   alignas(8) std::int16_t lin2w16[kMaxLatent * ((kMaxCnodeHidden + 7) & ~7)];
 #if defined(FWREF_CNODE_U_INT16)
-  // Host option (on by default there): lin1_u (H, C) too, for the S products of the control path
-  // (3 KB more; off on Cortex-M, whose static RAM target is 16 KiB).
+  // Host option (on by default there): lin1_u (H, C) and the encoder (L, C) too, for the control path's
+  // products (sized by the maxima: the encoder's copy 16 KiB at the defaults; off on Cortex-M, whose static
+  // RAM target is 16 KiB).
   alignas(8) std::int16_t lin1u16[kMaxCnodeHidden * ((kMaxChannels + 7) & ~7)];
+  alignas(8) std::int16_t enc16[kMaxLatent * ((kMaxChannels + 7) & ~7)];  // the encoder's, for avx2field
 #endif
   const std::int8_t* w16_of = nullptr;
 #endif
