@@ -9,8 +9,8 @@ rotor 1 front-left, 2 rear-left, 3 rear-right, 4 front-right). Each is smoothed 
 (+y = left): the slope is the trailing rotors' thrust-share excess per m/s, the figure
 sim/realistic_params.FLAP_PER_MS is drawn around. Printed per ingested flight (airborne samples,
 collective above 0.05) and, for a dataset, the median over its healthy X-frame flights whose forward
-speed spans more than 2 m/s (after the first 10 s), with the slope of every such flight's draw
-``flap`` beside it when the dataset carries it.
+speed spans more than 2 m/s (after the first 10 s). (The per-flight draw ``flap`` is not stored in
+dataset.npz, so the simulated slope is read from the commands, as the real one is.)
 """
 
 from __future__ import annotations
