@@ -16,6 +16,8 @@ Per evaluation, with the motor outputs u held over the 5 ms step (zero-order hol
               drag on the airspeed: -k_L (v - w)
               forward-flight rotor moment (blade flapping, wake on the trailing rotors) about the
               body axes: Mx += D T v_air,y,  My -= D T v_air,x  (v_air in the body frame, T = sum F_i)
+              motor mount twist delta_i (about the arm): Mz += sum F_i arm delta_i (small angle; the
+              discs' sideways force, < 1.3 % of thrust and nearly cancelling around the frame, left out)
 
 The paper's equations (sim/dynamics.py) stay as published for ``scenario = "paper"``; the differences
 are listed in docs/realistic.md. Elementwise numpy over the batch, as there.
@@ -49,6 +51,7 @@ class Vehicle(NamedTuple):
     ry: np.ndarray  # (B, 4)
     cg: np.ndarray  # (B, 2)
     flap: np.ndarray  # (B,) D [m per m/s]: forward-flight rotor moment arm (realistic_params.FLAP_PER_MS)
+    twist: np.ndarray  # (B, 4) arm delta_i [m]: yaw moment per newton of the twisted mounts (MOUNT_TWIST_DEG)
     fmax: np.ndarray  # (B, 4) F_max kf_i: the build's full thrust (thrust-to-weight draw) x the motor's spread
     h: np.ndarray  # (B, 4) healthy cooling h_nom cool_i
     tau_m: np.ndarray  # (B, 4)
@@ -67,13 +70,13 @@ def rotor_positions(frame: np.ndarray, arm: np.ndarray) -> tuple[np.ndarray, np.
 
 def vehicle(draws: list[dict]) -> Vehicle:
     d = stack(draws, ("mass", "payload_kg", "payload_t", "frame", "arm", "cells", "cg", "kf", "cool", "capacity",
-                      "age", "t_amb", "motor_tau", "thrust_to_weight", "flap"))
+                      "age", "t_amb", "motor_tau", "thrust_to_weight", "flap", "twist"))
     F_max = d["thrust_to_weight"] * d["mass"] * NOM.g / 4.0  # the build's propulsion (realistic_params)
     rx, ry = rotor_positions(d["frame"], d["arm"])
     scale = (d["mass"] / NOM.m) * (d["arm"] / NOM.L) ** 2  # point-mass scaling of the inertia
     R = d["cells"] * P.R_CELL_5AH * (5.0 / d["capacity"]) * (1 + P.AGE_R_GROWTH * d["age"]) + P.R_LEADS
     return Vehicle(d["mass"], d["payload_kg"], d["payload_t"], NOM.J[None, :] * scale[:, None], rx, ry, d["cg"],
-                   d["flap"] * d["arm"] / np.sqrt(2.0),
+                   d["flap"] * d["arm"] / np.sqrt(2.0), d["arm"][:, None] * d["twist"],
                    F_max[:, None] * d["kf"], NOM.h_nom * d["cool"], d["motor_tau"], d["cells"], R,
                    d["capacity"] * (1 - P.AGE_FADE * d["age"]), d["capacity"], d["t_amb"][:, None])
 
@@ -83,7 +86,7 @@ class Held(NamedTuple):
 
     F_base: np.ndarray  # (B, 4) F_tgt / d: everything but the temperature derating
     rho_Q_T: np.ndarray  # (B, 4) rho_Q / rho_T^1.5 (power factor) ...
-    yaw_k: np.ndarray  # (B, 4) gamma s_i rho_Q / rho_T (yaw moment per newton)
+    yaw_k: np.ndarray  # (B, 4) gamma s_i rho_Q / rho_T + arm delta_i (yaw moment per newton)
     h: np.ndarray  # (B, 4)
     Q_f: np.ndarray  # (B, 4)
     R: np.ndarray  # (B,)
@@ -163,7 +166,7 @@ def held_inputs(thr: np.ndarray, kappa: np.ndarray, s: np.ndarray, ev: np.ndarra
     m = veh.m0 + np.where(t >= veh.t_pay, veh.dm, 0.0)
     phys = SimpleNamespace(m=m, g=NOM.g, Jxx=veh.J[:, 0], Jyy=veh.J[:, 1], Jzz=veh.J[:, 2], k_L=NOM.k_L,
                            k_Omega=NOM.k_Omega)
-    return Held(F_base, rQ / (rT * np.sqrt(rT)), NOM.gamma * SPIN * rQ / rT, h, NOM.a_Q * s_h[:, None] * oh,
+    return Held(F_base, rQ / (rT * np.sqrt(rT)), NOM.gamma * SPIN * rQ / rT + veh.twist, h, NOM.a_Q * s_h[:, None] * oh,
                 R, C, delta, wind, phys)
 
 

@@ -68,8 +68,10 @@ def initial(draws: list[dict], veh: rd.Vehicle, m: dict) -> tuple[np.ndarray, Ct
     # F_max / F_max_nom: trimmed when m0 g = (F_max / F_max_nom) m_nom (g + i_z)
     gain = veh.fmax.mean(axis=1) / rd.NOM.F_max * (rd.NOM.m / veh.m0)
     i_z = np.clip(rd.NOM.g * (1.0 / gain - 1.0), -rd.NOM.iz_max, rd.NOM.iz_max)
-    i_rate = np.stack([veh.cg[:, 1] * W / rd.NOM.Jxx, -veh.cg[:, 0] * W / rd.NOM.Jyy, np.zeros(B)], -1)
-    i_rate = np.clip(i_rate, -rd.NOM.irate_max_rp, rd.NOM.irate_max_rp)
+    yaw_trim = -(W / 4.0) * veh.twist.sum(axis=1) / rd.NOM.Jzz  # the twisted mounts' yaw moment, cancelled
+    i_rate = np.stack([veh.cg[:, 1] * W / rd.NOM.Jxx, -veh.cg[:, 0] * W / rd.NOM.Jyy, yaw_trim], -1)
+    i_max = np.array([rd.NOM.irate_max_rp, rd.NOM.irate_max_rp, rd.NOM.irate_max_yaw])
+    i_rate = np.clip(i_rate, -i_max, i_max)
     return x, CtrlState(i_z=i_z, i_rate=i_rate)
 
 

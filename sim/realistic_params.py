@@ -79,6 +79,20 @@ IMBALANCE_G = (0.0, 0.05)  # g at 0.1 m: residual imbalance of a healthy balance
 # rotor moment", scripts/forward_flight_shares.py). Drawn per flight from its own stream (AERO_SPAWN).
 FLAP_PER_MS = (0.005, 0.045)
 
+# --- motor mount twist (sim/realistic_dynamics.py) ---------------------------------------------
+# A motor mount rotated about its arm by delta tilts the thrust sideways: F sin(delta) at the arm's
+# radius, a yaw moment arm x delta per newton, the same order as the rotor's own drag torque (gamma =
+# 0.016 m; 1 deg of twist at 0.225 m is 0.0039 m). The yaw integrator cancels the sum by running one
+# diagonal pair harder: a steady diagonal command-share offset (s1 + s3 - s2 - s4) / 4 of about
+# arm sum(delta) / (4 gamma) x 0.77 (the thrust curve). The shared real 6S quad holds +0.036 (GPS
+# interference, no yaw motion) and +0.04 (UAVCAN mission, median); the suite's healthy flights had
+# -0.038..+0.027 (95 % within +-0.022: the motors' thrust spread alone). ArduCopter warns of it as
+# "yaw imbalance" (twisted arms or motor mounts; ardupilot.org thrust_loss_yaw_imbalance), and a
+# healthy 450 quad's forum log had motor averages 1458/1512/1595/1615 us, a diagonal offset of -0.11
+# (docs/params.md "Motor mount twist", scripts/yaw_trim_shares.py). Per rotor, uniform +-0.75 deg
+# (drawn after FLAP in the AERO_SPAWN stream, so the flap draw did not move).
+MOUNT_TWIST_DEG = 0.75
+
 # --- wind (sim/wind.py) -----------------------------------------------------------------------
 WIND_MS = (0.0, 6.0)  # mean wind, in-distribution
 OOD_WIND_MS = (6.0, 8.0)  # the held-out wind range

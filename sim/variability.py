@@ -3,7 +3,8 @@
 Flight i draws everything here from ``default_rng(SeedSequence(seed, spawn_key=(FLIGHT_SPAWN, i)))``
 in a fixed order; its in-flight noise (turbulence, state-estimate errors) comes from a second
 stream, spawn_key (NOISE_SPAWN, i) (sim/realistic_dynamics.py), and its forward-flight rotor moment
-from a third, spawn_key (AERO_SPAWN, i), added after the others so that no earlier draw moved.
+then its motor mount twists from a third, spawn_key (AERO_SPAWN, i), added after the others so that
+no earlier draw moved.
 The paper's streams are
 (1, i) (sim/draws.py) and (0xA55,) (sim/assign.py): none of them is touched.
 
@@ -101,8 +102,9 @@ def draw_flight(cfg: SimConfig, i: int, group: int) -> dict:
     kind = int(kinds[int(rng.integers(0, len(kinds)))])
     d["mission"] = mission.draw(rng, kind)
     d.update(_fault(rng, cfg, group))
-    d["flap"] = float(np.random.default_rng(np.random.SeedSequence(cfg.seed, spawn_key=(AERO_SPAWN, int(i))))
-                      .uniform(*P.FLAP_PER_MS))
+    aero = np.random.default_rng(np.random.SeedSequence(cfg.seed, spawn_key=(AERO_SPAWN, int(i))))
+    d["flap"] = float(aero.uniform(*P.FLAP_PER_MS))
+    d["twist"] = aero.uniform(-1.0, 1.0, 4) * math.radians(P.MOUNT_TWIST_DEG)  # after flap: flap unmoved
     d["group"] = group
     return d
 

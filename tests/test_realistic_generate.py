@@ -115,8 +115,10 @@ def test_sharded_generation_keeps_every_flight(cfg, ds, tmp_path):
 # SoC were widened on purpose (sim/realistic_params.py, docs/params.md "Vibration floor"), so it now
 # guards those arrays against any unintended change, the ESC channels' included. Re-pinned again when
 # the forward-flight rotor moment entered the physics on purpose (sim/realistic_params.FLAP_PER_MS,
-# docs/params.md "Forward-flight rotor moment"): every trajectory of a translating vehicle moves.
-PRE_ESC_SHA256 = "3e9fb693147886e39222335c99be363086598ba000fca5ef22f590b599784ccc"
+# docs/params.md "Forward-flight rotor moment"): every trajectory of a translating vehicle moves. And
+# again for the motor mount twist (sim/realistic_params.MOUNT_TWIST_DEG, docs/params.md "Motor mount
+# twist"; before: 3e9fb693...599784ccc): every vehicle's motor shares move.
+PRE_ESC_SHA256 = "6f44ece90acbc730ce5ae24905a3b89131dbe6333201a929e47b70e1f79b8515"
 
 
 def test_esc_channels_change_no_earlier_array(ds):
@@ -140,7 +142,8 @@ def test_esc_channels_change_no_earlier_array(ds):
 # ESC temperature columns existed) and with the code that added them: equal, so the temperatures' own
 # stream (sim.esc_thermal, spawn key 6) moved none of them. Re-pinned with PRE_ESC_SHA256 when the
 # forward-flight rotor moment changed the thrusts these columns follow (before: a9a2bf6a...73854838); from then on a regression pin of those columns.
-ESC_RPM_CUR_SHA256 = "3af77fbd9353e576fe75c9028f373a1e498aedd7714bc2753990c5f6b2cbf12a"
+# Re-pinned for the motor mount twist (before: 3af77fbd...6cbf12a), as PRE_ESC_SHA256.
+ESC_RPM_CUR_SHA256 = "da7c52f1cdecfa297c8bead6119c9dcb583acacfa599e96359ed2fbbdfcfce89"
 
 
 def test_esc_temperatures_move_no_rpm_or_current_column(ds):

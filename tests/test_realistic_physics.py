@@ -10,7 +10,7 @@ import pytest
 from scipy.signal import welch
 
 from core.config import SimConfig
-from sim import propeller, telemetry, wind
+from sim import mission, propeller, realistic_loop, telemetry, wind
 from sim import realistic_dynamics as rd
 from sim import realistic_params as P
 from sim.variability import OOD_INCIPIENT, OOD_MISSION, OOD_VEHICLE, OOD_WIND, draw_flight
@@ -49,6 +49,9 @@ def test_vehicle_draws_within_their_ranges(draws):
                           ("flap", P.FLAP_PER_MS)):
         v = _arr(draws, key)
         assert v.min() >= lo and v.max() <= hi and np.ptp(v) > 0.9 * (hi - lo), key
+    tw, lim = _arr(draws, "twist"), np.radians(P.MOUNT_TWIST_DEG)  # (300, 4), per rotor, independent
+    assert tw.shape == (300, 4) and np.abs(tw).max() <= lim and np.ptp(tw, axis=0).min() > 1.8 * lim
+    assert abs(np.corrcoef(tw[:, 0], tw[:, 2])[0, 1]) < 0.2
     assert set(_arr(draws, "motor")) == {0, 1, 2, 3}
     s = _arr(draws, "s_max")
     assert s.min() >= CFG.severity_max[0] and s.max() <= CFG.severity_max[1]
@@ -149,7 +152,7 @@ def test_mixer_inverts_the_moments_of_both_frames():
     frame, arm = np.array([0.0, 1.0]), np.array([0.225, 0.225])
     rx, ry = rd.rotor_positions(frame, arm)
     veh = rd.Vehicle(*(np.zeros(B) for _ in range(3)), np.ones((B, 3)), rx, ry, np.zeros((B, 2)), np.zeros(B),
-                     *(np.ones((B, 4)) for _ in range(3)), np.full(B, 3.0), *(np.ones(B) for _ in range(3)),
+                     np.zeros((B, 4)), *(np.ones((B, 4)) for _ in range(3)), np.full(B, 3.0), *(np.ones(B) for _ in range(3)),
                      np.zeros((B, 1)))
     T, tau = np.array([15.0, 15.0]), np.array([[0.1, -0.05, 0.02], [0.1, -0.05, 0.02]])
     F = rd.mix(T, tau, veh)
@@ -170,7 +173,7 @@ def test_forward_flight_moment_lifts_the_leading_side():
     rx, ry = rd.rotor_positions(frame, arm)
     D = np.array([0.002, 0.002, 0.004, 0.0])
     veh = rd.Vehicle(np.full(B, 1.5), np.zeros(B), np.full(B, np.inf), np.ones((B, 3)), rx, ry, np.zeros((B, 2)), D,
-                     *(np.ones((B, 4)) for _ in range(3)), np.full(B, 3.0), *(np.ones(B) for _ in range(3)),
+                     np.zeros((B, 4)), *(np.ones((B, 4)) for _ in range(3)), np.full(B, 3.0), *(np.ones(B) for _ in range(3)),
                      np.full((B, 1), 20.0))
     x = np.zeros((B, rd.N_X))
     x[:, 12], x[:, 13:17], x[:, 17:21] = 0.8, 20.0, 4.0  # SoC, motor temperatures, 16 N of equal thrusts
@@ -194,6 +197,38 @@ def test_forward_flight_moment_lifts_the_leading_side():
     x_w = x.copy()
     x_w[0, 3] = 0.0
     assert np.allclose(rd.deriv(x_w, u_w, veh)[0][0, 10] * J[0, 1], My[0])
+
+
+def test_mount_twist_yaws_the_vehicle_and_the_trim_cancels_it():
+    """A mount twisted by delta about its arm adds F arm delta of yaw moment (sim/realistic_dynamics.py),
+    one rotor at a time, in proportion to its thrust; draws do it per rotor (variability: the AERO
+    stream after flap, so flap keeps its value); the initial yaw integrator holds the trim."""
+    B = 3
+    frame, arm = np.ones(B), np.full(B, 0.225)
+    rx, ry = rd.rotor_positions(frame, arm)
+    twist = arm[:, None] * np.radians(np.array([[0.5, 0, 0, 0], [0.5, 0.5, 0.5, 0.5], [0.0, 0.0, 0.0, 0.0]]))
+    veh = rd.Vehicle(np.full(B, 1.5), np.zeros(B), np.full(B, np.inf), np.ones((B, 3)), rx, ry, np.zeros((B, 2)),
+                     np.zeros(B), twist, *(np.ones((B, 4)) for _ in range(3)), np.full(B, 3.0),
+                     *(np.ones(B) for _ in range(3)), np.full((B, 1), 20.0))
+    x = np.zeros((B, rd.N_X))
+    x[:, 12], x[:, 13:17], x[:, 17:21] = 0.8, 20.0, 4.0
+    u = rd.held_inputs(np.full((B, 4), 0.5), np.ones(B), np.zeros(B), np.zeros(B), _no_fault(B), veh,
+                       np.zeros((B, 3)), 0.0)
+    Mz = rd.deriv(x, u, veh)[0][:, 11] * veh.J[:, 2]
+    one = 4.0 * 0.225 * np.radians(0.5)
+    assert Mz[0] == pytest.approx(one, rel=1e-12) and Mz[1] == pytest.approx(4 * one, rel=1e-12)
+    assert abs(Mz[2]) < 1e-12  # equal thrusts, no twist: the rotors' drag torques cancel
+    # the draw: the AERO stream's first number is still flap
+    d = draw_flight(CFG, 3, 0)
+    aero = np.random.default_rng(np.random.SeedSequence(CFG.seed, spawn_key=(7, 3)))
+    assert d["flap"] == aero.uniform(*P.FLAP_PER_MS) and np.array_equal(d["twist"], aero.uniform(-1, 1, 4) * np.radians(P.MOUNT_TWIST_DEG))
+    # the trimmed start: the controller's yaw integrator (nominal Jzz) holds minus the twists' moment at hover
+    draws = [dict(draw_flight(CFG, i, 0), frame=1.0, cg=np.zeros(2)) for i in range(4)]
+    v = rd.vehicle(draws)
+    _, cs = realistic_loop.initial(draws, v, mission.prepare([d["mission"] for d in draws]))
+    W = v.m0 * rd.NOM.g
+    assert np.allclose(cs.i_rate[:, 2] * rd.NOM.Jzz, -(W / 4.0) * v.twist.sum(axis=1))
+    assert np.all(v.twist != 0.0)
 
 
 def _no_fault(B: int):
