@@ -15,19 +15,8 @@ dataset.npz, so the simulated slope is read from the commands, as the real one i
 
 from __future__ import annotations
 
-import argparse
-
 import numpy as np
-
-SMOOTH = 25  # samples: 1 s at 25 Hz
-
-
-def _smooth(v: np.ndarray, ok: np.ndarray) -> np.ndarray:
-    k = np.ones(SMOOTH) / SMOOTH
-    num = np.convolve(np.where(ok, v, 0.0), k, mode="same")
-    den = np.convolve(ok.astype(float), k, mode="same")
-    return num / np.maximum(den, 1e-9)
-
+from share_series import smooth, table_cli
 
 def slopes(thr: np.ndarray, yaw: np.ndarray, vx: np.ndarray, vy: np.ndarray, ok: np.ndarray) -> tuple[float, ...]:
     """(rear-front slope, its r with vx_h, right-left slope, its r with vy_h) of one flight."""
@@ -35,9 +24,9 @@ def slopes(thr: np.ndarray, yaw: np.ndarray, vx: np.ndarray, vy: np.ndarray, ok:
     vxh = np.cos(yaw) * vx + np.sin(yaw) * vy
     vyh = -np.sin(yaw) * vx + np.cos(yaw) * vy
     ok = ok & np.isfinite(s).all(axis=1) & np.isfinite(vxh) & np.isfinite(vyh)
-    rf = _smooth((s[:, 1] + s[:, 2] - s[:, 0] - s[:, 3]) / 4, ok)[ok]
-    rl = _smooth((s[:, 2] + s[:, 3] - s[:, 0] - s[:, 1]) / 4, ok)[ok]
-    ax, ay = _smooth(vxh, ok)[ok], _smooth(vyh, ok)[ok]
+    rf = smooth((s[:, 1] + s[:, 2] - s[:, 0] - s[:, 3]) / 4, ok)[ok]
+    rl = smooth((s[:, 2] + s[:, 3] - s[:, 0] - s[:, 1]) / 4, ok)[ok]
+    ax, ay = smooth(vxh, ok)[ok], smooth(vyh, ok)[ok]
     return (np.polyfit(ax, rf, 1)[0], np.corrcoef(ax, rf)[0, 1], np.polyfit(ay, rl, 1)[0], np.corrcoef(ay, rl)[0, 1])
 
 
@@ -75,16 +64,8 @@ def dataset_row(path: str) -> str:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--dataset", action="append", default=[], help="a simulated dataset.npz (repeatable)")
-    ap.add_argument("flights", nargs="*", help="ingested flight.npz files")
-    args = ap.parse_args()
-    print("| flight | rear - front share per m/s forward | right - left per m/s to the left | speed p90 m/s |")
-    print("|---|---|---|---|")
-    for f in args.flights:
-        print(real_flight(f))
-    for f in args.dataset:
-        print(dataset_row(f))
+    header = "| flight | rear - front share per m/s forward | right - left per m/s to the left | speed p90 m/s |"
+    table_cli(__doc__, header, real_flight, dataset_row)
 
 
 if __name__ == "__main__":

@@ -14,25 +14,14 @@ offset over its healthy X-frame flights (after the first 10 s) and the median pe
 
 from __future__ import annotations
 
-import argparse
-
 import numpy as np
-
-SMOOTH = 25  # samples: 1 s at 25 Hz
-
-
-def _smooth(v: np.ndarray, ok: np.ndarray) -> np.ndarray:
-    k = np.ones(SMOOTH) / SMOOTH
-    num = np.convolve(np.where(ok, v, 0.0), k, mode="same")
-    den = np.convolve(ok.astype(float), k, mode="same")
-    return num / np.maximum(den, 1e-9)
-
+from share_series import smooth, table_cli
 
 def diagonal(thr: np.ndarray, r: np.ndarray, ok: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
     """(1 s mean of the diagonal offset, yaw acceleration) at the samples ``ok``."""
     s = thr / thr.mean(axis=1, keepdims=True)
-    d = _smooth((s[:, 0] + s[:, 2] - s[:, 1] - s[:, 3]) / 4, ok)
-    r_dot = np.gradient(_smooth(np.nan_to_num(r), ok), dt)
+    d = smooth((s[:, 0] + s[:, 2] - s[:, 1] - s[:, 3]) / 4, ok)
+    r_dot = np.gradient(smooth(np.nan_to_num(r), ok), dt)
     return d[ok], r_dot[ok]
 
 
@@ -71,16 +60,7 @@ def dataset_row(path: str) -> str:
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--dataset", action="append", default=[], help="a simulated dataset.npz (repeatable)")
-    ap.add_argument("flights", nargs="*", help="ingested flight.npz files")
-    args = ap.parse_args()
-    print("| flight | diagonal offset (s1 + s3 - s2 - s4) / 4 | per rad/s^2 of yaw acceleration |")
-    print("|---|---|---|")
-    for f in args.flights:
-        print(real_flight(f))
-    for f in args.dataset:
-        print(dataset_row(f))
+    table_cli(__doc__, "| flight | diagonal offset (s1 + s3 - s2 - s4) / 4 | per rad/s^2 of yaw acceleration |", real_flight, dataset_row)
 
 
 if __name__ == "__main__":
