@@ -18,6 +18,7 @@ from __future__ import annotations
 import numpy as np
 from share_series import smooth, table_cli
 
+
 def slopes(thr: np.ndarray, yaw: np.ndarray, vx: np.ndarray, vy: np.ndarray, ok: np.ndarray) -> tuple[float, ...]:
     """(rear-front slope, its r with vx_h, right-left slope, its r with vy_h) of one flight."""
     s = thr / thr.mean(axis=1, keepdims=True)
@@ -47,7 +48,7 @@ def dataset_row(path: str) -> str:
     names = list(map(str, d["channel_names"]))
     c = {n: names.index(n) for n in ("yaw", "vx", "vy")}
     cols = [names.index(f"thr{k}") for k in range(1, 5)]
-    first = int(round(10.0 / float(d["time"][1] - d["time"][0])))
+    first = round(10.0 / float(d["time"][1] - d["time"][0]))
     x_frame = list(map(str, d["frame_names"])).index("x")
     rows = []
     for i in np.flatnonzero((d["fault_class"] == 0) & (d["frame"] == x_frame)):

@@ -17,6 +17,7 @@ from __future__ import annotations
 import numpy as np
 from share_series import smooth, table_cli
 
+
 def diagonal(thr: np.ndarray, r: np.ndarray, ok: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
     """(1 s mean of the diagonal offset, yaw acceleration) at the samples ``ok``."""
     s = thr / thr.mean(axis=1, keepdims=True)
