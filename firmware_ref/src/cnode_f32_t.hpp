@@ -21,7 +21,7 @@ namespace detail {
 // The column-major copies of the fp32 field's weights (fwref/kernels_f32_avx512.hpp) when the run-time
 // fp32 choice is AVX-512F or the AVX2 field (fwref/field_f32_avx2.hpp), made at the first inference of a
 // model (ws.t_of); else all null. On the AVX2 field lin1u stays null (gemv_f32_t_avx512 is AVX-512 code:
-// lin1_u keeps the row-major product).
+// lin1_u keeps the row-major product, on the zero-padded copy ws.lin1u_p made here too: control_path_avx2).
 struct F32Copies {
   const float* lin1z = nullptr;
   const float* lin2 = nullptr;
