@@ -57,8 +57,8 @@ inline F32Copies f32_copies(const CnodeF32& m, CnodeWorkspace& ws) {
 // gemv_f32_fma on the zero-padded copies (ws.lin1u_p, ws.enc_p): whole 8-column packets instead of a masked
 // last one. Each padded column adds fma(+0, +0, a_j), exactly what gemv_f32_fma's masked lane adds for the
 // unpadded row (cols >= 8: the first packet is a product either way), so V and z0 are the row-major products'
-// bits (measured on this AVX2 EPYC: 17 x (64 x 23) 1,070 -> 822 ns; masked loads are slow there). Of C < 8
-// (one masked packet, fma(w, x, +0), against a plain product here) nothing is padded.
+// bits (measured on this AVX2 EPYC: 17 x (64 x 23) 1,070 -> 822 ns; masked loads are slow there). C < 8 keeps
+// src/cnode.cpp's path (there the one masked packet starts fma(w, x, +0), not a product as a padded one would).
 inline bool control_path_avx2(const CnodeF32& m, const F32Copies& t, const float* x, CnodeWorkspace& ws,
                               CnodeTrace* tr) {
   const CnodeDims& d = m.dims;
