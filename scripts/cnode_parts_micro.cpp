@@ -56,6 +56,7 @@ int main(int argc, char** argv) {
   }
   const CnodeDims& d = mq.dims;
   const int WC = d.window * d.channels, H = d.hidden, L = d.latent, S = d.stage_times;
+  (void)S;
   std::ifstream in(argv[2], std::ios::binary);
   std::vector<float> xs((std::istreambuf_iterator<char>(in)), {});  // bytes, resized below
   in.clear(), in.seekg(0, std::ios::end);
@@ -102,12 +103,11 @@ int main(int argc, char** argv) {
       c[0] = Clock::now();
       out[0] = all_finite_n(x, WC);
       c[1] = Clock::now();
-      float* const u_row = f.a.data();  // infer's loop over U's rows (fp32), as written there
-      for (int s = 0; s < S; ++s) {
-        interp_row_f32(mf.interp.data + s * d.window, x, mf.mean, mf.std, d.window, d.channels, u_row);
-        matvec_bias_f32(mf.lin1_u, ConstMapVec(u_row, d.channels), mf.lin1_b, MapVec(f.v + s * H, H));
-        if (s == 0) matvec_bias_f32(mf.encoder_w, ConstMapVec(u_row, d.channels), mf.encoder_b, f.z), tanh_inplace(f.z);
-      }
+#if defined(FWREF_HAS_F32_AVX512)  // infer's control path (fp32): on avx2field the registers / padded copies one
+      if (!detail::control_path_avx2(mf, tc, x, f, nullptr)) control_path_f32(mf, x, tc.lin1u, f, nullptr);
+#else
+      control_path_f32(mf, x, nullptr, f, nullptr);
+#endif
       c[2] = Clock::now();
 #if defined(FWREF_HAS_F32_AVX512)
       detail::rk4_integrate(mf.rk4, d.steps, f.z, f.k1, f.k2, f.k3, f.k4, f.state, field_f, nullptr);

@@ -257,25 +257,14 @@ void control_path_i8(const CnodeI8& m, const float* x, const StageWeights16& w16
   lin1_u_rows(m, w16.lin1u, ws);
 }
 
-}  // namespace
-
-Status check(const CnodeF32& m) { return check_any(m); }
-Status check(const CnodeI8& m) { return check_any(m); }
-
-Status infer(const CnodeF32& m, const float* x, float* logits, CnodeWorkspace& ws, CnodeTrace* tr) {
-  if (x == nullptr || logits == nullptr) return Status::kNullArgument;
+// The fp32 control path: U row by row, each row straight into V = lin1_u U + b1 (MatMul, then Add); row 0
+// also feeds the encoder (interp's row 0 is sample 0 alone), z0 = tanh(encoder U[0] + b) in ws.z. lin1u_t:
+// lin1_u's column-major copy where the fp32 choice is AVX-512F (src/cnode_f32_t.hpp), else null.
+void control_path_f32(const CnodeF32& m, const float* x, const float* lin1u_t, CnodeWorkspace& ws, CnodeTrace* tr) {
   const CnodeDims& d = m.dims;
   const int C = d.channels, W = d.window, S = d.stage_times, H = d.hidden;
-  if (!all_finite_n(x, W * C)) return Status::kNonFiniteInput;
-  if (tr != nullptr && tr->x_norm != nullptr) trace_x_norm(x, m.mean, m.std, W, C, tr->x_norm);
-
-#if defined(FWREF_HAS_F32_AVX512)
-  const detail::F32Copies tc = detail::f32_copies(m, ws);
-#endif
   ws.a.resize(CnodeWorkspace::kURowInA ? C : 0);
   float* const u_row = CnodeWorkspace::kURowInA ? ws.a.data() : ws.u_row;
-  // U row by row, each row straight into V = lin1_u U + b1 (MatMul, then Add); row 0 also feeds
-  // the encoder (interp's row 0 is sample 0 alone).
   for (int s = 0; s < S; ++s) {
     interp_row_f32(m.interp.data + s * W, x, m.mean, m.std, W, C, u_row);
     if (tr != nullptr && tr->u != nullptr) {
@@ -283,8 +272,8 @@ Status infer(const CnodeF32& m, const float* x, float* logits, CnodeWorkspace& w
     }
     const ConstMapVec u(u_row, C);
 #if defined(FWREF_HAS_F32_AVX512)
-    if (tc.lin1u != nullptr) {
-      gemv_f32_t_avx512(tc.lin1u, H, C, u_row, m.lin1_b, ws.v + s * H);
+    if (lin1u_t != nullptr) {
+      gemv_f32_t_avx512(lin1u_t, H, C, u_row, m.lin1_b, ws.v + s * H);
     } else
 #endif
       matvec_bias_f32(m.lin1_u, u, m.lin1_b, MapVec(ws.v + s * H, H));
@@ -293,6 +282,28 @@ Status infer(const CnodeF32& m, const float* x, float* logits, CnodeWorkspace& w
       tanh_inplace(ws.z);
     }
   }
+  (void)lin1u_t;
+}
+
+}  // namespace
+
+Status check(const CnodeF32& m) { return check_any(m); }
+Status check(const CnodeI8& m) { return check_any(m); }
+
+Status infer(const CnodeF32& m, const float* x, float* logits, CnodeWorkspace& ws, CnodeTrace* tr) {
+  if (x == nullptr || logits == nullptr) return Status::kNullArgument;
+  const CnodeDims& d = m.dims;
+  const int C = d.channels, W = d.window, H = d.hidden;
+  if (!all_finite_n(x, W * C)) return Status::kNonFiniteInput;
+  if (tr != nullptr && tr->x_norm != nullptr) trace_x_norm(x, m.mean, m.std, W, C, tr->x_norm);
+
+#if defined(FWREF_HAS_F32_AVX512)
+  const detail::F32Copies tc = detail::f32_copies(m, ws);
+  // avx2field: the same steps on U's rows in registers and on zero-padded copies (src/cnode_f32_t.hpp)
+  if (!detail::control_path_avx2(m, tc, x, ws, tr)) control_path_f32(m, x, tc.lin1u, ws, tr);
+#else
+  control_path_f32(m, x, nullptr, ws, tr);
+#endif
   if (tr != nullptr) copy_out(ws.z, tr->z0);
 
   auto field = [&](int e, const CnodeWorkspace::Lat& z, CnodeWorkspace::Lat& k) {

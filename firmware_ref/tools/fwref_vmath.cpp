@@ -1,34 +1,30 @@
-// tools/fwref_vmath.cpp -- scope: checks the host's fp32 vector math (fwref/vmath_f32.hpp) against
-// the scalar code it replaces (bit for bit) and the gemv against its stated order and error bound, and prints what it compared.
+// tools/fwref_vmath.cpp -- scope: checks the host's fp32 vector math (fwref/vmath_f32.hpp) against the scalar code
+// it replaces (bit for bit) and the gemv against its stated order and error bound, and prints what it compared.
 //
 //   fwref_vmath [--stride N]
 //
-// 1. tanh_n / logistic_n against tanh_approx / logistic_approx on: the clamp edges (+-9, +-18 and
-//    their neighbouring floats), +-0, +-inf, quiet and signalling NaNs of both signs, denormals, and
-//    every N-th float32 bit pattern (default 4099: about a million floats of every exponent). A
-//    float's 8-lane vector and its scalar tail are both exercised (arrays of 8k + 5 values).
-// 2. matvec_f32 / matvec_bias_f32 on random matrices of every column count from 1 to 140 and row
-//    counts 1..17, for each kernel the CPU runs (gemv_f32_fma on an AVX2 host, gemv_f32_avx512 too on
-//    an AVX-512F one, each selected in turn): bit for bit against a scalar statement of that kernel's
-//    summation order, and against a double-precision sum within the order's rounding-error bound.
+// 1. tanh_n / logistic_n against tanh_approx / logistic_approx on: the clamp edges (+-9, +-18 and their neighbouring
+//    floats), +-0, +-inf, quiet and signalling NaNs of both signs, denormals, and every N-th float32 bit pattern
+//    (default 4099: about a million floats of every exponent); 8-lane vectors and scalar tails (8k + 5 values).
+// 2. matvec_f32 / matvec_bias_f32 on random matrices of every column count from 1 to 140 and row counts 1..17,
+//    for each kernel the CPU runs (gemv_f32_fma on an AVX2 host, gemv_f32_avx512 too on an AVX-512F one,
+//    each selected in turn): bit for bit against a scalar statement of that kernel's summation order, and
+//    against a double-precision sum within the order's rounding-error bound.
 // 3. all_finite_n against all_finite_f32 (one inf / NaN at every position of short windows).
-// 4. the int8 vector math (fwref/vmath_i8.hpp) against numerics.hpp's scalar expressions: quantize
-//    (round-half-even ties, saturation bounds, NaN, the bit-pattern walk), rescale + tanh + quantize,
-//    rescale + bias, the control path's per-channel work, the nonzero search (tools/fwref_vmath_i8.hpp).
-// 5. the GRU's int8 step math (fwref/vmath_gru_i8.hpp) against the portable path's scalar expressions:
-//    the input codes, the gates from the accumulators with the state update and its codes
-//    (tools/fwref_vmath_gru.hpp).
-// 6. where the int8 kernel is avx512vnni: the CNODE int8 field in one call (fwref/field_w8_vnni.hpp)
-//    against the separate steps, every H, L in 1..64; and (AVX-512F) the control rows of that path,
-//    control_row_avx512, against the AVX2 helpers (tools/fwref_vmath_w8.hpp).
+// 4. the int8 vector math (fwref/vmath_i8.hpp) against numerics.hpp's scalar expressions: quantize (round-half-even
+//    ties, saturation bounds, NaN, the bit-pattern walk), rescale + tanh + quantize, rescale + bias, the control
+//    path's per-channel work, the nonzero search (tools/fwref_vmath_i8.hpp).
+// 5. the GRU's int8 step math (fwref/vmath_gru_i8.hpp) against the portable path's scalar expressions: the input
+//    codes, the gates from the accumulators with the state update and its codes (tools/fwref_vmath_gru.hpp).
+// 6. where the int8 kernel is avx512vnni: the CNODE int8 field in one call (fwref/field_w8_vnni.hpp) against the
+//    separate steps, every H, L in 1..64; (AVX-512F) control_row_avx512 against the AVX2 helpers (fwref_vmath_w8.hpp).
 // 7. where the CPU runs the avx2field int8 kernel (AVX2 + FMA): the CNODE int8 field in one call on AVX2
-//    (fwref/field_w16_avx2.hpp) against the separate steps, every H, L multiple of 8 up to 64, the other
-//    shapes refused (tools/fwref_vmath_w16.hpp); its lin1_u rows in one call (tools/fwref_vmath_lin16.hpp).
-// 8. where the CPU runs AVX2 + FMA: the fp32 CNODE field in one call on AVX2 (fwref/field_f32_avx2.hpp)
-//    against a scalar statement of its order, bit for bit, and within its bound, every H, L in 1..64
-//    (tools/fwref_vmath_f32t.hpp).
-// Prints one line per check ("tanh: 0 of N differ") and the kernel names; exit 0 when nothing differs,
-// 1 otherwise.
+//    (fwref/field_w16_avx2.hpp) against the separate steps, every H, L multiple of 8 up to 64, the other shapes
+//    refused (tools/fwref_vmath_w16.hpp); its lin1_u rows in one call (tools/fwref_vmath_lin16.hpp).
+// 8. where the CPU runs AVX2 + FMA: the fp32 CNODE field in one call on AVX2 (fwref/field_f32_avx2.hpp) against a
+//    scalar statement of its order, bit for bit, and within its bound, every H, L in 1..64 (tools/fwref_vmath_f32t.hpp);
+//    the control rows of its control path and its zero-padded products (tools/fwref_vmath_ctlf32.hpp).
+// Prints one line per check ("tanh: 0 of N differ") and the kernel names; exit 0 when nothing differs, 1 otherwise.
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
@@ -44,6 +40,7 @@
 #include "fwref_vmath_gru.hpp"
 #include "fwref_vmath_i8.hpp"
 #include "fwref_vmath_ctl2.hpp"
+#include "fwref_vmath_ctlf32.hpp"
 #include "fwref_vmath_f32t.hpp"
 #include "fwref_vmath_lin16.hpp"
 #include "fwref_vmath_w16.hpp"
@@ -376,6 +373,9 @@ int main(int argc, char** argv) {
   report("nonzero", vmath_i8_check::check_nonzero);
 #if defined(FWREF_HAS_CONTROLS_AVX2)
   report("control_row_avx2", vmath_ctl2_check::check_control);  // the int8 control rows in registers
+#endif
+#if defined(FWREF_HAS_CONTROLS_F32_AVX2)  // the fp32 control path of avx2field (counted with the int8 checks)
+  report("control_rows_f32_avx2", vmath_ctlf32_check::check_rows), report("gemv padded", vmath_ctlf32_check::check_padded);
 #endif
   report("gru_input_row", vmath_gru_check::check_input_row);
   report("gru_gates", vmath_gru_check::check_gates);

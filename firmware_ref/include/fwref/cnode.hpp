@@ -142,6 +142,13 @@ struct CnodeWorkspace {
   alignas(64) float lin1z_t[kMaxLatent * f32_t_stride(kMaxCnodeHidden)];
   alignas(64) float lin2_t[kMaxCnodeHidden * f32_t_stride(kMaxLatent)];
   alignas(64) float lin1u_t[kMaxChannels * f32_t_stride(kMaxCnodeHidden)];
+  // Where the fp32 choice is the AVX2 field (fwref/field_f32_avx2.hpp): lin1_u and the encoder row-major with
+  // zero columns up to a multiple of 8 (made with the copies above), and U's rows with the same zero columns
+  // (src/cnode_f32_t.hpp's control_path_avx2: its products without masked loads, the same bits).
+  static constexpr int kChannels8 = (kMaxChannels + 7) & ~7;
+  alignas(64) float lin1u_p[kMaxCnodeHidden * kChannels8];
+  alignas(64) float enc_p[kMaxLatent * kChannels8];
+  alignas(64) float u_p[kMaxStageTimes * kChannels8];
   const float* t_of = nullptr;
 #endif
 #if defined(FWREF_HAS_W8_VNNI)

@@ -238,14 +238,17 @@ void gemv_fma_cols(const float* w, int rows, int cols_rt, const float* x, const 
 //   y[o] = ((a_0 + a_1) + (a_2 + a_3)) + ((a_4 + a_5) + (a_6 + a_7)), then y[o] + b[o].
 // Error: |y[o] - sum_i w[o][i] x[i]| <= gamma(ceil(cols / 8) + 3) * sum_i |w[o][i] x[i]| (gamma(n) = n u / (1 - n u),
 // u = 2^-24): each product meets at most ceil(cols / 8) roundings in its lane's chain and 3 in the tree.
-// The column counts of the paper models' products (channels 23 and 25, latent 40, hidden 64 and 80)
-// are compiled with cols as a constant; any other count takes the run-time loop. Both perform the
-// same operations in the same order, so the choice never changes a result.
+// The column counts of the paper models' products (channels 23 and 25, and 24 and 32 for their zero-padded
+// copies, src/cnode_f32_t.hpp; latent 40, hidden 64 and 80) are compiled with cols as a constant; any other
+// count takes the run-time loop. Both perform the same operations in the same order, so the choice never
+// changes a result.
 inline void gemv_f32_fma(const float* w, int rows, int cols, const float* x, const float* b, float* y) {
   using vmath_detail::gemv_fma_cols;
   switch (cols) {
     case 23: return gemv_fma_cols<23>(w, rows, cols, x, b, y);
+    case 24: return gemv_fma_cols<24>(w, rows, cols, x, b, y);  // 23 and 25 channels zero-padded
     case 25: return gemv_fma_cols<25>(w, rows, cols, x, b, y);
+    case 32: return gemv_fma_cols<32>(w, rows, cols, x, b, y);
     case 40: return gemv_fma_cols<40>(w, rows, cols, x, b, y);
     case 64: return gemv_fma_cols<64>(w, rows, cols, x, b, y);
     case 80: return gemv_fma_cols<80>(w, rows, cols, x, b, y);
