@@ -155,9 +155,7 @@ def held_inputs(thr: np.ndarray, kappa: np.ndarray, s: np.ndarray, ev: np.ndarra
     c = np.where((ev * fp.kind[:, 2] > 0)[:, None] & (oh > 0), 0.0, c)  # ESC desync: no thrust
     cut = propeller.cut_of_severity(s_p)[:, None] * oh
     rT, rQ = propeller.thrust_factor(cut), propeller.torque_factor(cut)
-    k = P.THR_MDL_FAC
-    curve = (1.0 - k) * thr + k * thr * thr
-    F_base = veh.fmax * c * rT * kappa[:, None] * curve
+    F_base = veh.fmax * c * rT * kappa[:, None] * thrust_fraction(thr)
     h = np.maximum(veh.h * (1.0 - NOM.a_h * s_h[:, None] * oh), NOM.h_min)
     sub = fp.submode
     R = veh.R * (1 + P.BATT_R_GROWTH * s_b * sub[:, 0]) + fp.r_spike * (ev * fp.kind[:, 1])
@@ -186,8 +184,14 @@ def mix(T: np.ndarray, tau: np.ndarray, veh: Vehicle) -> np.ndarray:
     return np.clip(F - shift[:, None], 0.0, Fmax)
 
 
+def thrust_fraction(u: np.ndarray) -> np.ndarray:
+    """The nominal thrust curve: ESC output u in [0, 1] -> F / F_max (what the log's thr1..4 hold)."""
+    k = P.THR_MDL_FAC
+    return (1.0 - k) * u + k * u * u
+
+
 def motor_output(F_cmd: np.ndarray) -> np.ndarray:
-    """The logged motor output u in [0, 1] that the nominal thrust curve maps to F_cmd / F_max."""
+    """The ESC output u in [0, 1] that the nominal thrust curve maps to F_cmd / F_max."""
     k = P.THR_MDL_FAC
     f = np.clip(F_cmd / NOM.F_max, 0.0, 1.0)
     return (-(1.0 - k) + np.sqrt((1.0 - k) ** 2 + 4.0 * k * f)) / (2.0 * k)

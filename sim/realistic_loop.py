@@ -38,7 +38,7 @@ class Record(NamedTuple):
     est: np.ndarray  # (n_rec, B, 12) the estimate the controller used (what the FC logs)
     V: np.ndarray  # (n_rec, B)
     I: np.ndarray  # (n_rec, B)
-    thr: np.ndarray  # (n_rec, B, 4) motor outputs u
+    thr: np.ndarray  # (n_rec, B, 4) thrust fractions F_cmd / F_max (rd.thrust_fraction of the ESC outputs u)
     mass: np.ndarray  # (n_rec, B)
     limited: np.ndarray  # (B,) steps at the pack's maximum-power clamp
 
@@ -134,7 +134,8 @@ def integrate(draws: list[dict], fp: rf.FaultPlan, seed: int, idx: np.ndarray, d
         rec.limited[:] += lim
         if n % every == 0:
             k = n // every
-            rec.x[k], rec.est[k], rec.V[k], rec.I[k], rec.thr[k], rec.mass[k] = x, xh, V_prev, I, thr, u.phys.m
+            rec.x[k], rec.est[k], rec.V[k], rec.I[k], rec.mass[k] = x, xh, V_prev, I, u.phys.m
+            rec.thr[k] = rd.thrust_fraction(thr)  # the log's thrust fraction, as a flight controller's
         if n == total:
             break
         x = rk4_step(lambda ts, xs: rd.deriv(xs, u, veh)[0], t, x, dt, k1)

@@ -113,8 +113,10 @@ EST_YAW = (0.03, 20.0)
 EST_RATE = (0.02, 0.005)  # gyro noise after the 30 Hz low-pass: nearly white at 200 Hz
 
 # --- thrust curve (what the ESC does with a command) -----------------------------------------
-# F / F_max = (1 - k) u + k u^2 (PX4 THR_MDL_FAC; 0.3-0.5 for hobby ESCs); the logged motor
-# output is u, not the thrust fraction.
+# F / F_max = (1 - k) u + k u^2 (PX4 THR_MDL_FAC; 0.3-0.5 for hobby ESCs). The controller inverts
+# it to the ESC output u; the log's thr1..4 is the thrust fraction F_cmd / F_max (docs/flight_format.md,
+# PX4's actuator_motors; ingest turns PWM into it through the firmware's own curve). Before 2026-12-02
+# evening the log held u, which the real flights' thrust fraction did not match (docs/ingest.md).
 THR_MDL_FAC = 0.4
 
 # --- propeller (sim/propeller.py) -------------------------------------------------------------

@@ -117,8 +117,10 @@ def test_sharded_generation_keeps_every_flight(cfg, ds, tmp_path):
 # the forward-flight rotor moment entered the physics on purpose (sim/realistic_params.FLAP_PER_MS,
 # docs/params.md "Forward-flight rotor moment"): every trajectory of a translating vehicle moves. And
 # again for the motor mount twist (sim/realistic_params.MOUNT_TWIST_DEG, docs/params.md "Motor mount
-# twist"; before: 3e9fb693...599784ccc): every vehicle's motor shares move.
-PRE_ESC_SHA256 = "6f44ece90acbc730ce5ae24905a3b89131dbe6333201a929e47b70e1f79b8515"
+# twist"; before: 3e9fb693...599784ccc): every vehicle's motor shares move. And when thr1..4 became the
+# thrust fraction instead of the ESC output (sim/realistic_params.py "thrust curve"; before:
+# 6f44ece9...e1f79b8515): only those four columns moved, the ESC pin below did not (same dynamics).
+PRE_ESC_SHA256 = "a550436fcc67d8de1c23815a24a193b3d670251c91365f8d5c0201a75992b3df"
 
 
 def test_esc_channels_change_no_earlier_array(ds):

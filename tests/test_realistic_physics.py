@@ -247,6 +247,8 @@ def test_thrust_curve_inverse():
     u = rd.motor_output(f * rd.NOM.F_max)
     k = P.THR_MDL_FAC
     assert np.allclose((1 - k) * u + k * u * u, f) and u[-1] == pytest.approx(1.0)
+    # the log holds the thrust fraction (docs/flight_format.md), not u: the curve of u, as the rotors get it
+    assert np.allclose(rd.thrust_fraction(u), f) and not np.allclose(u[1:-1], f[1:-1], atol=0.01)
 
 
 def test_intermittent_events_and_their_labels():
