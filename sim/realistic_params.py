@@ -84,7 +84,7 @@ FLAP_PER_MS = (0.005, 0.045)
 # radius, a yaw moment arm x delta per newton, the same order as the rotor's own drag torque (gamma =
 # 0.016 m; 1 deg of twist at 0.225 m is 0.0039 m). The yaw integrator cancels the sum by running one
 # diagonal pair harder: a steady diagonal command-share offset (s1 + s3 - s2 - s4) / 4 of about
-# arm sum(delta) / (4 gamma) x 0.77 (the thrust curve). The shared real 6S quad holds +0.036 (GPS
+# arm sum(delta) / (4 gamma) in the logged thrust fraction. The shared real 6S quad holds +0.036 (GPS
 # interference, no yaw motion) and +0.04 (UAVCAN mission, median); the suite's healthy flights had
 # -0.038..+0.027 (95 % within +-0.022: the motors' thrust spread alone). ArduCopter warns of it as
 # "yaw imbalance" (twisted arms or motor mounts; ardupilot.org thrust_loss_yaw_imbalance), and a
