@@ -106,7 +106,8 @@ def ingest(log: str | Path, min_airborne_s: float = segments.MIN_AIRBORNE_S,
     resample.check_gap_factor(gap_factor)
     try:
         lr = read_log(log)
-        segments.check_airborne(lr.airborne, min_airborne_s, lr.data_span)
+        segments.check_airborne(lr.airborne, min_airborne_s, lr.data_span)  # the log flew: the land detector's word
+        segments.cut_landings(lr)  # the flight.npz's airborne ends at each touchdown
     except QuadfdiError as exc:
         raise QuadfdiError(f"{Path(log).name}: refused: {exc}") from None
     return lr, build(lr, log, gap_factor)

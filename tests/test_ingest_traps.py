@@ -116,3 +116,19 @@ def test_arducopter_ground_log_parameters_and_channels():
     assert lr.airborne == []
     assert json.dumps(v, default=float)
 
+
+
+def test_end_at_touchdown_rules():
+    """segments.end_at_touchdown on synthetic vertical speeds (up-positive, 10 Hz)."""
+    from ingest.segments import LANDING_LOOKBACK_S, end_at_touchdown
+
+    t = np.arange(0.0, 20.0, 0.1)
+    descent = np.where(t < 14.0, -0.6, 0.0)  # descends at 0.6 m/s, touches down at 14 s, landed at 15.5 s
+    assert end_at_touchdown([(2.0, 15.5)], t, descent, 20.0) == [(2.0, float(t[t < 14.0][-1]))]
+    # a landing too gentle to see loses the whole lookback; an interval that ends with the data is kept
+    gentle = np.full_like(t, -0.2)
+    assert end_at_touchdown([(2.0, 15.5)], t, gentle, 20.0) == [(2.0, 15.5 - LANDING_LOOKBACK_S)]
+    assert end_at_touchdown([(2.0, 20.0)], t, gentle, 20.0) == [(2.0, 20.0)]
+    # never lengthens; a hop shorter than its cut is dropped; no vertical speed: the lookback
+    assert end_at_touchdown([(14.5, 15.5)], t, descent, 20.0) == []
+    assert end_at_touchdown([(2.0, 15.5)], np.zeros(0), np.zeros(0), 20.0) == [(2.0, 12.5)]
