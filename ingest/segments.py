@@ -24,7 +24,7 @@ THR_AIRBORNE = 0.15  # -: a multirotor hovers at 0.25-0.6 thrust; idle spin is b
 H_AIRBORNE = 0.5  # m: above the ground level at arming, clear of ground effect and baro noise
 MIN_AIRBORNE_S = 2.0  # s: the shortest flight worth ingesting (default of --min-airborne)
 V_TOUCHDOWN = 0.3  # m/s: a descent at least this fast is still in free air (PX4's MPC_LAND_CRWL default)
-LANDING_LOOKBACK_S = 3.0  # s: bounds the land detector's lag behind touchdown (module docstring: 0.9-2.4 s measured)
+LANDING_LOOKBACK_S = 3.0  # s: bounds the land detector's lag behind touchdown (module docstring: 1.0-2.4 s measured)
 
 
 Intervals = list[tuple[float, float]]
