@@ -3,8 +3,9 @@
 PY := .venv/bin/python
 RUN ?= runs/paper
 CONFIG ?= configs/paper.toml
+REAL_OUT ?= runs/real-flights
 
-.PHONY: setup run test sim-bench sweep-bench study solvers solver-matrix clean
+.PHONY: setup run test real-flights sim-bench sweep-bench study solvers solver-matrix clean
 
 setup:
 	bash scripts/setup.sh
@@ -17,6 +18,11 @@ run: setup
 # Python, so it took 15 min 54 s serially on CI (2026-12-02), over the 15-minute budget.
 test: setup
 	$(PY) -m pytest -q -n 2 --dist loadfile
+
+# README's real-flight table: the three profiles' realistic-suite models, parity, then `quadfdi detect`
+# on every shared real quad log (scripts/real_flight_models.py; 11 min on 2 cores, 2026-12-03).
+real-flights: setup
+	PYTHONPATH=. $(PY) scripts/real_flight_models.py $(REAL_OUT)
 
 sim-bench: setup
 	$(PY) -m quadfdi.cli sim bench --config $(CONFIG)
