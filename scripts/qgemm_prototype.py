@@ -31,23 +31,32 @@ def stage_products(g: onnx.GraphProto) -> tuple[list, onnx.NodeProto, onnx.NodeP
     return stages, split, prod[split.input[0]]
 
 
+def v_int32(v_name: str, rows: list[int], mult: np.ndarray, hidden: int, pre: str) -> tuple[list, list]:
+    """Initializers and nodes that turn V (B, S, H) into one int32 C per evaluation, ``{pre}.c{e}``
+    (B, H) = Cast(Round(V[:, rows[e]] / mult[e])), and ``{pre}.bzp``, an int8 zero-point vector (H,)."""
+    n_eval = len(rows)
+    consts = [nh.from_array(np.array(rows, np.int64), f"{pre}.rows"), nh.from_array(mult[None], f"{pre}.mult"),
+              nh.from_array(np.array([0, n_eval * hidden], np.int64), f"{pre}.shape"),
+              nh.from_array(np.full(n_eval, hidden, np.int64), f"{pre}.split"),
+              nh.from_array(np.zeros(hidden, np.int8), f"{pre}.bzp")]
+    nodes = [helper.make_node("Gather", [v_name, f"{pre}.rows"], [f"{pre}.v"], axis=1),
+             helper.make_node("Div", [f"{pre}.v", f"{pre}.mult"], [f"{pre}.vd"]),
+             helper.make_node("Round", [f"{pre}.vd"], [f"{pre}.vr"]),
+             helper.make_node("Cast", [f"{pre}.vr"], [f"{pre}.vi"], to=TensorProto.INT32),
+             helper.make_node("Reshape", [f"{pre}.vi", f"{pre}.shape"], [f"{pre}.flat"]),
+             helper.make_node("Split", [f"{pre}.flat", f"{pre}.split"], [f"{pre}.c{e}" for e in range(n_eval)], axis=1)]
+    return consts, nodes
+
+
 def rewrite(m: onnx.ModelProto) -> onnx.ModelProto:
     g = m.graph
     init = {t.name: nh.to_array(t) for t in g.initializer}
     stages, split, reshape = stage_products(g)
-    v_name, n_eval = reshape.input[0], len(stages)
+    v_name = reshape.input[0]
     hidden = init[stages[0][1].input[3]].shape[0]
     mult = np.stack([(np.float32(init[mm.input[2]]) * init[mm.input[3]]).astype(np.float32) for _, mm, _ in stages])
-    g.initializer.extend([
-        nh.from_array(np.array([r for _, _, r in stages], np.int64), "qg.rows"), nh.from_array(mult[None], "qg.mult"),
-        nh.from_array(np.array([0, n_eval * hidden], np.int64), "qg.shape"),
-        nh.from_array(np.full(n_eval, hidden, np.int64), "qg.split"), nh.from_array(np.zeros(hidden, np.int8), "qg.bzp")])
-    prep = [helper.make_node("Gather", [v_name, "qg.rows"], ["qg.v"], axis=1),
-            helper.make_node("Div", ["qg.v", "qg.mult"], ["qg.vd"]),
-            helper.make_node("Round", ["qg.vd"], ["qg.vr"]),
-            helper.make_node("Cast", ["qg.vr"], ["qg.vi"], to=TensorProto.INT32),
-            helper.make_node("Reshape", ["qg.vi", "qg.shape"], ["qg.flat"]),
-            helper.make_node("Split", ["qg.flat", "qg.split"], [f"qg.c{e}" for e in range(n_eval)], axis=1)]
+    consts, prep = v_int32(v_name, [r for _, _, r in stages], mult, hidden, "qg")
+    g.initializer.extend(consts)
     by_add = {id(add): (mm, e) for e, (add, mm, _) in enumerate(stages)}
     gone = {id(split), id(reshape)} | {id(mm) for _, mm, _ in stages}
     nodes = []

@@ -41,6 +41,7 @@ from export.calibrate import select_windows
 from export.graph import MS_DOMAIN
 from export.ort_session import optimized_nodes, session
 from export.verify import int8_vs_fp32, ort_outputs
+from scripts.qgemm_prototype import v_int32
 from sim.dataset import load_dataset, make_windows
 
 
@@ -89,21 +90,12 @@ def rewrite(m: onnx.ModelProto, s_a: np.ndarray) -> onnx.ModelProto:
     v_name, n_eval = reshape.input[0], len(st)
     hidden = init[st[0]["lin1"].input[3]].shape[0]
     mult = np.stack([(np.float32(init[s["lin1"].input[2]]) * init[s["lin1"].input[3]]).astype(np.float32) for s in st])
-    consts = [nh.from_array(np.array([s["row"] for s in st], np.int64), "qs.rows"), nh.from_array(mult[None], "qs.mult"),
-              nh.from_array(np.array([0, n_eval * hidden], np.int64), "qs.shape"),
-              nh.from_array(np.full(n_eval, hidden, np.int64), "qs.split"),
-              nh.from_array(np.zeros(hidden, np.int8), "qs.bzp"), nh.from_array(np.uint8(128), "qs.zp128"),
-              nh.from_array(np.float32(1.0 / 256), "qs.sig_scale"), nh.from_array(np.uint8(0), "qs.sig_zp"),
-              nh.from_array(np.float32(1.0 / 128), "qs.hid_scale")]
+    consts, prep = v_int32(v_name, [s["row"] for s in st], mult, hidden, "qs")
+    consts += [nh.from_array(np.uint8(128), "qs.zp128"), nh.from_array(np.float32(1.0 / 256), "qs.sig_scale"),
+               nh.from_array(np.uint8(0), "qs.sig_zp"), nh.from_array(np.float32(1.0 / 128), "qs.hid_scale")]
     for e in range(n_eval):
         consts += [nh.from_array(s_a[e], f"qs.s_a{e}"), nh.from_array(np.float32(2 * s_a[e]), f"qs.s_2a{e}")]
     g.initializer.extend(consts)
-    prep = [helper.make_node("Gather", [v_name, "qs.rows"], ["qs.v"], axis=1),
-            helper.make_node("Div", ["qs.v", "qs.mult"], ["qs.vd"]),
-            helper.make_node("Round", ["qs.vd"], ["qs.vr"]),
-            helper.make_node("Cast", ["qs.vr"], ["qs.vi"], to=TensorProto.INT32),
-            helper.make_node("Reshape", ["qs.vi", "qs.shape"], ["qs.flat"]),
-            helper.make_node("Split", ["qs.flat", "qs.split"], [f"qs.c{e}" for e in range(n_eval)], axis=1)]
     by_add = {id(s["add"]): e for e, s in enumerate(st)}
     gone = {id(split), id(reshape)} | {id(s[k]) for s in st for k in ("lin1", "tanh", "ql")}
     lin2 = {id(s["lin2"]): e for e, s in enumerate(st)}
