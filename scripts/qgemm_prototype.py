@@ -48,6 +48,22 @@ def v_int32(v_name: str, rows: list[int], mult: np.ndarray, hidden: int, pre: st
     return consts, nodes
 
 
+def splice(g: onnx.GraphProto, replace, gone: set, v_name: str, prep: list) -> None:
+    """The graph's nodes in order, each replaced by ``replace(n)`` when that is not None, dropped
+    when its id is in ``gone``, and ``prep`` inserted after the node that makes ``v_name``."""
+    nodes = []
+    for n in g.node:
+        new = replace(n)
+        if new is not None:
+            nodes.extend(new)
+        elif id(n) not in gone:
+            nodes.append(n)
+            if v_name in n.output:
+                nodes.extend(prep)
+    del g.node[:]
+    g.node.extend(nodes)
+
+
 def rewrite(m: onnx.ModelProto) -> onnx.ModelProto:
     g = m.graph
     init = {t.name: nh.to_array(t) for t in g.initializer}
@@ -59,18 +75,15 @@ def rewrite(m: onnx.ModelProto) -> onnx.ModelProto:
     g.initializer.extend(consts)
     by_add = {id(add): (mm, e) for e, (add, mm, _) in enumerate(stages)}
     gone = {id(split), id(reshape)} | {id(mm) for _, mm, _ in stages}
-    nodes = []
-    for n in g.node:
-        if id(n) in by_add:
-            mm, e = by_add[id(n)]  # QGemm(A, a_scale, a_zp, B, b_scale, b_zp, C): float output
-            nodes.append(helper.make_node("QGemm", [mm.input[0], mm.input[2], mm.input[4], mm.input[1], mm.input[3],
-                                                    "qg.bzp", f"qg.c{e}"], [n.output[0]], domain=MS_DOMAIN))
-        elif id(n) not in gone:
-            nodes.append(n)
-            if v_name in n.output:
-                nodes.extend(prep)
-    del g.node[:]
-    g.node.extend(nodes)
+
+    def replace(n: onnx.NodeProto) -> list | None:
+        if id(n) not in by_add:
+            return None
+        mm, e = by_add[id(n)]  # QGemm(A, a_scale, a_zp, B, b_scale, b_zp, C): float output
+        return [helper.make_node("QGemm", [mm.input[0], mm.input[2], mm.input[4], mm.input[1], mm.input[3],
+                                           "qg.bzp", f"qg.c{e}"], [n.output[0]], domain=MS_DOMAIN)]
+
+    splice(g, replace, gone, v_name, prep)
     return m
 
 

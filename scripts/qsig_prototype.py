@@ -41,7 +41,7 @@ from export.calibrate import select_windows
 from export.graph import MS_DOMAIN
 from export.ort_session import optimized_nodes, session
 from export.verify import int8_vs_fp32, ort_outputs
-from scripts.qgemm_prototype import v_int32
+from scripts.qgemm_prototype import splice, v_int32
 from sim.dataset import load_dataset, make_windows
 
 
@@ -100,27 +100,24 @@ def rewrite(m: onnx.ModelProto, s_a: np.ndarray) -> onnx.ModelProto:
     gone = {id(split), id(reshape)} | {id(s[k]) for s in st for k in ("lin1", "tanh", "ql")}
     lin2 = {id(s["lin2"]): e for e, s in enumerate(st)}
     prod = {o: n for n in g.node for o in n.output}
-    nodes = []
-    for n in g.node:
+
+    def replace(n: onnx.NodeProto) -> list | None:
         if id(n) in by_add:
             e, s = by_add[id(n)], st[by_add[id(n)]]
             z_q, a_s, w, w_s = s["lin1"].input[0], s["lin1"].input[2], s["lin1"].input[1], s["lin1"].input[3]
             z_zp = prod[z_q].input[2]  # the state's QuantizeLinear zero point: its type is A's
-            nodes.append(helper.make_node("QGemm", [z_q, a_s, z_zp, w, w_s, "qs.bzp", f"qs.c{e}", f"qs.s_a{e}",
-                                                    "qs.zp128"], [f"qs.a{e}"], domain=MS_DOMAIN))
-            nodes.append(helper.make_node("QLinearSigmoid", [f"qs.a{e}", f"qs.s_2a{e}", "qs.zp128", "qs.sig_scale",
-                                                             "qs.sig_zp"], [f"qs.h{e}"], domain=MS_DOMAIN))
-        elif id(n) in lin2:
+            return [helper.make_node("QGemm", [z_q, a_s, z_zp, w, w_s, "qs.bzp", f"qs.c{e}", f"qs.s_a{e}", "qs.zp128"],
+                                     [f"qs.a{e}"], domain=MS_DOMAIN),
+                    helper.make_node("QLinearSigmoid", [f"qs.a{e}", f"qs.s_2a{e}", "qs.zp128", "qs.sig_scale",
+                                                        "qs.sig_zp"], [f"qs.h{e}"], domain=MS_DOMAIN)]
+        if id(n) in lin2:
             e = lin2[id(n)]
             ins = list(n.input)
             ins[0], ins[2] = f"qs.h{e}", "qs.hid_scale"
-            nodes.append(helper.make_node("MatMulIntegerToFloat", ins, list(n.output), domain=MS_DOMAIN))
-        elif id(n) not in gone:
-            nodes.append(n)
-            if v_name in n.output:
-                nodes.extend(prep)
-    del g.node[:]
-    g.node.extend(nodes)
+            return [helper.make_node("MatMulIntegerToFloat", ins, list(n.output), domain=MS_DOMAIN)]
+        return None
+
+    splice(g, replace, gone, v_name, prep)
     return m
 
 
