@@ -9,7 +9,7 @@ mean motor command above THR_AIRBORNE and height above the armed ground level ab
 Each airborne interval that ends in a landing (before the data ends) is then cut back to the
 touchdown (``end_at_touchdown``): a land detector declares "landed" only after its conditions
 (low thrust, no vertical motion) have held for a while (PX4: LNDMC_TRIG_TIME, default 1 s, once the
-thrust has ramped down; ArduCopter: 1 s), so its last "airborne" second holds the impact and the
+thrust has ramped down), so its last "airborne" second holds the impact and the
 spin-down on the ground, which no simulated flight has. The mission log measures it: descending at
 0.6 m/s until 41.44 s, arrested at 41.52 s, ``ground_contact`` 42.23 s, ``landed`` 42.85 s.
 """

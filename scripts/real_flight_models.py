@@ -27,10 +27,9 @@ from pathlib import Path
 
 from quadfdi.cli import main as quadfdi
 from scripts.real_flights import LOGS as FLIGHT_LOGS
-from scripts.real_flights import PROFILES, run_all, table
+from scripts.real_flights import LOGS_DIR, PROFILES, run_all, table
 
 ROOT = Path(__file__).resolve().parents[1]
-LOGS = ROOT.parent / "shared" / "data" / "flightlogs"
 SIM_STAGE = ("config.toml", "dataset.npz", ".stages/sim.json")
 MISSION = "px4_quad_6s_uavcan_mission.ulg"
 
@@ -66,14 +65,14 @@ def main() -> None:
     profs = args.profiles.split(",")
     if not profs or set(profs) - set(PROFILES):
         ap.error(f"--profiles: each of {sorted(PROFILES)}")
-    if not LOGS.is_dir():
-        ap.error(f"the shared flight logs are not at {LOGS}")
+    if not LOGS_DIR.is_dir():
+        ap.error(f"the shared flight logs are not at {LOGS_DIR}")
     args.out.mkdir(parents=True, exist_ok=True)
     _step(["sim", "--config", str(ROOT / "configs/realistic.toml"), "--out", str(args.out / "base"),
            "--workers", args.workers])
     exports = {p: str(model(args.out, p, args.workers)) for p in profs}
-    run_all(args.out / "flights", exports, LOGS.resolve(), FLIGHT_LOGS)
-    run_all(args.out / "flights_gap7", exports, LOGS.resolve(), [MISSION], "7")
+    run_all(args.out / "flights", exports, LOGS_DIR.resolve(), FLIGHT_LOGS)
+    run_all(args.out / "flights_gap7", exports, LOGS_DIR.resolve(), [MISSION], "7")
     text = ("# Real flights\n\nEvery shared real quad log, default gap rule:\n\n" + table(args.out / "flights")
             + "\n\nThe UAVCAN mission with `--gap-factor 7`:\n\n" + table(args.out / "flights_gap7") + "\n")
     (args.out / "real_flights.md").write_text(text)

@@ -25,6 +25,7 @@ from quadfdi.cli import main as quadfdi
 LOGS = ["px4_quad_6s_uavcan_mission.ulg", "px4_quad_6s_vibration_tipover.ulg", "px4_quad_6s_gps_interference.ulg",
         "px4_fmuv5_quad_real_short.ulg", "px4_quad_battery_monitor_disconnected.ulg", "px4_sitl_quad_esc.ulg",
         "ardupilot_copter_quadx_ground.BIN"]
+LOGS_DIR = Path(__file__).resolve().parents[2] / "shared" / "data" / "flightlogs"  # CI puts shared/ beside the clone
 ESC_LOGS = {"px4_quad_6s_uavcan_mission.ulg", "px4_quad_6s_vibration_tipover.ulg", "px4_sitl_quad_esc.ulg"}
 PROFILES = {"min": "flightlog-min", "esc": "flightlog-esc", "nocur": "flightlog-nocur"}
 CASES = [(net, rt, pr) for net in ("cnode", "gru") for rt in ("ort", "cpp") for pr in ("fp32", "int8")]
@@ -104,7 +105,7 @@ def cli() -> None:
     ap.add_argument("out", type=Path)
     ap.add_argument("--export", action="append", default=[], metavar="PROFILE=DIR",
                     help="min=, esc= or nocur= and a realistic-suite export folder")
-    ap.add_argument("--logs", type=Path, default=Path(__file__).resolve().parents[1] / "../shared/data/flightlogs")
+    ap.add_argument("--logs", type=Path, default=LOGS_DIR)
     ap.add_argument("--gap-factor", help="passed to quadfdi ingest (bridge logging gaps up to F x the median interval)")
     ap.add_argument("log", nargs="*", help="log file names under --logs (default: every real quad log)")
     args = ap.parse_intermixed_args()  # OUT --export ... LOG: the logs may follow the options

@@ -14,20 +14,17 @@ Prints a markdown table, one column per file (its sha256 prefix and suffix on to
 
 from __future__ import annotations
 
-import hashlib
 import sys
 
 import numpy as np
+
+from ingest.flight import sha256
 
 LAST_S = 8.0
 
 
 def _sha(path: str) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as fh:
-        for block in iter(lambda: fh.read(1 << 20), b""):
-            h.update(block)
-    d = h.hexdigest()
+    d = sha256(path)
     return f"`{d[:8]}…{d[-4:]}`"
 
 

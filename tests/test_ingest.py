@@ -95,7 +95,7 @@ def test_channels_and_rates(name, ingested):
 
 
 def test_six_s_quads_fly_long_enough(ingested):
-    # the tip-over: 74.3 s by its land detector, 68.1 s once each of its two landings is cut back to the
+    # the tip-over: 74.1 s by its land detector, 68.1 s once each of its two landings is cut back to the
     # touchdown (segments.end_at_touchdown: neither ends in a descent at 0.3 m/s, so each loses 3 s)
     for name, lo in (("px4_quad_6s_vibration_tipover.ulg", 65), ("px4_quad_6s_gps_interference.ulg", 50),
                      ("px4_quad_6s_uavcan_mission.ulg", 35)):

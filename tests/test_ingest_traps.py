@@ -117,7 +117,6 @@ def test_arducopter_ground_log_parameters_and_channels():
     assert json.dumps(v, default=float)
 
 
-
 def test_end_at_touchdown_rules():
     """segments.end_at_touchdown on synthetic vertical speeds (up-positive, 10 Hz)."""
     from ingest.segments import LANDING_LOOKBACK_S, end_at_touchdown
