@@ -35,6 +35,7 @@ from typing import Callable
 import numpy as np
 
 from bench.limits import cpu_prefix, run_json, worker_env
+from bench.ort_pairs import measure_ort_pairs
 from core.config import BenchConfig
 from core.errors import QuadfdiError
 
@@ -183,7 +184,7 @@ def worker_cmd(spec: Spec, windows: Path, counts: Counts, cpus: str, time_exe: s
 def measure_latency(run_root: Path, manifest: dict, test_x: np.ndarray, rtol: float, bench: BenchConfig, *,
                     cpus: str = BenchConfig.cpus, quick: bool = False, fwref: str | None = None,
                     log: Callable[[str], None] = print) -> dict:
-    """Run every worker of ``plan``; return {latency, runtime_memory, workers, skipped, windows, ...}.
+    """Run every worker of ``plan``; return {latency, ort_pairs, runtime_memory, workers, windows, ...}.
 
     ``fwref`` is the fwref_infer path (None: the C++ reference is skipped, with the reason in
     ``skipped``). A worker that fails raises a one-line QuadfdiError naming its setting.
@@ -208,7 +209,10 @@ def measure_latency(run_root: Path, manifest: dict, test_x: np.ndarray, rtol: fl
             b1, bn = out["records"]
             log(f"bench latency: {spec.label}: batch 1 p50 {b1['p50_us']:.1f} us (p99 {b1['p99_us']:.1f}, "
                 f"{b1['n_calls']} windows), batch {bn['batch']} {bn['throughput_wps']:.0f} windows/s [{dt:.1f} s]")
-    return {"latency": records, "runtime_memory": memory, "workers": workers,
+        # issue 15's ONNX Runtime ratios: both graphs in one process (bench/ort_pairs.py says why)
+        pairs = measure_ort_pairs(run_root / "export", manifest, windows, counts, cpus, bench.worker_timeout_s, quick,
+                                  log)
+    return {"latency": records, "ort_pairs": pairs, "runtime_memory": memory, "workers": workers,
             "windows": {"split": "test", "available": int(len(test_x)), "sampled": max(counts.n, counts.batch),
                         "seed": 0, "cycled": bool(len(test_x) < max(counts.n, counts.batch))},
             "counts": counts.__dict__, "cpus": cpus, "seconds": time.perf_counter() - t_all}

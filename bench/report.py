@@ -73,6 +73,22 @@ def _speedup_section(bench: dict) -> list[str]:
                        rows))
 
 
+def _pairs_section(bench: dict) -> list[str]:
+    """bench.json ``ort_pairs``: the ratios issue 15's ONNX Runtime targets are judged on."""
+    rows = [[model, str(p["batch"]), str(p["rounds"]), us(p["fp32_p50_us"]), us(p["int8_p50_us"]),
+             f"{p['int8_over_fp32_median']:.2f}", f"{p['int8_over_fp32_p10']:.2f}-{p['int8_over_fp32_p90']:.2f}"]
+            for model, pairs in (bench.get("ort_pairs") or {}).items() for p in pairs]
+    if not rows:
+        return []
+    text = ("fp32 and int8 sessions in one process (1 thread, spinning off), calls interleaved round by round "
+            "(bench/ort_pairs.py): a process's speed mode or a burst of load hits both graphs alike, so the ONNX "
+            "Runtime targets below use the median of the rounds' ratios, not the ratio of the separate processes' "
+            "p50s above.")
+    return (["### ONNX Runtime int8 against fp32 in one process", "", text, ""]
+            + md_table(["model", "batch", "rounds", "fp32 p50 (us)", "int8 p50 (us)", "int8 / fp32 time (median)",
+                        "p10-p90 of rounds"], rows))
+
+
 def _graphs_section(bench: dict) -> list[str]:
     g = bench.get("graphs") or {}
     if not g:
@@ -273,7 +289,7 @@ def bench_section(bench: dict, figures: str = "figures", run_root: Path | None =
             f"{r['x_floor']:.2f}x" for r in below) + ". A measured time under the floor means the limits were "
             "measured low (another user of the shared machine slowed the peak or bandwidth probe) or the floor's "
             "traffic model is too pessimistic for that runtime; treat the floor as approximate here.", ""]
-    out += _speedup_section(bench) + _graphs_section(bench)
+    out += _speedup_section(bench) + _pairs_section(bench) + _graphs_section(bench)
     out += _floors_section(bench) + targets_section(bench) + _limits_section(bench) + _memory_section(bench)
     out += stream_report(bench) + _profiles_section(bench)
     note = bench.get("solvers_meta", {}).get("note") or bench.get("solvers_meta", {}).get("skipped")

@@ -303,3 +303,41 @@ def test_int8_targets_compare_within_one_run():
     assert ts[("ORT96", "gru")]["measured"] == pytest.approx(1000 / 900) and ts[("ORT96", "gru")]["met"]
     assert ts[("ORT1", "gru")]["measured"] == pytest.approx(2.5) and not ts[("ORT1", "gru")]["met"]
     assert ("ORT96", "cnode") not in ts  # not measured: no row
+
+
+def test_int8_targets_take_the_ort_ratio_from_the_paired_rounds():
+    """bench.json ``ort_pairs`` (both graphs in one process) decides the ORT rows over the separate
+    processes' p50s; a model without pairs falls back to the p50s."""
+    from bench.int8_targets import int8_targets
+
+    rec = lambda m, p, b, p50: {"runtime": "ort", "model": m, "precision": p, "batch": b, "threads": 1,  # noqa: E731
+                                "spinning": False, "p50_us": p50}
+    recs = [rec(m, p, b, v) for m in ("cnode", "gru") for (p, b, v) in
+            (("fp32", 1, 100.0), ("int8", 1, 460.0), ("fp32", 96, 1000.0), ("int8", 96, 2100.0))]
+    pair = lambda b, med: {"batch": b, "rounds": 75, "fp32_p50_us": 110.0, "int8_p50_us": 200.0,  # noqa: E731
+                           "int8_over_fp32_median": med, "int8_over_fp32_p10": med - 0.1, "int8_over_fp32_p90": med + 0.1}
+    ts = {(t["target"].split(" ")[-1], t["model"]): t for t in int8_targets(recs, [], {"cnode": [pair(1, 1.76),
+                                                                                                 pair(96, 0.98)]})}
+    assert ts[("1", "cnode")]["measured"] == pytest.approx(1.76) and ts[("1", "cnode")]["met"]
+    assert ts[("96", "cnode")]["measured"] == pytest.approx(1 / 0.98) and ts[("96", "cnode")]["met"]
+    assert "interleaved in one process, 75 rounds" in ts[("1", "cnode")]["detail"]
+    assert ts[("1", "gru")]["measured"] == pytest.approx(4.6) and not ts[("1", "gru")]["met"]  # no pairs: the p50s
+    assert "separate processes" in ts[("96", "gru")]["detail"] and not ts[("96", "gru")]["met"]
+
+
+def test_paired_times_alternate_the_order_and_warm_each_graph():
+    """Round r: graph A first when r is even, B first when odd; each turn one untimed call, then
+    ``per_round`` timed calls on consecutive inputs; one time per graph and round."""
+    from bench.ort_pairs import pair_summary, paired_times
+
+    log = []
+    calls = (lambda x: log.append(("A", x)), lambda x: log.append(("B", x)))
+    a, b = paired_times(calls, list(range(10)), rounds=3, per_round=2, warmup=1, budget_s=60.0, min_samples=1)
+    assert len(a) == len(b) == 3 and all(t >= 0 for t in a + b)
+    assert log[:2] == [("A", 0), ("B", 0)]  # warm-up
+    turns = [log[2 + 3 * k: 5 + 3 * k] for k in range(6)]
+    assert [t[0][0] for t in turns] == ["A", "B", "B", "A", "A", "B"]
+    assert all(len({g for g, _ in t}) == 1 for t in turns)  # a turn is one graph's
+    assert [x for _, x in turns[0]] == [2, 0, 1] and [x for _, x in turns[2]] == [4, 2, 3]
+    s = pair_summary([100.0, 100.0, 200.0], [150.0, 300.0, 300.0], 1)
+    assert s["rounds"] == 3 and s["int8_over_fp32_median"] == pytest.approx(1.5) and s["fp32_p50_us"] == 100.0

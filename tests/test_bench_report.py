@@ -19,8 +19,8 @@ LATENCY_KEYS = {"model", "runtime", "precision", "solver", "threads", "spinning"
                 "p99_us", "throughput_wps"}
 MEMORY_KEYS = {"model", "runtime", "precision", "solver", "item", "value", "unit", "source"}
 LIMIT_KEYS = {"peak_gflops", "l2_gbps", "ort_call_us", "peak_gflops_2t", "peak_int8_gops", "ort_node_us", "caches"}
-TOP_KEYS = {"schema_version", "producer", "command", "machine", "limits", "models", "latency", "floors", "targets",
-            "memory", "solvers", "profiles", "windows", "counts", "timing_s"}
+TOP_KEYS = {"schema_version", "producer", "command", "machine", "limits", "models", "latency", "ort_pairs", "floors",
+            "targets", "memory", "solvers", "profiles", "windows", "counts", "timing_s"}
 
 
 def quadfdi_report(run: Path) -> subprocess.CompletedProcess:
@@ -103,6 +103,13 @@ def test_bench_json_holds_every_field(benched):
     assert bench["solvers"] == [] and "no solver study" in bench["solvers_meta"]["note"]  # no solvers/solvers.json
     stream = bench["stream"]  # bench/stream.py: measured with the C++ reference, else skipped with a reason
     assert (len(stream["latency"]) == 4 and len(stream["flights"]) == 1) if FWREF.is_file() else stream["skipped"]
+    pairs = bench["ort_pairs"]  # bench/ort_pairs.py: fp32 and int8 interleaved in one process, per model
+    assert set(pairs) == {"cnode", "gru"} and all([p["batch"] for p in v] == [1, 96] for v in pairs.values())
+    for p in (p for v in pairs.values() for p in v):
+        assert p["rounds"] >= quick.min_samples and p["fp32_p50_us"] > 0 and p["int8_p50_us"] > 0
+        assert 0 < p["int8_over_fp32_p10"] <= p["int8_over_fp32_median"] <= p["int8_over_fp32_p90"]
+    ort_rows = [t for t in bench["targets"] if t["target"].startswith("ORT int8")]
+    assert len(ort_rows) == 4 and all("interleaved in one process" in t["detail"] for t in ort_rows)
     if FWREF.is_file():
         assert ("static_ram_bytes", "cpp") in items
         assert {t["model"] for t in bench["targets"]} == {"cnode", "gru"}
@@ -112,7 +119,8 @@ def test_bench_json_holds_every_field(benched):
 def test_report_assembles_every_stage_present(benched):
     text = (benched / "report.md").read_text()
     for heading in ("# quadfdi run report", "## Simulation", "## Export", "## Bench: latency, memory, limits",
-                    "### Floors", "### Machine limits", "### Memory"):
+                    "### ONNX Runtime int8 against fp32 in one process", "### Floors", "### Machine limits",
+                    "### Memory"):
         assert heading in text, heading
     assert "## Training and test metrics\n\nNot run: no metrics.json" in text  # this run has no metrics.json
     assert "## Parity\n\nNot run:" in text
