@@ -15,8 +15,8 @@ ratio compares times a few milliseconds apart, and the figure is the median of t
 The setting is the targets' like-for-like one: one intra-op thread, spinning off. In a round each
 graph gets one untimed call and then ``PER_ROUND_1`` (batch 1) or ``PER_ROUND_N`` (batch
 ``counts.batch``) timed calls, the round's time their median, so that each graph is timed on its own
-cache state (on the paper export, 1, 4, 16 and 64 calls per round gave the same median ratios within
-2 %, 2026-12-03: the graphs do not evict each other measurably). Batch 1: ``counts.n / PER_ROUND_1``
+cache state (on the paper export, 1, 4, 16 and 64 calls per round gave median ratios within 4 % of
+each other, 2026-12-03, scripts/ort_process_modes.py --per-round-sweep: little eviction either way). Batch 1: ``counts.n / PER_ROUND_1``
 rounds over the bench's seeded sample of windows (cycled); batch ``counts.batch``: ``PAIR_BATCH_ROUNDS`` rounds (at least ``counts.batches``;
 ``--quick`` keeps ``counts.batches``) of consecutive windows. Each loop also stops at twice
 ``counts.budget_s`` (two graphs), never below ``counts.min_samples`` rounds.

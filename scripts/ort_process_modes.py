@@ -8,6 +8,10 @@ taking turns (400 rounds, the first 50 dropped); prints each process's medians a
 the shared 2-core machines some processes run every graph about 2.2x slower than others; if the
 ratio stays put while the times move, interleaving within one process (what the bench's targets use)
 cancels the mode and separate processes per graph (the latency table) do not.
+
+``--per-round-sweep`` instead runs, in this one process, bench.ort_pairs.paired_times with 1, 4, 16
+and 64 timed calls per graph and round (each after one untimed call) and prints the medians: whether
+the two graphs evict each other's caches enough to change the ratio.
 """
 
 from __future__ import annotations
@@ -33,14 +37,36 @@ print(float(np.median(t[0][50:])) / 1e3, float(np.median(t[1][50:])) / 1e3)
 """
 
 
+def per_round_sweep(paths: list[str]) -> int:
+    import numpy as np
+
+    from bench.ort_pairs import paired_times
+    from bench.runtimes.common import percentile
+    from export.ort_session import session
+
+    x = np.random.default_rng(0).standard_normal((300, 1, 80, 23)).astype(np.float32)
+    sessions = [session(p, 1, spinning=False) for p in paths]
+    names = [q.get_inputs()[0].name for q in sessions]
+    calls = tuple((lambda v, q=q, n=n: q.run(None, {n: v})) for q, n in zip(sessions, names))
+    for per_round in (1, 4, 16, 64):
+        f32, i8 = paired_times(calls, list(x), max(2, 320 // per_round), per_round, 30, 10.0, 2)
+        ratio = percentile([b / a for a, b in zip(f32, i8)], 50)
+        print(f"{per_round} calls per round: fp32 {percentile(f32, 50):.1f} us, int8 {percentile(i8, 50):.1f} us, "
+              f"int8 / fp32 median {ratio:.3f}")
+    return 0
+
+
 def main() -> int:
     ap = argparse.ArgumentParser()
     ap.add_argument("run", type=Path)
     ap.add_argument("--model", default="cnode", choices=("cnode", "gru"))
     ap.add_argument("--processes", type=int, default=8)
+    ap.add_argument("--per-round-sweep", action="store_true")
     a = ap.parse_args()
     arts = json.loads((a.run / "export" / "manifest.json").read_text())["artifacts"]
     paths = [str(a.run / "export" / arts[f"{a.model}_{p}"]) for p in ("fp32", "int8")]
+    if a.per_round_sweep:
+        return per_round_sweep(paths)
     for i in range(a.processes):
         out = subprocess.run(["taskset", "-c", "0,1", sys.executable, "-c", CHILD, *paths], capture_output=True,
                              text=True, check=True).stdout.split()
