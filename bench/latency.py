@@ -148,7 +148,7 @@ def find_fwref(explicit: str | None, log: Callable[[str], None]) -> tuple[str | 
     log("bench: building the C++ reference (cmake -S firmware_ref -B firmware_ref/build, Release)")
     build = ROOT / "firmware_ref" / "build"
     for cmd in ([cmake, "-S", str(ROOT / "firmware_ref"), "-B", str(build), "-DCMAKE_BUILD_TYPE=Release"],
-                [cmake, "--build", str(build), "-j2", "--target", "fwref_infer"]):
+                [cmake, "--build", str(build), "-j2", "--target", "fwref_infer", "fwref_pair"]):
         res = subprocess.run(cmd, capture_output=True, text=True, timeout=900)
         if res.returncode != 0:
             last = (res.stderr.strip().splitlines() or res.stdout.strip().splitlines() or ["?"])[-1]

@@ -35,7 +35,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from bench.limits import cpu_prefix, run_json, worker_env
-from bench.runtimes.common import batches_of, percentile
+from bench.runtimes.common import batches_of, pair_summary, percentile
 
 PAIR_BATCH_ROUNDS = 30  # batch-96 rounds: the latency table's 10 batches are few for a median of ratios
 PER_ROUND_1 = 4  # timed batch-1 calls per graph and round (the bench's n windows make n / 4 rounds)
@@ -71,15 +71,6 @@ def paired_times(calls: tuple[Callable, Callable], inputs: list, rounds: int, pe
         if r + 1 >= min_samples and time.perf_counter() > t_end:
             break
     return times
-
-
-def pair_summary(f32: list[float], i8: list[float], batch: int) -> dict:
-    """p50 of each and the per-round ratios int8 / fp32 time (median, p10, p90)."""
-    ratios = [b / a for a, b in zip(f32, i8)]
-    return {"batch": batch, "rounds": len(ratios), "fp32_p50_us": percentile(f32, 50),
-            "int8_p50_us": percentile(i8, 50),
-            "int8_over_fp32_median": percentile(ratios, 50), "int8_over_fp32_p10": percentile(ratios, 10),
-            "int8_over_fp32_p90": percentile(ratios, 90)}
 
 
 def worker_main(argv: list[str] | None = None) -> int:

@@ -74,19 +74,20 @@ def _speedup_section(bench: dict) -> list[str]:
 
 
 def _pairs_section(bench: dict) -> list[str]:
-    """bench.json ``ort_pairs``: the ratios issue 15's ONNX Runtime targets are judged on."""
-    rows = [[model, str(p["batch"]), str(p["rounds"]), us(p["fp32_p50_us"]), us(p["int8_p50_us"]),
-             f"{p['int8_over_fp32_median']:.2f}", f"{p['int8_over_fp32_p10']:.2f}-{p['int8_over_fp32_p90']:.2f}"]
-            for model, pairs in (bench.get("ort_pairs") or {}).items() for p in pairs]
+    """bench.json ``cpp_pairs`` and ``ort_pairs``: the ratios issue 15's int8 / fp32 targets are judged on."""
+    rows = [[model, name, str(p["batch"]), str(p["rounds"]), us(p["fp32_p50_us"]), us(p["int8_p50_us"]),
+             f"{p['int8_over_fp32_median']:.3f}", f"{p['int8_over_fp32_p10']:.2f}-{p['int8_over_fp32_p90']:.2f}"]
+            for key, name in (("cpp_pairs", "C++"), ("ort_pairs", "ONNX Runtime"))
+            for model, pairs in (bench.get(key) or {}).items() if isinstance(pairs, list) for p in pairs]
     if not rows:
         return []
-    text = ("fp32 and int8 sessions in one process (1 thread, spinning off), calls interleaved round by round "
-            "(bench/ort_pairs.py): a process's speed mode or a burst of load hits both graphs alike, so the ONNX "
-            "Runtime targets below use the median of the rounds' ratios, not the ratio of the separate processes' "
-            "p50s above.")
-    return (["### ONNX Runtime int8 against fp32 in one process", "", text, ""]
-            + md_table(["model", "batch", "rounds", "fp32 p50 (us)", "int8 p50 (us)", "int8 / fp32 time (median)",
-                        "p10-p90 of rounds"], rows))
+    text = ("fp32 and int8 in one process, taking turns round by round (C++: fwref_pair, bench/cpp_pairs.py; ONNX "
+            "Runtime: 1 thread, spinning off, bench/ort_pairs.py): a process's speed mode or a burst of load hits "
+            "both precisions alike, so issue 15's int8 / fp32 targets below use the median of the rounds' ratios, "
+            "not the ratio of the separate processes' p50s above.")
+    return (["### int8 against fp32 in one process", "", text, ""]
+            + md_table(["model", "runtime", "batch", "rounds", "fp32 p50 (us)", "int8 p50 (us)",
+                        "int8 / fp32 time (median)", "p10-p90 of rounds"], rows))
 
 
 def _graphs_section(bench: dict) -> list[str]:

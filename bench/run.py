@@ -147,7 +147,8 @@ def _measure(run: RunDir, cfg: Config, manifest: dict, test_x, fw_copy: str | No
              cpus: str, quick: bool, log: Callable[[str], None]) -> dict:
     """Limits (before and after), latency, floors, profiles and memory, each timed."""
     from bench.floors import attach_distance, below_floor, floors, violation_text
-    from bench.latency import measure_latency
+    from bench.cpp_pairs import measure_cpp_pairs
+    from bench.latency import Counts, measure_latency, sample_windows
     from bench.limits import measure_limits, merge_limits
     from bench.memory import memory_records
     from bench.stream import stream_section
@@ -177,6 +178,13 @@ def _measure(run: RunDir, cfg: Config, manifest: dict, test_x, fw_copy: str | No
         floor_list = floors(manifest["models"], int(manifest["solver"]["steps"]), limits)
         attach_distance(lat["latency"], floor_list)
     t0 = time.perf_counter()
+    # issue 15's C++ int8 / fp32 ratios: both precisions in one process (bench/cpp_pairs.py says why)
+    n = Counts.of(cfg.bench, quick).n
+    cpp_pairs = {"skipped": "the C++ reference is not measured (--skip-cpp or no build)"} if not fw_flags else \
+        measure_cpp_pairs(Path(fw_flags["build_dir"]), run.export / "weights.bin", sample_windows(test_x, n), n,
+                          cpus, cfg.bench.worker_timeout_s, log)
+    timing["cpp_pairs"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
     profiles = _profiles(run, manifest, test_x, fw_copy, fw_flags, cpus, quick, lat["latency"], cfg.bench, log)
     timing["profiles"] = time.perf_counter() - t0
     memory = memory_records(run.root, manifest, lat["runtime_memory"], fw_copy)
@@ -187,7 +195,7 @@ def _measure(run: RunDir, cfg: Config, manifest: dict, test_x, fw_copy: str | No
                        ("cortex-m4",) if quick else ("cortex-m4", "cortex-m7"))
     timing["stream"] = time.perf_counter() - t0
     return {"limits": limits, "lat": lat, "floors": floor_list, "profiles": profiles, "memory": memory,
-            "stream": stream, "timing": timing}
+            "stream": stream, "cpp_pairs": cpp_pairs, "timing": timing}
 
 
 def _command(run: RunDir, quick: bool, skip_cpp: bool) -> str:
@@ -231,8 +239,10 @@ def _bench_dict(run: RunDir, manifest: dict, m: dict, machine: dict, fwref: tupl
         "models": {k: {**v, "export_steps": steps} for k, v in manifest["models"].items()},
         "latency": lat["latency"],
         "floors": m["floors"],
-        "targets": targets(lat["latency"], m["floors"]) + int8_targets(lat["latency"], m["floors"], lat["ort_pairs"]),
+        "targets": targets(lat["latency"], m["floors"]) + int8_targets(lat["latency"], m["floors"], lat["ort_pairs"],
+                                                                       m["cpp_pairs"]),
         "ort_pairs": lat["ort_pairs"],
+        "cpp_pairs": m["cpp_pairs"],
         "floor_violations": violation_text(below_floor(lat["latency"])),
         "graphs": graph_nodes(run, manifest),
         "memory": m["memory"],

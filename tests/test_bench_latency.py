@@ -323,12 +323,22 @@ def test_int8_targets_take_the_ort_ratio_from_the_paired_rounds():
     assert "interleaved in one process, 75 rounds" in ts[("1", "cnode")]["detail"]
     assert ts[("1", "gru")]["measured"] == pytest.approx(4.6) and not ts[("1", "gru")]["met"]  # no pairs: the p50s
     assert "separate processes" in ts[("96", "gru")]["detail"] and not ts[("96", "gru")]["met"]
+    # C++: bench.json cpp_pairs (fwref_pair) over the pooled p50s, which here say the opposite
+    recs += [{"runtime": "cpp", "model": m, "precision": p, "batch": 1, "threads": 1, "spinning": None, "p50_us": v}
+             for m, p, v in (("cnode", "fp32", 7.0), ("cnode", "int8", 8.0), ("gru", "fp32", 90.0),
+                             ("gru", "int8", 50.0))]
+    cpp = {"cnode": [pair(1, 0.97)]}
+    got = {t["model"]: t for t in int8_targets(recs, [], None, cpp) if t["target"].startswith("C++ int8 >=")}
+    assert got["cnode"]["measured"] == pytest.approx(1 / 0.97) and got["cnode"]["met"]
+    assert "in one process (fwref_pair), 75 rounds" in got["cnode"]["detail"]
+    assert got["gru"]["measured"] == pytest.approx(1.8) and "pooled" in got["gru"]["detail"]
 
 
 def test_paired_times_alternate_the_order_and_warm_each_graph():
     """Round r: graph A first when r is even, B first when odd; each turn one untimed call, then
     ``per_round`` timed calls on consecutive inputs; one time per graph and round."""
-    from bench.ort_pairs import pair_summary, paired_times
+    from bench.ort_pairs import paired_times
+    from bench.runtimes.common import pair_summary
 
     log = []
     calls = (lambda x: log.append(("A", x)), lambda x: log.append(("B", x)))

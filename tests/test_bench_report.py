@@ -19,8 +19,8 @@ LATENCY_KEYS = {"model", "runtime", "precision", "solver", "threads", "spinning"
                 "p99_us", "throughput_wps"}
 MEMORY_KEYS = {"model", "runtime", "precision", "solver", "item", "value", "unit", "source"}
 LIMIT_KEYS = {"peak_gflops", "l2_gbps", "ort_call_us", "peak_gflops_2t", "peak_int8_gops", "ort_node_us", "caches"}
-TOP_KEYS = {"schema_version", "producer", "command", "machine", "limits", "models", "latency", "ort_pairs", "floors",
-            "targets", "memory", "solvers", "profiles", "windows", "counts", "timing_s"}
+TOP_KEYS = {"schema_version", "producer", "command", "machine", "limits", "models", "latency", "ort_pairs",
+            "cpp_pairs", "floors", "targets", "memory", "solvers", "profiles", "windows", "counts", "timing_s"}
 
 
 def quadfdi_report(run: Path) -> subprocess.CompletedProcess:
@@ -110,6 +110,14 @@ def test_bench_json_holds_every_field(benched):
         assert 0 < p["int8_over_fp32_p10"] <= p["int8_over_fp32_median"] <= p["int8_over_fp32_p90"]
     ort_rows = [t for t in bench["targets"] if t["target"].startswith("ORT int8")]
     assert len(ort_rows) == 4 and all("interleaved in one process" in t["detail"] for t in ort_rows)
+    cpp_pairs = bench["cpp_pairs"]  # bench/cpp_pairs.py: fwref_pair, or skipped with the reason
+    if FWREF.is_file() and (FWREF.parent / "fwref_pair").is_file():
+        assert set(cpp_pairs) == {"cnode", "gru"} and all(v[0]["batch"] == 1 for v in cpp_pairs.values())
+        assert all(v[0]["rounds"] == quick.n // 4 and v[0]["int8_over_fp32_median"] > 0 for v in cpp_pairs.values())
+        cpp_rows = [t for t in bench["targets"] if "as fast as fp32" in t["target"]]
+        assert len(cpp_rows) == 2 and all("in one process (fwref_pair)" in t["detail"] for t in cpp_rows)
+    else:
+        assert set(cpp_pairs) == {"skipped"}
     if FWREF.is_file():
         assert ("static_ram_bytes", "cpp") in items
         assert {t["model"] for t in bench["targets"]} == {"cnode", "gru"}
@@ -119,7 +127,7 @@ def test_bench_json_holds_every_field(benched):
 def test_report_assembles_every_stage_present(benched):
     text = (benched / "report.md").read_text()
     for heading in ("# quadfdi run report", "## Simulation", "## Export", "## Bench: latency, memory, limits",
-                    "### ONNX Runtime int8 against fp32 in one process", "### Floors", "### Machine limits",
+                    "### int8 against fp32 in one process", "### Floors", "### Machine limits",
                     "### Memory"):
         assert heading in text, heading
     assert "## Training and test metrics\n\nNot run: no metrics.json" in text  # this run has no metrics.json

@@ -107,3 +107,13 @@ def batches_of(x, batch: int, count: int) -> list:
 
     idx = np.arange(batch * count) % len(x)
     return [np.ascontiguousarray(x[idx[k * batch:(k + 1) * batch]]) for k in range(count)]
+
+
+def pair_summary(f32: list[float], i8: list[float], batch: int) -> dict:
+    """p50 of each and the per-round ratios int8 / fp32 time (median, p10, p90): bench/ort_pairs.py and
+    bench/cpp_pairs.py (fp32 and int8 timed in one process, taking turns)."""
+    ratios = [b / a for a, b in zip(f32, i8)]
+    return {"batch": batch, "rounds": len(ratios), "fp32_p50_us": percentile(f32, 50),
+            "int8_p50_us": percentile(i8, 50),
+            "int8_over_fp32_median": percentile(ratios, 50), "int8_over_fp32_p10": percentile(ratios, 10),
+            "int8_over_fp32_p90": percentile(ratios, 90)}
