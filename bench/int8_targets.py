@@ -41,11 +41,17 @@ def _row(target: str, model: str, precision: str, measured: float, threshold: fl
             "met": bool(met), "detail": detail}
 
 
+def _pair(pairs: dict | None, model: str, batch: int) -> dict | None:
+    """``model``'s summary at ``batch`` in bench.json's ``ort_pairs`` or ``cpp_pairs`` (None: not measured)."""
+    got = (pairs or {}).get(model)
+    return next((p for p in got if p.get("batch") == batch and p.get("rounds")), None) if isinstance(got, list) else None
+
+
 def _ort_ratio(records: list[dict], pairs: dict | None, model: str, batch: int) -> tuple[float, str] | None:
     """(int8 / fp32 time, how it was measured) at ``batch``: the paired rounds if there, else the p50s."""
-    for p in (pairs or {}).get(model, []):
-        if p.get("batch") == batch and p.get("rounds"):
-            return p["int8_over_fp32_median"], (
+    p = _pair(pairs, model, batch)
+    if p is not None:
+        return p["int8_over_fp32_median"], (
                 f"ORT 1 thread, spinning off, batch {batch}, fp32 and int8 interleaved in one process, {p['rounds']} "
                 f"rounds: int8 / fp32 time median {p['int8_over_fp32_median']:.2f} (rounds' p10-p90 "
                 f"{p['int8_over_fp32_p10']:.2f}-{p['int8_over_fp32_p90']:.2f}); p50 fp32 {p['fp32_p50_us']:.1f} us, "
@@ -59,9 +65,9 @@ def _ort_ratio(records: list[dict], pairs: dict | None, model: str, batch: int) 
 
 def _cpp_speedup(records: list[dict], pairs: dict | None, model: str) -> tuple[float, str] | None:
     """(int8 speed-up over fp32, how it was measured) at batch 1: the paired rounds if there, else the p50s."""
-    for p in (pairs or {}).get(model, []):
-        if p.get("batch") == 1 and p.get("rounds"):
-            return 1 / p["int8_over_fp32_median"], (
+    p = _pair(pairs, model, 1)
+    if p is not None:
+        return 1 / p["int8_over_fp32_median"], (
                 f"C++ fp32 and int8 in one process (fwref_pair), {p['rounds']} rounds: int8 / fp32 time median "
                 f"{p['int8_over_fp32_median']:.3f} (rounds' p10-p90 {p['int8_over_fp32_p10']:.2f}-"
                 f"{p['int8_over_fp32_p90']:.2f}); p50 fp32 {p['fp32_p50_us']:.1f} us, int8 {p['int8_p50_us']:.1f} us")

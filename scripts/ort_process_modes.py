@@ -10,8 +10,9 @@ ratio stays put while the times move, interleaving within one process (what the 
 cancels the mode and separate processes per graph (the latency table) do not.
 
 ``--per-round-sweep`` instead runs, in this one process, bench.ort_pairs.paired_times with 1, 4, 16
-and 64 timed calls per graph and round (each after one untimed call) and prints the medians: whether
-the two graphs evict each other's caches enough to change the ratio.
+and 64 timed calls per graph and round (each after one untimed call) and prints the medians, also
+split by which graph went first in the round: whether the two graphs evict each other's caches
+enough to change the ratio, and whether the turn order biases it.
 """
 
 from __future__ import annotations
@@ -50,9 +51,10 @@ def per_round_sweep(paths: list[str]) -> int:
     calls = tuple((lambda v, q=q, n=n: q.run(None, {n: v})) for q, n in zip(sessions, names))
     for per_round in (1, 4, 16, 64):
         f32, i8 = paired_times(calls, list(x), max(2, 320 // per_round), per_round, 30, 10.0, 2)
-        ratio = percentile([b / a for a, b in zip(f32, i8)], 50)
+        ratios = [b / a for a, b in zip(f32, i8)]
         print(f"{per_round} calls per round: fp32 {percentile(f32, 50):.1f} us, int8 {percentile(i8, 50):.1f} us, "
-              f"int8 / fp32 median {ratio:.3f}")
+              f"int8 / fp32 median {percentile(ratios, 50):.3f} (fp32-first rounds {percentile(ratios[0::2], 50):.3f}, "
+              f"int8-first {percentile(ratios[1::2], 50):.3f})")
     return 0
 
 
