@@ -22,7 +22,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from core.errors import QuadfdiError
+from quadfdi.core.errors import QuadfdiError
 
 DESCRIPTION = "Latency, memory and machine limits of a run's deployed runtimes -> bench.json."
 
@@ -33,8 +33,8 @@ def _command(args: argparse.Namespace) -> str:
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
-    from core.cliargs import add_config_args
-    from core.config import BenchConfig
+    from quadfdi.core.cliargs import add_config_args
+    from quadfdi.core.config import BenchConfig
 
     p = sub.add_parser("bench", help="latency, memory and limits of a run's deployed runtimes (bench.json)",
                        description=DESCRIPTION)
@@ -70,8 +70,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def run_bench(args: argparse.Namespace) -> int:
-    from bench.run import bench_run
-    from core.rundir import open_run
+    from quadfdi.bench.run import bench_run
+    from quadfdi.core.rundir import open_run
 
     if args.run is None:
         raise QuadfdiError("quadfdi bench needs --run <run folder> (a run with an export: quadfdi export --run ...)")
@@ -82,7 +82,7 @@ def run_bench(args: argparse.Namespace) -> int:
 
 
 def run_limits(args: argparse.Namespace) -> int:
-    from bench.limits import measure_limits
+    from quadfdi.bench.limits import measure_limits
 
     limits = measure_limits(args.cpus, args.quick, log=lambda s: print(s, file=sys.stderr))
     print(json.dumps(limits, indent=1))
@@ -91,11 +91,11 @@ def run_limits(args: argparse.Namespace) -> int:
 
 def run_kernels(args: argparse.Namespace) -> int:
     """Print the per-kernel instruction table of the run's weights.bin (bench.kernels)."""
-    from bench.kernels import kernel_counts, kernels_table
-    from bench.latency import find_fwref
-    from bench.run import test_windows
-    from core.jsonio import read_json, write_json
-    from core.rundir import open_run
+    from quadfdi.bench.kernels import kernel_counts, kernels_table
+    from quadfdi.bench.latency import find_fwref
+    from quadfdi.bench.run import test_windows
+    from quadfdi.core.jsonio import read_json, write_json
+    from quadfdi.core.rundir import open_run
 
     run, _cfg = open_run(args.run, [], need=("dataset", "export"))
     manifest = read_json(run.export / "manifest.json")
@@ -116,11 +116,11 @@ def run_kernels(args: argparse.Namespace) -> int:
 
 def run_stream(args: argparse.Namespace) -> int:
     """The stream section alone (bench.stream), printed as report.md would show it."""
-    from bench.latency import check_cpus
-    from bench.report_stream import stream_report
-    from bench.stream import stream_section
-    from core.jsonio import read_json, write_json
-    from core.rundir import open_run
+    from quadfdi.bench.latency import check_cpus
+    from quadfdi.bench.report_stream import stream_report
+    from quadfdi.bench.stream import stream_section
+    from quadfdi.core.jsonio import read_json, write_json
+    from quadfdi.core.rundir import open_run
 
     cpus = check_cpus(args.cpus)
     if args.flights < 1:

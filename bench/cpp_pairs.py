@@ -27,9 +27,9 @@ from pathlib import Path
 
 import numpy as np
 
-from bench.limits import cpu_prefix
-from bench.runtimes.common import pair_summary
-from core.errors import QuadfdiError
+from quadfdi.bench.limits import cpu_prefix
+from quadfdi.bench.runtimes.common import pair_summary
+from quadfdi.core.errors import QuadfdiError
 
 PER_ROUND = 4  # timed calls per precision and round
 MODELS = ("cnode", "gru")

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from bench.report_fmt import RUNTIME_ORDER, setting
-from core.plotting import pyplot, save_png
+from quadfdi.bench.report_fmt import RUNTIME_ORDER, setting
+from quadfdi.core.plotting import pyplot, save_png
 
 
 def _save(fig, path: Path) -> None:

@@ -18,7 +18,7 @@ one). A pair of records the bench did not measure gives no row.
 
 from __future__ import annotations
 
-from bench.floors import below_floor, floor_for
+from quadfdi.bench.floors import below_floor, floor_for
 
 INT8_FLOOR_X = 3.0  # issue 15: int8 within 3x of its floor (fp32: 2x, issue 6's row)
 GRU_INT8_SPEEDUP = 1.5  # issue 15: the C++ GRU int8 at least 1.5x faster than its fp32

@@ -23,9 +23,9 @@ from pathlib import Path
 
 import numpy as np
 
-from bench.profile import CALLGRIND_TOGGLE, parse_callgrind_annotate
-from core.errors import QuadfdiError
-from core.tables import md_table
+from quadfdi.bench.profile import CALLGRIND_TOGGLE, parse_callgrind_annotate
+from quadfdi.core.errors import QuadfdiError
+from quadfdi.core.tables import md_table
 
 WINDOWS_LONG, WINDOWS_SHORT = 8, 4
 # What to do when valgrind cannot decode the build's instructions: on an AVX-512 CPU the host build's

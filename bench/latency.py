@@ -34,10 +34,10 @@ from typing import Callable
 
 import numpy as np
 
-from bench.limits import cpu_prefix, run_json, worker_env
-from bench.ort_pairs import measure_ort_pairs
-from core.config import BenchConfig
-from core.errors import QuadfdiError
+from quadfdi.bench.limits import cpu_prefix, run_json, worker_env
+from quadfdi.bench.ort_pairs import measure_ort_pairs
+from quadfdi.core.config import BenchConfig
+from quadfdi.core.errors import QuadfdiError
 
 ROOT = Path(__file__).resolve().parents[1]
 DEFAULT_FWREF = ROOT / "firmware_ref" / "build" / "fwref_infer"
@@ -170,7 +170,7 @@ def check_cpus(cpus: str) -> str:
 
 
 def worker_cmd(spec: Spec, windows: Path, counts: Counts, cpus: str, time_exe: str | None) -> list[str]:
-    cmd = [*cpu_prefix(cpus), sys.executable, "-m", "bench.latency_worker", "--runtime", spec.runtime,
+    cmd = [*cpu_prefix(cpus), sys.executable, "-m", "quadfdi.bench.latency_worker", "--runtime", spec.runtime,
            "--model", spec.model, "--precision", spec.precision, "--solver", spec.solver,
            "--threads", str(spec.threads), "--spinning", spec.spinning, "--windows", str(windows),
            "--artifact", spec.artifact, "--n", str(counts.n), "--warmup", str(counts.warmup),

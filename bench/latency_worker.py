@@ -1,4 +1,4 @@
-"""One latency measurement in a fresh process: ``python -m bench.latency_worker ...`` prints JSON.
+"""One latency measurement in a fresh process: ``python -m quadfdi.bench.latency_worker ...`` prints JSON.
 
 ``bench.latency`` starts one worker per (runtime, model, precision, solver, threads, spinning),
 pinned to the benchmark cores with taskset, so that no runtime inherits another's thread pools,
@@ -32,10 +32,10 @@ import os
 import sys
 from pathlib import Path
 
-from bench.runtimes.common import MIN_SAMPLES, WARMUP_SECONDS, batches_of, peak_rss_kib, proc_status_kib, \
+from quadfdi.bench.runtimes.common import MIN_SAMPLES, WARMUP_SECONDS, batches_of, peak_rss_kib, proc_status_kib, \
     reset_peak_rss, summarise, time_calls
-from bench.runtimes.torch_rt import parse_solver
-from core.config import BenchConfig
+from quadfdi.bench.runtimes.torch_rt import parse_solver
+from quadfdi.core.config import BenchConfig
 
 RUNTIMES = ("torch", "ort", "cpp")
 
@@ -52,15 +52,15 @@ def measure(args) -> dict:
     if x.ndim != 3 or x.dtype != np.float32:
         raise ValueError(f"{args.windows} must hold (n, W, C) float32 windows, found {x.shape} {x.dtype}")
     if args.runtime == "cpp":
-        from bench.runtimes.cpp_rt import cpp_measure
+        from quadfdi.bench.runtimes.cpp_rt import cpp_measure
 
         got = cpp_measure(args, x)
         b1, bn, mem, info = got["batch1"], got["batchN"], got["memory"], got["info"]
     else:
         if args.runtime == "torch":
-            from bench.runtimes.torch_rt import torch_runtime as adapter  # imports torch: in the baseline
+            from quadfdi.bench.runtimes.torch_rt import torch_runtime as adapter  # imports torch: in the baseline
         else:
-            from bench.runtimes.ort_rt import ort_runtime as adapter  # imports onnxruntime: in the baseline
+            from quadfdi.bench.runtimes.ort_rt import ort_runtime as adapter  # imports onnxruntime: in the baseline
         baseline = proc_status_kib("VmRSS")
         reset = reset_peak_rss()
         if not reset:
@@ -93,7 +93,7 @@ def measure(args) -> dict:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="python -m bench.latency_worker", description=__doc__.splitlines()[0])
+    p = argparse.ArgumentParser(prog="python -m quadfdi.bench.latency_worker", description=__doc__.splitlines()[0])
     p.add_argument("--runtime", choices=RUNTIMES, required=True)
     p.add_argument("--model", choices=("cnode", "gru"), required=True)
     p.add_argument("--precision", choices=("fp32", "int8"), default="fp32")
@@ -136,7 +136,7 @@ def main(argv: list[str] | None = None) -> int:
         if args.profile:
             if args.runtime != "ort":
                 raise ValueError("--profile is for --runtime ort")
-            from bench.runtimes.ort_rt import profile
+            from quadfdi.bench.runtimes.ort_rt import profile
 
             out = {**base_record(args), **profile(args)}
             Path(args.profile).write_text(json.dumps(out, indent=1) + "\n")

@@ -20,7 +20,7 @@ shared machine interference only ever slows a trial down, so the fastest trial i
   one (1, W, C) window, one intra-op thread; ``ort_node_us``: its cost per extra small node (a
   chain of 256 Add nodes on a (1, 64) tensor, minus the call, over 256).
 
-``python -m bench.limits --threads T`` measures the in-process parts (matrix products, ORT) in a
+``python -m quadfdi.bench.limits --threads T`` measures the in-process parts (matrix products, ORT) in a
 fresh process and prints JSON; ``measure_limits`` runs it pinned to the benchmark cores for T = 1
 and 2 and runs the bandwidth probe: one pass. ``bench.run`` makes a full pass before the latencies
 and a 1-thread pass after them, and ``merge_limits`` keeps the best of the two.
@@ -40,9 +40,9 @@ import time
 from pathlib import Path
 from typing import Callable
 
-from bench.probes import (L1_OVER_L2_MIN, bandwidth, build_checked_probe, cache_sizes, fma_peak, l2_probe_kib,
+from quadfdi.bench.probes import (L1_OVER_L2_MIN, bandwidth, build_checked_probe, cache_sizes, fma_peak, l2_probe_kib,
                           numpy_bandwidth, probe_sizes_kib, time_call)
-from core.errors import QuadfdiError
+from quadfdi.core.errors import QuadfdiError
 
 # (label, M, K, N): the models' products at batch 1 and 96, plus a large one that reaches the peak.
 #   cnode field lin1 (z and u concatenated: L + C = 63 -> H = 64), lin2 (64 -> 40);
@@ -94,7 +94,7 @@ def gemm_rates(threads: int, quick: bool) -> list[dict]:
 
 
 def _ort_session(model_bytes: bytes, threads: int):
-    from export.ort_session import session
+    from quadfdi.export.ort_session import session
 
     return session(model_bytes, threads, spinning=False)
 
@@ -171,8 +171,8 @@ def ort_call_cost(window: int, channels: int, quick: bool) -> dict:
 
 
 def worker_main(argv: list[str] | None = None) -> int:
-    """``python -m bench.limits --threads T``: the in-process limits as one JSON line on stdout."""
-    p = argparse.ArgumentParser(prog="python -m bench.limits")
+    """``python -m quadfdi.bench.limits --threads T``: the in-process limits as one JSON line on stdout."""
+    p = argparse.ArgumentParser(prog="python -m quadfdi.bench.limits")
     p.add_argument("--threads", type=int, default=1)
     p.add_argument("--quick", action="store_true")
     p.add_argument("--window", type=int, default=80)
@@ -197,9 +197,7 @@ def cpu_prefix(cpus: str) -> list[str]:
 
 def worker_env(threads: int) -> dict[str, str]:
     """Environment of a fresh benchmark process: every thread pool sized before any library loads."""
-    root = str(Path(__file__).resolve().parents[1])
     env = dict(os.environ)
-    env["PYTHONPATH"] = root + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
     for var in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS"):
         env[var] = str(threads)
     return env
@@ -232,7 +230,7 @@ def measure_limits(cpus: str = "0,1", quick: bool = False, window: int = 80, cha
     prefix = cpu_prefix(cpus)
     per_threads = {}
     for t in threads:
-        cmd = [*prefix, sys.executable, "-m", "bench.limits", "--threads", str(t),
+        cmd = [*prefix, sys.executable, "-m", "quadfdi.bench.limits", "--threads", str(t),
                "--window", str(window), "--channels", str(channels)] + (["--quick"] if quick else [])
         per_threads[t] = run_json(cmd, worker_env(t), f"limits worker ({t} threads)", 600)
     caches = cache_sizes()

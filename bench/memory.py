@@ -26,7 +26,7 @@ from __future__ import annotations
 import shutil
 from pathlib import Path
 
-from core.reportmd import optional_json
+from quadfdi.core.reportmd import optional_json
 
 MCU_ITEMS = ("flash_bytes", "weights_bytes", "static_ram_bytes", "stack_peak_bytes")
 
@@ -38,7 +38,7 @@ def rec(model, runtime, precision, item: str, value, unit: str, source: str, sol
 
 def parameter_counts(run_root: Path) -> dict[str, int]:
     """Trainable parameters per model kind, from the checkpoints (normalisation buffers excluded)."""
-    from train.checkpoint import load_checkpoint
+    from quadfdi.train.checkpoint import load_checkpoint
 
     out = {}
     for kind in ("cnode", "gru"):
@@ -89,7 +89,7 @@ def static_ram_records(fwref: str | None) -> list[dict]:
     exe = shutil.which("size")
     if exe is None:
         return []  # no binutils: the host program's static RAM is not reported
-    from parity.mcu import section_sizes
+    from quadfdi.parity.mcu import section_sizes
 
     s = section_sizes(fwref, exe)
     data = s.get(".data", 0) + s.get(".tdata", 0)

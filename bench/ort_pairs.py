@@ -21,7 +21,7 @@ rounds over the bench's seeded sample of windows (cycled); batch ``counts.batch`
 ``--quick`` keeps ``counts.batches``) of consecutive windows. Each loop also stops at twice
 ``counts.budget_s`` (two graphs), never below ``counts.min_samples`` rounds.
 
-``python -m bench.ort_pairs --fp32 A.onnx --int8 B.onnx --windows W.npy ...`` is the worker; it
+``python -m quadfdi.bench.ort_pairs --fp32 A.onnx --int8 B.onnx --windows W.npy ...`` is the worker; it
 prints one JSON line. ``measure_ort_pairs`` runs one worker per model under taskset.
 """
 
@@ -34,8 +34,8 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
-from bench.limits import cpu_prefix, run_json, worker_env
-from bench.runtimes.common import batches_of, pair_summary, percentile
+from quadfdi.bench.limits import cpu_prefix, run_json, worker_env
+from quadfdi.bench.runtimes.common import batches_of, pair_summary, percentile
 
 PAIR_BATCH_ROUNDS = 30  # batch-96 rounds: the latency table's 10 batches are few for a median of ratios
 PER_ROUND_1 = 4  # timed batch-1 calls per graph and round (the bench's n windows make n / 4 rounds)
@@ -76,9 +76,9 @@ def paired_times(calls: tuple[Callable, Callable], inputs: list, rounds: int, pe
 def worker_main(argv: list[str] | None = None) -> int:
     import numpy as np
 
-    from export.ort_session import session
+    from quadfdi.export.ort_session import session
 
-    ap = argparse.ArgumentParser(prog="python -m bench.ort_pairs")
+    ap = argparse.ArgumentParser(prog="python -m quadfdi.bench.ort_pairs")
     ap.add_argument("--fp32", required=True)
     ap.add_argument("--int8", required=True)
     ap.add_argument("--windows", required=True)
@@ -111,7 +111,7 @@ def measure_ort_pairs(export: Path, manifest: dict, windows: Path, counts, cpus:
         arts = [manifest["artifacts"].get(f"{model}_{p}") for p in ("fp32", "int8")]
         if not all(arts):
             continue
-        cmd = [*cpu_prefix(cpus), sys.executable, "-m", "bench.ort_pairs", "--fp32", str(export / arts[0]),
+        cmd = [*cpu_prefix(cpus), sys.executable, "-m", "quadfdi.bench.ort_pairs", "--fp32", str(export / arts[0]),
                "--int8", str(export / arts[1]), "--windows", str(windows), "--n", str(counts.n),
                "--warmup", str(counts.warmup), "--batch", str(counts.batch), "--batch-rounds", str(rounds),
                "--min-samples", str(counts.min_samples), "--budget-s", str(counts.budget_s)]

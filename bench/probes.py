@@ -15,7 +15,7 @@ import time
 from pathlib import Path
 from typing import Callable
 
-from core.errors import QuadfdiError
+from quadfdi.core.errors import QuadfdiError
 
 L2_PROBE_KIB_DEFAULT = 512
 L2BW_SOURCE = Path(__file__).resolve().parent / "cpp" / "l2bw.cpp"

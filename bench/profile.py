@@ -25,7 +25,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-from bench.limits import run_json, worker_env
+from quadfdi.bench.limits import run_json, worker_env
 
 CALLGRIND_LINE = re.compile(r"^\s*([\d,]+)\s+\(\s*[\d.]+%\)\s+(.*)$")
 
@@ -143,7 +143,7 @@ def ort_profile(artifact: str, windows_npy: str, model: str, precision: str, sol
     """Per-op-type ONNX Runtime profile of batch-1 calls, one thread, in a fresh pinned process."""
     import json
 
-    cmd = [*cpus_prefix, sys.executable, "-m", "bench.latency_worker", "--runtime", "ort", "--model", model,
+    cmd = [*cpus_prefix, sys.executable, "-m", "quadfdi.bench.latency_worker", "--runtime", "ort", "--model", model,
            "--precision", precision, "--solver", solver, "--threads", "1", "--spinning", "off",
            "--windows", windows_npy, "--artifact", artifact, "--n", str(n), "--profile", str(out_json)]
     run_json(cmd, worker_env(1), f"ORT profile of {model} {precision}", 600)

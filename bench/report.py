@@ -12,13 +12,13 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from bench.figures import draw_bench_figures
-from bench.report_fmt import RUNTIME_NAME, RUNTIME_ORDER, nbytes, setting, us
-from bench.report_stream import stream_report
-from bench.report_targets import targets_section
-from core.errors import QuadfdiError
-from core.reportmd import figure_links, not_run, num, optional_json
-from core.tables import md_table
+from quadfdi.bench.figures import draw_bench_figures
+from quadfdi.bench.report_fmt import RUNTIME_NAME, RUNTIME_ORDER, nbytes, setting, us
+from quadfdi.bench.report_stream import stream_report
+from quadfdi.bench.report_targets import targets_section
+from quadfdi.core.errors import QuadfdiError
+from quadfdi.core.reportmd import figure_links, not_run, num, optional_json
+from quadfdi.core.tables import md_table
 
 HEADING = "## Bench: latency, memory, limits"
 

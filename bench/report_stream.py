@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-from bench.report_fmt import us
-from core.tables import md_table
+from quadfdi.bench.report_fmt import us
+from quadfdi.core.tables import md_table
 
 
 def stream_report(bench: dict) -> list[str]:

@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-from bench.report_fmt import nbytes, us
-from core.tables import md_table
+from quadfdi.bench.report_fmt import nbytes, us
+from quadfdi.core.tables import md_table
 
 
 def _why_cpp_floor(t: dict, bench: dict) -> list[str]:

@@ -25,9 +25,9 @@ import time
 from pathlib import Path
 from typing import Callable
 
-from core.config import BenchConfig, Config
-from core.errors import QuadfdiError
-from core.rundir import RunDir
+from quadfdi.core.config import BenchConfig, Config
+from quadfdi.core.errors import QuadfdiError
+from quadfdi.core.rundir import RunDir
 
 SCHEMA_VERSION = 1
 SOLVERS_JSON = Path("solvers") / "solvers.json"  # written by solverstudy.run.study_run
@@ -45,7 +45,7 @@ def _machine(cpus: str) -> dict:
     import onnxruntime
     import torch
 
-    from core.machine import cpu_facts
+    from quadfdi.core.machine import cpu_facts
 
     return {**cpu_facts(), "pinned_cpus": cpus, "date": datetime.date.today().isoformat(),
             "python": platform.python_version(), "torch": torch.__version__, "onnxruntime": onnxruntime.__version__,
@@ -57,9 +57,9 @@ def _profiles(run: RunDir, manifest: dict, test_x, fwref: str | None, fw_flags: 
     """ORT per-op profiles and C++ callgrind counts (bench.profile), keyed 'model_precision'."""
     import numpy as np
 
-    from bench.latency import sample_windows
-    from bench.limits import cpu_prefix
-    from bench.profile import callgrind_cpp, ort_profile, simd_share
+    from quadfdi.bench.latency import sample_windows
+    from quadfdi.bench.limits import cpu_prefix
+    from quadfdi.bench.profile import callgrind_cpp, ort_profile, simd_share
 
     t0 = time.perf_counter()
     out: dict = {"ort": {}, "cpp": {}}
@@ -108,14 +108,14 @@ def solver_records(run_root: Path) -> tuple[list, dict]:
     if not path.is_file():
         return [], {"note": f"no solver study in this run ({SOLVERS_JSON} absent; the solvers stage of "
                             "`quadfdi run` writes it)"}
-    from solverstudy.report import load_records
+    from quadfdi.solverstudy.report import load_records
 
     return list(load_records(run_root)), {"file": str(SOLVERS_JSON)}
 
 
 def test_windows(run: RunDir, manifest: dict):
     """The run's test windows, checked against the export and the checkpoints."""
-    from sim.dataset import load_dataset, make_windows
+    from quadfdi.sim.dataset import load_dataset, make_windows
 
     for kind in ("cnode", "gru"):
         if not run.checkpoint(kind).is_file():
@@ -134,7 +134,7 @@ def _private_fwref(fwref_path: str | None, tmp: Path) -> tuple[str | None, dict 
     the copy); (copy path, its build flags and sha256), or (None, None)."""
     if not fwref_path:
         return None, None
-    from bench.profile import build_flags
+    from quadfdi.bench.profile import build_flags
 
     fw_copy = str(tmp / "fwref_infer")
     shutil.copy2(fwref_path, fw_copy)
@@ -146,12 +146,12 @@ def _private_fwref(fwref_path: str | None, tmp: Path) -> tuple[str | None, dict 
 def _measure(run: RunDir, cfg: Config, manifest: dict, test_x, fw_copy: str | None, fw_flags: dict | None,
              cpus: str, quick: bool, log: Callable[[str], None]) -> dict:
     """Limits (before and after), latency, floors, profiles and memory, each timed."""
-    from bench.floors import attach_distance, below_floor, floors, violation_text
-    from bench.cpp_pairs import measure_cpp_pairs
-    from bench.latency import Counts, measure_latency, sample_windows
-    from bench.limits import measure_limits, merge_limits
-    from bench.memory import memory_records
-    from bench.stream import stream_section
+    from quadfdi.bench.floors import attach_distance, below_floor, floors, violation_text
+    from quadfdi.bench.cpp_pairs import measure_cpp_pairs
+    from quadfdi.bench.latency import Counts, measure_latency, sample_windows
+    from quadfdi.bench.limits import measure_limits, merge_limits
+    from quadfdi.bench.memory import memory_records
+    from quadfdi.bench.stream import stream_section
 
     timing: dict[str, float] = {}
     window, channels = manifest["window"], manifest["n_channels"]
@@ -207,7 +207,7 @@ def graph_nodes(run: RunDir, manifest: dict) -> dict:
     ``ort_body_nodes``: the nodes in a Scan's body after the optimizer (run once per step)."""
     import onnx
 
-    from export.ort_session import optimized_nodes
+    from quadfdi.export.ort_session import optimized_nodes
 
     out = {}
     for key, name in manifest["artifacts"].items():
@@ -221,9 +221,9 @@ def graph_nodes(run: RunDir, manifest: dict) -> dict:
 def _bench_dict(run: RunDir, manifest: dict, m: dict, machine: dict, fwref: tuple[str | None, str],
                 command: str, quick: bool) -> dict:
     """bench.json's content (docs/bench.md) from the measurements ``m`` of ``_measure``."""
-    from bench.floors import below_floor, targets, violation_text
-    from bench.int8_targets import int8_targets
-    from bench.memory import mcu_records
+    from quadfdi.bench.floors import below_floor, targets, violation_text
+    from quadfdi.bench.int8_targets import int8_targets
+    from quadfdi.bench.memory import mcu_records
 
     solvers, solver_meta = solver_records(run.root)
     fwref_path, fwref_note = fwref
@@ -266,12 +266,12 @@ def bench_run(run: RunDir, cfg: Config, log: Callable[[str], None] = print, *, q
               command: str | None = None) -> dict:
     """The whole bench stage (module doc); returns the bench.json dict. ``cpus`` defaults to
     ``cfg.bench.cpus``; ``quick``, ``skip_cpp`` and ``fwref`` are how to run, not what to measure."""
-    from bench.latency import check_cpus
+    from quadfdi.bench.latency import check_cpus
 
     cpus = check_cpus(cpus or cfg.bench.cpus)  # before the heavy imports: a typo fails at once
 
-    from core.records import load_record
-    from core.stage import stage
+    from quadfdi.core.records import load_record
+    from quadfdi.core.stage import stage
 
     with stage(run.root, "bench", {"bench": cfg.to_dict()["bench"]}, targets=("bench.json",)) as st:
         for entry in (load_record(run.root, "export") or {"outputs": [{"path": "export/manifest.json"}]})["outputs"]:
@@ -289,10 +289,10 @@ def bench_run(run: RunDir, cfg: Config, log: Callable[[str], None] = print, *, q
 
 def _bench_into(run: RunDir, cfg: Config, dest: RunDir, log: Callable[[str], None], quick: bool, skip_cpp: bool,
                 cpus: str, fwref: str | None, command: str | None) -> dict:
-    from bench.latency import find_fwref
-    from bench.figures import draw_bench_figures
-    from core.jsonio import to_jsonable, write_json
-    from export.manifest import check_files, load_manifest
+    from quadfdi.bench.latency import find_fwref
+    from quadfdi.bench.figures import draw_bench_figures
+    from quadfdi.core.jsonio import to_jsonable, write_json
+    from quadfdi.export.manifest import check_files, load_manifest
 
     t_start = time.perf_counter()
     manifest = load_manifest(run.export / "manifest.json")

@@ -24,12 +24,12 @@ from pathlib import Path
 
 import numpy as np
 
-from core.errors import QuadfdiError
+from quadfdi.core.errors import QuadfdiError
 
 
 def pick_flights(dataset, n: int) -> list[int]:
     """Up to ``n`` test flights: round-robin over the classes (the first of each, then the second...)."""
-    from sim.dataset import class_names, split_names
+    from quadfdi.sim.dataset import class_names, split_names
 
     test = [i for i, s in enumerate(split_names(dataset.arrays)) if s == "test"]
     rows = np.flatnonzero(np.isin(dataset["split"], test))
@@ -44,7 +44,7 @@ def find_stream_exe(fwref_infer: str | None) -> tuple[Path | None, str]:
     """fwref_stream beside fwref_infer (the same host build), built there if missing."""
     import shutil
 
-    from parity.build import HOST_BUILD
+    from quadfdi.parity.build import HOST_BUILD
 
     build = Path(fwref_infer).parent if fwref_infer else HOST_BUILD
     exe = build / "fwref_stream"
@@ -59,7 +59,7 @@ def find_stream_exe(fwref_infer: str | None) -> tuple[Path | None, str]:
 
 
 def _record(export: Path) -> dict | None:
-    from detect.streamfile import record_of
+    from quadfdi.detect.streamfile import record_of
 
     try:
         return record_of(export)
@@ -70,11 +70,11 @@ def _record(export: Path) -> dict | None:
 def stream_section(run_root: Path, manifest: dict, fwref_infer: str | None, cpus: str, flights: int,
                    log: Callable[[str], None] = print, cores: tuple[str, ...] = ("cortex-m4", "cortex-m7")) -> dict:
     """The section (module docstring); ``cores``: the Cortex-M cores whose sizeof is compiled."""
-    from bench.limits import cpu_prefix
-    from bench.stream_latency import latency_records
-    from bench.stream_memory import stream_memory
-    from detect.streamfile import from_dataset, write_stream
-    from sim import dataset as sim_dataset
+    from quadfdi.bench.limits import cpu_prefix
+    from quadfdi.bench.stream_latency import latency_records
+    from quadfdi.bench.stream_memory import stream_memory
+    from quadfdi.detect.streamfile import from_dataset, write_stream
+    from quadfdi.sim import dataset as sim_dataset
 
     t0 = time.perf_counter()
     export = run_root / "export"

@@ -36,8 +36,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from core.coerce import coerce
-from core.errors import QuadfdiError
+from quadfdi.core.coerce import coerce
+from quadfdi.core.errors import QuadfdiError
 
 # The rotor-side classes by name (train.motor.ROTOR_SIDE_CLASSES; core cannot import train: a test
 # checks they agree). Rule 5 reports a motor for these alarm classes only.

@@ -12,7 +12,7 @@ import tempfile
 from pathlib import Path
 from typing import Iterator
 
-from core.errors import QuadfdiError
+from quadfdi.core.errors import QuadfdiError
 
 
 def ensure_dir(path: str | os.PathLike) -> Path:

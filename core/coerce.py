@@ -6,7 +6,7 @@ from __future__ import annotations
 import math
 from typing import Any, get_args, get_origin
 
-from core.errors import QuadfdiError
+from quadfdi.core.errors import QuadfdiError
 
 
 def coerce(value: Any, typ: Any, where: str) -> Any:

@@ -13,14 +13,14 @@ from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any, get_type_hints
 
-from core.errors import QuadfdiError
-from core.tomlio import dumps_toml  # noqa: F401 (re-exported: the run folder writes it)
-from core.limits import FIRMWARE_MAX_STEPS, MAX_THREADS, check_dataset_memory, dataset_bytes
-from core.evalconfig import AlarmConfig, EvaluateConfig  # [alarm], [evaluate], [run]: own modules (400-line cap)
-from core.runconfig import RunConfig
-from core.overrides import parse_override as _parse_override  # own module (400-line cap)
-from core.coerce import coerce as _coerce  # own module (400-line cap)
-from core.profiles import check_profile
+from quadfdi.core.errors import QuadfdiError
+from quadfdi.core.tomlio import dumps_toml  # noqa: F401 (re-exported: the run folder writes it)
+from quadfdi.core.limits import FIRMWARE_MAX_STEPS, MAX_THREADS, check_dataset_memory, dataset_bytes
+from quadfdi.core.evalconfig import AlarmConfig, EvaluateConfig  # [alarm], [evaluate], [run]: own modules (400-line cap)
+from quadfdi.core.runconfig import RunConfig
+from quadfdi.core.overrides import parse_override as _parse_override  # own module (400-line cap)
+from quadfdi.core.coerce import coerce as _coerce  # own module (400-line cap)
+from quadfdi.core.profiles import check_profile
 
 
 @dataclass(frozen=True)

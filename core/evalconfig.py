@@ -6,8 +6,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from core.alarm import AlarmConfig  # the [alarm] section; config.py takes both from here
-from core.errors import QuadfdiError
+from quadfdi.core.alarm import AlarmConfig  # the [alarm] section; config.py takes both from here
+from quadfdi.core.errors import QuadfdiError
 
 
 def parse_kn(text: str) -> tuple[int, int]:

@@ -27,9 +27,9 @@ from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from core.errors import QuadfdiError
-from core.jobcache import is_cached, remove_partial
-from core.jobs import ATTEMPTS, Job, JobResult, canary, check_canaries, execute_job, one_line  # noqa: F401 (API)
+from quadfdi.core.errors import QuadfdiError
+from quadfdi.core.jobcache import is_cached, remove_partial
+from quadfdi.core.jobs import ATTEMPTS, Job, JobResult, canary, check_canaries, execute_job, one_line  # noqa: F401 (API)
 
 
 def add_executor_args(p: argparse.ArgumentParser) -> None:
@@ -133,7 +133,7 @@ def run_jobs(jobs: Sequence[Job], settings: ExecSettings = SERIAL, desc: str = "
             if todo and settings.in_process(len(todo)):
                 _run_here(todo, done)
             elif todo:
-                from core.executor_dask import run_on_dask
+                from quadfdi.core.executor_dask import run_on_dask
 
                 run_on_dask(todo, settings, done, log)
         finally:  # also when interrupted: the local workers are gone, their temp files go too
@@ -154,7 +154,7 @@ def session(settings: ExecSettings, log: Callable[[str], None] = print) -> Itera
     if settings.scheduler == "local" and settings.n_local == 1:
         yield
         return
-    from core.executor_dask import held_client
+    from quadfdi.core.executor_dask import held_client
 
     with held_client(settings, log):
         yield

@@ -14,9 +14,8 @@ import dask
 from distributed import Client, LocalCluster, as_completed
 from distributed.diagnostics.plugin import WorkerPlugin
 
-from core.errors import QuadfdiError
-from core.jobs import ATTEMPTS, Job, JobResult, canary, check_canaries, describe, execute_job, one_line
-from core.jobcache import ROOT
+from quadfdi.core.errors import QuadfdiError
+from quadfdi.core.jobs import ATTEMPTS, Job, JobResult, canary, check_canaries, describe, execute_job, one_line
 
 # One job per worker process, one core per job: BLAS/OpenMP pools of one thread each, or two
 # workers on two cores would each start two threads and fight (see train.threads in core.config).
@@ -36,9 +35,8 @@ class OneThread(WorkerPlugin):
 
 
 def _worker_env() -> dict[str, str]:
-    # Spawned worker processes import the stages by name: give them this checkout on their path.
-    path = [str(ROOT)] + [p for p in os.environ.get("PYTHONPATH", "").split(os.pathsep) if p]
-    return {"PYTHONPATH": os.pathsep.join(dict.fromkeys(path)), **THREAD_ENV}
+    # Spawned workers import quadfdi from the same environment as this process (the installed package).
+    return dict(THREAD_ENV)
 
 
 def _has_bokeh() -> bool:

@@ -24,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from core.errors import QuadfdiError
+from quadfdi.core.errors import QuadfdiError
 
 ROOT = Path(__file__).resolve().parents[1]
 CACHE_DIR = "cache"  # <run>/cache/<kind>/<key>.<ext>
@@ -114,10 +114,10 @@ def is_cached(path: str | os.PathLike) -> bool:
 
 def write_result(path: str | os.PathLike, value: Any) -> None:
     """Write a job's return value: a dict of arrays to ``.npz``, a JSON-able value to ``.json``."""
-    from core.jsonio import write_json
-    from core.npzio import write_npz
+    from quadfdi.core.jsonio import write_json
+    from quadfdi.core.npzio import write_npz
 
-    from core.atomic import write_bytes
+    from quadfdi.core.atomic import write_bytes
 
     p = Path(path)
     if p.suffix == ".bin":  # opaque bytes, e.g. a torch.save of a trained model
@@ -133,8 +133,8 @@ def write_result(path: str | os.PathLike, value: Any) -> None:
 
 
 def read_result(path: str | os.PathLike) -> Any:
-    from core.jsonio import read_json
-    from core.npzio import read_npz
+    from quadfdi.core.jsonio import read_json
+    from quadfdi.core.npzio import read_npz
 
     p = Path(path)
     if p.suffix == ".bin":

@@ -19,8 +19,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from core.errors import QuadfdiError
-from core.jobcache import is_cached, write_result
+from quadfdi.core.errors import QuadfdiError
+from quadfdi.core.jobcache import is_cached, write_result
 
 ATTEMPTS = 3  # a job failing this many times becomes a failed row
 

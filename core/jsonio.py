@@ -10,8 +10,8 @@ from typing import Any
 
 import numpy as np
 
-from core.atomic import write_text
-from core.errors import QuadfdiError
+from quadfdi.core.atomic import write_text
+from quadfdi.core.errors import QuadfdiError
 
 
 def to_jsonable(d: Any) -> Any:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from core.errors import QuadfdiError
+from quadfdi.core.errors import QuadfdiError
 
 # Bytes of dataset.npz per (trajectory, sample): telemetry, states, severity and the actuator
 # arrays, float32 (measured: 24 trajectories x 200 samples make 1.28 MB). Generation holds the

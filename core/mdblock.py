@@ -9,8 +9,8 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
-from core.atomic import write_text
-from core.errors import QuadfdiError
+from quadfdi.core.atomic import write_text
+from quadfdi.core.errors import QuadfdiError
 
 
 def markers(name: str) -> tuple[str, str]:

@@ -12,8 +12,8 @@ from pathlib import Path
 
 import numpy as np
 
-from core.atomic import atomic_path
-from core.errors import QuadfdiError
+from quadfdi.core.atomic import atomic_path
+from quadfdi.core.errors import QuadfdiError
 
 _ZIP_EPOCH = (1980, 1, 1, 0, 0, 0)  # fixed timestamps: same content, same bytes
 

@@ -6,7 +6,7 @@ from __future__ import annotations
 import tomllib
 from typing import Any
 
-from core.errors import QuadfdiError
+from quadfdi.core.errors import QuadfdiError
 
 
 def parse_override(text: str) -> tuple[str, str, Any]:

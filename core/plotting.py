@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from core.atomic import atomic_path
+from quadfdi.core.atomic import atomic_path
 
 
 def pyplot():

@@ -28,8 +28,8 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from core.errors import QuadfdiError
-from core.jsonio import read_json, write_json
+from quadfdi.core.errors import QuadfdiError
+from quadfdi.core.jsonio import read_json, write_json
 
 INDEX_NAME = Path("predictions") / "index.json"
 REQUIRED = ("proba", "y_true", "traj", "t_end", "split", "class_names")

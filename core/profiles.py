@@ -28,8 +28,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from core.errors import QuadfdiError
-from core.hover import INPUTS as HOVER_INPUTS
+from quadfdi.core.errors import QuadfdiError
+from quadfdi.core.hover import INPUTS as HOVER_INPUTS
 
 DEFAULT_PROFILE = "paper"
 

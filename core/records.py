@@ -16,7 +16,7 @@ import shutil
 from pathlib import Path
 from typing import Any
 
-from core.errors import QuadfdiError
+from quadfdi.core.errors import QuadfdiError
 
 SCHEMA_VERSION = 1
 STAGING, PUBLISH, STAGES = ".staging", ".publish", ".stages"

@@ -10,7 +10,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any, Sequence
 
-from core.jsonio import read_json
+from quadfdi.core.jsonio import read_json
 
 
 def num(x: float | None, nd: int = 1) -> str:

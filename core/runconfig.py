@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from core.errors import QuadfdiError
+from quadfdi.core.errors import QuadfdiError
 
 
 @dataclass(frozen=True)

@@ -8,10 +8,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-from core.atomic import ensure_dir
-from core.config import Config, load_config
-from core.errors import QuadfdiError
-from core.stage import recover_run
+from quadfdi.core.atomic import ensure_dir
+from quadfdi.core.config import Config, load_config
+from quadfdi.core.errors import QuadfdiError
+from quadfdi.core.stage import recover_run
 
 
 @dataclass(frozen=True)

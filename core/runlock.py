@@ -19,7 +19,7 @@ import time
 from pathlib import Path
 from typing import Iterator
 
-from core.errors import QuadfdiError
+from quadfdi.core.errors import QuadfdiError
 
 LOCK_NAME = ".lock"
 _HELD: dict[str, list[int]] = {}  # realpath of the run folder -> [fd, depth]

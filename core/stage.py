@@ -32,11 +32,11 @@ import tempfile
 from pathlib import Path
 from typing import Any, Iterator
 
-from core import records
-from core.atomic import ensure_dir, write_text
-from core.errors import QuadfdiError
-from core.jsonio import dumps_json
-from core.runlock import run_lock
+from quadfdi.core import records
+from quadfdi.core.atomic import ensure_dir, write_text
+from quadfdi.core.errors import QuadfdiError
+from quadfdi.core.jsonio import dumps_json
+from quadfdi.core.runlock import run_lock
 
 
 def fault_point(stage: str, point: str) -> None:

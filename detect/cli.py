@@ -26,10 +26,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from core.errors import QuadfdiError
-    from detect.run import detect, write_detect
-    from sim.dataset import load_dataset
-    from sim.flight_npz import flight_arrays
+    from quadfdi.core.errors import QuadfdiError
+    from quadfdi.detect.run import detect, write_detect
+    from quadfdi.sim.dataset import load_dataset
+    from quadfdi.sim.flight_npz import flight_arrays
 
     if (args.dataset is None) == (args.flight is None) or (args.dataset is not None and args.index is None):
         raise QuadfdiError("detect needs either FLIGHT or --dataset DATASET.npz --flight N")

@@ -6,7 +6,7 @@ from __future__ import annotations
 from pathlib import Path
 
 
-from core.plotting import pyplot, save_png
+from quadfdi.core.plotting import pyplot, save_png
 
 GROUPS = (("attitude, rad", ("roll", "pitch")), ("body rates, rad/s", ("p", "q", "r")),
           ("velocity (heading frame), m/s", ("vx_h", "vy_h", "vz")), ("per cell, V", ("v_cell",)),

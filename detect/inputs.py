@@ -19,9 +19,9 @@ from pathlib import Path
 
 import numpy as np
 
-from core import hover
-from core.errors import QuadfdiError
-from core.profiles import VIBRATION, apply_profile, channel_names, required_raw, uses_hover
+from quadfdi.core import hover
+from quadfdi.core.errors import QuadfdiError
+from quadfdi.core.profiles import VIBRATION, apply_profile, channel_names, required_raw, uses_hover
 
 MULTIROTOR_FRAMES = ("quadrotor", "quad", "quad-x", "quad-plus", "x", "plus")
 FLIGHT_VIBRATION = "vib_acc"  # flight.npz's vibration channel; which quantity it is depends on the autopilot
@@ -47,10 +47,10 @@ def read_flight(path: str | Path) -> dict[str, np.ndarray]:
     if not p.is_file():
         raise QuadfdiError(f"flight {p} does not exist")
     if p.suffix == ".npz":
-        from ingest.flight import load_flight
+        from quadfdi.ingest.flight import load_flight
 
         return load_flight(p)
-    from ingest.flight import ingest
+    from quadfdi.ingest.flight import ingest
 
     return ingest(p)[1]
 

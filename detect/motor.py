@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from core.alarm import rotor_columns  # noqa: F401 (detect.run and tests import it from here)
+from quadfdi.core.alarm import rotor_columns  # noqa: F401 (detect.run and tests import it from here)
 
 
 def window_fault_class(proba: np.ndarray, healthy: int) -> np.ndarray:

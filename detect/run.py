@@ -19,16 +19,16 @@ from typing import Callable
 
 import numpy as np
 
-from core.alarm import AlarmConfig, alarm_records, check_policy, run_alarm
-from core.errors import QuadfdiError
-from detect.inputs import FlightInputs, flight_inputs, read_flight, windows
-from detect.motor import rotor_columns, window_motor
+from quadfdi.core.alarm import AlarmConfig, alarm_records, check_policy, run_alarm
+from quadfdi.core.errors import QuadfdiError
+from quadfdi.detect.inputs import FlightInputs, flight_inputs, read_flight, windows
+from quadfdi.detect.motor import rotor_columns, window_motor
 
 NETS = ("cnode", "gru")
 
 
 def load_export(folder: str | Path) -> dict:
-    from export.manifest import check_files, load_manifest
+    from quadfdi.export.manifest import check_files, load_manifest
 
     root = Path(folder)
     manifest = load_manifest(root / "manifest.json")
@@ -64,7 +64,7 @@ def model_logits(folder: Path, manifest: dict, net: str, precision: str, runtime
                  x: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
     """(n, K) float32 logits of ``x`` from ORT (the exported graph) or the C++ reference (weights.bin),
     and (n, 4) motor logits for a model with a motor head (else None)."""
-    from detect.runtimes import cpp_outputs, ort_outputs
+    from quadfdi.detect.runtimes import cpp_outputs, ort_outputs
 
     motor = has_motor(manifest, net)
     if runtime == "ort":
@@ -134,10 +134,10 @@ def detect(model: str | Path, flight: str | Path | dict, net: str = "cnode", pre
 
 
 def write_detect(out: str | Path, result: dict, log: Callable[[str], None] = print) -> None:
-    from core.atomic import ensure_dir
-    from core.jsonio import write_json
-    from core.npzio import write_npz
-    from detect.figure import draw
+    from quadfdi.core.atomic import ensure_dir
+    from quadfdi.core.jsonio import write_json
+    from quadfdi.core.npzio import write_npz
+    from quadfdi.detect.figure import draw
 
     folder = ensure_dir(out)
     draw(folder / "detect.png", result)

@@ -18,7 +18,7 @@ def ort_logits(graph: Path, x: np.ndarray) -> np.ndarray:
 
 def ort_outputs(graph: Path, x: np.ndarray, names: list[str]) -> list[np.ndarray]:
     """The graph's outputs ``names`` (e.g. logits, motor_logits) of windows ``x``, float32."""
-    from export.ort_session import session
+    from quadfdi.export.ort_session import session
 
     sess = session(Path(graph).read_bytes())
     parts = [sess.run(names, {"telemetry": x[i:i + CHUNK]}) for i in range(0, len(x), CHUNK)]
@@ -31,7 +31,7 @@ def cpp_logits(weights: Path, net: str, int8: bool, x: np.ndarray) -> np.ndarray
 
 def cpp_outputs(weights: Path, net: str, int8: bool, x: np.ndarray, motor: bool) -> tuple[np.ndarray, np.ndarray | None]:
     """(logits, motor_logits or None): ``fwref_infer`` with ``--motor-out`` when ``motor``."""
-    from parity.build import HOST_BUILD, build_host
-    from parity.fwref_cli import fwref_infer
+    from quadfdi.parity.build import HOST_BUILD, build_host
+    from quadfdi.parity.fwref_cli import fwref_infer
 
     return fwref_infer(build_host(HOST_BUILD, log=lambda _: None) / "fwref_infer", weights, net, int8, x, motor)

@@ -22,8 +22,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from core.errors import QuadfdiError
-    from detect.streamfile import from_dataset, from_flight, record_of, write_stream
+    from quadfdi.core.errors import QuadfdiError
+    from quadfdi.detect.streamfile import from_dataset, from_flight, record_of, write_stream
 
     if (args.dataset is None) == (args.flight is None) or (args.dataset is not None and args.index is None):
         raise QuadfdiError("stream-file needs either FLIGHT or --dataset DATASET.npz --flight N")

@@ -27,7 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
-from core.errors import QuadfdiError
+from quadfdi.core.errors import QuadfdiError
 
 MAGIC = b"QFDISTR\0"
 VERSION = 1
@@ -59,7 +59,7 @@ def stream_bytes(rs: RawStream) -> bytes:
 
 
 def write_stream(path: str | Path, rs: RawStream) -> None:
-    from core.atomic import write_bytes
+    from quadfdi.core.atomic import write_bytes
 
     write_bytes(path, stream_bytes(rs))
 
@@ -84,8 +84,8 @@ def read_stream(path: str | Path) -> RawStream:
 
 def record_of(export: str | Path) -> dict:
     """The export's on-board record (export/onboard_record.onboard_dict), or a one-line refusal."""
-    from export.onboard_record import onboard_dict
-    from export.weights_bin import read_weights
+    from quadfdi.export.onboard_record import onboard_dict
+    from quadfdi.export.weights_bin import read_weights
 
     wf = read_weights(Path(export) / "weights.bin")
     if wf.onboard is None:
@@ -96,7 +96,7 @@ def record_of(export: str | Path) -> dict:
 def from_dataset(dataset: str | Path, flight: int, record: dict, ds=None) -> RawStream:
     """Flight ``flight`` of a simulated dataset.npz (every simulated flight is airborne throughout);
     ``ds`` the file already loaded (sim.dataset.load_dataset), for a caller taking several flights."""
-    from sim.dataset import load_dataset
+    from quadfdi.sim.dataset import load_dataset
 
     ds = load_dataset(dataset) if ds is None else ds
     tel = ds["telemetry"]
@@ -125,7 +125,7 @@ def from_dataset(dataset: str | Path, flight: int, record: dict, ds=None) -> Raw
 
 def from_flight(path: str | Path, record: dict) -> RawStream:
     """A real flight (.ulg / .BIN ingested on the fly, or flight.npz) with detect's refusals."""
-    from detect.inputs import _cells, _raw_channels, read_flight
+    from quadfdi.detect.inputs import _cells, _raw_channels, read_flight
 
     if not record["cells_from_stream"]:
         raise QuadfdiError(f"profile {record['profile']!r} is the simulator's telemetry: a real flight cannot feed it "

@@ -20,9 +20,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from core import hover
-from core.profiles import apply_profile, uses_hover
-from detect.streamfile import RawStream
+from quadfdi.core import hover
+from quadfdi.core.profiles import apply_profile, uses_hover
+from quadfdi.detect.streamfile import RawStream
 
 
 @dataclass
@@ -79,7 +79,7 @@ def sgru_logits(onnx_path, x: np.ndarray, stepped: np.ndarray, hidden: int) -> n
     """ONNX Runtime's one-step graph (sgru_step[.int8].onnx) over the model rows ``x`` (T, C), h = 0
     at the first sample, stepped on ``stepped`` samples only (the state held otherwise): (T, K)
     float32 logits of the step at each sample, NaN where not stepped."""
-    from export.ort_session import session
+    from quadfdi.export.ort_session import session
 
     sess = session(str(onnx_path))
     h = np.zeros((1, hidden), np.float32)
@@ -103,8 +103,8 @@ def stream_alarm(record: dict, decided: np.ndarray, logits: np.ndarray, motor_lo
     (n,) (the head's argmax, -1 where undecided or without a head: Decision::motor). The policy: ``net``'s
     (the record's alarm.models row, export/onboard_record.policy_of, as fwref_stream --model picks it), or
     the record's single policy when ``net`` is None."""
-    from core.alarm import reported_motor, run_alarm
-    from export.onboard_record import policy_of
+    from quadfdi.core.alarm import reported_motor, run_alarm
+    from quadfdi.export.onboard_record import policy_of
 
     def softmax(z):
         z = np.asarray(z, np.float64)

@@ -12,8 +12,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from core.alarm import AlarmTrace, alarm_records, rotor_columns, run_alarm
-from evaluate.load import Flights
+from quadfdi.core.alarm import AlarmTrace, alarm_records, rotor_columns, run_alarm
+from quadfdi.evaluate.load import Flights
 
 
 def set_trace(fl: Flights, policy: dict, reps: int = 1, classes: bool = True) -> AlarmTrace:

@@ -13,7 +13,7 @@ import zlib
 
 import numpy as np
 
-from evaluate.metrics import HEADLINE, metrics_from_sums, sum_flights
+from quadfdi.evaluate.metrics import HEADLINE, metrics_from_sums, sum_flights
 
 
 def draw_weights(units: list[tuple[str, int]], replicates: int, seed: int) -> np.ndarray:

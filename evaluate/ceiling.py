@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from evaluate.load import DatasetInfo, Flights
+from quadfdi.evaluate.load import DatasetInfo, Flights
 
 
 def expected_confusion(fl: Flights, info: DatasetInfo) -> tuple[np.ndarray, np.ndarray]:

@@ -21,8 +21,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from core.rundir import open_run
-    from evaluate.run import evaluate_run
+    from quadfdi.core.rundir import open_run
+    from quadfdi.evaluate.run import evaluate_run
 
     run_dir, cfg = open_run(args.run, args.overrides)
     argv = sys.argv[2:] if sys.argv[1:2] == ["evaluate"] else ["--run", args.run]

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from evaluate.bootstrap import percentile_interval
+from quadfdi.evaluate.bootstrap import percentile_interval
 
 
 def common_flights(a: dict[str, np.ndarray], b: dict[str, np.ndarray]) -> np.ndarray:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from core.plotting import pyplot, save_png
+from quadfdi.core.plotting import pyplot, save_png
 
 SWEEP_PNG = "alarm_sweep.png"
 

@@ -14,8 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
-from core.errors import QuadfdiError
-from core.predindex import check_prediction_set, read_index
+from quadfdi.core.errors import QuadfdiError
+from quadfdi.core.predindex import check_prediction_set, read_index
 
 # What the protocol needs of a dataset (docs/formats.md); split_names is optional (paper datasets).
 DATASET_KEYS = ("fault_class", "split", "onset_s", "detectable_s", "fault_motor", "severity", "time",

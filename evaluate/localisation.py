@@ -8,7 +8,7 @@ baselines' is the physics rule of train.baselines_run.suspected_motor (the rotor
 window-mean command over the mean of the four). Interval: percentile bootstrap over flights
 (evaluate.bootstrap.draw_weights, same replicates for every set). Chance is 0.25.
 
-    python -m evaluate.localisation --run RUN [--split test] [--replicates 2000] [--seed 0]
+    python -m quadfdi.evaluate.localisation --run RUN [--split test] [--replicates 2000] [--seed 0]
 """
 
 from __future__ import annotations
@@ -19,10 +19,10 @@ from pathlib import Path
 
 import numpy as np
 
-from core.alarm import ROTOR_SIDE_CLASSES
-from core.predindex import read_index
-from core.tables import md_table
-from evaluate.bootstrap import draw_weights
+from quadfdi.core.alarm import ROTOR_SIDE_CLASSES
+from quadfdi.core.predindex import read_index
+from quadfdi.core.tables import md_table
+from quadfdi.evaluate.bootstrap import draw_weights
 
 ROTOR_SIDE = ROTOR_SIDE_CLASSES  # train.motor.ROTOR_SIDE_CLASSES (no torch here)
 
@@ -64,7 +64,7 @@ def localisation(run: Path, split: int = 2, replicates: int = 2000, seed: int = 
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="python -m evaluate.localisation", description=__doc__.splitlines()[0])
+    p = argparse.ArgumentParser(prog="python -m quadfdi.evaluate.localisation", description=__doc__.splitlines()[0])
     p.add_argument("--run", required=True)
     p.add_argument("--split", type=int, default=2, help="split code (0 train, 1 validation, 2 test, 3.. OOD)")
     p.add_argument("--replicates", type=int, default=2000)

@@ -24,9 +24,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from core.alarm import reported_motor, rotor_columns
-from evaluate.alarms import set_trace
-from evaluate.load import DatasetInfo, Flights
+from quadfdi.core.alarm import reported_motor, rotor_columns
+from quadfdi.evaluate.alarms import set_trace
+from quadfdi.evaluate.load import DatasetInfo, Flights
 
 SCALAR_KEYS = ("healthy", "fault", "exposure_h", "fa", "detected", "delay_onset", "thr", "detected_thr", "delay_thr",
                "early", "pre_onset", "class_ok", "motor_n", "motor_ok")

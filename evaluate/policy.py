@@ -19,11 +19,11 @@ import itertools
 
 import numpy as np
 
-from core.alarm import AlarmConfig
-from core.evalconfig import EvaluateConfig, parse_kn
-from evaluate.load import DatasetInfo, Flights
-from evaluate.metrics import metrics_from_sums
-from evaluate.outcomes import SCALAR_KEYS, alarm_outcomes
+from quadfdi.core.alarm import AlarmConfig
+from quadfdi.core.evalconfig import EvaluateConfig, parse_kn
+from quadfdi.evaluate.load import DatasetInfo, Flights
+from quadfdi.evaluate.metrics import metrics_from_sums
+from quadfdi.evaluate.outcomes import SCALAR_KEYS, alarm_outcomes
 
 VALIDATION = "validation"
 

@@ -13,15 +13,15 @@ import itertools
 
 import numpy as np
 
-from core.config import Config
-from core.errors import QuadfdiError
-from evaluate import policy as pol
-from evaluate.bootstrap import draw_weights, intervals, paired, point_and_replicates
-from evaluate.ceiling import expected_confusion
-from evaluate.common_delay import common_delay
-from evaluate.load import DatasetInfo, Flights
-from evaluate.metrics import COUNTS, garwood, macro_f1_accuracy, metrics_from_sums, sum_flights
-from evaluate.outcomes import flight_outcomes
+from quadfdi.core.config import Config
+from quadfdi.core.errors import QuadfdiError
+from quadfdi.evaluate import policy as pol
+from quadfdi.evaluate.bootstrap import draw_weights, intervals, paired, point_and_replicates
+from quadfdi.evaluate.ceiling import expected_confusion
+from quadfdi.evaluate.common_delay import common_delay
+from quadfdi.evaluate.load import DatasetInfo, Flights
+from quadfdi.evaluate.metrics import COUNTS, garwood, macro_f1_accuracy, metrics_from_sums, sum_flights
+from quadfdi.evaluate.outcomes import flight_outcomes
 
 OOD_ALL = "test_ood_all"
 GOAL_POINTS = 0.03  # issue 13: the CNODE beats the best baseline by >= 3 points of macro F1 on OOD sets

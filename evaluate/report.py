@@ -8,10 +8,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from core.reportmd import demote, not_run, optional_json
-from core.tables import md_table
-from evaluate.figures import SWEEP_PNG
-from evaluate.protocol import OOD_ALL
+from quadfdi.core.reportmd import demote, not_run, optional_json
+from quadfdi.core.tables import md_table
+from quadfdi.evaluate.figures import SWEEP_PNG
+from quadfdi.evaluate.protocol import OOD_ALL
 
 JSON_NAME = Path("evaluation") / "evaluation.json"
 MD_NAME = Path("evaluation") / "evaluation.md"

@@ -12,16 +12,16 @@ import subprocess
 from pathlib import Path
 from typing import Callable
 
-from core import records
-from core.config import Config
-from core.jsonio import write_json
-from core.atomic import write_text
-from core.predindex import INDEX_NAME
-from core.stage import stage
-from evaluate.figures import SWEEP_PNG, sweep_figure
-from evaluate.load import load_run
-from evaluate.protocol import evaluate_sets
-from evaluate.report import JSON_NAME, MD_NAME, markdown
+from quadfdi.core import records
+from quadfdi.core.config import Config
+from quadfdi.core.jsonio import write_json
+from quadfdi.core.atomic import write_text
+from quadfdi.core.predindex import INDEX_NAME
+from quadfdi.core.stage import stage
+from quadfdi.evaluate.figures import SWEEP_PNG, sweep_figure
+from quadfdi.evaluate.load import load_run
+from quadfdi.evaluate.protocol import evaluate_sets
+from quadfdi.evaluate.report import JSON_NAME, MD_NAME, markdown
 
 ROOT = Path(__file__).resolve().parents[1]
 SCHEMA_VERSION = 1
@@ -77,6 +77,6 @@ def evaluate_run(root: Path, cfg: Config, command: str, log: Callable[[str], Non
 
 
 def _prediction_paths(root: Path) -> list[str]:
-    from core.predindex import read_index
+    from quadfdi.core.predindex import read_index
 
     return [e["predictions"] for e in read_index(root)]

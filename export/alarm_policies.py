@@ -15,8 +15,8 @@ import hashlib
 import json
 from pathlib import Path
 
-from core.alarm import POLICY_KEYS, AlarmConfig, check_policy
-from core.errors import QuadfdiError
+from quadfdi.core.alarm import POLICY_KEYS, AlarmConfig, check_policy
+from quadfdi.core.errors import QuadfdiError
 
 SOURCES = ("config", "evaluation")
 EXPORTED = ("cnode", "gru")  # the networks weights.bin holds

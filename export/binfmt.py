@@ -44,7 +44,7 @@ from pathlib import Path
 
 import numpy as np
 
-from core.errors import QuadfdiError
+from quadfdi.core.errors import QuadfdiError
 
 MODELS = {"none": 0, "cnode": 1, "gru": 2}
 MODELS.update({"cnode_motor": 16, "gru_motor": 17})  # the optional motor-head sections (export/weights_layout.py)

@@ -16,8 +16,8 @@ from __future__ import annotations
 import numpy as np
 from onnxruntime.quantization import CalibrationDataReader
 
-from export.graph import Built
-from export.verify import session
+from quadfdi.export.graph import Built
+from quadfdi.export.verify import session
 
 
 class WindowReader(CalibrationDataReader):

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import argparse
 
-from core.cliargs import add_config_args
-from core.config import replace_section
-from core.rundir import open_run
+from quadfdi.core.cliargs import add_config_args
+from quadfdi.core.config import replace_section
+from quadfdi.core.rundir import open_run
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -32,7 +32,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def run_export_sgru(args: argparse.Namespace) -> int:
-    from export.sgru_run import export_sgru_run
+    from quadfdi.export.sgru_run import export_sgru_run
 
     run, cfg = open_run(args.run, args.overrides, need=("dataset",))
     for path in export_sgru_run(run.root, args.seed, cfg.export.opset):
@@ -41,14 +41,14 @@ def run_export_sgru(args: argparse.Namespace) -> int:
 
 
 def run_export(args: argparse.Namespace) -> int:
-    from core.errors import QuadfdiError
-    from export.alarm_policies import policies_per_model
+    from quadfdi.core.errors import QuadfdiError
+    from quadfdi.export.alarm_policies import policies_per_model
 
     if args.run is None:
         raise QuadfdiError("quadfdi export needs --run <run folder>")
     run, cfg = open_run(args.run, args.overrides, need=("dataset",))
     policies_per_model(run.root, cfg.alarm, args.alarm_from)  # a refusal before torch and onnx are imported
-    from export.run import export_run
+    from quadfdi.export.run import export_run
 
     if args.steps is not None:
         cfg = replace_section(cfg, "export", steps=args.steps)

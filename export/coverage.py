@@ -15,7 +15,7 @@ import numpy as np
 import onnx
 from onnx import TensorProto, helper, numpy_helper
 
-from export.graph import BATCH, all_initializers
+from quadfdi.export.graph import BATCH, all_initializers
 
 # Targets of an int8 graph against its fp32 graph: nearly all multiply-accumulates in int8; and
 # constant bytes: int8 weights take a quarter of their fp32 bytes, the scales, biases and

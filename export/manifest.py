@@ -23,10 +23,10 @@ from typing import Any
 
 import numpy as np
 
-from core.alarm import AlarmConfig
-from core.contracts import CLASS_NAMES
-from core.errors import QuadfdiError
-from core.jsonio import read_json, write_json
+from quadfdi.core.alarm import AlarmConfig
+from quadfdi.core.contracts import CLASS_NAMES
+from quadfdi.core.errors import QuadfdiError
+from quadfdi.core.jsonio import read_json, write_json
 
 SCHEMA_VERSION = 1
 ARTIFACT_KEYS = ("cnode_fp32", "cnode_int8", "gru_fp32", "gru_int8")
@@ -47,7 +47,7 @@ def encoding_of(act: str, weight_qmax: int, model) -> dict:
     """quantization.encoding.<model>: the activation type and zero point, the weights' range, and
     the operators outside the ONNX domain that the int8 graph uses, and those that run a subgraph
     (``Scan``: the int8 GRU's recurrence)."""
-    from export.graph import contrib_ops, subgraph_ops
+    from quadfdi.export.graph import contrib_ops, subgraph_ops
 
     return {"activations": act, "activation_zero_point": 128 if act == "uint8" else 0,
             "weight_bits": 7 if weight_qmax == 63 else 8, "weight_range": [-int(weight_qmax), int(weight_qmax)],
@@ -159,8 +159,8 @@ def profile_entry(name: str, *blobs: dict) -> dict:
     """manifest ``profile``: the input channels' profile (core.profiles; ``paper`` = raw telemetry),
     each channel with its formula and raw channels, the hover filter's constants (core.hover) and
     the vibration quantity; every checkpoint given must carry the same profile."""
-    from core import hover
-    from core.profiles import PROFILES, VIBRATION, uses_hover
+    from quadfdi.core import hover
+    from quadfdi.core.profiles import PROFILES, VIBRATION, uses_hover
 
     found = {str(b.get("profile", "paper")) for b in blobs}
     if found and found != {name}:

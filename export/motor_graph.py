@@ -12,8 +12,8 @@ from __future__ import annotations
 import numpy as np
 from onnx import TensorProto, helper
 
-from export.graph import BATCH, Graph, class_outputs
-from export.quantize import QWeight, int8_matmul, int8_weight
+from quadfdi.export.graph import BATCH, Graph, class_outputs
+from quadfdi.export.quantize import QWeight, int8_matmul, int8_weight
 
 MOTOR_OUTPUT = "motor_logits"
 N_MOTORS = 4

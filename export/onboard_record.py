@@ -21,11 +21,11 @@ import struct
 
 import numpy as np
 
-from core import hover
-from core.alarm import rotor_columns
-from core.errors import QuadfdiError
-from core.profiles import required_raw, uses_hover
-from export.binfmt import MODELS, Section
+from quadfdi.core import hover
+from quadfdi.core.alarm import rotor_columns
+from quadfdi.core.errors import QuadfdiError
+from quadfdi.core.profiles import required_raw, uses_hover
+from quadfdi.export.binfmt import MODELS, Section
 
 KIND = ("none", "none")  # (model, precision) of the section
 

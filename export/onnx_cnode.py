@@ -34,13 +34,13 @@ import numpy as np
 import torch
 from onnx import TensorProto
 
-from core.rk4 import RK4_CONSTANT_NAMES, rk4_constants, rk4_step
-from export.graph import BATCH, MS_DOMAIN, Built, Graph, telemetry_input
-from export.motor_graph import graph_outputs, motor_fp32_gemm, motor_int8
-from export.quantize import (BOUND_SCALE, UINT8, QWeight, act_scale, int8_matmul, int8_weight, quantize,
+from quadfdi.core.rk4 import RK4_CONSTANT_NAMES, rk4_constants, rk4_step
+from quadfdi.export.graph import BATCH, MS_DOMAIN, Built, Graph, telemetry_input
+from quadfdi.export.motor_graph import graph_outputs, motor_fp32_gemm, motor_int8
+from quadfdi.export.quantize import (BOUND_SCALE, UINT8, QWeight, act_scale, int8_matmul, int8_weight, quantize,
                              quantize_channels, quantize_interp, weight_qmax)
-from train.control import interp_matrix
-from train.solvers import fixed_method, nearest_index, stage_times
+from quadfdi.train.control import interp_matrix
+from quadfdi.train.solvers import fixed_method, nearest_index, stage_times
 
 STAGES_PER_STEP = fixed_method("rk4").evals_per_step  # 4
 # Activation encoding of the int8 CNODE after the control path: uint8 (zero point 128) with 7-bit

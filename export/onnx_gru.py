@@ -31,9 +31,9 @@ import numpy as np
 import torch
 from onnx import GraphProto, TensorProto, helper, numpy_helper
 
-from export.graph import BATCH, Built, Graph, telemetry_input
-from export.motor_graph import graph_outputs, motor_fp32_matmul, motor_int8
-from export.quantize import (BOUND_SCALE, UINT8, QWeight, act_scale, int8_matmul, int8_weight, quantize,
+from quadfdi.export.graph import BATCH, Built, Graph, telemetry_input
+from quadfdi.export.motor_graph import graph_outputs, motor_fp32_matmul, motor_int8
+from quadfdi.export.quantize import (BOUND_SCALE, UINT8, QWeight, act_scale, int8_matmul, int8_weight, quantize,
                              quantize_channels, weight_qmax)
 
 # Activation encoding of the int8 GRU: uint8 (zero point 128) with 7-bit weights takes ONNX Runtime's

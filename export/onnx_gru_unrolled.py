@@ -10,10 +10,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from export.graph import BATCH, Built, Graph, telemetry_input
-from export.motor_graph import MOTOR_OUTPUT, graph_outputs, motor_int8
-from export.onnx_gru import GruParams, GruQuant, _normalise
-from export.quantize import int8_matmul, int8_weight, quantize, quantize_channels
+from quadfdi.export.graph import BATCH, Built, Graph, telemetry_input
+from quadfdi.export.motor_graph import MOTOR_OUTPUT, graph_outputs, motor_int8
+from quadfdi.export.onnx_gru import GruParams, GruQuant, _normalise
+from quadfdi.export.quantize import int8_matmul, int8_weight, quantize, quantize_channels
 
 
 def build_gru_int8_unrolled(p: GruParams, q: GruQuant, opset: int) -> Built:

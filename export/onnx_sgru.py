@@ -18,8 +18,8 @@ import numpy as np
 import torch
 from onnx import TensorProto, helper
 
-from export.graph import BATCH, Built, Graph
-from export.onnx_gru import GruParams, _onnx_gates
+from quadfdi.export.graph import BATCH, Built, Graph
+from quadfdi.export.onnx_gru import GruParams, _onnx_gates
 
 INPUTS = ("sample", "h")
 OUTPUTS = ("logits", "proba", "h_new")

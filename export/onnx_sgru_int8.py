@@ -16,10 +16,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from export.graph import BATCH, Built, Graph
-from export.onnx_gru import GruParams, GruQuant
-from export.onnx_sgru import step_io
-from export.quantize import (
+from quadfdi.export.graph import BATCH, Built, Graph
+from quadfdi.export.onnx_gru import GruParams, GruQuant
+from quadfdi.export.onnx_sgru import step_io
+from quadfdi.export.quantize import (
     int8_linear,
     int8_matmul,
     int8_weight,

@@ -43,7 +43,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from export.graph import MS_DOMAIN, Graph
+from quadfdi.export.graph import MS_DOMAIN, Graph
 
 QMAX = 127  # weights use [-127, 127] (symmetric); activations saturate to [-128, 127]
 QMAX_7BIT = 63  # weights beside uint8 activations: [-63, 63] (see the module docstring)

@@ -26,16 +26,16 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from export.binfmt import Section, pack, read_file
-from export.weights_bin import cnode_dims, gru_dims
-from export.weights_layout import REFERENCE_MAGIC, REFERENCE_VERSION
+from quadfdi.export.binfmt import Section, pack, read_file
+from quadfdi.export.weights_bin import cnode_dims, gru_dims
+from quadfdi.export.weights_layout import REFERENCE_MAGIC, REFERENCE_VERSION
 
 if TYPE_CHECKING:  # the reader needs neither torch nor onnx (firmware_ref/tools/gen_weights.py uses it)
     import torch
 
-    from export.graph import Built
-    from export.onnx_cnode import CnodeParams
-    from export.onnx_gru import GruParams
+    from quadfdi.export.graph import Built
+    from quadfdi.export.onnx_cnode import CnodeParams
+    from quadfdi.export.onnx_gru import GruParams
 
 MAGIC, VERSION = REFERENCE_MAGIC, REFERENCE_VERSION  # export/weights_layout.py
 
@@ -54,7 +54,7 @@ def _softmax(z: np.ndarray) -> np.ndarray:
 
 
 def _run_probes(built: Built, keys: list[str], x: np.ndarray) -> dict[str, np.ndarray]:
-    from export.verify import session
+    from quadfdi.export.verify import session
 
     sess = session(built.with_probes(keys).SerializeToString())
     outs = sess.run(["logits", "proba"] + [built.probes[k][0] for k in keys], {"telemetry": x})
@@ -65,7 +65,7 @@ def cnode_fp32_tensors(model: torch.nn.Module, x: np.ndarray) -> dict[str, np.nd
     """PyTorch's trace of the CNODE (its solver must be classic RK4 with the graph's N)."""
     import torch
 
-    from export.verify import torch_threads
+    from quadfdi.export.verify import torch_threads
 
     with torch_threads():
         tr = model.trace(torch.from_numpy(x))
@@ -89,7 +89,7 @@ def cnode_int8_tensors(built: Built, p: CnodeParams, x: np.ndarray) -> dict[str,
 def gru_fp32_tensors(model: torch.nn.Module, x: np.ndarray) -> dict[str, np.ndarray]:
     import torch
 
-    from export.verify import torch_threads
+    from quadfdi.export.verify import torch_threads
 
     with torch_threads():
         tr = model.trace(torch.from_numpy(x))

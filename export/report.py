@@ -5,8 +5,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from core.reportmd import demote, not_run, num, optional_json, pct
-from core.tables import md_table
+from quadfdi.core.reportmd import demote, not_run, num, optional_json, pct
+from quadfdi.core.tables import md_table
 
 HEADING = "## Export"
 

@@ -15,32 +15,32 @@ import numpy as np
 import onnx
 import torch
 
-from core.atomic import ensure_dir, write_bytes
-from core.config import Config
-from core.errors import QuadfdiError
-from core.rundir import RunDir
-from core.stage import stage
-from export.calibrate import WindowReader, collect_ranges, select_windows
-from export.coverage import compare, coverage, fp32_constants, markdown
-from export.graph import IR_VERSION, Built
-from export.manifest import (MODEL_KINDS, artifact_names, build_manifest, encoding_of, manifest_class_names,
+from quadfdi.core.atomic import ensure_dir, write_bytes
+from quadfdi.core.config import Config
+from quadfdi.core.errors import QuadfdiError
+from quadfdi.core.rundir import RunDir
+from quadfdi.core.stage import stage
+from quadfdi.export.calibrate import WindowReader, collect_ranges, select_windows
+from quadfdi.export.coverage import compare, coverage, fp32_constants, markdown
+from quadfdi.export.graph import IR_VERSION, Built
+from quadfdi.export.manifest import (MODEL_KINDS, artifact_names, build_manifest, encoding_of, manifest_class_names,
                              motor_entry, profile_entry, write_manifest)
-from export.quantize import weight_qmax
-from export.onnx_cnode import CnodeParams, CnodeQuant, build_cnode, calibration_probes, cnode_params, quantize_cnode
-from export.onnx_gru import (CALIBRATION_PROBES, GruParams, GruQuant, build_gru_fp32, build_gru_int8, gru_params,
+from quadfdi.export.quantize import weight_qmax
+from quadfdi.export.onnx_cnode import CnodeParams, CnodeQuant, build_cnode, calibration_probes, cnode_params, quantize_cnode
+from quadfdi.export.onnx_gru import (CALIBRATION_PROBES, GruParams, GruQuant, build_gru_fp32, build_gru_int8, gru_params,
                              quantize_gru)
-from export.reference_bin import pick_windows, reference_bytes
-from export.verify import (batch_independence, int8_vs_fp32, motor_verification, ort_outputs, parity, session,
+from quadfdi.export.reference_bin import pick_windows, reference_bytes
+from quadfdi.export.verify import (batch_independence, int8_vs_fp32, motor_verification, ort_outputs, parity, session,
                            torch_logits)
-from export.onboard_record import onboard_section
-from export.alarm_policies import policies_per_model
-from export.weights_bin import weights_bytes
-from sim.dataset import Dataset, class_names, load_dataset, make_windows
-from train.profile_data import profile_of, profiled_dataset
-from train.checkpoint import check_dataset_matches, checkpoint_class_names, load_checkpoint
-from train.metrics import compute_metrics
-from train.models import SolverSpec
-from train.motor import ROTOR_SIDE_CLASSES
+from quadfdi.export.onboard_record import onboard_section
+from quadfdi.export.alarm_policies import policies_per_model
+from quadfdi.export.weights_bin import weights_bytes
+from quadfdi.sim.dataset import Dataset, class_names, load_dataset, make_windows
+from quadfdi.train.profile_data import profile_of, profiled_dataset
+from quadfdi.train.checkpoint import check_dataset_matches, checkpoint_class_names, load_checkpoint
+from quadfdi.train.metrics import compute_metrics
+from quadfdi.train.models import SolverSpec
+from quadfdi.train.motor import ROTOR_SIDE_CLASSES
 
 
 @dataclass

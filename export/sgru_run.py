@@ -29,17 +29,17 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from core.atomic import ensure_dir, write_bytes
-from core.errors import QuadfdiError
-from core.jsonio import write_json
-from core.npzio import write_npz
-from export.graph import IR_VERSION
-from export.onnx_gru import quantize_gru
-from export.onnx_sgru import build_sgru_fp32, sgru_params
-from export.onnx_sgru_int8 import build_sgru_int8, calibrate_x_norm
-from export.sgru_weights import FILE_NAME as WEIGHTS_NAME, export_onboard, write_sgru_weights
-from export.verify import parity, session
-from sim.dataset import load_dataset
+from quadfdi.core.atomic import ensure_dir, write_bytes
+from quadfdi.core.errors import QuadfdiError
+from quadfdi.core.jsonio import write_json
+from quadfdi.core.npzio import write_npz
+from quadfdi.export.graph import IR_VERSION
+from quadfdi.export.onnx_gru import quantize_gru
+from quadfdi.export.onnx_sgru import build_sgru_fp32, sgru_params
+from quadfdi.export.onnx_sgru_int8 import build_sgru_int8, calibrate_x_norm
+from quadfdi.export.sgru_weights import FILE_NAME as WEIGHTS_NAME, export_onboard, write_sgru_weights
+from quadfdi.export.verify import parity, session
+from quadfdi.sim.dataset import load_dataset
 
 
 def replay_flight(ds) -> int:
@@ -97,7 +97,7 @@ def torch_replay(model, tel: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def export_sgru_run(root: str | Path, seed: int = 0, opset: int = 18) -> list[Path]:
-    from train.stream_gru_run import load_stream_checkpoint
+    from quadfdi.train.stream_gru_run import load_stream_checkpoint
 
     root = Path(root)
     ckpt = root / f"sgru_train{seed}.pt"

@@ -26,13 +26,13 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from core.atomic import write_bytes
-from core.errors import QuadfdiError
-from export.binfmt import Section, pack, read_file
-from export.weights_layout import LAYOUTS, MAGIC, VERSION, check_dims, dtype_of, shape_of
+from quadfdi.core.atomic import write_bytes
+from quadfdi.core.errors import QuadfdiError
+from quadfdi.export.binfmt import Section, pack, read_file
+from quadfdi.export.weights_layout import LAYOUTS, MAGIC, VERSION, check_dims, dtype_of, shape_of
 
 if TYPE_CHECKING:
-    from export.onnx_gru import GruParams, GruQuant
+    from quadfdi.export.onnx_gru import GruParams, GruQuant
 
 FILE_NAME = "sgru_weights.bin"
 SECTION_ORDER = (("sgru", "fp32"), ("sgru", "int8"))
@@ -40,7 +40,7 @@ SECTION_ORDER = (("sgru", "fp32"), ("sgru", "int8"))
 
 def sgru_weights_bytes(p: GruParams, q: GruQuant, onboard: Section) -> bytes:
     """The file's bytes: ``p`` (window 1) fp32, ``p`` + ``q`` int8, then the on-board record."""
-    from export.weights_bin import gru_section
+    from quadfdi.export.weights_bin import gru_section
 
     if p.window != 1:
         raise ValueError(f"the streaming GRU's section has window 1, found {p.window}")
@@ -49,8 +49,8 @@ def sgru_weights_bytes(p: GruParams, q: GruQuant, onboard: Section) -> bytes:
 
 def export_onboard(export: str | Path, channel_names: list[str]) -> Section:
     """The on-board record of ``export``/weights.bin, checked against the streaming GRU's channels."""
-    from export.onboard_record import onboard_dict
-    from export.weights_bin import read_weights
+    from quadfdi.export.onboard_record import onboard_dict
+    from quadfdi.export.weights_bin import read_weights
 
     path = Path(export) / "weights.bin"
     if not path.is_file():
@@ -81,7 +81,7 @@ class SgruWeights:
 def read_sgru_weights(path: str | Path) -> SgruWeights:
     """Parse and check the file (sections, tensors, dtypes, shapes, window 1, the record); one-line
     QuadfdiError otherwise."""
-    from export.onboard_record import KIND as ONBOARD, check_onboard
+    from quadfdi.export.onboard_record import KIND as ONBOARD, check_onboard
 
     _, sections = read_file(path, MAGIC, VERSION, "streaming GRU weights file")
     where = f"streaming GRU weights file {path}"

@@ -17,9 +17,9 @@ import onnxruntime as ort
 import torch
 from sklearn.metrics import f1_score
 
-from core.contracts import FP32_ORT_VS_TORCH_REL_TOL
-from export.ort_session import THREADS, session  # noqa: F401  (session: the export's callers import it here)
-from train.threads import torch_threads as _torch_threads
+from quadfdi.core.contracts import FP32_ORT_VS_TORCH_REL_TOL
+from quadfdi.export.ort_session import THREADS, session  # noqa: F401  (session: the export's callers import it here)
+from quadfdi.train.threads import torch_threads as _torch_threads
 
 FP32_REL_TOL = FP32_ORT_VS_TORCH_REL_TOL  # ONNX Runtime against PyTorch (core/contracts.py)
 F1_DROP_TARGET_POINTS = 0.5

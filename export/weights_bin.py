@@ -28,16 +28,16 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from core.atomic import write_bytes
-from core.errors import QuadfdiError
-from core.rk4 import rk4_constants
-from export.binfmt import Section, pack, read_file
-from export.weights_layout import (LAYOUTS, MAGIC, MOTOR_SECTION_ORDER, SECTION_ORDER, VERSION, check_dims, dims_of,
+from quadfdi.core.atomic import write_bytes
+from quadfdi.core.errors import QuadfdiError
+from quadfdi.core.rk4 import rk4_constants
+from quadfdi.export.binfmt import Section, pack, read_file
+from quadfdi.export.weights_layout import (LAYOUTS, MAGIC, MOTOR_SECTION_ORDER, SECTION_ORDER, VERSION, check_dims, dims_of,
                                    dtype_of, shape_of)
 
 if TYPE_CHECKING:  # the reader needs neither torch nor onnx (firmware_ref/tools/gen_weights.py uses it)
-    from export.onnx_cnode import CnodeParams, CnodeQuant
-    from export.onnx_gru import GruParams, GruQuant
+    from quadfdi.export.onnx_cnode import CnodeParams, CnodeQuant
+    from quadfdi.export.onnx_gru import GruParams, GruQuant
 
 
 def cnode_dims(p: CnodeParams) -> tuple[int, ...]:
@@ -147,7 +147,7 @@ def check_layout(sections: list[Section], where: str) -> None:
     """Every section of the table, in its order, each holding exactly the table's tensors with the
     dtype and shape its dims imply, optionally followed by the on-board record; otherwise a one-line
     QuadfdiError."""
-    from export.onboard_record import KIND as ONBOARD, check_onboard
+    from quadfdi.export.onboard_record import KIND as ONBOARD, check_onboard
 
     if sections and (sections[-1].model, sections[-1].precision) == ONBOARD:
         check_onboard(sections[-1], where)

@@ -9,9 +9,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from core.errors import QuadfdiError
-from ingest import battery, checks, frames, motors, segments
-from ingest.model import Channel, LogRead
+from quadfdi.core.errors import QuadfdiError
+from quadfdi.ingest import battery, checks, frames, motors, segments
+from quadfdi.ingest.model import Channel, LogRead
 
 WANTED = ["PARM", "MSG", "XKF1", "NKF1", "POS", "ATT", "RATE", "IMU", "BAT", "RCOU", "ESC", "VIBE", "CTUN", "ARM", "EV"]
 ARMED_EV, DISARMED_EV = 10, 11  # ArduPilot LogEvent ids

@@ -10,11 +10,11 @@ import statistics
 import time
 from pathlib import Path
 
-from core.errors import QuadfdiError
+from quadfdi.core.errors import QuadfdiError
 
 
 def bench(logs: list[str], repeat: int = 3) -> dict:
-    from ingest.flight import ingest
+    from quadfdi.ingest.flight import ingest
 
     rows = []
     for log in logs:

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ingest.model import LogRead
+from quadfdi.ingest.model import LogRead
 
 I_AIRBORNE_MIN = 2.0  # A: no multirotor hovers on less (the simulator's 1.5 kg quad draws ~14 A)
 V_CELL_MIN = 2.5  # V: below it a lithium cell is dead or the monitor is not connected

@@ -11,7 +11,7 @@ import argparse
 import json
 from pathlib import Path
 
-from core.errors import QuadfdiError
+from quadfdi.core.errors import QuadfdiError
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -44,12 +44,12 @@ def summary(lr, arrays) -> dict:
 
 
 def run(args: argparse.Namespace) -> int:
-    from core.jsonio import write_json
-    from ingest import segments
-    from ingest.flight import ingest, write_flight
+    from quadfdi.core.jsonio import write_json
+    from quadfdi.ingest import segments
+    from quadfdi.ingest.flight import ingest, write_flight
 
     if args.logs[0] == "bench":
-        from ingest.bench import bench
+        from quadfdi.ingest.bench import bench
 
         if len(args.logs) < 2:
             raise QuadfdiError("quadfdi ingest bench needs at least one LOG")
@@ -60,7 +60,7 @@ def run(args: argparse.Namespace) -> int:
     if args.out is None:
         raise QuadfdiError("quadfdi ingest needs --out <folder>")
     min_air = segments.MIN_AIRBORNE_S if args.min_airborne is None else args.min_airborne
-    from ingest.resample import GAP_FACTOR
+    from quadfdi.ingest.resample import GAP_FACTOR
 
     gap = GAP_FACTOR if args.gap_factor is None else args.gap_factor
     lr, arrays = ingest(args.logs[0], min_air, gap)  # refusals raise before anything is written

@@ -13,10 +13,10 @@ from pathlib import Path
 
 import numpy as np
 
-from core.errors import QuadfdiError
-from core.npzio import read_npz, write_npz
-from ingest import resample, segments
-from ingest.model import ANGLE_CHANNELS, CHANNEL_NAMES, CHANNEL_UNITS, LogRead
+from quadfdi.core.errors import QuadfdiError
+from quadfdi.core.npzio import read_npz, write_npz
+from quadfdi.ingest import resample, segments
+from quadfdi.ingest.model import ANGLE_CHANNELS, CHANNEL_NAMES, CHANNEL_UNITS, LogRead
 
 FORMAT_VERSION = 1
 REQUIRED = ("format_version", "time", "telemetry", "mask", "channel_names", "channel_units", "channel_sources",
@@ -90,11 +90,11 @@ def read_log(path: str | Path):
     with open(p, "rb") as fh:
         head = fh.read(8)
     if head.startswith(b"ULog"):
-        from ingest.px4 import read_px4
+        from quadfdi.ingest.px4 import read_px4
 
         return read_px4(str(p))
     if head[:2] == b"\xa3\x95":  # DataFlash message header
-        from ingest.ardupilot import read_ardupilot
+        from quadfdi.ingest.ardupilot import read_ardupilot
 
         return read_ardupilot(str(p))
     raise QuadfdiError(f"{p} is neither a PX4 ULog nor an ArduPilot DataFlash log (first bytes {head[:4]!r})")

@@ -14,9 +14,9 @@ from pathlib import Path
 
 import numpy as np
 
-from core.contracts import CLASS_NAMES
-from core.errors import QuadfdiError
-from core.jsonio import read_json
+from quadfdi.core.contracts import CLASS_NAMES
+from quadfdi.core.errors import QuadfdiError
+from quadfdi.core.jsonio import read_json
 
 MOTOR_CLASSES = ("MotorFault", "OverheatFault")
 

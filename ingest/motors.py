@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from core.errors import QuadfdiError
+from quadfdi.core.errors import QuadfdiError
 
 # (x forward, y right) in FRD, spin seen from above (+1 CCW, -1 CW), for motor 1..4.
 QUAD_X = ((1.0, 1.0, +1), (-1.0, -1.0, +1), (1.0, -1.0, -1), (-1.0, 1.0, -1))  # PX4 4001, ArduCopter X

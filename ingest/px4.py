@@ -10,9 +10,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from core.errors import QuadfdiError
-from ingest import battery, checks, frames, motors, px4_motors, px4_vibration, segments
-from ingest.model import Channel, LogRead
+from quadfdi.core.errors import QuadfdiError
+from quadfdi.ingest import battery, checks, frames, motors, px4_motors, px4_vibration, segments
+from quadfdi.ingest.model import Channel, LogRead
 
 TOPICS = ["vehicle_local_position", "vehicle_attitude", "vehicle_angular_velocity", "battery_status",
           "actuator_motors", "actuator_outputs", "esc_status", "vehicle_imu_status", "vehicle_imu", "estimator_status",

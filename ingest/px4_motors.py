@@ -11,8 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ingest import motors
-from ingest.model import Channel, LogRead
+from quadfdi.ingest import motors
+from quadfdi.ingest.model import Channel, LogRead
 
 UAVCAN_FULL_SCALE = 8191.0  # PX4 UAVCAN ESC raw command range 0..8191 (uavcan.equipment.esc.RawCommand)
 

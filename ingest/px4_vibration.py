@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ingest.model import Channel, LogRead
+from quadfdi.ingest.model import Channel, LogRead
 
 ACCEL_UNITS_SINCE = (1, 13)  # PR #17965 (merged 2021-07): accel_vibration_metric on acceleration
 

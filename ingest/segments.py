@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from core.errors import QuadfdiError
+from quadfdi.core.errors import QuadfdiError
 
 THR_AIRBORNE = 0.15  # -: a multirotor hovers at 0.25-0.6 thrust; idle spin is below 0.1
 H_AIRBORNE = 0.5  # m: above the ground level at arming, clear of ground effect and baro noise

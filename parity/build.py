@@ -17,7 +17,7 @@ import sys
 from pathlib import Path
 from typing import Callable, Iterator
 
-from core.errors import QuadfdiError
+from quadfdi.core.errors import QuadfdiError
 
 FW_ROOT = Path(__file__).resolve().parents[1] / "firmware_ref"
 HOST_BUILD = FW_ROOT / "build"  # fwref_infer and fwref_parity end up here (a documented contract)

@@ -7,8 +7,8 @@ import argparse
 import shlex
 import sys
 
-from core.cliargs import add_config_args
-from core.rundir import open_run
+from quadfdi.core.cliargs import add_config_args
+from quadfdi.core.rundir import open_run
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -28,7 +28,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def run_parity(args: argparse.Namespace) -> int:
-    from parity.run import parity_run
+    from quadfdi.parity.run import parity_run
 
     run, cfg = open_run(args.run, args.overrides, need=("export",))
     command = "quadfdi " + " ".join(shlex.quote(a) for a in sys.argv[1:]) if sys.argv[1:] else None

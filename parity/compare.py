@@ -13,9 +13,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from core.contracts import FP32_CPP_REL_TOL as FP32_REL_TOL
-from core.contracts import INT8_ARGMAX_MIN, INT8_TOL_STEPS
-from export.weights_bin import WeightsFile
+from quadfdi.core.contracts import FP32_CPP_REL_TOL as FP32_REL_TOL
+from quadfdi.core.contracts import INT8_ARGMAX_MIN, INT8_TOL_STEPS
+from quadfdi.export.weights_bin import WeightsFile
 HEAD_INPUT_SCALE = {"cnode": "act.z1.scale", "gru": "act.h.scale"}
 
 

@@ -19,8 +19,8 @@ import subprocess
 from pathlib import Path
 from typing import Callable
 
-from parity.build import MCU_CPUS, build_mcu, locked, mcu_build_dir, require
-from core.errors import QuadfdiError
+from quadfdi.parity.build import MCU_CPUS, build_mcu, locked, mcu_build_dir, require
+from quadfdi.core.errors import QuadfdiError
 
 QEMU_TIMEOUT_S = 600
 VARIANTS = ("cnode_f32", "cnode_i8", "gru_f32", "gru_i8")

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from core.reportmd import demote, not_run, optional_json
+from quadfdi.core.reportmd import demote, not_run, optional_json
 
 PAIR_TITLES = {
     "cpp_fp32_vs_ort_fp32": "C++ fp32 vs ONNX Runtime fp32",

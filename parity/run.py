@@ -18,20 +18,20 @@ import time
 from pathlib import Path
 from typing import Callable
 
-from export.manifest import check_files, load_manifest
-from export.weights_bin import read_weights
-from parity import compare, mcu as mcu_mod, runners
-from parity.build import HOST_BUILD, build_host
-from parity.report import markdown
-from core.atomic import ensure_dir, write_text
-from core.config import Config
-from core.errors import QuadfdiError
-from core.npzio import write_npz
-from core.stage import stage
-from core.rundir import RunDir
-from sim.dataset import load_dataset, make_windows
-from train.profile_data import profile_of, profiled_dataset
-from core.jsonio import write_json
+from quadfdi.export.manifest import check_files, load_manifest
+from quadfdi.export.weights_bin import read_weights
+from quadfdi.parity import compare, mcu as mcu_mod, runners
+from quadfdi.parity.build import HOST_BUILD, build_host
+from quadfdi.parity.report import markdown
+from quadfdi.core.atomic import ensure_dir, write_text
+from quadfdi.core.config import Config
+from quadfdi.core.errors import QuadfdiError
+from quadfdi.core.npzio import write_npz
+from quadfdi.core.stage import stage
+from quadfdi.core.rundir import RunDir
+from quadfdi.sim.dataset import load_dataset, make_windows
+from quadfdi.train.profile_data import profile_of, profiled_dataset
+from quadfdi.core.jsonio import write_json
 
 SCHEMA_VERSION = 1
 
@@ -153,7 +153,7 @@ def _consume_inputs(run: RunDir, st) -> None:
     """Every file of the published export (manifest, graphs, weights.bin, reference.bin), the
     dataset and the checkpoints, each checked against its stage record (also for --mcu, so that
     its record has the inputs of the host report it carries forward)."""
-    from core.records import load_record
+    from quadfdi.core.records import load_record
 
     st.consume("export/manifest.json")
     for entry in (load_record(run.root, "export") or {}).get("outputs", []):

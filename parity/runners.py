@@ -14,13 +14,13 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from export.ort_session import session
-from export.verify import torch_logits
-from core.errors import QuadfdiError
-from core.rundir import RunDir
-from parity.fwref_cli import fwref_infer
-from train.checkpoint import load_checkpoint
-from train.models import SolverSpec
+from quadfdi.export.ort_session import session
+from quadfdi.export.verify import torch_logits
+from quadfdi.core.errors import QuadfdiError
+from quadfdi.core.rundir import RunDir
+from quadfdi.parity.fwref_cli import fwref_infer
+from quadfdi.train.checkpoint import load_checkpoint
+from quadfdi.train.models import SolverSpec
 
 
 
@@ -55,7 +55,7 @@ def ort_outputs(onnx_path: Path, x: np.ndarray, names: list[str]) -> list[np.nda
 
 
 def torch_motor(model: torch.nn.Module, x: np.ndarray) -> np.ndarray:
-    from export.verify import torch_motor_logits
+    from quadfdi.export.verify import torch_motor_logits
 
     return torch_motor_logits(model, x).astype(np.float32)
 

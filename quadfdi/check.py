@@ -10,9 +10,9 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from core import records
-from core.errors import QuadfdiError
-from core.stage import recover_run
+from quadfdi.core import records
+from quadfdi.core.errors import QuadfdiError
+from quadfdi.core.stage import recover_run
 
 
 def check_run(root: Path) -> list[str]:

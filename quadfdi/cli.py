@@ -13,20 +13,20 @@ import importlib
 import signal
 import sys
 
-from core.errors import QuadfdiError
+from quadfdi.core.errors import QuadfdiError
 
 STAGES = {
-    "sim": "sim.cli",
-    "train": "train.cli",
-    "export": "export.cli",
-    "parity": "parity.cli",
-    "solvers": "solverstudy.cli",
-    "bench": "bench.cli",
-    "ingest": "ingest.cli",
-    "detect": "detect.cli",
-    "stream-file": "detect.stream_cli",
-    "realism": "realism.cli",
-    "evaluate": "evaluate.cli",
+    "sim": "quadfdi.sim.cli",
+    "train": "quadfdi.train.cli",
+    "export": "quadfdi.export.cli",
+    "parity": "quadfdi.parity.cli",
+    "solvers": "quadfdi.solverstudy.cli",
+    "bench": "quadfdi.bench.cli",
+    "ingest": "quadfdi.ingest.cli",
+    "detect": "quadfdi.detect.cli",
+    "stream-file": "quadfdi.detect.stream_cli",
+    "realism": "quadfdi.realism.cli",
+    "evaluate": "quadfdi.evaluate.cli",
     "report": "quadfdi.report",
     "check": "quadfdi.check",
     "readme": "quadfdi.readme",

@@ -16,11 +16,11 @@ import time
 from pathlib import Path
 from typing import Callable
 
-from core.cliargs import add_config_args
-from core.config import Config, load_config
-from core.executor import SERIAL, ExecSettings, add_executor_args, session
-from core.rundir import RunDir, create_run
-from core.runlock import run_lock
+from quadfdi.core.cliargs import add_config_args
+from quadfdi.core.config import Config, load_config
+from quadfdi.core.executor import SERIAL, ExecSettings, add_executor_args, session
+from quadfdi.core.rundir import RunDir, create_run
+from quadfdi.core.runlock import run_lock
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -35,19 +35,19 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def _sim(run: RunDir, cfg: Config, settings: ExecSettings = SERIAL) -> None:
-    from sim.cli import generate_into
+    from quadfdi.sim.cli import generate_into
 
     generate_into(run, cfg, settings=settings)
 
 
 def _plots(run: RunDir, cfg: Config) -> None:
-    from sim.cli import plots_into
+    from quadfdi.sim.cli import plots_into
 
     plots_into(run, cfg)
 
 
 def _train(run: RunDir, cfg: Config) -> None:
-    from train.run import train_run
+    from quadfdi.train.run import train_run
 
     train_run(run, cfg, cfg.train.model)
 
@@ -56,7 +56,7 @@ def _study(run: RunDir, cfg: Config, settings: ExecSettings = SERIAL) -> None:
     if not cfg.run.study_sim_seeds:
         print("study: not part of this pipeline ([run] study_sim_seeds is empty; make study runs it)")
         return
-    from train.study import run_study
+    from quadfdi.train.study import run_study
 
     seeds, sims = list(cfg.train.seeds), list(cfg.run.study_sim_seeds)
     command = (f"quadfdi train study --run {run.root} --sim-seeds {','.join(map(str, sims))} "
@@ -65,20 +65,20 @@ def _study(run: RunDir, cfg: Config, settings: ExecSettings = SERIAL) -> None:
 
 
 def _baselines(run: RunDir, cfg: Config) -> None:
-    from train.baselines_run import run_baselines
+    from quadfdi.train.baselines_run import run_baselines
 
     _, lines = run_baselines(run.root, cfg.train.seed)  # every dataset the index lists (the study's sim seeds)
     print("\n".join(lines))
 
 
 def _evaluate(run: RunDir, cfg: Config) -> None:
-    from evaluate.run import evaluate_run
+    from quadfdi.evaluate.run import evaluate_run
 
     evaluate_run(run.root, cfg, f"quadfdi evaluate --run {run.root}")
 
 
 def _export(run: RunDir, cfg: Config) -> None:
-    from export.run import export_run
+    from quadfdi.export.run import export_run
 
     # the evaluate stage just chose each network's alarm policy on validation: the export carries those
     chosen = (run.root / "evaluation" / "evaluation.json").is_file()
@@ -86,19 +86,19 @@ def _export(run: RunDir, cfg: Config) -> None:
 
 
 def _parity(run: RunDir, cfg: Config) -> None:
-    from parity.run import parity_run
+    from quadfdi.parity.run import parity_run
 
     parity_run(run, cfg)
 
 
 def _solvers(run: RunDir, cfg: Config) -> None:
-    from solverstudy.run import study_run
+    from quadfdi.solverstudy.run import study_run
 
     study_run(run, cfg)
 
 
 def _bench(run: RunDir, cfg: Config) -> None:
-    from bench.run import bench_run
+    from quadfdi.bench.run import bench_run
 
     bench_run(run, cfg)
 
@@ -107,7 +107,7 @@ def _realism(run: RunDir, cfg: Config) -> None:
     if not cfg.run.realism_logs:
         print("realism: not part of this pipeline ([run] realism_logs is empty)")
         return
-    from realism.cli import realism_into
+    from quadfdi.realism.cli import realism_into
 
     realism_into(run, [str(p if Path(p).is_absolute() else (REPO / p).resolve()) for p in cfg.run.realism_logs])
 

@@ -13,11 +13,11 @@ import argparse
 import datetime as dt
 from pathlib import Path
 
-from core.errors import QuadfdiError
-from core.jsonio import read_json
-from core.machine import isa_summary
-from core.mdblock import rewrite_file_block
-from core.tables import md_table
+from quadfdi.core.errors import QuadfdiError
+from quadfdi.core.jsonio import read_json
+from quadfdi.core.machine import isa_summary
+from quadfdi.core.mdblock import rewrite_file_block
+from quadfdi.core.tables import md_table
 
 BLOCK = "deployment"
 MODELS = (("cnode", "CNODE"), ("gru", "GRU"))
@@ -144,7 +144,7 @@ def deployment_block(root: Path) -> str:
              "**Cortex-M** (`parity/mcu.json`, minimal images, `arm-none-eabi-size`):", "", *mcu_table(mcu)]
     solvers = root / "solvers" / "solvers.json"
     if solvers.is_file():
-        from solverstudy.report import headline
+        from quadfdi.solverstudy.report import headline
 
         lines += ["**Solvers** (`solvers/solvers.md`):", "", *headline(root), ""]
     return "\n".join(lines)

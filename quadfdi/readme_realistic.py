@@ -11,10 +11,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from core.errors import QuadfdiError
-from core.jsonio import read_json
-from core.tables import md_table
-from evaluate.report import (  # one formatting of an interval and of a policy
+from quadfdi.core.errors import QuadfdiError
+from quadfdi.core.jsonio import read_json
+from quadfdi.core.tables import md_table
+from quadfdi.evaluate.report import (  # one formatting of an interval and of a policy
     _ci,
     _policy,
 )

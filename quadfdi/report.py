@@ -18,13 +18,13 @@ import importlib
 from pathlib import Path
 from typing import Callable
 
-from core.atomic import write_text
-from core.errors import QuadfdiError
-from core.reportmd import figure_links
+from quadfdi.core.atomic import write_text
+from quadfdi.core.errors import QuadfdiError
+from quadfdi.core.reportmd import figure_links
 
-SECTIONS = ("sim.report", "train.report", "evaluate.report", "export.report", "parity.report", "bench.report",
-            "solverstudy.report", "realism.report")
-HEADLINES = ("train.report", "evaluate.report", "export.report", "bench.report", "solverstudy.report")
+SECTIONS = ("quadfdi.sim.report", "quadfdi.train.report", "quadfdi.evaluate.report", "quadfdi.export.report", "quadfdi.parity.report", "quadfdi.bench.report",
+            "quadfdi.solverstudy.report", "quadfdi.realism.report")
+HEADLINES = ("quadfdi.train.report", "quadfdi.evaluate.report", "quadfdi.export.report", "quadfdi.bench.report", "quadfdi.solverstudy.report")
 
 
 def headline(root: Path) -> list[str]:
@@ -61,7 +61,7 @@ def run_report_markdown(run_root: str | Path) -> str:
 
 def write_run_report(run_root: str | Path, log: Callable[[str], None] | None = None) -> Path:
     """Write ``runs/<name>/report.md`` (atomically) from the run folder's files; return its path."""
-    from core.stage import stage
+    from quadfdi.core.stage import stage
 
     root = Path(run_root)
     text = run_report_markdown(root)
@@ -81,13 +81,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def run_report(args: argparse.Namespace) -> int:
-    from bench.report import redraw_figures
+    from quadfdi.bench.report import redraw_figures
 
     root = Path(args.run)
     if not root.is_dir():
         raise QuadfdiError(f"run folder {root} does not exist")
     if (root / ".stages" / "bench.json").is_file():  # the figures are bench's outputs: republished as bench's
-        from core.stage import stage
+        from quadfdi.core.stage import stage
 
         with stage(root, "bench", {}) as st:
             st.redo_previous(("bench.json",))

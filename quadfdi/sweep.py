@@ -18,13 +18,13 @@ import contextlib
 import itertools
 from pathlib import Path
 
-from core.cliargs import add_config_args
-from core.config import Config, load_config
-from core.errors import QuadfdiError
-from core.executor import ExecSettings, Job, JobResult, add_executor_args, run_jobs, session
-from core.jobcache import cache_path, job_key
-from core.jsonio import read_json
-from core.rundir import RunDir, create_run
+from quadfdi.core.cliargs import add_config_args
+from quadfdi.core.config import Config, load_config
+from quadfdi.core.errors import QuadfdiError
+from quadfdi.core.executor import ExecSettings, Job, JobResult, add_executor_args, run_jobs, session
+from quadfdi.core.jobcache import cache_path, job_key
+from quadfdi.core.jsonio import read_json
+from quadfdi.core.rundir import RunDir, create_run
 
 # The packages whose source a stage runs (hashed into a point's key; core always is).
 PACKAGES = {"sim": ("sim",), "plots": ("sim",), "train": ("sim", "train"), "export": ("sim", "train", "export"),
@@ -121,7 +121,7 @@ def _run_stages(stages: tuple[str, ...], run: RunDir, cfg: Config, cache_root: P
     shards the sweep's first step cached in ``cache_root``. Their printout goes to the point's
     log.txt: on workers it would interleave in the sweep's terminal."""
     from quadfdi.pipeline import STAGES
-    from sim.publish import generate_sharded
+    from quadfdi.sim.publish import generate_sharded
 
     funcs = dict(STAGES)
     with open(run.root / "log.txt", "w") as fh, contextlib.redirect_stdout(fh):
@@ -174,7 +174,7 @@ def point_jobs(out: Path, points: list[tuple[dict, Config]], stages: tuple[str, 
 def run_sweep(out: Path, points: list[tuple[dict, Config]], stages: tuple[str, ...], settings: ExecSettings,
               progress: bool = True) -> list[JobResult]:
     """The datasets' shards (each distinct [sim] section once), then one job per point."""
-    from sim.shards import shard_jobs
+    from quadfdi.sim.shards import shard_jobs
 
     if {"parity", "bench"} & set(stages) and not settings.in_process(2):
         raise QuadfdiError("the parity and bench stages build C++ in one shared folder and time the machine: "

@@ -27,11 +27,11 @@ import sys
 import time
 from pathlib import Path
 
-from core.cliargs import add_config_args
-from core.config import Config, load_config
-from core.errors import QuadfdiError
-from core.executor import SERIAL, ExecSettings, Job, run_jobs
-from core.jobcache import ROOT, cache_path, job_key
+from quadfdi.core.cliargs import add_config_args
+from quadfdi.core.config import Config, load_config
+from quadfdi.core.errors import QuadfdiError
+from quadfdi.core.executor import SERIAL, ExecSettings, Job, run_jobs
+from quadfdi.core.jobcache import cache_path, job_key
 
 
 def add_bench_parser(acts: argparse._SubParsersAction) -> None:
@@ -59,9 +59,9 @@ def noop_jobs(root: Path, n: int) -> list[Job]:
 
 
 def sim_jobs(cfg: Config, root: Path, n_traj: int) -> list[Job]:
-    from core.config import replace_section
-    from core.rundir import RunDir
-    from sim.shards import shard_jobs
+    from quadfdi.core.config import replace_section
+    from quadfdi.core.rundir import RunDir
+    from quadfdi.sim.shards import shard_jobs
 
     big = replace_section(cfg, "sim", n_traj=n_traj)
     return shard_jobs(RunDir(root), big)
@@ -69,9 +69,9 @@ def sim_jobs(cfg: Config, root: Path, n_traj: int) -> list[Job]:
 
 def study_jobs(cfg: Config, root: Path) -> list[Job]:
     """The seed x model jobs of the study on the bench's paper-scale dataset (made once, cached)."""
-    from core.rundir import RunDir, create_run
-    from sim.publish import generate_sharded
-    from train.study_jobs import seed_model_jobs
+    from quadfdi.core.rundir import RunDir, create_run
+    from quadfdi.sim.publish import generate_sharded
+    from quadfdi.train.study_jobs import seed_model_jobs
 
     data = RunDir(Path(root).parent / "data")
     if not data.dataset.is_file():
@@ -138,10 +138,9 @@ def by_hand(jobs: list[Job], root: Path, parts: list[list[int]]) -> float:
     with open(root / "jobs.pkl", "wb") as fh:
         pickle.dump(jobs, fh)
     cmd = [sys.executable, "-m", "quadfdi.cli", "sweep", "bench", "--cache", str(root / "jobs.pkl")]
-    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(ROOT), os.environ.get("PYTHONPATH", "")]),
-               OMP_NUM_THREADS="1", MKL_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")
+    env = dict(os.environ, OMP_NUM_THREADS="1", MKL_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1")
     t0 = time.perf_counter()
-    procs = [subprocess.Popen([*cmd, "--part", ",".join(map(str, p))], env=env, cwd=ROOT) for p in parts if p]
+    procs = [subprocess.Popen([*cmd, "--part", ",".join(map(str, p))], env=env, cwd=root) for p in parts if p]
     codes = [p.wait() for p in procs]
     if any(codes):
         raise QuadfdiError(f"bench: a hand-started process failed (exit codes {codes})")
@@ -192,7 +191,7 @@ def run_bench_cmd(args: argparse.Namespace) -> int:
     names = [w.strip() for w in args.workloads.split(",") if w.strip()]
     from distributed import Client
 
-    from core.executor_dask import OneThread, start_local_cluster
+    from quadfdi.core.executor_dask import OneThread, start_local_cluster
 
     out = Path(args.out)
     t0 = time.perf_counter()

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from core.atomic import write_text
-from core.jsonio import write_json
-from core.tables import md_table
+from quadfdi.core.atomic import write_text
+from quadfdi.core.jsonio import write_json
+from quadfdi.core.tables import md_table
 
 
 def bench_markdown(r: dict) -> str:

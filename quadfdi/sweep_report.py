@@ -4,13 +4,13 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from core.atomic import write_text
-from core.config import Config
-from core.executor import JobResult
-from core.jobcache import read_result
-from core.jsonio import write_json
-from core.plotting import pyplot, save_png
-from core.tables import md_table
+from quadfdi.core.atomic import write_text
+from quadfdi.core.config import Config
+from quadfdi.core.executor import JobResult
+from quadfdi.core.jobcache import read_result
+from quadfdi.core.jsonio import write_json
+from quadfdi.core.plotting import pyplot, save_png
+from quadfdi.core.tables import md_table
 
 
 def sweep_rows(grid: list[tuple[str, list[str]]], points: list[tuple[dict, Config]], results: list[JobResult],

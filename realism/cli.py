@@ -21,7 +21,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 def parse_masses(items: list[str]) -> dict[str, float]:
     from pathlib import Path
 
-    from core.errors import QuadfdiError
+    from quadfdi.core.errors import QuadfdiError
 
     out = {}
     for item in items:
@@ -36,7 +36,7 @@ def parse_masses(items: list[str]) -> dict[str, float]:
 
 
 def run(args: argparse.Namespace) -> int:
-    from core.rundir import open_run
+    from quadfdi.core.rundir import open_run
 
     run_dir, _ = open_run(args.run, need=("dataset",))
     command = "quadfdi realism " + shlex.join(sys.argv[2:] if sys.argv[1:2] == ["realism"] else ["--run", args.run, "--logs", *args.logs])
@@ -48,10 +48,10 @@ def realism_into(run_dir, logs: list[str], masses: dict[str, float] | None = Non
     """Compare ``run_dir``'s dataset with ``logs`` and publish <run>/realism/ as one stage."""
     from pathlib import Path
 
-    from core.errors import QuadfdiError
-    from core.stage import stage
-    from realism.compare import compare
-    from realism.report import write
+    from quadfdi.core.errors import QuadfdiError
+    from quadfdi.core.stage import stage
+    from quadfdi.realism.compare import compare
+    from quadfdi.realism.report import write
 
     missing = [p for p in logs if not Path(p).is_file()]
     if missing:

@@ -14,10 +14,10 @@ from pathlib import Path
 
 import numpy as np
 
-from core.errors import QuadfdiError
-from ingest.model import ANGLE_CHANNELS
-from ingest.resample import resample
-from realism import stats, steady
+from quadfdi.core.errors import QuadfdiError
+from quadfdi.ingest.model import ANGLE_CHANNELS
+from quadfdi.ingest.resample import resample
+from quadfdi.realism import stats, steady
 
 COMPARED = ("x", "y", "z", "vx", "vy", "vz", "roll", "pitch", "yaw", "p", "q", "r", "V_b", "I_b",
             "thr1", "thr2", "thr3", "thr4")
@@ -47,7 +47,7 @@ def _hover(ch: dict, segs: list[dict]) -> dict:
 
 
 def real_flight(log: str) -> dict:
-    from ingest.flight import ingest
+    from quadfdi.ingest.flight import ingest
 
     name = Path(log).name
     try:
@@ -94,8 +94,8 @@ def _sim_channel(t: np.ndarray, tel: np.ndarray, j: int, rows_segs: list, rate: 
 
 
 def sim_side(dataset_path: Path, rates: dict[str, float]) -> dict:
-    from sim.dataset import load_dataset
-    from sim.params import get_vehicle
+    from quadfdi.sim.dataset import load_dataset
+    from quadfdi.sim.params import get_vehicle
 
     ds = load_dataset(dataset_path)
     t, tel = ds["time"], ds["telemetry"]

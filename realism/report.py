@@ -6,12 +6,12 @@ from pathlib import Path
 
 import numpy as np
 
-from core.atomic import write_text
-from core.jsonio import write_json
-from core.plotting import pyplot, save_png
-from core.tables import md_table
-from ingest.model import CHANNEL_UNITS
-from realism.compare import COMPARED, MIN_STEADY_S
+from quadfdi.core.atomic import write_text
+from quadfdi.core.jsonio import write_json
+from quadfdi.core.plotting import pyplot, save_png
+from quadfdi.core.tables import md_table
+from quadfdi.ingest.model import CHANNEL_UNITS
+from quadfdi.realism.compare import COMPARED, MIN_STEADY_S
 
 GROUPS = {"position": ("x", "y", "z"), "velocity": ("vx", "vy", "vz"), "attitude": ("roll", "pitch", "yaw"),
           "rates": ("p", "q", "r"), "battery": ("V_b", "I_b"), "motors": ("thr1", "thr2", "thr3", "thr4")}
@@ -123,7 +123,7 @@ HEADING = "## Realism: simulated telemetry against real flights"
 
 def report_section(root: Path) -> list[str]:
     """report.md's section: realism/realism.md under one heading (its own title dropped)."""
-    from core.reportmd import demote, not_run
+    from quadfdi.core.reportmd import demote, not_run
 
     md = Path(root) / "realism" / "realism.md"
     if not md.is_file():

@@ -5,10 +5,10 @@ from pathlib import Path
 
 import numpy as np
 
-from core.predindex import read_index
-from sim.dataset import load_dataset
-from train.predsets import write_prediction_set
-from train.profile_data import decided, profiled_dataset
+from quadfdi.core.predindex import read_index
+from quadfdi.sim.dataset import load_dataset
+from quadfdi.train.predsets import write_prediction_set
+from quadfdi.train.profile_data import decided, profiled_dataset
 
 run = Path(sys.argv[1]); profile = sys.argv[2]
 ds = profiled_dataset(load_dataset(run / "dataset.npz"), profile)

@@ -5,9 +5,9 @@ import sys
 from dataclasses import replace
 from pathlib import Path
 
-from detect.run import policy_of
-from evaluate.alarms import flight_alarms
-from evaluate.load import load_run
+from quadfdi.detect.run import policy_of
+from quadfdi.evaluate.alarms import flight_alarms
+from quadfdi.evaluate.load import load_run
 
 run = Path(sys.argv[1])
 pol = policy_of(json.loads((run / "export/manifest.json").read_text()))

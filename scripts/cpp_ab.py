@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from sim.dataset import load_dataset, make_windows
+from quadfdi.sim.dataset import load_dataset, make_windows
 
 
 def parse_case(text: str) -> tuple[str, str, str, str, str]:

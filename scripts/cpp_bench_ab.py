@@ -2,7 +2,7 @@
 
     PYTHONPATH=. python scripts/cpp_bench_ab.py RUN --rounds N --case LABEL=EXE:MODEL:PRECISION[:ENV=VALUE] ...
 
-Each round runs, per case in the order given, ``taskset -c CPUS python -m bench.latency_worker --runtime
+Each round runs, per case in the order given, ``taskset -c CPUS python -m quadfdi.bench.latency_worker --runtime
 cpp`` as `quadfdi bench` does (bench/runtimes/cpp_rt.py: CPP_PROCESSES processes per setting, their
 per-window times pooled; the windows: bench.latency.sample_windows of the test split, the bench's
 count and warm-up), so a slow phase of the shared machine hits every case alike. Printed per case: the
@@ -22,8 +22,8 @@ from pathlib import Path
 
 import numpy as np
 
-from bench.latency import sample_windows
-from sim.dataset import load_dataset, make_windows
+from quadfdi.bench.latency import sample_windows
+from quadfdi.sim.dataset import load_dataset, make_windows
 
 
 def parse_case(text: str) -> tuple[str, str, str, str, dict]:
@@ -39,7 +39,7 @@ def parse_case(text: str) -> tuple[str, str, str, str, dict]:
 
 def worker_p50(windows: Path, weights: Path, case: tuple, cpus: str, n: int) -> float:
     _, exe, model, precision, env = case
-    cmd = ["taskset", "-c", cpus, sys.executable, "-m", "bench.latency_worker", "--runtime", "cpp", "--model", model,
+    cmd = ["taskset", "-c", cpus, sys.executable, "-m", "quadfdi.bench.latency_worker", "--runtime", "cpp", "--model", model,
            "--precision", precision, "--solver", "rk4-8" if model == "cnode" else "gru", "--windows", str(windows),
            "--artifact", str(weights), "--fwref", exe, "--n", str(n)]
     res = subprocess.run(cmd, capture_output=True, text=True, env=dict(os.environ, **env), check=False)

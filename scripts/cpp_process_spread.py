@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from sim.dataset import load_dataset, make_windows
+from quadfdi.sim.dataset import load_dataset, make_windows
 
 EXE = Path(__file__).resolve().parents[1] / "firmware_ref" / "build" / "fwref_infer"
 

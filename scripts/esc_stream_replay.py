@@ -13,7 +13,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-from detect.streamfile import from_dataset, from_flight, record_of, write_stream
+from quadfdi.detect.streamfile import from_dataset, from_flight, record_of, write_stream
 from tests.test_stream import _check_replay
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -16,7 +16,7 @@ import argparse
 
 import numpy as np
 
-from sim.dataset import load_dataset
+from quadfdi.sim.dataset import load_dataset
 
 
 def _q(x: np.ndarray) -> str:
@@ -58,8 +58,8 @@ def summary(arrays, n_last: int) -> None:
 
 
 def true_board(ds, n_last: int) -> None:
-    from sim import esc_thermal
-    from sim.simulate import generate
+    from quadfdi.sim import esc_thermal
+    from quadfdi.sim.simulate import generate
 
     esc_thermal.reported = lambda T, d: T  # the board temperature itself (this process only)
     a = ds.arrays

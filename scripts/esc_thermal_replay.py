@@ -17,7 +17,7 @@ import argparse
 
 import numpy as np
 
-from sim import esc_thermal as E
+from quadfdi.sim import esc_thermal as E
 
 
 def corner(which: str) -> dict[str, np.ndarray]:

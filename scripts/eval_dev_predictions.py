@@ -18,10 +18,10 @@ from sklearn.linear_model import LogisticRegression
 from sklearn.pipeline import make_pipeline
 from sklearn.preprocessing import StandardScaler
 
-from core.npzio import write_npz
-from core.predindex import add_entries, prediction_path
-from sim.dataset import class_names, load_dataset, make_windows, split_names
-from train.baseline import window_features
+from quadfdi.core.npzio import write_npz
+from quadfdi.core.predindex import add_entries, prediction_path
+from quadfdi.sim.dataset import class_names, load_dataset, make_windows, split_names
+from quadfdi.train.baseline import window_features
 
 MODELS = {"dev_logreg": 1.0, "dev_logreg_weak": 5e-4}
 

@@ -17,15 +17,15 @@ from pathlib import Path
 
 import numpy as np
 
-from core.atomic import write_bytes
-from core.rundir import RunDir
-from export.calibrate import select_windows
-from export.onnx_gru_unrolled import build_gru_int8_unrolled
-from export.run import _load_models, build_graphs
-from export.verify import session
-from sim.dataset import load_dataset, make_windows
-from train.checkpoint import load_checkpoint
-from train.profile_data import profile_of, profiled_dataset
+from quadfdi.core.atomic import write_bytes
+from quadfdi.core.rundir import RunDir
+from quadfdi.export.calibrate import select_windows
+from quadfdi.export.onnx_gru_unrolled import build_gru_int8_unrolled
+from quadfdi.export.run import _load_models, build_graphs
+from quadfdi.export.verify import session
+from quadfdi.sim.dataset import load_dataset, make_windows
+from quadfdi.train.checkpoint import load_checkpoint
+from quadfdi.train.profile_data import profile_of, profiled_dataset
 
 
 def main(argv: list[str]) -> int:

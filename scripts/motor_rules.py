@@ -8,9 +8,9 @@ from pathlib import Path
 
 import numpy as np
 
-from core.alarm import AlarmConfig, reported_motor, rotor_columns
-from evaluate.alarms import set_trace
-from evaluate.load import load_run
+from quadfdi.core.alarm import AlarmConfig, reported_motor, rotor_columns
+from quadfdi.evaluate.alarms import set_trace
+from quadfdi.evaluate.load import load_run
 
 run, split = Path(sys.argv[1]), sys.argv[2] if len(sys.argv) > 2 else "validation"
 pol = dict(AlarmConfig().__dict__)

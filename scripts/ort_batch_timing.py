@@ -32,8 +32,8 @@ from pathlib import Path
 
 import numpy as np
 
-from core.tables import md_table
-from export.ort_session import optimized_nodes, session
+from quadfdi.core.tables import md_table
+from quadfdi.export.ort_session import optimized_nodes, session
 
 
 def windows(run: Path, batch: int, width: int) -> np.ndarray:

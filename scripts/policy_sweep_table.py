@@ -12,8 +12,8 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from core.jsonio import read_json
-from core.tables import md_table
+from quadfdi.core.jsonio import read_json
+from quadfdi.core.tables import md_table
 
 
 def _pol(r: dict) -> str:

@@ -19,9 +19,9 @@ import argparse
 import shutil
 from pathlib import Path
 
-from core.errors import QuadfdiError
-from core.predindex import add_entries, check_prediction_set
-from train.predsets import index_entry, relative_prediction_path
+from quadfdi.core.errors import QuadfdiError
+from quadfdi.core.predindex import add_entries, check_prediction_set
+from quadfdi.train.predsets import index_entry, relative_prediction_path
 
 
 def _parse_set(spec: str) -> tuple[str, int, int, Path]:

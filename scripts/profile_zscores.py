@@ -15,9 +15,9 @@ import sys
 
 import numpy as np
 
-from detect.inputs import flight_inputs, read_flight
-from sim.dataset import load_dataset
-from train.profile_data import profiled_dataset
+from quadfdi.detect.inputs import flight_inputs, read_flight
+from quadfdi.sim.dataset import load_dataset
+from quadfdi.train.profile_data import profiled_dataset
 
 
 def train_samples(dataset: str, profile: str) -> tuple[list[str], np.ndarray, np.ndarray, np.ndarray]:

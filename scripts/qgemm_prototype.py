@@ -18,7 +18,7 @@ import onnx
 from onnx import TensorProto, helper
 from onnx import numpy_helper as nh
 
-from export.graph import MS_DOMAIN
+from quadfdi.export.graph import MS_DOMAIN
 
 
 def stage_products(g: onnx.GraphProto) -> tuple[list, onnx.NodeProto, onnx.NodeProto]:

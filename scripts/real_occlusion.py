@@ -17,8 +17,8 @@ import argparse
 
 import numpy as np
 
-import detect.run as detect_run
-from detect import inputs as detect_inputs
+import quadfdi.detect.run as detect_run
+from quadfdi.detect import inputs as detect_inputs
 
 GROUPS = {"none": [], "attitude": ["roll", "pitch"], "rates": ["p", "q", "r"], "velocity": ["vx_h", "vy_h", "vz"],
           "v_cell": ["v_cell"], "i_rel": ["i_rel"], "motors": ["m1_rel", "m2_rel", "m3_rel", "m4_rel"],

@@ -18,7 +18,7 @@ import sys
 
 import numpy as np
 
-from ingest.flight import sha256
+from quadfdi.ingest.flight import sha256
 
 LAST_S = 8.0
 

@@ -30,11 +30,11 @@ from pathlib import Path
 
 import numpy as np
 
-from core.tables import md_table
-from evaluate.bootstrap import draw_weights
-from evaluate.common_delay import common_delay
-from evaluate.load import Flights, load_run
-from evaluate.outcomes import alarm_outcomes
+from quadfdi.core.tables import md_table
+from quadfdi.evaluate.bootstrap import draw_weights
+from quadfdi.evaluate.common_delay import common_delay
+from quadfdi.evaluate.load import Flights, load_run
+from quadfdi.evaluate.outcomes import alarm_outcomes
 
 BINS = ((-10.0, 0.0), (0.0, 5.0), (5.0, 10.0), (10.0, 20.0), (20.0, 40.0))
 DEFAULT_SETS = "test,test_ood_mission,test_ood_vehicle,test_ood_wind,validation"

@@ -28,17 +28,17 @@ from pathlib import Path
 
 import numpy as np
 
-import sim.dataset as sim_dataset
-from core.alarm import run_alarm
-from export.onboard_record import policy_of
-from core.contracts import FP32_CPP_REL_TOL
-from detect.run import softmax
-from bench.stream_latency import split_timings
-from detect.runtimes import cpp_logits, ort_logits
-from detect.streamfile import from_dataset, read_stream, record_of, write_stream
-from detect.streamref import read_lines, sgru_logits, stepped_of, windows_of
-from export.manifest import load_manifest
-from parity.build import HOST_BUILD, build_host
+import quadfdi.sim.dataset as sim_dataset
+from quadfdi.core.alarm import run_alarm
+from quadfdi.export.onboard_record import policy_of
+from quadfdi.core.contracts import FP32_CPP_REL_TOL
+from quadfdi.detect.run import softmax
+from quadfdi.bench.stream_latency import split_timings
+from quadfdi.detect.runtimes import cpp_logits, ort_logits
+from quadfdi.detect.streamfile import from_dataset, read_stream, record_of, write_stream
+from quadfdi.detect.streamref import read_lines, sgru_logits, stepped_of, windows_of
+from quadfdi.export.manifest import load_manifest
+from quadfdi.parity.build import HOST_BUILD, build_host
 
 
 def _stream(export: Path, path: Path, net: str, prec: str, tmp: Path, k: int) -> tuple[dict, np.ndarray]:

@@ -24,8 +24,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from core.contracts import N_CLASSES, SPLIT_TEST, SPLIT_TRAIN, SPLIT_VALIDATION
-from core.errors import QuadfdiError
+from quadfdi.core.contracts import N_CLASSES, SPLIT_TEST, SPLIT_TRAIN, SPLIT_VALIDATION
+from quadfdi.core.errors import QuadfdiError
 
 ASSIGN_SPAWN_KEY = (0xA55,)
 N_FAULT_CLASSES = N_CLASSES - 1  # every class but Healthy

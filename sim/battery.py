@@ -22,7 +22,7 @@ from functools import lru_cache
 
 import numpy as np
 
-from sim.params import VehicleParams
+from quadfdi.sim.params import VehicleParams
 
 
 @lru_cache(maxsize=16)

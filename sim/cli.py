@@ -7,11 +7,11 @@ import argparse
 import time
 from pathlib import Path
 
-from core.cliargs import add_config_args
-from core.config import Config, load_config
-from core.errors import QuadfdiError
-from core.executor import SERIAL, ExecSettings, add_executor_args
-from core.rundir import RunDir, create_run, open_run
+from quadfdi.core.cliargs import add_config_args
+from quadfdi.core.config import Config, load_config
+from quadfdi.core.errors import QuadfdiError
+from quadfdi.core.executor import SERIAL, ExecSettings, add_executor_args
+from quadfdi.core.rundir import RunDir, create_run, open_run
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -37,7 +37,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 def generate_into(run: RunDir, cfg: Config, show_progress: bool = True, settings: ExecSettings = SERIAL,
                   cache_root: Path | None = None) -> Path:
     """``sim.publish.publish_dataset``: simulate and publish dataset.npz with config.toml."""
-    from sim.publish import publish_dataset
+    from quadfdi.sim.publish import publish_dataset
 
     return publish_dataset(run, cfg, show_progress, settings, cache_root)
 
@@ -68,12 +68,12 @@ def default_plot_rows(ds) -> list[int]:
 
 
 def run_plot(args: argparse.Namespace) -> int:
-    from sim.dataset import load_dataset
-    from sim.plot import plot_trajectory
+    from quadfdi.sim.dataset import load_dataset
+    from quadfdi.sim.plot import plot_trajectory
 
     run, cfg = open_run(args.run, need=("dataset",))
     if args.out is not None:  # a file outside the run's published state
-        from core.stage import check_target
+        from quadfdi.core.stage import check_target
 
         if Path(args.out).resolve() == run.dataset.resolve():
             raise QuadfdiError(f"--out {args.out} is the input dataset: refusing to write over it")
@@ -102,9 +102,9 @@ def _plot_rows(ds, traj: list[int] | None) -> list[int]:
 def plots_into(run: RunDir, cfg: Config, traj: list[int] | None = None) -> list[Path]:
     """Draw trajectories of the published dataset as the ``plots`` stage (figures/sim_traj<i>.png);
     the figures of an earlier ``sim plot`` of the same dataset are kept."""
-    from core.stage import stage
-    from sim.dataset import load_dataset
-    from sim.plot import plot_trajectory
+    from quadfdi.core.stage import stage
+    from quadfdi.sim.dataset import load_dataset
+    from quadfdi.sim.plot import plot_trajectory
 
     with stage(run.root, "plots", {"sim": cfg.to_dict()["sim"]}) as st:
         ds = load_dataset(st.consume("dataset.npz", ("sim",)))
@@ -119,7 +119,7 @@ def run_bench(args: argparse.Namespace) -> int:
     """Time ``generate`` on the config (paper scale by default); median over repeats."""
     import statistics
 
-    from sim.simulate import generate
+    from quadfdi.sim.simulate import generate
 
     cfg = load_config(args.config, args.overrides)
     generate(cfg.sim, indices=range(min(8, cfg.sim.n_traj)))  # warm-up: imports, page faults

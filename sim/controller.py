@@ -23,7 +23,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from sim.params import VehicleParams
+from quadfdi.sim.params import VehicleParams
 
 _EPS = 1e-9
 

@@ -18,10 +18,10 @@ from typing import Any
 
 import numpy as np
 
-from core.contracts import CLASS_NAMES, SPLITS
-from core.npzio import read_npz, write_npz  # noqa: F401  (re-exported: the dataset's own I/O)
-from core.config import Config, build_config
-from core.errors import QuadfdiError
+from quadfdi.core.contracts import CLASS_NAMES, SPLITS
+from quadfdi.core.npzio import read_npz, write_npz  # noqa: F401  (re-exported: the dataset's own I/O)
+from quadfdi.core.config import Config, build_config
+from quadfdi.core.errors import QuadfdiError
 
 
 # key -> (dtype kind, number of dimensions); the contract of docs/formats.md.

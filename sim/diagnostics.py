@@ -1,6 +1,6 @@
 """Flight-sanity diagnostics of a simulated dataset: a per-class summary of the telemetry.
 
-``python -m sim.diagnostics [seed]`` times a paper-scale ``generate`` and prints ``summarize``
+``python -m quadfdi.sim.diagnostics [seed]`` times a paper-scale ``generate`` and prints ``summarize``
 of it (docs/params.md quotes the table).
 """
 
@@ -8,8 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from core.config import SimConfig
-from sim.simulate import generate
+from quadfdi.core.config import SimConfig
+from quadfdi.sim.simulate import generate
 
 
 def summarize(out: dict[str, np.ndarray]) -> str:
@@ -68,7 +68,7 @@ def summarize(out: dict[str, np.ndarray]) -> str:
     return "\n".join(rows)
 
 
-if __name__ == "__main__":  # python -m sim.diagnostics [seed]: paper-scale timing and summary
+if __name__ == "__main__":  # python -m quadfdi.sim.diagnostics [seed]: paper-scale timing and summary
     import sys
     import time as _time
 

@@ -11,9 +11,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from core.config import SimConfig
-from sim import reference, sensors
-from sim.params import VehicleParams
+from quadfdi.core.config import SimConfig
+from quadfdi.sim import reference, sensors
+from quadfdi.sim.params import VehicleParams
 
 TRAJ_SPAWN = 1  # spawn_key = (TRAJ_SPAWN, i) for trajectory i; sim.assign uses (0xA55,)
 

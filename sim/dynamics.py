@@ -35,10 +35,10 @@ from typing import NamedTuple
 
 import numpy as np
 
-from core.config import SimConfig
-from core.rk4 import rk4_step
-from sim import battery, controller, faults, reference, rigid_body, thermal
-from sim.params import VehicleParams
+from quadfdi.core.config import SimConfig
+from quadfdi.core.rk4 import rk4_step
+from quadfdi.sim import battery, controller, faults, reference, rigid_body, thermal
+from quadfdi.sim.params import VehicleParams
 
 N_X = 17  # integrated augmented state size
 REF_BLOCK_STEPS = 128  # reference evaluated for this many steps at once (speed only)

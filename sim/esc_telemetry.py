@@ -27,8 +27,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from sim import propeller
-from sim import realistic_params as P
+from quadfdi.sim import propeller
+from quadfdi.sim import realistic_params as P
 
 ESC_SPAWN = 5  # spawn_key (5, i): flight i's ESC telemetry noise (1..4 are taken: sim.draws, variability, telemetry)
 ESC_CHANNEL_NAMES = ("rpm1", "rpm2", "rpm3", "rpm4", "esc_cur1", "esc_cur2", "esc_cur3", "esc_cur4",

@@ -19,8 +19,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from core.contracts import CLASS_NAMES, HEALTHY  # noqa: F401  (faults.HEALTHY, beside the fault labels)
-from sim.params import VehicleParams
+from quadfdi.core.contracts import CLASS_NAMES, HEALTHY  # noqa: F401  (faults.HEALTHY, beside the fault labels)
+from quadfdi.sim.params import VehicleParams
 
 BATTERY, MOTOR, OVERHEAT = (CLASS_NAMES.index(n) for n in ("BatteryFault", "MotorFault", "OverheatFault"))
 

@@ -1,7 +1,7 @@
 """A simulated flight of a dataset as an ingested ``flight.npz`` (docs/flight_format.md), so that
 ``quadfdi detect`` runs on a simulated flight exactly as on a real log:
 
-    python -m sim.flight_npz DATASET.npz INDEX OUT/flight.npz
+    python -m quadfdi.sim.flight_npz DATASET.npz INDEX OUT/flight.npz
 
 Every ingest channel the dataset has is copied from ``telemetry`` or ``esc_telemetry`` (the realistic
 suite's ESC rpm, current and temperature, sim.esc_telemetry) with a full mask; ``vib_acc`` is the PX4
@@ -22,11 +22,11 @@ from pathlib import Path
 
 import numpy as np
 
-from core.errors import QuadfdiError
-from ingest import resample
-from ingest.flight import FORMAT_VERSION, write_flight
-from ingest.model import CHANNEL_NAMES, CHANNEL_UNITS
-from sim.dataset import load_dataset
+from quadfdi.core.errors import QuadfdiError
+from quadfdi.ingest import resample
+from quadfdi.ingest.flight import FORMAT_VERSION, write_flight
+from quadfdi.ingest.model import CHANNEL_NAMES, CHANNEL_UNITS
+from quadfdi.sim.dataset import load_dataset
 
 ALIAS = {"vib_acc": "vib_px4"}  # flight.npz name -> dataset name
 
@@ -75,7 +75,7 @@ def flight_arrays(arrays: dict, index: int, source: str) -> dict[str, np.ndarray
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="python -m sim.flight_npz", description=__doc__.split("\n\n")[0])
+    p = argparse.ArgumentParser(prog="python -m quadfdi.sim.flight_npz", description=__doc__.split("\n\n")[0])
     p.add_argument("dataset")
     p.add_argument("index", type=int)
     p.add_argument("out")

@@ -3,7 +3,7 @@
 It evaluates the battery, thermal and fault models at hover, so it sits above them: this module
 imports ``sim.params`` and the subsystems, none of them imports it.
 
-``python -m sim.operating_point [vehicle]`` prints every parameter, then these numbers
+``python -m quadfdi.sim.operating_point [vehicle]`` prints every parameter, then these numbers
 (docs/params.md quotes them).
 """
 
@@ -11,8 +11,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from sim import battery, faults, thermal
-from sim.params import VehicleParams, get_vehicle
+from quadfdi.sim import battery, faults, thermal
+from quadfdi.sim.params import VehicleParams, get_vehicle
 
 
 def derived(vp: VehicleParams) -> dict[str, float]:
@@ -37,7 +37,7 @@ def derived(vp: VehicleParams) -> dict[str, float]:
     }
 
 
-if __name__ == "__main__":  # python -m sim.operating_point [vehicle]: every value, then derived numbers
+if __name__ == "__main__":  # python -m quadfdi.sim.operating_point [vehicle]: every value, then derived numbers
     import sys
     from dataclasses import fields
 

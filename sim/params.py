@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from core.errors import QuadfdiError
+from quadfdi.core.errors import QuadfdiError
 
 
 @dataclass(frozen=True)

@@ -44,7 +44,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from sim.realistic_params import (AP_FLOOR_HZ, AP_VIBE_HZ, BLADE_G, CUT_MAX, IMU_INTEG_HZ, K_THRUST, MOUNT_T,
+from quadfdi.sim.realistic_params import (AP_FLOOR_HZ, AP_VIBE_HZ, BLADE_G, CUT_MAX, IMU_INTEG_HZ, K_THRUST, MOUNT_T,
                                   PROP_R_M, PX4_VIB_ALPHA, TIP_MASS_FACTOR)
 
 IMU_HZ = 1000.0  # raw accel sample rate (ICM-20602/42688 class at 1 kHz after the driver)

@@ -7,9 +7,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from core.config import Config
-from core.executor import SERIAL, ExecSettings
-from core.rundir import RunDir
+from quadfdi.core.config import Config
+from quadfdi.core.executor import SERIAL, ExecSettings
+from quadfdi.core.rundir import RunDir
 
 
 def publish_dataset(run: RunDir, cfg: Config, show_progress: bool = True, settings: ExecSettings = SERIAL,
@@ -20,11 +20,11 @@ def publish_dataset(run: RunDir, cfg: Config, show_progress: bool = True, settin
     In this process by default; on ``settings``' executor in shards of ``sim.chunk`` trajectories
     (sim.shards), whose finished shards stay cached in ``<run>/cache/sim/`` so an interrupted run
     resumes (``cache_root``: shards kept elsewhere, e.g. shared by a sweep). Both give the same bytes."""
-    from core.atomic import write_text
-    from core.config import dumps_toml
-    from core.stage import stage
-    from sim.dataset import dataset_arrays, write_npz
-    from sim.params import get_vehicle
+    from quadfdi.core.atomic import write_text
+    from quadfdi.core.config import dumps_toml
+    from quadfdi.core.stage import stage
+    from quadfdi.sim.dataset import dataset_arrays, write_npz
+    from quadfdi.sim.params import get_vehicle
 
     get_vehicle(cfg.sim.vehicle)  # an unknown vehicle is refused before anything is staged
     with stage(run.root, "sim", {"sim": cfg.to_dict()["sim"]}, targets=("dataset.npz", "config.toml"),
@@ -32,13 +32,13 @@ def publish_dataset(run: RunDir, cfg: Config, show_progress: bool = True, settin
         if settings.workers == 1 and settings.scheduler == "local" and cache_root is None:
             from tqdm import tqdm
 
-            from sim.shards import n_rows
-            from sim.simulate import generate
+            from quadfdi.sim.shards import n_rows
+            from quadfdi.sim.simulate import generate
 
             with tqdm(total=n_rows(cfg.sim), unit="traj", desc="sim", disable=not show_progress) as bar:
                 arrays = generate(cfg.sim, progress=bar.update)
         else:
-            from sim.shards import simulate_sharded
+            from quadfdi.sim.shards import simulate_sharded
 
             arrays = simulate_sharded(run, cfg, settings, progress=show_progress, cache_root=cache_root)
         write_npz(st.path("dataset.npz"), dataset_arrays(arrays, cfg))

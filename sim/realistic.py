@@ -16,15 +16,15 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
-from core.config import SimConfig
-from core.errors import QuadfdiError
-from sim import esc_telemetry, esc_thermal, mission, propeller, sensors, telemetry
-from sim import realistic_dynamics as rd
-from sim import realistic_faults as rf
-from sim import realistic_loop as rl
-from sim import realistic_params as P
-from sim.assign import ASSIGN_SPAWN_KEY, assign
-from sim.variability import MODES, draw_flight, stack
+from quadfdi.core.config import SimConfig
+from quadfdi.core.errors import QuadfdiError
+from quadfdi.sim import esc_telemetry, esc_thermal, mission, propeller, sensors, telemetry
+from quadfdi.sim import realistic_dynamics as rd
+from quadfdi.sim import realistic_faults as rf
+from quadfdi.sim import realistic_loop as rl
+from quadfdi.sim import realistic_params as P
+from quadfdi.sim.assign import ASSIGN_SPAWN_KEY, assign
+from quadfdi.sim.variability import MODES, draw_flight, stack
 
 SPLIT_NAMES = ("train", "validation", "test", "test_ood_mission", "test_ood_vehicle", "test_ood_wind",
                "test_incipient")

@@ -30,10 +30,10 @@ from typing import NamedTuple
 
 import numpy as np
 
-from sim import battery, faults, propeller, rigid_body, thermal
-from sim import realistic_params as P
-from sim.realistic_faults import FaultPlan
-from sim.variability import stack
+from quadfdi.sim import battery, faults, propeller, rigid_body, thermal
+from quadfdi.sim import realistic_params as P
+from quadfdi.sim.realistic_faults import FaultPlan
+from quadfdi.sim.variability import stack
 
 NOM = P.NOMINAL
 N_X = 21

@@ -32,8 +32,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from sim import mission
-from sim import realistic_params as P
+from quadfdi.sim import mission
+from quadfdi.sim import realistic_params as P
 
 ABRUPT_S = 0.2  # s: an abrupt fault's ramp (one tenth of the controller's slowest loop)
 # cumulative mode probabilities per class name, in MODES order (progressive, abrupt, takeoff, intermittent)

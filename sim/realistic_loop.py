@@ -17,13 +17,13 @@ from typing import NamedTuple
 
 import numpy as np
 
-from core.rk4 import rk4_step
-from sim import controller, mission, wind
-from sim import realistic_dynamics as rd
-from sim import realistic_faults as rf
-from sim import realistic_params as P
-from sim.controller import CtrlState
-from sim.variability import noise_rng, stack
+from quadfdi.core.rk4 import rk4_step
+from quadfdi.sim import controller, mission, wind
+from quadfdi.sim import realistic_dynamics as rd
+from quadfdi.sim import realistic_faults as rf
+from quadfdi.sim import realistic_params as P
+from quadfdi.sim.controller import CtrlState
+from quadfdi.sim.variability import noise_rng, stack
 
 BLOCK = 128
 N_NOISE = 15  # 3 turbulence inputs + 12 estimate-error inputs per step

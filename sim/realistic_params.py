@@ -11,7 +11,7 @@ import dataclasses
 
 import numpy as np
 
-from sim.params import get_vehicle
+from quadfdi.sim.params import get_vehicle
 
 # --- the controller's (nominal) vehicle -------------------------------------------------------
 # Tilt limit 40 deg: the aggressive segments fly 20-35 deg (PX4 MPC_TILTMAX_AIR defaults to 45).

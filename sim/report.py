@@ -4,8 +4,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from core.reportmd import figure_links, not_run
-from core.tables import md_table
+from quadfdi.core.reportmd import figure_links, not_run
+from quadfdi.core.tables import md_table
 
 HEADING = "## Simulation"
 
@@ -14,7 +14,7 @@ def report_section(run_root: Path) -> list[str]:
     """Trajectories and windows per split and class, and the trajectory figures."""
     import numpy as np
 
-    from sim.dataset import class_names, load_dataset, split_names, window_starts
+    from quadfdi.sim.dataset import class_names, load_dataset, split_names, window_starts
 
     root = Path(run_root)
     path = root / "dataset.npz"

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from sim.params import VehicleParams
+from quadfdi.sim.params import VehicleParams
 
 N_RB = 12  # rigid-body state size
 

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from sim.params import VehicleParams
+from quadfdi.sim.params import VehicleParams
 
 CHANNEL_NAMES = (
     "x", "y", "z", "vx", "vy", "vz", "roll", "pitch", "yaw", "p", "q", "r",

@@ -19,11 +19,11 @@ from pathlib import Path
 
 import numpy as np
 
-from core.config import Config, SimConfig
-from core.errors import QuadfdiError
-from core.executor import SERIAL, ExecSettings, Job, failures, run_jobs
-from core.jobcache import cache_path, job_key, read_result
-from core.rundir import RunDir
+from quadfdi.core.config import Config, SimConfig
+from quadfdi.core.errors import QuadfdiError
+from quadfdi.core.executor import SERIAL, ExecSettings, Job, failures, run_jobs
+from quadfdi.core.jobcache import cache_path, job_key, read_result
+from quadfdi.core.rundir import RunDir
 
 KIND = "sim"
 # Arrays of generate() that do not have one row per trajectory: taken once, from the first shard.
@@ -37,7 +37,7 @@ def n_rows(sim: SimConfig) -> int:
     """Rows of the dataset: n_traj, plus the 4 x ood_traj out-of-distribution test flights of the
     realistic suite (sim/realistic.py n_flights)."""
     if sim.scenario == "realistic":
-        from sim.realistic import n_flights
+        from quadfdi.sim.realistic import n_flights
 
         return n_flights(sim)
     return sim.n_traj
@@ -50,7 +50,7 @@ def shard_ranges(n_traj: int, chunk: int) -> list[tuple[int, int]]:
 
 def simulate_shard(cfg: SimConfig, start: int, stop: int) -> dict[str, np.ndarray]:
     """Rows [start, stop) of the dataset (a job: runs on a worker)."""
-    from sim.simulate import generate
+    from quadfdi.sim.simulate import generate
 
     return generate(cfg, indices=range(start, stop))
 

@@ -14,13 +14,13 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
-from core.config import SimConfig
-from core.errors import QuadfdiError
-from sim import faults, reference, sensors
-from sim.assign import assign
-from sim.draws import draw_trajectory
-from sim.dynamics import FaultSchedule, Samples, initial_state, integrate
-from sim.params import VehicleParams, get_vehicle
+from quadfdi.core.config import SimConfig
+from quadfdi.core.errors import QuadfdiError
+from quadfdi.sim import faults, reference, sensors
+from quadfdi.sim.assign import assign
+from quadfdi.sim.draws import draw_trajectory
+from quadfdi.sim.dynamics import FaultSchedule, Samples, initial_state, integrate
+from quadfdi.sim.params import VehicleParams, get_vehicle
 
 
 def fault_schedule(draws: list[dict], fault_class: np.ndarray) -> FaultSchedule:
@@ -166,7 +166,7 @@ def generate(cfg: SimConfig, indices: Sequence[int] | None = None,
     """
     cfg.validate()
     if cfg.scenario == "realistic":  # the realistic suite (docs/realistic.md); the paper path below is untouched
-        from sim.realistic import generate as generate_realistic
+        from quadfdi.sim.realistic import generate as generate_realistic
 
         return generate_realistic(cfg, indices, progress)
     vp = get_vehicle(cfg.vehicle)

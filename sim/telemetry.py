@@ -22,10 +22,10 @@ from __future__ import annotations
 import numpy as np
 from scipy.signal import lfilter
 
-from ingest.frames import wrap
-from ingest.resample import resample
-from sim import battery, propeller, sensors
-from sim import realistic_params as P
+from quadfdi.ingest.frames import wrap
+from quadfdi.ingest.resample import resample
+from quadfdi.sim import battery, propeller, sensors
+from quadfdi.sim import realistic_params as P
 
 CHANNEL_NAMES = sensors.CHANNEL_NAMES + ("vib_px4", "vib_ap")
 CHANNEL_UNITS = sensors.CHANNEL_UNITS + ("m/s^2", "m/s^2")

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from sim.params import VehicleParams
+from quadfdi.sim.params import VehicleParams
 
 _EPS_F = 1e-6  # N: guards I_m against a zero total thrust (free fall with motors off)
 

@@ -19,9 +19,9 @@ import math
 
 import numpy as np
 
-from core.config import SimConfig
-from sim import mission
-from sim import realistic_params as P
+from quadfdi.core.config import SimConfig
+from quadfdi.sim import mission
+from quadfdi.sim import realistic_params as P
 
 FLIGHT_SPAWN = 2
 NOISE_SPAWN = 3

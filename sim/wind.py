@@ -30,7 +30,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from sim.realistic_params import WIND_V_FLOOR
+from quadfdi.sim.realistic_params import WIND_V_FLOOR
 
 FT = 0.3048
 H_REF_M = 19.0  # m: middle of the mission altitude band (sim.mission.ALT_M)

@@ -14,8 +14,8 @@ from __future__ import annotations
 import argparse
 import shlex
 
-from core.cliargs import add_config_args
-from core.executor import add_executor_args
+from quadfdi.core.cliargs import add_config_args
+from quadfdi.core.executor import add_executor_args
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -50,8 +50,8 @@ def _command(args: argparse.Namespace) -> str:
 
 
 def run_study_cmd(args: argparse.Namespace) -> int:
-    from core.rundir import open_run
-    from solverstudy.run import study_run
+    from quadfdi.core.rundir import open_run
+    from quadfdi.solverstudy.run import study_run
 
     run, cfg = open_run(args.run, args.overrides, need=("dataset",))
     study_run(run, cfg, checkpoint=args.checkpoint, command=_command(args))
@@ -59,10 +59,10 @@ def run_study_cmd(args: argparse.Namespace) -> int:
 
 
 def run_matrix_cmd(args: argparse.Namespace) -> int:
-    from core.rundir import open_run
-    from solverstudy.run import matrix_run
+    from quadfdi.core.rundir import open_run
+    from quadfdi.solverstudy.run import matrix_run
 
-    from core.executor import ExecSettings
+    from quadfdi.core.executor import ExecSettings
 
     settings = ExecSettings.from_args(args)
     run, cfg = open_run(args.run, args.overrides, need=("dataset",))
@@ -73,8 +73,8 @@ def run_matrix_cmd(args: argparse.Namespace) -> int:
 
 
 def run_render_cmd(args: argparse.Namespace) -> int:
-    from core.rundir import open_run
-    from solverstudy.run import render
+    from quadfdi.core.rundir import open_run
+    from quadfdi.solverstudy.run import render
 
     run, cfg = open_run(args.run, args.overrides)
     render(run.root, cfg)

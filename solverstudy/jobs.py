@@ -23,12 +23,12 @@ from typing import Callable
 
 import numpy as np
 
-from core.config import Config
-from core.executor import ExecSettings, Job, failures, run_jobs, session
-from core.errors import QuadfdiError
-from core.jobcache import cache_path, job_key, read_result
-from core.rundir import RunDir
-from train.threads import torch_threads
+from quadfdi.core.config import Config
+from quadfdi.core.executor import ExecSettings, Job, failures, run_jobs, session
+from quadfdi.core.errors import QuadfdiError
+from quadfdi.core.jobcache import cache_path, job_key, read_result
+from quadfdi.core.rundir import RunDir
+from quadfdi.train.threads import torch_threads
 
 PACKAGES = ("sim", "train", "solverstudy")
 
@@ -38,8 +38,8 @@ def _n_threads(cfg: Config) -> int:
 
 
 def _data(dataset: str, cfg: Config):
-    from sim.dataset import load_dataset
-    from train.data import split_windows
+    from quadfdi.sim.dataset import load_dataset
+    from quadfdi.train.data import split_windows
 
     ds = load_dataset(dataset)
     return ds, split_windows(ds)
@@ -47,8 +47,8 @@ def _data(dataset: str, cfg: Config):
 
 def train_matrix_model(dataset: str, cfg: Config, spec) -> bytes:
     """Level 1 (a job): train ``spec``'s CNODE; its checkpoint's bytes, with ``matrix_info``."""
-    from solverstudy.matrix import matrix_epochs, subsample, train_variant
-    from train.checkpoint import save_checkpoint
+    from quadfdi.solverstudy.matrix import matrix_epochs, subsample, train_variant
+    from quadfdi.train.checkpoint import save_checkpoint
 
     ds, splits = _data(dataset, cfg)
     train = subsample(splits.train, cfg.solvers.matrix_max_train_windows, cfg.train.seed)
@@ -62,8 +62,8 @@ def train_matrix_model(dataset: str, cfg: Config, spec) -> bytes:
 
 def reference_logits(dataset: str, cfg: Config, model_path: str, ref) -> dict:
     """Level 2 (a job): the model's reference logits on the whole test split."""
-    from solverstudy.study import solve_batched
-    from train.checkpoint import load_checkpoint
+    from quadfdi.solverstudy.study import solve_batched
+    from quadfdi.train.checkpoint import load_checkpoint
 
     _, splits = _data(dataset, cfg)
     model, _ = load_checkpoint(model_path, "cnode")
@@ -74,8 +74,8 @@ def reference_logits(dataset: str, cfg: Config, model_path: str, ref) -> dict:
 
 def deploy_cell(dataset: str, cfg: Config, model_path: str, ref_path: str, deploy) -> dict:
     """Level 3 (a job): one cell, the model deployed with ``deploy`` against its reference."""
-    from solverstudy.study import compare, solve_batched
-    from train.checkpoint import load_checkpoint
+    from quadfdi.solverstudy.study import compare, solve_batched
+    from quadfdi.train.checkpoint import load_checkpoint
 
     _, splits = _data(dataset, cfg)
     model, blob = load_checkpoint(model_path, "cnode")
@@ -112,8 +112,8 @@ def matrix_jobs_run(run: RunDir, cfg: Config, specs: list, deploys: list, settin
                     log: Callable[[str], None] = print) -> tuple[dict, dict[str, Path]]:
     """The matrix dict of ``run_matrix`` (``meta.reused``: models taken from the cache) and each
     model's cached checkpoint file, by label."""
-    from solverstudy.matrix import matrix_epochs
-    from solverstudy.settings import reference_setting
+    from quadfdi.solverstudy.matrix import matrix_epochs
+    from quadfdi.solverstudy.settings import reference_setting
 
     deploys = list(deploys)
     if not any(d.reference for d in deploys):
@@ -149,7 +149,7 @@ def matrix_jobs_run(run: RunDir, cfg: Config, specs: list, deploys: list, settin
 
 
 def _assemble(cfg, specs, deploys, train, cells, epochs, seconds) -> tuple[dict, dict[str, Path]]:
-    from train.checkpoint import load_checkpoint
+    from quadfdi.train.checkpoint import load_checkpoint
 
     infos = [load_checkpoint(j.out, "cnode")[1]["matrix_info"] for j in train]
     sc = cfg.solvers
@@ -164,7 +164,7 @@ def _assemble(cfg, specs, deploys, train, cells, epochs, seconds) -> tuple[dict,
                  "threads": int(_n_threads(cfg)), "seconds": seconds,
                  "train_seconds": float(sum(i["train_seconds"] for i in infos))},
     }
-    from solverstudy.matrix import control_findings, ott_findings
+    from quadfdi.solverstudy.matrix import control_findings, ott_findings
 
     matrix["ott"] = ott_findings(matrix, sc.break_tol)
     matrix["controls"] = control_findings(matrix)

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from typing import Iterable, Sequence
 
-from solverstudy.settings import ADAPTIVE_METHODS, CONTROLS, F1_TOL, FIXED_METHODS
+from quadfdi.solverstudy.settings import ADAPTIVE_METHODS, CONTROLS, F1_TOL, FIXED_METHODS
 
 
 def matches(fixed: dict, adaptive: dict, f1_tol: float = F1_TOL, two_sided: bool = False) -> bool:

@@ -30,14 +30,14 @@ from typing import Callable, Sequence
 import numpy as np
 import torch
 
-from core.config import Config, SolversConfig, replace_section
-from core.errors import QuadfdiError
-from sim.dataset import Windows
-from solverstudy.settings import Setting, parse_settings, reference_setting
-from solverstudy.study import compare, solve_batched, with_setting
-from train.data import class_weights, fit_normalisation, split_windows
-from train.loop import train_model
-from train.models import CNODE, build_model
+from quadfdi.core.config import Config, SolversConfig, replace_section
+from quadfdi.core.errors import QuadfdiError
+from quadfdi.sim.dataset import Windows
+from quadfdi.solverstudy.settings import Setting, parse_settings, reference_setting
+from quadfdi.solverstudy.study import compare, solve_batched, with_setting
+from quadfdi.train.data import class_weights, fit_normalisation, split_windows
+from quadfdi.train.loop import train_model
+from quadfdi.train.models import CNODE, build_model
 
 BREAK_TOL = SolversConfig.break_tol  # a model "breaks" when the reference's macro F1 is this far below its own solver's
 

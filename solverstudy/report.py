@@ -13,12 +13,12 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from core.errors import QuadfdiError
-from core.jsonio import read_json
-from core.reportmd import not_run
-from core.tables import md_table
-from solverstudy.files import SolverFiles
-from solverstudy.settings import F1_TOL
+from quadfdi.core.errors import QuadfdiError
+from quadfdi.core.jsonio import read_json
+from quadfdi.core.reportmd import not_run
+from quadfdi.core.tables import md_table
+from quadfdi.solverstudy.files import SolverFiles
+from quadfdi.solverstudy.settings import F1_TOL
 
 
 def _e(x: float | None) -> str:

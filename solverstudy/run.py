@@ -24,24 +24,24 @@ import time
 from pathlib import Path
 from typing import Callable
 
-from core.atomic import write_text
-from core.config import Config
-from core.errors import QuadfdiError
-from core.jsonio import write_json
-from core.rundir import RunDir
-from solverstudy.files import SolverFiles
-from core.stage import stage
-from train.threads import torch_threads
-from solverstudy.matching import matched_tables
-from solverstudy.report import study_headline, matrix_markdown, ott_sentence, read_outputs, study_markdown
+from quadfdi.core.atomic import write_text
+from quadfdi.core.config import Config
+from quadfdi.core.errors import QuadfdiError
+from quadfdi.core.jsonio import write_json
+from quadfdi.core.rundir import RunDir
+from quadfdi.solverstudy.files import SolverFiles
+from quadfdi.core.stage import stage
+from quadfdi.train.threads import torch_threads
+from quadfdi.solverstudy.matching import matched_tables
+from quadfdi.solverstudy.report import study_headline, matrix_markdown, ott_sentence, read_outputs, study_markdown
 
 Log = Callable[[str], None]
 
 
 def _test_windows(run: RunDir, cfg: Config, model_blob: dict | None = None):
-    from sim.dataset import load_dataset, make_windows
-    from train.checkpoint import check_dataset_matches
-    from train.models import check_windows
+    from quadfdi.sim.dataset import load_dataset, make_windows
+    from quadfdi.train.checkpoint import check_dataset_matches
+    from quadfdi.train.models import check_windows
 
     if not run.dataset.is_file():
         raise QuadfdiError(f"{run.dataset} is missing: run `quadfdi sim --out {run.root}` first")
@@ -59,7 +59,7 @@ def _test_windows(run: RunDir, cfg: Config, model_blob: dict | None = None):
 
 
 def _trained_with(blob: dict) -> str:
-    from train.solvers import FIXED_METHODS
+    from quadfdi.train.solvers import FIXED_METHODS
 
     solver = blob.get("solver", {})
     if solver.get("method") in FIXED_METHODS:
@@ -70,9 +70,9 @@ def _trained_with(blob: dict) -> str:
 def study_run(run: RunDir, cfg: Config, log: Log = print, checkpoint: str | Path | None = None,
               command: str | None = None) -> dict:
     """The fixed-vs-adaptive study of the run's CNODE (or ``checkpoint``); returns solvers.json's dict."""
-    from solverstudy.plots import draw_study
-    from solverstudy.study import run_study
-    from train.checkpoint import load_checkpoint
+    from quadfdi.solverstudy.plots import draw_study
+    from quadfdi.solverstudy.study import run_study
+    from quadfdi.train.checkpoint import load_checkpoint
 
     sections = cfg.to_dict()
     with stage(run.root, "solvers", {"sim": sections["sim"], "solvers": sections["solvers"]},
@@ -112,7 +112,7 @@ def _slug(label: str) -> str:
 
 def _reused(files: SolverFiles, specs: list, fingerprint: dict, log: Log) -> dict:
     """Matrix models saved earlier with the same label and fingerprint: {label: (model, info)}."""
-    from train.checkpoint import load_checkpoint
+    from quadfdi.train.checkpoint import load_checkpoint
 
     models = {}
     for spec in specs:
@@ -135,8 +135,8 @@ def matrix_run(run: RunDir, cfg: Config, log: Log = print, reuse: bool = False, 
     with ``reuse``, models kept from an earlier matrix of the same data and settings are not retrained.
     With ``settings`` (a ``core.executor.ExecSettings``), the matrix runs as jobs on that executor
     (``solverstudy.jobs``: one per model, reference and cell), cached in ``<run>/cache/matrix-*/``."""
-    from sim.dataset import load_dataset
-    from solverstudy.matrix import matrix_plan
+    from quadfdi.sim.dataset import load_dataset
+    from quadfdi.solverstudy.matrix import matrix_plan
 
     specs, deploys = matrix_plan(cfg)
     if not run.dataset.is_file():
@@ -154,9 +154,9 @@ def matrix_run(run: RunDir, cfg: Config, log: Log = print, reuse: bool = False, 
 
 def _matrix_into(run: RunDir, cfg: Config, ds, staged: SolverFiles, specs, deploys, log: Log, reuse: bool,
                  command: str | None) -> dict:
-    from solverstudy.matrix import run_matrix
-    from solverstudy.plots import draw_matrix
-    from train.checkpoint import save_checkpoint
+    from quadfdi.solverstudy.matrix import run_matrix
+    from quadfdi.solverstudy.plots import draw_matrix
+    from quadfdi.train.checkpoint import save_checkpoint
 
     files = SolverFiles(run.root)
     fingerprint = _fingerprint(run, cfg)
@@ -184,7 +184,7 @@ def _matrix_into(run: RunDir, cfg: Config, ds, staged: SolverFiles, specs, deplo
 
 def _fingerprint(run: RunDir, cfg: Config) -> dict:
     """What a reused model must share with this run besides its solver: data, windows, training."""
-    from solverstudy.matrix import matrix_epochs
+    from quadfdi.solverstudy.matrix import matrix_epochs
 
     return {"dataset_sha256": _sha256(run.dataset), "epochs": matrix_epochs(cfg),
             "max_train_windows": cfg.solvers.matrix_max_train_windows,
@@ -194,9 +194,9 @@ def _fingerprint(run: RunDir, cfg: Config) -> dict:
 def _matrix_on_executor(run: RunDir, cfg: Config, files: SolverFiles, specs, deploys, settings, log: Log,
                         command: str | None) -> dict:
     """The matrix as jobs on ``settings``' executor; ``files``: the stage's staging folder."""
-    from solverstudy.jobs import matrix_jobs_run
-    from solverstudy.plots import draw_matrix
-    from train.checkpoint import load_checkpoint, save_checkpoint
+    from quadfdi.solverstudy.jobs import matrix_jobs_run
+    from quadfdi.solverstudy.plots import draw_matrix
+    from quadfdi.train.checkpoint import load_checkpoint, save_checkpoint
 
     matrix, models = matrix_jobs_run(run, cfg, specs, deploys, settings, log)
     fingerprint = _fingerprint(run, cfg)
@@ -218,7 +218,7 @@ def _matrix_on_executor(run: RunDir, cfg: Config, files: SolverFiles, specs, dep
 def render(run_root: str | Path, cfg: Config, log: Log = print) -> list[Path]:
     """Redraw the solver figures and markdown from the JSON files alone (no solving, no training);
     the study's matched tables are recomputed with ``cfg.solvers.f1_tol`` and ``f1_two_sided``."""
-    from solverstudy.plots import draw_matrix, draw_study
+    from quadfdi.solverstudy.plots import draw_matrix, draw_study
 
     files = SolverFiles(Path(run_root))
     study, matrix = read_outputs(files.root)

@@ -12,9 +12,9 @@ import math
 from dataclasses import asdict, dataclass
 from typing import Sequence
 
-from core.config import Config, SolversConfig, replace_section
-from core.errors import QuadfdiError
-from train.solvers import ADAPTIVE_METHODS, FIXED_METHODS, SolverSpec, fixed_method
+from quadfdi.core.config import Config, SolversConfig, replace_section
+from quadfdi.core.errors import QuadfdiError
+from quadfdi.train.solvers import ADAPTIVE_METHODS, FIXED_METHODS, SolverSpec, fixed_method
 
 CONTROLS = ("point", "average")  # as train.variants.CNODE_CLASSES (no torch import here)
 JUMP = {"both": (True, False), "on": (True,), "off": (False,)}  # solvers.jump -> jump_t values

@@ -29,11 +29,11 @@ import numpy as np
 import torch
 from sklearn.metrics import f1_score
 
-from core.config import SolversConfig
-from solverstudy.matching import matched_tables
-from solverstudy.settings import ATOL_RATIO, LABELS, Setting, default_settings, reference_setting
-from train.models import CNODE
-from train.variants import rebuild
+from quadfdi.core.config import SolversConfig
+from quadfdi.solverstudy.matching import matched_tables
+from quadfdi.solverstudy.settings import ATOL_RATIO, LABELS, Setting, default_settings, reference_setting
+from quadfdi.train.models import CNODE
+from quadfdi.train.variants import rebuild
 
 
 def with_setting(model: CNODE, setting: Setting) -> CNODE:

@@ -19,9 +19,8 @@ SMALL_SIM = ["--set", "sim.n_traj=24", "--set", "sim.duration_s=8.0", "--set", "
 
 def quadfdi(*args: str, check: bool = False, cwd: Path = ROOT, timeout: float = 900) -> subprocess.CompletedProcess:
     """Run the real console entry point in a subprocess (what a user types)."""
-    env = dict(os.environ, PYTHONPATH=str(ROOT))
     return subprocess.run([sys.executable, "-m", "quadfdi.cli", *args], capture_output=True, text=True,
-                          cwd=cwd, env=env, check=check, timeout=timeout)
+                          cwd=cwd, check=check, timeout=timeout)
 
 
 def copy_run(src: Path, dst: Path,
@@ -38,9 +37,9 @@ def copy_run(src: Path, dst: Path,
 def publish_checkpoints(run: Path, models: dict, channel_names: list[str], config: dict | None = None) -> None:
     """Publish ``models`` ({kind: model}) as the run's train stage (core.stage), as ``quadfdi train``
     would: the export and parity stages read only published checkpoints."""
-    from core.config import load_config
-    from core.stage import stage
-    from train.checkpoint import save_checkpoint
+    from quadfdi.core.config import load_config
+    from quadfdi.core.stage import stage
+    from quadfdi.train.checkpoint import save_checkpoint
 
     sim = load_config(run / "config.toml").to_dict()["sim"]
     with stage(run, "train", {"sim": sim}) as st:
@@ -55,9 +54,9 @@ def random_weight_run(src: Path, out: Path, kinds: tuple[str, ...] = ("cnode", "
     without the cost of training."""
     import torch
 
-    from sim.dataset import load_dataset
-    from train.data import fit_normalisation
-    from train.models import CNODE, GRUClassifier
+    from quadfdi.sim.dataset import load_dataset
+    from quadfdi.train.data import fit_normalisation
+    from quadfdi.train.models import CNODE, GRUClassifier
 
     copy_run(src, out)
     ds = load_dataset(out / "dataset.npz")
@@ -132,15 +131,15 @@ def fault_sims(tmp_path_factory) -> dict[str, Path]:
 @pytest.fixture(scope="session")
 def fault_exported(small_run, tmp_path_factory) -> Path:
     """The session's small run, trained (1 epoch, small models) and exported (N = 2) in process."""
-    import train.figures
-    from core.rundir import open_run
+    from quadfdi.train import figures as train_figures
+    from quadfdi.core.rundir import open_run
     from tests import faultkit
-    from export.run import export_run
-    from train.run import train_run
+    from quadfdi.export.run import export_run
+    from quadfdi.train.run import train_run
 
     run_dir = faultkit.copy_run(small_run, tmp_path_factory.mktemp("faults_train") / "run")
     with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(train.figures, "draw_all", lambda run, ds, result: [])
+        mp.setattr(train_figures, "draw_all", lambda run, ds, result: [])
         run, cfg = open_run(run_dir, ["train.epochs=1", "train.latent=8", "train.hidden=16", "train.gru_hidden=8",
                                       "export.steps=2", "export.calib_windows=64"])
         train_run(run, cfg, "both", log=lambda s: None)

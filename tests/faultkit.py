@@ -35,7 +35,7 @@ def cli(*args: str, fault: str | None = None, fsize: int | None = None, env: dic
         wait: bool = True) -> subprocess.CompletedProcess | subprocess.Popen:
     """``quadfdi ARGS`` in a subprocess; ``fault`` sets QUADFDI_FAULT_POINT, ``fsize`` caps the file
     size (RLIMIT_FSIZE, standing in for a full disk)."""
-    full_env = dict(os.environ, PYTHONPATH=str(ROOT), QUADFDI_LOCK_WAIT_S="0.5", **(env or {}))
+    full_env = dict(os.environ, QUADFDI_LOCK_WAIT_S="0.5", **(env or {}))
     full_env.pop("QUADFDI_FAULT_POINT", None)
     if fault:
         full_env["QUADFDI_FAULT_POINT"] = fault

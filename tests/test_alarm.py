@@ -3,9 +3,9 @@
 import numpy as np
 import pytest
 
-from core.alarm import AlarmConfig, run_alarm
-from core.config import load_config
-from core.errors import QuadfdiError
+from quadfdi.core.alarm import AlarmConfig, run_alarm
+from quadfdi.core.config import load_config
+from quadfdi.core.errors import QuadfdiError
 
 
 def _proba(p_fault, fault_cls=None, k=5):
@@ -92,7 +92,7 @@ def test_config_section_validates():
 
 
 def test_episodes_start_end_class_and_peak():
-    from core.alarm import alarm_episodes
+    from quadfdi.core.alarm import alarm_episodes
 
     p = np.array([0, .9, .8, 0, 0, 0, .95, .6, .7])
     proba = _proba(p, [1, 1, 2, 1, 1, 1, 2, 2, 2])

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from core.errors import QuadfdiError
+from quadfdi.core.errors import QuadfdiError
 from tests.test_firmware_fixtures import host_build  # noqa: F401 (fixture)
 
 KEYS = ("threshold", "k", "n", "clear_m", "latch")
@@ -41,7 +41,7 @@ def _policy(info: dict) -> dict:
 def test_config_tables_parse_validate_and_round_trip():
     import tomllib
 
-    from core.config import build_config, dumps_toml
+    from quadfdi.core.config import build_config, dumps_toml
 
     cfg = build_config(tomllib.loads("[alarm]\nk = 1\nn = 2\n[alarm.gru]\nthreshold = 0.9\nn = 5\n"),
                        ["alarm.cnode.latch=true", "alarm.gru.k=3"])
@@ -64,9 +64,9 @@ def test_config_tables_parse_validate_and_round_trip():
 def test_record_table_round_trip_and_an_old_record():
     """alarm.models survives pack/unpack with a threshold float32 cannot hold; a record without it
     (written before it) reads every network as the single policy; a bad row is refused in one line."""
-    from core.profiles import channel_names
-    from export.binfmt import Section, pack, unpack
-    from export.onboard_record import check_onboard, onboard_dict, onboard_section, policy_of
+    from quadfdi.core.profiles import channel_names
+    from quadfdi.export.binfmt import Section, pack, unpack
+    from quadfdi.export.onboard_record import check_onboard, onboard_dict, onboard_section, policy_of
 
     default = {"threshold": 0.5, "k": 2, "n": 3, "clear_m": 3, "latch": False}
     per = {"cnode": {**default, "threshold": 0.1 + 0.2}, "sgru": {**default, "k": 5, "n": 8, "latch": True}}
@@ -91,8 +91,8 @@ def test_record_table_round_trip_and_an_old_record():
 def test_export_writes_each_networks_policy_and_cpp_reads_it(flightlog_export, host_build):  # noqa: F811
     """The session's export: manifest alarm_per_model (source "config"), the record's table, and
     fwref_stream --info --model picking each network's policy (the GRU's is not the CNODE's)."""
-    from detect.streamfile import record_of
-    from export.onboard_record import policy_of
+    from quadfdi.detect.streamfile import record_of
+    from quadfdi.export.onboard_record import policy_of
 
     m, rec = _manifest(flightlog_export), record_of(flightlog_export)
     per = m["alarm_per_model"]
@@ -109,8 +109,8 @@ def test_export_writes_each_networks_policy_and_cpp_reads_it(flightlog_export, h
 
 def _strip_table(export: Path, dst: Path) -> Path:
     """export's weights.bin without alarm.models: a record written before the table."""
-    from export.binfmt import Section, pack, read_file
-    from export.weights_layout import MAGIC, VERSION
+    from quadfdi.export.binfmt import Section, pack, read_file
+    from quadfdi.export.weights_layout import MAGIC, VERSION
 
     _, sections = read_file(export / "weights.bin", MAGIC, VERSION, "weights file")
     rec = sections[-1]
@@ -121,7 +121,7 @@ def _strip_table(export: Path, dst: Path) -> Path:
 
 
 def test_cpp_reads_an_old_record_as_one_policy_for_every_model(flightlog_export, host_build, tmp_path):  # noqa: F811
-    from detect.streamfile import record_of
+    from quadfdi.detect.streamfile import record_of
 
     folder = _strip_table(flightlog_export, tmp_path / "old")
     rec = record_of(folder)
@@ -174,8 +174,8 @@ def chosen_export(flightlog_export, tmp_path_factory):
     """Another copy of the run exported with --alarm-from evaluation (an evaluation.json choosing CHOSEN):
     (run folder, manifest, evaluation.json's sha256, the config). In process, in the fixture: the export
     imports torch and onnx, seconds on a loaded machine."""
-    from core.rundir import open_run
-    from export.run import export_run
+    from quadfdi.core.rundir import open_run
+    from quadfdi.export.run import export_run
 
     dst = tmp_path_factory.mktemp("pernet_chosen") / "run"
     shutil.copytree(flightlog_export.parent, dst)
@@ -187,11 +187,11 @@ def chosen_export(flightlog_export, tmp_path_factory):
 def test_alarm_from_evaluation_writes_the_chosen_policies(chosen_export):
     """Each network's validation-chosen policy in the manifest (with evaluation.json's sha256) and in
     weights.bin's table; the default ``alarm`` stays the config's; detect runs each network's own."""
-    from detect.run import detect
-    from export.onboard_record import onboard_dict
-    from export.weights_bin import read_weights
-    from sim.dataset import load_dataset
-    from sim.flight_npz import flight_arrays
+    from quadfdi.detect.run import detect
+    from quadfdi.export.onboard_record import onboard_dict
+    from quadfdi.export.weights_bin import read_weights
+    from quadfdi.sim.dataset import load_dataset
+    from quadfdi.sim.flight_npz import flight_arrays
 
     run, m, sha, cfg = chosen_export
     assert {net: e["policy"] for net, e in m["alarm_per_model"].items()} == CHOSEN

@@ -9,9 +9,9 @@ import stat
 import numpy as np
 import pytest
 
-from core import atomic
-from core.atomic import atomic_path, write_bytes, write_text
-from core.npzio import read_npz, write_npz
+from quadfdi.core import atomic
+from quadfdi.core.atomic import atomic_path, write_bytes, write_text
+from quadfdi.core.npzio import read_npz, write_npz
 
 OLD = b"the previous artifact\x00\xff, intact\n"
 

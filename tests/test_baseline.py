@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from train.baseline import fit_baseline, predict_proba_baseline, window_features
+from quadfdi.train.baseline import fit_baseline, predict_proba_baseline, window_features
 
 W, C = 80, 23
 

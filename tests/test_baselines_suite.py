@@ -5,16 +5,16 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from core.config import build_config
-from core.npzio import read_npz, write_npz
-from core.predindex import add_entries, check_prediction_set, read_index
-from core.tomlio import dumps_toml
-from sim.dataset import Dataset, dataset_arrays
-from sim.telemetry import CHANNEL_NAMES
+from quadfdi.core.config import build_config
+from quadfdi.core.npzio import read_npz, write_npz
+from quadfdi.core.predindex import add_entries, check_prediction_set, read_index
+from quadfdi.core.tomlio import dumps_toml
+from quadfdi.sim.dataset import Dataset, dataset_arrays
+from quadfdi.sim.telemetry import CHANNEL_NAMES
 from tests.conftest import quadfdi
-from train.baselines import GRIDS, MODELS, N_CONFIGS, fit_baselines, train_subsample
-from train.baselines_run import record_path, run_baselines
-from train.features import (I_FLOOR_A, internal_resistance, physics_feature_names, physics_features,
+from quadfdi.train.baselines import GRIDS, MODELS, N_CONFIGS, fit_baselines, train_subsample
+from quadfdi.train.baselines_run import record_path, run_baselines
+from quadfdi.train.features import (I_FLOOR_A, internal_resistance, physics_feature_names, physics_features,
                             stat_feature_names, stat_features)
 
 W = 40
@@ -217,7 +217,7 @@ def test_run_writes_prediction_sets_and_index(tmp_path):
         assert arrays["proba"].dtype == np.float32 and list(arrays["class_names"]) == list(CLASSES)
         assert set(np.unique(arrays["split"])) == {1, 2, 3}
         _check_suspected_motor(run, e, arrays)
-    from core.jsonio import read_json
+    from quadfdi.core.jsonio import read_json
     rec = read_json(record_path(run, 1, 2))
     assert rec["n_configs"] == N_CONFIGS and rec["dataset"] == "sims/seed1/dataset.npz"
     assert rec["models"]["logreg_physics"]["chosen"] == int(np.argmax(rec["models"]["logreg_physics"]["validation_macro_f1"]))
@@ -247,7 +247,7 @@ def test_cli_errors_write_nothing(tmp_path):
 
 def _check_suspected_motor(run, entry, arrays):
     """motor_proba is one-hot on the rotor with the highest window-mean command (the physics rule)."""
-    from sim.dataset import load_dataset, make_windows
+    from quadfdi.sim.dataset import load_dataset, make_windows
 
     mp = arrays["motor_proba"]
     assert mp.shape == (len(arrays["proba"]), 4) and np.all(mp.sum(axis=1) == 1.0)

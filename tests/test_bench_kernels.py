@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from bench.kernels import executed_macs, kernel_name
+from quadfdi.bench.kernels import executed_macs, kernel_name
 from tests.conftest import quadfdi
 from tests.test_firmware_fixtures import fw_run, host_build  # noqa: F401 (fixtures)
 

@@ -10,10 +10,10 @@ import sys
 import numpy as np
 import pytest
 
-from bench.floors import attach_distance, cnode_macs, floor_of, floors, targets, weight_traffic
-from bench.latency import plan, rtol_label, sample_windows
-from bench.runtimes.common import percentile, summarise, time_calls
-from bench.runtimes.torch_rt import parse_solver
+from quadfdi.bench.floors import attach_distance, cnode_macs, floor_of, floors, targets, weight_traffic
+from quadfdi.bench.latency import plan, rtol_label, sample_windows
+from quadfdi.bench.runtimes.common import percentile, summarise, time_calls
+from quadfdi.bench.runtimes.torch_rt import parse_solver
 from tests.conftest import ROOT
 
 # ----------------------------------------------------------------------------- statistics
@@ -108,7 +108,7 @@ def test_weight_traffic_by_hand():
 
 
 def test_cnode_macs_matches_the_model():
-    from train.models import CNODE as Model, SolverSpec
+    from quadfdi.train.models import CNODE as Model, SolverSpec
 
     m = Model(3, window=10, latent=4, hidden=5, n_classes=2, solver=SolverSpec("rk4", steps=2))
     assert cnode_macs(CNODE, 8) == m.macs_per_window()
@@ -169,7 +169,7 @@ def test_ort_worker_prints_every_field(tmp_path):
     model = helper.make_model(graph, opset_imports=[helper.make_opsetid("", 17)], ir_version=8)
     onnx.save(model, tmp_path / "tiny.onnx")
     np.save(tmp_path / "w.npy", np.random.default_rng(0).standard_normal((10, 80, 4)).astype(np.float32))
-    res = subprocess.run([sys.executable, "-m", "bench.latency_worker", "--runtime", "ort", "--model", "gru",
+    res = subprocess.run([sys.executable, "-m", "quadfdi.bench.latency_worker", "--runtime", "ort", "--model", "gru",
                           "--solver", "gru", "--spinning", "off", "--windows", str(tmp_path / "w.npy"),
                           "--artifact", str(tmp_path / "tiny.onnx"), "--n", "7", "--warmup", "2", "--batch", "4",
                           "--batches", "3"], capture_output=True, text=True, cwd=ROOT, timeout=120)
@@ -190,7 +190,7 @@ def test_ort_worker_prints_every_field(tmp_path):
 def test_worker_reports_a_bad_artifact_in_one_line(tmp_path):
     np.save(tmp_path / "w.npy", np.zeros((2, 80, 4), dtype=np.float32))
     (tmp_path / "bad.onnx").write_bytes(b"not an onnx file")
-    res = subprocess.run([sys.executable, "-m", "bench.latency_worker", "--runtime", "ort", "--model", "cnode",
+    res = subprocess.run([sys.executable, "-m", "quadfdi.bench.latency_worker", "--runtime", "ort", "--model", "cnode",
                           "--windows", str(tmp_path / "w.npy"), "--artifact", str(tmp_path / "bad.onnx")],
                          capture_output=True, text=True, cwd=ROOT, timeout=120)
     assert res.returncode == 2
@@ -198,7 +198,7 @@ def test_worker_reports_a_bad_artifact_in_one_line(tmp_path):
 
 
 def test_merge_limits_keeps_the_best_pass():
-    from bench.limits import merge_limits
+    from quadfdi.bench.limits import merge_limits
 
     base = {"gemm": [{"label": "x", "gflops": 1.0}], "int8": [], "seconds": 1.0, "caches": {"L1d": 1}}
     a = {**base, "peak_gflops": 40.0, "peak_gflops_2t": 60.0, "l2_gbps": 50.0, "ort_call_us": 9.0, "ort_node_us": 0.4,
@@ -214,7 +214,7 @@ def test_merge_limits_keeps_the_best_pass():
 def test_a_runtime_below_its_floor_invalidates_the_floor_target():
     """A floor that some runtime beats is not a lower bound: the C++ target against it is never
     'met', and the record is named (bench.run re-measures, then fails the bench)."""
-    from bench.floors import below_floor, violation_text
+    from quadfdi.bench.floors import below_floor, violation_text
 
     models = {"cnode": {**{k: v for k, v in CNODE.items() if k != "kind"}, "macs_per_window": 10_000},
               "gru": {**{k: v for k, v in GRU.items() if k != "kind"}, "macs_per_window": 50_000}}
@@ -236,7 +236,7 @@ def test_bandwidth_probe_hot_loops_are_vectorised(tmp_path):
     and no stack slot (the 64-byte vectors of the old probe spilled on AVX2); both probes measure."""
     import shutil
 
-    from bench.probes import VECTOR_REG, bandwidth, build_checked_probe, fma_peak, host_vector_bytes
+    from quadfdi.bench.probes import VECTOR_REG, bandwidth, build_checked_probe, fma_peak, host_vector_bytes
 
     if shutil.which("g++") is None or shutil.which("objdump") is None:
         pytest.skip("needs g++ and objdump")
@@ -255,7 +255,7 @@ def test_bandwidth_probe_hot_loops_are_vectorised(tmp_path):
 
 
 def test_hot_loop_finds_the_loop_not_the_tail():
-    from bench.probes import hot_loop
+    from quadfdi.bench.probes import hot_loop
 
     text = """0000000000001000 <k>:
     1000:	xor    %eax,%eax
@@ -273,7 +273,7 @@ def test_hot_loop_finds_the_loop_not_the_tail():
 
 
 def test_speedup_rows_pair_int8_with_fp32():
-    from bench.report import speedup_rows
+    from quadfdi.bench.report import speedup_rows
 
     rec = lambda p, b, p50, rt="ort": {"runtime": rt, "model": "gru", "precision": p, "solver": "x",  # noqa: E731
                                        "threads": 1, "spinning": False, "batch": b, "p50_us": p50}
@@ -285,7 +285,7 @@ def test_speedup_rows_pair_int8_with_fp32():
 def test_int8_targets_compare_within_one_run():
     """Issue 15's ratios: C++ int8 vs fp32 (the GRU needs 1.5x), int8 within 3x of its floor, ORT at one
     thread without spinning (a faster 2-thread record must not be picked)."""
-    from bench.int8_targets import int8_targets
+    from quadfdi.bench.int8_targets import int8_targets
 
     fl = [{"model": m, "precision": p, "floor_us": 10.0, "bound": "compute"} for m in ("cnode", "gru")
           for p in ("fp32", "int8")]
@@ -308,7 +308,7 @@ def test_int8_targets_compare_within_one_run():
 def test_int8_targets_take_the_ort_ratio_from_the_paired_rounds():
     """bench.json ``ort_pairs`` (both graphs in one process) decides the ORT rows over the separate
     processes' p50s; a model without pairs falls back to the p50s."""
-    from bench.int8_targets import int8_targets
+    from quadfdi.bench.int8_targets import int8_targets
 
     rec = lambda m, p, b, p50: {"runtime": "ort", "model": m, "precision": p, "batch": b, "threads": 1,  # noqa: E731
                                 "spinning": False, "p50_us": p50}
@@ -337,8 +337,8 @@ def test_int8_targets_take_the_ort_ratio_from_the_paired_rounds():
 def test_paired_times_alternate_the_order_and_warm_each_graph():
     """Round r: graph A first when r is even, B first when odd; each turn one untimed call, then
     ``per_round`` timed calls on consecutive inputs; one time per graph and round."""
-    from bench.ort_pairs import paired_times
-    from bench.runtimes.common import pair_summary
+    from quadfdi.bench.ort_pairs import paired_times
+    from quadfdi.bench.runtimes.common import pair_summary
 
     log = []
     calls = (lambda x: log.append(("A", x)), lambda x: log.append(("B", x)))

@@ -36,9 +36,9 @@ def quadfdi_bench(*args: str) -> subprocess.CompletedProcess:
 @pytest.fixture(scope="module")
 def exported_run(small_run, tmp_path_factory) -> Path:
     """The session's simulated run + random-weight checkpoints, exported with N = 2 (in process)."""
-    from core.config import replace_section
-    from core.rundir import open_run
-    from export.run import export_run
+    from quadfdi.core.config import replace_section
+    from quadfdi.core.rundir import open_run
+    from quadfdi.export.run import export_run
 
     out = random_weight_run(small_run, tmp_path_factory.mktemp("bench") / "run")
     run, cfg = open_run(out)
@@ -84,9 +84,9 @@ def test_bench_json_holds_every_field(benched):
     assert settings == expected
     assert all(r.get("spinning") is False for r in recs if r["runtime"] == "ort")
     assert all(r.get("spinning") is None for r in recs if r["runtime"] != "ort")
-    from bench.latency import Counts
-    from bench.runtimes.cpp_rt import CPP_PROCESSES  # the C++ timings pool several processes (its module doc)
-    from core.config import BenchConfig
+    from quadfdi.bench.latency import Counts
+    from quadfdi.bench.runtimes.cpp_rt import CPP_PROCESSES  # the C++ timings pool several processes (its module doc)
+    from quadfdi.core.config import BenchConfig
     quick = Counts.of(BenchConfig(), quick=True)
     assert all(r["n_calls"] == CPP_PROCESSES * (quick.n if r["batch"] == 1 else quick.batches)
                for r in recs if r["runtime"] == "cpp")
@@ -189,7 +189,7 @@ def test_bad_input_is_one_line(exported_run, tmp_path):
                                         "bench.json", "dataset.npz"])
 def test_a_corrupt_stage_file_is_a_one_line_error(small_run, tmp_path, stage_file):
     """Report assembly never swallows: a truncated file of any stage stops it with one line naming the file."""
-    from core.errors import QuadfdiError
+    from quadfdi.core.errors import QuadfdiError
     from quadfdi.report import run_report_markdown
 
     run = tmp_path / "corrupt"
@@ -204,8 +204,8 @@ def test_a_corrupt_stage_file_is_a_one_line_error(small_run, tmp_path, stage_fil
 
 
 def test_a_foreign_bench_json_is_a_one_line_error(tmp_path):
-    from bench.report import report_section
-    from core.errors import QuadfdiError
+    from quadfdi.bench.report import report_section
+    from quadfdi.core.errors import QuadfdiError
 
     (tmp_path / "bench.json").write_text(json.dumps({"schema_version": 7}))
     with pytest.raises(QuadfdiError, match="schema version 1"):
@@ -213,7 +213,7 @@ def test_a_foreign_bench_json_is_a_one_line_error(tmp_path):
 
 
 def test_cortex_m_numbers_come_from_mcu_json(tmp_path):
-    from bench.memory import mcu_records
+    from quadfdi.bench.memory import mcu_records
 
     (tmp_path / "parity").mkdir()
     model = {"flash_bytes": 12000, "weights_bytes": 9000, "static_ram_bytes": 3000, "stack_peak_bytes": 400,
@@ -230,7 +230,7 @@ def test_cortex_m_numbers_come_from_mcu_json(tmp_path):
 
 
 def test_solver_records_of_a_run_without_the_study(tmp_path):
-    from bench.run import solver_records
+    from quadfdi.bench.run import solver_records
 
     records, meta = solver_records(tmp_path)
     assert records == [] and "solvers/solvers.json absent" in meta["note"]
@@ -250,8 +250,8 @@ def test_report_sections_in_stage_order(small_run, tmp_path):
 
 
 def test_pipeline_runs_every_stage_in_order(tmp_path):
-    from core.config import load_config
-    from core.rundir import create_run
+    from quadfdi.core.config import load_config
+    from quadfdi.core.rundir import create_run
     from quadfdi.pipeline import STAGES, run_stages
 
     assert [name for name, _ in STAGES] == ["sim", "plots", "train", "study", "baselines", "evaluate", "export",
@@ -269,8 +269,8 @@ def test_help_prints_no_rest_markup():
 
 
 def test_bench_config_section(tmp_path):
-    from core.config import load_config
-    from core.errors import QuadfdiError
+    from quadfdi.core.config import load_config
+    from quadfdi.core.errors import QuadfdiError
 
     cfg = load_config(ROOT / "configs" / "paper.toml", ["bench.windows=50", "bench.threads=[1]"])
     assert (cfg.bench.windows, cfg.bench.threads, cfg.bench.batch, cfg.bench.cpus) == (50, (1,), 96, "0,1")
@@ -281,8 +281,8 @@ def test_bench_config_section(tmp_path):
 
 
 def test_counts_follow_the_config():
-    from bench.latency import Counts
-    from core.config import BenchConfig
+    from quadfdi.bench.latency import Counts
+    from quadfdi.core.config import BenchConfig
 
     c = Counts.of(BenchConfig(windows=40, warmup=4, batch=8, batches=3, budget_s=2.0, min_samples=3), quick=False)
     assert (c.n, c.warmup, c.batch, c.batches, c.budget_s, c.min_samples) == (40, 4, 8, 3, 2.0, 3)

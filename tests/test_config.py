@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import pytest
 
-from core.config import Config, build_config, dumps_toml, load_config
-from core.errors import QuadfdiError
+from quadfdi.core.config import Config, build_config, dumps_toml, load_config
+from quadfdi.core.errors import QuadfdiError
 from tests.conftest import ROOT
 
 

@@ -9,9 +9,9 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from detect.run import policy_of
-from evaluate.alarms import flight_alarms
-from evaluate.load import load_run
+from quadfdi.detect.run import policy_of
+from quadfdi.evaluate.alarms import flight_alarms
+from quadfdi.evaluate.load import load_run
 from tests.conftest import quadfdi
 
 

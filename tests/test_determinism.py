@@ -12,17 +12,17 @@ import pytest
 
 from tests.conftest import copy_run
 
-from core.rundir import open_run
+from quadfdi.core.rundir import open_run
 
 KINDS = ("cnode", "gru")
 
 
 def _train(small_run: Path, out: Path, seed: int, monkeypatch: pytest.MonkeyPatch) -> Path:
-    import train.figures
-    from train.run import train_run
+    from quadfdi.train import figures as train_figures
+    from quadfdi.train.run import train_run
 
     copy_run(small_run, out)
-    monkeypatch.setattr(train.figures, "draw_all", lambda run, ds, result: [])
+    monkeypatch.setattr(train_figures, "draw_all", lambda run, ds, result: [])
     run, cfg = open_run(out, ["train.epochs=1", "train.batch_size=48"], need=("dataset",))
     train_run(run, cfg, "both", seed, log=lambda s: None)
     return out

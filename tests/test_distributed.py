@@ -17,14 +17,14 @@ from pathlib import Path
 import cloudpickle
 import pytest
 
-from core.config import load_config
-from core.executor import ATTEMPTS, ExecSettings, Job, run_jobs
-from core.jobcache import cache_path, job_key
-from core.rundir import create_run
-from sim.dataset import dataset_arrays, write_npz
-from sim.publish import generate_sharded
-from sim.shards import KIND, shard_jobs
-from sim.simulate import generate
+from quadfdi.core.config import load_config
+from quadfdi.core.executor import ATTEMPTS, ExecSettings, Job, run_jobs
+from quadfdi.core.jobcache import cache_path, job_key
+from quadfdi.core.rundir import create_run
+from quadfdi.sim.dataset import dataset_arrays, write_npz
+from quadfdi.sim.publish import generate_sharded
+from quadfdi.sim.shards import KIND, shard_jobs
+from quadfdi.sim.simulate import generate
 from tests.conftest import ROOT, copy_run, quadfdi
 
 pytest.importorskip("distributed")
@@ -41,7 +41,7 @@ CLI_TINY = [a for kv in TINY for a in ("--set", kv)]
 def cluster():
     from distributed import Client
 
-    from core.executor_dask import start_local_cluster
+    from quadfdi.core.executor_dask import start_local_cluster
 
     with start_local_cluster(2) as lc, Client(lc) as client:
         yield lc.scheduler_address, client
@@ -134,7 +134,7 @@ def test_interrupted_cli_sweep_resumes(cluster, serial_bytes, tmp_path):
     """SIGINT to `quadfdi sim` mid-sweep: exit 130, no dataset; the rerun keeps the finished shards."""
     out = tmp_path / "r"
     cache = out / "cache" / KIND
-    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    env = dict(os.environ)
     args = [sys.executable, "-m", "quadfdi.cli", "sim", "--out", str(out), "--scheduler", cluster[0], *CLI_TINY]
     proc = subprocess.Popen(args, cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     deadline = time.time() + 300
@@ -169,7 +169,7 @@ def test_cluster_started_with_the_dask_command(serial_bytes, tmp_path):
     if dask is None:
         pytest.skip("the dask command is not installed")
     sched_file = tmp_path / "scheduler.json"
-    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    env = dict(os.environ)
     procs = [subprocess.Popen([dask, "scheduler", "--port", "0", "--dashboard-address", ":0", "--scheduler-file",
                                str(sched_file)], env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)]
     try:
@@ -204,9 +204,9 @@ STUDY = ["train.epochs=1", "train.batch_size=48", "train.latent=8", "train.hidde
 def test_study_metrics_serial_equal_distributed(cluster, small_run, tmp_path):
     import json
 
-    from core.executor import SERIAL
-    from core.rundir import open_run
-    from train.study import run_study
+    from quadfdi.core.executor import SERIAL
+    from quadfdi.core.rundir import open_run
+    from quadfdi.train.study import run_study
 
     out = {}
     for name, settings in (("serial", SERIAL), ("dask", ExecSettings(cluster[0]))):
@@ -259,8 +259,8 @@ def _no_timing(d):
 
 def test_solver_matrix_cells_on_two_workers_equal_in_process(cluster, small_run, tmp_path):
     """One job per model, reference and cell on the cluster: the in-process matrix's numbers."""
-    from core.rundir import open_run
-    from solverstudy.run import matrix_run
+    from quadfdi.core.rundir import open_run
+    from quadfdi.solverstudy.run import matrix_run
 
     out = {}
     for name, settings in (("here", None), ("dask", ExecSettings(cluster[0]))):

@@ -10,11 +10,11 @@ import subprocess
 import numpy as np
 import pytest
 
-from core.config import load_config
-from core.profiles import ESC_RAW, apply_profile, channel_names, required_raw
-from sim.dataset import Dataset
+from quadfdi.core.config import load_config
+from quadfdi.core.profiles import ESC_RAW, apply_profile, channel_names, required_raw
+from quadfdi.sim.dataset import Dataset
 from tests.conftest import ROOT
-from train.profile_data import profiled_dataset
+from quadfdi.train.profile_data import profiled_dataset
 
 RAW = ["x", "y", "z", "vx", "vy", "vz", "roll", "pitch", "yaw", "p", "q", "r", "V_b", "I_b", "SoC",
        "T1", "T2", "T3", "T4", "thr1", "thr2", "thr3", "thr4", "vib_px4", "vib_ap"]
@@ -141,9 +141,9 @@ def test_cpp_mirror_is_bit_identical(tmp_path):
 def test_detect_inputs_read_esc_channels_and_refuse_a_flight_without(tmp_path):
     """A simulated flight as flight.npz (sim.flight_npz): with ESC telemetry detect's inputs equal the
     training path's; without it, the one-line refusal naming the channel."""
-    from core.errors import QuadfdiError
-    from detect.inputs import flight_inputs
-    from sim.flight_npz import flight_arrays
+    from quadfdi.core.errors import QuadfdiError
+    from quadfdi.detect.inputs import flight_inputs
+    from quadfdi.sim.flight_npz import flight_arrays
 
     esc = _dataset(tmp_path, True)
     fi = flight_inputs(flight_arrays(esc.arrays, 1, "d.npz"), "flightlog-esc", 20, 10)
@@ -157,9 +157,9 @@ def test_detect_inputs_read_esc_channels_and_refuse_a_flight_without(tmp_path):
 def test_detect_refuses_a_flight_whose_escs_report_no_temperature(tmp_path):
     """rpm and current but no temperature (ingest: "absent: ESC reports no temperature (always 0)"):
     flightlog-esc refuses it in one line naming the channel."""
-    from core.errors import QuadfdiError
-    from detect.inputs import flight_inputs
-    from sim.flight_npz import flight_arrays
+    from quadfdi.core.errors import QuadfdiError
+    from quadfdi.detect.inputs import flight_inputs
+    from quadfdi.sim.flight_npz import flight_arrays
 
     arrays = flight_arrays(_dataset(tmp_path, True).arrays, 1, "d.npz")
     names = list(arrays["channel_names"])

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from sim import esc_thermal as E
+from quadfdi.sim import esc_thermal as E
 
 
 def _draws(B: int = 2) -> dict[str, np.ndarray]:
@@ -73,7 +73,7 @@ def test_warm_start_and_a_busier_esc_in_flight():
 def test_a_cut_blade_heats_its_esc_more():
     """A cut blade's rotor draws more current for the same thrust (sim.esc_telemetry.esc_current), so its
     ESC loses more and settles warmer; the same conductance (same thrust, same wash)."""
-    from sim.esc_telemetry import esc_current
+    from quadfdi.sim.esc_telemetry import esc_current
 
     d = _draws(1)
     d["R"][:], d["G_flow"][:] = 0.02, 0.05

@@ -14,13 +14,13 @@ from sklearn.metrics import f1_score
 from sklearn.pipeline import make_pipeline
 from sklearn.preprocessing import StandardScaler
 
-from core.config import dumps_toml, load_config
-from core.npzio import write_npz
-from core.predindex import add_entries, prediction_path
-from sim.dataset import dataset_arrays, load_dataset, make_windows, split_names
-from sim.simulate import generate
+from quadfdi.core.config import dumps_toml, load_config
+from quadfdi.core.npzio import write_npz
+from quadfdi.core.predindex import add_entries, prediction_path
+from quadfdi.sim.dataset import dataset_arrays, load_dataset, make_windows, split_names
+from quadfdi.sim.simulate import generate
 from tests.conftest import ROOT, quadfdi
-from train.baseline import window_features
+from quadfdi.train.baseline import window_features
 
 SMALL = ["sim.n_traj=24", "sim.ood_traj=3", "sim.duration_s=16.0", "sim.chunk=36", "sim.window=40", "sim.stride=10"]
 MODELS = {"lrnet": 1.0, "logreg": 1e-3}  # name -> inverse regularisation C
@@ -167,7 +167,7 @@ def test_empty_index_is_one_line_and_writes_nothing(run, tmp_path):
 
 
 def test_report_section_and_headline_read_the_json_alone(run, tmp_path):
-    from evaluate.report import HEADING, headline, report_section
+    from quadfdi.evaluate.report import HEADING, headline, report_section
 
     lines = report_section(run)
     assert lines[0] == HEADING and any("label-noise ceiling" in s for s in lines)

@@ -6,11 +6,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from core.config import load_config
-from evaluate.common_delay import common_delay
-from evaluate.load import DatasetInfo, Flights
-from evaluate.protocol import evaluate_sets
-from evaluate.report import markdown
+from quadfdi.core.config import load_config
+from quadfdi.evaluate.common_delay import common_delay
+from quadfdi.evaluate.load import DatasetInfo, Flights
+from quadfdi.evaluate.protocol import evaluate_sets
+from quadfdi.evaluate.report import markdown
 from tests.conftest import ROOT
 
 CLASSES = ("Healthy", "BatteryFault")
@@ -82,7 +82,7 @@ def test_each_replicate_recomputes_the_common_set():
     stats = {}
     for m in ("a", "b"):
         fl = [_flights(m, s) for s in (0, 1)]
-        from evaluate.outcomes import flight_outcomes
+        from quadfdi.evaluate.outcomes import flight_outcomes
 
         outs = [flight_outcomes(f, _info(), {"threshold": 0.5, "k": 1, "n": 1, "clear_m": 1, "latch": False})
                 for f in fl]

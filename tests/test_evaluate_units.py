@@ -7,11 +7,11 @@ import numpy as np
 import pytest
 from scipy.stats import chi2
 
-from evaluate.bootstrap import draw_weights, intervals, paired, point_and_replicates
-from evaluate.ceiling import expected_confusion
-from evaluate.load import DatasetInfo, Flights
-from evaluate.metrics import garwood, macro_f1_accuracy
-from evaluate.outcomes import flight_outcomes
+from quadfdi.evaluate.bootstrap import draw_weights, intervals, paired, point_and_replicates
+from quadfdi.evaluate.ceiling import expected_confusion
+from quadfdi.evaluate.load import DatasetInfo, Flights
+from quadfdi.evaluate.metrics import garwood, macro_f1_accuracy
+from quadfdi.evaluate.outcomes import flight_outcomes
 
 CLASSES = ("Healthy", "BatteryFault", "MotorFault")
 STRIDE = 1.0  # s between window ends
@@ -128,7 +128,7 @@ def test_undecided_windows_never_vote_and_leave_the_exposure():
     """A prediction set's ``decided`` (before the hover freeze: False) as detect treats it."""
     from dataclasses import replace
 
-    from evaluate.alarms import flight_alarms
+    from quadfdi.evaluate.alarms import flight_alarms
 
     fl = _flights([[.9, .9, .9, 0, 0, 0, 0, 0, 0, 0]], [0])
     info = _info([0], [np.nan], [np.nan], [-1])

@@ -8,10 +8,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from core.config import load_config
-from core.errors import QuadfdiError
-from core.executor import ATTEMPTS, SERIAL, ExecSettings, Job, canary, check_canaries, run_jobs
-from core.jobcache import cache_path, job_key, read_result
+from quadfdi.core.config import load_config
+from quadfdi.core.errors import QuadfdiError
+from quadfdi.core.executor import ATTEMPTS, SERIAL, ExecSettings, Job, canary, check_canaries, run_jobs
+from quadfdi.core.jobcache import cache_path, job_key, read_result
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -113,8 +113,8 @@ def test_npz_results_and_no_partial_files(tmp_path):
 
 
 def test_sim_shard_keys_follow_the_sim_section_only(tmp_path):
-    from core.rundir import RunDir
-    from sim.shards import shard_jobs, shard_ranges
+    from quadfdi.core.rundir import RunDir
+    from quadfdi.sim.shards import shard_jobs, shard_ranges
 
     assert shard_ranges(10, 4) == [(0, 4), (4, 8), (8, 10)]
     cfg = load_config(ROOT / "configs/paper.toml", ["sim.n_traj=10", "sim.chunk=4"])
@@ -127,7 +127,7 @@ def test_sim_shard_keys_follow_the_sim_section_only(tmp_path):
 
 
 def test_executor_flags_never_reach_a_result_command_line():
-    from core.executor import strip_executor_args
+    from quadfdi.core.executor import strip_executor_args
 
     argv = ["train", "study", "--run", "r", "--workers", "2", "--scheduler=tcp://h:1", "--seeds", "0,1"]
     assert strip_executor_args(argv) == ["train", "study", "--run", "r", "--seeds", "0,1"]

@@ -10,10 +10,10 @@ import onnx
 import onnxruntime as ort
 import pytest
 
-from export.manifest import ARTIFACT_KEYS, check_files, load_manifest
-from export.reference_bin import read_reference
-from export.weights_bin import read_weights
-from sim.dataset import load_dataset, make_windows
+from quadfdi.export.manifest import ARTIFACT_KEYS, check_files, load_manifest
+from quadfdi.export.reference_bin import read_reference
+from quadfdi.export.weights_bin import read_weights
+from quadfdi.sim.dataset import load_dataset, make_windows
 from tests.conftest import quadfdi, random_weight_run
 
 def quadfdi_export(*args: str) -> subprocess.CompletedProcess:
@@ -86,9 +86,9 @@ def test_a_wrong_gru_graph_stops_the_export_before_anything_is_written(small_run
     """The pipeline's own parity check catches a GRU exported with linear_before_reset=0."""
     import functools
 
-    import export.run as export_run_module
-    from core.errors import QuadfdiError
-    from core.rundir import open_run
+    import quadfdi.export.run as export_run_module
+    from quadfdi.core.errors import QuadfdiError
+    from quadfdi.core.rundir import open_run
 
     run_dir = random_weight_run(small_run, tmp_path / "run")
     wrong = functools.partial(export_run_module.build_gru_fp32, linear_before_reset=0)

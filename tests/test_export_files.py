@@ -16,11 +16,11 @@ import numpy as np
 import pytest
 import torch
 
-from export.binfmt import Section, pack
-from export.manifest import SCHEMA_VERSION, load_manifest
-from export.reference_bin import read_reference, reference_bytes
-from export.weights_bin import MAGIC, read_weights, write_weights
-from core.errors import QuadfdiError
+from quadfdi.export.binfmt import Section, pack
+from quadfdi.export.manifest import SCHEMA_VERSION, load_manifest
+from quadfdi.export.reference_bin import read_reference, reference_bytes
+from quadfdi.export.weights_bin import MAGIC, read_weights, write_weights
+from quadfdi.core.errors import QuadfdiError
 from tests.test_export_graphs import make_tiny, run
 
 F = np.float32
@@ -90,7 +90,7 @@ def test_truncated_foreign_and_corrupted_weights(weights_file, tmp_path):
 
 def test_reader_refuses_files_that_differ_from_the_layout(weights_file, tmp_path):
     """A well-formed container whose sections or tensors are not export/weights_layout.py's."""
-    from export.weights_layout import SECTION_ORDER
+    from quadfdi.export.weights_layout import SECTION_ORDER
 
     def variant(edit):
         w = read_weights(weights_file)

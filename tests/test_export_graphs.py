@@ -15,13 +15,13 @@ import pytest
 import torch
 from onnx import TensorProto, numpy_helper
 
-from export.calibrate import WindowReader, collect_ranges
-from export.coverage import tensor_shapes
-from export.graph import Built, all_initializers, all_nodes
-from export.onnx_cnode import build_cnode, calibration_probes, cnode_params, quantize_cnode
-from export.onnx_gru import CALIBRATION_PROBES, build_gru_fp32, build_gru_int8, gru_params, quantize_gru
-from export.verify import int8_vs_fp32, ort_outputs, parity, session, torch_logits
-from train.models import CNODE, GRUClassifier, SolverSpec
+from quadfdi.export.calibrate import WindowReader, collect_ranges
+from quadfdi.export.coverage import tensor_shapes
+from quadfdi.export.graph import Built, all_initializers, all_nodes
+from quadfdi.export.onnx_cnode import build_cnode, calibration_probes, cnode_params, quantize_cnode
+from quadfdi.export.onnx_gru import CALIBRATION_PROBES, build_gru_fp32, build_gru_int8, gru_params, quantize_gru
+from quadfdi.export.verify import int8_vs_fp32, ort_outputs, parity, session, torch_logits
+from quadfdi.train.models import CNODE, GRUClassifier, SolverSpec
 
 C, W = 5, 80
 OPSET = 18
@@ -156,7 +156,7 @@ def test_ort_optimized_node_counts(steps):
     evaluation (QuantizeLinear, MatMulIntegerToFloat, Add row of V, Tanh, QuantizeLinear,
     MatMulIntegerToFloat) + the same 9 (7 when N is a power of two); the int8 GRU one Scan whose body
     (12 nodes, run once per step) is not in the graph's own count."""
-    from export.ort_session import optimized_nodes
+    from quadfdi.export.ort_session import optimized_nodes
 
     t = make_tiny(steps=steps)
     full = {k: optimized_nodes(getattr(t, k).model.SerializeToString())
@@ -202,7 +202,7 @@ def test_cnode_weights_stored_once(tiny):
 def test_every_integer_product_is_u8_by_s8(tiny):
     """Both int8 graphs take ONNX Runtime's fast u8 x s8 kernel for every integer product (its s8 x s8
     kernel took the CNODE's P @ x_norm from 16 % to 6 % of the batch-96 kernel time; docs/bench.md)."""
-    from export.onnx_cnode import interp_code_type
+    from quadfdi.export.onnx_cnode import interp_code_type
 
     for built in (tiny.cnode_int8, tiny.gru_int8):
         elem = {k: v[0] for k, v in tensor_shapes(built.model).items()}  # the Scan body's tensors too
@@ -258,7 +258,7 @@ def test_cnode_graph_is_the_rk4_program(tiny):
     rk4_constants(1/N) under RK4_CONSTANT_NAMES, multiplied in RK4_PROGRAM's order every step.
     k2 and k3 are held doubled (lin2's scales and bias times 2, exact), so ``two * k`` needs no
     node and ``half_h * k2`` multiplies 2 k2 by half_h / 2 (exact)."""
-    from core.rk4 import RK4_CONSTANT_NAMES, rk4_constants
+    from quadfdi.core.rk4 import RK4_CONSTANT_NAMES, rk4_constants
 
     names = {f"rk4.{n}": n for n in RK4_CONSTANT_NAMES} | {"rk4.half_h/2": "half_h/2"}
     for built in (tiny.cnode_fp32, tiny.cnode_int8):
@@ -275,8 +275,8 @@ def test_cnode_graph_is_the_rk4_program(tiny):
 
 
 def test_weights_bin_rk4_constants_are_the_graphs(tiny, tmp_path):
-    from core.rk4 import RK4_CONSTANT_NAMES
-    from export.weights_bin import read_weights, write_weights
+    from quadfdi.core.rk4 import RK4_CONSTANT_NAMES
+    from quadfdi.export.weights_bin import read_weights, write_weights
 
     write_weights(tmp_path / "w.bin", tiny.cp, tiny.cq, tiny.gp, tiny.gq)
     w = read_weights(tmp_path / "w.bin")
@@ -347,7 +347,7 @@ def test_rk4_graph_representation_is_bit_exact(steps):
     """The RK4 combination as the graph writes it (Sum nodes, field outputs held at a power of two)
     gives the same float32 bits as RK4_PROGRAM written out in numpy, on the int8 graph's own stage
     states: each probed stage state e+1 is recomputed from states and field outputs of the graph."""
-    from core.rk4 import rk4_constants
+    from quadfdi.core.rk4 import rk4_constants
 
     t = make_tiny(steps=steps)
     sess = session(t.cnode_int8.with_probes([f"stage{e}" for e in range(4 * steps)] + ["z1"]).SerializeToString())
@@ -364,7 +364,7 @@ def test_rk4_graph_representation_is_bit_exact(steps):
     for n in lin2:
         m.graph.output.append(onnx.helper.make_tensor_value_info(n, TensorProto.FLOAT, None))
     ks = session(m.SerializeToString()).run(lin2, {"telemetry": t.x})
-    from export.onnx_cnode import field_scales
+    from quadfdi.export.onnx_cnode import field_scales
 
     sig = [np.float32(c) for c in field_scales(1.0 / steps)]  # lin2 holds sig[i] * k
     z = st[0]

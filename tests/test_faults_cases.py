@@ -35,7 +35,7 @@ def inproc(*args: str) -> tuple[int, str]:
 def forge(run: Path, rel: str) -> None:
     """Update the record listing ``rel`` to the file's current hash: a file the record vouches for,
     so the reader's own checks (not the hash) must refuse it."""
-    from core.records import sha256_file
+    from quadfdi.core.records import sha256_file
 
     for rec_path in (run / ".stages").glob("*.json"):
         rec = json.loads(rec_path.read_text())
@@ -76,7 +76,7 @@ def nan_weight(blob: dict) -> None:
 
 def truncate_with_manifest(run: Path) -> None:
     """Truncate an int8 graph and update the manifest's sha256 (but not the stage record)."""
-    from core.records import sha256_file
+    from quadfdi.core.records import sha256_file
 
     onnx = run / "export" / "gru.int8.onnx"
     onnx.write_bytes(onnx.read_bytes()[:1000])

@@ -14,14 +14,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from export.binfmt import pack
-from export.weights_bin import MAGIC, read_weights
-from parity import compare, runners
-from parity.build import FW_ROOT
-from parity.build import mcu_build_dir
-from parity.mcu import qemu_command, run_cpu, tools_missing
-from core.errors import QuadfdiError
-from sim.dataset import load_dataset, make_windows
+from quadfdi.export.binfmt import pack
+from quadfdi.export.weights_bin import MAGIC, read_weights
+from quadfdi.parity import compare, runners
+from quadfdi.parity.build import FW_ROOT
+from quadfdi.parity.build import mcu_build_dir
+from quadfdi.parity.mcu import qemu_command, run_cpu, tools_missing
+from quadfdi.core.errors import QuadfdiError
+from quadfdi.sim.dataset import load_dataset, make_windows
 from tests.test_firmware_fixtures import asan_build, fw_run, host_build  # noqa: F401 (fixtures)
 
 SANITIZER_MARKERS = ("AddressSanitizer", "runtime error", "LeakSanitizer", "UndefinedBehaviorSanitizer")
@@ -70,7 +70,7 @@ def test_fwref_parity_on_reference_bin(fw_run, host_build):
 
 def test_fwref_parity_fails_loudly_on_another_models_reference(fw_run, host_build, tmp_path):
     """A reference.bin whose numbers are not this model's: NOT OK lines and exit 1 (llm.c style)."""
-    from export.reference_bin import MAGIC as REF_MAGIC, read_reference
+    from quadfdi.export.reference_bin import MAGIC as REF_MAGIC, read_reference
 
     ref = read_reference(fw_run / "export" / "reference.bin")
     for sec in ref.sections:
@@ -112,7 +112,7 @@ def _ort_unary(op: str, x: np.ndarray) -> np.ndarray:
     import onnx
     from onnx import TensorProto, helper
 
-    from export.verify import session
+    from quadfdi.export.verify import session
 
     g = helper.make_graph([helper.make_node(op, ["x"], ["y"])], op,
                           [helper.make_tensor_value_info("x", TensorProto.FLOAT, [None])],

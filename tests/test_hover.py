@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from core import hover
+from quadfdi.core import hover
 from tests.test_firmware_fixtures import host_build  # noqa: F401 (fixture)
 
 REAL = Path("/work/shared/data/flightlogs")
@@ -75,7 +75,7 @@ def test_a_missing_current_gives_the_command_only():
 
 
 def _real_columns() -> list[tuple[np.ndarray, np.ndarray]]:
-    from ingest.flight import ingest
+    from quadfdi.ingest.flight import ingest
 
     out = []
     for name in ("px4_quad_6s_uavcan_mission.ulg", "px4_quad_6s_gps_interference.ulg", "px4_sitl_quad_esc.ulg"):

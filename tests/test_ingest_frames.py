@@ -19,7 +19,7 @@ def _euler_rate_agreement(lr, flip: bool = False, window_s: float = 0.5) -> list
     of E(eta) omega (the converted body rates, at their own rate) over the same window, airborne."""
     from scipy.integrate import cumulative_trapezoid
 
-    from sim.rigid_body import euler_rate_matrix
+    from quadfdi.sim.rigid_body import euler_rate_matrix
 
     ch = lr.channels
     ta, tw = ch["roll"].t, ch["p"].t
@@ -42,7 +42,7 @@ def _euler_rate_agreement(lr, flip: bool = False, window_s: float = 0.5) -> list
 @pytest.mark.parametrize("name", ["px4_quad_6s_gps_interference.ulg", "px4_quad_battery_monitor_disconnected.ulg",
                                   "px4_quad_6s_vibration_tipover.ulg", "px4_quad_6s_uavcan_mission.ulg"])
 def test_body_rates_integrate_to_logged_attitude(name):
-    from ingest.flight import read_log
+    from quadfdi.ingest.flight import read_log
 
     lr = read_log(LOGS / name)
     assert min(_euler_rate_agreement(lr)) > 0.93
@@ -53,7 +53,7 @@ def test_body_rates_integrate_to_logged_attitude(name):
 @needs_logs
 @pytest.mark.parametrize("name", ["px4_quad_6s_gps_interference.ulg", "px4_quad_battery_monitor_disconnected.ulg"])
 def test_velocity_matches_position_differences(name):
-    from ingest.flight import read_log
+    from quadfdi.ingest.flight import read_log
 
     ch = read_log(LOGS / name).channels
     t = ch["x"].t
@@ -67,7 +67,7 @@ def test_velocity_matches_position_differences(name):
 
 
 def test_resampler_removes_what_would_alias():
-    from ingest.resample import make_grid, resample
+    from quadfdi.ingest.resample import make_grid, resample
 
     fs, dur = 250.0, 40.0
     t = np.arange(0, dur, 1 / fs)
@@ -86,7 +86,7 @@ def test_resampler_removes_what_would_alias():
 
 
 def test_resampler_masks_gaps_instead_of_interpolating():
-    from ingest.resample import make_grid, resample
+    from quadfdi.ingest.resample import make_grid, resample
 
     t = np.concatenate([np.arange(0, 5, 0.1), np.arange(7, 10, 0.1)])
     v = np.sin(t)
@@ -99,7 +99,7 @@ def test_resampler_masks_gaps_instead_of_interpolating():
 
 
 def test_angles_wrap_through_the_resampler():
-    from ingest.resample import make_grid, resample
+    from quadfdi.ingest.resample import make_grid, resample
 
     t = np.arange(0, 10, 0.01)
     yaw = (np.pi - 0.05 + 0.1 * t + np.pi) % (2 * np.pi) - np.pi  # crosses +-pi at t = 0.5
@@ -108,7 +108,7 @@ def test_angles_wrap_through_the_resampler():
 
 
 def test_motor_map_quad_x_and_plus():
-    from ingest.motors import QUAD_PLUS_PX4, QUAD_X, motor_map, pwm_to_thrust
+    from quadfdi.ingest.motors import QUAD_PLUS_PX4, QUAD_X, motor_map, pwm_to_thrust
 
     assert motor_map(QUAD_X) == [2, 1, 3, 0]
     assert motor_map(QUAD_PLUS_PX4) == [2, 1, 3, 0]  # front (CW), left, back (CW), right
@@ -117,8 +117,8 @@ def test_motor_map_quad_x_and_plus():
 
 
 def test_labels_json_is_checked(tmp_path):
-    from core.errors import QuadfdiError
-    from ingest.labels import load_labels
+    from quadfdi.core.errors import QuadfdiError
+    from quadfdi.ingest.labels import load_labels
 
     time = np.arange(0, 60, 0.04)
     p = tmp_path / "labels.json"
@@ -137,8 +137,8 @@ def test_labels_json_is_checked(tmp_path):
 
 def test_ardupilot_conversions_and_airborne_fallback_on_synthetic_messages():
     """The DataFlash path of a flying copter (no shared log has one): units, frames, PWM, airborne."""
-    from ingest.ardupilot import flight_state, motor_channels, state_channels
-    from ingest.model import LogRead
+    from quadfdi.ingest.ardupilot import flight_state, motor_channels, state_channels
+    from quadfdi.ingest.model import LogRead
 
     t = np.arange(0, 30, 0.1)
     n = len(t)
@@ -169,8 +169,8 @@ def test_ardupilot_conversions_and_airborne_fallback_on_synthetic_messages():
 
 
 def test_ardupilot_pos_fallback_without_ekf_messages():
-    from ingest.ardupilot import state_channels
-    from ingest.model import LogRead
+    from quadfdi.ingest.ardupilot import state_channels
+    from quadfdi.ingest.model import LogRead
 
     t = np.arange(0, 10, 0.1)
     pos = {"t": t, "Lat": 52.0 + 1e-5 * t, "Lng": 10.0 - 1e-5 * t, "RelHomeAlt": 0.5 * t}

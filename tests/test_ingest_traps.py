@@ -17,7 +17,7 @@ pytestmark = pytest.mark.skipif(not LOGS.is_dir(), reason=f"shared flight logs n
 
 
 def read(name):
-    from ingest.flight import read_log
+    from quadfdi.ingest.flight import read_log
 
     return read_log(LOGS / name)
 
@@ -34,7 +34,7 @@ def test_fmuv5_second_publisher_and_armed_outputs_below_pwm_min():
 
 
 def test_pack_at_3v5_per_cell_is_4s_not_3s():
-    from ingest.battery import cells_from_voltage
+    from quadfdi.ingest.battery import cells_from_voltage
 
     lr = read("px4_fmuv5_quad_real_short.ulg")
     v = lr.channels["V_b"].v
@@ -58,7 +58,7 @@ def test_sitl_bat1_vs_bat_n_cells_current_minus_one_six_escs():
 def test_vtol_header_span_is_not_the_data_span():
     from pyulog import ULog
 
-    from ingest.px4 import Topics, open_ulog
+    from quadfdi.ingest.px4 import Topics, open_ulog
 
     full = ULog(str(LOGS / "px4_cubeorange_vtol_real.ulg"))  # every message: one stamped ~1194 s
     assert (full.last_timestamp - full.start_timestamp) / 1e6 > 1170
@@ -95,7 +95,7 @@ def test_uncalibrated_current_sensor_is_unusable():
 
 
 def test_arduplane_nkf1_no_rate_is_refused_as_not_multirotor():
-    from ingest.ardupilot import load
+    from quadfdi.ingest.ardupilot import load
 
     cols, params, texts = load(str(LOGS / "ardupilot_plane_1s.BIN"))
     assert "NKF1" in cols and "XKF1" not in cols and "RATE" not in cols
@@ -104,7 +104,7 @@ def test_arduplane_nkf1_no_rate_is_refused_as_not_multirotor():
 
 
 def test_arducopter_ground_log_parameters_and_channels():
-    from ingest.ardupilot import read_ardupilot
+    from quadfdi.ingest.ardupilot import read_ardupilot
 
     lr = read_ardupilot(str(LOGS / "ardupilot_copter_quadx_ground.BIN"))
     v = lr.vehicle
@@ -119,7 +119,7 @@ def test_arducopter_ground_log_parameters_and_channels():
 
 def test_end_at_touchdown_rules():
     """segments.end_at_touchdown on synthetic vertical speeds (up-positive, 10 Hz)."""
-    from ingest.segments import LANDING_LOOKBACK_S, end_at_touchdown
+    from quadfdi.ingest.segments import LANDING_LOOKBACK_S, end_at_touchdown
 
     t = np.arange(0.0, 20.0, 0.1)
     descent = np.where(t < 14.0, -0.6, 0.0)  # descends at 0.6 m/s, touches down at 14 s, landed at 15.5 s

@@ -10,8 +10,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from ingest import px4_vibration
-from ingest.model import LogRead
+from quadfdi.ingest import px4_vibration
+from quadfdi.ingest.model import LogRead
 
 REAL = Path("/work/shared/data/flightlogs")
 pytestmark = pytest.mark.skipif(not (REAL / "px4_quad_6s_uavcan_mission.ulg").is_file(), reason="no shared logs")
@@ -19,7 +19,7 @@ pytestmark = pytest.mark.skipif(not (REAL / "px4_quad_6s_uavcan_mission.ulg").is
 
 @pytest.fixture(scope="module")
 def reads():
-    from ingest.px4 import read_px4
+    from quadfdi.ingest.px4 import read_px4
 
     return {k: read_px4(str(REAL / f)) for k, f in (("v19", "px4_quad_6s_uavcan_mission.ulg"),
                                                     ("v112", "px4_fmuv5_quad_real_short.ulg"))}

@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 from sklearn import metrics as skm  # the independent reference every metric is checked against
 
-from core.contracts import CLASS_LABELS, CLASS_NAMES
-from core.jsonio import to_jsonable
-from train.metrics import (
+from quadfdi.core.contracts import CLASS_LABELS, CLASS_NAMES
+from quadfdi.core.jsonio import to_jsonable
+from quadfdi.train.metrics import (
     METRIC_KEYS,
     classification_metrics,
     compute_metrics,

@@ -16,9 +16,9 @@ import pytest
 import torch
 from torchdiffeq import odeint
 
-from core.config import TrainConfig
-from train.control import LinearPath, interp_matrix
-from train.models import (
+from quadfdi.core.config import TrainConfig
+from quadfdi.train.control import LinearPath, interp_matrix
+from quadfdi.train.models import (
     CNODE,
     MODEL_KINDS,
     STD_FLOOR,
@@ -29,7 +29,7 @@ from train.models import (
     model_from_signature,
     model_signature,
 )
-from train.solvers import stage_times
+from quadfdi.train.solvers import stage_times
 
 C = 23  # channels of the telemetry contract
 W = 80

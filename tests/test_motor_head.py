@@ -8,20 +8,20 @@ import numpy as np
 import pytest
 import torch
 
-from core.config import TrainConfig
-from core.errors import QuadfdiError
-from detect.motor import rotor_columns, window_motor
-from export.calibrate import WindowReader, collect_ranges
-from export.manifest import motor_entry
-from export.onnx_cnode import build_cnode, calibration_probes, cnode_params, quantize_cnode
-from export.onnx_gru import CALIBRATION_PROBES, build_gru_fp32, build_gru_int8, gru_params, quantize_gru
-from export.verify import motor_verification, ort_motor_logits, parity, session, torch_logits
+from quadfdi.core.config import TrainConfig
+from quadfdi.core.errors import QuadfdiError
+from quadfdi.detect.motor import rotor_columns, window_motor
+from quadfdi.export.calibrate import WindowReader, collect_ranges
+from quadfdi.export.manifest import motor_entry
+from quadfdi.export.onnx_cnode import build_cnode, calibration_probes, cnode_params, quantize_cnode
+from quadfdi.export.onnx_gru import CALIBRATION_PROBES, build_gru_fp32, build_gru_int8, gru_params, quantize_gru
+from quadfdi.export.verify import motor_verification, ort_motor_logits, parity, session, torch_logits
 from tests.test_export_graphs import C, OPSET, W, synthetic_windows
-from train.checkpoint import load_checkpoint, save_checkpoint
-from train.loop import train_model
-from train.models import CNODE, GRUClassifier, SolverSpec, build_model, model_signature
-from train.threads import torch_threads
-from train.motor import (ROTOR_SIDE_CLASSES, attach_motor_head, motor_loss, motor_targets, predict_motor_proba,
+from quadfdi.train.checkpoint import load_checkpoint, save_checkpoint
+from quadfdi.train.loop import train_model
+from quadfdi.train.models import CNODE, GRUClassifier, SolverSpec, build_model, model_signature
+from quadfdi.train.threads import torch_threads
+from quadfdi.train.motor import (ROTOR_SIDE_CLASSES, attach_motor_head, motor_loss, motor_targets, predict_motor_proba,
                          rotor_side, wants_motor_head)
 
 REALISTIC = ["Healthy", "BatteryFault", "MotorFault", "OverheatFault", "PropellerFault"]
@@ -64,7 +64,7 @@ def test_no_head_keeps_the_model_and_the_head_is_drawn_last():
 
 @pytest.mark.parametrize("kind", ["gru", "cnode"])
 def test_checkpoint_round_trip_and_training_moves_the_head(kind, tmp_path):
-    from sim.dataset import Windows
+    from quadfdi.sim.dataset import Windows
 
     torch.manual_seed(0)
     cfg = TrainConfig(latent=6, hidden=8, gru_hidden=6, epochs=1, batch_size=16, steps=2, motor_head="auto")
@@ -146,8 +146,8 @@ def test_detect_motor_rules():
     assert window_motor(proba, mp, 0, rotor).tolist() == [0, 3, 1, 1, 0]  # window 3: fault class Propeller
     assert window_motor(proba, None, 0, rotor).tolist() == [0] * 5
     # an alarm's motor: core.alarm's rule (summed over the voting windows; rotor-side classes only)
-    from core.alarm import ROTOR_SIDE_CLASSES as CORE_ROTOR_SIDE
-    from core.alarm import alarm_episodes, reported_motor, run_alarm
+    from quadfdi.core.alarm import ROTOR_SIDE_CLASSES as CORE_ROTOR_SIDE
+    from quadfdi.core.alarm import alarm_episodes, reported_motor, run_alarm
 
     assert CORE_ROTOR_SIDE == ROTOR_SIDE_CLASSES  # core's copy of train.motor's names
     tr = run_alarm(proba[None, 1:4], 0.35, 1, 1, 1, healthy=0, motor_proba=mp[None, 1:4])
@@ -160,9 +160,9 @@ def test_detect_motor_rules():
 def test_weights_bin_carries_the_heads_in_optional_trailing_sections(tmp_path):
     from dataclasses import replace
 
-    from export.binfmt import pack
-    from export.weights_bin import read_weights, weights_bytes
-    from export.weights_layout import MAGIC, VERSION
+    from quadfdi.export.binfmt import pack
+    from quadfdi.export.weights_bin import read_weights, weights_bytes
+    from quadfdi.export.weights_layout import MAGIC, VERSION
 
     _, gru, _, _, (cp, cq, gp, gq) = _tiny_with_heads()
     (tmp_path / "w.bin").write_bytes(weights_bytes(cp, cq, gp, gq))

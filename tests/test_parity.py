@@ -12,14 +12,14 @@ import pytest
 from sklearn.metrics import mean_squared_error
 from sklearn.metrics.pairwise import cosine_similarity
 
-from export.weights_bin import read_weights
-from parity import compare, runners
-from parity.mcu import tools_missing
-from parity.run import parity_run
+from quadfdi.export.weights_bin import read_weights
+from quadfdi.parity import compare, runners
+from quadfdi.parity.mcu import tools_missing
+from quadfdi.parity.run import parity_run
 from quadfdi.cli import STAGES, main
-from core.errors import QuadfdiError
-from core.npzio import read_npz
-from core.rundir import open_run
+from quadfdi.core.errors import QuadfdiError
+from quadfdi.core.npzio import read_npz
+from quadfdi.core.rundir import open_run
 from tests.test_firmware_fixtures import fw_run, host_build  # noqa: F401 (fixtures)
 
 PAIRS = ("cpp_fp32_vs_ort_fp32", "cpp_fp32_vs_torch", "ort_fp32_vs_torch", "cpp_int8_vs_ort_int8",
@@ -147,9 +147,9 @@ def test_mcu_only_updates_the_report(parity_done):
 
 def test_generated_headers_are_current(tmp_path):
     """The committed C++ headers are what the Python tables generate now (regenerate:
-    `python -m core.contracts --header` and `python -m export.weights_layout --header`)."""
-    from core import contracts
-    from export import weights_layout
+    `python -m quadfdi.core.contracts --header` and `python -m quadfdi.export.weights_layout --header`)."""
+    from quadfdi.core import contracts
+    from quadfdi.export import weights_layout
 
     for module in (contracts, weights_layout):
         fresh = tmp_path / module.HEADER_PATH.name
@@ -160,10 +160,10 @@ def test_generated_headers_are_current(tmp_path):
 
 def expected_contract_lines() -> list[str]:
     """What fwref_contracts must print, from the Python tables alone."""
-    from core import contracts
-    from core.rk4 import RK4_CONSTANT_NAMES
-    from export import reference_bin
-    from export.weights_layout import LAYOUTS, MAGIC, MOTOR_SECTION_ORDER, SECTION_ORDER, VERSION, dtype_of
+    from quadfdi.core import contracts
+    from quadfdi.core.rk4 import RK4_CONSTANT_NAMES
+    from quadfdi.export import reference_bin
+    from quadfdi.export.weights_layout import LAYOUTS, MAGIC, MOTOR_SECTION_ORDER, SECTION_ORDER, VERSION, dtype_of
 
     lines = [f"weights {MAGIC.rstrip(bytes(1)).decode()} {VERSION}",
              f"reference {reference_bin.MAGIC.rstrip(bytes(1)).decode()} {reference_bin.VERSION}"]
@@ -206,8 +206,8 @@ def test_cpp_contracts_equal_the_python_tables(host_build):
 
 
 def test_parity_tolerances_come_from_the_contracts():
-    from core import contracts
-    from export import verify
+    from quadfdi.core import contracts
+    from quadfdi.export import verify
 
     assert compare.FP32_REL_TOL == contracts.FP32_CPP_REL_TOL
     assert (compare.INT8_ARGMAX_MIN, compare.INT8_TOL_STEPS) == (contracts.INT8_ARGMAX_MIN, contracts.INT8_TOL_STEPS)

@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from core.errors import QuadfdiError
-from core.predindex import add_entries, check_prediction_set, prediction_path, read_index
+from quadfdi.core.errors import QuadfdiError
+from quadfdi.core.predindex import add_entries, check_prediction_set, prediction_path, read_index
 
 
 def _set(n=3, k=5, split=1):

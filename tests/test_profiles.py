@@ -7,12 +7,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from core import hover
-from core.config import load_config
-from core.errors import QuadfdiError
-from core.profiles import apply_profile, channel_names, required_raw, uses_hover
-from sim.dataset import Dataset
-from train.profile_data import decided, profile_of, profiled_dataset
+from quadfdi.core import hover
+from quadfdi.core.config import load_config
+from quadfdi.core.errors import QuadfdiError
+from quadfdi.core.profiles import apply_profile, channel_names, required_raw, uses_hover
+from quadfdi.sim.dataset import Dataset
+from quadfdi.train.profile_data import decided, profile_of, profiled_dataset
 
 RAW = ["x", "y", "z", "vx", "vy", "vz", "roll", "pitch", "yaw", "p", "q", "r", "V_b", "I_b", "SoC",
        "T1", "T2", "T3", "T4", "thr1", "thr2", "thr3", "thr4", "vib_px4", "vib_ap"]

@@ -17,7 +17,7 @@ needs_logs = pytest.mark.skipif(not LOGS.is_dir(), reason=f"shared flight logs n
 
 
 def test_hp_noise_recovers_white_noise_under_slow_motion():
-    from realism.stats import hp_noise
+    from quadfdi.realism.stats import hp_noise
 
     rng = np.random.default_rng(0)
     t = np.arange(0, 60, 0.02)
@@ -27,7 +27,7 @@ def test_hp_noise_recovers_white_noise_under_slow_motion():
 
 
 def test_log_like_holds_the_latest_sample_and_caps_at_the_sim_rate():
-    from realism.stats import log_like
+    from quadfdi.realism.stats import log_like
 
     t = np.arange(0, 4, 0.04)
     tl, vl = log_like(t, t.copy(), 5.0)
@@ -37,7 +37,7 @@ def test_log_like_holds_the_latest_sample_and_caps_at_the_sim_rate():
 
 
 def test_steady_segments_hover_and_manoeuvre():
-    from realism.steady import segments
+    from quadfdi.realism.steady import segments
 
     t = np.arange(0, 60, 0.04)
     vx = np.where(t < 30, 0.0, 3.0 * np.sin(2 * np.pi * 0.3 * (t - 30)))  # hover, then aggressive swings
@@ -81,7 +81,7 @@ def test_realism_needs_a_run(tmp_path):
 def test_simulated_yaw_noise_ignores_the_wrap():
     """A simulated yaw turning steadily through +-pi has the noise of its ripple, not of the 2 pi
     jumps (the real side unwraps too): the sim / real yaw ratio read 57x before this."""
-    from realism.compare import _sim_channel
+    from quadfdi.realism.compare import _sim_channel
 
     t = np.arange(0, 40, 0.04)
     rng = np.random.default_rng(0)

@@ -8,10 +8,10 @@ import json
 import numpy as np
 import pytest
 
-from core.config import load_config
-from sim.dataset import class_names, dataset_arrays, load_dataset, make_windows, split_names, write_npz
-from sim.realistic import SPLIT_NAMES, labels, n_flights
-from sim.simulate import generate
+from quadfdi.core.config import load_config
+from quadfdi.sim.dataset import class_names, dataset_arrays, load_dataset, make_windows, split_names, write_npz
+from quadfdi.sim.realistic import SPLIT_NAMES, labels, n_flights
+from quadfdi.sim.simulate import generate
 from tests.conftest import ROOT
 
 CONFIG = ROOT / "configs/realistic.toml"
@@ -98,8 +98,8 @@ def test_flights_are_sane_and_faults_show(ds):
 def test_sharded_generation_keeps_every_flight(cfg, ds, tmp_path):
     """The shard path (quadfdi sim with workers or a cache) gives generate()'s arrays: the
     out-of-distribution flights included, the name tables once (not one copy per shard)."""
-    from core.rundir import RunDir
-    from sim.shards import n_rows, simulate_sharded
+    from quadfdi.core.rundir import RunDir
+    from quadfdi.sim.shards import n_rows, simulate_sharded
 
     full = load_config(CONFIG, SMALL)
     assert n_rows(full.sim) == n_flights(full.sim) == len(ds["fault_class"])
@@ -166,7 +166,7 @@ def test_esc_temperatures_sit_near_the_flights_ambient(ds):
 def test_esc_telemetry_physics(ds):
     """The four ESC currents sum to the bus current less the avionics (gain errors +-5 %); a cut
     blade's rotor spins fastest (it needs more rpm for its thrust)."""
-    from sim.realistic_params import NOMINAL
+    from quadfdi.sim.realistic_params import NOMINAL
 
     names = list(ds["channel_names"])
     esc, tel = ds["esc_telemetry"].astype(np.float64), ds["telemetry"].astype(np.float64)

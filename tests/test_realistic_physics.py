@@ -9,11 +9,11 @@ import numpy as np
 import pytest
 from scipy.signal import welch
 
-from core.config import SimConfig
-from sim import mission, propeller, realistic_loop, telemetry, wind
-from sim import realistic_dynamics as rd
-from sim import realistic_params as P
-from sim.variability import OOD_INCIPIENT, OOD_MISSION, OOD_VEHICLE, OOD_WIND, draw_flight
+from quadfdi.core.config import SimConfig
+from quadfdi.sim import mission, propeller, realistic_loop, telemetry, wind
+from quadfdi.sim import realistic_dynamics as rd
+from quadfdi.sim import realistic_params as P
+from quadfdi.sim.variability import OOD_INCIPIENT, OOD_MISSION, OOD_VEHICLE, OOD_WIND, draw_flight
 
 CFG = dataclasses.replace(SimConfig(), scenario="realistic", duration_s=75.0, onset_frac=(0.1, 0.5),
                           ramp_frac=(0.1, 0.3),
@@ -233,7 +233,7 @@ def test_mount_twist_yaws_the_vehicle_and_the_trim_cancels_it():
 
 def _no_fault(B: int):
     """A healthy batch's FaultPlan: kind one-hot on healthy, nothing else."""
-    from sim.realistic_faults import FaultPlan
+    from quadfdi.sim.realistic_faults import FaultPlan
 
     kind = np.zeros((B, 5))
     kind[:, 0] = 1.0
@@ -252,7 +252,7 @@ def test_thrust_curve_inverse():
 
 
 def test_intermittent_events_and_their_labels():
-    from sim import realistic_faults as rf
+    from quadfdi.sim import realistic_faults as rf
 
     draws = [draw_flight(CFG, i, 0) for i in range(40)]
     cls = np.array([1, 2] * 20)  # battery (connector spikes) and motor (ESC desync)
@@ -280,7 +280,7 @@ def test_intermittent_events_and_their_labels():
 
 
 def test_takeoff_faults_are_present_from_the_first_sample():
-    from sim import realistic_faults as rf
+    from quadfdi.sim import realistic_faults as rf
 
     draws = [draw_flight(CFG, i, 0) for i in range(10)]
     for d in draws:
@@ -292,8 +292,8 @@ def test_takeoff_faults_are_present_from_the_first_sample():
 
 
 def test_paper_scenario_keeps_the_paper_classes():
-    from core.config import load_config
-    from core.errors import QuadfdiError
+    from quadfdi.core.config import load_config
+    from quadfdi.core.errors import QuadfdiError
 
     with pytest.raises(QuadfdiError, match="scenario"):
         load_config(None, ['sim.classes=["Healthy", "PropellerFault"]'])

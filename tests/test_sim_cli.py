@@ -8,7 +8,7 @@ import json
 import numpy as np
 import pytest
 
-from sim.dataset import REQUIRED_KEYS, load_dataset, make_windows, window_starts
+from quadfdi.sim.dataset import REQUIRED_KEYS, load_dataset, make_windows, window_starts
 from tests.conftest import SMALL_SIM, quadfdi
 
 
@@ -100,7 +100,7 @@ def test_unwritable_output(tmp_path):
 
 
 def test_truncated_dataset(small_run, tmp_path):
-    from core.errors import QuadfdiError
+    from quadfdi.core.errors import QuadfdiError
 
     bad = tmp_path / "dataset.npz"
     bad.write_bytes((small_run / "dataset.npz").read_bytes()[:5000])
@@ -113,8 +113,8 @@ def test_truncated_dataset(small_run, tmp_path):
 
 
 def test_nan_telemetry_rejected(small_run, tmp_path):
-    from core.errors import QuadfdiError
-    from sim.dataset import read_npz, write_npz
+    from quadfdi.core.errors import QuadfdiError
+    from quadfdi.sim.dataset import read_npz, write_npz
 
     arrays = read_npz(small_run / "dataset.npz")
     arrays["telemetry"][2, 7, 4] = np.nan

@@ -9,12 +9,12 @@ import io
 import numpy as np
 import pytest
 
-from core.config import SimConfig
-from core.errors import QuadfdiError
-from sim import sensors
-from sim.assign import assign, class_counts
-from sim.params import get_vehicle
-from sim.simulate import generate
+from quadfdi.core.config import SimConfig
+from quadfdi.core.errors import QuadfdiError
+from quadfdi.sim import sensors
+from quadfdi.sim.assign import assign, class_counts
+from quadfdi.sim.params import get_vehicle
+from quadfdi.sim.simulate import generate
 
 VP = get_vehicle("f450_3s")
 # Small and fast: 30 trajectories of 4 s, faults early enough to show.
@@ -260,7 +260,7 @@ def test_overheat_fault_heats_that_motor(faulty):
 def test_every_fault_is_detectable_before_the_end():
     # Paper defaults: worst case onset 0.43, ramp 0.62, s_max 0.5, threshold 0.2 -> 10.85 s of 16 s.
     cfg = SimConfig()
-    from sim.draws import draw_trajectory
+    from quadfdi.sim.draws import draw_trajectory
 
     t = np.arange(cfg.n_samples) * cfg.sample_dt_s
     for i in range(cfg.n_traj):  # the draws only: cheap
@@ -286,8 +286,8 @@ def test_paper_scale_flights_are_sane():
 
 def test_voltage_compensation_option_flies():
     # PX4-style thrust scaling (v_comp): the command carries 1/kappa_V, the altitude integrator idles.
-    from sim.draws import draw_trajectory
-    from sim.simulate import simulate_batch
+    from quadfdi.sim.draws import draw_trajectory
+    from quadfdi.sim.simulate import simulate_batch
 
     vp = dataclasses.replace(VP, v_comp=True)
     cfg = dataclasses.replace(SMALL, duration_s=3.2, window=20)

@@ -12,7 +12,7 @@ import hashlib
 import numpy as np
 import pytest
 
-from core.machine import cpu_facts
+from quadfdi.core.machine import cpu_facts
 from tests.conftest import ROOT, quadfdi
 
 # `quadfdi sim --config configs/paper.toml --set sim.n_traj=24 --set sim.duration_s=8.0`, dataset.npz,
@@ -43,9 +43,9 @@ def test_paper_dataset_has_no_realistic_keys(tmp_path):
     import dataclasses
     import json
 
-    from core.config import Config, SimConfig
-    from sim.dataset import LATER_SIM_KEYS, class_names, dataset_arrays, split_names
-    from sim.simulate import generate
+    from quadfdi.core.config import Config, SimConfig
+    from quadfdi.sim.dataset import LATER_SIM_KEYS, class_names, dataset_arrays, split_names
+    from quadfdi.sim.simulate import generate
 
     cfg = Config(sim=dataclasses.replace(SimConfig(), n_traj=4, duration_s=4.0, window=40, stride=5,
                                          onset_frac=(0.1, 0.3), ramp_frac=(0.2, 0.4)))

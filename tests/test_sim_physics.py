@@ -13,10 +13,10 @@ import pytest
 from scipy.integrate import solve_ivp
 from scipy.spatial.transform import Rotation
 
-from core.errors import QuadfdiError
-from core.rk4 import rk4_step
-from sim import battery, controller, dynamics, faults, rigid_body, sensors, thermal
-from sim.params import VEHICLES, get_vehicle
+from quadfdi.core.errors import QuadfdiError
+from quadfdi.core.rk4 import rk4_step
+from quadfdi.sim import battery, controller, dynamics, faults, rigid_body, sensors, thermal
+from quadfdi.sim.params import VEHICLES, get_vehicle
 
 VP = get_vehicle("f450_3s")
 RNG = np.random.default_rng(1234)

@@ -20,8 +20,8 @@ import scipy.linalg
 import torch
 from torchdiffeq import odeint
 
-from train.control import LinearPath, interp_matrix, knots, sample_times
-from train.solvers import (
+from quadfdi.train.control import LinearPath, interp_matrix, knots, sample_times
+from quadfdi.train.solvers import (
     FIXED_METHODS,
     SolverSpec,
     euler_step,

@@ -19,14 +19,14 @@ import pytest
 from tests.conftest import random_weight_run
 import torch
 
-from core.config import SolversConfig, load_config
+from quadfdi.core.config import SolversConfig, load_config
 from quadfdi.cli import main as quadfdi_main
-from solverstudy.matching import matched_table
-from solverstudy.matrix import TrainSpec, control_findings, ott_findings
-from solverstudy.settings import Setting, default_settings, reference_setting
-from solverstudy.study import run_study, sample_indices, solve_each, with_setting
-from train.models import CNODE
-from train.variants import AverageControlCNODE, average_matrix
+from quadfdi.solverstudy.matching import matched_table
+from quadfdi.solverstudy.matrix import TrainSpec, control_findings, ott_findings
+from quadfdi.solverstudy.settings import Setting, default_settings, reference_setting
+from quadfdi.solverstudy.study import run_study, sample_indices, solve_each, with_setting
+from quadfdi.train.models import CNODE
+from quadfdi.train.variants import AverageControlCNODE, average_matrix
 
 C, W = 5, 80
 RECORD_FIELDS = {
@@ -149,7 +149,7 @@ def test_average_control_cnode_is_a_hand_written_euler_loop():
 def test_a_cnode_with_a_motor_head_rebuilds_under_every_setting():
     """The realistic suite's CNODE carries a motor head (train.motor): the solver study rebuilds it
     (quadfdi run on configs/realistic.toml failed here on n_motors) and keeps the head's weights."""
-    from train.motor import attach_motor_head
+    from quadfdi.train.motor import attach_motor_head
 
     m = attach_motor_head(_model(5))
     for setting in (Setting("rk4", steps=8), Setting("euler", steps=4, control="average"),
@@ -160,8 +160,8 @@ def test_a_cnode_with_a_motor_head_rebuilds_under_every_setting():
 
 
 def test_signature_records_the_control_and_a_checkpoint_loads_either(tmp_path):
-    from train.checkpoint import load_checkpoint, save_checkpoint
-    from train.models import model_from_signature, model_signature
+    from quadfdi.train.checkpoint import load_checkpoint, save_checkpoint
+    from quadfdi.train.models import model_from_signature, model_signature
 
     avg = with_setting(_model(5), Setting("rk4", steps=2, control="average"))
     sig = model_signature(avg)
@@ -280,7 +280,7 @@ def test_ott_and_control_findings_on_hand_made_matrix():
     assert ctl == [{"method": "rk4", "steps": 2, "nfe_per_window": 8, "average": "rk4 N=2 avg", "point": "rk4 N=2",
                     "average_macro_f1": 0.905, "average_max_logit_err": 0.1, "point_macro_f1": 0.85,
                     "point_max_logit_err": 0.1}]
-    from solverstudy.report import f1_match_sentence, ott_sentence
+    from quadfdi.solverstudy.report import f1_match_sentence, ott_sentence
 
     assert "between h = 1/8 and h = 1/2" in ott_sentence({**m, "ott": list(ott.values())})
     assert "rk4 N=2 avg" in f1_match_sentence({**m, "ott": list(ott.values())})
@@ -327,7 +327,7 @@ def test_solvers_command_writes_every_field(tiny_run):
     for f in ("solver_error_vs_nfe.png", "solver_f1_vs_latency.png"):
         assert (tiny_run / "figures" / f).read_bytes()[:4] == b"\x89PNG"
     # what bench and the run report read, from the files alone
-    from solverstudy.report import headline, load_records, report_section
+    from quadfdi.solverstudy.report import headline, load_records, report_section
 
     assert load_records(tiny_run) == out["solvers"]
     section = report_section(tiny_run)
@@ -375,7 +375,7 @@ def test_matrix_command_writes_every_field_and_reuses_models(tiny_run, capsys):
     assert (tiny_run / "figures" / "solver_controls.png").is_file()
     assert "Ott et al." in (tiny_run / "solvers" / "solver_matrix.md").read_text()
     # a step-average model loads back in its own class, no special case
-    from train.checkpoint import load_checkpoint
+    from quadfdi.train.checkpoint import load_checkpoint
 
     avg, _ = load_checkpoint(tiny_run / "solvers" / "matrix_models" / "rk4_N_1_avg.pt")
     assert isinstance(avg, AverageControlCNODE)
@@ -411,7 +411,7 @@ def test_config_section_is_the_studys_grid():
     quick = dataclasses.replace(cfg, steps=(1, 4), fixed_methods=("rk4",), adaptive_methods=("dopri5",),
                                 rtols=(1e-2,), jump="off", controls=("point",))
     assert [s.label for s in default_settings(quick)] == ["rk4 N=1", "rk4 N=4", "dopri5 rtol=1e-2 nojump"]
-    from solverstudy.settings import QUICK, quick_config
+    from quadfdi.solverstudy.settings import QUICK, quick_config
 
     small = quick_config(load_config(None))
     assert all(getattr(small.solvers, k) == v for k, v in QUICK.items())

@@ -19,8 +19,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from core.alarm import reported_motor, rotor_columns, run_alarm
-from core.contracts import FP32_CPP_REL_TOL, SPLIT_TEST
+from quadfdi.core.alarm import reported_motor, rotor_columns, run_alarm
+from quadfdi.core.contracts import FP32_CPP_REL_TOL, SPLIT_TEST
 from tests.conftest import copy_run, quadfdi
 from tests.test_firmware_fixtures import asan_build, host_build  # noqa: F401 (fixtures)
 from tests.test_stream_gru import TINY, _cli
@@ -102,7 +102,7 @@ def _fwref_stream(exe: Path, export: Path, *args: str) -> subprocess.CompletedPr
 
 
 def test_onboard_record_as_the_cpp_reads_it(flightlog_export, host_build):  # noqa: F811
-    from detect.streamfile import record_of
+    from quadfdi.detect.streamfile import record_of
 
     rec = record_of(flightlog_export)
     res = _fwref_stream(host_build, flightlog_export, "--info")
@@ -124,10 +124,10 @@ def test_onboard_record_as_the_cpp_reads_it(flightlog_export, host_build):  # no
 def test_onboard_record_round_trip_and_refusals():
     """A threshold float32 cannot hold survives exactly; nocur streams carry no current; a record
     that differs from the layout is refused in one line."""
-    from core.errors import QuadfdiError
-    from core.profiles import channel_names, required_raw
-    from export.binfmt import Section, pack, unpack
-    from export.onboard_record import check_onboard, onboard_dict, onboard_section
+    from quadfdi.core.errors import QuadfdiError
+    from quadfdi.core.profiles import channel_names, required_raw
+    from quadfdi.export.binfmt import Section, pack, unpack
+    from quadfdi.export.onboard_record import check_onboard, onboard_dict, onboard_section
 
     policy = {"threshold": 0.35, "k": 3, "n": 5, "clear_m": 4, "latch": True}
     sec = onboard_section("flightlog-nocur", channel_names("flightlog-nocur", []), 50, 10, 0.04, policy,
@@ -174,7 +174,7 @@ def streams(flightlog_export, tmp_path_factory) -> dict[str, Path]:
                   "--out", str(paths["sim"]))  # the CLI once; the real flight in process (a second start costs 2 s)
     assert res.returncode == 0, res.stderr
     if MISSION.is_file():
-        from detect.streamfile import from_flight, record_of, write_stream
+        from quadfdi.detect.streamfile import from_flight, record_of, write_stream
 
         write_stream(paths["real"], from_flight(MISSION, record_of(flightlog_export)))
     else:
@@ -193,8 +193,8 @@ def _infer(exe: Path, export: Path, net: str, int8: bool, x: np.ndarray, tmp: Pa
 def _window_path(export: Path, exe: Path, tmp: Path, rs, record: dict, net: str, precision: str):
     """The Python window path on the stream's samples: windows, ORT and C++ window logits, ORT's motor
     logits (None without a motor head) and the alarm (with the head's motor probabilities)."""
-    from detect.run import has_motor, model_logits
-    from detect.streamref import stream_alarm, windows_of
+    from quadfdi.detect.run import has_motor, model_logits
+    from quadfdi.detect.streamref import stream_alarm, windows_of
 
     sw = windows_of(rs, record)
     x = sw.windows(record["window"])
@@ -215,7 +215,7 @@ def test_stream_gives_the_window_path_at_every_stride(flightlog_export, streams,
 
 def test_paper_profile_stream_gives_the_window_path(fault_exported, host_build, tmp_path):  # noqa: F811
     """The identity profile (no hover estimate, no airborne channel) on the session's paper-config export."""
-    from detect.streamfile import from_dataset, record_of, write_stream
+    from quadfdi.detect.streamfile import from_dataset, record_of, write_stream
 
     export = fault_exported / "export"
     record = record_of(export)
@@ -231,8 +231,8 @@ def test_paper_profile_stream_gives_the_window_path(fault_exported, host_build, 
 def _with_rotor_side(export: Path, dst: Path, flags) -> Path:
     """A folder holding export's weights.bin with its on-board record's alarm.rotor_side set to ``flags``
     (None: the tensor removed, as in a file written before it)."""
-    from export.binfmt import Section, pack, read_file
-    from export.weights_layout import MAGIC, VERSION
+    from quadfdi.export.binfmt import Section, pack, read_file
+    from quadfdi.export.weights_layout import MAGIC, VERSION
 
     _, sections = read_file(export / "weights.bin", MAGIC, VERSION, "weights file")
     rec = sections[-1]
@@ -250,8 +250,8 @@ def test_stream_reports_the_alarm_motor_for_rotor_side_classes_only(flightlog_ex
     tensor (an older file: every class reports, rule 4 alone) and with no class rotor-side. Everything
     but the alarm motor is identical; the export's motor is core.alarm.reported_motor of the rule-4
     motor; no rotor-side class -> no motor although rule 4 has one at every active stride."""
-    from detect.run import has_motor
-    from detect.streamref import read_lines
+    from quadfdi.detect.run import has_motor
+    from quadfdi.detect.streamref import read_lines
 
     manifest = _manifest(flightlog_export)
     names = manifest["class_names"]
@@ -293,7 +293,7 @@ def test_cpp_reader_refuses_rotor_flags_it_cannot_use(flightlog_export, streams,
 def test_stream_alarm_mirror_applies_rule_5():
     """detect/streamref.py stream_alarm (the stream's rules in Python): a BatteryFault alarm reports no
     motor, a MotorFault alarm its rule-4 motor; without the record's flags every class reports one."""
-    from detect.streamref import stream_alarm
+    from quadfdi.detect.streamref import stream_alarm
 
     names = ["Healthy", "BatteryFault", "MotorFault"]
     rng = np.random.default_rng(3)
@@ -314,8 +314,8 @@ def test_stream_alarm_mirror_applies_rule_5():
 
 def _check_replay(export: Path, streams: dict[str, Path], exe: Path, tmp: Path, net: str, precision: str) -> list[str]:
     """fwref_stream on each stream against the window path at every stride; a report line per stream."""
-    from detect.streamfile import read_stream, record_of
-    from detect.streamref import read_lines
+    from quadfdi.detect.streamfile import read_stream, record_of
+    from quadfdi.detect.streamref import read_lines
 
     record = record_of(export)
     report = []
@@ -368,9 +368,9 @@ def _check_motor(out: dict, decided: np.ndarray, motor: np.ndarray | None, preci
 @pytest.mark.skipif(not MISSION.is_file(), reason="the shared real flight logs are not here")
 def test_stream_reference_is_detects_window_path(flightlog_export, streams):
     """detect/streamref.py on the stream file decides the windows detect/inputs.py decides, with the same inputs."""
-    from detect.inputs import flight_inputs, read_flight, windows
-    from detect.streamfile import read_stream, record_of
-    from detect.streamref import windows_of
+    from quadfdi.detect.inputs import flight_inputs, read_flight, windows
+    from quadfdi.detect.streamfile import read_stream, record_of
+    from quadfdi.detect.streamref import windows_of
 
     record = record_of(flightlog_export)
     fi = flight_inputs(read_flight(MISSION), record["profile"], record["window"], record["stride"])
@@ -391,7 +391,7 @@ def test_stream_under_sanitizers_gives_the_release_lines(flightlog_export, strea
 
 
 def _edit_stream(src: Path, dst: Path, edit) -> None:
-    from detect.streamfile import read_stream, write_stream
+    from quadfdi.detect.streamfile import read_stream, write_stream
 
     rs = read_stream(src)
     edit(rs)
@@ -399,7 +399,7 @@ def _edit_stream(src: Path, dst: Path, edit) -> None:
 
 
 def test_nan_samples_skip_their_windows_and_gaps_are_held(flightlog_export, streams, host_build, tmp_path):  # noqa: F811
-    from detect.streamref import read_lines
+    from quadfdi.detect.streamref import read_lines
 
     def run(path):
         res = _fwref_stream(host_build, flightlog_export, "--model", "cnode", "--int8", "--in", str(path))
@@ -448,8 +448,8 @@ def test_timestamp_steps_at_the_period_gates_edges(flightlog_export, streams, ho
     [lo, hi) one period (the clean run); at hi a gap of 2 (a NaN sample filled in)."""
     import math
 
-    from detect.streamfile import read_stream, record_of, write_stream
-    from detect.streamref import read_lines
+    from quadfdi.detect.streamfile import read_stream, record_of, write_stream
+    from quadfdi.detect.streamref import read_lines
 
     rs0 = read_stream(streams["sim"])
     dt, dt_rec = rs0.sample_dt_s, record_of(flightlog_export)["sample_dt_s"]  # the record's: float32(0.04)
@@ -518,7 +518,7 @@ def sgru_export(fault_exported, tmp_path_factory) -> Path:
 @pytest.fixture(scope="module")
 def sgru_flight(sgru_export, tmp_path_factory):
     """A test flight of the run as a stream file, its row and the on-board record."""
-    from detect.streamfile import from_dataset, record_of, write_stream
+    from quadfdi.detect.streamfile import from_dataset, record_of, write_stream
 
     record = record_of(sgru_export / "export")
     z = np.load(sgru_export / "dataset.npz")
@@ -537,10 +537,10 @@ def _sgru_stream(exe: Path, weights: Path, *args: str) -> str:
 
 def test_sgru_weights_file(sgru_export, host_build):  # noqa: F811
     """Its sections hold the checkpoint's numbers and weights.bin's record; weights.bin is untouched."""
-    from core.jsonio import read_json
-    from export.sgru_weights import read_sgru_weights
-    from export.weights_bin import read_weights
-    from train.stream_gru_run import load_stream_checkpoint
+    from quadfdi.core.jsonio import read_json
+    from quadfdi.export.sgru_weights import read_sgru_weights
+    from quadfdi.export.weights_bin import read_weights
+    from quadfdi.train.stream_gru_run import load_stream_checkpoint
 
     export = sgru_export / "export"
     sw = read_sgru_weights(export / "sgru_weights.bin")
@@ -566,7 +566,7 @@ def test_sgru_weights_file(sgru_export, host_build):  # noqa: F811
 
 def _sgru_mirror(export: Path, rs, record: dict, precision: str, hidden: int):
     """The Python statement of the on-board rules: stepped samples, decided strides, ORT logits, alarm."""
-    from detect.streamref import sgru_logits, stepped_of, stream_alarm, windows_of
+    from quadfdi.detect.streamref import sgru_logits, stepped_of, stream_alarm, windows_of
 
     sw = windows_of(rs, record)
     stepped, decided = stepped_of(sw, record["window"])
@@ -593,9 +593,9 @@ def _sgru_check(out: dict, sw, decided, logits, trace, precision: str) -> None:
 def test_stream_sgru_is_onnx_runtimes_one_step_at_every_stride(sgru_export, sgru_flight, host_build, precision):  # noqa: F811
     """fwref_stream --model sgru on a test flight: every stride the ORT one-step graph's logits (int8 identical,
     fp32 within the tolerance), and (fp32) the probabilities the Python evaluation scores (its prediction set)."""
-    from detect.streamfile import read_stream
-    from detect.streamref import read_lines
-    from train.stream_gru_run import load_stream_checkpoint
+    from quadfdi.detect.streamfile import read_stream
+    from quadfdi.detect.streamref import read_lines
+    from quadfdi.train.stream_gru_run import load_stream_checkpoint
 
     path, row, record = sgru_flight
     model, _ = load_stream_checkpoint(sgru_export / "sgru_train0.pt")
@@ -616,8 +616,8 @@ def test_stream_sgru_is_onnx_runtimes_one_step_at_every_stride(sgru_export, sgru
 def test_stream_sgru_holds_its_state_over_a_nan_sample(sgru_export, sgru_flight, host_build, tmp_path):  # noqa: F811
     """A NaN sample is not stepped (h held), the strides whose window holds it are skipped, and the later
     strides carry the held state: the C++ stream equals the Python mirror of that rule (int8: bit for bit)."""
-    from detect.streamfile import read_stream, write_stream
-    from detect.streamref import read_lines
+    from quadfdi.detect.streamfile import read_stream, write_stream
+    from quadfdi.detect.streamref import read_lines
 
     path, _, record = sgru_flight
     rs = read_stream(path)
@@ -641,7 +641,7 @@ def test_stream_sgru_holds_its_state_over_a_nan_sample(sgru_export, sgru_flight,
 def test_reset_between_flights_equals_separate_runs(sgru_export, sgru_flight, host_build, model, tmp_path):  # noqa: F811
     """Stream::reset(): two flights in sequence through one stream (repeated --in) give each flight's own run,
     line for line (alarm state, hover estimate, ring and the streaming GRU's state all forgotten)."""
-    from detect.streamfile import from_dataset, write_stream
+    from quadfdi.detect.streamfile import from_dataset, write_stream
 
     path, row, record = sgru_flight
     z = np.load(sgru_export / "dataset.npz")

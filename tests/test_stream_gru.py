@@ -30,10 +30,10 @@ def sgru_run(small_run, tmp_path_factory):
 
 
 def test_train_sgru_writes_a_prediction_set_at_the_window_ends(sgru_run):
-    from core.predindex import check_prediction_set, read_index
-    from sim.dataset import gather_windows, load_dataset, window_index
-    from train.data import evaluation_rows
-    from train.stream_gru_run import load_stream_checkpoint
+    from quadfdi.core.predindex import check_prediction_set, read_index
+    from quadfdi.sim.dataset import gather_windows, load_dataset, window_index
+    from quadfdi.train.data import evaluation_rows
+    from quadfdi.train.stream_gru_run import load_stream_checkpoint
 
     ds = load_dataset(sgru_run / "dataset.npz")
     entry = [e for e in read_index(sgru_run) if e["model"] == "sgru"]
@@ -63,7 +63,7 @@ def test_train_sgru_writes_a_prediction_set_at_the_window_ends(sgru_run):
 
 
 def test_train_sgru_bad_setting_is_a_one_line_error_before_any_write(small_run, tmp_path):
-    from core.errors import QuadfdiError
+    from quadfdi.core.errors import QuadfdiError
 
     out = copy_run(small_run, tmp_path / "run")
     with pytest.raises(QuadfdiError, match="hidden") as exc:  # the CLI prints it on one line, exits 2
@@ -72,8 +72,8 @@ def test_train_sgru_bad_setting_is_a_one_line_error_before_any_write(small_run, 
 
 
 def test_step_labels_follow_the_window_label_rule(small_run):
-    from sim.dataset import load_dataset, make_windows
-    from train.stream_gru_fit import step_labels
+    from quadfdi.sim.dataset import load_dataset, make_windows
+    from quadfdi.train.stream_gru_fit import step_labels
 
     ds = load_dataset(small_run / "dataset.npz")
     w = make_windows(ds, "test")
@@ -84,8 +84,8 @@ def test_step_labels_follow_the_window_label_rule(small_run):
 
 
 def test_compute_per_second_of_flight(sgru_run):
-    from core.jsonio import read_json
-    from sim.dataset import load_dataset
+    from quadfdi.core.jsonio import read_json
+    from quadfdi.sim.dataset import load_dataset
 
     stride = load_dataset(sgru_run / "dataset.npz").config.sim.stride
 
@@ -101,9 +101,9 @@ def test_compute_per_second_of_flight(sgru_run):
 def test_export_sgru_one_step_onnx_matches_pytorch_on_a_replayed_flight(sgru_run):
     import onnx
 
-    from core.jsonio import read_json
-    from export.verify import session
-    from train.stream_gru_run import load_stream_checkpoint
+    from quadfdi.core.jsonio import read_json
+    from quadfdi.export.verify import session
+    from quadfdi.train.stream_gru_run import load_stream_checkpoint
 
     assert _cli("export", "sgru", "--run", str(sgru_run)) == 0
     m = onnx.load(str(sgru_run / "export" / "sgru_step.onnx"))
@@ -130,7 +130,7 @@ def test_export_sgru_one_step_onnx_matches_pytorch_on_a_replayed_flight(sgru_run
 def test_fwref_sgru_one_step_matches_onnx_runtime_on_the_replayed_flight(sgru_run, host_build):  # noqa: F811 (the fixture)
     import subprocess
 
-    from core.jsonio import read_json
+    from quadfdi.core.jsonio import read_json
 
     if not (sgru_run / "export" / "sgru_fw.bin").exists():
         assert _cli("export", "sgru", "--run", str(sgru_run)) == 0

@@ -22,7 +22,7 @@ def _set(model: _Tiny, value: float) -> None:
 
 
 def test_average_follows_the_warmed_up_decay():
-    from train.stream_gru_ema import WeightAverage
+    from quadfdi.train.stream_gru_ema import WeightAverage
 
     model = _Tiny()
     _set(model, 1.0)
@@ -44,7 +44,7 @@ def test_average_follows_the_warmed_up_decay():
 
 
 def test_swapped_validates_the_average_and_gives_the_weights_back():
-    from train.stream_gru_ema import WeightAverage
+    from quadfdi.train.stream_gru_ema import WeightAverage
 
     model = _Tiny()
     _set(model, 2.0)
@@ -59,8 +59,8 @@ def test_swapped_validates_the_average_and_gives_the_weights_back():
 
 
 def test_bad_ema_settings_are_refused():
-    from train.stream_gru_config import StreamFitConfig
-    from train.stream_gru_ema import WeightAverage
+    from quadfdi.train.stream_gru_config import StreamFitConfig
+    from quadfdi.train.stream_gru_ema import WeightAverage
 
     for bad in (-0.1, 1.0):
         with pytest.raises(ValueError, match="ema_decay"):
@@ -71,9 +71,9 @@ def test_bad_ema_settings_are_refused():
 
 
 def test_the_average_leaves_the_training_path_alone_and_is_what_is_kept(small_run):
-    from sim.dataset import load_dataset
-    from train.stream_gru_config import StreamFitConfig
-    from train.stream_gru_fit import fit_stream_gru
+    from quadfdi.sim.dataset import load_dataset
+    from quadfdi.train.stream_gru_config import StreamFitConfig
+    from quadfdi.train.stream_gru_fit import fit_stream_gru
 
     ds = load_dataset(small_run / "dataset.npz")
     tiny = dict(epochs=2, hidden=4, segment=80, tbptt=40, warmup=10, batch=16)

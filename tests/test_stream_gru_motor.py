@@ -9,7 +9,7 @@ import torch
 
 
 def test_step_motor_targets_name_the_rotor_on_rotor_side_steps_only():
-    from train.stream_gru_motor import step_motor_targets
+    from quadfdi.train.stream_gru_motor import step_motor_targets
 
     names = ("Healthy", "BatteryFault", "MotorFault", "OverheatFault", "PropellerFault")
     lab = np.array([[0, 2, 2], [0, 0, 1], [4, 4, 0], [0, 0, 0]])
@@ -21,10 +21,10 @@ def test_step_motor_targets_name_the_rotor_on_rotor_side_steps_only():
 
 
 def test_motor_loss_moves_the_gru_and_is_zero_without_targets():
-    from train.stream_gru import StreamGRU
-    from train.stream_gru_config import StreamFitConfig
-    from train.stream_gru_fit import _batch_loss
-    from train.stream_gru_motor import MotorAux
+    from quadfdi.train.stream_gru import StreamGRU
+    from quadfdi.train.stream_gru_config import StreamFitConfig
+    from quadfdi.train.stream_gru_fit import _batch_loss
+    from quadfdi.train.stream_gru_motor import MotorAux
 
     cfg = StreamFitConfig(hidden=6, tbptt=5)
     x, y = torch.randn(3, 10, 4), torch.tensor([[0] * 5 + [1] * 5, [0] * 10, [2] * 10])
@@ -46,7 +46,7 @@ def test_motor_loss_moves_the_gru_and_is_zero_without_targets():
 
 
 def test_bad_motor_aux_is_refused():
-    from train.stream_gru_config import StreamFitConfig
+    from quadfdi.train.stream_gru_config import StreamFitConfig
 
     with pytest.raises(ValueError, match="motor_aux"):
         StreamFitConfig(motor_aux=-0.5).validate()

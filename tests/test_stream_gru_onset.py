@@ -9,8 +9,8 @@ import torch
 
 
 def test_onset_weight_one_is_no_emphasis():
-    from train.loop import weighted_cross_entropy
-    from train.stream_gru_onset import step_weighted_cross_entropy, step_weights
+    from quadfdi.train.loop import weighted_cross_entropy
+    from quadfdi.train.stream_gru_onset import step_weighted_cross_entropy, step_weights
 
     lab = np.array([[0, 0, 2, 2, 2]])
     assert step_weights(lab, 1.0, 3) is None
@@ -19,7 +19,7 @@ def test_onset_weight_one_is_no_emphasis():
 
 
 def test_step_weights_mark_the_first_steps_of_every_fault_run():
-    from train.stream_gru_onset import step_weights
+    from quadfdi.train.stream_gru_onset import step_weights
 
     lab = np.array([[0, 0, 3, 3, 3, 3, 0, 3, 3, 0],    # an intermittent fault: two runs, each restarts the span
                     [4, 4, 4, 4, 0, 0, 0, 0, 0, 0],    # a fault from the first step (take-off)
@@ -32,8 +32,8 @@ def test_step_weights_mark_the_first_steps_of_every_fault_run():
 
 
 def test_class_shares_of_the_loss_are_kept():
-    from train.data import class_weights
-    from train.stream_gru_onset import step_weights, weighted_class_weights
+    from quadfdi.train.data import class_weights
+    from quadfdi.train.stream_gru_onset import step_weights, weighted_class_weights
 
     lab = np.zeros((6, 200), np.int64)
     for i, (c, t0) in enumerate([(1, 50), (2, 120), (3, 10), (4, 190), (1, 150), (0, 0)]):
@@ -49,7 +49,7 @@ def test_class_shares_of_the_loss_are_kept():
 
 
 def test_bad_onset_settings_are_refused():
-    from train.stream_gru_config import StreamFitConfig
+    from quadfdi.train.stream_gru_config import StreamFitConfig
 
     with pytest.raises(ValueError, match="onset_weight"):
         StreamFitConfig(onset_weight=0.0).validate()

@@ -16,8 +16,8 @@ def _labels() -> np.ndarray:
 
 
 def test_default_draws_the_random_numbers_of_before():
-    from train.stream_gru_config import StreamFitConfig
-    from train.stream_gru_segments import draw_segments, first_fault
+    from quadfdi.train.stream_gru_config import StreamFitConfig
+    from quadfdi.train.stream_gru_segments import draw_segments, first_fault
 
     cfg = StreamFitConfig(segment=100, warmup=10)
     onset = first_fault(_labels())
@@ -30,8 +30,8 @@ def test_default_draws_the_random_numbers_of_before():
 
 
 def test_onset_segments_put_the_first_fault_step_inside_after_the_warmup():
-    from train.stream_gru_config import StreamFitConfig
-    from train.stream_gru_segments import draw_segments, first_fault
+    from quadfdi.train.stream_gru_config import StreamFitConfig
+    from quadfdi.train.stream_gru_segments import draw_segments, first_fault
 
     lab = _labels()
     onset = first_fault(lab)
@@ -48,15 +48,15 @@ def test_onset_segments_put_the_first_fault_step_inside_after_the_warmup():
 
 
 def test_loss_mask_spares_only_the_warmup_of_mid_flight_segments():
-    from train.stream_gru_segments import loss_mask
+    from quadfdi.train.stream_gru_segments import loss_mask
 
     mask = loss_mask(np.array([0, 7]), np.array([False, True]), 20, 5, 100)
     assert mask[0].all() and not mask[1, :5].any() and mask[1, 5:].all()
 
 
 def test_start_span_any_reaches_the_flight_end_and_masks_past_it():
-    from train.stream_gru_config import StreamFitConfig
-    from train.stream_gru_segments import draw_segments, loss_mask, segment_columns
+    from quadfdi.train.stream_gru_config import StreamFitConfig
+    from quadfdi.train.stream_gru_segments import draw_segments, loss_mask, segment_columns
 
     cfg = StreamFitConfig(segment=100, warmup=10, zero_start=0.0, start_span="any")
     start, mid = draw_segments(np.random.default_rng(1), 300, np.full(4000, -1), cfg)
@@ -74,9 +74,9 @@ def test_start_span_any_reaches_the_flight_end_and_masks_past_it():
 
 
 def test_sampled_class_weights_balance_the_drawn_steps():
-    from train.data import class_weights
-    from train.stream_gru_config import StreamFitConfig
-    from train.stream_gru_segments import sampled_class_weights
+    from quadfdi.train.data import class_weights
+    from quadfdi.train.stream_gru_config import StreamFitConfig
+    from quadfdi.train.stream_gru_segments import sampled_class_weights
 
     lab = _labels()
     # whole flights from take-off: every step drawn once per draw, so the weights of every step
@@ -90,7 +90,7 @@ def test_sampled_class_weights_balance_the_drawn_steps():
 
 
 def test_bad_segment_settings_are_refused():
-    from train.stream_gru_config import StreamFitConfig
+    from quadfdi.train.stream_gru_config import StreamFitConfig
 
     with pytest.raises(ValueError, match="class_mix"):
         StreamFitConfig(class_mix="windows").validate()

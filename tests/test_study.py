@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from tests.conftest import ROOT, copy_run, quadfdi
-from train.study import README_END, README_START
+from quadfdi.train.study import README_END, README_START
 
 TINY = ("--set", "train.epochs=1", "--set", "train.batch_size=48")
 

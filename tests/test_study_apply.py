@@ -8,8 +8,8 @@ import json
 import numpy as np
 import pytest
 
-from core.errors import QuadfdiError
-from core.predindex import read_index
+from quadfdi.core.errors import QuadfdiError
+from quadfdi.core.predindex import read_index
 from tests.conftest import copy_run, random_weight_run
 
 
@@ -18,7 +18,7 @@ def applied_run(small_run, tmp_path):
     """A run with random-weight checkpoints recorded as trained with its config (train seed 0), and a
     second dataset under sims/seed1/ (the same flights, its sim record saying seed 1: the test is of
     the plumbing, not of the simulator)."""
-    from core.config import load_config
+    from quadfdi.core.config import load_config
 
     cfg = load_config(small_run / "config.toml").to_dict()
     run_dir = random_weight_run(small_run, tmp_path / "run", config=cfg)
@@ -30,13 +30,13 @@ def applied_run(small_run, tmp_path):
 
 
 def test_apply_predicts_the_stage_networks_on_another_sim_seed(applied_run):
-    from core.executor import SERIAL
-    from core.rundir import open_run
-    from evaluate.load import load_run
-    from sim.dataset import load_dataset
-    from train.checkpoint import load_checkpoint
-    from train.predsets import prediction_set
-    from train.study_apply import SUMMARY, run_apply
+    from quadfdi.core.executor import SERIAL
+    from quadfdi.core.rundir import open_run
+    from quadfdi.evaluate.load import load_run
+    from quadfdi.sim.dataset import load_dataset
+    from quadfdi.train.checkpoint import load_checkpoint
+    from quadfdi.train.predsets import prediction_set
+    from quadfdi.train.study_apply import SUMMARY, run_apply
 
     run, cfg = open_run(applied_run)
     summary = run_apply(run, cfg, [0], [1], SERIAL, log=lambda s: None)
@@ -60,14 +60,14 @@ def test_apply_uses_the_stage_networks_train_settings_and_refuses_another_networ
     stage's networks (seed aside, its own --set train.* kept), so it applies THEM instead of silently
     retraining with config.toml's [train]; a network that does not reproduce the run's indexed set
     (another network than the one evaluated) is refused."""
-    from core.config import load_config, replace_section
-    from core.executor import SERIAL
-    from core.predindex import add_entries
-    from core.rundir import open_run
-    from sim.dataset import load_dataset
-    from train.checkpoint import load_checkpoint
-    from train.predsets import index_entry, prediction_set, write_prediction_set
-    from train.study_apply import run_apply, with_stage_train
+    from quadfdi.core.config import load_config, replace_section
+    from quadfdi.core.executor import SERIAL
+    from quadfdi.core.predindex import add_entries
+    from quadfdi.core.rundir import open_run
+    from quadfdi.sim.dataset import load_dataset
+    from quadfdi.train.checkpoint import load_checkpoint
+    from quadfdi.train.predsets import index_entry, prediction_set, write_prediction_set
+    from quadfdi.train.study_apply import run_apply, with_stage_train
 
     base = load_config(small_run / "config.toml")
     trained = replace_section(base, "train", epochs=base.train.epochs + 5)  # as `quadfdi train --set train.epochs=...`

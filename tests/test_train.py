@@ -8,15 +8,15 @@ import numpy as np
 import pytest
 import torch
 
-from core.config import load_config, replace_section
-from core.contracts import CLASS_NAMES, N_CLASSES, SPLIT_TEST, SPLIT_TRAIN
-from core.errors import QuadfdiError
-from sim.dataset import load_dataset
+from quadfdi.core.config import load_config, replace_section
+from quadfdi.core.contracts import CLASS_NAMES, N_CLASSES, SPLIT_TEST, SPLIT_TRAIN
+from quadfdi.core.errors import QuadfdiError
+from quadfdi.sim.dataset import load_dataset
 from tests.conftest import quadfdi
-from train.checkpoint import check_dataset_matches, load_checkpoint, save_checkpoint
-from train.data import batch_order, class_weights, fit_normalisation, split_windows
-from train.loop import weighted_cross_entropy
-from train.models import build_model
+from quadfdi.train.checkpoint import check_dataset_matches, load_checkpoint, save_checkpoint
+from quadfdi.train.data import batch_order, class_weights, fit_normalisation, split_windows
+from quadfdi.train.loop import weighted_cross_entropy
+from quadfdi.train.models import build_model
 
 METRIC_KEYS = {"accuracy", "balanced_accuracy", "macro_precision", "macro_recall", "macro_specificity", "macro_f1",
                "weighted_f1", "mcc", "roc_auc_ovr", "pr_auc_ovr", "brier", "any_fault_f1", "any_fault_roc_auc",
@@ -55,7 +55,7 @@ def test_normalisation_from_training_split_only(small_run):
 
 @pytest.mark.parametrize("kind", ["cnode", "gru"])
 def test_one_epoch_lowers_loss(small_run, kind):
-    from train.loop import train_model
+    from quadfdi.train.loop import train_model
 
     ds = load_dataset(small_run / "dataset.npz")
     cfg = replace_section(load_config(None), "train", epochs=1, batch_size=32)

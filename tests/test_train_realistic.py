@@ -12,13 +12,13 @@ import numpy as np
 import pytest
 import torch
 
-from core.config import load_config
-from core.contracts import CLASS_NAMES
-from core.predindex import check_prediction_set, read_index
-from sim.dataset import class_names, load_dataset, make_windows, split_names
+from quadfdi.core.config import load_config
+from quadfdi.core.contracts import CLASS_NAMES
+from quadfdi.core.predindex import check_prediction_set, read_index
+from quadfdi.sim.dataset import class_names, load_dataset, make_windows, split_names
 from tests.conftest import ROOT, copy_run, quadfdi, trained_export_run
 from tests.test_firmware_fixtures import host_build  # noqa: F401 (fixture)
-from train.data import capped_train_windows, evaluation_rows
+from quadfdi.train.data import capped_train_windows, evaluation_rows
 
 # A tiny suite, simulated in this process's order (--workers 1): every split code 0..6 present.
 TINY = ["sim.n_traj=20", "sim.ood_traj=2", "sim.duration_s=12.0", "sim.chunk=14", "sim.window=40"]
@@ -130,8 +130,8 @@ def test_study_over_sim_seeds_reuses_the_train_stage(exported, tmp_path):
 
 
 def test_index_entries_of_unpublished_sets_are_dropped(tmp_path):
-    from core.predindex import add_entries
-    from train.predsets import drop_missing_entries, index_entry
+    from quadfdi.core.predindex import add_entries
+    from quadfdi.train.predsets import drop_missing_entries, index_entry
 
     kept, gone = index_entry("cnode", 0, 1), index_entry("cnode", 0, 0)
     (tmp_path / kept["predictions"]).parent.mkdir(parents=True)

@@ -10,8 +10,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from core.predindex import read_index
-from core.records import load_record
+from quadfdi.core.predindex import read_index
+from quadfdi.core.records import load_record
 from tests.conftest import copy_run
 
 TINY = ["train.latent=4", "train.hidden=8", "train.gru_hidden=4"]
@@ -22,10 +22,10 @@ def _fake_train_all(ds, cfg, kinds, log=print, predsets=True):
     from (train seed, lr) so that another seed or [train] gives other sets."""
     from types import SimpleNamespace
 
-    from sim.dataset import class_names
-    from train.data import evaluation_rows
-    from train.loop import History
-    from train.models import build_model
+    from quadfdi.sim.dataset import class_names
+    from quadfdi.train.data import evaluation_rows
+    from quadfdi.train.loop import History
+    from quadfdi.train.models import build_model
 
     names = class_names(ds.arrays)
     rows = evaluation_rows(ds)
@@ -45,8 +45,8 @@ def _fake_train_all(ds, cfg, kinds, log=print, predsets=True):
 
 
 def _train(run_dir, seed, extra=(), model="both"):
-    from core.rundir import open_run
-    from train.run import train_run
+    from quadfdi.core.rundir import open_run
+    from quadfdi.train.run import train_run
 
     run, cfg = open_run(run_dir, TINY + list(extra))
     train_run(run, cfg, model, seed, log=lambda s: None)
@@ -58,11 +58,11 @@ def _sets(run_dir):
 
 @pytest.fixture()
 def seeded_run(small_run, tmp_path, monkeypatch):
-    import train.figures
-    import train.run
+    from quadfdi.train import figures as train_figures
+    from quadfdi.train import run as train_run_module
 
-    monkeypatch.setattr(train.figures, "draw_all", lambda run, ds, result: [])  # figures are not the subject
-    monkeypatch.setattr(train.run, "train_all", _fake_train_all)
+    monkeypatch.setattr(train_figures, "draw_all", lambda run, ds, result: [])  # figures are not the subject
+    monkeypatch.setattr(train_run_module, "train_all", _fake_train_all)
     return copy_run(small_run, tmp_path / "run")
 
 

@@ -27,7 +27,7 @@ from typing import Sequence
 import numpy as np
 import torch
 
-from core.errors import QuadfdiError
+from quadfdi.core.errors import QuadfdiError
 
 SHARE_CHANNELS = ("m1_rel", "m2_rel", "m3_rel", "m4_rel")
 

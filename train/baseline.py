@@ -23,7 +23,7 @@ from sklearn.linear_model import LogisticRegression
 from sklearn.pipeline import Pipeline
 from sklearn.preprocessing import StandardScaler
 
-from core.contracts import N_CLASSES
+from quadfdi.core.contracts import N_CLASSES
 
 MAX_ITER = 2000
 

@@ -22,12 +22,12 @@ from typing import Any, Sequence
 
 import numpy as np
 
-from core.errors import QuadfdiError
-from core.jsonio import write_json
-from core.npzio import write_npz
-from core.predindex import add_entries, check_prediction_set, prediction_path, read_index
-from sim.dataset import class_names, load_dataset, split_names
-from train.baselines import MAX_TRAIN_WINDOWS, MODELS, N_CONFIGS, fit_baselines
+from quadfdi.core.errors import QuadfdiError
+from quadfdi.core.jsonio import write_json
+from quadfdi.core.npzio import write_npz
+from quadfdi.core.predindex import add_entries, check_prediction_set, prediction_path, read_index
+from quadfdi.sim.dataset import class_names, load_dataset, split_names
+from quadfdi.train.baselines import MAX_TRAIN_WINDOWS, MODELS, N_CONFIGS, fit_baselines
 
 DATASET = "dataset.npz"  # the run's own dataset, relative to the run folder
 
@@ -92,7 +92,7 @@ def suspected_motor(evals, channel_names) -> np.ndarray | None:
     physics feature ``thr_ratio<i>``: a weak motor or a damaged propeller needs more command for its
     share of thrust). A fixed physics rule, not learned; shared by the three baselines, so the
     evaluation can score their localisation. None when the dataset has no motor commands."""
-    from train.features import physics_feature_names
+    from quadfdi.train.features import physics_feature_names
 
     names = physics_feature_names(channel_names)
     cols = [names.index(f"thr_ratio{i}") for i in range(1, 5) if f"thr_ratio{i}" in names]

@@ -12,11 +12,11 @@ from typing import Any
 
 import torch
 
-from core.atomic import atomic_path
-from core.contracts import CLASS_NAMES
-from core.errors import QuadfdiError
-from train.models import model_from_signature, model_signature
-from train.variants import CNODE_CLASSES
+from quadfdi.core.atomic import atomic_path
+from quadfdi.core.contracts import CLASS_NAMES
+from quadfdi.core.errors import QuadfdiError
+from quadfdi.train.models import model_from_signature, model_signature
+from quadfdi.train.variants import CNODE_CLASSES
 
 CHECKPOINT_VERSION = 1
 

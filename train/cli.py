@@ -9,10 +9,10 @@ import shlex
 import sys
 from pathlib import Path
 
-from core.cliargs import add_config_args
-from core.errors import QuadfdiError
-from core.executor import ExecSettings, add_executor_args, strip_executor_args
-from core.rundir import open_run
+from quadfdi.core.cliargs import add_config_args
+from quadfdi.core.errors import QuadfdiError
+from quadfdi.core.executor import ExecSettings, add_executor_args, strip_executor_args
+from quadfdi.core.rundir import open_run
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -53,13 +53,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                     help="seeded subsample of the training windows; 0 = all (default: train.baselines.MAX_TRAIN_WINDOWS)")
     add_config_args(pb, config=False)
     pb.set_defaults(func=run_baselines_cmd)
-    from train.stream_gru_cli import add_sgru_parser
+    from quadfdi.train.stream_gru_cli import add_sgru_parser
 
     add_sgru_parser(acts)
 
 
 def run_train(args: argparse.Namespace) -> int:
-    from train.run import train_run
+    from quadfdi.train.run import train_run
 
     if args.run is None:
         raise QuadfdiError("quadfdi train needs --run <run folder>")
@@ -71,7 +71,7 @@ def run_train(args: argparse.Namespace) -> int:
 
 
 def run_study_cmd(args: argparse.Namespace) -> int:
-    from train.study import check_readme, run_study, update_readme
+    from quadfdi.train.study import check_readme, run_study, update_readme
 
     run, cfg = open_run(args.run, args.overrides, need=("dataset",))
     seeds = _seed_list("--seeds", args.seeds, list(cfg.train.seeds))
@@ -89,7 +89,7 @@ def run_study_cmd(args: argparse.Namespace) -> int:
 
 
 def run_apply_cmd(args: argparse.Namespace) -> int:
-    from train.study_apply import run_apply, with_stage_train
+    from quadfdi.train.study_apply import run_apply, with_stage_train
 
     run, cfg = open_run(args.run, args.overrides, need=("dataset",))
     cfg = with_stage_train(run, cfg, {o.split("=", 1)[0][len("train."):] for o in args.overrides if o.startswith("train.")})
@@ -116,8 +116,8 @@ def _seed_list(flag: str, text: str | None, default: list[int]) -> list[int]:
 
 
 def run_baselines_cmd(args: argparse.Namespace) -> int:
-    from train.baselines import MAX_TRAIN_WINDOWS
-    from train.baselines_run import run_baselines
+    from quadfdi.train.baselines import MAX_TRAIN_WINDOWS
+    from quadfdi.train.baselines_run import run_baselines
 
     run, cfg = open_run(args.run, args.overrides, need=("dataset",))
     seed = cfg.train.seed if args.seed is None else args.seed

@@ -10,9 +10,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from core.contracts import N_CLASSES, SPLIT_TRAIN, SPLIT_VALIDATION
-from sim.dataset import Dataset, Windows, gather_windows, make_windows, split_rows, window_index
-from train.profile_data import decided
+from quadfdi.core.contracts import N_CLASSES, SPLIT_TRAIN, SPLIT_VALIDATION
+from quadfdi.sim.dataset import Dataset, Windows, gather_windows, make_windows, split_rows, window_index
+from quadfdi.train.profile_data import decided
 
 
 @dataclass(frozen=True)

@@ -9,9 +9,9 @@ from pathlib import Path
 import numpy as np
 from sklearn.metrics import confusion_matrix, roc_curve
 
-from core.contracts import CLASS_NAMES, HEALTHY
-from core.plotting import pyplot as _plt
-from core.plotting import save_png as _save
+from quadfdi.core.contracts import CLASS_NAMES, HEALTHY
+from quadfdi.core.plotting import pyplot as _plt
+from quadfdi.core.plotting import save_png as _save
 
 def short_names(names) -> tuple[str, ...]:
     """Axis labels: the class names without "Fault" (Healthy, Battery, Motor, Overheat, ...)."""
@@ -89,8 +89,8 @@ def draw_roc(y: np.ndarray, probas: dict, metrics: dict, out: Path) -> None:
 def draw_trajectory_detection(ds, test, probas: dict, row: int, out: Path) -> None:
     """Position, attitude, battery, temperature, effectiveness, severity and the any-fault
     probability of each model at each window end, for dataset row ``row`` (Figs. 12-27)."""
-    from sim.dataset import class_names
-    from sim.plot import plot_groups
+    from quadfdi.sim.dataset import class_names
+    from quadfdi.sim.plot import plot_groups
 
     plt = _plt()
     t = ds["time"]
@@ -133,7 +133,7 @@ def draw_trajectory_detection(ds, test, probas: dict, row: int, out: Path) -> No
 
 def draw_all(run, ds, result: dict) -> list[Path]:
     """Every training figure into ``run.figures``, classes named by the data; returns the paths written."""
-    from sim.dataset import class_names
+    from quadfdi.sim.dataset import class_names
 
     figs = run.figures
     names = class_names(ds.arrays)

@@ -16,12 +16,12 @@ import numpy as np
 import torch
 from sklearn.metrics import f1_score
 
-from core.config import TrainConfig
-from core.errors import QuadfdiError
-from sim.dataset import Windows
-from train.data import batch_order
-from train.models import GRUClassifier
-from train.motor import has_motor_head, motor_loss
+from quadfdi.core.config import TrainConfig
+from quadfdi.core.errors import QuadfdiError
+from quadfdi.sim.dataset import Windows
+from quadfdi.train.data import batch_order
+from quadfdi.train.models import GRUClassifier
+from quadfdi.train.motor import has_motor_head, motor_loss
 
 
 def weighted_cross_entropy(logits: torch.Tensor, y: torch.Tensor, weights: torch.Tensor, eps: float) -> torch.Tensor:

@@ -86,7 +86,7 @@ from sklearn.metrics import (
 )
 from sklearn.preprocessing import label_binarize
 
-from core.contracts import CLASS_NAMES, HEALTHY
+from quadfdi.core.contracts import CLASS_NAMES, HEALTHY
 
 THRESHOLD = 0.5  # any-fault decision: 1 - p(Healthy) > THRESHOLD
 T_TOL_S = 1e-6  # tolerance of "window ending at or after t_det"

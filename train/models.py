@@ -17,9 +17,9 @@ import torch
 from torch import nn
 from torchdiffeq import odeint
 
-from core.config import TrainConfig
-from train.control import LinearPath, interp_matrix, knots
-from train.solvers import FIXED_METHODS, SolverSpec, fixed_method, integrate_fixed, nearest_index, stage_times
+from quadfdi.core.config import TrainConfig
+from quadfdi.train.control import LinearPath, interp_matrix, knots
+from quadfdi.train.solvers import FIXED_METHODS, SolverSpec, fixed_method, integrate_fixed, nearest_index, stage_times
 
 __all__ = [
     "MODEL_KINDS",

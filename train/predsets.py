@@ -17,13 +17,13 @@ from typing import Any
 import numpy as np
 import torch
 
-from core.npzio import write_npz
-from core.predindex import check_prediction_set, prediction_path
-from sim.dataset import Dataset, class_names, gather_windows, window_index
-from train.data import evaluation_rows
-from train.loop import predict_proba
-from train.motor import N_MOTORS, has_motor_head, predict_motor_proba
-from train.profile_data import decided
+from quadfdi.core.npzio import write_npz
+from quadfdi.core.predindex import check_prediction_set, prediction_path
+from quadfdi.sim.dataset import Dataset, class_names, gather_windows, window_index
+from quadfdi.train.data import evaluation_rows
+from quadfdi.train.loop import predict_proba
+from quadfdi.train.motor import N_MOTORS, has_motor_head, predict_motor_proba
+from quadfdi.train.profile_data import decided
 
 FLIGHTS_PER_CHUNK = 16  # 16 x 90 windows x 80 x 25 float32 = 11.5 MB at a time
 
@@ -89,8 +89,8 @@ def drop_missing_entries(run_root: str | Path) -> int:
     """Remove the index entries whose prediction set no longer exists (a stage re-run with another
     seed unpublishes the sets of the previous one); returns how many were removed. Same format and
     atomic write as ``core.predindex.add_entries``."""
-    from core.jsonio import write_json
-    from core.predindex import index_path, read_index
+    from quadfdi.core.jsonio import write_json
+    from quadfdi.core.predindex import index_path, read_index
 
     entries = read_index(run_root)
     keep = [e for e in entries if (Path(run_root) / e["predictions"]).is_file()]

@@ -20,10 +20,10 @@ import dataclasses
 
 import numpy as np
 
-from core.errors import QuadfdiError
-from core.hover import INPUTS as HOVER_INPUTS, collective, estimate_many
-from core.profiles import apply_profile, channel_names, channel_units, required_raw, uses_hover
-from sim.dataset import Dataset
+from quadfdi.core.errors import QuadfdiError
+from quadfdi.core.hover import INPUTS as HOVER_INPUTS, collective, estimate_many
+from quadfdi.core.profiles import apply_profile, channel_names, channel_units, required_raw, uses_hover
+from quadfdi.sim.dataset import Dataset
 
 PROFILE_KEY = "profile"  # the checkpoint's key (train.run) and the manifest's (export.manifest)
 

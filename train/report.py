@@ -5,8 +5,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from core.reportmd import demote, figure_links, not_run, num, optional_json
-from core.tables import md_table
+from quadfdi.core.reportmd import demote, figure_links, not_run, num, optional_json
+from quadfdi.core.tables import md_table
 
 HEADING = "## Training and test metrics"
 TRAIN_FIGURES = ("train_curves", "confusion_", "per_class_f1", "any_fault_roc", "detection_")

@@ -16,25 +16,25 @@ from typing import Callable
 import numpy as np
 import torch
 
-from core.config import Config, replace_section
-from core.contracts import SPLITS
-from core.errors import QuadfdiError
-from core.jsonio import read_json, write_json
-from core.npzio import write_npz
-from core.predindex import add_entries
-from core.rundir import RunDir
-from core.stage import StageWriter, stage
-from sim.dataset import Dataset, Windows, class_names, load_dataset
-from train.augment import share_wander_for
-from train.baseline import fit_baseline, predict_proba_baseline
-from train.checkpoint import save_checkpoint
-from train.data import class_weights, fit_normalisation, split_windows
-from train.loop import predict_proba, train_model
-from train.metrics import compute_metrics
-from train.models import build_model
-from train.motor import attach_motor_head, motor_targets, wants_motor_head
-from train.profile_data import PROFILE_KEY, profiled_dataset
-from train.predsets import (drop_missing_entries, index_entry, prediction_set, relative_prediction_path,
+from quadfdi.core.config import Config, replace_section
+from quadfdi.core.contracts import SPLITS
+from quadfdi.core.errors import QuadfdiError
+from quadfdi.core.jsonio import read_json, write_json
+from quadfdi.core.npzio import write_npz
+from quadfdi.core.predindex import add_entries
+from quadfdi.core.rundir import RunDir
+from quadfdi.core.stage import StageWriter, stage
+from quadfdi.sim.dataset import Dataset, Windows, class_names, load_dataset
+from quadfdi.train.augment import share_wander_for
+from quadfdi.train.baseline import fit_baseline, predict_proba_baseline
+from quadfdi.train.checkpoint import save_checkpoint
+from quadfdi.train.data import class_weights, fit_normalisation, split_windows
+from quadfdi.train.loop import predict_proba, train_model
+from quadfdi.train.metrics import compute_metrics
+from quadfdi.train.models import build_model
+from quadfdi.train.motor import attach_motor_head, motor_targets, wants_motor_head
+from quadfdi.train.profile_data import PROFILE_KEY, profiled_dataset
+from quadfdi.train.predsets import (drop_missing_entries, index_entry, prediction_set, relative_prediction_path,
                             write_prediction_set)
 
 
@@ -95,7 +95,7 @@ def train_all(ds: Dataset, cfg: Config, kinds: list[str], log: Callable[[str], N
 def write_outputs(out: RunDir, ds: Dataset, cfg: Config, result: dict, previous: RunDir | None = None) -> None:
     """Checkpoints, predictions, metrics.json and history.json (merged with those of ``previous``,
     the published run whose models were not retrained), figures; all into ``out``."""
-    from train.figures import draw_all
+    from quadfdi.train.figures import draw_all
 
     test = result["splits"].test
     ds = result.get("ds", ds)  # the profiled dataset the models were trained on
@@ -171,7 +171,7 @@ def _set_seed(rel: str, sim_seed: int) -> int | None:
 
 def check_config_matches(ds: Dataset, cfg: Config) -> None:
     """The run's [sim] must be the one embedded in dataset.npz (an edited config.toml lies)."""
-    from core.records import first_difference
+    from quadfdi.core.records import first_difference
 
     diff = first_difference(ds.config.to_dict()["sim"], cfg.to_dict()["sim"])
     if diff is not None:

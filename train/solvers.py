@@ -23,7 +23,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from core.rk4 import RK4_C, RK4_ORDER, rk4_step
+from quadfdi.core.rk4 import RK4_C, RK4_ORDER, rk4_step
 
 State = Any  # torch.Tensor or np.ndarray, any shape, e.g. (batch, latent)
 VectorField = Callable[[float, State], State]  # f(t, z) -> dz/dt, same shape and dtype as z

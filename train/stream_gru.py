@@ -22,7 +22,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from train.models import STD_FLOOR
+from quadfdi.train.models import STD_FLOOR
 
 KIND = "sgru"
 

@@ -6,13 +6,13 @@ from __future__ import annotations
 import argparse
 from dataclasses import fields
 
-from core.cliargs import add_config_args
-from core.errors import QuadfdiError
-from core.rundir import open_run
+from quadfdi.core.cliargs import add_config_args
+from quadfdi.core.errors import QuadfdiError
+from quadfdi.core.rundir import open_run
 
 
 def add_sgru_parser(acts: argparse._SubParsersAction) -> None:
-    from train.stream_gru_config import StreamFitConfig
+    from quadfdi.train.stream_gru_config import StreamFitConfig
 
     p = acts.add_parser("sgru", help="the streaming GRU: one GRU step per sample, trained on whole-flight segments "
                                      "(truncated BPTT); its prediction set at every evaluation window end")
@@ -25,8 +25,8 @@ def add_sgru_parser(acts: argparse._SubParsersAction) -> None:
 
 
 def run_sgru_cmd(args: argparse.Namespace) -> int:
-    from train.stream_gru_config import StreamFitConfig
-    from train.stream_gru_run import train_stream_run
+    from quadfdi.train.stream_gru_config import StreamFitConfig
+    from quadfdi.train.stream_gru_run import train_stream_run
 
     run, cfg = open_run(args.run, args.overrides, need=("dataset",))
     given = {f.name: getattr(args, f.name) for f in fields(StreamFitConfig) if getattr(args, f.name) is not None}

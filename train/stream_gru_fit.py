@@ -36,20 +36,20 @@ import numpy as np
 import torch
 from sklearn.metrics import f1_score
 
-from core.contracts import SPLIT_TRAIN, SPLIT_VALIDATION
-from sim.dataset import Dataset, class_names, window_starts
-from train.data import class_weights, fit_normalisation
-from train.motor import rotor_side
-from train.stream_gru import StreamGRU
-from train.stream_gru_config import StreamFitConfig
-from train.stream_gru_ema import WeightAverage
-from train.stream_gru_motor import MotorAux, step_motor_targets
-from train.stream_gru_onset import (
+from quadfdi.core.contracts import SPLIT_TRAIN, SPLIT_VALIDATION
+from quadfdi.sim.dataset import Dataset, class_names, window_starts
+from quadfdi.train.data import class_weights, fit_normalisation
+from quadfdi.train.motor import rotor_side
+from quadfdi.train.stream_gru import StreamGRU
+from quadfdi.train.stream_gru_config import StreamFitConfig
+from quadfdi.train.stream_gru_ema import WeightAverage
+from quadfdi.train.stream_gru_motor import MotorAux, step_motor_targets
+from quadfdi.train.stream_gru_onset import (
     step_weighted_cross_entropy,
     step_weights,
     weighted_class_weights,
 )
-from train.stream_gru_segments import (
+from quadfdi.train.stream_gru_segments import (
     draw_segments,
     first_fault,
     loss_mask,

@@ -16,7 +16,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from train.motor import N_MOTORS, motor_loss, motor_targets
+from quadfdi.train.motor import N_MOTORS, motor_loss, motor_targets
 
 
 class MotorAux(nn.Module):

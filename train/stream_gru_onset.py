@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from train.loop import weighted_cross_entropy
+from quadfdi.train.loop import weighted_cross_entropy
 
 
 def step_weights(lab: np.ndarray, onset_weight: float, onset_span: int) -> np.ndarray | None:

@@ -22,17 +22,17 @@ from typing import Any
 import numpy as np
 import torch
 
-from core.atomic import atomic_path
-from core.config import Config
-from core.jsonio import write_json
-from core.predindex import add_entries, prediction_path
-from sim.dataset import Dataset, class_names, load_dataset
-from train.data import evaluation_rows
-from train.models import build_model
-from train.predsets import index_entry, write_prediction_set
-from train.stream_gru import StreamGRU, stream_from_signature, stream_signature
-from train.stream_gru_config import StreamFitConfig
-from train.stream_gru_fit import (
+from quadfdi.core.atomic import atomic_path
+from quadfdi.core.config import Config
+from quadfdi.core.jsonio import write_json
+from quadfdi.core.predindex import add_entries, prediction_path
+from quadfdi.sim.dataset import Dataset, class_names, load_dataset
+from quadfdi.train.data import evaluation_rows
+from quadfdi.train.models import build_model
+from quadfdi.train.predsets import index_entry, write_prediction_set
+from quadfdi.train.stream_gru import StreamGRU, stream_from_signature, stream_signature
+from quadfdi.train.stream_gru_config import StreamFitConfig
+from quadfdi.train.stream_gru_fit import (
     config_dict,
     fit_stream_gru,
     step_labels,

@@ -9,14 +9,14 @@ from typing import Callable
 
 import numpy as np
 
-from core.atomic import write_text
-from core.config import Config
-from core.contracts import CLASS_NAMES
-from core.errors import QuadfdiError
-from core.jsonio import to_jsonable, write_json
-from core.rundir import RunDir
-from train.figures import short_names
-from train.metrics import summarize_seeds
+from quadfdi.core.atomic import write_text
+from quadfdi.core.config import Config
+from quadfdi.core.contracts import CLASS_NAMES
+from quadfdi.core.errors import QuadfdiError
+from quadfdi.core.jsonio import to_jsonable, write_json
+from quadfdi.core.rundir import RunDir
+from quadfdi.train.figures import short_names
+from quadfdi.train.metrics import summarize_seeds
 
 # The paper's Tables 3 and 4 (seed paper, Section IV-B).
 PAPER_TABLE3 = {
@@ -48,7 +48,7 @@ def results_table(seeds: dict, seed_list: list[int], command: str, sim_seeds: li
     """Tables 3 and 4 over the seeds; the per-class columns are the data's classes (the paper's
     rows are shown only beside the paper's four classes: another suite is another task)."""
     head3 = "| Model | Accuracy | Macro F1 | Weighted F1 | MCC | Any-fault F1 | Any-fault ROC-AUC | Mean delay (s) | Missed faults | False-alarm rate |"
-    from core.machine import machine_line
+    from quadfdi.core.machine import machine_line
 
     # The machine is part of the result: float kernels differ by CPU, and so do training trajectories.
     over = f"seeds {', '.join(map(str, seed_list))}" if not sim_seeds else \
@@ -106,12 +106,12 @@ def run_study(run: RunDir, cfg: Config, seeds: list[int], command: str, log: Cal
     than the run's are simulated first into ``<run>/sims/seed<S>/`` (train.study_sims). The train
     stage's own networks are reused, not retrained (train.study_reuse). Every prediction set is
     listed in ``predictions/index.json`` once the stage is published."""
-    from core.executor import SERIAL
-    from core.predindex import add_entries
-    from core.stage import stage
-    from train.predsets import drop_missing_entries
-    from train.study_reuse import train_stage_results
-    from train.study_sims import study_datasets
+    from quadfdi.core.executor import SERIAL
+    from quadfdi.core.predindex import add_entries
+    from quadfdi.core.stage import stage
+    from quadfdi.train.predsets import drop_missing_entries
+    from quadfdi.train.study_reuse import train_stage_results
+    from quadfdi.train.study_sims import study_datasets
 
     sim_seeds = [cfg.sim.seed] if sim_seeds is None else list(sim_seeds)
     data = study_datasets(run, cfg, sim_seeds, settings or SERIAL, log)
@@ -131,9 +131,9 @@ def run_study(run: RunDir, cfg: Config, seeds: list[int], command: str, log: Cal
 def _gather(out: RunDir, results, reused: dict, data) -> tuple[dict, dict, list, list]:
     """Per (sim seed, train seed) metrics, job seconds per train seed, failures and index entries;
     the jobs' prediction sets written into the stage's folder ``out``."""
-    from core.jobcache import read_result
-    from train.predsets import index_entry, write_prediction_set
-    from train.study_jobs import split_result
+    from quadfdi.core.jobcache import read_result
+    from quadfdi.train.predsets import index_entry, write_prediction_set
+    from quadfdi.train.study_jobs import split_result
 
     rel = {d.sim_seed: d.rel for d in data}
     per_run: dict[tuple[int, int], dict] = {}
@@ -161,8 +161,8 @@ def _gather(out: RunDir, results, reused: dict, data) -> tuple[dict, dict, list,
 
 def _study_into(run: RunDir, out: RunDir, cfg: Config, seeds: list[int], command: str,
                 log: Callable[[str], None], settings, data, reused: dict) -> dict:
-    from core.executor import SERIAL, run_jobs
-    from train.study_jobs import MODELS, seed_model_jobs
+    from quadfdi.core.executor import SERIAL, run_jobs
+    from quadfdi.train.study_jobs import MODELS, seed_model_jobs
 
     jobs = seed_model_jobs(run, cfg, seeds, data=data, skip=set(reused))
     results = run_jobs(jobs, settings or SERIAL, desc="study", log=log)

@@ -30,12 +30,12 @@ from typing import Callable
 
 import numpy as np
 
-from core.config import Config, replace_section
-from core.errors import QuadfdiError
-from core.executor import SERIAL, ExecSettings, Job, run_jobs
-from core.jobcache import cache_path, job_key, read_result
-from core.rundir import RunDir
-from train.study_jobs import MODELS
+from quadfdi.core.config import Config, replace_section
+from quadfdi.core.errors import QuadfdiError
+from quadfdi.core.executor import SERIAL, ExecSettings, Job, run_jobs
+from quadfdi.core.jobcache import cache_path, job_key, read_result
+from quadfdi.core.rundir import RunDir
+from quadfdi.train.study_jobs import MODELS
 
 NET_KIND, APPLY_KIND = "study_net", "study_apply"
 SUMMARY = "predictions/applied.json"
@@ -47,10 +47,10 @@ def train_network(dataset: str, cfg: Config, kind: str, out: str) -> bytes:
     (the train stage's checkpoint format, train.checkpoint)."""
     import tempfile
 
-    from sim.dataset import class_names, load_dataset
-    from train.checkpoint import save_checkpoint
-    from train.profile_data import PROFILE_KEY
-    from train.run import train_all
+    from quadfdi.sim.dataset import class_names, load_dataset
+    from quadfdi.train.checkpoint import save_checkpoint
+    from quadfdi.train.profile_data import PROFILE_KEY
+    from quadfdi.train.run import train_all
 
     result = train_all(load_dataset(dataset), cfg, [kind], log=lambda _: None, predsets=False)
     ds = result["ds"]
@@ -65,10 +65,10 @@ def train_network(dataset: str, cfg: Config, kind: str, out: str) -> bytes:
 def apply_network(checkpoint: str, dataset: str, kind: str) -> dict:
     """The prediction set (core.predindex format) of the network in ``checkpoint`` on every
     evaluation window of ``dataset``, with the network's channel profile applied (a job)."""
-    from sim.dataset import class_names, load_dataset
-    from train.checkpoint import check_dataset_matches, checkpoint_class_names, load_checkpoint
-    from train.predsets import prediction_set
-    from train.profile_data import profile_of, profiled_dataset
+    from quadfdi.sim.dataset import class_names, load_dataset
+    from quadfdi.train.checkpoint import check_dataset_matches, checkpoint_class_names, load_checkpoint
+    from quadfdi.train.predsets import prediction_set
+    from quadfdi.train.profile_data import profile_of, profiled_dataset
 
     model, blob = load_checkpoint(checkpoint, kind)
     _threads(blob)
@@ -88,7 +88,7 @@ def _threads(blob: dict) -> None:
 
 def stage_checkpoint(run: RunDir, cfg: Config, kind: str) -> Path | None:
     """``<run>/<kind>.pt`` when it was trained with ``cfg``'s [sim] and [train] (seed included)."""
-    from train.checkpoint import load_checkpoint
+    from quadfdi.train.checkpoint import load_checkpoint
 
     path = run.checkpoint(kind)
     if not path.is_file():
@@ -105,7 +105,7 @@ def with_stage_train(run: RunDir, cfg: Config, keep: set[str] = frozenset(),
     ``keep``: the apply command's own ``--set train.*``) when they were trained on ``cfg``'s [sim].
     ``quadfdi train --set train.profile=...`` is not written into config.toml, and apply must apply
     THOSE networks and retrain other seeds like them, not the run's stored [train]."""
-    from train.checkpoint import load_checkpoint
+    from quadfdi.train.checkpoint import load_checkpoint
 
     want = cfg.to_dict()
     for kind in MODELS:
@@ -151,12 +151,12 @@ def networks(run: RunDir, cfg: Config, seeds: list[int], settings: ExecSettings,
 def reproduces(run: RunDir, cfg: Config, kind: str, seed: int, checkpoint: Path) -> bool | None:
     """Whether the network in ``checkpoint`` gives, bit for bit, the indexed prediction set of
     (kind, run's sim seed, seed) on the run's first CHECK_FLIGHTS evaluation flights (None: no such set)."""
-    from core.npzio import read_npz
-    from core.predindex import read_index
-    from sim.dataset import load_dataset
-    from train.checkpoint import load_checkpoint
-    from train.predsets import prediction_set
-    from train.profile_data import profile_of, profiled_dataset
+    from quadfdi.core.npzio import read_npz
+    from quadfdi.core.predindex import read_index
+    from quadfdi.sim.dataset import load_dataset
+    from quadfdi.train.checkpoint import load_checkpoint
+    from quadfdi.train.predsets import prediction_set
+    from quadfdi.train.profile_data import profile_of, profiled_dataset
 
     entry = next((e for e in read_index(run.root) if (e["model"], int(e["sim_seed"]), int(e["train_seed"]))
                   == (kind, cfg.sim.seed, seed) and e["dataset"] == "dataset.npz"), None)
@@ -189,11 +189,11 @@ def run_apply(run: RunDir, cfg: Config, seeds: list[int], sim_seeds: list[int], 
               log: Callable[[str], None] = print) -> dict:
     """Publish the prediction sets of the run's networks (training seeds ``seeds``) on the datasets
     of ``sim_seeds`` (other than the run's), as the stage ``apply``, and index them; return the summary."""
-    from core.jsonio import write_json
-    from core.predindex import add_entries
-    from core.stage import stage
-    from train.predsets import drop_missing_entries, index_entry, write_prediction_set
-    from train.study_sims import study_datasets
+    from quadfdi.core.jsonio import write_json
+    from quadfdi.core.predindex import add_entries
+    from quadfdi.core.stage import stage
+    from quadfdi.train.predsets import drop_missing_entries, index_entry, write_prediction_set
+    from quadfdi.train.study_sims import study_datasets
 
     others = [s for s in sim_seeds if s != cfg.sim.seed]
     if not others:

@@ -13,11 +13,11 @@ from pathlib import Path
 
 import numpy as np
 
-from core.config import Config, replace_section
-from core.executor import Job
-from core.jobcache import cache_path, job_key
-from core.jsonio import to_jsonable
-from core.rundir import RunDir
+from quadfdi.core.config import Config, replace_section
+from quadfdi.core.executor import Job
+from quadfdi.core.jobcache import cache_path, job_key
+from quadfdi.core.jsonio import to_jsonable
+from quadfdi.core.rundir import RunDir
 
 KIND = "study"
 MODELS = ("cnode", "gru")
@@ -36,8 +36,8 @@ class StudyData:
 def train_seed_model(dataset: str, cfg: Config, kind: str) -> dict:
     """Train ``kind`` with ``cfg.train.seed`` on ``dataset`` (a job): its prediction set and, as
     ``metrics_json``, its and the baseline's test metrics."""
-    from sim.dataset import load_dataset
-    from train.run import train_all
+    from quadfdi.sim.dataset import load_dataset
+    from quadfdi.train.run import train_all
 
     result = train_all(load_dataset(dataset), cfg, [kind], log=lambda _: None)
     metrics = json.dumps(to_jsonable(result["metrics"]), sort_keys=True, allow_nan=False)

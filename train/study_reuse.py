@@ -4,12 +4,12 @@ stage was published with the study's ``[sim]`` and ``[train]`` (its seed aside) 
 
 from __future__ import annotations
 
-from core.config import Config, replace_section
-from core.jsonio import read_json
-from core.records import load_record
-from core.rundir import RunDir
-from train.predsets import relative_prediction_path
-from train.study_jobs import MODELS
+from quadfdi.core.config import Config, replace_section
+from quadfdi.core.jsonio import read_json
+from quadfdi.core.records import load_record
+from quadfdi.core.rundir import RunDir
+from quadfdi.train.predsets import relative_prediction_path
+from quadfdi.train.study_jobs import MODELS
 
 
 def train_stage_results(run: RunDir, cfg: Config, seeds: list[int]) -> dict[tuple[str, int, int], dict]:

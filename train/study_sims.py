@@ -7,11 +7,11 @@ from __future__ import annotations
 
 from typing import Callable
 
-from core.config import Config, replace_section
-from core.executor import SERIAL, ExecSettings
-from core.records import load_record
-from core.rundir import RunDir
-from train.study_jobs import StudyData
+from quadfdi.core.config import Config, replace_section
+from quadfdi.core.executor import SERIAL, ExecSettings
+from quadfdi.core.records import load_record
+from quadfdi.core.rundir import RunDir
+from quadfdi.train.study_jobs import StudyData
 
 
 def sim_seed_folder(run: RunDir, sim_seed: int) -> RunDir:
@@ -21,7 +21,7 @@ def sim_seed_folder(run: RunDir, sim_seed: int) -> RunDir:
 def study_datasets(run: RunDir, cfg: Config, sim_seeds: list[int], settings: ExecSettings = SERIAL,
                    log: Callable[[str], None] = print) -> list[StudyData]:
     """One ``StudyData`` per simulator seed, in the order given; simulates the missing ones."""
-    from sim.publish import publish_dataset
+    from quadfdi.sim.publish import publish_dataset
 
     out = []
     for s in sim_seeds:

@@ -20,9 +20,9 @@ import numpy as np
 import torch
 from torch import nn
 
-from train.control import interp_matrix
-from train.models import CNODE, model_signature
-from train.solvers import SolverSpec, integrate_fixed
+from quadfdi.train.control import interp_matrix
+from quadfdi.train.models import CNODE, model_signature
+from quadfdi.train.solvers import SolverSpec, integrate_fixed
 
 
 def average_matrix(n_steps: int, window: int = 80) -> np.ndarray:

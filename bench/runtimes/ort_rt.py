@@ -7,8 +7,8 @@ import tempfile
 from pathlib import Path
 from typing import Callable
 
-from bench.runtimes.common import percentile
-from export.ort_session import session
+from quadfdi.bench.runtimes.common import percentile
+from quadfdi.export.ort_session import session
 
 
 def ort_runtime(args) -> tuple[Callable, Callable, dict]:

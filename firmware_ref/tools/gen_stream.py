@@ -27,16 +27,15 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))  # gen_weights.py
 
 from gen_weights import FileError, section_body  # noqa: E402
 
-from core.errors import QuadfdiError
-from detect.streamfile import read_stream
-from export.onboard_record import onboard_dict
-from export.weights_bin import read_weights
-from export.onboard_record import ONBOARD_PROFILES, max_alarm_n, policy_of
+from quadfdi.core.errors import QuadfdiError
+from quadfdi.detect.streamfile import read_stream
+from quadfdi.export.onboard_record import onboard_dict
+from quadfdi.export.weights_bin import read_weights
+from quadfdi.export.onboard_record import ONBOARD_PROFILES, max_alarm_n, policy_of
 
 PROFILE_ENUM = {"paper": "kPaper", "flightlog-min": "kFlightlogMin", "flightlog-nocur": "kFlightlogNocur",
                 "flightlog-esc": "kFlightlogEsc"}
@@ -129,7 +128,7 @@ def source(streams: list, extra: dict | None = None) -> str:
 def extra_sections(wf, folder: Path) -> dict:
     """{(model, precision): Section} of the streaming GRU (sgru_weights.bin in ``folder``) and of the
     motor heads weights.bin holds (module docstring); a streaming GRU file that does not fit is refused."""
-    from export.sgru_weights import FILE_NAME, read_sgru_weights
+    from quadfdi.export.sgru_weights import FILE_NAME, read_sgru_weights
 
     out = {(m, p): wf.section(m, p) for m, p, *_ in EXTRA if m != "sgru" and wf.has(m, p)}
     path = folder / FILE_NAME

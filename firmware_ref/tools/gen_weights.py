@@ -30,12 +30,11 @@ import sys
 import tempfile
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # the repository root: core/, export/
 
-from core.errors import QuadfdiError  # noqa: E402
-from export.reference_bin import read_reference  # noqa: E402
-from export.weights_bin import read_weights  # noqa: E402
-from export.weights_layout import LAYOUTS, MODELS, SECTION_ORDER, dtype_of  # noqa: E402
+from quadfdi.core.errors import QuadfdiError  # noqa: E402
+from quadfdi.export.reference_bin import read_reference  # noqa: E402
+from quadfdi.export.weights_bin import read_weights  # noqa: E402
+from quadfdi.export.weights_layout import LAYOUTS, MODELS, SECTION_ORDER, dtype_of  # noqa: E402
 
 CTYPES = {"float32": "float", "int8": "std::int8_t", "int32": "std::int32_t"}
 
@@ -194,7 +193,7 @@ def check_manifest(manifest: Path, files: dict[str, Path]) -> None:
     """Each of ``files`` ({name in the manifest: path}) must have the sha256 the manifest records."""
     import hashlib
 
-    from core.jsonio import read_json
+    from quadfdi.core.jsonio import read_json
 
     try:
         listed = read_json(manifest, "manifest").get("files", {})
