@@ -3,7 +3,7 @@ issue 15's "C++ int8 at least as fast as fp32" targets are judged on (bench.json
 
 The reason is bench/ort_pairs.py's: a process on the shared machines lands in one of two speed modes and
 stays there, and the latency table's C++ figures pool separate processes per precision
-(bench/runtimes/cpp_rt.py), so their ratio moves with how many of each landed in which mode (the CNODE's
+(bench/timing/cpp.py), so their ratio moves with how many of each landed in which mode (the CNODE's
 int8 / fp32 speed read 0.99-1.24 in six benches of 2026-12-03; in one process 0.97-1.04 in three). In one
 process the mode hits both precisions alike (scripts/cnode_parts_micro.cpp: whole infer fp32 6.9-7.1 and
 int8 7.1-7.3 us in four processes, 10.3 / 12.1 and 9.7 / 10.6 us in the two others).
@@ -12,7 +12,7 @@ firmware_ref's ``fwref_pair`` (tools/fwref_pair.cpp) runs every window through e
 warm-up pass), then ``PER_ROUND`` consecutive windows of the bench's seeded sample per precision and round
 (after one untimed call), fp32 first in even rounds, int8 first in odd ones, and writes every call's time;
 a round's time per precision is the median of its calls, the figure the median of the rounds' int8 / fp32
-ratios (``bench.runtimes.common.pair_summary``). Batch 1 only
+ratios (``bench.timing.common.pair_summary``). Batch 1 only
 (fwref_infer's batch figure is consecutive single-window calls anyway). Skipped, with the reason, when the
 build has no fwref_pair.
 """
@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from quadfdi.bench.limits import cpu_prefix
-from quadfdi.bench.runtimes.common import pair_summary
+from quadfdi.bench.timing.common import pair_summary
 from quadfdi.core.errors import QuadfdiError
 
 PER_ROUND = 4  # timed calls per precision and round

@@ -28,7 +28,7 @@ FP32_BYTES = 4
 
 
 def cnode_macs(arch: dict, evals: int) -> int:
-    """MACs of a CNODE forward with ``evals`` field evaluations (train.models.CNODE.macs_breakdown:
+    """MACs of a CNODE forward with ``evals`` field evaluations (models.networks.CNODE.macs_breakdown:
     encoder C*L, field ((L + C) * H + H * L) per evaluation, head L * K)."""
     c, l, h, k = arch["n_channels"], arch["latent"], arch["hidden"], arch["n_classes"]
     return c * l + int(evals) * ((l + c) * h + h * l) + l * k

@@ -15,10 +15,10 @@ allocator state, caches or imported libraries. A worker:
 5. prints ``{"records": [batch-1 record, batch-96 record], "memory": {...}, "info": {...}}``.
 
 Runtimes, one adapter module each (imported only by the worker that times it, so that no
-runtime's library is in another's memory baseline): ``bench.runtimes.torch_rt`` (the checkpoint,
-CNODE with fixed classic RK4 ``rk4-N`` or adaptive ``dopri5-RTOL``), ``bench.runtimes.ort_rt`` (an
-exported ONNX file), ``bench.runtimes.cpp_rt`` (firmware_ref's ``fwref_infer``, its own process);
-``bench.runtimes.common`` holds the statistics and timing loops.
+runtime's library is in another's memory baseline): ``bench.timing.pytorch`` (the checkpoint,
+CNODE with fixed classic RK4 ``rk4-N`` or adaptive ``dopri5-RTOL``), ``bench.timing.ort`` (an
+exported ONNX file), ``bench.timing.cpp`` (firmware_ref's ``fwref_infer``, its own process);
+``bench.timing.common`` holds the statistics and timing loops.
 
 ``--profile <path.json>`` (ort only): instead of timing, run the batch-1 loop with ONNX Runtime's
 per-node profiler on and write the per-operator-type summary to ``path.json``.
@@ -32,9 +32,9 @@ import os
 import sys
 from pathlib import Path
 
-from quadfdi.bench.runtimes.common import MIN_SAMPLES, WARMUP_SECONDS, batches_of, peak_rss_kib, proc_status_kib, \
+from quadfdi.bench.timing.common import MIN_SAMPLES, WARMUP_SECONDS, batches_of, peak_rss_kib, proc_status_kib, \
     reset_peak_rss, summarise, time_calls
-from quadfdi.bench.runtimes.torch_rt import parse_solver
+from quadfdi.bench.timing.pytorch import parse_solver
 from quadfdi.core.config import BenchConfig
 
 RUNTIMES = ("torch", "ort", "cpp")
@@ -52,15 +52,15 @@ def measure(args) -> dict:
     if x.ndim != 3 or x.dtype != np.float32:
         raise ValueError(f"{args.windows} must hold (n, W, C) float32 windows, found {x.shape} {x.dtype}")
     if args.runtime == "cpp":
-        from quadfdi.bench.runtimes.cpp_rt import cpp_measure
+        from quadfdi.bench.timing.cpp import cpp_measure
 
         got = cpp_measure(args, x)
         b1, bn, mem, info = got["batch1"], got["batchN"], got["memory"], got["info"]
     else:
         if args.runtime == "torch":
-            from quadfdi.bench.runtimes.torch_rt import torch_runtime as adapter  # imports torch: in the baseline
+            from quadfdi.bench.timing.pytorch import torch_runtime as adapter  # imports torch: in the baseline
         else:
-            from quadfdi.bench.runtimes.ort_rt import ort_runtime as adapter  # imports onnxruntime: in the baseline
+            from quadfdi.bench.timing.ort import ort_runtime as adapter  # imports onnxruntime: in the baseline
         baseline = proc_status_kib("VmRSS")
         reset = reset_peak_rss()
         if not reset:
@@ -136,7 +136,7 @@ def main(argv: list[str] | None = None) -> int:
         if args.profile:
             if args.runtime != "ort":
                 raise ValueError("--profile is for --runtime ort")
-            from quadfdi.bench.runtimes.ort_rt import profile
+            from quadfdi.bench.timing.ort import profile
 
             out = {**base_record(args), **profile(args)}
             Path(args.profile).write_text(json.dumps(out, indent=1) + "\n")

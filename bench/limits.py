@@ -94,7 +94,7 @@ def gemm_rates(threads: int, quick: bool) -> list[dict]:
 
 
 def _ort_session(model_bytes: bytes, threads: int):
-    from quadfdi.export.ort_session import session
+    from quadfdi.runtimes.ort import session
 
     return session(model_bytes, threads, spinning=False)
 

@@ -38,7 +38,7 @@ def rec(model, runtime, precision, item: str, value, unit: str, source: str, sol
 
 def parameter_counts(run_root: Path) -> dict[str, int]:
     """Trainable parameters per model kind, from the checkpoints (normalisation buffers excluded)."""
-    from quadfdi.train.checkpoint import load_checkpoint
+    from quadfdi.models.checkpoint import load_checkpoint
 
     out = {}
     for kind in ("cnode", "gru"):
@@ -89,7 +89,7 @@ def static_ram_records(fwref: str | None) -> list[dict]:
     exe = shutil.which("size")
     if exe is None:
         return []  # no binutils: the host program's static RAM is not reported
-    from quadfdi.parity.mcu import section_sizes
+    from quadfdi.runtimes.mcu import section_sizes
 
     s = section_sizes(fwref, exe)
     data = s.get(".data", 0) + s.get(".tdata", 0)

@@ -35,7 +35,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from quadfdi.bench.limits import cpu_prefix, run_json, worker_env
-from quadfdi.bench.runtimes.common import batches_of, pair_summary, percentile
+from quadfdi.bench.timing.common import batches_of, pair_summary, percentile
 
 PAIR_BATCH_ROUNDS = 30  # batch-96 rounds: the latency table's 10 batches are few for a median of ratios
 PER_ROUND_1 = 4  # timed batch-1 calls per graph and round (the bench's n windows make n / 4 rounds)
@@ -76,7 +76,7 @@ def paired_times(calls: tuple[Callable, Callable], inputs: list, rounds: int, pe
 def worker_main(argv: list[str] | None = None) -> int:
     import numpy as np
 
-    from quadfdi.export.ort_session import session
+    from quadfdi.runtimes.ort import session
 
     ap = argparse.ArgumentParser(prog="python -m quadfdi.bench.ort_pairs")
     ap.add_argument("--fp32", required=True)

@@ -11,7 +11,7 @@ cycles and instructions as "not supported"), so the profiles are:
   than scalar (``objdump``).
 - ONNX Runtime: its own per-node profiler (``SessionOptions.enable_profiling``), summarised per
   operator type, against the whole-call time: the difference is the framework's cost between
-  kernels (``bench.runtimes.ort_rt.summarise_ort_profile``).
+  kernels (``bench.timing.ort.summarise_ort_profile``).
 
 Each function returns a plain dict (or None with a reason when the tool is missing).
 """

@@ -108,14 +108,14 @@ def solver_records(run_root: Path) -> tuple[list, dict]:
     if not path.is_file():
         return [], {"note": f"no solver study in this run ({SOLVERS_JSON} absent; the solvers stage of "
                             "`quadfdi run` writes it)"}
-    from quadfdi.solverstudy.report import load_records
+    from quadfdi.formats.solver_files import load_records
 
     return list(load_records(run_root)), {"file": str(SOLVERS_JSON)}
 
 
 def test_windows(run: RunDir, manifest: dict):
     """The run's test windows, checked against the export and the checkpoints."""
-    from quadfdi.sim.dataset import load_dataset, make_windows
+    from quadfdi.formats.dataset import load_dataset, make_windows
 
     for kind in ("cnode", "gru"):
         if not run.checkpoint(kind).is_file():
@@ -207,7 +207,7 @@ def graph_nodes(run: RunDir, manifest: dict) -> dict:
     ``ort_body_nodes``: the nodes in a Scan's body after the optimizer (run once per step)."""
     import onnx
 
-    from quadfdi.export.ort_session import optimized_nodes
+    from quadfdi.runtimes.ort import optimized_nodes
 
     out = {}
     for key, name in manifest["artifacts"].items():
@@ -292,7 +292,7 @@ def _bench_into(run: RunDir, cfg: Config, dest: RunDir, log: Callable[[str], Non
     from quadfdi.bench.latency import find_fwref
     from quadfdi.bench.figures import draw_bench_figures
     from quadfdi.core.jsonio import to_jsonable, write_json
-    from quadfdi.export.manifest import check_files, load_manifest
+    from quadfdi.formats.manifest import check_files, load_manifest
 
     t_start = time.perf_counter()
     manifest = load_manifest(run.export / "manifest.json")

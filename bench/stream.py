@@ -1,7 +1,7 @@
 """bench.json's ``stream`` section (issue 16 point 4): the streaming runtime's cost per sample.
 
 ``stream_section(run, manifest, fwref_infer, cpus, flights, log)`` replays ``flights`` test flights
-of the run's dataset (round-robin over the classes, written as stream files by detect.streamfile)
+of the run's dataset (round-robin over the classes, written as stream files by formats.stream)
 through ``fwref_stream`` (the host build beside fwref_infer) for every windowed model (cnode, gru)
 and precision (fp32, int8), pinned like the rest of the bench:
 
@@ -29,7 +29,7 @@ from quadfdi.core.errors import QuadfdiError
 
 def pick_flights(dataset, n: int) -> list[int]:
     """Up to ``n`` test flights: round-robin over the classes (the first of each, then the second...)."""
-    from quadfdi.sim.dataset import class_names, split_names
+    from quadfdi.formats.dataset import class_names, split_names
 
     test = [i for i, s in enumerate(split_names(dataset.arrays)) if s == "test"]
     rows = np.flatnonzero(np.isin(dataset["split"], test))
@@ -44,7 +44,7 @@ def find_stream_exe(fwref_infer: str | None) -> tuple[Path | None, str]:
     """fwref_stream beside fwref_infer (the same host build), built there if missing."""
     import shutil
 
-    from quadfdi.parity.build import HOST_BUILD
+    from quadfdi.runtimes.build import HOST_BUILD
 
     build = Path(fwref_infer).parent if fwref_infer else HOST_BUILD
     exe = build / "fwref_stream"
@@ -59,7 +59,7 @@ def find_stream_exe(fwref_infer: str | None) -> tuple[Path | None, str]:
 
 
 def _record(export: Path) -> dict | None:
-    from quadfdi.detect.streamfile import record_of
+    from quadfdi.formats.stream import record_of
 
     try:
         return record_of(export)
@@ -73,8 +73,8 @@ def stream_section(run_root: Path, manifest: dict, fwref_infer: str | None, cpus
     from quadfdi.bench.limits import cpu_prefix
     from quadfdi.bench.stream_latency import latency_records
     from quadfdi.bench.stream_memory import stream_memory
-    from quadfdi.detect.streamfile import from_dataset, write_stream
-    from quadfdi.sim import dataset as sim_dataset
+    from quadfdi.formats.stream import from_dataset, write_stream
+    from quadfdi.formats import dataset as sim_dataset
 
     t0 = time.perf_counter()
     export = run_root / "export"

@@ -24,7 +24,7 @@ PROBE_CPP = f'#include "fwref/stream.hpp"\nfwref::Stream {PROBE};\n'
 
 def limit_macros(record: dict, manifest: dict) -> dict[str, int]:
     """The FWREF_MAX_* values that size fwref::Stream for this model (what gen_weights/gen_stream set)."""
-    from quadfdi.export.onboard_record import max_alarm_n
+    from quadfdi.formats.onboard import max_alarm_n
 
     return {"FWREF_MAX_WINDOW": int(record["window"]), "FWREF_MAX_CHANNELS": int(manifest["n_channels"]),
             "FWREF_MAX_CLASSES": len(manifest["class_names"]), "FWREF_MAX_RAW_CHANNELS": len(record["raw_channels"]),
@@ -43,7 +43,7 @@ def eigen_include() -> list[str]:
 
 def sizeof_stream(compiler: str, nm: str, flags: list[str], macros: dict[str, int], tmp: Path) -> int:
     """sizeof(fwref::Stream) under ``compiler`` and ``flags``: the symbol size of one static object."""
-    from quadfdi.parity.build import FW_ROOT
+    from quadfdi.runtimes.build import FW_ROOT
 
     src, obj = tmp / "probe.cpp", tmp / "probe.o"
     src.write_text(PROBE_CPP)
@@ -56,8 +56,8 @@ def sizeof_stream(compiler: str, nm: str, flags: list[str], macros: dict[str, in
 
 def _image(cpu: str) -> dict | None:
     """The stream image a Cortex-M build left (firmware_ref/build-mcu-*/fwref_mcu_stream.elf), or None."""
-    from quadfdi.parity.build import mcu_build_dir
-    from quadfdi.parity.mcu import section_sizes
+    from quadfdi.runtimes.build import mcu_build_dir
+    from quadfdi.runtimes.mcu import section_sizes
 
     elf = mcu_build_dir(cpu) / "fwref_mcu_stream.elf"
     if not elf.is_file() or shutil.which("arm-none-eabi-size") is None:

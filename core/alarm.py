@@ -39,7 +39,7 @@ import numpy as np
 from quadfdi.core.coerce import coerce
 from quadfdi.core.errors import QuadfdiError
 
-# The rotor-side classes by name (train.motor.ROTOR_SIDE_CLASSES; core cannot import train: a test
+# The rotor-side classes by name (models.motor.ROTOR_SIDE_CLASSES; core cannot import train: a test
 # checks they agree). Rule 5 reports a motor for these alarm classes only.
 ROTOR_SIDE_CLASSES = ("MotorFault", "OverheatFault", "PropellerFault")
 

@@ -141,7 +141,7 @@ class TrainConfig:
     seeds: tuple[int, ...] = (0, 1, 2)  # the multi-seed study
     max_train_windows: int = 0  # cap: a seeded subsample of the training windows (train.data); 0 = all
     profile: str = "paper"  # the models' input channels (core.profiles, docs/profiles.md): paper | flightlog-min | flightlog-nocur | flightlog-esc
-    # The motor head (train.motor, docs/training.md): "auto" = on when the data has a rotor-side class, "off" never.
+    # The motor head (models.motor, docs/training.md): "auto" = on when the data has a rotor-side class, "off" never.
     motor_head: str = "off"
     motor_loss_weight: float = 0.5  # weight of the motor cross-entropy added to the class loss
     # Training-only motor-share wander (train.augment, docs/training.md "Motor-share wander"): the largest per-window

@@ -28,7 +28,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     from quadfdi.core.errors import QuadfdiError
     from quadfdi.detect.run import detect, write_detect
-    from quadfdi.sim.dataset import load_dataset
+    from quadfdi.formats.dataset import load_dataset
     from quadfdi.sim.flight_npz import flight_arrays
 
     if (args.dataset is None) == (args.flight is None) or (args.dataset is not None and args.index is None):

@@ -47,7 +47,7 @@ def read_flight(path: str | Path) -> dict[str, np.ndarray]:
     if not p.is_file():
         raise QuadfdiError(f"flight {p} does not exist")
     if p.suffix == ".npz":
-        from quadfdi.ingest.flight import load_flight
+        from quadfdi.formats.flight import load_flight
 
         return load_flight(p)
     from quadfdi.ingest.flight import ingest

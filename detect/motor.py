@@ -1,4 +1,4 @@
-"""The suspected motor in ``detect``'s outputs, from a model's motor head (train.motor).
+"""The suspected motor in ``detect``'s outputs, from a model's motor head (models.motor).
 
 Per window (windows.npz ``motor``, int8): 1..4 = the argmax of the window's motor probabilities
 when the window is decided and its fault class (the argmax of ``proba`` over the fault columns,

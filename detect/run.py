@@ -28,7 +28,7 @@ NETS = ("cnode", "gru")
 
 
 def load_export(folder: str | Path) -> dict:
-    from quadfdi.export.manifest import check_files, load_manifest
+    from quadfdi.formats.manifest import check_files, load_manifest
 
     root = Path(folder)
     manifest = load_manifest(root / "manifest.json")
@@ -64,12 +64,13 @@ def model_logits(folder: Path, manifest: dict, net: str, precision: str, runtime
                  x: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
     """(n, K) float32 logits of ``x`` from ORT (the exported graph) or the C++ reference (weights.bin),
     and (n, 4) motor logits for a model with a motor head (else None)."""
-    from quadfdi.detect.runtimes import cpp_outputs, ort_outputs
+    from quadfdi.runtimes.fwref import cpp_outputs
+    from quadfdi.runtimes.ort import outputs
 
     motor = has_motor(manifest, net)
     if runtime == "ort":
-        out = ort_outputs(folder / manifest["artifacts"][f"{net}_{precision}"], x,
-                          ["logits"] + (["motor_logits"] if motor else []))
+        out = outputs(folder / manifest["artifacts"][f"{net}_{precision}"], x,
+                      ["logits"] + (["motor_logits"] if motor else []))
         return out[0], out[1] if motor else None
     return cpp_outputs(folder / "weights.bin", net, precision == "int8", x, motor)
 

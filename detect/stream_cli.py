@@ -6,6 +6,12 @@ file"). A flight the model cannot use is refused as by ``quadfdi detect``: one l
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
+
+import numpy as np
+
+from quadfdi.core.errors import QuadfdiError
+from quadfdi.formats.stream import RawStream
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -22,8 +28,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from quadfdi.core.errors import QuadfdiError
-    from quadfdi.detect.streamfile import from_dataset, from_flight, record_of, write_stream
+    from quadfdi.formats.stream import from_dataset, record_of, write_stream
 
     if (args.dataset is None) == (args.flight is None) or (args.dataset is not None and args.index is None):
         raise QuadfdiError("stream-file needs either FLIGHT or --dataset DATASET.npz --flight N")
@@ -33,3 +38,18 @@ def run(args: argparse.Namespace) -> int:
     print(f"stream-file: {rs.source}: {len(rs.time)} samples x {len(rs.names)} channels ({rs.profile}, "
           f"{rs.cells} cells) -> {args.out}")
     return 0
+
+
+def from_flight(path: str | Path, record: dict) -> RawStream:
+    """A real flight (.ulg / .BIN ingested on the fly, or flight.npz) with detect's refusals."""
+    from quadfdi.detect.inputs import _cells, _raw_channels, read_flight
+
+    if not record["cells_from_stream"]:
+        raise QuadfdiError(f"profile {record['profile']!r} is the simulator's telemetry: a real flight cannot feed it "
+                           "(train with --set train.profile=flightlog-min)")
+    arrays = read_flight(path)
+    cells = _cells(arrays)
+    raw, _ = _raw_channels(arrays, record["profile"])
+    cols = [np.asarray(arrays["airborne"], np.float32) if r == "airborne" else raw[r] for r in record["raw_channels"]]
+    return RawStream(Path(path).name, record["profile"], list(record["raw_channels"]), float(record["sample_dt_s"]),
+                     cells, np.asarray(arrays["time"], np.float64), np.stack(cols, axis=1).astype(np.float32))

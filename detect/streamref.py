@@ -2,7 +2,7 @@
 (docs/firmware.md "Streaming"), and the reader of its output lines.
 
 ``windows_of(rs, record)`` applies the same rules as detect/inputs.py to a RawStream
-(detect/streamfile.py): the hover estimate over the whole stream (core.hover), the profile
+(formats/stream.py): the hover estimate over the whole stream (core.hover), the profile
 (core.profiles.apply_profile), windows on the grid starts 0, stride, ... and a window decided when
 it ends at or after the freeze and every one of its samples is usable (every raw channel finite,
 airborne, every model value finite). ``paper``: the identity, no hover estimate.
@@ -22,7 +22,7 @@ import numpy as np
 
 from quadfdi.core import hover
 from quadfdi.core.profiles import apply_profile, uses_hover
-from quadfdi.detect.streamfile import RawStream
+from quadfdi.formats.stream import RawStream
 
 
 @dataclass
@@ -79,7 +79,7 @@ def sgru_logits(onnx_path, x: np.ndarray, stepped: np.ndarray, hidden: int) -> n
     """ONNX Runtime's one-step graph (sgru_step[.int8].onnx) over the model rows ``x`` (T, C), h = 0
     at the first sample, stepped on ``stepped`` samples only (the state held otherwise): (T, K)
     float32 logits of the step at each sample, NaN where not stepped."""
-    from quadfdi.export.ort_session import session
+    from quadfdi.runtimes.ort import session
 
     sess = session(str(onnx_path))
     h = np.zeros((1, hidden), np.float32)
@@ -104,7 +104,7 @@ def stream_alarm(record: dict, decided: np.ndarray, logits: np.ndarray, motor_lo
     (the record's alarm.models row, export/onboard_record.policy_of, as fwref_stream --model picks it), or
     the record's single policy when ``net`` is None."""
     from quadfdi.core.alarm import reported_motor, run_alarm
-    from quadfdi.export.onboard_record import policy_of
+    from quadfdi.formats.onboard import policy_of
 
     def softmax(z):
         z = np.asarray(z, np.float64)

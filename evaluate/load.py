@@ -1,6 +1,6 @@
 """Read a run's prediction index and every set it lists, as per-flight padded batches.
 
-A prediction set (core.predindex) is a flat list of windows; the protocol works per flight, so
+A prediction set (formats.predictions) is a flat list of windows; the protocol works per flight, so
 each set becomes a ``Flights`` batch: flights in dataset-row order, windows in time order, padded
 at the end (``valid``). The dataset contributes only its per-flight arrays and the severity (for
 the label-noise ceiling): the telemetry is never read.
@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from quadfdi.core.errors import QuadfdiError
-from quadfdi.core.predindex import check_prediction_set, read_index
+from quadfdi.formats.predictions import check_prediction_set, read_index
 
 # What the protocol needs of a dataset (docs/formats.md); split_names is optional (paper datasets).
 DATASET_KEYS = ("fault_class", "split", "onset_s", "detectable_s", "fault_motor", "severity", "time",

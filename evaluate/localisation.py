@@ -1,6 +1,6 @@
 """Window-level motor localisation of every indexed prediction set that carries ``motor_proba``.
 
-On the windows of one split whose label is a rotor-side class (train.motor.ROTOR_SIDE_CLASSES,
+On the windows of one split whose label is a rotor-side class (models.motor.ROTOR_SIDE_CLASSES,
 by name) of a flight with a known motor (dataset ``fault_motor`` >= 0): the share whose argmax
 of ``motor_proba`` is that motor, independent of the class decision and of any alarm (the alarm-
 level figure is evaluation.md's "motor right"). A network's motor_proba is its motor head's; the
@@ -20,11 +20,11 @@ from pathlib import Path
 import numpy as np
 
 from quadfdi.core.alarm import ROTOR_SIDE_CLASSES
-from quadfdi.core.predindex import read_index
+from quadfdi.formats.predictions import read_index
 from quadfdi.core.tables import md_table
 from quadfdi.evaluate.bootstrap import draw_weights
 
-ROTOR_SIDE = ROTOR_SIDE_CLASSES  # train.motor.ROTOR_SIDE_CLASSES (no torch here)
+ROTOR_SIDE = ROTOR_SIDE_CLASSES  # models.motor.ROTOR_SIDE_CLASSES (no torch here)
 
 
 def flight_counts(arrays: dict, fault_motor: np.ndarray, split: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -16,7 +16,7 @@ from quadfdi.core import records
 from quadfdi.core.config import Config
 from quadfdi.core.jsonio import write_json
 from quadfdi.core.atomic import write_text
-from quadfdi.core.predindex import INDEX_NAME
+from quadfdi.formats.predictions import INDEX_NAME
 from quadfdi.core.stage import stage
 from quadfdi.evaluate.figures import SWEEP_PNG, sweep_figure
 from quadfdi.evaluate.load import load_run
@@ -77,6 +77,6 @@ def evaluate_run(root: Path, cfg: Config, command: str, log: Callable[[str], Non
 
 
 def _prediction_paths(root: Path) -> list[str]:
-    from quadfdi.core.predindex import read_index
+    from quadfdi.formats.predictions import read_index
 
     return [e["predictions"] for e in read_index(root)]

@@ -17,7 +17,7 @@ import numpy as np
 from onnxruntime.quantization import CalibrationDataReader
 
 from quadfdi.export.graph import Built
-from quadfdi.export.verify import session
+from quadfdi.runtimes.ort import session
 
 
 class WindowReader(CalibrationDataReader):

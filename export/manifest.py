@@ -1,23 +1,7 @@
-"""manifest.json: what the export folder holds and how it was checked (docs/formats.md).
-
-Top-level keys, in this order: ``schema_version``, ``producer``, ``channels`` (name, unit),
-``n_channels``, ``window``, ``sample_dt_s``, ``class_names``, ``normalisation`` (per model: mean,
-std), ``solver`` (classic RK4, N, stage times), ``opset``, ``ir_version``, ``io`` (input and output
-tensors), ``artifacts`` (cnode_fp32, cnode_int8, gru_fp32, gru_int8 -> file names relative to the
-export folder), ``files`` (name -> sha256, bytes), ``models`` (architecture, MACs),
-``quantization`` (scheme, calibration, coverage), ``verification``, ``metrics`` (test split, per
-artifact), ``reference`` (the test windows in reference.bin), ``config``, ``profile`` (the input
-channels, ``profile_entry``), ``alarm`` (the default alarm policy: core.alarm, the [alarm] section's
-keys; what a reader that predates ``alarm_per_model`` runs), ``alarm_per_model`` (network -> {policy,
-source}: export/alarm_policies.py; absent in an export written before it), and
-only for models with a motor head (train.motor) ``motor_head`` (``motor_entry``; ``io.outputs``
-then also lists ``motor_logits``).
-A reader must check ``schema_version`` first: ``load_manifest`` refuses any other version.
-"""
+"""Builds manifest.json for the export stage (the format and its reader: quadfdi.formats.manifest)."""
 
 from __future__ import annotations
 
-import hashlib
 from pathlib import Path
 from typing import Any
 
@@ -26,10 +10,8 @@ import numpy as np
 from quadfdi.core.alarm import AlarmConfig
 from quadfdi.core.contracts import CLASS_NAMES
 from quadfdi.core.errors import QuadfdiError
-from quadfdi.core.jsonio import read_json, write_json
+from quadfdi.formats.manifest import SCHEMA_VERSION, file_entry
 
-SCHEMA_VERSION = 1
-ARTIFACT_KEYS = ("cnode_fp32", "cnode_int8", "gru_fp32", "gru_int8")
 MODEL_KINDS = ("cnode", "gru")
 
 INT8_SCHEME = (
@@ -58,10 +40,6 @@ def artifact_names(steps: int) -> dict[str, str]:
     """File names of the four deployed graphs, relative to the export folder."""
     return {"cnode_fp32": f"cnode_rk4_{steps}.onnx", "cnode_int8": f"cnode_rk4_{steps}.int8.onnx",
             "gru_fp32": "gru.onnx", "gru_int8": "gru.int8.onnx"}
-
-
-def file_entry(data: bytes) -> dict:
-    return {"sha256": hashlib.sha256(data).hexdigest(), "bytes": len(data)}
 
 
 def manifest_class_names(checkpoints: dict[str, dict]) -> list[str]:
@@ -113,7 +91,7 @@ def build_manifest(*, ds: Any, config: dict, checkpoints: dict[str, dict], windo
                    motor: dict | None = None, alarm_per_model: dict | None = None) -> dict:
     """The manifest of one export (the keys listed in this module's docstring, in that order).
 
-    ``ds``: the run's ``sim.dataset.Dataset``; ``checkpoints``: "cnode"/"gru" -> checkpoint blob
+    ``ds``: the run's ``formats.dataset.Dataset``; ``checkpoints``: "cnode"/"gru" -> checkpoint blob
     (architecture, normalisation); ``coverage``: per model {"fp32", "int8", "summary"} of
     ``export.coverage``; ``files``: every file written beside the manifest, name -> bytes;
     ``encoding``: per model ``encoding_of`` (activation type, weight bits, contrib ops); ``motor``:
@@ -174,35 +152,3 @@ def profile_entry(name: str, *blobs: dict) -> dict:
                 "inputs": list(hover.INPUTS), "steady_samples": hover.STEADY_SAMPLES,
                 "settle_samples": hover.SETTLE_SAMPLES,
                 "vz_max": float(hover.VZ_MAX), "tilt_max": float(hover.TILT_MAX), "cmd_min": float(hover.CMD_MIN)}}
-
-
-def write_manifest(path: str | Path, manifest: dict) -> None:
-    write_json(path, manifest, indent=2)
-
-
-def load_manifest(path: str | Path) -> dict:
-    """Read manifest.json; one-line QuadfdiError if missing, not JSON, or of another schema version."""
-    p = Path(path)
-    if not p.exists():
-        raise QuadfdiError(f"manifest {p} does not exist (run `quadfdi export` first)")
-    data = read_json(p, "manifest")
-    if not isinstance(data, dict) or "schema_version" not in data:
-        raise QuadfdiError(f"manifest {p} has no schema_version: not a quadfdi export manifest")
-    if data["schema_version"] != SCHEMA_VERSION:
-        raise QuadfdiError(f"manifest {p} has schema version {data['schema_version']!r}, this quadfdi reads "
-                           f"schema version {SCHEMA_VERSION} (re-run `quadfdi export`)")
-    missing = [k for k in ARTIFACT_KEYS if k not in data.get("artifacts", {})]
-    if missing:
-        raise QuadfdiError(f"manifest {p} lacks artifacts {', '.join(missing)}")
-    return data
-
-
-def check_files(manifest: dict, folder: str | Path) -> None:
-    """Every file the manifest lists exists in ``folder`` with its sha256 (one-line error otherwise)."""
-    root = Path(folder)
-    for name, entry in manifest["files"].items():
-        f = root / name
-        if not f.is_file():
-            raise QuadfdiError(f"{f} is listed in the manifest but missing")
-        if hashlib.sha256(f.read_bytes()).hexdigest() != entry["sha256"]:
-            raise QuadfdiError(f"{f} does not match its sha256 in the manifest (changed after export?)")

@@ -1,4 +1,4 @@
-"""The motor head in the exported graphs (train.motor): a second output ``motor_logits`` (B, 4).
+"""The motor head in the exported graphs (models.motor): a second output ``motor_logits`` (B, 4).
 
 The head reads the same final hidden representation as the class head (the CNODE's z1, the GRU's
 last hidden state) and is built the same way: fp32 one Gemm (CNODE) or MatMul + Add (GRU); int8

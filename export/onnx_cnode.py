@@ -11,7 +11,7 @@ S = 2N + 1 stage times, K classes):
     z1     = N classic RK4 steps of f over [0, 1] (core.rk4.rk4_step run on graph values)
     logits = z1 @ Wh^T + bh,  proba = softmax(logits)                  (B, K)
 
-P = train.control.interp_matrix(train.solvers.stage_times("rk4", N)): the control path at every
+P = models.control.interp_matrix(models.solvers.stage_times("rk4", N)): the control path at every
 stage time is one constant linear map of the window, so there is no Loop, If or data-dependent
 indexing. Because f's first layer is linear in [z; u], its u-part for all S stage times is one
 (B, S, C) x (C, H) product computed before the loop; each of the 4N stages then multiplies only
@@ -39,8 +39,8 @@ from quadfdi.export.graph import BATCH, MS_DOMAIN, Built, Graph, telemetry_input
 from quadfdi.export.motor_graph import graph_outputs, motor_fp32_gemm, motor_int8
 from quadfdi.export.quantize import (BOUND_SCALE, UINT8, QWeight, act_scale, int8_matmul, int8_weight, quantize,
                              quantize_channels, quantize_interp, weight_qmax)
-from quadfdi.train.control import interp_matrix
-from quadfdi.train.solvers import fixed_method, nearest_index, stage_times
+from quadfdi.models.control import interp_matrix
+from quadfdi.models.solvers import fixed_method, nearest_index, stage_times
 
 STAGES_PER_STEP = fixed_method("rk4").evals_per_step  # 4
 # Activation encoding of the int8 CNODE after the control path: uint8 (zero point 128) with 7-bit
@@ -69,7 +69,7 @@ class CnodeParams:
     times: np.ndarray  # (S,) float64 stage times, S = 2N + 1
     interp: np.ndarray  # (S, W) float32, U = interp @ x_norm
     stage_index: np.ndarray  # (4N,) int32: row of interp used by stage e = 4k + i
-    motor_w: np.ndarray | None = None  # (4, L) the motor head (train.motor), None without one
+    motor_w: np.ndarray | None = None  # (4, L) the motor head (models.motor), None without one
     motor_b: np.ndarray | None = None  # (4,)
 
     @property
@@ -188,7 +188,7 @@ def rk4_stage_index(times: np.ndarray, steps: int) -> np.ndarray:
 
 
 def cnode_params(model: torch.nn.Module, steps: int) -> CnodeParams:
-    """Read a train.models.CNODE's state dict (names are train/models.py's contract)."""
+    """Read a models.networks.CNODE's state dict (names are models/networks.py's contract)."""
     sd = {k: v.detach().cpu().numpy().astype(np.float32) for k, v in model.state_dict().items()}
     latent = sd["encoder.weight"].shape[0]
     w1 = sd["field.lin1.weight"]  # (H, L + C): [z, u] concatenated in this order

@@ -54,7 +54,7 @@ class GruParams:
     head_w: np.ndarray  # (K, H)
     head_b: np.ndarray  # (K,)
     window: int
-    motor_w: np.ndarray | None = None  # (4, H) the motor head (train.motor), None without one
+    motor_w: np.ndarray | None = None  # (4, H) the motor head (models.motor), None without one
     motor_b: np.ndarray | None = None  # (4,)
 
     @property
@@ -71,7 +71,7 @@ class GruParams:
 
 
 def gru_params(model: torch.nn.Module) -> GruParams:
-    """Read a train.models.GRUClassifier's state dict (one layer, unidirectional)."""
+    """Read a models.networks.GRUClassifier's state dict (one layer, unidirectional)."""
     sd = {k: v.detach().cpu().numpy().astype(np.float32) for k, v in model.state_dict().items()}
     return GruParams(mean=sd["mean"], std=sd["std"], w_ih=sd["gru.weight_ih_l0"], w_hh=sd["gru.weight_hh_l0"],
                      b_ih=sd["gru.bias_ih_l0"], b_hh=sd["gru.bias_hh_l0"], head_w=sd["head.weight"],

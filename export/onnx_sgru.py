@@ -26,7 +26,7 @@ OUTPUTS = ("logits", "proba", "h_new")
 
 
 def sgru_params(model: torch.nn.Module) -> GruParams:
-    """A train.stream_gru.StreamGRU's float32 numbers in the windowed GRU's layout (window 1: one step)."""
+    """A models.stream_gru.StreamGRU's float32 numbers in the windowed GRU's layout (window 1: one step)."""
     sd = {k: v.detach().cpu().numpy().astype(np.float32) for k, v in model.state_dict().items()}
     return GruParams(mean=sd["mean"], std=sd["std"], w_ih=sd["gru.weight_ih_l0"], w_hh=sd["gru.weight_hh_l0"],
                      b_ih=sd["gru.bias_ih_l0"], b_hh=sd["gru.bias_hh_l0"], head_w=sd["head.weight"],

@@ -1,7 +1,7 @@
 """reference.bin: a few test windows with every intermediate, for the C++ parity program.
 
 In the spirit of llm.c's test_gpt2.c: inputs, intermediate states and logits that the C++
-reference must reproduce tensor by tensor. Container: export/binfmt.py (magic b"QFDIREF\\0",
+reference must reproduce tensor by tensor. Container: formats/binfmt.py (magic b"QFDIREF\\0",
 version 1). Sections:
 
 - inputs (model none): dims [n, W, C, 0...]; ``telemetry`` (n, W, C) raw float32, ``label``
@@ -20,15 +20,14 @@ quantized), so the C++ int8 code is checked against what the deployed int8 model
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
 
-from quadfdi.export.binfmt import Section, pack, read_file
-from quadfdi.export.weights_bin import cnode_dims, gru_dims
-from quadfdi.export.weights_layout import REFERENCE_MAGIC, REFERENCE_VERSION
+from quadfdi.formats.binfmt import Section, pack
+from quadfdi.formats.weights_bin import cnode_dims, gru_dims
+from quadfdi.formats.weights_layout import REFERENCE_MAGIC, REFERENCE_VERSION
 
 if TYPE_CHECKING:  # the reader needs neither torch nor onnx (firmware_ref/tools/gen_weights.py uses it)
     import torch
@@ -37,7 +36,7 @@ if TYPE_CHECKING:  # the reader needs neither torch nor onnx (firmware_ref/tools
     from quadfdi.export.onnx_cnode import CnodeParams
     from quadfdi.export.onnx_gru import GruParams
 
-MAGIC, VERSION = REFERENCE_MAGIC, REFERENCE_VERSION  # export/weights_layout.py
+MAGIC, VERSION = REFERENCE_MAGIC, REFERENCE_VERSION  # formats/weights_layout.py
 
 
 def pick_windows(y: np.ndarray, n: int) -> np.ndarray:
@@ -54,7 +53,7 @@ def _softmax(z: np.ndarray) -> np.ndarray:
 
 
 def _run_probes(built: Built, keys: list[str], x: np.ndarray) -> dict[str, np.ndarray]:
-    from quadfdi.export.verify import session
+    from quadfdi.runtimes.ort import session
 
     sess = session(built.with_probes(keys).SerializeToString())
     outs = sess.run(["logits", "proba"] + [built.probes[k][0] for k in keys], {"telemetry": x})
@@ -65,9 +64,10 @@ def cnode_fp32_tensors(model: torch.nn.Module, x: np.ndarray) -> dict[str, np.nd
     """PyTorch's trace of the CNODE (its solver must be classic RK4 with the graph's N)."""
     import torch
 
-    from quadfdi.export.verify import torch_threads
+    from quadfdi.models.threads import torch_threads
+    from quadfdi.runtimes.ort import THREADS
 
-    with torch_threads():
+    with torch_threads(THREADS):
         tr = model.trace(torch.from_numpy(x))
     st = tr["stages"]  # (N, 4, B, L)
     n, s, b, latent = st.shape
@@ -89,9 +89,10 @@ def cnode_int8_tensors(built: Built, p: CnodeParams, x: np.ndarray) -> dict[str,
 def gru_fp32_tensors(model: torch.nn.Module, x: np.ndarray) -> dict[str, np.ndarray]:
     import torch
 
-    from quadfdi.export.verify import torch_threads
+    from quadfdi.models.threads import torch_threads
+    from quadfdi.runtimes.ort import THREADS
 
-    with torch_threads():
+    with torch_threads(THREADS):
         tr = model.trace(torch.from_numpy(x))
     return {"x_norm": tr["x_norm"].numpy(), "h": tr["h"].numpy(), "logits": tr["logits"].numpy(),
             "proba": torch.softmax(tr["logits"], dim=1).numpy()}
@@ -125,17 +126,3 @@ def reference_bytes(x: np.ndarray, y: np.ndarray, index: np.ndarray, cnode: torc
         _section("gru", "fp32", gru_dims(gp), n, gru_fp32_tensors(gru, x)),
         _section("gru", "int8", gru_dims(gp), n, gru_int8_tensors(gru_int8, gp, x)),
     ])
-
-
-@dataclass(frozen=True)
-class ReferenceFile:
-    version: int
-    sections: list[Section]
-
-    def section(self, model: str, precision: str) -> Section:
-        return next(s for s in self.sections if (s.model, s.precision) == (model, precision))
-
-
-def read_reference(path: str | Path) -> ReferenceFile:
-    version, sections = read_file(path, MAGIC, VERSION, "reference file")
-    return ReferenceFile(version, sections)

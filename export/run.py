@@ -24,23 +24,25 @@ from quadfdi.export.calibrate import WindowReader, collect_ranges, select_window
 from quadfdi.export.coverage import compare, coverage, fp32_constants, markdown
 from quadfdi.export.graph import IR_VERSION, Built
 from quadfdi.export.manifest import (MODEL_KINDS, artifact_names, build_manifest, encoding_of, manifest_class_names,
-                             motor_entry, profile_entry, write_manifest)
+                                     motor_entry, profile_entry)
+from quadfdi.formats.manifest import write_manifest
 from quadfdi.export.quantize import weight_qmax
 from quadfdi.export.onnx_cnode import CnodeParams, CnodeQuant, build_cnode, calibration_probes, cnode_params, quantize_cnode
 from quadfdi.export.onnx_gru import (CALIBRATION_PROBES, GruParams, GruQuant, build_gru_fp32, build_gru_int8, gru_params,
                              quantize_gru)
 from quadfdi.export.reference_bin import pick_windows, reference_bytes
-from quadfdi.export.verify import (batch_independence, int8_vs_fp32, motor_verification, ort_outputs, parity, session,
-                           torch_logits)
-from quadfdi.export.onboard_record import onboard_section
+from quadfdi.export.verify import batch_independence, int8_vs_fp32, motor_verification, parity
+from quadfdi.runtimes.ort import outputs, session
+from quadfdi.runtimes.pytorch import torch_logits
+from quadfdi.formats.onboard import onboard_section
 from quadfdi.export.alarm_policies import policies_per_model
-from quadfdi.export.weights_bin import weights_bytes
-from quadfdi.sim.dataset import Dataset, class_names, load_dataset, make_windows
-from quadfdi.train.profile_data import profile_of, profiled_dataset
-from quadfdi.train.checkpoint import check_dataset_matches, checkpoint_class_names, load_checkpoint
+from quadfdi.formats.weights_bin import weights_bytes
+from quadfdi.formats.dataset import Dataset, class_names, load_dataset, make_windows
+from quadfdi.models.inputs import profile_of, profiled_dataset
+from quadfdi.models.checkpoint import check_dataset_matches, checkpoint_class_names, load_checkpoint
 from quadfdi.train.metrics import compute_metrics
-from quadfdi.train.models import SolverSpec
-from quadfdi.train.motor import ROTOR_SIDE_CLASSES
+from quadfdi.models.networks import SolverSpec
+from quadfdi.models.motor import ROTOR_SIDE_CLASSES
 
 
 @dataclass
@@ -197,7 +199,7 @@ def verify_all(blobs: dict[str, bytes], cnode: torch.nn.Module, gru: torch.nn.Mo
     logits, proba, indep, sessions = {}, {}, {}, {}
     for key, data in blobs.items():
         sess = sessions[key] = session(data)
-        logits[key], proba[key] = ort_outputs(sess, x)
+        logits[key], proba[key] = outputs(sess, x, ["logits", "proba"])
         indep[key] = batch_independence(sess, x, logits[key])
     verification = {
         "test_windows": int(len(x)),

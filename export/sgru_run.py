@@ -16,7 +16,7 @@ Writes into ``<run>/export/``:
   ``sgru_replay.npz`` ``logits_int8`` (T, K): ONNX Runtime's int8 graph on the flight;
 - ``sgru_export.json``: the parity of that replay against PyTorch's whole-flight sequence
   (``export.verify.parity`` on the logits at every step, and the state's max abs difference);
-- ``sgru_weights.bin`` (export/sgru_weights.py), when ``<run>/export/weights.bin`` holds the on-board
+- ``sgru_weights.bin`` (formats/sgru_weights.py), when ``<run>/export/weights.bin`` holds the on-board
   record and the streaming GRU reads its model channels: the fp32 and int8 sections and a copy of the
   record, what fwref_stream --model sgru and the Cortex-M stream image run; sgru_export.json then
   records ``weights`` (its sha256 and that of the weights.bin whose record it copied), else why not.
@@ -37,9 +37,10 @@ from quadfdi.export.graph import IR_VERSION
 from quadfdi.export.onnx_gru import quantize_gru
 from quadfdi.export.onnx_sgru import build_sgru_fp32, sgru_params
 from quadfdi.export.onnx_sgru_int8 import build_sgru_int8, calibrate_x_norm
-from quadfdi.export.sgru_weights import FILE_NAME as WEIGHTS_NAME, export_onboard, write_sgru_weights
-from quadfdi.export.verify import parity, session
-from quadfdi.sim.dataset import load_dataset
+from quadfdi.formats.sgru_weights import FILE_NAME as WEIGHTS_NAME, export_onboard, write_sgru_weights
+from quadfdi.export.verify import parity
+from quadfdi.runtimes.ort import session
+from quadfdi.formats.dataset import load_dataset
 
 
 def replay_flight(ds) -> int:

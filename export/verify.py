@@ -18,29 +18,11 @@ import torch
 from sklearn.metrics import f1_score
 
 from quadfdi.core.contracts import FP32_ORT_VS_TORCH_REL_TOL
-from quadfdi.export.ort_session import THREADS, session  # noqa: F401  (session: the export's callers import it here)
-from quadfdi.train.threads import torch_threads as _torch_threads
+from quadfdi.runtimes.ort import outputs
+from quadfdi.runtimes.pytorch import torch_motor_logits
 
 FP32_REL_TOL = FP32_ORT_VS_TORCH_REL_TOL  # ONNX Runtime against PyTorch (core/contracts.py)
 F1_DROP_TARGET_POINTS = 0.5
-CHUNK = 512
-
-
-def ort_outputs(sess: ort.InferenceSession, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(logits, proba) of windows ``x`` (n, W, C), in chunks."""
-    parts = [sess.run(["logits", "proba"], {"telemetry": x[i:i + CHUNK]}) for i in range(0, len(x), CHUNK)]
-    return np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
-
-
-def torch_threads(n: int = THREADS):
-    """``train.threads.torch_threads`` at the export's thread count by default."""
-    return _torch_threads(n)
-
-
-@torch.no_grad()
-def torch_logits(model: torch.nn.Module, x: np.ndarray) -> np.ndarray:
-    with torch_threads():
-        return np.concatenate([model(torch.from_numpy(x[i:i + CHUNK])).numpy() for i in range(0, len(x), CHUNK)])
 
 
 def parity(logits: np.ndarray, reference: np.ndarray, rel: float = FP32_REL_TOL) -> dict:
@@ -72,19 +54,6 @@ def batch_independence(sess: ort.InferenceSession, x: np.ndarray, batch_logits: 
     return {"windows_checked": len(diffs), "max_abs_logit_diff": max(diffs) if diffs else 0.0}
 
 
-@torch.no_grad()
-def torch_motor_logits(model: torch.nn.Module, x: np.ndarray) -> np.ndarray:
-    """(n, 4) motor logits of a model with a motor head (train.motor)."""
-    with torch_threads():
-        return np.concatenate([model.motor_head(model.features(torch.from_numpy(x[i:i + CHUNK]))).numpy()
-                               for i in range(0, len(x), CHUNK)])
-
-
-def ort_motor_logits(sess: ort.InferenceSession, x: np.ndarray) -> np.ndarray:
-    """(n, 4) ``motor_logits`` of a graph with the motor head, in chunks."""
-    return np.concatenate([sess.run(["motor_logits"], {"telemetry": x[i:i + CHUNK]})[0] for i in range(0, len(x), CHUNK)])
-
-
 def motor_verification(sessions: dict, models: dict[str, torch.nn.Module], x: np.ndarray) -> dict:
     """Per model with a motor head: fp32 ORT against PyTorch (``parity``, the class logits' bound)
     and int8 against fp32 (argmax agreement, max logit difference; reported)."""
@@ -93,7 +62,7 @@ def motor_verification(sessions: dict, models: dict[str, torch.nn.Module], x: np
         if getattr(model, "motor_head", None) is None:
             continue
         ref = torch_motor_logits(model, x)
-        fp32, int8 = ort_motor_logits(sessions[f"{kind}_fp32"], x), ort_motor_logits(sessions[f"{kind}_int8"], x)
+        fp32, int8 = (outputs(sessions[f"{kind}_{p}"], x, ["motor_logits"])[0] for p in ("fp32", "int8"))
         out[f"{kind}_motor_fp32_vs_pytorch"] = parity(fp32, ref)
         out[f"{kind}_motor_int8_vs_fp32"] = {"argmax_agreement": float(np.mean(int8.argmax(1) == fp32.argmax(1))),
                                              "max_abs_logit_diff": float(np.abs(int8 - fp32).max()),

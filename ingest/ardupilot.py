@@ -10,7 +10,8 @@ from __future__ import annotations
 import numpy as np
 
 from quadfdi.core.errors import QuadfdiError
-from quadfdi.ingest import battery, checks, frames, motors, segments
+from quadfdi.ingest import battery, checks, motors, segments
+from quadfdi.core import frames
 from quadfdi.ingest.model import Channel, LogRead
 
 WANTED = ["PARM", "MSG", "XKF1", "NKF1", "POS", "ATT", "RATE", "IMU", "BAT", "RCOU", "ESC", "VIBE", "CTUN", "ARM", "EV"]

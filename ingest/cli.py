@@ -46,7 +46,8 @@ def summary(lr, arrays) -> dict:
 def run(args: argparse.Namespace) -> int:
     from quadfdi.core.jsonio import write_json
     from quadfdi.ingest import segments
-    from quadfdi.ingest.flight import ingest, write_flight
+    from quadfdi.formats.flight import write_flight
+    from quadfdi.ingest.flight import ingest
 
     if args.logs[0] == "bench":
         from quadfdi.ingest.bench import bench
@@ -60,7 +61,7 @@ def run(args: argparse.Namespace) -> int:
     if args.out is None:
         raise QuadfdiError("quadfdi ingest needs --out <folder>")
     min_air = segments.MIN_AIRBORNE_S if args.min_airborne is None else args.min_airborne
-    from quadfdi.ingest.resample import GAP_FACTOR
+    from quadfdi.core.resample import GAP_FACTOR
 
     gap = GAP_FACTOR if args.gap_factor is None else args.gap_factor
     lr, arrays = ingest(args.logs[0], min_air, gap)  # refusals raise before anything is written

@@ -1,36 +1,23 @@
-"""Assemble, write and read ``flight.npz`` (the contract: docs/flight_format.md).
+"""One log -> the arrays of ``flight.npz`` (the format: ``quadfdi.formats.flight``, docs/flight_format.md).
 
-One file per log: every channel at its logged times (``raw.<name>.t`` / ``raw.<name>.v``), the same
-channels on the 25 Hz grid (``telemetry`` with ``mask``), what each channel is and where it came
-from, the flight's intervals, the log's sha256 and the vehicle facts read from it.
+Reads the log (PX4 or ArduPilot), checks that it flew, cuts each landing back to its touchdown and
+resamples every channel onto the 25 Hz grid, keeping each at its logged times too.
 """
 
 from __future__ import annotations
 
-import hashlib
 import json
 from pathlib import Path
 
 import numpy as np
 
 from quadfdi.core.errors import QuadfdiError
-from quadfdi.core.npzio import read_npz, write_npz
-from quadfdi.ingest import resample, segments
-from quadfdi.ingest.model import ANGLE_CHANNELS, CHANNEL_NAMES, CHANNEL_UNITS, LogRead
-
-FORMAT_VERSION = 1
-REQUIRED = ("format_version", "time", "telemetry", "mask", "channel_names", "channel_units", "channel_sources",
-            "channel_status", "channel_rates_hz", "channel_counts", "airborne", "airborne_segments",
-            "armed_segments", "log_sha256", "log_file", "autopilot", "vehicle", "resampling", "notes")
-
-
-def sha256(path: str | Path) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as fh:
-        for block in iter(lambda: fh.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
-
+from quadfdi.core.jobcache import file_sha256
+from quadfdi.ingest import segments
+from quadfdi.core import resample
+from quadfdi.core.channels import ANGLE_CHANNELS, CHANNEL_NAMES, CHANNEL_UNITS
+from quadfdi.formats.flight import FORMAT_VERSION
+from quadfdi.ingest.model import LogRead
 
 def flight_span(lr: LogRead) -> tuple[float, float]:
     """From the first arming (or take-off) to the last disarm (or landing), within the data."""
@@ -72,7 +59,7 @@ def build(lr: LogRead, log_path: str | Path, gap_factor: float = resample.GAP_FA
         "channel_sources": np.array(sources), "channel_status": np.array(status),
         "channel_rates_hz": rates, "channel_counts": counts, "airborne": air,
         "airborne_segments": _segments_array(lr.airborne), "armed_segments": _segments_array(lr.armed),
-        "log_sha256": np.array(sha256(log_path)), "log_file": np.array(Path(log_path).name),
+        "log_sha256": np.array(file_sha256(log_path)), "log_file": np.array(Path(log_path).name),
         "autopilot": np.array(lr.autopilot),
         "vehicle": np.array(json.dumps(dict(lr.vehicle, airborne_source=lr.airborne_source,
                                             data_span_s=list(lr.data_span)), sort_keys=True, default=float)),
@@ -111,21 +98,3 @@ def ingest(log: str | Path, min_airborne_s: float = segments.MIN_AIRBORNE_S,
     except QuadfdiError as exc:
         raise QuadfdiError(f"{Path(log).name}: refused: {exc}") from None
     return lr, build(lr, log, gap_factor)
-
-
-def write_flight(path: str | Path, arrays: dict[str, np.ndarray]) -> None:
-    write_npz(path, arrays)
-
-
-def load_flight(path: str | Path) -> dict[str, np.ndarray]:
-    """A flight.npz's arrays, checked against the contract (one-line error naming the field)."""
-    arrays = read_npz(path, "flight")
-    for key in REQUIRED:
-        if key not in arrays:
-            raise QuadfdiError(f"{path}: missing field {key!r} (not a quadfdi flight.npz)")
-    if int(arrays["format_version"]) != FORMAT_VERSION:
-        raise QuadfdiError(f"{path}: format_version {int(arrays['format_version'])}, this quadfdi reads {FORMAT_VERSION}")
-    n, c = arrays["telemetry"].shape
-    if arrays["mask"].shape != (n, c) or arrays["time"].shape != (n,) or arrays["channel_names"].shape != (c,):
-        raise QuadfdiError(f"{path}: telemetry {arrays['telemetry'].shape}, mask, time and channel_names disagree")
-    return arrays

@@ -1,8 +1,7 @@
-"""The channel table of an ingested flight and the result of reading one log.
+"""What a log reader returns: each channel at its logged times, and the log's facts.
 
-Channel order: the simulator's 23 telemetry channels first, in ``sim.sensors.CHANNEL_NAMES`` order
-and units (so a model trained on the simulator reads the same columns), then the extras only real
-logs have. A channel the log lacks is kept, fully masked, with the reason in its status.
+The channels and their units are the table of ``quadfdi.core.channels``. A channel the log lacks is
+kept, fully masked, with the reason in its status.
 """
 
 from __future__ import annotations
@@ -11,21 +10,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-SIM_CHANNELS: tuple[tuple[str, str], ...] = (
-    ("x", "m"), ("y", "m"), ("z", "m"), ("vx", "m/s"), ("vy", "m/s"), ("vz", "m/s"),
-    ("roll", "rad"), ("pitch", "rad"), ("yaw", "rad"), ("p", "rad/s"), ("q", "rad/s"), ("r", "rad/s"),
-    ("V_b", "V"), ("I_b", "A"), ("SoC", "-"), ("T1", "degC"), ("T2", "degC"), ("T3", "degC"), ("T4", "degC"),
-    ("thr1", "-"), ("thr2", "-"), ("thr3", "-"), ("thr4", "-"),
-)
-EXTRA_CHANNELS: tuple[tuple[str, str], ...] = (
-    ("vib_acc", "m/s^2"), ("rpm1", "rpm"), ("rpm2", "rpm"), ("rpm3", "rpm"), ("rpm4", "rpm"),
-    ("esc_temp1", "degC"), ("esc_temp2", "degC"), ("esc_temp3", "degC"), ("esc_temp4", "degC"),
-    ("esc_cur1", "A"), ("esc_cur2", "A"), ("esc_cur3", "A"), ("esc_cur4", "A"),
-)
-ALL_CHANNELS = SIM_CHANNELS + EXTRA_CHANNELS
-CHANNEL_NAMES = tuple(n for n, _ in ALL_CHANNELS)
-CHANNEL_UNITS = dict(ALL_CHANNELS)
-ANGLE_CHANNELS = frozenset({"roll", "pitch", "yaw"})  # unwrapped before resampling, wrapped after
+from quadfdi.core.channels import CHANNEL_UNITS
 
 
 @dataclass

@@ -11,7 +11,8 @@ from __future__ import annotations
 import numpy as np
 
 from quadfdi.core.errors import QuadfdiError
-from quadfdi.ingest import battery, checks, frames, motors, px4_motors, px4_vibration, segments
+from quadfdi.ingest import battery, checks, motors, px4_motors, px4_vibration, segments
+from quadfdi.core import frames
 from quadfdi.ingest.model import Channel, LogRead
 
 TOPICS = ["vehicle_local_position", "vehicle_attitude", "vehicle_angular_velocity", "battery_status",

@@ -15,7 +15,7 @@ import numpy as np
 
 from quadfdi.core.contracts import FP32_CPP_REL_TOL as FP32_REL_TOL
 from quadfdi.core.contracts import INT8_ARGMAX_MIN, INT8_TOL_STEPS
-from quadfdi.export.weights_bin import WeightsFile
+from quadfdi.formats.weights_bin import WeightsFile
 HEAD_INPUT_SCALE = {"cnode": "act.z1.scale", "gru": "act.h.scale"}
 
 

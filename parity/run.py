@@ -18,10 +18,12 @@ import time
 from pathlib import Path
 from typing import Callable
 
-from quadfdi.export.manifest import check_files, load_manifest
-from quadfdi.export.weights_bin import read_weights
-from quadfdi.parity import compare, mcu as mcu_mod, runners
-from quadfdi.parity.build import HOST_BUILD, build_host
+from quadfdi.formats.manifest import check_files, load_manifest
+from quadfdi.formats.weights_bin import read_weights
+from quadfdi.parity import compare, mcu as mcu_mod
+from quadfdi.runtimes.mcu import tools_missing
+from quadfdi.runtimes import fwref, ort, pytorch
+from quadfdi.runtimes.build import HOST_BUILD, build_host
 from quadfdi.parity.report import markdown
 from quadfdi.core.atomic import ensure_dir, write_text
 from quadfdi.core.config import Config
@@ -29,8 +31,8 @@ from quadfdi.core.errors import QuadfdiError
 from quadfdi.core.npzio import write_npz
 from quadfdi.core.stage import stage
 from quadfdi.core.rundir import RunDir
-from quadfdi.sim.dataset import load_dataset, make_windows
-from quadfdi.train.profile_data import profile_of, profiled_dataset
+from quadfdi.formats.dataset import load_dataset, make_windows
+from quadfdi.models.inputs import profile_of, profiled_dataset
 from quadfdi.core.jsonio import write_json
 
 SCHEMA_VERSION = 1
@@ -65,25 +67,25 @@ def host_parity(run: RunDir, manifest: dict, build_dir: Path, log: Callable[[str
         raise QuadfdiError(f"{run.dataset} has no test windows to check parity on")
     x = test.x
     art = manifest["artifacts"]
-    torch_models = runners.torch_models(run, manifest["solver"]["steps"])
+    torch_models = pytorch.load_models({k: run.checkpoint(k) for k in ("cnode", "gru")}, manifest["solver"]["steps"])
     timing, logits = {}, {}
     motor: dict[str, dict] = {}  # a net with a motor head: its motor logits per runtime, from the same runs
     for model in ("cnode", "gru"):
         has = weights.has(f"{model}_motor", "fp32")
         names = ["logits"] + (["motor_logits"] if has else [])
         t0 = time.perf_counter()
-        (cf, mf), (ci, mi) = (runners.cpp_outputs(build_dir, weights_path, model, i8, x, has) for i8 in (False, True))
+        (cf, mf), (ci, mi) = (fwref.cpp_outputs(weights_path, model, i8, x, has, build_dir) for i8 in (False, True))
         logits[model] = {"cpp_fp32": cf, "cpp_int8": ci}
         timing[f"{model}_cpp"] = time.perf_counter() - t0
         t0 = time.perf_counter()
-        of, oi = (runners.ort_outputs(export / art[f"{model}_{p}"], x, names) for p in ("fp32", "int8"))
+        of, oi = (ort.outputs(export / art[f"{model}_{p}"], x, names, batch=1) for p in ("fp32", "int8"))
         logits[model]["ort_fp32"], logits[model]["ort_int8"] = of[0], oi[0]
         timing[f"{model}_ort"] = time.perf_counter() - t0
         t0 = time.perf_counter()
-        logits[model]["torch"] = runners.pytorch_logits(torch_models[model], x)
+        logits[model]["torch"] = pytorch.torch_logits(torch_models[model], x)
         if has:
             motor[model] = {"cpp_fp32": mf, "cpp_int8": mi, "ort_fp32": of[1], "ort_int8": oi[1],
-                            "torch": runners.torch_motor(torch_models[model], x)}
+                            "torch": pytorch.torch_motor_logits(torch_models[model], x)}
         timing[f"{model}_torch"] = time.perf_counter() - t0
         log(f"parity: {model}: {len(x)} windows through C++ ({timing[f'{model}_cpp']:.1f} s), ONNX Runtime "
             f"({timing[f'{model}_ort']:.1f} s) and PyTorch ({timing[f'{model}_torch']:.1f} s)")
@@ -220,7 +222,7 @@ def _mcu_part(mcu: bool, weights: Path, reference: Path, out_dir: Path, timing: 
               log: Callable[[str], None]) -> dict:
     if not mcu:
         return {"skipped": "not requested (--no-mcu)"}
-    missing = mcu_mod.tools_missing()
+    missing = tools_missing()
     if missing:
         log(f"parity: Cortex-M part skipped: {missing}")
         return {"skipped": missing}
@@ -235,7 +237,7 @@ def _mcu_only(old_dir: Path, out_dir: Path, weights: Path, reference: Path,
               log: Callable[[str], None]) -> tuple[dict, str | None]:
     """``quadfdi parity --mcu``: mcu.json, and parity.json/parity.md updated when a host report exists
     (read from the published ``old_dir``, written to the staging ``out_dir``); (report, problem)."""
-    missing = mcu_mod.tools_missing()
+    missing = tools_missing()
     if missing:
         raise QuadfdiError(f"cannot run the Cortex-M part: {missing}")
     t0 = time.perf_counter()

@@ -4,7 +4,7 @@ Real side: each log through ``ingest`` (refused logs are listed with their reaso
 segments of at least 20 s inside the airborne time (AIR_MARGIN_S trimmed at take-off and landing).
 Simulated side: the run's healthy trajectories; each channel is first "logged" at the real logs'
 median rate of that channel (``stats.log_like``) and put through the same resampler as real logs
-(ingest.resample) before any statistic. A simulated trajectory is shorter than 20 s at paper scale
+(core.resample) before any statistic. A simulated trajectory is shorter than 20 s at paper scale
 (16 s), so its steady segments need only last its duration minus SETTLE_S; the report says so.
 """
 
@@ -15,8 +15,8 @@ from pathlib import Path
 import numpy as np
 
 from quadfdi.core.errors import QuadfdiError
-from quadfdi.ingest.model import ANGLE_CHANNELS
-from quadfdi.ingest.resample import resample
+from quadfdi.core.channels import ANGLE_CHANNELS
+from quadfdi.core.resample import resample
 from quadfdi.realism import stats, steady
 
 COMPARED = ("x", "y", "z", "vx", "vy", "vz", "roll", "pitch", "yaw", "p", "q", "r", "V_b", "I_b",
@@ -94,7 +94,7 @@ def _sim_channel(t: np.ndarray, tel: np.ndarray, j: int, rows_segs: list, rate: 
 
 
 def sim_side(dataset_path: Path, rates: dict[str, float]) -> dict:
-    from quadfdi.sim.dataset import load_dataset
+    from quadfdi.formats.dataset import load_dataset
     from quadfdi.sim.params import get_vehicle
 
     ds = load_dataset(dataset_path)

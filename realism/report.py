@@ -10,7 +10,7 @@ from quadfdi.core.atomic import write_text
 from quadfdi.core.jsonio import write_json
 from quadfdi.core.plotting import pyplot, save_png
 from quadfdi.core.tables import md_table
-from quadfdi.ingest.model import CHANNEL_UNITS
+from quadfdi.core.channels import CHANNEL_UNITS
 from quadfdi.realism.compare import COMPARED, MIN_STEADY_S
 
 GROUPS = {"position": ("x", "y", "z"), "velocity": ("vx", "vy", "vz"), "attitude": ("roll", "pitch", "yaw"),

@@ -1,14 +1,14 @@
 """Add ``decided`` to prediction sets written before train/predsets.py wrote it (the same rule,
-train.profile_data.decided): PYTHONPATH=. python scripts/add_decided.py RUN PROFILE"""
+models.inputs.decided): PYTHONPATH=. python scripts/add_decided.py RUN PROFILE"""
 import sys
 from pathlib import Path
 
 import numpy as np
 
-from quadfdi.core.predindex import read_index
-from quadfdi.sim.dataset import load_dataset
+from quadfdi.formats.predictions import read_index
+from quadfdi.formats.dataset import load_dataset
 from quadfdi.train.predsets import write_prediction_set
-from quadfdi.train.profile_data import decided, profiled_dataset
+from quadfdi.models.inputs import decided, profiled_dataset
 
 run = Path(sys.argv[1]); profile = sys.argv[2]
 ds = profiled_dataset(load_dataset(run / "dataset.npz"), profile)

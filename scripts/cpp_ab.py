@@ -4,7 +4,7 @@
 
 Each round runs one process per case, in the order given (so slow phases of the shared machine hit
 every case alike); a process times 20 warm-up windows then the run's first 400 test windows (cycled
-when the run has fewer), each once with ``--repeat 1`` as bench/runtimes/cpp_rt.py times them, and
+when the run has fewer), each once with ``--repeat 1`` as bench/timing/cpp.py times them, and
 its p50 is the median of those 400. Printed per case: the median, min and max of the N processes'
 p50s. MODEL is cnode or gru, PRECISION fp32 or int8, KERNEL (optional) sets FWREF_I8_KERNEL.
 """
@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from quadfdi.sim.dataset import load_dataset, make_windows
+from quadfdi.formats.dataset import load_dataset, make_windows
 
 
 def parse_case(text: str) -> tuple[str, str, str, str, str]:

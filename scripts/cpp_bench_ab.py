@@ -3,7 +3,7 @@
     PYTHONPATH=. python scripts/cpp_bench_ab.py RUN --rounds N --case LABEL=EXE:MODEL:PRECISION[:ENV=VALUE] ...
 
 Each round runs, per case in the order given, ``taskset -c CPUS python -m quadfdi.bench.latency_worker --runtime
-cpp`` as `quadfdi bench` does (bench/runtimes/cpp_rt.py: CPP_PROCESSES processes per setting, their
+cpp`` as `quadfdi bench` does (bench/timing/cpp.py: CPP_PROCESSES processes per setting, their
 per-window times pooled; the windows: bench.latency.sample_windows of the test split, the bench's
 count and warm-up), so a slow phase of the shared machine hits every case alike. Printed per case: the
 median, min and max over the rounds of the worker's p50 (the bench's figure). The optional ENV=VALUE
@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from quadfdi.bench.latency import sample_windows
-from quadfdi.sim.dataset import load_dataset, make_windows
+from quadfdi.formats.dataset import load_dataset, make_windows
 
 
 def parse_case(text: str) -> tuple[str, str, str, str, dict]:

@@ -4,7 +4,7 @@
 
 Runs ``firmware_ref/build/fwref_infer`` N times (default 15) per model and precision on the same
 windows (20 warm-up, then the run's first 400 test windows, each timed once with ``--repeat 1`` as
-bench/runtimes/cpp_rt.py times them) and prints the median, min, max and every process's p50.
+bench/timing/cpp.py times them) and prints the median, min, max and every process's p50.
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from quadfdi.sim.dataset import load_dataset, make_windows
+from quadfdi.formats.dataset import load_dataset, make_windows
 
 EXE = Path(__file__).resolve().parents[1] / "firmware_ref" / "build" / "fwref_infer"
 

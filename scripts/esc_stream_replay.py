@@ -13,7 +13,8 @@ import sys
 import tempfile
 from pathlib import Path
 
-from quadfdi.detect.streamfile import from_dataset, from_flight, record_of, write_stream
+from quadfdi.detect.stream_cli import from_flight
+from quadfdi.formats.stream import from_dataset, record_of, write_stream
 from tests.test_stream import _check_replay
 
 ROOT = Path(__file__).resolve().parents[1]

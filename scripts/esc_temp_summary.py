@@ -16,7 +16,7 @@ import argparse
 
 import numpy as np
 
-from quadfdi.sim.dataset import load_dataset
+from quadfdi.formats.dataset import load_dataset
 
 
 def _q(x: np.ndarray) -> str:

@@ -3,7 +3,7 @@
 A multinomial logistic regression on per-window mean / slope / std (train/baseline.py's features)
 of a realistic dataset, fitted on half of the training windows (the half drawn by the train seed),
 at C = 1 (``dev_logreg``) and C = 5e-4 (``dev_logreg_weak``); ``motor_proba`` = softmax(60 x each
-motor command over the four's mean, last 20 samples of the window). Written with core.predindex.
+motor command over the four's mean, last 20 samples of the window). Written with formats.predictions.
 
     PYTHONPATH=. python scripts/eval_dev_predictions.py RUN 0=dataset.npz [1=sim1/dataset.npz ...]
 """
@@ -19,8 +19,8 @@ from sklearn.pipeline import make_pipeline
 from sklearn.preprocessing import StandardScaler
 
 from quadfdi.core.npzio import write_npz
-from quadfdi.core.predindex import add_entries, prediction_path
-from quadfdi.sim.dataset import class_names, load_dataset, make_windows, split_names
+from quadfdi.formats.predictions import add_entries, prediction_path
+from quadfdi.formats.dataset import class_names, load_dataset, make_windows, split_names
 from quadfdi.train.baseline import window_features
 
 MODELS = {"dev_logreg": 1.0, "dev_logreg_weak": 5e-4}

@@ -19,7 +19,7 @@ import numpy as np
 import onnx
 from onnx import TensorProto, helper, numpy_helper
 
-from quadfdi.export.ort_session import session
+from quadfdi.runtimes.ort import session
 
 
 def _scan_and_body(m: onnx.ModelProto):

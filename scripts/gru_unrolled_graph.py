@@ -22,10 +22,10 @@ from quadfdi.core.rundir import RunDir
 from quadfdi.export.calibrate import select_windows
 from quadfdi.export.onnx_gru_unrolled import build_gru_int8_unrolled
 from quadfdi.export.run import _load_models, build_graphs
-from quadfdi.export.verify import session
-from quadfdi.sim.dataset import load_dataset, make_windows
-from quadfdi.train.checkpoint import load_checkpoint
-from quadfdi.train.profile_data import profile_of, profiled_dataset
+from quadfdi.runtimes.ort import session
+from quadfdi.formats.dataset import load_dataset, make_windows
+from quadfdi.models.checkpoint import load_checkpoint
+from quadfdi.models.inputs import profile_of, profiled_dataset
 
 
 def main(argv: list[str]) -> int:

@@ -15,8 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
-from quadfdi.core.predindex import read_index
-from quadfdi.sim.dataset import load_dataset, split_names
+from quadfdi.formats.predictions import read_index
+from quadfdi.formats.dataset import load_dataset, split_names
 
 
 def main() -> int:

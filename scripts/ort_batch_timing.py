@@ -33,7 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from quadfdi.core.tables import md_table
-from quadfdi.export.ort_session import optimized_nodes, session
+from quadfdi.runtimes.ort import optimized_nodes, session
 
 
 def windows(run: Path, batch: int, width: int) -> np.ndarray:

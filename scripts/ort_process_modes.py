@@ -25,7 +25,7 @@ from pathlib import Path
 
 CHILD = """
 import sys, time, numpy as np
-from quadfdi.export.ort_session import session
+from quadfdi.runtimes.ort import session
 paths = sys.argv[1:3]
 x = np.random.default_rng(0).standard_normal((1, 80, 23)).astype(np.float32)
 s = [session(p, 1, spinning=False) for p in paths]
@@ -42,8 +42,8 @@ def per_round_sweep(paths: list[str]) -> int:
     import numpy as np
 
     from quadfdi.bench.ort_pairs import paired_times
-    from quadfdi.bench.runtimes.common import percentile
-    from quadfdi.export.ort_session import session
+    from quadfdi.bench.timing.common import percentile
+    from quadfdi.runtimes.ort import session
 
     x = np.random.default_rng(0).standard_normal((300, 1, 80, 23)).astype(np.float32)
     sessions = [session(p, 1, spinning=False) for p in paths]

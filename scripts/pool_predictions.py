@@ -20,7 +20,7 @@ import shutil
 from pathlib import Path
 
 from quadfdi.core.errors import QuadfdiError
-from quadfdi.core.predindex import add_entries, check_prediction_set
+from quadfdi.formats.predictions import add_entries, check_prediction_set
 from quadfdi.train.predsets import index_entry, relative_prediction_path
 
 

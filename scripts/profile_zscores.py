@@ -4,7 +4,7 @@
 
 For each log (ingested on the fly, as `quadfdi detect` does), the mean of each profile channel over
 its decided samples (after the hover freeze, every channel backed) against the training split of
-DATASET (the same profile applied by train.profile_data, samples after each flight's freeze): z over
+DATASET (the same profile applied by models.inputs, samples after each flight's freeze): z over
 all training flights and over the healthy ones, and the ratio of the log's within-flight standard
 deviation to the healthy flights' median within-flight standard deviation. Prints a markdown table.
 """
@@ -16,8 +16,8 @@ import sys
 import numpy as np
 
 from quadfdi.detect.inputs import flight_inputs, read_flight
-from quadfdi.sim.dataset import load_dataset
-from quadfdi.train.profile_data import profiled_dataset
+from quadfdi.formats.dataset import load_dataset
+from quadfdi.models.inputs import profiled_dataset
 
 
 def train_samples(dataset: str, profile: str) -> tuple[list[str], np.ndarray, np.ndarray, np.ndarray]:

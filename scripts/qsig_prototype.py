@@ -39,10 +39,10 @@ from onnx import numpy_helper as nh
 
 from quadfdi.export.calibrate import select_windows
 from quadfdi.export.graph import MS_DOMAIN
-from quadfdi.export.ort_session import optimized_nodes, session
+from quadfdi.runtimes.ort import optimized_nodes, session
 from quadfdi.export.verify import int8_vs_fp32, ort_outputs
 from scripts.qgemm_prototype import splice, v_int32
-from quadfdi.sim.dataset import load_dataset, make_windows
+from quadfdi.formats.dataset import load_dataset, make_windows
 
 
 def stages(g: onnx.GraphProto) -> tuple[list[dict], onnx.NodeProto, onnx.NodeProto]:

@@ -18,7 +18,7 @@ import sys
 
 import numpy as np
 
-from quadfdi.ingest.flight import sha256
+from quadfdi.core.jobcache import file_sha256 as sha256
 
 LAST_S = 8.0
 

@@ -24,10 +24,10 @@ from pathlib import Path
 import numpy as np
 
 from quadfdi.core.contracts import FP32_CPP_REL_TOL
-from quadfdi.detect.streamfile import record_of
+from quadfdi.formats.stream import record_of
 from quadfdi.detect.streamref import read_lines
-from quadfdi.parity.build import FW_ROOT, HOST_BUILD, MCU_CPUS, _configure_and_build, build_host
-from quadfdi.parity.mcu import CLOCK_MHZ, qemu_command
+from quadfdi.runtimes.build import FW_ROOT, HOST_BUILD, MCU_CPUS, _configure_and_build, build_host
+from quadfdi.runtimes.mcu import CLOCK_MHZ, qemu_command
 
 
 def parse(text: str, k: int) -> tuple[dict, dict]:

@@ -5,7 +5,7 @@ the Python window path, and time every push (docs/firmware.md "Streaming"): a me
 
 MODELS: comma-separated, default every model the export has (cnode,gru[,sgru]).
 
-For PER_CLASS (default 2) test flights of each class: the stream file (detect/streamfile.py), the
+For PER_CLASS (default 2) test flights of each class: the stream file (formats/stream.py), the
 window path's windows (detect/streamref.py), ONNX Runtime's and fwref_infer's logits on them, and
 fwref_stream's line per stride with --timings. Checks (AssertionError otherwise): the same status at
 every stride, logits bit-identical to fwref_infer, fp32 within FP32_CPP_REL_TOL of ORT; counts int8
@@ -28,17 +28,17 @@ from pathlib import Path
 
 import numpy as np
 
-import quadfdi.sim.dataset as sim_dataset
+import quadfdi.formats.dataset as sim_dataset
 from quadfdi.core.alarm import run_alarm
-from quadfdi.export.onboard_record import policy_of
+from quadfdi.formats.onboard import policy_of
 from quadfdi.core.contracts import FP32_CPP_REL_TOL
 from quadfdi.detect.run import softmax
 from quadfdi.bench.stream_latency import split_timings
 from quadfdi.detect.runtimes import cpp_logits, ort_logits
-from quadfdi.detect.streamfile import from_dataset, read_stream, record_of, write_stream
+from quadfdi.formats.stream import from_dataset, read_stream, record_of, write_stream
 from quadfdi.detect.streamref import read_lines, sgru_logits, stepped_of, windows_of
-from quadfdi.export.manifest import load_manifest
-from quadfdi.parity.build import HOST_BUILD, build_host
+from quadfdi.formats.manifest import load_manifest
+from quadfdi.runtimes.build import HOST_BUILD, build_host
 
 
 def _stream(export: Path, path: Path, net: str, prec: str, tmp: Path, k: int) -> tuple[dict, np.ndarray]:

@@ -3,10 +3,10 @@
 import sys, time
 import numpy as np, torch
 from quadfdi.core.config import replace_section
-from quadfdi.sim.dataset import load_dataset, class_names, make_windows
+from quadfdi.formats.dataset import load_dataset, class_names, make_windows
 from quadfdi.train.data import capped_train_windows, class_weights, fit_normalisation
 from quadfdi.train.loop import train_model, predict_proba
-from quadfdi.train.models import build_model
+from quadfdi.models.networks import build_model
 
 ds = load_dataset(sys.argv[1]); n = int(sys.argv[2]); kinds = sys.argv[3].split(",") if len(sys.argv) > 3 else ["cnode", "gru"]
 cfg = ds.config

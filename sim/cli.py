@@ -68,7 +68,7 @@ def default_plot_rows(ds) -> list[int]:
 
 
 def run_plot(args: argparse.Namespace) -> int:
-    from quadfdi.sim.dataset import load_dataset
+    from quadfdi.formats.dataset import load_dataset
     from quadfdi.sim.plot import plot_trajectory
 
     run, cfg = open_run(args.run, need=("dataset",))
@@ -103,7 +103,7 @@ def plots_into(run: RunDir, cfg: Config, traj: list[int] | None = None) -> list[
     """Draw trajectories of the published dataset as the ``plots`` stage (figures/sim_traj<i>.png);
     the figures of an earlier ``sim plot`` of the same dataset are kept."""
     from quadfdi.core.stage import stage
-    from quadfdi.sim.dataset import load_dataset
+    from quadfdi.formats.dataset import load_dataset
     from quadfdi.sim.plot import plot_trajectory
 
     with stage(run.root, "plots", {"sim": cfg.to_dict()["sim"]}) as st:

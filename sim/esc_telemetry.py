@@ -1,7 +1,7 @@
 """ESC telemetry of the realistic suite: per-motor RPM and current as the ESCs report them (PX4
 ``esc_status.esc[i].esc_rpm`` / ``esc_current``, ArduPilot ``ESC.RPM`` / ``ESC.Curr``), logged at the
 ESC telemetry rate and resampled onto the grid by the same path as every other channel
-(sim.telemetry.to_grid -> ingest.resample).
+(sim.telemetry.to_grid -> core.resample).
 
 From the 50 Hz record (docs/params.md "ESC telemetry"):
 

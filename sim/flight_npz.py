@@ -23,10 +23,10 @@ from pathlib import Path
 import numpy as np
 
 from quadfdi.core.errors import QuadfdiError
-from quadfdi.ingest import resample
-from quadfdi.ingest.flight import FORMAT_VERSION, write_flight
-from quadfdi.ingest.model import CHANNEL_NAMES, CHANNEL_UNITS
-from quadfdi.sim.dataset import load_dataset
+from quadfdi.core import resample
+from quadfdi.formats.flight import FORMAT_VERSION, write_flight
+from quadfdi.core.channels import CHANNEL_NAMES, CHANNEL_UNITS
+from quadfdi.formats.dataset import load_dataset
 
 ALIAS = {"vib_acc": "vib_px4"}  # flight.npz name -> dataset name
 

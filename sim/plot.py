@@ -77,7 +77,7 @@ def plot_trajectory(ds, row: int, out: str | Path) -> Path:
     extra = f", motor {motor + 1}" if motor >= 0 else ""
     det_txt = f", detectable {det:.2f} s" if np.isfinite(det) else ""
     on_txt = f", onset {onset:.2f} s" if cls else ""
-    from quadfdi.sim.dataset import class_names
+    from quadfdi.formats.dataset import class_names
 
     fig.suptitle(f"trajectory {row}: {class_names(ds.arrays)[cls]}{extra}{on_txt}{det_txt} (dotted: onset, dashed: detectable)")
     fig.tight_layout()

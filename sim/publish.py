@@ -23,7 +23,7 @@ def publish_dataset(run: RunDir, cfg: Config, show_progress: bool = True, settin
     from quadfdi.core.atomic import write_text
     from quadfdi.core.config import dumps_toml
     from quadfdi.core.stage import stage
-    from quadfdi.sim.dataset import dataset_arrays, write_npz
+    from quadfdi.formats.dataset import dataset_arrays, write_npz
     from quadfdi.sim.params import get_vehicle
 
     get_vehicle(cfg.sim.vehicle)  # an unknown vehicle is refused before anything is staged

@@ -14,7 +14,7 @@ def report_section(run_root: Path) -> list[str]:
     """Trajectories and windows per split and class, and the trajectory figures."""
     import numpy as np
 
-    from quadfdi.sim.dataset import class_names, load_dataset, split_names, window_starts
+    from quadfdi.formats.dataset import class_names, load_dataset, split_names, window_starts
 
     root = Path(run_root)
     path = root / "dataset.npz"

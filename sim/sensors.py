@@ -15,16 +15,11 @@ from __future__ import annotations
 
 import numpy as np
 
+from quadfdi.core.channels import SIM_CHANNEL_NAMES, SIM_CHANNEL_UNITS
 from quadfdi.sim.params import VehicleParams
 
-CHANNEL_NAMES = (
-    "x", "y", "z", "vx", "vy", "vz", "roll", "pitch", "yaw", "p", "q", "r",
-    "V_b", "I_b", "SoC", "T1", "T2", "T3", "T4", "thr1", "thr2", "thr3", "thr4",
-)
-CHANNEL_UNITS = (
-    "m", "m", "m", "m/s", "m/s", "m/s", "rad", "rad", "rad", "rad/s", "rad/s", "rad/s",
-    "V", "A", "-", "degC", "degC", "degC", "degC", "-", "-", "-", "-",
-)
+CHANNEL_NAMES = SIM_CHANNEL_NAMES
+CHANNEL_UNITS = SIM_CHANNEL_UNITS
 N_CHANNELS = len(CHANNEL_NAMES)  # 23
 
 # True augmented state per sample (Eq. 1 plus the algebraic bus current I_b).

@@ -7,7 +7,7 @@ rate (sim.realistic_params.LOG_HZ): position and velocity of the estimate (vehic
 (esc_status, 5 Hz), motor outputs u (actuator_outputs, 10 Hz), vib_px4 (vehicle_imu_status, 1 Hz),
 vib_ap (ArduPilot VIBE, 10 Hz). A log sample at rate r is the record sample nearest k / r (the
 logger writes the latest message: up to 10 ms of timestamp jitter at 20 Hz, as in real logs).
-Every channel then goes through ``ingest.resample.resample`` onto the 25 Hz grid, the function
+Every channel then goes through ``core.resample.resample`` onto the 25 Hz grid, the function
 real PX4/ArduPilot logs go through (anti-alias low-pass for channels above 25 Hz, linear
 interpolation otherwise), so simulated and real flights reach the models the same way.
 
@@ -22,8 +22,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.signal import lfilter
 
-from quadfdi.ingest.frames import wrap
-from quadfdi.ingest.resample import resample
+from quadfdi.core.frames import wrap
+from quadfdi.core.resample import resample
 from quadfdi.sim import battery, propeller, sensors
 from quadfdi.sim import realistic_params as P
 

@@ -12,7 +12,7 @@ One job per module:
   ``runs/<name>/figures/``);
 - ``run``: ``study_run``, ``matrix_run``, ``render`` (typed settings, never argv); ``cli``: the command.
 
-The model variants it solves (step-average control, knot restarts) are training's: ``train.variants``.
+The model variants it solves (step-average control, knot restarts) are training's: ``models.variants``.
 This package imports ``core``, ``sim`` and ``train``; no stage imports it except through
 ``solverstudy.report`` (bench and the app layer read its JSON).
 """

@@ -28,7 +28,7 @@ from quadfdi.core.executor import ExecSettings, Job, failures, run_jobs, session
 from quadfdi.core.errors import QuadfdiError
 from quadfdi.core.jobcache import cache_path, job_key, read_result
 from quadfdi.core.rundir import RunDir
-from quadfdi.train.threads import torch_threads
+from quadfdi.models.threads import torch_threads
 
 PACKAGES = ("sim", "train", "solverstudy")
 
@@ -38,7 +38,7 @@ def _n_threads(cfg: Config) -> int:
 
 
 def _data(dataset: str, cfg: Config):
-    from quadfdi.sim.dataset import load_dataset
+    from quadfdi.formats.dataset import load_dataset
     from quadfdi.train.data import split_windows
 
     ds = load_dataset(dataset)
@@ -48,7 +48,7 @@ def _data(dataset: str, cfg: Config):
 def train_matrix_model(dataset: str, cfg: Config, spec) -> bytes:
     """Level 1 (a job): train ``spec``'s CNODE; its checkpoint's bytes, with ``matrix_info``."""
     from quadfdi.solverstudy.matrix import matrix_epochs, subsample, train_variant
-    from quadfdi.train.checkpoint import save_checkpoint
+    from quadfdi.models.checkpoint import save_checkpoint
 
     ds, splits = _data(dataset, cfg)
     train = subsample(splits.train, cfg.solvers.matrix_max_train_windows, cfg.train.seed)
@@ -63,7 +63,7 @@ def train_matrix_model(dataset: str, cfg: Config, spec) -> bytes:
 def reference_logits(dataset: str, cfg: Config, model_path: str, ref) -> dict:
     """Level 2 (a job): the model's reference logits on the whole test split."""
     from quadfdi.solverstudy.study import solve_batched
-    from quadfdi.train.checkpoint import load_checkpoint
+    from quadfdi.models.checkpoint import load_checkpoint
 
     _, splits = _data(dataset, cfg)
     model, _ = load_checkpoint(model_path, "cnode")
@@ -75,7 +75,7 @@ def reference_logits(dataset: str, cfg: Config, model_path: str, ref) -> dict:
 def deploy_cell(dataset: str, cfg: Config, model_path: str, ref_path: str, deploy) -> dict:
     """Level 3 (a job): one cell, the model deployed with ``deploy`` against its reference."""
     from quadfdi.solverstudy.study import compare, solve_batched
-    from quadfdi.train.checkpoint import load_checkpoint
+    from quadfdi.models.checkpoint import load_checkpoint
 
     _, splits = _data(dataset, cfg)
     model, blob = load_checkpoint(model_path, "cnode")
@@ -149,7 +149,7 @@ def matrix_jobs_run(run: RunDir, cfg: Config, specs: list, deploys: list, settin
 
 
 def _assemble(cfg, specs, deploys, train, cells, epochs, seconds) -> tuple[dict, dict[str, Path]]:
-    from quadfdi.train.checkpoint import load_checkpoint
+    from quadfdi.models.checkpoint import load_checkpoint
 
     infos = [load_checkpoint(j.out, "cnode")[1]["matrix_info"] for j in train]
     sc = cfg.solvers

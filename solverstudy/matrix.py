@@ -8,7 +8,7 @@ same initial weights and the same batches, differing only in the training solver
   larger than a critical size stops being a proper ODE model -- it breaks when solved another
   way. The matrix shows whether ours do: each model is deployed with each solver and against
   its own float64 reference (dopri5, rtol 1e-9, restarted at every knot).
-- ``rk4`` at N with the step-average control (``train.variants.AverageControlCNODE``), where
+- ``rk4`` at N with the step-average control (``models.variants.AverageControlCNODE``), where
   even a coarse grid sees every sample. That changes the model, so it is trained that way and
   compared with the point-sampled model trained at the same N, at equal evaluations (4N).
 
@@ -32,12 +32,12 @@ import torch
 
 from quadfdi.core.config import Config, SolversConfig, replace_section
 from quadfdi.core.errors import QuadfdiError
-from quadfdi.sim.dataset import Windows
+from quadfdi.formats.dataset import Windows
 from quadfdi.solverstudy.settings import Setting, parse_settings, reference_setting
 from quadfdi.solverstudy.study import compare, solve_batched, with_setting
 from quadfdi.train.data import class_weights, fit_normalisation, split_windows
 from quadfdi.train.loop import train_model
-from quadfdi.train.models import CNODE, build_model
+from quadfdi.models.networks import CNODE, build_model
 
 BREAK_TOL = SolversConfig.break_tol  # a model "breaks" when the reference's macro F1 is this far below its own solver's
 

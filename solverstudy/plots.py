@@ -20,7 +20,7 @@ import numpy as np
 
 from quadfdi.core.plotting import pyplot as _plt
 from quadfdi.core.plotting import save_png as _save
-from quadfdi.solverstudy.files import MATRIX_FIGURES, STUDY_FIGURES
+from quadfdi.formats.solver_files import MATRIX_FIGURES, STUDY_FIGURES
 
 MARKERS = {"euler": "o", "midpoint": "s", "rk4": "^", "dopri5": "D", "bosh3": "v"}
 COLORS = {"euler": "tab:blue", "midpoint": "tab:orange", "rk4": "tab:green", "dopri5": "tab:red", "bosh3": "tab:purple"}

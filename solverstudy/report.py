@@ -13,11 +13,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from quadfdi.core.errors import QuadfdiError
-from quadfdi.core.jsonio import read_json
 from quadfdi.core.reportmd import not_run
 from quadfdi.core.tables import md_table
-from quadfdi.solverstudy.files import SolverFiles
+from quadfdi.formats.solver_files import SolverFiles, read_outputs
 from quadfdi.solverstudy.settings import F1_TOL
 
 
@@ -274,23 +272,6 @@ def matrix_markdown(matrix: dict, command: str | None = None, figures: str = "..
 
 
 # ----------------------------------------------------------------- what other stages read
-
-
-def read_outputs(run_root: str | Path) -> tuple[dict | None, dict | None]:
-    """The study's and the matrix's JSON of ``run_root`` (None for a file that is not there)."""
-    files = SolverFiles(Path(run_root))
-    return tuple(read_json(p, "solver file") if p.is_file() else None  # type: ignore[return-value]
-                 for p in (files.study_json, files.matrix_json))
-
-
-def load_records(run_root: str | Path) -> list[dict]:
-    """The study's records (``solvers/solvers.json``'s ``solvers`` list; [] when it has not run)."""
-    study, _ = read_outputs(run_root)
-    if study is None:
-        return []
-    if not isinstance(study.get("solvers"), list):
-        raise QuadfdiError(f"{SolverFiles(Path(run_root)).study_json} holds no list of solver records")
-    return study["solvers"]
 
 
 def report_section(run_root: str | Path) -> list[str]:

@@ -29,19 +29,20 @@ from quadfdi.core.config import Config
 from quadfdi.core.errors import QuadfdiError
 from quadfdi.core.jsonio import write_json
 from quadfdi.core.rundir import RunDir
-from quadfdi.solverstudy.files import SolverFiles
+from quadfdi.formats.solver_files import SolverFiles
 from quadfdi.core.stage import stage
-from quadfdi.train.threads import torch_threads
+from quadfdi.models.threads import torch_threads
 from quadfdi.solverstudy.matching import matched_tables
-from quadfdi.solverstudy.report import study_headline, matrix_markdown, ott_sentence, read_outputs, study_markdown
+from quadfdi.formats.solver_files import read_outputs
+from quadfdi.solverstudy.report import study_headline, matrix_markdown, ott_sentence, study_markdown
 
 Log = Callable[[str], None]
 
 
 def _test_windows(run: RunDir, cfg: Config, model_blob: dict | None = None):
-    from quadfdi.sim.dataset import load_dataset, make_windows
-    from quadfdi.train.checkpoint import check_dataset_matches
-    from quadfdi.train.models import check_windows
+    from quadfdi.formats.dataset import load_dataset, make_windows
+    from quadfdi.models.checkpoint import check_dataset_matches
+    from quadfdi.models.networks import check_windows
 
     if not run.dataset.is_file():
         raise QuadfdiError(f"{run.dataset} is missing: run `quadfdi sim --out {run.root}` first")
@@ -59,7 +60,7 @@ def _test_windows(run: RunDir, cfg: Config, model_blob: dict | None = None):
 
 
 def _trained_with(blob: dict) -> str:
-    from quadfdi.train.solvers import FIXED_METHODS
+    from quadfdi.models.solvers import FIXED_METHODS
 
     solver = blob.get("solver", {})
     if solver.get("method") in FIXED_METHODS:
@@ -72,7 +73,7 @@ def study_run(run: RunDir, cfg: Config, log: Log = print, checkpoint: str | Path
     """The fixed-vs-adaptive study of the run's CNODE (or ``checkpoint``); returns solvers.json's dict."""
     from quadfdi.solverstudy.plots import draw_study
     from quadfdi.solverstudy.study import run_study
-    from quadfdi.train.checkpoint import load_checkpoint
+    from quadfdi.models.checkpoint import load_checkpoint
 
     sections = cfg.to_dict()
     with stage(run.root, "solvers", {"sim": sections["sim"], "solvers": sections["solvers"]},
@@ -112,7 +113,7 @@ def _slug(label: str) -> str:
 
 def _reused(files: SolverFiles, specs: list, fingerprint: dict, log: Log) -> dict:
     """Matrix models saved earlier with the same label and fingerprint: {label: (model, info)}."""
-    from quadfdi.train.checkpoint import load_checkpoint
+    from quadfdi.models.checkpoint import load_checkpoint
 
     models = {}
     for spec in specs:
@@ -135,7 +136,7 @@ def matrix_run(run: RunDir, cfg: Config, log: Log = print, reuse: bool = False, 
     with ``reuse``, models kept from an earlier matrix of the same data and settings are not retrained.
     With ``settings`` (a ``core.executor.ExecSettings``), the matrix runs as jobs on that executor
     (``solverstudy.jobs``: one per model, reference and cell), cached in ``<run>/cache/matrix-*/``."""
-    from quadfdi.sim.dataset import load_dataset
+    from quadfdi.formats.dataset import load_dataset
     from quadfdi.solverstudy.matrix import matrix_plan
 
     specs, deploys = matrix_plan(cfg)
@@ -156,7 +157,7 @@ def _matrix_into(run: RunDir, cfg: Config, ds, staged: SolverFiles, specs, deplo
                  command: str | None) -> dict:
     from quadfdi.solverstudy.matrix import run_matrix
     from quadfdi.solverstudy.plots import draw_matrix
-    from quadfdi.train.checkpoint import save_checkpoint
+    from quadfdi.models.checkpoint import save_checkpoint
 
     files = SolverFiles(run.root)
     fingerprint = _fingerprint(run, cfg)
@@ -196,7 +197,7 @@ def _matrix_on_executor(run: RunDir, cfg: Config, files: SolverFiles, specs, dep
     """The matrix as jobs on ``settings``' executor; ``files``: the stage's staging folder."""
     from quadfdi.solverstudy.jobs import matrix_jobs_run
     from quadfdi.solverstudy.plots import draw_matrix
-    from quadfdi.train.checkpoint import load_checkpoint, save_checkpoint
+    from quadfdi.models.checkpoint import load_checkpoint, save_checkpoint
 
     matrix, models = matrix_jobs_run(run, cfg, specs, deploys, settings, log)
     fingerprint = _fingerprint(run, cfg)

@@ -14,9 +14,9 @@ from typing import Sequence
 
 from quadfdi.core.config import Config, SolversConfig, replace_section
 from quadfdi.core.errors import QuadfdiError
-from quadfdi.train.solvers import ADAPTIVE_METHODS, FIXED_METHODS, SolverSpec, fixed_method
+from quadfdi.models.solvers import ADAPTIVE_METHODS, FIXED_METHODS, SolverSpec, fixed_method
 
-CONTROLS = ("point", "average")  # as train.variants.CNODE_CLASSES (no torch import here)
+CONTROLS = ("point", "average")  # as models.variants.CNODE_CLASSES (no torch import here)
 JUMP = {"both": (True, False), "on": (True,), "off": (False,)}  # solvers.jump -> jump_t values
 ATOL_RATIO = 0.1  # atol = rtol * ATOL_RATIO for the study's adaptive settings
 REF_RTOL = SolversConfig.ref_rtol
@@ -33,9 +33,9 @@ class Setting:
 
     ``steps`` applies to fixed methods, ``rtol``/``atol``/``jump_t`` to adaptive ones (None
     otherwise). ``control`` is "point" (u at the stage times, the trained CNODE's own form) or
-    "average" (each fixed step sees the mean of u over the step, ``train.variants.AverageControlCNODE``).
+    "average" (each fixed step sees the mean of u over the step, ``models.variants.AverageControlCNODE``).
     ``restart`` (adaptive only): a fresh ``odeint`` on each segment between two knots instead of
-    one solve told the knots through ``jump_t`` (``train.variants.KnotRestartCNODE``); exact knot handling that
+    one solve told the knots through ``jump_t`` (``models.variants.KnotRestartCNODE``); exact knot handling that
     does not rely on torchdiffeq's ``jump_t`` bookkeeping (see ``KnotRestartCNODE`` for why).
     ``reference`` marks the float64 tight-tolerance solve everything is compared to.
     """

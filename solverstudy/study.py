@@ -3,8 +3,8 @@
 Every solver setting is run on the SAME windows, one window per solve, and compared against a
 float64 dopri5 reference at rtol 1e-9 restarted at every knot of the path:
 
-- fixed steps (our ``train.solvers``: euler, midpoint, classic rk4) at N steps over [0, 1], with
-  the point control (the model's own) and the step-average one (``train.variants``);
+- fixed steps (our ``models.solvers``: euler, midpoint, classic rk4) at N steps over [0, 1], with
+  the point control (the model's own) and the step-average one (``models.variants``);
 - adaptive torchdiffeq solvers (dopri5, bosh3) at several rtol (atol = rtol / 10), with and
   without the knots as ``jump_t``.
 
@@ -32,8 +32,8 @@ from sklearn.metrics import f1_score
 from quadfdi.core.config import SolversConfig
 from quadfdi.solverstudy.matching import matched_tables
 from quadfdi.solverstudy.settings import ATOL_RATIO, LABELS, Setting, default_settings, reference_setting
-from quadfdi.train.models import CNODE
-from quadfdi.train.variants import rebuild
+from quadfdi.models.networks import CNODE
+from quadfdi.models.variants import rebuild
 
 
 def with_setting(model: CNODE, setting: Setting) -> CNODE:

@@ -39,7 +39,7 @@ def publish_checkpoints(run: Path, models: dict, channel_names: list[str], confi
     would: the export and parity stages read only published checkpoints."""
     from quadfdi.core.config import load_config
     from quadfdi.core.stage import stage
-    from quadfdi.train.checkpoint import save_checkpoint
+    from quadfdi.models.checkpoint import save_checkpoint
 
     sim = load_config(run / "config.toml").to_dict()["sim"]
     with stage(run, "train", {"sim": sim}) as st:
@@ -54,9 +54,9 @@ def random_weight_run(src: Path, out: Path, kinds: tuple[str, ...] = ("cnode", "
     without the cost of training."""
     import torch
 
-    from quadfdi.sim.dataset import load_dataset
+    from quadfdi.formats.dataset import load_dataset
     from quadfdi.train.data import fit_normalisation
-    from quadfdi.train.models import CNODE, GRUClassifier
+    from quadfdi.models.networks import CNODE, GRUClassifier
 
     copy_run(src, out)
     ds = load_dataset(out / "dataset.npz")

@@ -20,7 +20,7 @@ from tests.conftest import ROOT
 # keyed by their inputs, reused across runs; a shard there is never read as an output of a stage).
 HIDDEN = (".lock", ".staging", ".publish", "cache")
 # Visible files no stage record lists, by design: the prediction index, which several stages (train,
-# the study, the baselines) add entries to after their publish (core.predindex). It is snapshotted
+# the study, the baselines) add entries to after their publish (formats.predictions). It is snapshotted
 # like any file; only the "every file belongs to a record" check leaves it out.
 UNRECORDED = ("predictions/index.json",)
 TINY_SIM = ["--set", "sim.n_traj=4", "--set", "sim.duration_s=8.0", "--set", "sim.onset_frac=[0.1, 0.3]",

@@ -65,8 +65,8 @@ def test_record_table_round_trip_and_an_old_record():
     """alarm.models survives pack/unpack with a threshold float32 cannot hold; a record without it
     (written before it) reads every network as the single policy; a bad row is refused in one line."""
     from quadfdi.core.profiles import channel_names
-    from quadfdi.export.binfmt import Section, pack, unpack
-    from quadfdi.export.onboard_record import check_onboard, onboard_dict, onboard_section, policy_of
+    from quadfdi.formats.binfmt import Section, pack, unpack
+    from quadfdi.formats.onboard import check_onboard, onboard_dict, onboard_section, policy_of
 
     default = {"threshold": 0.5, "k": 2, "n": 3, "clear_m": 3, "latch": False}
     per = {"cnode": {**default, "threshold": 0.1 + 0.2}, "sgru": {**default, "k": 5, "n": 8, "latch": True}}
@@ -91,8 +91,8 @@ def test_record_table_round_trip_and_an_old_record():
 def test_export_writes_each_networks_policy_and_cpp_reads_it(flightlog_export, host_build):  # noqa: F811
     """The session's export: manifest alarm_per_model (source "config"), the record's table, and
     fwref_stream --info --model picking each network's policy (the GRU's is not the CNODE's)."""
-    from quadfdi.detect.streamfile import record_of
-    from quadfdi.export.onboard_record import policy_of
+    from quadfdi.formats.stream import record_of
+    from quadfdi.formats.onboard import policy_of
 
     m, rec = _manifest(flightlog_export), record_of(flightlog_export)
     per = m["alarm_per_model"]
@@ -109,8 +109,8 @@ def test_export_writes_each_networks_policy_and_cpp_reads_it(flightlog_export, h
 
 def _strip_table(export: Path, dst: Path) -> Path:
     """export's weights.bin without alarm.models: a record written before the table."""
-    from quadfdi.export.binfmt import Section, pack, read_file
-    from quadfdi.export.weights_layout import MAGIC, VERSION
+    from quadfdi.formats.binfmt import Section, pack, read_file
+    from quadfdi.formats.weights_layout import MAGIC, VERSION
 
     _, sections = read_file(export / "weights.bin", MAGIC, VERSION, "weights file")
     rec = sections[-1]
@@ -121,7 +121,7 @@ def _strip_table(export: Path, dst: Path) -> Path:
 
 
 def test_cpp_reads_an_old_record_as_one_policy_for_every_model(flightlog_export, host_build, tmp_path):  # noqa: F811
-    from quadfdi.detect.streamfile import record_of
+    from quadfdi.formats.stream import record_of
 
     folder = _strip_table(flightlog_export, tmp_path / "old")
     rec = record_of(folder)
@@ -188,9 +188,9 @@ def test_alarm_from_evaluation_writes_the_chosen_policies(chosen_export):
     """Each network's validation-chosen policy in the manifest (with evaluation.json's sha256) and in
     weights.bin's table; the default ``alarm`` stays the config's; detect runs each network's own."""
     from quadfdi.detect.run import detect
-    from quadfdi.export.onboard_record import onboard_dict
-    from quadfdi.export.weights_bin import read_weights
-    from quadfdi.sim.dataset import load_dataset
+    from quadfdi.formats.onboard import onboard_dict
+    from quadfdi.formats.weights_bin import read_weights
+    from quadfdi.formats.dataset import load_dataset
     from quadfdi.sim.flight_npz import flight_arrays
 
     run, m, sha, cfg = chosen_export

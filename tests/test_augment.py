@@ -10,10 +10,10 @@ import torch
 
 from quadfdi.core.config import Config, load_config
 from quadfdi.core.errors import QuadfdiError
-from quadfdi.sim.dataset import Windows
+from quadfdi.formats.dataset import Windows
 from quadfdi.train.augment import SHARE_CHANNELS, ShareWander, share_columns, share_wander_for
 from quadfdi.train.loop import train_model
-from quadfdi.train.models import build_model
+from quadfdi.models.networks import build_model
 
 NAMES = ["roll", "pitch", "p", "q", "r", "vx_h", "vy_h", "vz", "v_cell", "i_rel", *SHARE_CHANNELS, "vib"]
 

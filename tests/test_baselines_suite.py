@@ -7,9 +7,9 @@ import pytest
 
 from quadfdi.core.config import build_config
 from quadfdi.core.npzio import read_npz, write_npz
-from quadfdi.core.predindex import add_entries, check_prediction_set, read_index
+from quadfdi.formats.predictions import add_entries, check_prediction_set, read_index
 from quadfdi.core.tomlio import dumps_toml
-from quadfdi.sim.dataset import Dataset, dataset_arrays
+from quadfdi.formats.dataset import Dataset, dataset_arrays
 from quadfdi.sim.telemetry import CHANNEL_NAMES
 from tests.conftest import quadfdi
 from quadfdi.train.baselines import GRIDS, MODELS, N_CONFIGS, fit_baselines, train_subsample
@@ -247,7 +247,7 @@ def test_cli_errors_write_nothing(tmp_path):
 
 def _check_suspected_motor(run, entry, arrays):
     """motor_proba is one-hot on the rotor with the highest window-mean command (the physics rule)."""
-    from quadfdi.sim.dataset import load_dataset, make_windows
+    from quadfdi.formats.dataset import load_dataset, make_windows
 
     mp = arrays["motor_proba"]
     assert mp.shape == (len(arrays["proba"]), 4) and np.all(mp.sum(axis=1) == 1.0)

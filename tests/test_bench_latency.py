@@ -12,8 +12,8 @@ import pytest
 
 from quadfdi.bench.floors import attach_distance, cnode_macs, floor_of, floors, targets, weight_traffic
 from quadfdi.bench.latency import plan, rtol_label, sample_windows
-from quadfdi.bench.runtimes.common import percentile, summarise, time_calls
-from quadfdi.bench.runtimes.torch_rt import parse_solver
+from quadfdi.bench.timing.common import percentile, summarise, time_calls
+from quadfdi.bench.timing.pytorch import parse_solver
 from tests.conftest import ROOT
 
 # ----------------------------------------------------------------------------- statistics
@@ -108,7 +108,7 @@ def test_weight_traffic_by_hand():
 
 
 def test_cnode_macs_matches_the_model():
-    from quadfdi.train.models import CNODE as Model, SolverSpec
+    from quadfdi.models.networks import CNODE as Model, SolverSpec
 
     m = Model(3, window=10, latent=4, hidden=5, n_classes=2, solver=SolverSpec("rk4", steps=2))
     assert cnode_macs(CNODE, 8) == m.macs_per_window()
@@ -338,7 +338,7 @@ def test_paired_times_alternate_the_order_and_warm_each_graph():
     """Round r: graph A first when r is even, B first when odd; each turn one untimed call, then
     ``per_round`` timed calls on consecutive inputs; one time per graph and round."""
     from quadfdi.bench.ort_pairs import paired_times
-    from quadfdi.bench.runtimes.common import pair_summary
+    from quadfdi.bench.timing.common import pair_summary
 
     log = []
     calls = (lambda x: log.append(("A", x)), lambda x: log.append(("B", x)))

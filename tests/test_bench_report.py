@@ -85,7 +85,7 @@ def test_bench_json_holds_every_field(benched):
     assert all(r.get("spinning") is False for r in recs if r["runtime"] == "ort")
     assert all(r.get("spinning") is None for r in recs if r["runtime"] != "ort")
     from quadfdi.bench.latency import Counts
-    from quadfdi.bench.runtimes.cpp_rt import CPP_PROCESSES  # the C++ timings pool several processes (its module doc)
+    from quadfdi.bench.timing.cpp import CPP_PROCESSES  # the C++ timings pool several processes (its module doc)
     from quadfdi.core.config import BenchConfig
     quick = Counts.of(BenchConfig(), quick=True)
     assert all(r["n_calls"] == CPP_PROCESSES * (quick.n if r["batch"] == 1 else quick.batches)

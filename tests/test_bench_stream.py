@@ -13,8 +13,8 @@ import pytest
 from quadfdi.bench.report_stream import stream_report
 from quadfdi.bench.stream import pick_flights, stream_section
 from quadfdi.bench.stream_memory import limit_macros
-from quadfdi.detect.streamfile import record_of
-from quadfdi.sim.dataset import load_dataset
+from quadfdi.formats.stream import record_of
+from quadfdi.formats.dataset import load_dataset
 from tests.test_firmware_fixtures import host_build  # noqa: F401 (fixture)
 
 

@@ -126,7 +126,7 @@ def test_parity_checks_the_motor_head(export, host_build):  # noqa: F811
     assert m["motor_head"]["models"] == ["cnode", "gru"] and m["models"]["gru"]["n_motors"] == 4
     assert [o["name"] for o in m["io"]["outputs"]] == ["logits", "proba", "motor_logits"]
     assert m["verification"]["cnode_motor_fp32_vs_pytorch"]["passed"]
-    from quadfdi.export.weights_bin import read_weights
+    from quadfdi.formats.weights_bin import read_weights
 
     wf = read_weights(export / "weights.bin")
     assert [(s.model, s.precision) for s in wf.sections][4:8] == [  # then the on-board record

@@ -21,7 +21,7 @@ from quadfdi.core.config import load_config
 from quadfdi.core.executor import ATTEMPTS, ExecSettings, Job, run_jobs
 from quadfdi.core.jobcache import cache_path, job_key
 from quadfdi.core.rundir import create_run
-from quadfdi.sim.dataset import dataset_arrays, write_npz
+from quadfdi.formats.dataset import dataset_arrays, write_npz
 from quadfdi.sim.publish import generate_sharded
 from quadfdi.sim.shards import KIND, shard_jobs
 from quadfdi.sim.simulate import generate

@@ -1,5 +1,5 @@
 """flightlog-esc (core/profiles.py): its values, the dataset path through the realistic suite's
-``esc_telemetry`` key (train/profile_data.py), the inputs of the other profiles unchanged by that key,
+``esc_telemetry`` key (models/inputs.py), the inputs of the other profiles unchanged by that key,
 and its C++ mirror (firmware_ref/include/fwref/profile.hpp) bit for bit."""
 
 from __future__ import annotations
@@ -12,9 +12,9 @@ import pytest
 
 from quadfdi.core.config import load_config
 from quadfdi.core.profiles import ESC_RAW, apply_profile, channel_names, required_raw
-from quadfdi.sim.dataset import Dataset
+from quadfdi.formats.dataset import Dataset
 from tests.conftest import ROOT
-from quadfdi.train.profile_data import profiled_dataset
+from quadfdi.models.inputs import profiled_dataset
 
 RAW = ["x", "y", "z", "vx", "vy", "vz", "roll", "pitch", "yaw", "p", "q", "r", "V_b", "I_b", "SoC",
        "T1", "T2", "T3", "T4", "thr1", "thr2", "thr3", "thr4", "vib_px4", "vib_ap"]

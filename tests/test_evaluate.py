@@ -16,8 +16,8 @@ from sklearn.preprocessing import StandardScaler
 
 from quadfdi.core.config import dumps_toml, load_config
 from quadfdi.core.npzio import write_npz
-from quadfdi.core.predindex import add_entries, prediction_path
-from quadfdi.sim.dataset import dataset_arrays, load_dataset, make_windows, split_names
+from quadfdi.formats.predictions import add_entries, prediction_path
+from quadfdi.formats.dataset import dataset_arrays, load_dataset, make_windows, split_names
 from quadfdi.sim.simulate import generate
 from tests.conftest import ROOT, quadfdi
 from quadfdi.train.baseline import window_features

@@ -10,10 +10,10 @@ import onnx
 import onnxruntime as ort
 import pytest
 
-from quadfdi.export.manifest import ARTIFACT_KEYS, check_files, load_manifest
-from quadfdi.export.reference_bin import read_reference
-from quadfdi.export.weights_bin import read_weights
-from quadfdi.sim.dataset import load_dataset, make_windows
+from quadfdi.formats.manifest import ARTIFACT_KEYS, check_files, load_manifest
+from quadfdi.formats.reference_bin import read_reference
+from quadfdi.formats.weights_bin import read_weights
+from quadfdi.formats.dataset import load_dataset, make_windows
 from tests.conftest import quadfdi, random_weight_run
 
 def quadfdi_export(*args: str) -> subprocess.CompletedProcess:

@@ -16,10 +16,11 @@ import numpy as np
 import pytest
 import torch
 
-from quadfdi.export.binfmt import Section, pack
-from quadfdi.export.manifest import SCHEMA_VERSION, load_manifest
-from quadfdi.export.reference_bin import read_reference, reference_bytes
-from quadfdi.export.weights_bin import MAGIC, read_weights, write_weights
+from quadfdi.formats.binfmt import Section, pack
+from quadfdi.formats.manifest import SCHEMA_VERSION, load_manifest
+from quadfdi.export.reference_bin import reference_bytes
+from quadfdi.formats.reference_bin import read_reference
+from quadfdi.formats.weights_bin import MAGIC, read_weights, write_weights
 from quadfdi.core.errors import QuadfdiError
 from tests.test_export_graphs import make_tiny, run
 
@@ -89,8 +90,8 @@ def test_truncated_foreign_and_corrupted_weights(weights_file, tmp_path):
 
 
 def test_reader_refuses_files_that_differ_from_the_layout(weights_file, tmp_path):
-    """A well-formed container whose sections or tensors are not export/weights_layout.py's."""
-    from quadfdi.export.weights_layout import SECTION_ORDER
+    """A well-formed container whose sections or tensors are not formats/weights_layout.py's."""
+    from quadfdi.formats.weights_layout import SECTION_ORDER
 
     def variant(edit):
         w = read_weights(weights_file)
@@ -175,7 +176,7 @@ def emulate_cnode_int8(sec, x):
         pre = product(q8(z, s_z[e]), T["lin1_z.weight"], s_z[e], v[:, idx[e]])
         return product(q8(np.tanh(pre), s_hid), T["lin2.weight"], s_hid, a["lin2.bias"])
 
-    for _ in range(len(idx) // 4):  # train.solvers.rk4_step, expression by expression
+    for _ in range(len(idx) // 4):  # models.solvers.rk4_step, expression by expression
         k1 = f(z)
         k2 = f(z + k1 * half)
         k3 = f(z + k2 * half)

@@ -20,8 +20,17 @@ from quadfdi.export.coverage import tensor_shapes
 from quadfdi.export.graph import Built, all_initializers, all_nodes
 from quadfdi.export.onnx_cnode import build_cnode, calibration_probes, cnode_params, quantize_cnode
 from quadfdi.export.onnx_gru import CALIBRATION_PROBES, build_gru_fp32, build_gru_int8, gru_params, quantize_gru
-from quadfdi.export.verify import int8_vs_fp32, ort_outputs, parity, session, torch_logits
-from quadfdi.train.models import CNODE, GRUClassifier, SolverSpec
+from quadfdi.export.verify import int8_vs_fp32, parity
+from quadfdi.runtimes.ort import outputs, session
+from quadfdi.runtimes.pytorch import torch_logits
+
+from quadfdi.models.networks import CNODE, GRUClassifier, SolverSpec
+
+
+def ort_outputs(sess, x):
+    """(logits, proba) of windows ``x``."""
+    return outputs(sess, x, ["logits", "proba"])
+
 
 C, W = 5, 80
 OPSET = 18
@@ -156,7 +165,7 @@ def test_ort_optimized_node_counts(steps):
     evaluation (QuantizeLinear, MatMulIntegerToFloat, Add row of V, Tanh, QuantizeLinear,
     MatMulIntegerToFloat) + the same 9 (7 when N is a power of two); the int8 GRU one Scan whose body
     (12 nodes, run once per step) is not in the graph's own count."""
-    from quadfdi.export.ort_session import optimized_nodes
+    from quadfdi.runtimes.ort import optimized_nodes
 
     t = make_tiny(steps=steps)
     full = {k: optimized_nodes(getattr(t, k).model.SerializeToString())
@@ -276,7 +285,7 @@ def test_cnode_graph_is_the_rk4_program(tiny):
 
 def test_weights_bin_rk4_constants_are_the_graphs(tiny, tmp_path):
     from quadfdi.core.rk4 import RK4_CONSTANT_NAMES
-    from quadfdi.export.weights_bin import read_weights, write_weights
+    from quadfdi.formats.weights_bin import read_weights, write_weights
 
     write_weights(tmp_path / "w.bin", tiny.cp, tiny.cq, tiny.gp, tiny.gq)
     w = read_weights(tmp_path / "w.bin")

@@ -15,7 +15,7 @@ from test_motor_head import _tiny_with_heads
 from quadfdi.export.coverage import coverage
 from quadfdi.export.onnx_gru_unrolled import build_gru_int8_unrolled
 from quadfdi.export.reference_bin import gru_int8_tensors
-from quadfdi.export.verify import session
+from quadfdi.runtimes.ort import session
 
 
 @pytest.fixture(scope="module")
@@ -94,8 +94,8 @@ def test_motor_head_equals_the_unrolled_graph():
 def test_bench_profile_counts_the_body_per_step_and_not_the_scan(tiny, tmp_path):
     """bench's ONNX Runtime profile summary: the body's nodes once per step; the Scan's own event
     (which spans its body) left out, so the kernel shares still sum to one."""
-    from quadfdi.bench.runtimes.ort_rt import summarise_ort_profile
-    from quadfdi.export.ort_session import session as ort_session
+    from quadfdi.bench.timing.ort import summarise_ort_profile
+    from quadfdi.runtimes.ort import session as ort_session
 
     s = ort_session(tiny.gru_int8.model.SerializeToString(), profile_prefix=str(tmp_path / "prof"))
     for _ in range(2):

@@ -12,11 +12,11 @@ import pytest
 import torch
 
 from quadfdi.core.contracts import CLASS_LABELS
-from quadfdi.export.manifest import check_files, load_manifest
-from quadfdi.sim.dataset import load_dataset, make_windows
+from quadfdi.formats.manifest import check_files, load_manifest
+from quadfdi.formats.dataset import load_dataset, make_windows
 from tests.conftest import trained_export_run
-from quadfdi.train.checkpoint import load_checkpoint
-from quadfdi.train.models import SolverSpec
+from quadfdi.models.checkpoint import load_checkpoint
+from quadfdi.models.networks import SolverSpec
 
 # int8 against fp32: at least 90 % of the test windows keep their fp32 class. Quantization moves
 # a logit by a small fraction of the logit range (a few % here), so a window changes class only

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from quadfdi.parity.build import FW_ROOT
+from quadfdi.runtimes.build import FW_ROOT
 from tests.test_firmware_fixtures import fw_run, host_build  # noqa: F401 (fixtures)
 
 
@@ -26,7 +26,7 @@ def one_line(res: subprocess.CompletedProcess, match: str) -> None:
 
 @pytest.fixture(scope="module")
 def files(fw_run, tmp_path_factory) -> dict[str, Path]:
-    from quadfdi.sim.dataset import load_dataset, make_windows
+    from quadfdi.formats.dataset import load_dataset, make_windows
 
     d = tmp_path_factory.mktemp("fwref_out")
     x = make_windows(load_dataset(fw_run / "dataset.npz"), "test").x[:2].astype("<f4")

@@ -14,14 +14,16 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from quadfdi.export.binfmt import pack
-from quadfdi.export.weights_bin import MAGIC, read_weights
-from quadfdi.parity import compare, runners
-from quadfdi.parity.build import FW_ROOT
-from quadfdi.parity.build import mcu_build_dir
-from quadfdi.parity.mcu import qemu_command, run_cpu, tools_missing
+from quadfdi.formats.binfmt import pack
+from quadfdi.formats.weights_bin import MAGIC, read_weights
+from quadfdi.parity import compare
+from quadfdi.runtimes import fwref, ort as ort_rt
+from quadfdi.runtimes.build import FW_ROOT
+from quadfdi.runtimes.build import mcu_build_dir
+from quadfdi.parity.mcu import run_cpu
+from quadfdi.runtimes.mcu import qemu_command, tools_missing
 from quadfdi.core.errors import QuadfdiError
-from quadfdi.sim.dataset import load_dataset, make_windows
+from quadfdi.formats.dataset import load_dataset, make_windows
 from tests.test_firmware_fixtures import asan_build, fw_run, host_build  # noqa: F401 (fixtures)
 
 SANITIZER_MARKERS = ("AddressSanitizer", "runtime error", "LeakSanitizer", "UndefinedBehaviorSanitizer")
@@ -70,7 +72,7 @@ def test_fwref_parity_on_reference_bin(fw_run, host_build):
 
 def test_fwref_parity_fails_loudly_on_another_models_reference(fw_run, host_build, tmp_path):
     """A reference.bin whose numbers are not this model's: NOT OK lines and exit 1 (llm.c style)."""
-    from quadfdi.export.reference_bin import MAGIC as REF_MAGIC, read_reference
+    from quadfdi.formats.reference_bin import MAGIC as REF_MAGIC, read_reference
 
     ref = read_reference(fw_run / "export" / "reference.bin")
     for sec in ref.sections:
@@ -95,12 +97,12 @@ def test_fwref_infer_matches_onnx_runtime_on_the_test_split(fw_run, host_build):
     weights = read_weights(export / "weights.bin")
     art = {"cnode": ("cnode_rk4_8.onnx", "cnode_rk4_8.int8.onnx"), "gru": ("gru.onnx", "gru.int8.onnx")}
     for model, (f32, i8) in art.items():
-        cpp = runners.cpp_logits(host_build, export / "weights.bin", model, False, x)
-        ort = runners.ort_logits(export / f32, x)
+        cpp = fwref.cpp_outputs(export / "weights.bin", model, False, x, build_dir=host_build)[0]
+        ort = ort_rt.outputs(export / f32, x, ["logits"], batch=1)[0]
         m = compare.pair_metrics(cpp, ort)
         assert compare.fp32_target(m)["passed"], (model, m)
-        cpp8 = runners.cpp_logits(host_build, export / "weights.bin", model, True, x)
-        ort8 = runners.ort_logits(export / i8, x)
+        cpp8 = fwref.cpp_outputs(export / "weights.bin", model, True, x, build_dir=host_build)[0]
+        ort8 = ort_rt.outputs(export / i8, x, ["logits"], batch=1)[0]
         m8 = compare.pair_metrics(cpp8, ort8)
         t = compare.int8_target(cpp8, ort8, compare.logit_steps(weights, model), m8)
         assert t["passed"], (model, m8, t)
@@ -112,7 +114,7 @@ def _ort_unary(op: str, x: np.ndarray) -> np.ndarray:
     import onnx
     from onnx import TensorProto, helper
 
-    from quadfdi.export.verify import session
+    from quadfdi.runtimes.ort import session
 
     g = helper.make_graph([helper.make_node(op, ["x"], ["y"])], op,
                           [helper.make_tensor_value_info("x", TensorProto.FLOAT, [None])],
@@ -213,7 +215,7 @@ def _tensor_headers(data: bytes) -> list[tuple[int, tuple[str, bool]]]:
     for start, _ in _sections(data):
         model, precision = struct.unpack_from("<II", data, start + 8)
         if model not in models:
-            continue  # the on-board record (export/onboard_record.py): no model binds it
+            continue  # the on-board record (formats/onboard.py): no model binds it
         pos = start + 52
         for _ in range(struct.unpack_from("<I", data, start + 48)[0]):
             out.append((pos, (models[model], precision == 2)))

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from quadfdi.parity.build import ASAN_BUILD, HOST_BUILD, build_host
+from quadfdi.runtimes.build import ASAN_BUILD, HOST_BUILD, build_host
 from tests.conftest import trained_export_run
 
 _CACHE: dict[str, object] = {}

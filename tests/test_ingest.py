@@ -53,7 +53,7 @@ def ingested(tmp_path_factory) -> dict[str, Path]:
 
 
 def _load(d: Path) -> dict:
-    from quadfdi.ingest.flight import load_flight
+    from quadfdi.formats.flight import load_flight
 
     return load_flight(d / "flight.npz")
 

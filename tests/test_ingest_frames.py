@@ -67,7 +67,7 @@ def test_velocity_matches_position_differences(name):
 
 
 def test_resampler_removes_what_would_alias():
-    from quadfdi.ingest.resample import make_grid, resample
+    from quadfdi.core.resample import make_grid, resample
 
     fs, dur = 250.0, 40.0
     t = np.arange(0, dur, 1 / fs)
@@ -86,7 +86,7 @@ def test_resampler_removes_what_would_alias():
 
 
 def test_resampler_masks_gaps_instead_of_interpolating():
-    from quadfdi.ingest.resample import make_grid, resample
+    from quadfdi.core.resample import make_grid, resample
 
     t = np.concatenate([np.arange(0, 5, 0.1), np.arange(7, 10, 0.1)])
     v = np.sin(t)
@@ -99,7 +99,7 @@ def test_resampler_masks_gaps_instead_of_interpolating():
 
 
 def test_angles_wrap_through_the_resampler():
-    from quadfdi.ingest.resample import make_grid, resample
+    from quadfdi.core.resample import make_grid, resample
 
     t = np.arange(0, 10, 0.01)
     yaw = (np.pi - 0.05 + 0.1 * t + np.pi) % (2 * np.pi) - np.pi  # crosses +-pi at t = 0.5

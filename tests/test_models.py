@@ -17,8 +17,8 @@ import torch
 from torchdiffeq import odeint
 
 from quadfdi.core.config import TrainConfig
-from quadfdi.train.control import LinearPath, interp_matrix
-from quadfdi.train.models import (
+from quadfdi.models.control import LinearPath, interp_matrix
+from quadfdi.models.networks import (
     CNODE,
     MODEL_KINDS,
     STD_FLOOR,
@@ -29,7 +29,7 @@ from quadfdi.train.models import (
     model_from_signature,
     model_signature,
 )
-from quadfdi.train.solvers import stage_times
+from quadfdi.models.solvers import stage_times
 
 C = 23  # channels of the telemetry contract
 W = 80

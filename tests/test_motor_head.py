@@ -1,4 +1,4 @@
-"""The motor head (train.motor, issue 14 point 3): targets and switches, the checkpoint round trip,
+"""The motor head (models.motor, issue 14 point 3): targets and switches, the checkpoint round trip,
 the loss, the exported graphs' second output (fp32 against PyTorch, int8 against fp32), the
 manifest entry, and detect's motor rules. Tiny random models, no training run (cheap)."""
 
@@ -15,13 +15,15 @@ from quadfdi.export.calibrate import WindowReader, collect_ranges
 from quadfdi.export.manifest import motor_entry
 from quadfdi.export.onnx_cnode import build_cnode, calibration_probes, cnode_params, quantize_cnode
 from quadfdi.export.onnx_gru import CALIBRATION_PROBES, build_gru_fp32, build_gru_int8, gru_params, quantize_gru
-from quadfdi.export.verify import motor_verification, ort_motor_logits, parity, session, torch_logits
+from quadfdi.export.verify import motor_verification, parity
+from quadfdi.runtimes.ort import outputs, session
+from quadfdi.runtimes.pytorch import torch_logits
 from tests.test_export_graphs import C, OPSET, W, synthetic_windows
-from quadfdi.train.checkpoint import load_checkpoint, save_checkpoint
+from quadfdi.models.checkpoint import load_checkpoint, save_checkpoint
 from quadfdi.train.loop import train_model
-from quadfdi.train.models import CNODE, GRUClassifier, SolverSpec, build_model, model_signature
-from quadfdi.train.threads import torch_threads
-from quadfdi.train.motor import (ROTOR_SIDE_CLASSES, attach_motor_head, motor_loss, motor_targets, predict_motor_proba,
+from quadfdi.models.networks import CNODE, GRUClassifier, SolverSpec, build_model, model_signature
+from quadfdi.models.threads import torch_threads
+from quadfdi.models.motor import (ROTOR_SIDE_CLASSES, attach_motor_head, motor_loss, motor_targets, predict_motor_proba,
                          rotor_side, wants_motor_head)
 
 REALISTIC = ["Healthy", "BatteryFault", "MotorFault", "OverheatFault", "PropellerFault"]
@@ -64,7 +66,7 @@ def test_no_head_keeps_the_model_and_the_head_is_drawn_last():
 
 @pytest.mark.parametrize("kind", ["gru", "cnode"])
 def test_checkpoint_round_trip_and_training_moves_the_head(kind, tmp_path):
-    from quadfdi.sim.dataset import Windows
+    from quadfdi.formats.dataset import Windows
 
     torch.manual_seed(0)
     cfg = TrainConfig(latent=6, hidden=8, gru_hidden=6, epochs=1, batch_size=16, steps=2, motor_head="auto")
@@ -126,7 +128,7 @@ def test_graphs_output_motor_logits_matching_pytorch():
                       torch_logits(cnode if kind == "cnode" else gru, x))["passed"]
     # a wrong head weight is caught
     gru.motor_head.weight.data[0, 0] += 1.0
-    assert not parity(ort_motor_logits(sessions["gru_fp32"], x),
+    assert not parity(outputs(sessions["gru_fp32"], x, ["motor_logits"])[0],
                       gru.motor_head(gru.features(torch.from_numpy(x))).detach().numpy())["passed"]
 
 
@@ -149,7 +151,7 @@ def test_detect_motor_rules():
     from quadfdi.core.alarm import ROTOR_SIDE_CLASSES as CORE_ROTOR_SIDE
     from quadfdi.core.alarm import alarm_episodes, reported_motor, run_alarm
 
-    assert CORE_ROTOR_SIDE == ROTOR_SIDE_CLASSES  # core's copy of train.motor's names
+    assert CORE_ROTOR_SIDE == ROTOR_SIDE_CLASSES  # core's copy of models.motor's names
     tr = run_alarm(proba[None, 1:4], 0.35, 1, 1, 1, healthy=0, motor_proba=mp[None, 1:4])
     # classes summed: Motor 0.9 < Propeller 1.1; motors summed: 1.2, 0.6, 0.9, 0.3 -> motor 1
     assert alarm_episodes(tr, np.arange(3.0)[None], proba[None, 1:4], rotor=rotor)[0]["motor"] == 0
@@ -160,9 +162,9 @@ def test_detect_motor_rules():
 def test_weights_bin_carries_the_heads_in_optional_trailing_sections(tmp_path):
     from dataclasses import replace
 
-    from quadfdi.export.binfmt import pack
-    from quadfdi.export.weights_bin import read_weights, weights_bytes
-    from quadfdi.export.weights_layout import MAGIC, VERSION
+    from quadfdi.formats.binfmt import pack
+    from quadfdi.formats.weights_bin import read_weights, weights_bytes
+    from quadfdi.formats.weights_layout import MAGIC, VERSION
 
     _, gru, _, _, (cp, cq, gp, gq) = _tiny_with_heads()
     (tmp_path / "w.bin").write_bytes(weights_bytes(cp, cq, gp, gq))

@@ -12,9 +12,10 @@ import pytest
 from sklearn.metrics import mean_squared_error
 from sklearn.metrics.pairwise import cosine_similarity
 
-from quadfdi.export.weights_bin import read_weights
-from quadfdi.parity import compare, runners
-from quadfdi.parity.mcu import tools_missing
+from quadfdi.formats.weights_bin import read_weights
+from quadfdi.parity import compare
+from quadfdi.runtimes import ort as ort_rt
+from quadfdi.runtimes.mcu import tools_missing
 from quadfdi.parity.run import parity_run
 from quadfdi.cli import STAGES, main
 from quadfdi.core.errors import QuadfdiError
@@ -100,14 +101,14 @@ def test_a_missed_target_writes_the_report_then_fails(fw_run, host_build, tmp_pa
     """ONNX Runtime's int8 GRU logits moved by three times the tolerance: the int8 target fails, the
     report says so, and the stage raises a one-line error naming the pair."""
     run_dir = copy_run(fw_run, tmp_path / "run")
-    real = runners.ort_outputs  # what the stage calls: the logits first, then the motor head's if any
+    real = ort_rt.outputs  # what the stage calls: the logits first, then the motor head's if any
     shift = 3 * compare.INT8_TOL_STEPS * compare.logit_steps(read_weights(run_dir / "export" / "weights.bin"), "gru")
 
-    def shifted(path, x, names):
-        out = real(path, x, names)
+    def shifted(path, x, names, batch=ort_rt.CHUNK):
+        out = real(path, x, names, batch)
         return [out[0] + shift.astype(np.float32), *out[1:]] if path.name == "gru.int8.onnx" else out
 
-    monkeypatch.setattr(runners, "ort_outputs", shifted)
+    monkeypatch.setattr(ort_rt, "outputs", shifted)
     run, cfg = open_run(run_dir)
     with pytest.raises(QuadfdiError, match="gru cpp_int8_vs_ort_int8") as info:
         parity_run(run, cfg, log=lambda _: None, mcu=False)
@@ -147,9 +148,9 @@ def test_mcu_only_updates_the_report(parity_done):
 
 def test_generated_headers_are_current(tmp_path):
     """The committed C++ headers are what the Python tables generate now (regenerate:
-    `python -m quadfdi.core.contracts --header` and `python -m quadfdi.export.weights_layout --header`)."""
+    `python -m quadfdi.core.contracts --header` and `python -m quadfdi.formats.weights_layout --header`)."""
     from quadfdi.core import contracts
-    from quadfdi.export import weights_layout
+    from quadfdi.formats import weights_layout
 
     for module in (contracts, weights_layout):
         fresh = tmp_path / module.HEADER_PATH.name
@@ -163,7 +164,7 @@ def expected_contract_lines() -> list[str]:
     from quadfdi.core import contracts
     from quadfdi.core.rk4 import RK4_CONSTANT_NAMES
     from quadfdi.export import reference_bin
-    from quadfdi.export.weights_layout import LAYOUTS, MAGIC, MOTOR_SECTION_ORDER, SECTION_ORDER, VERSION, dtype_of
+    from quadfdi.formats.weights_layout import LAYOUTS, MAGIC, MOTOR_SECTION_ORDER, SECTION_ORDER, VERSION, dtype_of
 
     lines = [f"weights {MAGIC.rstrip(bytes(1)).decode()} {VERSION}",
              f"reference {reference_bin.MAGIC.rstrip(bytes(1)).decode()} {reference_bin.VERSION}"]

@@ -1,10 +1,10 @@
-"""The prediction-set index (core.predindex): entries replace by key, bad sets are refused."""
+"""The prediction-set index (formats.predictions): entries replace by key, bad sets are refused."""
 
 import numpy as np
 import pytest
 
 from quadfdi.core.errors import QuadfdiError
-from quadfdi.core.predindex import add_entries, check_prediction_set, prediction_path, read_index
+from quadfdi.formats.predictions import add_entries, check_prediction_set, prediction_path, read_index
 
 
 def _set(n=3, k=5, split=1):

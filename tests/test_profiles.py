@@ -1,4 +1,4 @@
-"""core/profiles.py (channel profiles), the [train] profile key and train/profile_data.py."""
+"""core/profiles.py (channel profiles), the [train] profile key and models/inputs.py."""
 
 from __future__ import annotations
 
@@ -11,8 +11,8 @@ from quadfdi.core import hover
 from quadfdi.core.config import load_config
 from quadfdi.core.errors import QuadfdiError
 from quadfdi.core.profiles import apply_profile, channel_names, required_raw, uses_hover
-from quadfdi.sim.dataset import Dataset
-from quadfdi.train.profile_data import decided, profile_of, profiled_dataset
+from quadfdi.formats.dataset import Dataset
+from quadfdi.models.inputs import decided, profile_of, profiled_dataset
 
 RAW = ["x", "y", "z", "vx", "vy", "vz", "roll", "pitch", "yaw", "p", "q", "r", "V_b", "I_b", "SoC",
        "T1", "T2", "T3", "T4", "thr1", "thr2", "thr3", "thr4", "vib_px4", "vib_ap"]

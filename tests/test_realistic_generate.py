@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from quadfdi.core.config import load_config
-from quadfdi.sim.dataset import class_names, dataset_arrays, load_dataset, make_windows, split_names, write_npz
+from quadfdi.formats.dataset import class_names, dataset_arrays, load_dataset, make_windows, split_names, write_npz
 from quadfdi.sim.realistic import SPLIT_NAMES, labels, n_flights
 from quadfdi.sim.simulate import generate
 from tests.conftest import ROOT

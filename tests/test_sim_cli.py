@@ -8,7 +8,7 @@ import json
 import numpy as np
 import pytest
 
-from quadfdi.sim.dataset import REQUIRED_KEYS, load_dataset, make_windows, window_starts
+from quadfdi.formats.dataset import REQUIRED_KEYS, load_dataset, make_windows, window_starts
 from tests.conftest import SMALL_SIM, quadfdi
 
 
@@ -114,7 +114,7 @@ def test_truncated_dataset(small_run, tmp_path):
 
 def test_nan_telemetry_rejected(small_run, tmp_path):
     from quadfdi.core.errors import QuadfdiError
-    from quadfdi.sim.dataset import read_npz, write_npz
+    from quadfdi.formats.dataset import read_npz, write_npz
 
     arrays = read_npz(small_run / "dataset.npz")
     arrays["telemetry"][2, 7, 4] = np.nan

@@ -44,7 +44,7 @@ def test_paper_dataset_has_no_realistic_keys(tmp_path):
     import json
 
     from quadfdi.core.config import Config, SimConfig
-    from quadfdi.sim.dataset import LATER_SIM_KEYS, class_names, dataset_arrays, split_names
+    from quadfdi.formats.dataset import LATER_SIM_KEYS, class_names, dataset_arrays, split_names
     from quadfdi.sim.simulate import generate
 
     cfg = Config(sim=dataclasses.replace(SimConfig(), n_traj=4, duration_s=4.0, window=40, stride=5,

@@ -20,8 +20,8 @@ import scipy.linalg
 import torch
 from torchdiffeq import odeint
 
-from quadfdi.train.control import LinearPath, interp_matrix, knots, sample_times
-from quadfdi.train.solvers import (
+from quadfdi.models.control import LinearPath, interp_matrix, knots, sample_times
+from quadfdi.models.solvers import (
     FIXED_METHODS,
     SolverSpec,
     euler_step,

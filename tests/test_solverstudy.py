@@ -1,4 +1,4 @@
-"""The solver study (solverstudy/), its model variants (train/variants.py) and ``quadfdi solvers``.
+"""The solver study (solverstudy/), its model variants (models/variants.py) and ``quadfdi solvers``.
 
 Numbers are checked against independent computations: evaluation counts against the schemes'
 stage counts, the step-average control against the closed-form mean of a linear path and a fine
@@ -25,8 +25,8 @@ from quadfdi.solverstudy.matching import matched_table
 from quadfdi.solverstudy.matrix import TrainSpec, control_findings, ott_findings
 from quadfdi.solverstudy.settings import Setting, default_settings, reference_setting
 from quadfdi.solverstudy.study import run_study, sample_indices, solve_each, with_setting
-from quadfdi.train.models import CNODE
-from quadfdi.train.variants import AverageControlCNODE, average_matrix
+from quadfdi.models.networks import CNODE
+from quadfdi.models.variants import AverageControlCNODE, average_matrix
 
 C, W = 5, 80
 RECORD_FIELDS = {
@@ -147,9 +147,9 @@ def test_average_control_cnode_is_a_hand_written_euler_loop():
 
 
 def test_a_cnode_with_a_motor_head_rebuilds_under_every_setting():
-    """The realistic suite's CNODE carries a motor head (train.motor): the solver study rebuilds it
+    """The realistic suite's CNODE carries a motor head (models.motor): the solver study rebuilds it
     (quadfdi run on configs/realistic.toml failed here on n_motors) and keeps the head's weights."""
-    from quadfdi.train.motor import attach_motor_head
+    from quadfdi.models.motor import attach_motor_head
 
     m = attach_motor_head(_model(5))
     for setting in (Setting("rk4", steps=8), Setting("euler", steps=4, control="average"),
@@ -160,8 +160,8 @@ def test_a_cnode_with_a_motor_head_rebuilds_under_every_setting():
 
 
 def test_signature_records_the_control_and_a_checkpoint_loads_either(tmp_path):
-    from quadfdi.train.checkpoint import load_checkpoint, save_checkpoint
-    from quadfdi.train.models import model_from_signature, model_signature
+    from quadfdi.models.checkpoint import load_checkpoint, save_checkpoint
+    from quadfdi.models.networks import model_from_signature, model_signature
 
     avg = with_setting(_model(5), Setting("rk4", steps=2, control="average"))
     sig = model_signature(avg)
@@ -172,7 +172,7 @@ def test_signature_records_the_control_and_a_checkpoint_loads_either(tmp_path):
     x = torch.from_numpy(_windows(2))
     with torch.no_grad():
         torch.testing.assert_close(back(x), avg(x), rtol=0, atol=0)
-    with pytest.raises(ValueError, match="control"):  # train.models alone knows the point control only
+    with pytest.raises(ValueError, match="control"):  # models.networks alone knows the point control only
         model_from_signature(sig)
     old = {k: v for k, v in sig.items() if k != "control"}  # checkpoints written before the control was recorded
     assert type(model_from_signature(old)) is CNODE
@@ -327,7 +327,8 @@ def test_solvers_command_writes_every_field(tiny_run):
     for f in ("solver_error_vs_nfe.png", "solver_f1_vs_latency.png"):
         assert (tiny_run / "figures" / f).read_bytes()[:4] == b"\x89PNG"
     # what bench and the run report read, from the files alone
-    from quadfdi.solverstudy.report import headline, load_records, report_section
+    from quadfdi.formats.solver_files import load_records
+    from quadfdi.solverstudy.report import headline, report_section
 
     assert load_records(tiny_run) == out["solvers"]
     section = report_section(tiny_run)
@@ -375,7 +376,7 @@ def test_matrix_command_writes_every_field_and_reuses_models(tiny_run, capsys):
     assert (tiny_run / "figures" / "solver_controls.png").is_file()
     assert "Ott et al." in (tiny_run / "solvers" / "solver_matrix.md").read_text()
     # a step-average model loads back in its own class, no special case
-    from quadfdi.train.checkpoint import load_checkpoint
+    from quadfdi.models.checkpoint import load_checkpoint
 
     avg, _ = load_checkpoint(tiny_run / "solvers" / "matrix_models" / "rk4_N_1_avg.pt")
     assert isinstance(avg, AverageControlCNODE)

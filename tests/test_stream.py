@@ -102,7 +102,7 @@ def _fwref_stream(exe: Path, export: Path, *args: str) -> subprocess.CompletedPr
 
 
 def test_onboard_record_as_the_cpp_reads_it(flightlog_export, host_build):  # noqa: F811
-    from quadfdi.detect.streamfile import record_of
+    from quadfdi.formats.stream import record_of
 
     rec = record_of(flightlog_export)
     res = _fwref_stream(host_build, flightlog_export, "--info")
@@ -126,8 +126,8 @@ def test_onboard_record_round_trip_and_refusals():
     that differs from the layout is refused in one line."""
     from quadfdi.core.errors import QuadfdiError
     from quadfdi.core.profiles import channel_names, required_raw
-    from quadfdi.export.binfmt import Section, pack, unpack
-    from quadfdi.export.onboard_record import check_onboard, onboard_dict, onboard_section
+    from quadfdi.formats.binfmt import Section, pack, unpack
+    from quadfdi.formats.onboard import check_onboard, onboard_dict, onboard_section
 
     policy = {"threshold": 0.35, "k": 3, "n": 5, "clear_m": 4, "latch": True}
     sec = onboard_section("flightlog-nocur", channel_names("flightlog-nocur", []), 50, 10, 0.04, policy,
@@ -174,7 +174,8 @@ def streams(flightlog_export, tmp_path_factory) -> dict[str, Path]:
                   "--out", str(paths["sim"]))  # the CLI once; the real flight in process (a second start costs 2 s)
     assert res.returncode == 0, res.stderr
     if MISSION.is_file():
-        from quadfdi.detect.streamfile import from_flight, record_of, write_stream
+        from quadfdi.detect.stream_cli import from_flight
+        from quadfdi.formats.stream import record_of, write_stream
 
         write_stream(paths["real"], from_flight(MISSION, record_of(flightlog_export)))
     else:
@@ -215,7 +216,7 @@ def test_stream_gives_the_window_path_at_every_stride(flightlog_export, streams,
 
 def test_paper_profile_stream_gives_the_window_path(fault_exported, host_build, tmp_path):  # noqa: F811
     """The identity profile (no hover estimate, no airborne channel) on the session's paper-config export."""
-    from quadfdi.detect.streamfile import from_dataset, record_of, write_stream
+    from quadfdi.formats.stream import from_dataset, record_of, write_stream
 
     export = fault_exported / "export"
     record = record_of(export)
@@ -231,8 +232,8 @@ def test_paper_profile_stream_gives_the_window_path(fault_exported, host_build, 
 def _with_rotor_side(export: Path, dst: Path, flags) -> Path:
     """A folder holding export's weights.bin with its on-board record's alarm.rotor_side set to ``flags``
     (None: the tensor removed, as in a file written before it)."""
-    from quadfdi.export.binfmt import Section, pack, read_file
-    from quadfdi.export.weights_layout import MAGIC, VERSION
+    from quadfdi.formats.binfmt import Section, pack, read_file
+    from quadfdi.formats.weights_layout import MAGIC, VERSION
 
     _, sections = read_file(export / "weights.bin", MAGIC, VERSION, "weights file")
     rec = sections[-1]
@@ -314,7 +315,7 @@ def test_stream_alarm_mirror_applies_rule_5():
 
 def _check_replay(export: Path, streams: dict[str, Path], exe: Path, tmp: Path, net: str, precision: str) -> list[str]:
     """fwref_stream on each stream against the window path at every stride; a report line per stream."""
-    from quadfdi.detect.streamfile import read_stream, record_of
+    from quadfdi.formats.stream import read_stream, record_of
     from quadfdi.detect.streamref import read_lines
 
     record = record_of(export)
@@ -369,7 +370,7 @@ def _check_motor(out: dict, decided: np.ndarray, motor: np.ndarray | None, preci
 def test_stream_reference_is_detects_window_path(flightlog_export, streams):
     """detect/streamref.py on the stream file decides the windows detect/inputs.py decides, with the same inputs."""
     from quadfdi.detect.inputs import flight_inputs, read_flight, windows
-    from quadfdi.detect.streamfile import read_stream, record_of
+    from quadfdi.formats.stream import read_stream, record_of
     from quadfdi.detect.streamref import windows_of
 
     record = record_of(flightlog_export)
@@ -391,7 +392,7 @@ def test_stream_under_sanitizers_gives_the_release_lines(flightlog_export, strea
 
 
 def _edit_stream(src: Path, dst: Path, edit) -> None:
-    from quadfdi.detect.streamfile import read_stream, write_stream
+    from quadfdi.formats.stream import read_stream, write_stream
 
     rs = read_stream(src)
     edit(rs)
@@ -448,7 +449,7 @@ def test_timestamp_steps_at_the_period_gates_edges(flightlog_export, streams, ho
     [lo, hi) one period (the clean run); at hi a gap of 2 (a NaN sample filled in)."""
     import math
 
-    from quadfdi.detect.streamfile import read_stream, record_of, write_stream
+    from quadfdi.formats.stream import read_stream, record_of, write_stream
     from quadfdi.detect.streamref import read_lines
 
     rs0 = read_stream(streams["sim"])
@@ -518,7 +519,7 @@ def sgru_export(fault_exported, tmp_path_factory) -> Path:
 @pytest.fixture(scope="module")
 def sgru_flight(sgru_export, tmp_path_factory):
     """A test flight of the run as a stream file, its row and the on-board record."""
-    from quadfdi.detect.streamfile import from_dataset, record_of, write_stream
+    from quadfdi.formats.stream import from_dataset, record_of, write_stream
 
     record = record_of(sgru_export / "export")
     z = np.load(sgru_export / "dataset.npz")
@@ -538,8 +539,8 @@ def _sgru_stream(exe: Path, weights: Path, *args: str) -> str:
 def test_sgru_weights_file(sgru_export, host_build):  # noqa: F811
     """Its sections hold the checkpoint's numbers and weights.bin's record; weights.bin is untouched."""
     from quadfdi.core.jsonio import read_json
-    from quadfdi.export.sgru_weights import read_sgru_weights
-    from quadfdi.export.weights_bin import read_weights
+    from quadfdi.formats.sgru_weights import read_sgru_weights
+    from quadfdi.formats.weights_bin import read_weights
     from quadfdi.train.stream_gru_run import load_stream_checkpoint
 
     export = sgru_export / "export"
@@ -593,7 +594,7 @@ def _sgru_check(out: dict, sw, decided, logits, trace, precision: str) -> None:
 def test_stream_sgru_is_onnx_runtimes_one_step_at_every_stride(sgru_export, sgru_flight, host_build, precision):  # noqa: F811
     """fwref_stream --model sgru on a test flight: every stride the ORT one-step graph's logits (int8 identical,
     fp32 within the tolerance), and (fp32) the probabilities the Python evaluation scores (its prediction set)."""
-    from quadfdi.detect.streamfile import read_stream
+    from quadfdi.formats.stream import read_stream
     from quadfdi.detect.streamref import read_lines
     from quadfdi.train.stream_gru_run import load_stream_checkpoint
 
@@ -616,7 +617,7 @@ def test_stream_sgru_is_onnx_runtimes_one_step_at_every_stride(sgru_export, sgru
 def test_stream_sgru_holds_its_state_over_a_nan_sample(sgru_export, sgru_flight, host_build, tmp_path):  # noqa: F811
     """A NaN sample is not stepped (h held), the strides whose window holds it are skipped, and the later
     strides carry the held state: the C++ stream equals the Python mirror of that rule (int8: bit for bit)."""
-    from quadfdi.detect.streamfile import read_stream, write_stream
+    from quadfdi.formats.stream import read_stream, write_stream
     from quadfdi.detect.streamref import read_lines
 
     path, _, record = sgru_flight
@@ -641,7 +642,7 @@ def test_stream_sgru_holds_its_state_over_a_nan_sample(sgru_export, sgru_flight,
 def test_reset_between_flights_equals_separate_runs(sgru_export, sgru_flight, host_build, model, tmp_path):  # noqa: F811
     """Stream::reset(): two flights in sequence through one stream (repeated --in) give each flight's own run,
     line for line (alarm state, hover estimate, ring and the streaming GRU's state all forgotten)."""
-    from quadfdi.detect.streamfile import from_dataset, write_stream
+    from quadfdi.formats.stream import from_dataset, write_stream
 
     path, row, record = sgru_flight
     z = np.load(sgru_export / "dataset.npz")

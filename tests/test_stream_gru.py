@@ -30,8 +30,8 @@ def sgru_run(small_run, tmp_path_factory):
 
 
 def test_train_sgru_writes_a_prediction_set_at_the_window_ends(sgru_run):
-    from quadfdi.core.predindex import check_prediction_set, read_index
-    from quadfdi.sim.dataset import gather_windows, load_dataset, window_index
+    from quadfdi.formats.predictions import check_prediction_set, read_index
+    from quadfdi.formats.dataset import gather_windows, load_dataset, window_index
     from quadfdi.train.data import evaluation_rows
     from quadfdi.train.stream_gru_run import load_stream_checkpoint
 
@@ -72,7 +72,7 @@ def test_train_sgru_bad_setting_is_a_one_line_error_before_any_write(small_run, 
 
 
 def test_step_labels_follow_the_window_label_rule(small_run):
-    from quadfdi.sim.dataset import load_dataset, make_windows
+    from quadfdi.formats.dataset import load_dataset, make_windows
     from quadfdi.train.stream_gru_fit import step_labels
 
     ds = load_dataset(small_run / "dataset.npz")
@@ -85,7 +85,7 @@ def test_step_labels_follow_the_window_label_rule(small_run):
 
 def test_compute_per_second_of_flight(sgru_run):
     from quadfdi.core.jsonio import read_json
-    from quadfdi.sim.dataset import load_dataset
+    from quadfdi.formats.dataset import load_dataset
 
     stride = load_dataset(sgru_run / "dataset.npz").config.sim.stride
 
@@ -102,7 +102,7 @@ def test_export_sgru_one_step_onnx_matches_pytorch_on_a_replayed_flight(sgru_run
     import onnx
 
     from quadfdi.core.jsonio import read_json
-    from quadfdi.export.verify import session
+    from quadfdi.runtimes.ort import session
     from quadfdi.train.stream_gru_run import load_stream_checkpoint
 
     assert _cli("export", "sgru", "--run", str(sgru_run)) == 0

@@ -71,7 +71,7 @@ def test_bad_ema_settings_are_refused():
 
 
 def test_the_average_leaves_the_training_path_alone_and_is_what_is_kept(small_run):
-    from quadfdi.sim.dataset import load_dataset
+    from quadfdi.formats.dataset import load_dataset
     from quadfdi.train.stream_gru_config import StreamFitConfig
     from quadfdi.train.stream_gru_fit import fit_stream_gru
 

@@ -21,7 +21,7 @@ def test_step_motor_targets_name_the_rotor_on_rotor_side_steps_only():
 
 
 def test_motor_loss_moves_the_gru_and_is_zero_without_targets():
-    from quadfdi.train.stream_gru import StreamGRU
+    from quadfdi.models.stream_gru import StreamGRU
     from quadfdi.train.stream_gru_config import StreamFitConfig
     from quadfdi.train.stream_gru_fit import _batch_loss
     from quadfdi.train.stream_gru_motor import MotorAux

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from quadfdi.core.errors import QuadfdiError
-from quadfdi.core.predindex import read_index
+from quadfdi.formats.predictions import read_index
 from tests.conftest import copy_run, random_weight_run
 
 
@@ -33,8 +33,8 @@ def test_apply_predicts_the_stage_networks_on_another_sim_seed(applied_run):
     from quadfdi.core.executor import SERIAL
     from quadfdi.core.rundir import open_run
     from quadfdi.evaluate.load import load_run
-    from quadfdi.sim.dataset import load_dataset
-    from quadfdi.train.checkpoint import load_checkpoint
+    from quadfdi.formats.dataset import load_dataset
+    from quadfdi.models.checkpoint import load_checkpoint
     from quadfdi.train.predsets import prediction_set
     from quadfdi.train.study_apply import SUMMARY, run_apply
 
@@ -62,10 +62,10 @@ def test_apply_uses_the_stage_networks_train_settings_and_refuses_another_networ
     (another network than the one evaluated) is refused."""
     from quadfdi.core.config import load_config, replace_section
     from quadfdi.core.executor import SERIAL
-    from quadfdi.core.predindex import add_entries
+    from quadfdi.formats.predictions import add_entries
     from quadfdi.core.rundir import open_run
-    from quadfdi.sim.dataset import load_dataset
-    from quadfdi.train.checkpoint import load_checkpoint
+    from quadfdi.formats.dataset import load_dataset
+    from quadfdi.models.checkpoint import load_checkpoint
     from quadfdi.train.predsets import index_entry, prediction_set, write_prediction_set
     from quadfdi.train.study_apply import run_apply, with_stage_train
 

@@ -11,12 +11,12 @@ import torch
 from quadfdi.core.config import load_config, replace_section
 from quadfdi.core.contracts import CLASS_NAMES, N_CLASSES, SPLIT_TEST, SPLIT_TRAIN
 from quadfdi.core.errors import QuadfdiError
-from quadfdi.sim.dataset import load_dataset
+from quadfdi.formats.dataset import load_dataset
 from tests.conftest import quadfdi
-from quadfdi.train.checkpoint import check_dataset_matches, load_checkpoint, save_checkpoint
+from quadfdi.models.checkpoint import check_dataset_matches, load_checkpoint, save_checkpoint
 from quadfdi.train.data import batch_order, class_weights, fit_normalisation, split_windows
 from quadfdi.train.loop import weighted_cross_entropy
-from quadfdi.train.models import build_model
+from quadfdi.models.networks import build_model
 
 METRIC_KEYS = {"accuracy", "balanced_accuracy", "macro_precision", "macro_recall", "macro_specificity", "macro_f1",
                "weighted_f1", "mcc", "roc_auc_ovr", "pr_auc_ovr", "brier", "any_fault_f1", "any_fault_roc_auc",

@@ -14,8 +14,8 @@ import torch
 
 from quadfdi.core.config import load_config
 from quadfdi.core.contracts import CLASS_NAMES
-from quadfdi.core.predindex import check_prediction_set, read_index
-from quadfdi.sim.dataset import class_names, load_dataset, make_windows, split_names
+from quadfdi.formats.predictions import check_prediction_set, read_index
+from quadfdi.formats.dataset import class_names, load_dataset, make_windows, split_names
 from tests.conftest import ROOT, copy_run, quadfdi, trained_export_run
 from tests.test_firmware_fixtures import host_build  # noqa: F401 (fixture)
 from quadfdi.train.data import capped_train_windows, evaluation_rows
@@ -130,7 +130,7 @@ def test_study_over_sim_seeds_reuses_the_train_stage(exported, tmp_path):
 
 
 def test_index_entries_of_unpublished_sets_are_dropped(tmp_path):
-    from quadfdi.core.predindex import add_entries
+    from quadfdi.formats.predictions import add_entries
     from quadfdi.train.predsets import drop_missing_entries, index_entry
 
     kept, gone = index_entry("cnode", 0, 1), index_entry("cnode", 0, 0)

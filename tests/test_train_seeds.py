@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from quadfdi.core.predindex import read_index
+from quadfdi.formats.predictions import read_index
 from quadfdi.core.records import load_record
 from tests.conftest import copy_run
 
@@ -22,10 +22,10 @@ def _fake_train_all(ds, cfg, kinds, log=print, predsets=True):
     from (train seed, lr) so that another seed or [train] gives other sets."""
     from types import SimpleNamespace
 
-    from quadfdi.sim.dataset import class_names
+    from quadfdi.formats.dataset import class_names
     from quadfdi.train.data import evaluation_rows
     from quadfdi.train.loop import History
-    from quadfdi.train.models import build_model
+    from quadfdi.models.networks import build_model
 
     names = class_names(ds.arrays)
     rows = evaluation_rows(ds)

@@ -35,7 +35,7 @@ from sklearn.pipeline import Pipeline
 from sklearn.preprocessing import StandardScaler
 from threadpoolctl import threadpool_limits
 
-from quadfdi.sim.dataset import Dataset, class_names, make_windows, split_names
+from quadfdi.formats.dataset import Dataset, class_names, make_windows, split_names
 from quadfdi.train.features import physics_feature_names, physics_features, stat_feature_names, stat_features
 
 MODELS = ("logreg_stats", "logreg_physics", "gbt")

@@ -3,8 +3,8 @@
 The datasets are the run's ``dataset.npz`` and, with ``which="all"``, every other dataset the run's
 prediction index already lists (other simulator seeds, e.g. ``sims/seed1/dataset.npz``). For each
 dataset (simulator seed S, read from its embedded config) and baseline seed T, each model of
-``train.baselines.MODELS`` gets a prediction set at ``core.predindex.prediction_path(run, model, S,
-T)`` -- every evaluation window (split >= 1) of the dataset, format of core/predindex.py -- and
+``train.baselines.MODELS`` gets a prediction set at ``formats.predictions.prediction_path(run, model, S,
+T)`` -- every evaluation window (split >= 1) of the dataset, format of formats/predictions.py -- and
 ``predictions/baselines_sim{S}_train{T}.json`` records the grid, the validation macro F1 of every
 configuration, the one chosen, fit times and the training-window cap. The index entries are added
 last.
@@ -25,8 +25,8 @@ import numpy as np
 from quadfdi.core.errors import QuadfdiError
 from quadfdi.core.jsonio import write_json
 from quadfdi.core.npzio import write_npz
-from quadfdi.core.predindex import add_entries, check_prediction_set, prediction_path, read_index
-from quadfdi.sim.dataset import class_names, load_dataset, split_names
+from quadfdi.formats.predictions import add_entries, check_prediction_set, prediction_path, read_index
+from quadfdi.formats.dataset import class_names, load_dataset, split_names
 from quadfdi.train.baselines import MAX_TRAIN_WINDOWS, MODELS, N_CONFIGS, fit_baselines
 
 DATASET = "dataset.npz"  # the run's own dataset, relative to the run folder

@@ -11,8 +11,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from quadfdi.core.contracts import N_CLASSES, SPLIT_TRAIN, SPLIT_VALIDATION
-from quadfdi.sim.dataset import Dataset, Windows, gather_windows, make_windows, split_rows, window_index
-from quadfdi.train.profile_data import decided
+from quadfdi.formats.dataset import Dataset, Windows, gather_windows, make_windows, split_rows, window_index
+from quadfdi.models.inputs import decided
 
 
 @dataclass(frozen=True)
@@ -30,7 +30,7 @@ def split_windows(ds: Dataset, max_train_windows: int = 0, seed: int = 0) -> Spl
 
 
 def _decided_only(ds: Dataset, w: Windows) -> Windows:
-    """The windows with a decision (train.profile_data.decided): all of them without a hover estimate."""
+    """The windows with a decision (models.inputs.decided): all of them without a hover estimate."""
     keep = decided(ds, w.traj, w.start)
     if keep.all():
         return w

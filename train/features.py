@@ -1,7 +1,7 @@
 """Per-window features for the non-neural baselines: window statistics and physics features.
 
 Every function takes raw telemetry windows ``x`` of shape (n, W, C) -- n windows of W samples of C
-channels, as ``sim.dataset.make_windows`` cuts them -- and the dataset's ``channel_names`` (C,).
+channels, as ``formats.dataset.make_windows`` cuts them -- and the dataset's ``channel_names`` (C,).
 Channels are looked up BY NAME, never by column index, so the paper dataset (23 channels) and the
 realistic suite (25: the same plus ``vib_px4``, ``vib_ap``) both work. Slopes are least-squares
 slopes against the window's normalised time t_i = i / (W - 1) in [0, 1] (as train/baseline.py and

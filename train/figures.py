@@ -89,7 +89,7 @@ def draw_roc(y: np.ndarray, probas: dict, metrics: dict, out: Path) -> None:
 def draw_trajectory_detection(ds, test, probas: dict, row: int, out: Path) -> None:
     """Position, attitude, battery, temperature, effectiveness, severity and the any-fault
     probability of each model at each window end, for dataset row ``row`` (Figs. 12-27)."""
-    from quadfdi.sim.dataset import class_names
+    from quadfdi.formats.dataset import class_names
     from quadfdi.sim.plot import plot_groups
 
     plt = _plt()
@@ -133,7 +133,7 @@ def draw_trajectory_detection(ds, test, probas: dict, row: int, out: Path) -> No
 
 def draw_all(run, ds, result: dict) -> list[Path]:
     """Every training figure into ``run.figures``, classes named by the data; returns the paths written."""
-    from quadfdi.sim.dataset import class_names
+    from quadfdi.formats.dataset import class_names
 
     figs = run.figures
     names = class_names(ds.arrays)

@@ -18,10 +18,10 @@ from sklearn.metrics import f1_score
 
 from quadfdi.core.config import TrainConfig
 from quadfdi.core.errors import QuadfdiError
-from quadfdi.sim.dataset import Windows
+from quadfdi.formats.dataset import Windows
 from quadfdi.train.data import batch_order
-from quadfdi.train.models import GRUClassifier
-from quadfdi.train.motor import has_motor_head, motor_loss
+from quadfdi.models.networks import GRUClassifier
+from quadfdi.models.motor import has_motor_head, motor_loss
 
 
 def weighted_cross_entropy(logits: torch.Tensor, y: torch.Tensor, weights: torch.Tensor, eps: float) -> torch.Tensor:
@@ -80,7 +80,7 @@ def train_model(model: torch.nn.Module, train: Windows, val: Windows, cfg: Train
                 augment: Callable[[torch.Tensor, int, int], torch.Tensor] | None = None) -> History:
     """Train ``model`` in place for ``cfg.epochs`` epochs; keep the best-validation weights.
 
-    A model with a motor head (train.motor) needs ``motor``, (n,) the target motor of each training
+    A model with a motor head (models.motor) needs ``motor``, (n,) the target motor of each training
     window (-1: no motor loss); its loss is the class loss + cfg.motor_loss_weight x the motor
     cross-entropy. The epoch is still chosen on the validation macro F1 of the classes.
     ``augment(x, epoch, batch)`` (train.augment) changes each training batch, never the validation."""

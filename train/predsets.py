@@ -1,8 +1,8 @@
 """Prediction sets of a trained network: its class probabilities on every evaluation window of a
 dataset (split code >= 1: validation, test, the realistic suite's out-of-distribution sets), in the
-format of ``core.predindex`` (docs/formats.md, "Prediction sets"); a model with a motor head
-(train.motor) adds ``motor_proba`` (n, 4), the softmax of its motor logits; every set carries
-``decided`` (train.profile_data.decided: False before the flight's hover freeze, where detect and
+format of ``formats.predictions`` (docs/formats.md, "Prediction sets"); a model with a motor head
+(models.motor) adds ``motor_proba`` (n, 4), the softmax of its motor logits; every set carries
+``decided`` (models.inputs.decided: False before the flight's hover freeze, where detect and
 the streaming runtime give no decision; evaluate treats those windows as not voting).
 
 The windows are made and scored a few flights at a time, so the full evaluation set (38 880
@@ -18,12 +18,12 @@ import numpy as np
 import torch
 
 from quadfdi.core.npzio import write_npz
-from quadfdi.core.predindex import check_prediction_set, prediction_path
-from quadfdi.sim.dataset import Dataset, class_names, gather_windows, window_index
+from quadfdi.formats.predictions import check_prediction_set, prediction_path
+from quadfdi.formats.dataset import Dataset, class_names, gather_windows, window_index
 from quadfdi.train.data import evaluation_rows
 from quadfdi.train.loop import predict_proba
-from quadfdi.train.motor import N_MOTORS, has_motor_head, predict_motor_proba
-from quadfdi.train.profile_data import decided
+from quadfdi.models.motor import N_MOTORS, has_motor_head, predict_motor_proba
+from quadfdi.models.inputs import decided
 
 FLIGHTS_PER_CHUNK = 16  # 16 x 90 windows x 80 x 25 float32 = 11.5 MB at a time
 
@@ -32,7 +32,7 @@ def prediction_set(model: torch.nn.Module, ds: Dataset, flights_per_chunk: int =
                    max_flights: int | None = None) -> dict[str, np.ndarray]:
     """``model``'s prediction set on ``ds``: every window of every evaluation flight (the first
     ``max_flights`` of them when given: a check, not a set to publish), flight by flight in dataset
-    order, windows in time order (the order of ``sim.dataset.make_windows``)."""
+    order, windows in time order (the order of ``formats.dataset.make_windows``)."""
     rows = evaluation_rows(ds)[:max_flights]
     names = class_names(ds.arrays)
     keys = ("proba", "y_true", "traj", "t_end", "decided") + (("motor_proba",) if has_motor_head(model) else ())
@@ -75,7 +75,7 @@ def write_prediction_set(path: str | Path, arrays: dict[str, Any]) -> Path:
 
 
 def relative_prediction_path(model: str, sim_seed: int, train_seed: int) -> str:
-    """``core.predindex.prediction_path`` relative to the run folder (what the index stores)."""
+    """``formats.predictions.prediction_path`` relative to the run folder (what the index stores)."""
     return prediction_path(Path("."), model, sim_seed, train_seed).as_posix()
 
 
@@ -88,9 +88,9 @@ def index_entry(model: str, sim_seed: int, train_seed: int, dataset: str = "data
 def drop_missing_entries(run_root: str | Path) -> int:
     """Remove the index entries whose prediction set no longer exists (a stage re-run with another
     seed unpublishes the sets of the previous one); returns how many were removed. Same format and
-    atomic write as ``core.predindex.add_entries``."""
+    atomic write as ``formats.predictions.add_entries``."""
     from quadfdi.core.jsonio import write_json
-    from quadfdi.core.predindex import index_path, read_index
+    from quadfdi.formats.predictions import index_path, read_index
 
     entries = read_index(run_root)
     keep = [e for e in entries if (Path(run_root) / e["predictions"]).is_file()]

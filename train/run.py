@@ -3,7 +3,7 @@
 Writes into the run folder: ``<kind>.pt`` checkpoints, ``predictions_<kind>.npz`` (test split),
 ``metrics.json`` ({"cnode", "gru", "baseline"}; test split), ``history.json``, the figures, and each
 network's prediction set on every evaluation window (``predictions/<kind>_sim<S>_train<T>.npz``,
-core.predindex), listed in ``predictions/index.json`` once the stage is published; the sets of
+formats.predictions), listed in ``predictions/index.json`` once the stage is published; the sets of
 other training seeds T published before with the same dataset and config stay (keep_other_seeds).
 """
 
@@ -21,19 +21,19 @@ from quadfdi.core.contracts import SPLITS
 from quadfdi.core.errors import QuadfdiError
 from quadfdi.core.jsonio import read_json, write_json
 from quadfdi.core.npzio import write_npz
-from quadfdi.core.predindex import add_entries
+from quadfdi.formats.predictions import add_entries
 from quadfdi.core.rundir import RunDir
 from quadfdi.core.stage import StageWriter, stage
-from quadfdi.sim.dataset import Dataset, Windows, class_names, load_dataset
+from quadfdi.formats.dataset import Dataset, Windows, class_names, load_dataset
 from quadfdi.train.augment import share_wander_for
 from quadfdi.train.baseline import fit_baseline, predict_proba_baseline
-from quadfdi.train.checkpoint import save_checkpoint
+from quadfdi.models.checkpoint import save_checkpoint
 from quadfdi.train.data import class_weights, fit_normalisation, split_windows
 from quadfdi.train.loop import predict_proba, train_model
 from quadfdi.train.metrics import compute_metrics
-from quadfdi.train.models import build_model
-from quadfdi.train.motor import attach_motor_head, motor_targets, wants_motor_head
-from quadfdi.train.profile_data import PROFILE_KEY, profiled_dataset
+from quadfdi.models.networks import build_model
+from quadfdi.models.motor import attach_motor_head, motor_targets, wants_motor_head
+from quadfdi.models.inputs import PROFILE_KEY, profiled_dataset
 from quadfdi.train.predsets import (drop_missing_entries, index_entry, prediction_set, relative_prediction_path,
                             write_prediction_set)
 

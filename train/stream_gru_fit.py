@@ -9,7 +9,7 @@ backpropagation through time, random start points and start states, a label at e
   first ``warmup`` steps carry no loss, so the model learns to forget a wrong or empty state.
 - Truncated BPTT: the segment runs in chunks of ``tbptt`` steps, h detached between chunks.
 - Labels per step: the dataset's window-label rule applied at the step's sample
-  (``sim.dataset.gather_windows``: the flight's class when ``severity[t] >= severity_threshold``,
+  (``formats.dataset.gather_windows``: the flight's class when ``severity[t] >= severity_threshold``,
   else Healthy): the label of a window ending at t is the label of step t.
 - Loss: Eq. (12)'s weighted cross-entropy over every labelled step, inverse-frequency class weights
   from the training steps; Adam, cosine rate, gradient norm clipped at ``clip``. Optional onset
@@ -37,10 +37,10 @@ import torch
 from sklearn.metrics import f1_score
 
 from quadfdi.core.contracts import SPLIT_TRAIN, SPLIT_VALIDATION
-from quadfdi.sim.dataset import Dataset, class_names, window_starts
+from quadfdi.formats.dataset import Dataset, class_names, window_starts
 from quadfdi.train.data import class_weights, fit_normalisation
-from quadfdi.train.motor import rotor_side
-from quadfdi.train.stream_gru import StreamGRU
+from quadfdi.models.motor import rotor_side
+from quadfdi.models.stream_gru import StreamGRU
 from quadfdi.train.stream_gru_config import StreamFitConfig
 from quadfdi.train.stream_gru_ema import WeightAverage
 from quadfdi.train.stream_gru_motor import MotorAux, step_motor_targets

@@ -1,6 +1,6 @@
 """The streaming GRU's auxiliary motor head (``--motor-aux W``; 0.5 by default, 0: off): a training-only
 Linear(H, 4) that reads the stream's hidden state at every step and is trained to name the faulty rotor
-at the steps whose label is rotor-side (Motor, Overheat, Propeller: train/motor.py), its cross-entropy
+at the steps whose label is rotor-side (Motor, Overheat, Propeller: models/motor.py), its cross-entropy
 added to the class loss with weight W (the windowed networks' ``train.motor_loss_weight`` is 0.5).
 
 Like the windowed networks' motor head, it asks the hidden state to carry which rotor is affected,
@@ -16,7 +16,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from quadfdi.train.motor import N_MOTORS, motor_loss, motor_targets
+from quadfdi.models.motor import N_MOTORS, motor_loss, motor_targets
 
 
 class MotorAux(nn.Module):

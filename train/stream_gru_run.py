@@ -3,9 +3,9 @@ windowed networks.
 
 Writes into the run folder:
 - ``sgru_train<T>.pt``: the checkpoint (plain dict, ``torch.load(weights_only=True)``): ``architecture``
-  (``train.stream_gru.stream_signature``), ``state_dict``, ``config`` (StreamFitConfig), ``class_names``,
+  (``models.stream_gru.stream_signature``), ``state_dict``, ``config`` (StreamFitConfig), ``class_names``,
   ``channel_names``, ``history``;
-- ``predictions/sgru_sim<S>_train<T>.npz``: a prediction set (core/predindex.py) holding the stream's
+- ``predictions/sgru_sim<S>_train<T>.npz``: a prediction set (formats/predictions.py) holding the stream's
   class probabilities at the end sample of every evaluation window, the stream started at h = 0 at
   take-off and stepped once per sample (so ``quadfdi evaluate`` scores it like the windowed models),
   and its index entry;
@@ -25,12 +25,12 @@ import torch
 from quadfdi.core.atomic import atomic_path
 from quadfdi.core.config import Config
 from quadfdi.core.jsonio import write_json
-from quadfdi.core.predindex import add_entries, prediction_path
-from quadfdi.sim.dataset import Dataset, class_names, load_dataset
+from quadfdi.formats.predictions import add_entries, prediction_path
+from quadfdi.formats.dataset import Dataset, class_names, load_dataset
 from quadfdi.train.data import evaluation_rows
-from quadfdi.train.models import build_model
+from quadfdi.models.networks import build_model
 from quadfdi.train.predsets import index_entry, write_prediction_set
-from quadfdi.train.stream_gru import StreamGRU, stream_from_signature, stream_signature
+from quadfdi.models.stream_gru import StreamGRU, stream_from_signature, stream_signature
 from quadfdi.train.stream_gru_config import StreamFitConfig
 from quadfdi.train.stream_gru_fit import (
     config_dict,

@@ -107,7 +107,7 @@ def run_study(run: RunDir, cfg: Config, seeds: list[int], command: str, log: Cal
     stage's own networks are reused, not retrained (train.study_reuse). Every prediction set is
     listed in ``predictions/index.json`` once the stage is published."""
     from quadfdi.core.executor import SERIAL
-    from quadfdi.core.predindex import add_entries
+    from quadfdi.formats.predictions import add_entries
     from quadfdi.core.stage import stage
     from quadfdi.train.predsets import drop_missing_entries
     from quadfdi.train.study_reuse import train_stage_results

@@ -17,7 +17,7 @@ For each training seed T and network kind:
   dataset (train.predsets), cached in ``<run>/cache/study_apply/``.
 
 Published as the stage ``apply`` (core.stage): the sets at ``predictions/<kind>_sim<S>_train<T>.npz``
-and ``predictions/applied.json`` (which network made each set); then indexed (core.predindex),
+and ``predictions/applied.json`` (which network made each set); then indexed (formats.predictions),
 the entry's ``dataset`` being S's. The index's ``sim_seed`` is the seed of the flights predicted
 on; a set of ``quadfdi train study --sim-seeds`` (networks trained on S) has the same key and
 replaces it, and the reverse.
@@ -44,12 +44,12 @@ CHECK_FLIGHTS = 16  # evaluation flights re-predicted to show a retrained networ
 
 def train_network(dataset: str, cfg: Config, kind: str, out: str) -> bytes:
     """Train ``kind`` with ``cfg.train.seed`` on ``dataset`` (a job) and return its checkpoint's bytes
-    (the train stage's checkpoint format, train.checkpoint)."""
+    (the train stage's checkpoint format, models.checkpoint)."""
     import tempfile
 
-    from quadfdi.sim.dataset import class_names, load_dataset
-    from quadfdi.train.checkpoint import save_checkpoint
-    from quadfdi.train.profile_data import PROFILE_KEY
+    from quadfdi.formats.dataset import class_names, load_dataset
+    from quadfdi.models.checkpoint import save_checkpoint
+    from quadfdi.models.inputs import PROFILE_KEY
     from quadfdi.train.run import train_all
 
     result = train_all(load_dataset(dataset), cfg, [kind], log=lambda _: None, predsets=False)
@@ -63,12 +63,12 @@ def train_network(dataset: str, cfg: Config, kind: str, out: str) -> bytes:
 
 
 def apply_network(checkpoint: str, dataset: str, kind: str) -> dict:
-    """The prediction set (core.predindex format) of the network in ``checkpoint`` on every
+    """The prediction set (formats.predictions format) of the network in ``checkpoint`` on every
     evaluation window of ``dataset``, with the network's channel profile applied (a job)."""
-    from quadfdi.sim.dataset import class_names, load_dataset
-    from quadfdi.train.checkpoint import check_dataset_matches, checkpoint_class_names, load_checkpoint
+    from quadfdi.formats.dataset import class_names, load_dataset
+    from quadfdi.models.checkpoint import check_dataset_matches, checkpoint_class_names, load_checkpoint
     from quadfdi.train.predsets import prediction_set
-    from quadfdi.train.profile_data import profile_of, profiled_dataset
+    from quadfdi.models.inputs import profile_of, profiled_dataset
 
     model, blob = load_checkpoint(checkpoint, kind)
     _threads(blob)
@@ -88,7 +88,7 @@ def _threads(blob: dict) -> None:
 
 def stage_checkpoint(run: RunDir, cfg: Config, kind: str) -> Path | None:
     """``<run>/<kind>.pt`` when it was trained with ``cfg``'s [sim] and [train] (seed included)."""
-    from quadfdi.train.checkpoint import load_checkpoint
+    from quadfdi.models.checkpoint import load_checkpoint
 
     path = run.checkpoint(kind)
     if not path.is_file():
@@ -105,7 +105,7 @@ def with_stage_train(run: RunDir, cfg: Config, keep: set[str] = frozenset(),
     ``keep``: the apply command's own ``--set train.*``) when they were trained on ``cfg``'s [sim].
     ``quadfdi train --set train.profile=...`` is not written into config.toml, and apply must apply
     THOSE networks and retrain other seeds like them, not the run's stored [train]."""
-    from quadfdi.train.checkpoint import load_checkpoint
+    from quadfdi.models.checkpoint import load_checkpoint
 
     want = cfg.to_dict()
     for kind in MODELS:
@@ -152,11 +152,11 @@ def reproduces(run: RunDir, cfg: Config, kind: str, seed: int, checkpoint: Path)
     """Whether the network in ``checkpoint`` gives, bit for bit, the indexed prediction set of
     (kind, run's sim seed, seed) on the run's first CHECK_FLIGHTS evaluation flights (None: no such set)."""
     from quadfdi.core.npzio import read_npz
-    from quadfdi.core.predindex import read_index
-    from quadfdi.sim.dataset import load_dataset
-    from quadfdi.train.checkpoint import load_checkpoint
+    from quadfdi.formats.predictions import read_index
+    from quadfdi.formats.dataset import load_dataset
+    from quadfdi.models.checkpoint import load_checkpoint
     from quadfdi.train.predsets import prediction_set
-    from quadfdi.train.profile_data import profile_of, profiled_dataset
+    from quadfdi.models.inputs import profile_of, profiled_dataset
 
     entry = next((e for e in read_index(run.root) if (e["model"], int(e["sim_seed"]), int(e["train_seed"]))
                   == (kind, cfg.sim.seed, seed) and e["dataset"] == "dataset.npz"), None)
@@ -190,7 +190,7 @@ def run_apply(run: RunDir, cfg: Config, seeds: list[int], sim_seeds: list[int], 
     """Publish the prediction sets of the run's networks (training seeds ``seeds``) on the datasets
     of ``sim_seeds`` (other than the run's), as the stage ``apply``, and index them; return the summary."""
     from quadfdi.core.jsonio import write_json
-    from quadfdi.core.predindex import add_entries
+    from quadfdi.formats.predictions import add_entries
     from quadfdi.core.stage import stage
     from quadfdi.train.predsets import drop_missing_entries, index_entry, write_prediction_set
     from quadfdi.train.study_sims import study_datasets

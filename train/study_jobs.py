@@ -1,7 +1,7 @@
 """The seed study as jobs of ``core.executor``: one per simulator seed x training seed x model, each
 keyed by its config (both seeds included), the dataset's hash and the code of ``sim`` and ``train``,
 its result cached as ``<run>/cache/study/<key>.npz``: the network's prediction set on every
-evaluation window (core.predindex's format) plus ``metrics_json``, its and the baseline's test
+evaluation window (formats.predictions's format) plus ``metrics_json``, its and the baseline's test
 metrics as one JSON string. Training is deterministic on one thread (every worker has one), so a
 study gives the same bytes serial or distributed, and a rerun takes them from the cache."""
 
@@ -36,7 +36,7 @@ class StudyData:
 def train_seed_model(dataset: str, cfg: Config, kind: str) -> dict:
     """Train ``kind`` with ``cfg.train.seed`` on ``dataset`` (a job): its prediction set and, as
     ``metrics_json``, its and the baseline's test metrics."""
-    from quadfdi.sim.dataset import load_dataset
+    from quadfdi.formats.dataset import load_dataset
     from quadfdi.train.run import train_all
 
     result = train_all(load_dataset(dataset), cfg, [kind], log=lambda _: None)

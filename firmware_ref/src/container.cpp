@@ -1,5 +1,5 @@
 // src/container.cpp -- scope: parsing and checking the weights.bin / reference.bin container
-// (fwref/container.hpp). Error texts follow export/binfmt.py's so that Python and C++ say the
+// (fwref/container.hpp). Error texts follow formats/binfmt.py's so that Python and C++ say the
 // same thing about the same broken file.
 #include "fwref/container.hpp"
 

@@ -1,7 +1,7 @@
 // src/weights_file.cpp -- scope: binding weights.bin's sections to model structs with every
 // tensor's dtype, shape and scales checked (fwref/weights_file.hpp). One binder serves the four
 // model structs: which tensors a section holds, in which order, with which shapes, is the
-// generated table fwref/weights_layout_gen.hpp (from export/weights_layout.py), and its visit()
+// generated table fwref/weights_layout_gen.hpp (from formats/weights_layout.py), and its visit()
 // hands each struct member to the binder with its tensor's spec.
 #include "fwref/weights_file.hpp"
 

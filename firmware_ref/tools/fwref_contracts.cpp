@@ -1,6 +1,6 @@
 // tools/fwref_contracts.cpp -- scope: print the contracts this build has compiled in, one per line,
 // so that a test can compare them with the Python tables they were generated from
-// (export/weights_layout.py, core/contracts.py). The weights.bin tensors are printed by visiting
+// (formats/weights_layout.py, core/contracts.py). The weights.bin tensors are printed by visiting
 // each model struct: the dtype comes from the struct member's type, so the line says what the C++
 // binder will require, not merely what the generated table says.
 //

@@ -8,7 +8,7 @@
 // The alarm policy is the bound model's: its row of the record's alarm.models (one policy per network),
 // else the record's single policy (a record written before the table, or a model it omits).
 // --model sgru: the streaming GRU, one step per usable sample (fwref/gru_step.hpp); --weights is then
-// the export's sgru_weights.bin (export/sgru_weights.py: the sgru sections and a copy of weights.bin's
+// the export's sgru_weights.bin (formats/sgru_weights.py: the sgru sections and a copy of weights.bin's
 // on-board record). cnode / gru with a motor head (sections cnode_motor / gru_motor in weights.bin)
 // run infer_motor: the motor columns below are then filled.
 //

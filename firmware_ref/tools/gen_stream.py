@@ -14,7 +14,7 @@ one line on a file it cannot use. Used by firmware_ref/mcu (FWREF_STREAMS) for m
 Besides weights.bin's four models (gen_weights.py), the stream image carries, as constant structs in
 fwref_stream_data.cpp:
 - the streaming GRU (``kSgruF32``, ``kSgruI8``) when the export holds sgru_weights.bin beside W
-  (export/sgru_weights.py; its on-board record must be W's, its dims within W's GRU limits);
+  (formats/sgru_weights.py; its on-board record must be W's, its dims within W's GRU limits);
 - the motor heads (``kCnodeMotorF32`` ... ``kGruMotorI8``) when W holds the sections cnode_motor /
   gru_motor; the header says which with FWREF_STREAM_HAS_SGRU / _CNODE_MOTOR / _GRU_MOTOR (0 or 1).
 """
@@ -32,10 +32,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))  # gen_weights.py
 from gen_weights import FileError, section_body  # noqa: E402
 
 from quadfdi.core.errors import QuadfdiError
-from quadfdi.detect.streamfile import read_stream
-from quadfdi.export.onboard_record import onboard_dict
-from quadfdi.export.weights_bin import read_weights
-from quadfdi.export.onboard_record import ONBOARD_PROFILES, max_alarm_n, policy_of
+from quadfdi.formats.stream import read_stream
+from quadfdi.formats.onboard import onboard_dict
+from quadfdi.formats.weights_bin import read_weights
+from quadfdi.formats.onboard import ONBOARD_PROFILES, max_alarm_n, policy_of
 
 PROFILE_ENUM = {"paper": "kPaper", "flightlog-min": "kFlightlogMin", "flightlog-nocur": "kFlightlogNocur",
                 "flightlog-esc": "kFlightlogEsc"}
@@ -128,7 +128,7 @@ def source(streams: list, extra: dict | None = None) -> str:
 def extra_sections(wf, folder: Path) -> dict:
     """{(model, precision): Section} of the streaming GRU (sgru_weights.bin in ``folder``) and of the
     motor heads weights.bin holds (module docstring); a streaming GRU file that does not fit is refused."""
-    from quadfdi.export.sgru_weights import FILE_NAME, read_sgru_weights
+    from quadfdi.formats.sgru_weights import FILE_NAME, read_sgru_weights
 
     out = {(m, p): wf.section(m, p) for m, p, *_ in EXTRA if m != "sgru" and wf.has(m, p)}
     path = folder / FILE_NAME

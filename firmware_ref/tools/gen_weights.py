@@ -12,9 +12,9 @@ Writes into <folder>:
   fwref_reference.hpp/.cpp    (with --reference) the reference windows and every expected tensor,
                               for the QEMU parity harness (mcu/parity_main.cpp).
 
-The files are read with the project's own readers (export.weights_bin.read_weights,
+The files are read with the project's own readers (formats.weights_bin.read_weights,
 export.reference_bin.read_reference: every container and layout check), and each model struct is
-initialised in the order of the layout table export/weights_layout.py, which the generated header
+initialised in the order of the layout table formats/weights_layout.py, which the generated header
 fwref/weights_layout_gen.hpp pins to the structs' member order. An unusable file exits 2 with one
 line on stderr. Floats are written as C++17 hexadecimal literals: exact. A file is rewritten only
 when its text changes, so an unchanged weights.bin rebuilds nothing. With --manifest, weights.bin
@@ -32,9 +32,9 @@ from pathlib import Path
 
 
 from quadfdi.core.errors import QuadfdiError  # noqa: E402
-from quadfdi.export.reference_bin import read_reference  # noqa: E402
-from quadfdi.export.weights_bin import read_weights  # noqa: E402
-from quadfdi.export.weights_layout import LAYOUTS, MODELS, SECTION_ORDER, dtype_of  # noqa: E402
+from quadfdi.formats.reference_bin import read_reference  # noqa: E402
+from quadfdi.formats.weights_bin import read_weights  # noqa: E402
+from quadfdi.formats.weights_layout import LAYOUTS, MODELS, SECTION_ORDER, dtype_of  # noqa: E402
 
 CTYPES = {"float32": "float", "int8": "std::int8_t", "int32": "std::int32_t"}
 
@@ -75,7 +75,7 @@ def section_unit(model: str, precision: str, section) -> str:
 
 def section_body(model: str, precision: str, section, var: str | None = None) -> str:
     """The arrays of one section (an anonymous namespace) and ``const fwref::<struct> <var>`` pointing
-    at them: any layout of export/weights_layout.py (the streaming GRU's and the motor heads' too:
+    at them: any layout of formats/weights_layout.py (the streaming GRU's and the motor heads' too:
     tools/gen_stream.py), ``var`` by default k<struct>."""
     layout = LAYOUTS[model]
     prefix = f"{model}_{'f32' if precision == 'fp32' else 'i8'}"

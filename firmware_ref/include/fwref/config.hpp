@@ -54,7 +54,7 @@ constexpr int kRk4Consts = contracts::kRk4NumConsts;              // weights.bin
 constexpr int kMaxEvals = kRk4StagesPerStep * kMaxSteps; // 4N field evaluations
 constexpr int kMaxGruHidden = FWREF_MAX_GRU_HIDDEN;     // GRU hidden state
 constexpr int kMaxGruGates = 3 * kMaxGruHidden;         // r, z, n rows
-constexpr int kMotors = FWREF_MOTORS;                   // outputs of the motor head (train.motor): one per rotor
+constexpr int kMotors = FWREF_MOTORS;                   // outputs of the motor head (models.motor): one per rotor
 
 // int8 products accumulate sum_i q[i] * Wq[o, i] in int32 with |q| <= 128 and |Wq| <= 127. The
 // rescale converts the sum to float32, which is exact only below 2^24 (docs/formats.md):

@@ -1,5 +1,5 @@
 // fwref/container.hpp -- scope: the host-side reader of the tensor-record container that
-// weights.bin and reference.bin share (export/binfmt.py, docs/formats.md). It checks the
+// weights.bin and reference.bin share (formats/binfmt.py, docs/formats.md). It checks the
 // magic, the version, the file size against the real size, the file and section CRC-32s, and every
 // size field against the bytes left before it reads them; each failure is a Status plus a one-line
 // message naming the file. Host only (std::vector, std::string): the microcontroller build has its
@@ -20,7 +20,7 @@ const char* dtype_name(DType t);
 
 constexpr std::uint32_t kModelNone = 0, kModelCnode = 1, kModelGru = 2;
 constexpr std::uint32_t kModelCnodeMotor = 16, kModelGruMotor = 17;  // the optional motor-head sections
-constexpr std::uint32_t kModelSgru = 18;  // the streaming GRU (its own file, export/sgru_weights.py)
+constexpr std::uint32_t kModelSgru = 18;  // the streaming GRU (its own file, formats/sgru_weights.py)
 constexpr std::uint32_t kPrecNone = 0, kPrecF32 = 1, kPrecI8 = 2;
 const char* model_name(std::uint32_t model);
 const char* precision_name(std::uint32_t precision);

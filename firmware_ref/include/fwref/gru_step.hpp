@@ -1,4 +1,4 @@
-// fwref/gru_step.hpp -- scope: the streaming GRU (train/stream_gru.py), fp32 and int8, one step per sample:
+// fwref/gru_step.hpp -- scope: the streaming GRU (models/stream_gru.py), fp32 and int8, one step per sample:
 // the hidden state is carried from sample to sample instead of re-running a window.
 //
 //   x_norm = (sample - mean) / std

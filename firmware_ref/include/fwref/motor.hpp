@@ -1,4 +1,4 @@
-// fwref/motor.hpp -- scope: the optional motor head (train.motor; docs/formats.md "weights.bin",
+// fwref/motor.hpp -- scope: the optional motor head (models.motor; docs/formats.md "weights.bin",
 // the motor sections): which of the four rotors a rotor-side fault is on.
 //
 //   motor_logits (M = 4) = W f + b,   f = what the class head reads (CNODE z1 (L), GRU h_W (H))

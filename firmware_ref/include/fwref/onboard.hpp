@@ -1,4 +1,4 @@
-// fwref/onboard.hpp -- scope: weights.bin's on-board record on the host (export/onboard_record.py,
+// fwref/onboard.hpp -- scope: weights.bin's on-board record on the host (formats/onboard.py,
 // docs/formats.md): the section (model 0, precision 0) after the model sections, read and checked
 // against this build: a hover profile's raw and model channels must be the ones fwref/profile.hpp
 // compiles in, the hover filter's constants the ones fwref/hover.hpp compiles in. Host only

@@ -1,7 +1,7 @@
 // fwref/profile.hpp -- scope: the channel profiles of core/profiles.py on one raw sample, in
 // float32, as the streaming runtime (fwref/stream.hpp) applies them. Header-only, no heap.
 //
-// A stream delivers the raw channels the on-board record names (export/onboard_record.py), in
+// A stream delivers the raw channels the on-board record names (formats/onboard.py), in
 // this order for the profiles with a hover estimate (``airborne`` 0/1 last):
 //   flightlog-min:   roll pitch p q r vx vy yaw vz V_b I_b thr1 thr2 thr3 thr4 vib_px4 airborne
 //   flightlog-nocur: roll pitch p q r vx vy yaw vz V_b     thr1 thr2 thr3 thr4 vib_px4 airborne

@@ -24,7 +24,7 @@ from functools import lru_cache
 import numpy as np
 
 from quadfdi.core.errors import QuadfdiError
-from quadfdi.ingest.frames import wrap
+from quadfdi.core.frames import wrap
 
 GRID_DT = 0.04  # s: the simulator's telemetry sample interval (configs/paper.toml sim.sample_dt_s)
 CUTOFF_HZ = 10.0  # Hz: 0.8 x the grid's Nyquist frequency

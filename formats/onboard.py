@@ -2,7 +2,7 @@
 weights: the channel profile (its id, the raw channels the stream delivers in their order, the
 model's channels), the window, stride and sample period, the hover filter's constants, where the
 cell count comes from, and the alarm policy (core.alarm). Layout: ``ONBOARD_*`` below (the model
-sections' is export/weights_layout.py); the C++ reader: firmware_ref/include/fwref/onboard.hpp;
+sections' is formats/weights_layout.py); the C++ reader: firmware_ref/include/fwref/onboard.hpp;
 docs/formats.md.
 
 Written by ``quadfdi export`` from the manifest's ``profile`` and ``alarm``; weights.bin files written
@@ -25,7 +25,7 @@ from quadfdi.core import hover
 from quadfdi.core.alarm import rotor_columns
 from quadfdi.core.errors import QuadfdiError
 from quadfdi.core.profiles import required_raw, uses_hover
-from quadfdi.export.binfmt import MODELS, Section
+from quadfdi.formats.binfmt import MODELS, Section
 
 KIND = ("none", "none")  # (model, precision) of the section
 

@@ -1,6 +1,6 @@
 """Fixed-step Runge-Kutta solvers, each a small declared thing (torchdiffeq style).
 
-One step function per scheme, reused by training (``train.models``) and the tests; classic
+One step function per scheme, reused by training (``models.networks``) and the tests; classic
 RK4's lives in ``core.rk4`` (the program the simulator, the ONNX unrolling and the C++ reference
 share). Each is ``step(f, t, z, h) -> z_next`` with ``f(t, z)`` the vector field, ``t`` and ``h``
 Python floats and ``z`` a torch tensor or a numpy array (the steps are pure arithmetic, so they
@@ -171,7 +171,7 @@ class SolverSpec:
 
     ``method``: a fixed-step method of FIXED_METHODS (our arithmetic, ``steps`` equal steps) or an
     adaptive one of ADAPTIVE_METHODS (torchdiffeq.odeint with ``rtol``/``atol``; with
-    ``jump_t`` the solver is told the control path's knots, see ``train.control.knots``).
+    ``jump_t`` the solver is told the control path's knots, see ``models.control.knots``).
     Fields that do not apply to the method are ignored.
     """
 

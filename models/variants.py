@@ -8,7 +8,7 @@
 
 Every variant has the CNODE's parameters and state dict, so weights move freely between them;
 ``model_signature`` records the control representation and ``CNODE_CLASSES`` maps it back to a
-class, so ``train.checkpoint.load_checkpoint`` rebuilds either control without a special case.
+class, so ``models.checkpoint.load_checkpoint`` rebuilds either control without a special case.
 ``rebuild`` gives a copy of a model's weights in another variant, solver and dtype.
 """
 
@@ -20,9 +20,9 @@ import numpy as np
 import torch
 from torch import nn
 
-from quadfdi.train.control import interp_matrix
-from quadfdi.train.models import CNODE, model_signature
-from quadfdi.train.solvers import SolverSpec, integrate_fixed
+from quadfdi.models.control import interp_matrix
+from quadfdi.models.networks import CNODE, model_signature
+from quadfdi.models.solvers import SolverSpec, integrate_fixed
 
 
 def average_matrix(n_steps: int, window: int = 80) -> np.ndarray:
@@ -152,7 +152,7 @@ def rebuild(model: CNODE, solver: SolverSpec, control: str = "point", knot_resta
     sig = model_signature(model)
     sig.pop("kind")
     sig.pop("control")
-    n_motors = sig.pop("n_motors", None)  # the motor head is a layer added after construction (train.models)
+    n_motors = sig.pop("n_motors", None)  # the motor head is a layer added after construction (models.networks)
     cls = KnotRestartCNODE if knot_restart else CNODE_CLASSES[control]
     out = cls(**sig, solver=solver)
     if n_motors is not None:

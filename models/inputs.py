@@ -23,7 +23,7 @@ import numpy as np
 from quadfdi.core.errors import QuadfdiError
 from quadfdi.core.hover import INPUTS as HOVER_INPUTS, collective, estimate_many
 from quadfdi.core.profiles import apply_profile, channel_names, channel_units, required_raw, uses_hover
-from quadfdi.sim.dataset import Dataset
+from quadfdi.formats.dataset import Dataset
 
 PROFILE_KEY = "profile"  # the checkpoint's key (train.run) and the manifest's (export.manifest)
 

@@ -7,8 +7,8 @@ import tempfile
 from pathlib import Path
 from typing import Callable
 
-from quadfdi.bench.runtimes.common import percentile
-from quadfdi.export.ort_session import session
+from quadfdi.bench.timing.common import percentile
+from quadfdi.runtimes.ort import session
 
 
 def ort_runtime(args) -> tuple[Callable, Callable, dict]:

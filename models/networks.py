@@ -18,8 +18,8 @@ from torch import nn
 from torchdiffeq import odeint
 
 from quadfdi.core.config import TrainConfig
-from quadfdi.train.control import LinearPath, interp_matrix, knots
-from quadfdi.train.solvers import FIXED_METHODS, SolverSpec, fixed_method, integrate_fixed, nearest_index, stage_times
+from quadfdi.models.control import LinearPath, interp_matrix, knots
+from quadfdi.models.solvers import FIXED_METHODS, SolverSpec, fixed_method, integrate_fixed, nearest_index, stage_times
 
 __all__ = [
     "MODEL_KINDS",
@@ -99,7 +99,7 @@ class _Normalised(nn.Module):
         self.window = int(window)
         self.register_buffer("mean", torch.zeros(n_channels))  # (C,), training split only
         self.register_buffer("std", torch.ones(n_channels))  # (C,), floored at STD_FLOOR
-        self.motor_head: nn.Linear | None = None  # train.motor.attach_motor_head: (B, width) -> (B, 4)
+        self.motor_head: nn.Linear | None = None  # models.motor.attach_motor_head: (B, width) -> (B, 4)
 
     def set_normalisation(self, mean: Any, std: Any) -> None:
         """Store the training split's per-channel mean and std, (C,) each; std floored at STD_FLOOR."""
@@ -153,7 +153,7 @@ class CNODE(_Normalised):
     when ``solver.jump_t`` (torchdiffeq 0.2.5's option; ``grid_points`` is gone).
     ``nfe`` counts vector-field evaluations of the last forward/trace.
     ``control`` names the control representation ("point": u at the stage times); variants with
-    another one (``train.variants``) override it, and ``model_signature`` records it.
+    another one (``models.variants``) override it, and ``model_signature`` records it.
     """
 
     control = "point"
@@ -355,7 +355,7 @@ def model_signature(model: nn.Module) -> dict[str, int | str]:
     """The architecture hyper-parameters (plain ints and strings) that rebuild ``model``.
 
     The solver is not part of it: a CNODE's weights are valid under any solver. Its control
-    representation is (``control``: "point", or "average" for ``train.variants.AverageControlCNODE``):
+    representation is (``control``: "point", or "average" for ``models.variants.AverageControlCNODE``):
     the same weights driven by another control are another model. ``n_motors`` (4): a motor head.
     """
     if isinstance(model, (CNODE, GRUClassifier)):
@@ -372,8 +372,8 @@ def model_from_signature(sig: dict[str, Any], solver: SolverSpec | None = None,
                          cnode_classes: Mapping[str, type] | None = None) -> nn.Module:
     """The (untrained) model that ``model_signature`` describes; ValueError on a bad signature.
 
-    ``cnode_classes`` maps a CNODE's ``control`` to its class (``train.variants.CNODE_CLASSES``,
-    which ``train.checkpoint`` passes); by default only the point control is known here. A
+    ``cnode_classes`` maps a CNODE's ``control`` to its class (``models.variants.CNODE_CLASSES``,
+    which ``models.checkpoint`` passes); by default only the point control is known here. A
     signature without ``control`` (checkpoints written before it was recorded) is a point CNODE.
     """
     sig = dict(sig)
@@ -383,7 +383,7 @@ def model_from_signature(sig: dict[str, Any], solver: SolverSpec | None = None,
     if kind not in keys:
         raise ValueError(f"model signature kind must be one of {', '.join(MODEL_KINDS)}, found {kind!r}")
     control = sig.pop("control", "point") if kind == "cnode" else None
-    n_motors = sig.pop("n_motors", None)  # the motor head (train.motor), absent without one
+    n_motors = sig.pop("n_motors", None)  # the motor head (models.motor), absent without one
     if n_motors is not None and n_motors != 4:
         raise ValueError(f"{kind} signature n_motors must be 4, found {n_motors!r}")
     if set(sig) != keys[kind] or not all(isinstance(v, int) and not isinstance(v, bool) for v in sig.values()):

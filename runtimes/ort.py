@@ -1,18 +1,23 @@
-"""The one ONNX Runtime session builder of the tree (export checks, parity, bench workers and probes).
+"""ONNX Runtime: the one session builder of the tree and the one way to run an exported graph
+(export checks, parity, detect, bench workers and probes).
 
-Imports only onnxruntime, so that a bench worker process that times ONNX Runtime does not load
-torch into its memory baseline.
+Imports only onnxruntime and numpy, so that a bench worker process that times ONNX Runtime does not
+load torch into its memory baseline, and detect never pays for torch.
 """
 
 from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import onnxruntime as ort
+
+from quadfdi.core.errors import QuadfdiError
 
 # One thread by default: the graphs are small, and on a shared 2-core machine a second thread
 # made PyTorch's GRU 50x slower (OpenMP spin-waiting against other processes).
 THREADS = 1
+CHUNK = 512  # windows per run() in batched mode: bounds the memory of a long flight
 
 
 def session(model: bytes | str | Path, threads: int = THREADS, *, spinning: bool | None = None,
@@ -35,6 +40,30 @@ def session(model: bytes | str | Path, threads: int = THREADS, *, spinning: bool
         opts.profile_file_prefix = profile_prefix
     source = str(model) if isinstance(model, Path) else model
     return ort.InferenceSession(source, opts, providers=["CPUExecutionProvider"])
+
+
+def load(path: str | Path, threads: int = THREADS) -> ort.InferenceSession:
+    """A session of the graph file ``path``, or a one-line error for a missing, truncated or foreign file."""
+    try:
+        data = Path(path).read_bytes()
+    except OSError as exc:
+        raise QuadfdiError(f"cannot read {path}: {exc.strerror}") from None
+    try:
+        return session(data, threads)
+    except Exception as exc:  # onnxruntime's own exception types: a truncated or foreign graph
+        first = (str(exc).splitlines() or [type(exc).__name__])[0]
+        raise QuadfdiError(f"{path} is not a loadable ONNX graph (truncated or foreign file?): {first}") from None
+
+
+def outputs(graph: str | Path | ort.InferenceSession, x: np.ndarray, names: list[str],
+            batch: int = CHUNK) -> list[np.ndarray]:
+    """The outputs ``names`` (e.g. logits, proba, motor_logits) of windows ``x`` (n, W, C), float32,
+    ``batch`` windows per call (1: one window at a time, as firmware runs them)."""
+    sess = graph if isinstance(graph, ort.InferenceSession) else load(graph)
+    parts = [sess.run(names, {"telemetry": x[i:i + batch]}) for i in range(0, len(x), batch)]
+    if not parts:
+        return [np.zeros((0, 0), np.float32) for _ in names]
+    return [np.concatenate([p[j] for p in parts]).astype(np.float32) for j in range(len(names))]
 
 
 def optimized_nodes(model: bytes | str | Path) -> dict[str, int]:

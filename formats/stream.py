@@ -84,8 +84,8 @@ def read_stream(path: str | Path) -> RawStream:
 
 def record_of(export: str | Path) -> dict:
     """The export's on-board record (export/onboard_record.onboard_dict), or a one-line refusal."""
-    from quadfdi.export.onboard_record import onboard_dict
-    from quadfdi.export.weights_bin import read_weights
+    from quadfdi.formats.onboard import onboard_dict
+    from quadfdi.formats.weights_bin import read_weights
 
     wf = read_weights(Path(export) / "weights.bin")
     if wf.onboard is None:
@@ -95,8 +95,8 @@ def record_of(export: str | Path) -> dict:
 
 def from_dataset(dataset: str | Path, flight: int, record: dict, ds=None) -> RawStream:
     """Flight ``flight`` of a simulated dataset.npz (every simulated flight is airborne throughout);
-    ``ds`` the file already loaded (sim.dataset.load_dataset), for a caller taking several flights."""
-    from quadfdi.sim.dataset import load_dataset
+    ``ds`` the file already loaded (formats.dataset.load_dataset), for a caller taking several flights."""
+    from quadfdi.formats.dataset import load_dataset
 
     ds = load_dataset(dataset) if ds is None else ds
     tel = ds["telemetry"]
@@ -121,18 +121,3 @@ def from_dataset(dataset: str | Path, flight: int, record: dict, ds=None) -> Raw
     dt = float(ds.config.sim.sample_dt_s)
     return RawStream(f"{Path(dataset).name}#{flight}", record["profile"], list(record["raw_channels"]), dt, cells,
                      np.arange(tel.shape[1]) * dt, np.stack(cols, axis=1).astype(np.float32))
-
-
-def from_flight(path: str | Path, record: dict) -> RawStream:
-    """A real flight (.ulg / .BIN ingested on the fly, or flight.npz) with detect's refusals."""
-    from quadfdi.detect.inputs import _cells, _raw_channels, read_flight
-
-    if not record["cells_from_stream"]:
-        raise QuadfdiError(f"profile {record['profile']!r} is the simulator's telemetry: a real flight cannot feed it "
-                           "(train with --set train.profile=flightlog-min)")
-    arrays = read_flight(path)
-    cells = _cells(arrays)
-    raw, _ = _raw_channels(arrays, record["profile"])
-    cols = [np.asarray(arrays["airborne"], np.float32) if r == "airborne" else raw[r] for r in record["raw_channels"]]
-    return RawStream(Path(path).name, record["profile"], list(record["raw_channels"]), float(record["sample_dt_s"]),
-                     cells, np.asarray(arrays["time"], np.float64), np.stack(cols, axis=1).astype(np.float32))

@@ -2,14 +2,14 @@
 
 The streaming GRU has its own weights file so that weights.bin (its bytes, its sha256 in the
 manifest, and every reader written before the streaming GRU) stays exactly what it was. Container
-and section format are weights.bin's (export/binfmt.py: magic b"QFDIWTS\\0", version 1); sections,
+and section format are weights.bin's (formats/binfmt.py: magic b"QFDIWTS\\0", version 1); sections,
 in this order:
 
-    sgru fp32   model code 18, precision 1: the GRU's tensors (export/weights_layout.py "gru")
+    sgru fp32   model code 18, precision 1: the GRU's tensors (formats/weights_layout.py "gru")
                 with dims [0] C, [1] W = 1 (one step), [2] K, [3] H
     sgru int8   model code 18, precision 2: the same with int8 matrices (per-row scales) and the
                 static scales act.x_norm.scale (C,) (folded into gru.weight_ih) and act.h.scale
-    none none   a byte copy of weights.bin's on-board record (export/onboard_record.py): profile,
+    none none   a byte copy of weights.bin's on-board record (formats/onboard.py): profile,
                 raw and model channels, W, stride, sample period, hover constants, alarm policy
 
 The streaming GRU reads the record's model channels (checked when written); W and stride are the
@@ -22,17 +22,14 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from quadfdi.core.atomic import write_bytes
 from quadfdi.core.errors import QuadfdiError
-from quadfdi.export.binfmt import Section, pack, read_file
-from quadfdi.export.weights_layout import LAYOUTS, MAGIC, VERSION, check_dims, dtype_of, shape_of
+from quadfdi.formats.binfmt import Section, pack, read_file
+from quadfdi.formats.weights_layout import LAYOUTS, MAGIC, VERSION, check_dims, dtype_of, shape_of
 
-if TYPE_CHECKING:
-    from quadfdi.export.onnx_gru import GruParams, GruQuant
 
 FILE_NAME = "sgru_weights.bin"
 SECTION_ORDER = (("sgru", "fp32"), ("sgru", "int8"))
@@ -40,7 +37,7 @@ SECTION_ORDER = (("sgru", "fp32"), ("sgru", "int8"))
 
 def sgru_weights_bytes(p: GruParams, q: GruQuant, onboard: Section) -> bytes:
     """The file's bytes: ``p`` (window 1) fp32, ``p`` + ``q`` int8, then the on-board record."""
-    from quadfdi.export.weights_bin import gru_section
+    from quadfdi.formats.weights_bin import gru_section
 
     if p.window != 1:
         raise ValueError(f"the streaming GRU's section has window 1, found {p.window}")
@@ -49,8 +46,8 @@ def sgru_weights_bytes(p: GruParams, q: GruQuant, onboard: Section) -> bytes:
 
 def export_onboard(export: str | Path, channel_names: list[str]) -> Section:
     """The on-board record of ``export``/weights.bin, checked against the streaming GRU's channels."""
-    from quadfdi.export.onboard_record import onboard_dict
-    from quadfdi.export.weights_bin import read_weights
+    from quadfdi.formats.onboard import onboard_dict
+    from quadfdi.formats.weights_bin import read_weights
 
     path = Path(export) / "weights.bin"
     if not path.is_file():
@@ -81,7 +78,7 @@ class SgruWeights:
 def read_sgru_weights(path: str | Path) -> SgruWeights:
     """Parse and check the file (sections, tensors, dtypes, shapes, window 1, the record); one-line
     QuadfdiError otherwise."""
-    from quadfdi.export.onboard_record import KIND as ONBOARD, check_onboard
+    from quadfdi.formats.onboard import KIND as ONBOARD, check_onboard
 
     _, sections = read_file(path, MAGIC, VERSION, "streaming GRU weights file")
     where = f"streaming GRU weights file {path}"

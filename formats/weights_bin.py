@@ -1,6 +1,6 @@
 """weights.bin: every number the C++ reference needs, one section per (model, precision).
 
-Container: export/binfmt.py (magic b"QFDIWTS\\0", version 1). Sections, in this order:
+Container: formats/binfmt.py (magic b"QFDIWTS\\0", version 1). Sections, in this order:
 cnode fp32, cnode int8, gru fp32, gru int8. Section ``dims`` (u32[8]):
 
     [0] C channels  [1] W window  [2] K classes  [3] hidden width (CNODE field H, GRU H)
@@ -8,13 +8,13 @@ cnode fp32, cnode int8, gru fp32, gru int8. Section ``dims`` (u32[8]):
 
 Matrices are in PyTorch's (out, in) layout, y = W x + b; int8 weights are symmetric per output
 row (quant_axis 0, zero points 0). The tensors of each section, their order, dtypes and shapes are
-the table of export/weights_layout.py (docs/formats.md prints it); the writer builds sections from
+the table of formats/weights_layout.py (docs/formats.md prints it); the writer builds sections from
 it and the reader checks every file against it. Meaning of the int8-only tensors: the static
 activation scales; ``act.u.scale`` (C,) is folded into the int8 ``encoder.weight`` and
 ``lin1_u.weight`` (they hold W diag(s_u), quantized per row), ``act.x_norm.scale`` of the GRU into
 ``gru.weight_ih``. ``rk4.consts`` = core.rk4.rk4_constants(1/N), in RK4_CONSTANT_NAMES order.
 
-A net with a motor head (train.motor) adds, after these four and in this order, its sections
+A net with a motor head (models.motor) adds, after these four and in this order, its sections
 "cnode_motor" / "gru_motor" fp32 and int8 (dims [0] F features, [1] M = 4 motors): the head's
 weight (M, F) and bias (M,); the int8 head uses the class head's activation scale (act.z1.scale,
 act.h.scale). A file without a head is byte for byte what it was before the head existed.
@@ -24,22 +24,20 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import numpy as np
 
 from quadfdi.core.atomic import write_bytes
 from quadfdi.core.errors import QuadfdiError
 from quadfdi.core.rk4 import rk4_constants
-from quadfdi.export.binfmt import Section, pack, read_file
-from quadfdi.export.weights_layout import (LAYOUTS, MAGIC, MOTOR_SECTION_ORDER, SECTION_ORDER, VERSION, check_dims, dims_of,
+from quadfdi.formats.binfmt import Section, pack, read_file
+from quadfdi.formats.weights_layout import (LAYOUTS, MAGIC, MOTOR_SECTION_ORDER, SECTION_ORDER, VERSION, check_dims, dims_of,
                                    dtype_of, shape_of)
 
-if TYPE_CHECKING:  # the reader needs neither torch nor onnx (firmware_ref/tools/gen_weights.py uses it)
-    from quadfdi.export.onnx_cnode import CnodeParams, CnodeQuant
-    from quadfdi.export.onnx_gru import GruParams, GruQuant
 
 
+# CnodeParams, CnodeQuant, GruParams, GruQuant: the parameter objects of quadfdi.export.onnx_cnode and
+# .onnx_gru (duck-typed here: a format imports no stage).
 def cnode_dims(p: CnodeParams) -> tuple[int, ...]:
     return dims_of("cnode", {"C": p.n_channels, "W": p.window, "K": p.n_classes, "H": p.hidden, "L": p.latent,
                              "N": p.steps})
@@ -106,7 +104,7 @@ def motor_sections(net: str, w, b, qw) -> list[Section]:
 def weights_bytes(cp: CnodeParams, cq: CnodeQuant, gp: GruParams, gq: GruQuant,
                   onboard: Section | None = None) -> bytes:
     """The model sections in SECTION_ORDER, the motor heads' (MOTOR_SECTION_ORDER) of the nets that
-    have one, then the on-board record (export/onboard_record.py) if given."""
+    have one, then the on-board record (formats/onboard.py) if given."""
     sections = {("cnode", "fp32"): cnode_section(cp, None), ("cnode", "int8"): cnode_section(cp, cq),
                 ("gru", "fp32"): gru_section(gp, None), ("gru", "int8"): gru_section(gp, gq)}
     motor = motor_sections("cnode", cp.motor_w, cp.motor_b, cq.motor) + motor_sections("gru", gp.motor_w, gp.motor_b, gq.motor)
@@ -128,7 +126,7 @@ class WeightsFile:
 
     @property
     def onboard(self) -> Section | None:
-        """The on-board record (export/onboard_record.py); None in a file written before it."""
+        """The on-board record (formats/onboard.py); None in a file written before it."""
         last = self.sections[-1] if self.sections else None
         return last if last is not None and (last.model, last.precision) == ("none", "none") else None
 
@@ -147,7 +145,7 @@ def check_layout(sections: list[Section], where: str) -> None:
     """Every section of the table, in its order, each holding exactly the table's tensors with the
     dtype and shape its dims imply, optionally followed by the on-board record; otherwise a one-line
     QuadfdiError."""
-    from quadfdi.export.onboard_record import KIND as ONBOARD, check_onboard
+    from quadfdi.formats.onboard import KIND as ONBOARD, check_onboard
 
     if sections and (sections[-1].model, sections[-1].precision) == ONBOARD:
         check_onboard(sections[-1], where)

@@ -15,8 +15,8 @@ import torch
 from quadfdi.core.atomic import atomic_path
 from quadfdi.core.contracts import CLASS_NAMES
 from quadfdi.core.errors import QuadfdiError
-from quadfdi.train.models import model_from_signature, model_signature
-from quadfdi.train.variants import CNODE_CLASSES
+from quadfdi.models.networks import model_from_signature, model_signature
+from quadfdi.models.variants import CNODE_CLASSES
 
 CHECKPOINT_VERSION = 1
 
@@ -47,7 +47,7 @@ def save_checkpoint(path: str | Path, model: torch.nn.Module, config: dict, chan
 def load_checkpoint(path: str | Path, kind: str | None = None) -> tuple[torch.nn.Module, dict[str, Any]]:
     """Rebuild the model of checkpoint ``path``; ``kind`` ('cnode'/'gru') is checked when given.
 
-    A CNODE comes back in the class of its control representation (``train.variants.CNODE_CLASSES``),
+    A CNODE comes back in the class of its control representation (``models.variants.CNODE_CLASSES``),
     so a step-average model loads like any other.
     """
     p = Path(path)

@@ -1,7 +1,7 @@
 """The streaming GRU: one GRU step per new telemetry sample, the class read from the hidden state
 at every step (issue 16, point 2).
 
-Where the windowed ``train.models.GRUClassifier`` re-runs W = 80 steps on the latest window at every
+Where the windowed ``models.networks.GRUClassifier`` re-runs W = 80 steps on the latest window at every
 stride, this model carries its hidden state h from sample to sample: a flight controller pushes each
 25 Hz sample once, pays one GRU cell and (when it wants a decision) one head product.
 
@@ -22,7 +22,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from quadfdi.train.models import STD_FLOOR
+from quadfdi.models.networks import STD_FLOOR
 
 KIND = "sgru"
 

@@ -24,8 +24,8 @@ def torch_runtime(args) -> tuple[Callable, Callable, dict]:
     """(batch-1 call, batch call, info) for a checkpoint; the CNODE's solver set from ``--solver``."""
     import torch
 
-    from quadfdi.train.checkpoint import load_checkpoint
-    from quadfdi.train.models import SolverSpec
+    from quadfdi.models.checkpoint import load_checkpoint
+    from quadfdi.models.networks import SolverSpec
 
     torch.set_num_threads(args.threads)
     model, _ = load_checkpoint(args.artifact, args.model)

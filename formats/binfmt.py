@@ -47,8 +47,8 @@ import numpy as np
 from quadfdi.core.errors import QuadfdiError
 
 MODELS = {"none": 0, "cnode": 1, "gru": 2}
-MODELS.update({"cnode_motor": 16, "gru_motor": 17})  # the optional motor-head sections (export/weights_layout.py)
-MODELS["sgru"] = 18  # the streaming GRU, in its own file export/sgru_weights.bin (export/sgru_weights.py)
+MODELS.update({"cnode_motor": 16, "gru_motor": 17})  # the optional motor-head sections (formats/weights_layout.py)
+MODELS["sgru"] = 18  # the streaming GRU, in its own file export/sgru_weights.bin (formats/sgru_weights.py)
 PRECISIONS = {"none": 0, "fp32": 1, "int8": 2}
 DTYPES = {1: np.dtype("<f4"), 2: np.dtype("i1"), 3: np.dtype("<i4")}
 NATIVE = {1: np.float32, 2: np.int8, 3: np.int32}

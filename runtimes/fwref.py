@@ -1,6 +1,6 @@
-"""``fwref_infer`` as a function: raw float32 windows in, the class logits (and with ``motor`` the
-motor head's logits, ``--motor-out``) out, through temporary files. Its own module so that callers
-that must not import torch (``detect``) share it with ``parity.runners``."""
+"""The C++ reference's command-line tools as functions: ``fwref_infer`` (raw float32 windows in, the
+class logits and with ``motor`` the motor head's logits out, through temporary files). Imports no
+torch: detect, parity and bench share it."""
 
 from __future__ import annotations
 
@@ -39,3 +39,14 @@ def fwref_infer(exe: Path, weights: Path, model: str, int8: bool, x: np.ndarray,
     if out.size % max(len(x), 1) or (mout is not None and mout.size != 4 * len(x)):
         raise QuadfdiError(f"fwref_infer wrote {out.size} values for {len(x)} windows")
     return out.reshape(len(x), -1).astype(np.float32), None if mout is None else mout.reshape(len(x), 4)
+
+
+def cpp_outputs(weights: Path, net: str, int8: bool, x: np.ndarray, motor: bool = False,
+                build_dir: Path | None = None) -> tuple[np.ndarray, np.ndarray | None]:
+    """(logits, motor logits or None) of windows ``x`` from the host build's ``fwref_infer`` (built
+    on first use; ``build_dir`` an existing build instead)."""
+    if build_dir is None:
+        from quadfdi.runtimes.build import HOST_BUILD, build_host
+
+        build_dir = build_host(HOST_BUILD, log=lambda _: None)
+    return fwref_infer(Path(build_dir) / "fwref_infer", weights, net, int8, x, motor)

@@ -1,0 +1,28 @@
+"""The channel table: every telemetry channel quadfdi knows, with its unit, written once.
+
+The simulator's 23 telemetry channels come first, in the order of the paper's dataset (so a model
+trained on the simulator reads the same columns as one reading an ingested flight), then the
+channels only richer logs (and the realistic suite) carry. Everything that names a channel — the
+simulator's sensors, ``flight.npz``, channel profiles, the stream files and the generated C++
+header — takes names and units from here.
+"""
+
+from __future__ import annotations
+
+SIM_CHANNELS: tuple[tuple[str, str], ...] = (
+    ("x", "m"), ("y", "m"), ("z", "m"), ("vx", "m/s"), ("vy", "m/s"), ("vz", "m/s"),
+    ("roll", "rad"), ("pitch", "rad"), ("yaw", "rad"), ("p", "rad/s"), ("q", "rad/s"), ("r", "rad/s"),
+    ("V_b", "V"), ("I_b", "A"), ("SoC", "-"), ("T1", "degC"), ("T2", "degC"), ("T3", "degC"), ("T4", "degC"),
+    ("thr1", "-"), ("thr2", "-"), ("thr3", "-"), ("thr4", "-"),
+)
+EXTRA_CHANNELS: tuple[tuple[str, str], ...] = (
+    ("vib_acc", "m/s^2"), ("rpm1", "rpm"), ("rpm2", "rpm"), ("rpm3", "rpm"), ("rpm4", "rpm"),
+    ("esc_temp1", "degC"), ("esc_temp2", "degC"), ("esc_temp3", "degC"), ("esc_temp4", "degC"),
+    ("esc_cur1", "A"), ("esc_cur2", "A"), ("esc_cur3", "A"), ("esc_cur4", "A"),
+)
+ALL_CHANNELS = SIM_CHANNELS + EXTRA_CHANNELS
+CHANNEL_NAMES = tuple(n for n, _ in ALL_CHANNELS)  # flight.npz's columns, in order
+CHANNEL_UNITS = dict(ALL_CHANNELS)
+SIM_CHANNEL_NAMES = tuple(n for n, _ in SIM_CHANNELS)
+SIM_CHANNEL_UNITS = tuple(u for _, u in SIM_CHANNELS)
+ANGLE_CHANNELS = frozenset({"roll", "pitch", "yaw"})  # unwrapped before resampling, wrapped after

@@ -1,0 +1,39 @@
+"""``flight.npz``: one flight, real or simulated, as every later stage reads it (docs/flight_format.md).
+
+Every channel at its logged times (``raw.<name>.t`` / ``raw.<name>.v``), the same channels on the
+25 Hz grid (``telemetry`` with ``mask``), what each channel is and where it came from, the flight's
+intervals, the log's sha256 and the vehicle facts read from it. ``quadfdi ingest`` writes it from a
+log, the simulator from a simulated flight; both through ``write_flight``.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from quadfdi.core.errors import QuadfdiError
+from quadfdi.core.npzio import read_npz, write_npz
+
+FORMAT_VERSION = 1
+REQUIRED = ("format_version", "time", "telemetry", "mask", "channel_names", "channel_units", "channel_sources",
+            "channel_status", "channel_rates_hz", "channel_counts", "airborne", "airborne_segments",
+            "armed_segments", "log_sha256", "log_file", "autopilot", "vehicle", "resampling", "notes")
+
+
+def write_flight(path: str | Path, arrays: dict[str, np.ndarray]) -> None:
+    write_npz(path, arrays)
+
+
+def load_flight(path: str | Path) -> dict[str, np.ndarray]:
+    """A flight.npz's arrays, checked against the contract (one-line error naming the field)."""
+    arrays = read_npz(path, "flight")
+    for key in REQUIRED:
+        if key not in arrays:
+            raise QuadfdiError(f"{path}: missing field {key!r} (not a quadfdi flight.npz)")
+    if int(arrays["format_version"]) != FORMAT_VERSION:
+        raise QuadfdiError(f"{path}: format_version {int(arrays['format_version'])}, this quadfdi reads {FORMAT_VERSION}")
+    n, c = arrays["telemetry"].shape
+    if arrays["mask"].shape != (n, c) or arrays["time"].shape != (n,) or arrays["channel_names"].shape != (c,):
+        raise QuadfdiError(f"{path}: telemetry {arrays['telemetry'].shape}, mask, time and channel_names disagree")
+    return arrays

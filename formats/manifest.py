@@ -1,0 +1,63 @@
+"""manifest.json: what the export folder holds and how it was checked (docs/formats.md).
+
+Top-level keys, in this order: ``schema_version``, ``producer``, ``channels`` (name, unit),
+``n_channels``, ``window``, ``sample_dt_s``, ``class_names``, ``normalisation`` (per model: mean,
+std), ``solver`` (classic RK4, N, stage times), ``opset``, ``ir_version``, ``io`` (input and output
+tensors), ``artifacts`` (cnode_fp32, cnode_int8, gru_fp32, gru_int8 -> file names relative to the
+export folder), ``files`` (name -> sha256, bytes), ``models`` (architecture, MACs),
+``quantization`` (scheme, calibration, coverage), ``verification``, ``metrics`` (test split, per
+artifact), ``reference`` (the test windows in reference.bin), ``config``, ``profile`` (the input
+channels, ``profile_entry``), ``alarm`` (the default alarm policy: core.alarm, the [alarm] section's
+keys; what a reader that predates ``alarm_per_model`` runs), ``alarm_per_model`` (network -> {policy,
+source}: export/alarm_policies.py; absent in an export written before it), and
+only for models with a motor head (models.motor) ``motor_head`` (``motor_entry``; ``io.outputs``
+then also lists ``motor_logits``).
+A reader must check ``schema_version`` first: ``load_manifest`` refuses any other version.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from pathlib import Path
+
+from quadfdi.core.errors import QuadfdiError
+from quadfdi.core.jsonio import read_json, write_json
+
+SCHEMA_VERSION = 1
+ARTIFACT_KEYS = ("cnode_fp32", "cnode_int8", "gru_fp32", "gru_int8")
+
+
+def file_entry(data: bytes) -> dict:
+    return {"sha256": hashlib.sha256(data).hexdigest(), "bytes": len(data)}
+
+
+def write_manifest(path: str | Path, manifest: dict) -> None:
+    write_json(path, manifest, indent=2)
+
+
+def load_manifest(path: str | Path) -> dict:
+    """Read manifest.json; one-line QuadfdiError if missing, not JSON, or of another schema version."""
+    p = Path(path)
+    if not p.exists():
+        raise QuadfdiError(f"manifest {p} does not exist (run `quadfdi export` first)")
+    data = read_json(p, "manifest")
+    if not isinstance(data, dict) or "schema_version" not in data:
+        raise QuadfdiError(f"manifest {p} has no schema_version: not a quadfdi export manifest")
+    if data["schema_version"] != SCHEMA_VERSION:
+        raise QuadfdiError(f"manifest {p} has schema version {data['schema_version']!r}, this quadfdi reads "
+                           f"schema version {SCHEMA_VERSION} (re-run `quadfdi export`)")
+    missing = [k for k in ARTIFACT_KEYS if k not in data.get("artifacts", {})]
+    if missing:
+        raise QuadfdiError(f"manifest {p} lacks artifacts {', '.join(missing)}")
+    return data
+
+
+def check_files(manifest: dict, folder: str | Path) -> None:
+    """Every file the manifest lists exists in ``folder`` with its sha256 (one-line error otherwise)."""
+    root = Path(folder)
+    for name, entry in manifest["files"].items():
+        f = root / name
+        if not f.is_file():
+            raise QuadfdiError(f"{f} is listed in the manifest but missing")
+        if hashlib.sha256(f.read_bytes()).hexdigest() != entry["sha256"]:
+            raise QuadfdiError(f"{f} does not match its sha256 in the manifest (changed after export?)")
