@@ -27,19 +27,15 @@
 #include <vector>
 
 #include "fwref/vmath_i8.hpp"
+#include "fwref_vmath_check.hpp"
 
 namespace vmath_i8_check {
 
 // Inputs x such that x / s hits the quantizer's edges for the scale s.
 inline std::vector<float> quantize_edges(float s) {
   std::vector<float> v;
-  auto with_neighbours = [&](float x) {
-    v.push_back(x);
-    v.push_back(std::nextafter(x, std::numeric_limits<float>::infinity()));
-    v.push_back(std::nextafter(x, -std::numeric_limits<float>::infinity()));
-  };
-  for (int k = -131; k <= 130; ++k) with_neighbours((static_cast<float>(k) + 0.5f) * s);  // ties
-  for (float b : {-128.5f, -128.0f, 127.0f, 127.5f, 1e9f, -1e9f}) with_neighbours(b * s);
+  for (int k = -131; k <= 130; ++k) vmath_check::push_with_neighbours(v, (static_cast<float>(k) + 0.5f) * s);  // ties
+  for (float b : {-128.5f, -128.0f, 127.0f, 127.5f, 1e9f, -1e9f}) vmath_check::push_with_neighbours(v, b * s);
   for (std::uint32_t u : {0x00000000u, 0x80000000u, 0x7f800000u, 0xff800000u, 0x7fc00000u, 0xffc00000u,
                           0x7fa00001u, 0xffa00001u, 0x00000001u, 0x80000001u, 0x007fffffu, 0x7f7fffffu, 0xff7fffffu}) {
     v.push_back(fwref::bits_float(u));
