@@ -76,8 +76,9 @@ long compare_one_call(Field field, const std::vector<float>& z, const std::vecto
 }
 
 #if defined(FWREF_HAS_F32_AVX512)
-// One random fp32 CNODE field of shape (H, L), drawn from nd (one per check: it caches every other draw): lin1_z (H, L) and lin2 (L, H) row-major and packed column-major
-// (t1, t2: pack_f32_t, 64-byte aligned), z scaled so that tanh's clamp is crossed, v and b2.
+// One random fp32 CNODE field of shape (H, L), drawn from nd (one per check: it caches every other draw):
+// lin1_z (H, L) and lin2 (L, H) row-major and packed column-major (t1, t2: pack_f32_t, 64-byte aligned),
+// z scaled so that tanh's clamp is crossed, v and b2.
 struct FieldF32Case {
   std::vector<float> w1, w2, z, v, b2;
   float* t1;
