@@ -23,12 +23,7 @@ namespace fwref {
 
 namespace {
 
-using detail::all_finite;
-using detail::all_positive_finite;
-using detail::dim_ok;
-using detail::view_ok;
-using detail::int16_copies;
-using detail::StageWeights16;
+using namespace detail;  // src/'s internal helpers (model_common.hpp and the model's own headers)
 
 Status check_dims(const CnodeDims& d) {
   if (d.channels <= 0 || d.window < 2 || d.classes <= 0 || d.hidden <= 0 || d.latent <= 0 || d.steps <= 0 ||

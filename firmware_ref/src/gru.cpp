@@ -19,10 +19,7 @@ namespace fwref {
 
 namespace {
 
-using detail::all_finite;
-using detail::all_positive_finite;
-using detail::dim_ok;
-using detail::view_ok;
+using namespace detail;  // src/'s internal helpers (model_common.hpp and the model's own headers)
 
 Status check_dims(const GruDims& d) {
   if (d.channels <= 0 || d.window < 1 || d.classes <= 0 || d.hidden <= 0) return Status::kDimsInvalid;
