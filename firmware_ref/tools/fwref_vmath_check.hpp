@@ -1,7 +1,8 @@
 // tools/fwref_vmath_check.hpp -- scope: the harness every fwref_vmath check runs in: the one report line of a
 // check ("name: B of N differ") and the tally that decides the exit code, the special floats mixed into inputs,
 // random rows, 64-byte aligned float buffers, the random fp32 CNODE fields of the two fp32 field checks, and the
-// int8 control-row check that control_row_avx2 and control_row_avx512 (the same contract) both take.
+// int8 control-row check that control_row_avx2 and control_row_avx512 (the same contract) both take, and the
+// walk over every row length 1..70 of the element-wise checks.
 #pragma once
 
 #include <cmath>
@@ -45,6 +46,17 @@ inline float* floats64(std::vector<float>& v, std::size_t n) {
   v.assign(n + 16, 0.0f);
   const std::uintptr_t a = reinterpret_cast<std::uintptr_t>(v.data());
   return v.data() + ((64 - a % 64) % 64) / sizeof(float);
+}
+
+// Rows of every length 1..70 (the vector bodies and the scalar tails; no model row is longer), ``draws`` draws
+// each: the sum of check(n, draw), each call's elements that differ.
+template <class Check>
+long every_length(int draws, Check check) {
+  long bad = 0;
+  for (int n = 1; n <= 70; ++n) {
+    for (int d = 0; d < draws; ++d) bad += check(n, d);
+  }
+  return bad;
 }
 
 // All checks' differences; a check that returns -1 did not run on this CPU and prints nothing.
