@@ -34,7 +34,7 @@ def _command(args: argparse.Namespace) -> str:
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     from quadfdi.core.cliargs import add_config_args
-    from quadfdi.core.config import BenchConfig
+    from quadfdi.bench.config import BenchConfig
 
     p = sub.add_parser("bench", help="latency, memory and limits of a run's deployed runtimes (bench.json)",
                        description=DESCRIPTION)

@@ -36,7 +36,7 @@ import numpy as np
 
 from quadfdi.bench.limits import cpu_prefix, run_json, worker_env
 from quadfdi.bench.ort_pairs import measure_ort_pairs
-from quadfdi.core.config import BenchConfig
+from quadfdi.bench.config import BenchConfig
 from quadfdi.core.errors import QuadfdiError
 
 ROOT = Path(__file__).resolve().parents[1]

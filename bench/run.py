@@ -25,7 +25,8 @@ import time
 from pathlib import Path
 from typing import Callable
 
-from quadfdi.core.config import BenchConfig, Config
+from quadfdi.bench.config import BenchConfig
+from quadfdi.core.config import Config
 from quadfdi.core.errors import QuadfdiError
 from quadfdi.core.rundir import RunDir
 

@@ -36,7 +36,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from quadfdi.core.coerce import coerce
+from quadfdi.core.sections import coerce
 from quadfdi.core.errors import QuadfdiError
 
 # The rotor-side classes by name (models.motor.ROTOR_SIDE_CLASSES; core cannot import train: a test

@@ -19,7 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
-from quadfdi.core.config import Config, SimConfig
+from quadfdi.core.config import Config
+from quadfdi.sim.config import SimConfig
 from quadfdi.core.errors import QuadfdiError
 from quadfdi.core.executor import SERIAL, ExecSettings, Job, failures, run_jobs
 from quadfdi.core.jobcache import cache_path, job_key, read_result

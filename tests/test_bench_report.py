@@ -86,7 +86,7 @@ def test_bench_json_holds_every_field(benched):
     assert all(r.get("spinning") is None for r in recs if r["runtime"] != "ort")
     from quadfdi.bench.latency import Counts
     from quadfdi.bench.timing.cpp import CPP_PROCESSES  # the C++ timings pool several processes (its module doc)
-    from quadfdi.core.config import BenchConfig
+    from quadfdi.bench.config import BenchConfig
     quick = Counts.of(BenchConfig(), quick=True)
     assert all(r["n_calls"] == CPP_PROCESSES * (quick.n if r["batch"] == 1 else quick.batches)
                for r in recs if r["runtime"] == "cpp")
@@ -282,7 +282,7 @@ def test_bench_config_section(tmp_path):
 
 def test_counts_follow_the_config():
     from quadfdi.bench.latency import Counts
-    from quadfdi.core.config import BenchConfig
+    from quadfdi.bench.config import BenchConfig
 
     c = Counts.of(BenchConfig(windows=40, warmup=4, batch=8, batches=3, budget_s=2.0, min_samples=3), quick=False)
     assert (c.n, c.warmup, c.batch, c.batches, c.budget_s, c.min_samples) == (40, 4, 8, 3, 2.0, 3)

@@ -56,7 +56,7 @@ def cfg():
 def serial_bytes(cfg, tmp_path_factory) -> bytes:
     """The dataset as the serial simulator writes it in one go (no shards, no executor)."""
     p = tmp_path_factory.mktemp("serial") / "dataset.npz"
-    write_npz(p, dataset_arrays(generate(cfg.sim), cfg))
+    write_npz(p, dataset_arrays(generate(cfg.sim), cfg.sim))
     return p.read_bytes()
 
 

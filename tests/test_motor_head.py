@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 import torch
 
-from quadfdi.core.config import TrainConfig
+from quadfdi.train.config import TrainConfig
 from quadfdi.core.errors import QuadfdiError
 from quadfdi.detect.motor import rotor_columns, window_motor
 from quadfdi.export.calibrate import WindowReader, collect_ranges

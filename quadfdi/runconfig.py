@@ -1,4 +1,5 @@
 """The [run] section: what ``quadfdi run`` does beyond one pass of the stages (quadfdi/pipeline.py).
+The app layer owns it: no stage reads it.
 
 - ``study_sim_seeds``: after training, the seed study over these simulator seeds x ``[train].seeds``
   (``quadfdi train study --sim-seeds``) adds its prediction sets for the evaluation; empty = no study

@@ -1,12 +1,12 @@
 """The [evaluate] section: bootstrap settings, the alarm-policy grid swept on validation flights and
-the rule's target false-alarm rate (docs/evaluation.md). Its own module because core/config.py is
-at the 400-line cap; config.py lists it beside the other sections."""
+the rule's target false-alarm rate (docs/evaluation.md). Every policy of the grid is checked as an
+[alarm] policy (core.alarm, the contract the C++ mirrors)."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
-from quadfdi.core.alarm import AlarmConfig  # the [alarm] section; config.py takes both from here
+from quadfdi.core.alarm import AlarmConfig
 from quadfdi.core.errors import QuadfdiError
 
 
