@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import Any, get_type_hints
 
 from quadfdi.core.errors import QuadfdiError
+from quadfdi.core.resources import config_file, config_names
 from quadfdi.core.tomlio import dumps_toml  # noqa: F401 (re-exported: the run folder writes it)
 from quadfdi.core.limits import FIRMWARE_MAX_STEPS, MAX_THREADS, check_dataset_memory, dataset_bytes
 from quadfdi.core.evalconfig import AlarmConfig, EvaluateConfig  # [alarm], [evaluate], [run]: own modules (400-line cap)
@@ -354,16 +355,18 @@ def build_config(data: dict[str, Any], overrides: list[str] | tuple[str, ...] = 
 
 
 def load_config(path: str | Path | None, overrides: list[str] | tuple[str, ...] = ()) -> Config:
-    """Read a TOML config file (or the defaults when ``path`` is None) and apply overrides."""
+    """Read a TOML config (a shipped config's name such as ``paper``, a file, or the defaults when ``path``
+    is None: core.resources.config_file) and apply overrides."""
     data: dict[str, Any] = {}
     source = "defaults"
     if path is not None:
-        p = Path(path)
+        p = config_file(path)
         source = str(p)
         try:
             data = tomllib.loads(p.read_text())
         except FileNotFoundError:
-            raise QuadfdiError(f"config file {p} does not exist") from None
+            raise QuadfdiError(f"config file {p} does not exist (shipped configs, by name: "
+                               f"{', '.join(config_names())})") from None
         except (OSError, UnicodeDecodeError) as exc:
             raise QuadfdiError(f"cannot read config file {p}: {exc}") from None
         except tomllib.TOMLDecodeError as exc:
