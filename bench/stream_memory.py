@@ -23,7 +23,8 @@ PROBE_CPP = f'#include "fwref/stream.hpp"\nfwref::Stream {PROBE};\n'
 
 
 def limit_macros(record: dict, manifest: dict) -> dict[str, int]:
-    """The FWREF_MAX_* values that size fwref::Stream for this model (what gen_weights/gen_stream set)."""
+    """The FWREF_MAX_* values that size fwref::Stream for this model (what the Cortex-M generators
+    runtimes/mcu_weights_src and mcu_stream_src set)."""
     from quadfdi.formats.onboard import max_alarm_n
 
     return {"FWREF_MAX_WINDOW": int(record["window"]), "FWREF_MAX_CHANNELS": int(manifest["n_channels"]),

@@ -3,7 +3,7 @@
 Everything that writes, reads or binds weights.bin takes the layout from here: the Python writer
 and reader (formats/weights_bin.py), the C++ binder (firmware_ref/src/weights_file.cpp, through the
 generated header firmware_ref/include/fwref/weights_layout_gen.hpp) and the Cortex-M constant-array
-generator (firmware_ref/tools/gen_weights.py). Regenerate the header after a change here:
+generator (runtimes/mcu_weights_src.py). Regenerate the header after a change here:
 
     python -m quadfdi.formats.weights_layout --header
 

@@ -68,7 +68,8 @@ def listed_logs(listed: tuple[str, ...]) -> tuple[list[str], str | None]:
         return logs, None
     left = "skipped" if not logs else f"{len(listed) - len(logs)} of {len(listed)} logs skipped"
     return logs, (f"{left}: [run] realism_logs names logs relative to a quadfdi checkout, and this quadfdi is "
-                  "installed from a wheel; name your own by absolute path: --set 'run.realism_logs=[\"/path/flight.ulg\"]'")
+                  "installed from a wheel; name your own by absolute path: "
+                  "--set 'run.realism_logs=[\"/path/flight.ulg\"]'")
 
 
 def realism_into(run_dir, logs: list[str], masses: dict[str, float] | None = None, command: str | None = None) -> None:

@@ -230,7 +230,8 @@ def main(argv: list[str] | None = None) -> int:
     import argparse
 
     ap = argparse.ArgumentParser(prog="python -m quadfdi.runtimes.build",
-                                 description="Build firmware_ref's host programs in the per-user cache; print the folder.")
+                                 description="Build firmware_ref's host programs in the per-user cache; "
+                                             "print the folder.")
     ap.add_argument("--asan", action="store_true", help="the sanitizer build (ASan + UBSan, assertions on)")
     args = ap.parse_args(argv)
     try:

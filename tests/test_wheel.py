@@ -21,6 +21,7 @@ from pathlib import Path
 
 import pytest
 
+from quadfdi.core.jobcache import code_version
 from quadfdi.core.resources import firmware_digest, firmware_files
 from tests.conftest import FLIGHTLOG_TINY, FLIGHTLOG_TRAIN, ROOT, SMALL_SIM
 
@@ -28,6 +29,7 @@ pytestmark = pytest.mark.slow
 
 MISSION = Path("/work/shared/data/flightlogs/px4_quad_6s_uavcan_mission.ulg")
 # build folders a checkout may hold beside the sources: planted in the copy, they must stay out of the wheel
+PACKAGES = ("quadfdi", "sim", "train", "bench")  # a sweep's job: the app layer, two stages, the C++ sources
 PLANTED = ("firmware_ref/build/CMakeCache.txt", "firmware_ref/build-mcu-m4/fwref_mcu_parity.elf",
            "firmware_ref/build-asan/fwref_infer")
 
@@ -67,8 +69,8 @@ def wheel(tmp_path_factory) -> Path:
     src = _sources(tmp_path_factory.mktemp("wheel_src"))
     out = tmp_path_factory.mktemp("wheel_out")
     isolation = ["--no-build-isolation"] if _can_build_offline() else []  # else pip fetches setuptools>=68
-    res = subprocess.run([sys.executable, "-m", "pip", "wheel", "-q", "--no-deps", *isolation, "-w", str(out), str(src)],
-                         capture_output=True, text=True, timeout=900)
+    cmd = [sys.executable, "-m", "pip", "wheel", "-q", "--no-deps", *isolation, "-w", str(out), str(src)]
+    res = subprocess.run(cmd, capture_output=True, text=True, timeout=900)
     assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
     (whl,) = out.glob("quadfdi-*.whl")
     return whl
@@ -140,12 +142,16 @@ def place(tmp_path_factory) -> tuple[Path, Path]:
 
 def test_installed_quadfdi_is_the_wheel_and_names_configs(venv, place):
     cwd, cache = place
-    probe = ("import json, sys, quadfdi; print(json.dumps({'file': quadfdi.__file__, "
-             "'editable': [repr(f) for f in sys.meta_path if 'Editable' in repr(f)]}))")
+    probe = ("import json, sys, quadfdi; from quadfdi.core import jobcache, resources; "
+             "print(json.dumps({'file': quadfdi.__file__, 'tree': str(resources.source_tree()), "
+             "'editable': [repr(f) for f in sys.meta_path if 'Editable' in repr(f)], "
+             f"'code': jobcache.code_version({PACKAGES!r})}}))")
     res = subprocess.run([str(venv / "bin" / "python"), "-c", probe], cwd=cwd, env=_env(cache), capture_output=True,
                          text=True, timeout=120, check=True)
     out = json.loads(res.stdout)
     assert Path(out["file"]).resolve().is_relative_to(venv.resolve()) and out["editable"] == []
+    assert out["tree"] == "None"  # no source tree: relative realism logs are skipped, not guessed
+    assert out["code"] == code_version(PACKAGES)  # the same sources give the same job keys as in the checkout
     res = subprocess.run([str(venv / "bin" / "quadfdi"), "sim", "--config", "paperr", "--out", "x"], cwd=cwd,
                          env=_env(cache), capture_output=True, text=True, timeout=300)
     assert res.returncode == 2 and res.stderr.strip().splitlines() == [
