@@ -71,23 +71,27 @@ def _write_sources(home: Path, files: dict[str, bytes]) -> None:
 
 def prune(root: Path, keep: Path, days: float = PRUNE_DAYS) -> list[Path]:
     """Remove the ``fwref-*`` folders of ``root`` other than ``keep`` whose last use is ``days`` days old
-    or more, unless another process holds one locked; the removed folders."""
+    or more, unless another process holds one locked; the removed folders. (A use records itself under
+    the lock, so the age is read again once the lock is held.)"""
+    def stale(home: Path) -> bool:
+        stamp = home / LAST_USED
+        return time.time() - (stamp if stamp.is_file() else home).stat().st_mtime >= days * 86400
+
     removed = []
     for home in sorted(root.glob("fwref-*")):
-        if home == keep or not home.is_dir():
-            continue
-        stamp = home / LAST_USED
-        if time.time() - (stamp if stamp.is_file() else home).stat().st_mtime < days * 86400:
+        if home == keep or not home.is_dir() or not stale(home):
             continue
         with open(home / LOCK, "a") as fh:
             try:
                 fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
             except BlockingIOError:
-                continue  # being set up right now: not stale
-            trash = root / f".trash-{home.name}-{os.getpid()}"
-            home.rename(trash)  # under the lock: a process waiting for it sees the folder gone and remakes it
-        shutil.rmtree(trash, ignore_errors=True)
+                continue  # in use right now
+            if not stale(home):
+                continue
+            home.rename(root / f".trash-{home.name}-{os.getpid()}")  # a process waiting for the lock remakes it
         removed.append(home)
+    for trash in root.glob(".trash-fwref-*"):  # this pass's and any a killed pass left
+        shutil.rmtree(trash, ignore_errors=True)
     return removed
 
 

@@ -5,6 +5,7 @@ logs a checkout names and a wheel cannot reach."""
 from __future__ import annotations
 
 import fcntl
+import shutil
 import os
 import time
 from pathlib import Path
@@ -104,3 +105,20 @@ def test_realism_logs_relative_to_a_checkout_are_skipped_from_a_wheel(monkeypatc
     assert logs == ["/abs/b.ulg"] and why.startswith("1 of 2 logs skipped: [run] realism_logs names logs relative")
     logs, why = listed_logs(listed[:1])
     assert logs == [] and why.startswith("skipped: ") and "--set 'run.realism_logs=[\"/path/flight.ulg\"]'" in why
+
+
+def test_a_build_folder_configured_from_another_copy_of_the_sources_is_configured_afresh(tmp_path):
+    """A caller's own build folder kept while the sources changed (a new cache folder, a new src/):
+    CMake refuses another source folder for an existing build, so it is configured anew."""
+    if shutil.which("cmake") is None:
+        pytest.skip("cmake not installed")
+    out = tmp_path / "build"
+    for name in ("a", "b"):
+        src = tmp_path / name
+        src.mkdir()
+        (src / "CMakeLists.txt").write_text("cmake_minimum_required(VERSION 3.20)\nproject(p NONE)\n"
+                                            f"add_custom_target(t ALL COMMAND ${{CMAKE_COMMAND}} -E touch {name}.txt)\n")
+        out.mkdir(exist_ok=True)
+        build._configure_and_build(src, out, {"X": "1"}, f"project {name}")
+        assert (out / f"{name}.txt").is_file()
+    assert f"CMAKE_HOME_DIRECTORY:INTERNAL={tmp_path / 'b'}" in (out / "CMakeCache.txt").read_text()
