@@ -122,3 +122,16 @@ def test_a_build_folder_configured_from_another_copy_of_the_sources_is_configure
         build._configure_and_build(src, out, {"X": "1"}, f"project {name}")
         assert (out / f"{name}.txt").is_file()
     assert f"CMAKE_HOME_DIRECTORY:INTERNAL={tmp_path / 'b'}" in (out / "CMakeCache.txt").read_text()
+
+
+def test_the_pipeline_skips_realism_with_one_line_from_a_wheel(monkeypatch, capsys, tmp_path):
+    from quadfdi import pipeline
+    from quadfdi.core.rundir import RunDir
+
+    cfg = load_config("paper")
+    assert cfg.run.realism_logs and not any(Path(p).is_absolute() for p in cfg.run.realism_logs)
+    monkeypatch.setattr(resources, "source_tree", lambda: None)  # as from an installed wheel
+    pipeline._realism(RunDir(tmp_path), cfg)  # would fail on the missing dataset if it compared anything
+    assert capsys.readouterr().out.startswith("realism: skipped: [run] realism_logs names logs relative to a "
+                                              "quadfdi checkout, and this quadfdi is installed from a wheel")
+    assert not (tmp_path / "realism").exists()

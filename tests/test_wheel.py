@@ -164,6 +164,12 @@ def test_paper_pipeline_from_an_empty_folder_builds_the_cpp_into_the_cache(venv,
     cwd, cache = place
     assert not cache.exists()
     _quadfdi(venv, cwd, cache, "sim", "--config", "paper", "--out", "run", *SMALL_SIM)
+    # the paper config's real logs lie beside a checkout (../shared): from a wheel, the user names them
+    res = subprocess.run([str(venv / "bin" / "quadfdi"), "realism", "--run", "run"], cwd=cwd, env=_env(cache),
+                         capture_output=True, text=True, timeout=300)
+    assert res.returncode == 2 and len(res.stderr.strip().splitlines()) == 1, res.stderr
+    assert res.stderr.startswith("quadfdi realism: error: no real logs to compare with: name them with --logs LOG... "
+                                 "(skipped: [run] realism_logs names logs relative to a quadfdi checkout")
     _quadfdi(venv, cwd, cache, "train", "--run", "run", *_sets(["train.epochs=1", "train.threads=1"]))
     _quadfdi(venv, cwd, cache, "export", "--run", "run")
     _quadfdi(venv, cwd, cache, "parity", "--run", "run", "--no-mcu")
