@@ -45,7 +45,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--cpus", default=None,
                    help="CPUs every benchmark process is pinned to (default: the run's bench.cpus)")
     p.add_argument("--fwref", default=None,
-                   help="fwref_infer program (default: firmware_ref/build/fwref_infer, built if missing)")
+                   help="fwref_infer program (default: the per-user build cache's, built if missing)")
     add_config_args(p, config=False)
     p.set_defaults(func=run_bench)
     acts = p.add_subparsers(dest="action", metavar="{limits,kernels,stream}")
@@ -56,7 +56,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     pk = acts.add_parser("kernels", help="C++ instructions per kernel and per MAC (callgrind, 8 minus 4 windows)")
     pk.add_argument("--run", required=True, help="run folder with an export and a dataset (e.g. runs/paper)")
     pk.add_argument("--fwref", default=None,
-                    help="fwref_infer program (default: firmware_ref/build/fwref_infer, built if missing)")
+                    help="fwref_infer program (default: the per-user build cache's, built if missing)")
     pk.add_argument("--json", default=None, help="also write the records to this JSON file")
     pk.set_defaults(func=run_kernels)
     ps = acts.add_parser("stream", help="fwref_stream's latency per sample and per decision, and the stream "
@@ -64,7 +64,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     ps.add_argument("--run", required=True, help="run folder with an export and a dataset")
     ps.add_argument("--flights", type=int, default=BenchConfig.stream_flights, help="test flights (default: %(default)s)")
     ps.add_argument("--cpus", default=BenchConfig.cpus, help="CPUs to pin to (default: %(default)s)")
-    ps.add_argument("--fwref", default=None, help="fwref_infer whose build holds fwref_stream (default: firmware_ref/build)")
+    ps.add_argument("--fwref", default=None, help="fwref_infer whose build holds fwref_stream (default: the per-user build cache)")
     ps.add_argument("--json", default=None, help="also write the section to this JSON file")
     ps.set_defaults(func=run_stream)
 

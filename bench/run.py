@@ -1,7 +1,7 @@
 """The bench stage: the deployed runtimes timed -> bench.json and the bench figures.
 
 ``bench_run(run, cfg)`` reads ``runs/<name>/`` (dataset.npz for the test windows, cnode.pt and
-gru.pt, export/manifest.json and the files it lists, firmware_ref/build/fwref_infer, and
+gru.pt, export/manifest.json and the files it lists, fwref_infer (the per-user build cache's), and
 parity/mcu.json when present), measures with the settings of ``cfg.bench`` (the ``[bench]``
 config section; ``quick`` replaces the counts with tiny ones) and writes:
 
@@ -131,7 +131,7 @@ def test_windows(run: RunDir, manifest: dict):
 
 
 def _private_fwref(fwref_path: str | None, tmp: Path) -> tuple[str | None, dict | None]:
-    """Copy fwref_infer into ``tmp`` (a rebuild of firmware_ref/build while timing cannot change
+    """Copy fwref_infer into ``tmp`` (a rebuild of its build folder while timing cannot change
     the copy); (copy path, its build flags and sha256), or (None, None)."""
     if not fwref_path:
         return None, None
@@ -315,5 +315,6 @@ def _bench_into(run: RunDir, cfg: Config, dest: RunDir, log: Callable[[str], Non
     figs = draw_bench_figures(bench, dest.figures)
     log(f"bench: wrote {bench_json_path(run)} and {len(figs)} figures in {timing['total']:.0f} s "
         f"(limits {timing['limits']:.0f} s, latency {timing['latency']:.0f} s, profiles {timing['profiles']:.0f} s); "
-        f"`quadfdi report --run {run.root}` rewrites report.md")
+        f"`quadfdi report --run {run.root}` rewrites report.md"
+        + ("; a quick run (few windows, 1 thread only): not figures to quote" if quick else ""))
     return bench

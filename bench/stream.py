@@ -44,9 +44,9 @@ def find_stream_exe(fwref_infer: str | None) -> tuple[Path | None, str]:
     """fwref_stream beside fwref_infer (the same host build), built there if missing."""
     import shutil
 
-    from quadfdi.runtimes.build import HOST_BUILD
+    from quadfdi.runtimes.build import host_build_dir
 
-    build = Path(fwref_infer).parent if fwref_infer else HOST_BUILD
+    build = Path(fwref_infer).parent if fwref_infer else host_build_dir()
     exe = build / "fwref_stream"
     if exe.is_file():
         return exe, f"{exe} (existing build)"

@@ -5,8 +5,8 @@ limits (W, C, K, the stream's raw channels R, the policy's n): the size of one s
 compiled from fwref/stream.hpp for the host (``c++``) and for each Cortex-M core
 (``arm-none-eabi-g++`` with the firmware's flags, mcu/toolchain-arm-none-eabi.cmake), read with
 ``nm -S``. Also the host program's own ``stream_bytes`` (its generous build limits, ``fwref_stream
---info``) and, when scripts/stream_mcu.py left one in firmware_ref/build-mcu-*, the stream image's
-sections (``arm-none-eabi-size``).
+--info``) and, when scripts/stream_mcu.py left one in the Cortex-M build folder
+(runtimes.build.mcu_build_dir), the stream image's sections (``arm-none-eabi-size``).
 """
 
 from __future__ import annotations
@@ -23,7 +23,8 @@ PROBE_CPP = f'#include "fwref/stream.hpp"\nfwref::Stream {PROBE};\n'
 
 
 def limit_macros(record: dict, manifest: dict) -> dict[str, int]:
-    """The FWREF_MAX_* values that size fwref::Stream for this model (what gen_weights/gen_stream set)."""
+    """The FWREF_MAX_* values that size fwref::Stream for this model (what the Cortex-M generators
+    runtimes/mcu_weights_src and mcu_stream_src set)."""
     from quadfdi.formats.onboard import max_alarm_n
 
     return {"FWREF_MAX_WINDOW": int(record["window"]), "FWREF_MAX_CHANNELS": int(manifest["n_channels"]),
@@ -43,11 +44,11 @@ def eigen_include() -> list[str]:
 
 def sizeof_stream(compiler: str, nm: str, flags: list[str], macros: dict[str, int], tmp: Path) -> int:
     """sizeof(fwref::Stream) under ``compiler`` and ``flags``: the symbol size of one static object."""
-    from quadfdi.runtimes.build import FW_ROOT
+    from quadfdi.core.resources import firmware_sources
 
     src, obj = tmp / "probe.cpp", tmp / "probe.o"
     src.write_text(PROBE_CPP)
-    cmd = [compiler, "-std=c++17", "-O2", "-I", str(FW_ROOT / "include"), *eigen_include(), *flags,
+    cmd = [compiler, "-std=c++17", "-O2", "-I", str(firmware_sources() / "include"), *eigen_include(), *flags,
            *(f"-D{k}={v}" for k, v in macros.items()), "-c", str(src), "-o", str(obj)]
     subprocess.run(cmd, check=True, capture_output=True, text=True)
     out = subprocess.run([nm, "-S", "--defined-only", str(obj)], check=True, capture_output=True, text=True).stdout
@@ -55,7 +56,7 @@ def sizeof_stream(compiler: str, nm: str, flags: list[str], macros: dict[str, in
 
 
 def _image(cpu: str) -> dict | None:
-    """The stream image a Cortex-M build left (firmware_ref/build-mcu-*/fwref_mcu_stream.elf), or None."""
+    """The stream image a Cortex-M build left (runtimes.build.mcu_build_dir's fwref_mcu_stream.elf), or None."""
     from quadfdi.runtimes.build import mcu_build_dir
     from quadfdi.runtimes.mcu import section_sizes
 

@@ -23,6 +23,7 @@ from pathlib import Path
 from typing import Any, get_type_hints
 
 from quadfdi.core.errors import QuadfdiError
+from quadfdi.core.resources import config_file, config_names
 from quadfdi.core.sections import coerce, parse_override, section_classes, section_dict
 from quadfdi.core.tomlio import dumps_toml  # noqa: F401 (re-exported: the run folder writes it)
 
@@ -104,16 +105,18 @@ def _build_section(name: str, cls: type, body: dict[str, Any], source: str) -> A
 
 
 def load_config(path: str | Path | None, overrides: list[str] | tuple[str, ...] = ()) -> Any:
-    """Read a TOML config file (or the defaults when ``path`` is None) and apply overrides."""
+    """Read a TOML config (a shipped config's name such as ``paper``, a file, or the defaults when ``path``
+    is None: core.resources.config_file) and apply overrides."""
     data: dict[str, Any] = {}
     source = "defaults"
     if path is not None:
-        p = Path(path)
+        p = config_file(path)
         source = str(p)
         try:
             data = tomllib.loads(p.read_text())
         except FileNotFoundError:
-            raise QuadfdiError(f"config file {p} does not exist") from None
+            raise QuadfdiError(f"config file {p} does not exist (shipped configs, by name: "
+                               f"{', '.join(config_names())})") from None
         except (OSError, UnicodeDecodeError) as exc:
             raise QuadfdiError(f"cannot read config file {p}: {exc}") from None
         except tomllib.TOMLDecodeError as exc:

@@ -11,6 +11,7 @@ import sys
 from pathlib import Path
 from typing import Callable
 
+from quadfdi.core.resources import firmware_sources
 from quadfdi.core.rk4 import RK4_CONSTANT_NAMES, RK4_PROGRAM, RK4_C
 
 # Paper classes, in label order (label i = CLASS_NAMES[i]).
@@ -45,7 +46,8 @@ TOLERANCES: dict[str, float] = {"fp32_cpp_rel_tol": FP32_CPP_REL_TOL,
                                 "fp32_ort_vs_torch_rel_tol": FP32_ORT_VS_TORCH_REL_TOL,
                                 "int8_argmax_min": INT8_ARGMAX_MIN, "int8_tol_steps": INT8_TOL_STEPS}
 
-HEADER_PATH = Path(__file__).resolve().parents[1] / "firmware_ref" / "include" / "fwref" / "contracts_gen.hpp"
+# In firmware_ref's sources, found as package data (a checkout: the tracked firmware_ref/include/fwref/).
+HEADER_PATH = firmware_sources() / "include" / "fwref" / "contracts_gen.hpp"
 
 
 def _camel(name: str) -> str:

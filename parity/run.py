@@ -2,8 +2,8 @@
 
 ``parity_run(run, cfg)`` reads ``runs/<name>/export/`` (manifest, weights.bin, reference.bin, the
 four ONNX graphs), the run's checkpoints and dataset, and writes ``runs/<name>/parity/``:
-parity.json, parity.md, mcu.json, logits.npz (each atomically). It builds firmware_ref/ (CMake, Release, into
-firmware_ref/build), runs the whole test split one window at a time through C++ fp32 and int8
+parity.json, parity.md, mcu.json, logits.npz (each atomically). It builds firmware_ref/ (CMake, Release, in
+the per-user build cache: runtimes.build), runs the whole test split one window at a time through C++ fp32 and int8
 (fwref_infer), ONNX Runtime fp32 and int8 (batch 1) and PyTorch, runs fwref_parity on
 reference.bin, and (``mcu=True``) the Cortex-M build under QEMU. The report is written first; then
 a missed target is a one-line QuadfdiError.
@@ -23,7 +23,7 @@ from quadfdi.formats.weights_bin import read_weights
 from quadfdi.parity import compare, mcu as mcu_mod
 from quadfdi.runtimes.mcu import tools_missing
 from quadfdi.runtimes import fwref, ort, pytorch
-from quadfdi.runtimes.build import HOST_BUILD, build_host
+from quadfdi.runtimes.build import build_host, source_dir
 from quadfdi.parity.report import markdown
 from quadfdi.core.atomic import ensure_dir, write_text
 from quadfdi.core.config import Config
@@ -127,7 +127,7 @@ def motor_pairs(lg: dict) -> dict:
 
 
 def parity_run(run: RunDir, cfg: Config, log: Callable[[str], None] = print, *, mcu: bool = True,
-               host: bool = True, build_dir: Path = HOST_BUILD, command: str | None = None) -> dict:
+               host: bool = True, build_dir: Path | None = None, command: str | None = None) -> dict:
     """The stage (see the module docstring); returns the parity.json dict.
 
     ``host``: C++ / ONNX Runtime / PyTorch on the test split and fwref_parity on reference.bin.
@@ -164,7 +164,7 @@ def _consume_inputs(run: RunDir, st) -> None:
         st.consume(rel, ("sim",))
 
 
-def _parity_host(run: RunDir, out_dir: Path, log: Callable[[str], None], mcu: bool, build_dir: Path,
+def _parity_host(run: RunDir, out_dir: Path, log: Callable[[str], None], mcu: bool, build_dir: Path | None,
                  command: str | None) -> dict:
     t_start = time.perf_counter()
     export = run.export
@@ -175,7 +175,7 @@ def _parity_host(run: RunDir, out_dir: Path, log: Callable[[str], None], mcu: bo
 
     timing: dict[str, float] = {}
     t0 = time.perf_counter()
-    build_host(build_dir, log=log)
+    build_dir = build_host(build_dir, log=log)  # default: the per-user build cache (runtimes.build)
     timing["build"] = time.perf_counter() - t0
     fp = fwref_parity(build_dir, weights, reference)
     log(f"parity: fwref_parity on reference.bin: {'OK' if fp['passed'] else 'NOT OK'} (exit {fp['exit_code']})")
@@ -204,7 +204,7 @@ def _parity_host(run: RunDir, out_dir: Path, log: Callable[[str], None], mcu: bo
         "test_windows": int(models["cnode"]["cpp_fp32_vs_ort_fp32"]["windows"]),
         "export_steps": int(manifest["solver"]["steps"]),
         "firmware": {"build_dir": str(build_dir), "infer": str(build_dir / "fwref_infer"),
-                     "build": f"cmake -S firmware_ref -B {build_dir} -DCMAKE_BUILD_TYPE=Release && "
+                     "build": f"cmake -S {source_dir()} -B {build_dir} -DCMAKE_BUILD_TYPE=Release && "
                               f"cmake --build {build_dir} -j2"},
         "tolerances": {"fp32_rel_tol": compare.FP32_REL_TOL, "int8_argmax_min": compare.INT8_ARGMAX_MIN,
                        "int8_tol_steps": compare.INT8_TOL_STEPS},

@@ -2,7 +2,7 @@
 
     PYTHONPATH=. python scripts/cpp_process_spread.py RUN [N]
 
-Runs ``firmware_ref/build/fwref_infer`` N times (default 15) per model and precision on the same
+Runs the build cache's ``fwref_infer`` N times (default 15) per model and precision on the same
 windows (20 warm-up, then the run's first 400 test windows, each timed once with ``--repeat 1`` as
 bench/timing/cpp.py times them) and prints the median, min, max and every process's p50.
 """
@@ -17,8 +17,9 @@ from pathlib import Path
 import numpy as np
 
 from quadfdi.formats.dataset import load_dataset, make_windows
+from quadfdi.runtimes.build import host_build_dir
 
-EXE = Path(__file__).resolve().parents[1] / "firmware_ref" / "build" / "fwref_infer"
+EXE = host_build_dir() / "fwref_infer"
 
 
 def main() -> None:

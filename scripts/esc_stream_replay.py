@@ -3,8 +3,8 @@
 
     PYTHONPATH=.:tests python scripts/esc_stream_replay.py RUN SIM_INDEX REAL_FLIGHT.npz
 
-RUN holds dataset.npz and export/; the C++ tools are firmware_ref/build's (``quadfdi parity`` builds
-them). The real flight needs >= 5 decided windows and one skipped (before the hover freeze).
+RUN holds dataset.npz and export/; the C++ tools are the per-user build cache's (``quadfdi parity``
+builds them). The real flight needs >= 5 decided windows and one skipped (before the hover freeze).
 """
 
 from __future__ import annotations
@@ -15,14 +15,13 @@ from pathlib import Path
 
 from quadfdi.detect.stream_cli import from_flight
 from quadfdi.formats.stream import from_dataset, record_of, write_stream
+from quadfdi.runtimes.build import host_build_dir
 from tests.test_stream import _check_replay
-
-ROOT = Path(__file__).resolve().parents[1]
 
 
 def main(argv: list[str]) -> int:
     run, index, real = Path(argv[0]), int(argv[1]), argv[2]
-    export, exe = run / "export", ROOT / "firmware_ref/build"
+    export, exe = run / "export", host_build_dir()
     tmp = Path(tempfile.mkdtemp(prefix="esc_stream_replay_"))
     rec = record_of(export)
     print(f"record: profile {rec.get('profile')}, {len(rec['raw_channels'])} raw, {len(rec['channels'])} model channels")

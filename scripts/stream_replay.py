@@ -38,12 +38,12 @@ from quadfdi.detect.runtimes import cpp_logits, ort_logits
 from quadfdi.formats.stream import from_dataset, read_stream, record_of, write_stream
 from quadfdi.detect.streamref import read_lines, sgru_logits, stepped_of, windows_of
 from quadfdi.formats.manifest import load_manifest
-from quadfdi.runtimes.build import HOST_BUILD, build_host
+from quadfdi.runtimes.build import build_host
 
 
 def _stream(export: Path, path: Path, net: str, prec: str, tmp: Path, k: int) -> tuple[dict, np.ndarray]:
     weights = export / ("sgru_weights.bin" if net == "sgru" else "weights.bin")
-    res = subprocess.run([str(HOST_BUILD / "fwref_stream"), "--weights", str(weights), "--model", net, "--in",
+    res = subprocess.run([str(build_host(log=lambda _: None) / "fwref_stream"), "--weights", str(weights), "--model", net, "--in",
                           str(path), "--timings", str(tmp / "t.f64")] + (["--int8"] if prec == "int8" else []),
                          capture_output=True, text=True, check=True)
     return read_lines(res.stdout, k), np.fromfile(tmp / "t.f64")
@@ -97,7 +97,7 @@ def replay(export: Path, path: Path, record: dict, manifest: dict, net: str, pre
 def main(argv: list[str]) -> int:
     export, dataset = Path(argv[0]), Path(argv[1])
     per_class = int(argv[2]) if len(argv) > 2 else 2
-    build_host(HOST_BUILD, log=lambda _: None)
+    build_host(log=lambda _: None)
     record, manifest = record_of(export), load_manifest(export / "manifest.json")
     ds = sim_dataset.load_dataset(dataset)
     test = [i for i, s in enumerate(ds["split_names"]) if str(s).startswith("test")]

@@ -12,9 +12,10 @@ from pathlib import Path
 
 import pytest
 
+from quadfdi.runtimes.build import host_build_dir
 from tests.conftest import ROOT, copy_run, quadfdi, random_weight_run
 
-FWREF = ROOT / "firmware_ref" / "build" / "fwref_infer"
+FWREF = host_build_dir() / "fwref_infer"  # the C++ rows are measured when the cached host build exists
 LATENCY_KEYS = {"model", "runtime", "precision", "solver", "threads", "spinning", "batch", "p50_us", "p90_us",
                 "p99_us", "throughput_wps"}
 MEMORY_KEYS = {"model", "runtime", "precision", "solver", "item", "value", "unit", "source"}

@@ -10,7 +10,7 @@ import pytest
 import torch
 from conftest import copy_run
 
-from tests.test_firmware_fixtures import host_build  # noqa: F401 (fixture: firmware_ref/build, shared with the firmware tests)
+from tests.test_firmware_fixtures import host_build  # noqa: F401 (fixture: the cached host build, shared with the firmware tests)
 
 TINY = ["--epochs", "2", "--hidden", "8", "--segment", "120", "--tbptt", "40", "--warmup", "10", "--batch", "6"]
 # The same tiny settings from the three places the command reads them: the run's [sgru] section
