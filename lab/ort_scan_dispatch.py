@@ -2,7 +2,7 @@
 steps whose body is k chained Neg nodes against n Neg nodes in one graph, one thread, CPU time per
 call, median of 400 interleaved rounds (docs/bench.md, "The int8 GRU in one Scan"):
 
-    PYTHONPATH=. python scripts/ort_scan_dispatch.py
+    python lab/ort_scan_dispatch.py
 
 A Neg on 80 floats costs next to nothing, so the figures are what ONNX Runtime spends around the
 kernels: the floor of any graph with k nodes per step.

@@ -1,6 +1,6 @@
-// scripts/cnode_f32_control_micro.cpp -- the fp32 CNODE's products on an AVX2 host timed alone (docs/bench.md,
-// "fp32 CNODE within 2x of its floor on the AVX2 EPYC"), all in L1, random weights of the paper's shapes:
-//   lin1_u rows:  the 17 rows of U times lin1_u (64 x 23) + b1 by gemv_f32_fma, masked last packet (what main ran)
+// lab/cnode_f32_control_micro.cpp -- the fp32 CNODE's products on an AVX2 host timed alone (docs/firmware.md,
+// "Host kernels"), all in L1, random weights of the paper's shapes:
+//   lin1_u rows:  the 17 rows of U times lin1_u (64 x 23) + b1 by gemv_f32_fma, masked last packet (the path for C < 8)
 //                 against the same on the zero-padded copies (64 x 24, U rows of 24: src/cnode_f32_t.hpp), and
 //                 whether the two give the same bits;
 //   field:        32 evaluations of field_f32_t_avx2 (64 x 40, tanh, 40 x 64) as a serial chain (each z the last
@@ -9,7 +9,7 @@
 // 21 rounds of 2,000 repetitions, interleaved; medians in ns per repetition.
 //
 //   g++ -O3 -std=c++17 -march=native -ffp-contract=off -fno-trapping-math -Ifirmware_ref/include \
-//       -I/usr/include/eigen3 scripts/cnode_f32_control_micro.cpp firmware_ref/src/kernels_f32_avx512.cpp \
+//       -I/usr/include/eigen3 lab/cnode_f32_control_micro.cpp firmware_ref/src/kernels_f32_avx512.cpp \
 //       firmware_ref/src/field_f32_avx2.cpp -o /tmp/cnode_f32_control_micro
 //   taskset -c 1 /tmp/cnode_f32_control_micro
 #include <algorithm>

@@ -1,7 +1,7 @@
-"""What scripts/forward_flight_shares.py and scripts/yaw_trim_shares.py share: the 1 s mean of a
+"""What lab/forward_flight_shares.py and lab/yaw_trim_shares.py share: the 1 s mean of a
 per-sample series over the usable samples, and their command line (ingested flights and simulated
-datasets in, one markdown table out). Imported as a sibling module (``python scripts/X.py`` puts
-scripts/ on the path)."""
+datasets in, one markdown table out). Imported as a sibling module (``python lab/X.py`` puts
+lab/ on the path)."""
 
 from __future__ import annotations
 

@@ -1,6 +1,6 @@
 """How much the four motor commands' shares move within a window: real flights against simulated healthy ones.
 
-    PYTHONPATH=. python scripts/share_wander_stats.py [--dataset DATASET.npz] [FLIGHT.npz ...]
+    python lab/share_wander_stats.py [--dataset DATASET.npz] [FLIGHT.npz ...]
 
 Share: ``thr_k / mean(thr_1..4)`` per sample. Per 80-sample window (stride 20) where every sample is
 airborne with all four commands finite (ingested flights: ``airborne``; dataset flights: collective
@@ -9,8 +9,8 @@ printed per flight (real) or per mission type over the healthy flights (simulate
 windows, the median and 90th percentile over windows of the within-window standard deviation (mean
 of the four motors), and the median over windows of the autocorrelation at lags 1, 5 and 10 samples
 (0.04, 0.2, 0.4 s at 25 Hz) of what is left once the four motors' mean is removed too. These are
-the figures train/augment.py's amplitude and correlation time were chosen from (docs/detect.md,
-"Motor-share wander in training").
+the figures train/augment.py's amplitude and correlation time were chosen from (docs/training.md,
+"Motor-share wander").
 """
 
 from __future__ import annotations

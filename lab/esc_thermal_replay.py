@@ -1,7 +1,7 @@
 """Replay a real flight's ESC currents through the simulator's ESC thermal model (sim/esc_thermal.py) and
 compare with the temperatures its ESCs reported (docs/params.md "ESC temperature"):
 
-    PYTHONPATH=. python scripts/esc_thermal_replay.py FLIGHT.npz [--amb DEGC] [--vi M_S] [--step S]
+    python lab/esc_thermal_replay.py FLIGHT.npz [--amb DEGC] [--vi M_S] [--step S]
 
 FLIGHT.npz is ``quadfdi ingest``'s output with esc_cur1..4, esc_temp1..4, V_b. The model runs from the
 first sample with every ESC at ``--amb`` (default: the four's mean first reading) and no warm-up, on

@@ -1,9 +1,9 @@
 """Assemble an evaluation run folder from prediction sets of several runs, so that ``quadfdi evaluate``
-pools simulator seeds and compares models trained in different folders (issue 16: the streaming GRU
-of /tmp runs beside the windowed networks of runs/realistic).
+pools simulator seeds and compares models trained in different folders (e.g. streaming GRUs
+trained in their own folders beside the windowed networks of runs/realistic).
 
-    python scripts/pool_predictions.py OUT --config CONFIG.toml \
-        --dataset 0=/work/data/realistic/dataset.npz --dataset 1=runs/realistic/sims/seed1/dataset.npz \
+    python lab/pool_predictions.py OUT --config CONFIG.toml \
+        --dataset 0=runs/realistic/dataset.npz --dataset 1=runs/realistic/sims/seed1/dataset.npz \
         --set gru:0:0=runs/realistic/predictions/gru_sim0_train0.npz ... [--set MODEL:SIM:TRAIN=PATH ...]
 
 OUT gets ``config.toml`` (a copy of CONFIG), the datasets as symbolic links (the first sim seed at

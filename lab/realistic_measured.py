@@ -1,6 +1,6 @@
 """The rows of docs/realistic.md "Measured", from one or more realistic-suite dataset.npz files.
 
-    PYTHONPATH=. python scripts/realistic_measured.py SEED0/dataset.npz [SEED1/dataset.npz ...]
+    python lab/realistic_measured.py SEED0/dataset.npz [SEED1/dataset.npz ...]
 
 Prints a markdown table, one column per file (its sha256 prefix and suffix on top). Definitions:
 - "faulty − others": over a flight's last 8 s, the faulty rotor's channel minus the mean of the

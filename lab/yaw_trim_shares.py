@@ -1,6 +1,6 @@
 """The yaw trim in the motor commands: real flights against a simulated suite.
 
-    PYTHONPATH=. python scripts/yaw_trim_shares.py [--dataset DATASET.npz] [FLIGHT.npz ...]
+    python lab/yaw_trim_shares.py [--dataset DATASET.npz] [FLIGHT.npz ...]
 
 Shares ``s_k = thr_k / mean(thr)`` in the project's motor order (ingest/motors.py; rotors 1 and 3 spin
 one way, 2 and 4 the other on both frames). The diagonal offset ``(s1 + s3 - s2 - s4) / 4`` is the

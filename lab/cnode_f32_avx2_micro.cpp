@@ -1,12 +1,12 @@
-// scripts/cnode_f32_avx2_micro.cpp -- the fp32 CNODE field on an AVX2 host timed alone (docs/bench.md, "The CNODE
-// field on an AVX2 host"): the field as src/cnode.cpp evaluates it with FWREF_F32_KERNEL=avx2 (gemv_f32_fma on
+// lab/cnode_f32_avx2_micro.cpp -- the fp32 CNODE field on an AVX2 host timed alone (docs/firmware.md, "Host
+// kernels"): the field as src/cnode.cpp evaluates it with FWREF_F32_KERNEL=avx2 (gemv_f32_fma on
 // lin1_z with V as bias, tanh_n, gemv_f32_fma on lin2 with its bias: 64 x 40 and 40 x 64, the paper's shapes)
 // against the fused call (field_f32_t_avx2 on the column-major copies), each as a serial chain of 32
 // evaluations (k fed back as the next z), interleaved over 9 rounds; per round the median of 2,000 timed
 // chains (std::chrono::steady_clock) after 200 warm-up ones; printed: the medians of the rounds.
 //
 //   g++ -O3 -std=c++17 -march=native -ffp-contract=off -fno-trapping-math -Ifirmware_ref/include -I/usr/include/eigen3
-//       scripts/cnode_f32_avx2_micro.cpp firmware_ref/src/field_f32_avx2.cpp firmware_ref/src/kernels_f32_avx512.cpp
+//       lab/cnode_f32_avx2_micro.cpp firmware_ref/src/field_f32_avx2.cpp firmware_ref/src/kernels_f32_avx512.cpp
 //       -o /tmp/cnode_f32_avx2_micro
 //   taskset -c 1 /tmp/cnode_f32_avx2_micro
 #include <algorithm>
@@ -19,16 +19,7 @@
 #include "fwref/vmath_f32.hpp"
 #include "micro_timing.hpp"
 
-namespace {
-
-constexpr int H = 64, L = 40, E = 32;
-
-template <class F>
-double median_ns(F f) {
-  return median_call_ns(f) / E;  // per evaluation
-}
-
-}  // namespace
+constexpr int H = kH, L = kL, E = kE;
 
 int main() {
   std::mt19937 rng(1);
@@ -53,7 +44,7 @@ int main() {
     for (int e = 0; e < E; ++e) fwref::field_f32_t_avx2(w1t, w2t, H, L, z, v, b2, z);
   };
   std::vector<double> sep, one;
-  for (int r = 0; r < 9; ++r) sep.push_back(median_ns(separate)), one.push_back(median_ns(fused));
+  for (int r = 0; r < 9; ++r) sep.push_back(per_eval_ns(separate)), one.push_back(per_eval_ns(fused));
   std::sort(sep.begin(), sep.end());
   std::sort(one.begin(), one.end());
   std::printf("interleaved, 9 rounds: separate steps %.1f ns, fused call %.1f ns per evaluation (medians)\n", sep[4],

@@ -1,6 +1,6 @@
 """Do the trailing rotors work harder in translation? Real flights against a simulated suite.
 
-    PYTHONPATH=. python scripts/forward_flight_shares.py [--dataset DATASET.npz] [FLIGHT.npz ...]
+    python lab/forward_flight_shares.py [--dataset DATASET.npz] [FLIGHT.npz ...]
 
 Shares ``s_k = thr_k / mean(thr)`` in the project's motor order (ingest/motors.py: on an X frame
 rotor 1 front-left, 2 rear-left, 3 rear-right, 4 front-right). Each is smoothed over 1 s; then

@@ -1,6 +1,6 @@
 """The simulated ESC temperatures of a realistic-suite dataset, per class (docs/params.md "ESC temperature"):
 
-    PYTHONPATH=. python scripts/esc_temp_summary.py DATASET.npz [--last S] [--true]
+    python lab/esc_temp_summary.py DATASET.npz [--last S] [--true]
 
 Per flight: the rise of the four ESCs' mean over the flight, the mean above the flight's ambient at
 the end, and ``esck_t_rel`` (each ESC minus the four's mean, the flightlog-esc channel) averaged over

@@ -1,6 +1,6 @@
 """ONNX Runtime int8 against fp32 at one batch size, on a run's exported graphs, for a shared machine.
 
-    PYTHONPATH=. python scripts/ort_batch_timing.py RUN [--batch 96] [--reps 60] [--models cnode,gru]
+    python lab/ort_batch_timing.py RUN [--batch 96] [--reps 60] [--models cnode,gru]
                                                         [--profile] [--extra NAME=FILE.onnx ...]
 
 Every graph of a model is timed in the same loop, one call of each per round (interleaved, so that

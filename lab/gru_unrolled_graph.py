@@ -1,8 +1,8 @@
 """A run's int8 GRU as the unrolled graph (export/onnx_gru_unrolled.py), the one exported before the
 Scan, to time beside the exported graph (docs/bench.md, "The int8 GRU in one Scan"):
 
-    PYTHONPATH=. python scripts/gru_unrolled_graph.py RUN OUT.onnx
-    PYTHONPATH=. python scripts/ort_batch_timing.py RUN --models gru --batch 1 --extra unrolled=OUT.onnx
+    python lab/gru_unrolled_graph.py RUN OUT.onnx
+    python lab/ort_batch_timing.py RUN --models gru --batch 1 --extra unrolled=OUT.onnx
 
 The graphs are rebuilt from the run's checkpoints with the export's own calibration (the rebuilt
 Scan graph must equal RUN/export/gru.int8.onnx byte for byte, else nothing is written), and the

@@ -1,4 +1,4 @@
-"""Epoch time per network on a dataset, one thread: `PYTHONPATH=. python scripts/train_epoch_time.py <dataset.npz> <n_train_windows> [cnode,gru]`
+"""Epoch time per network on a dataset, one thread: `python lab/train_epoch_time.py <dataset.npz> <n_train_windows> [cnode,gru]`
 (docs/training.md, "The realistic suite")."""
 import sys, time
 import numpy as np, torch

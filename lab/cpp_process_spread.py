@@ -1,28 +1,35 @@
-"""The spread of the C++ reference's batch-1 p50 from one process to the next (docs/bench.md).
+"""The spread of the C++ reference's batch-1 p50 from one process to the next (docs/bench.md,
+"One process is one sample").
 
-    PYTHONPATH=. python scripts/cpp_process_spread.py RUN [N]
+    python lab/cpp_process_spread.py RUN [N] [--exe FWREF_INFER]
 
-Runs ``firmware_ref/build/fwref_infer`` N times (default 15) per model and precision on the same
-windows (20 warm-up, then the run's first 400 test windows, each timed once with ``--repeat 1`` as
-bench/timing/cpp.py times them) and prints the median, min, max and every process's p50.
+Runs fwref_infer (default: the host build of ``quadfdi.runtimes.build.build_host``, built if missing)
+N times (default 15) per model and precision on the same windows (20 warm-up, then the run's first
+400 test windows, each timed once with ``--repeat 1`` as bench/timing/cpp.py times them) and prints
+the median, min, max and every process's p50.
 """
 
 from __future__ import annotations
 
+import argparse
 import subprocess
-import sys
 import tempfile
 from pathlib import Path
 
 import numpy as np
 
 from quadfdi.formats.dataset import load_dataset, make_windows
-
-EXE = Path(__file__).resolve().parents[1] / "firmware_ref" / "build" / "fwref_infer"
+from quadfdi.runtimes.build import build_host
 
 
 def main() -> None:
-    run, n = Path(sys.argv[1]), int(sys.argv[2]) if len(sys.argv) > 2 else 15
+    ap = argparse.ArgumentParser(description="fwref_infer's batch-1 p50, process after process")
+    ap.add_argument("run", type=Path)
+    ap.add_argument("n", type=int, nargs="?", default=15)
+    ap.add_argument("--exe", type=Path, default=None, help="fwref_infer (default: the host build, built if missing)")
+    a = ap.parse_args()
+    run, n = a.run, a.n
+    exe = a.exe or build_host(log=lambda _: None) / "fwref_infer"
     x = make_windows(load_dataset(run / "dataset.npz"), "test").x
     idx = np.r_[np.arange(20), np.arange(400)] % len(x)
     with tempfile.TemporaryDirectory(prefix="quadfdi-spread-") as tmp:
@@ -31,7 +38,7 @@ def main() -> None:
         for model, extra in (("cnode", []), ("cnode", ["--int8"]), ("gru", []), ("gru", ["--int8"])):
             p = []
             for _ in range(n):
-                subprocess.run([str(EXE), "--weights", str(run / "export" / "weights.bin"), "--model", model, *extra,
+                subprocess.run([str(exe), "--weights", str(run / "export" / "weights.bin"), "--model", model, *extra,
                                 "--in", str(w), "--out", str(Path(tmp) / "o.f32"), "--repeat", "1",
                                 "--timings", str(t)], check=True)
                 p.append(float(np.median(np.fromfile(t, "<f8")[20:] * 1e6)))

@@ -1,6 +1,6 @@
 """Does a process's speed mode hit both ONNX Runtime graphs of a model alike? (bench/ort_pairs.py)
 
-    PYTHONPATH=. python scripts/ort_process_modes.py RUN [--model cnode] [--processes 8]
+    python lab/ort_process_modes.py RUN [--model cnode] [--processes 8]
 
 Starts ``--processes`` fresh processes one after another, each pinned to CPUs 0,1 (taskset), each
 timing the model's fp32 and int8 graphs of RUN/export at batch 1 (1 thread, spinning off), calls

@@ -1,6 +1,6 @@
 """A real flight's profile inputs against a simulated suite's training flights: z-scores per channel.
 
-    PYTHONPATH=. python scripts/profile_zscores.py PROFILE DATASET.npz LOG [LOG ...]
+    python lab/profile_zscores.py PROFILE DATASET.npz LOG [LOG ...]
 
 For each log (ingested on the fly, as `quadfdi detect` does), the mean of each profile channel over
 its decided samples (after the hover freeze, every channel backed) against the training split of

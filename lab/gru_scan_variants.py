@@ -7,7 +7,13 @@
   the condition);
 - ``per_step_output.onnx``: the shipped Scan with the body's h' also a per-step output (Identity).
 
-    PYTHONPATH=. python scripts/gru_scan_variants.py RUN/export/gru.int8.onnx OUTDIR
+With ``--truncated``, instead two timing-only graphs that split the Scan's batch-1 time (their
+outputs mean nothing, only their time does): ``body_3.onnx``, the body cut after its first 3 nodes
+(QuantizeLinear, MatMulIntegerToFloat, Split; the state becomes gh_n), and ``body_neg.onnx``, the
+body replaced by one Neg of the state.
+
+    python lab/gru_scan_variants.py RUN/export/gru.int8.onnx OUTDIR [--truncated]
+    python lab/ort_batch_timing.py RUN --models gru --batch 1 --extra NAME=OUTDIR/FILE.onnx ...
 """
 
 from __future__ import annotations
@@ -67,7 +73,26 @@ def loop(model: onnx.ModelProto, steps: int) -> onnx.ModelProto:
     return m
 
 
+def truncated(model: onnx.ModelProto, keep: int | None) -> onnx.ModelProto:
+    """A copy whose Scan body keeps its first ``keep`` nodes (the state = the last one's 2nd output),
+    or, with ``keep`` None, is one Neg of the state."""
+    m = onnx.ModelProto()
+    m.CopyFrom(model)
+    _, body = _scan_and_body(m)
+    nodes = list(body.node)
+    del body.node[:]
+    if keep:
+        body.node.extend(nodes[:keep])
+        body.output[0].name = nodes[keep - 1].output[1]
+    else:
+        body.node.append(helper.make_node("Neg", [body.input[0].name], ["body.neg_h"]))
+        body.output[0].name = "body.neg_h"
+    return m
+
+
 def main(argv: list[str]) -> int:
+    timing_only = "--truncated" in argv
+    argv = [a for a in argv if a != "--truncated"]
     if len(argv) != 2:
         print(__doc__.split("\n\n")[-1].strip(), file=sys.stderr)
         return 2
@@ -76,6 +101,12 @@ def main(argv: list[str]) -> int:
     if not any(n.op_type == "Scan" for n in model.graph.node):
         print(f"error: {src} has no Scan node (an int8 GRU exported before the Scan?)", file=sys.stderr)
         return 1
+    if timing_only:
+        out.mkdir(parents=True, exist_ok=True)
+        for name, keep in (("body_3.onnx", 3), ("body_neg.onnx", None)):
+            onnx.save(truncated(model, keep), str(out / name))
+            print(f"wrote {out / name} (timing only)")
+        return 0
     dims = [d.dim_value for d in model.graph.input[0].type.tensor_type.shape.dim[1:]]
     x = {"telemetry": np.random.default_rng(0).normal(0, 3, (16, *dims)).astype(np.float32)}
     ref = session(model.SerializeToString()).run(["logits", "proba"], x)
