@@ -43,11 +43,7 @@ int main() {
   const auto fused = [&] {
     for (int e = 0; e < E; ++e) fwref::field_f32_t_avx2(w1t, w2t, H, L, z, v, b2, z);
   };
-  std::vector<double> sep, one;
-  for (int r = 0; r < 9; ++r) sep.push_back(per_eval_ns(separate)), one.push_back(per_eval_ns(fused));
-  std::sort(sep.begin(), sep.end());
-  std::sort(one.begin(), one.end());
-  std::printf("interleaved, 9 rounds: separate steps %.1f ns, fused call %.1f ns per evaluation (medians)\n", sep[4],
-              one[4]);
+  const auto [sep, one] = interleaved_per_eval_ns(separate, fused);
+  std::printf("interleaved, 9 rounds: separate steps %.1f ns, fused call %.1f ns per evaluation (medians)\n", sep, one);
   return 0;
 }

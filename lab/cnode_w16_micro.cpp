@@ -8,10 +8,8 @@
 //       -I/usr/include/eigen3 lab/cnode_w16_micro.cpp firmware_ref/src/kernels_i8.cpp
 //       firmware_ref/src/field_w16_avx2.cpp -o /tmp/cnode_w16_micro
 //   FWREF_I8_KERNEL=avx2field taskset -c 1 /tmp/cnode_w16_micro
-#include <algorithm>
 #include <cstdio>
 #include <cstring>
-#include <vector>
 
 #include "fwref/field_w16_avx2.hpp"
 #include "fwref/kernels_i8.hpp"
@@ -27,21 +25,18 @@ int main() {
   alignas(64) static std::int16_t w1[kH * kL], w2[kL * kH];
   fwref::expand_i8_to_i16(m.q1.data(), kH, kL, w1);
   fwref::expand_i8_to_i16(m.q2.data(), kL, kH, w2);
-  float* z = m.z;
-  alignas(64) float k[64] = {};
-  alignas(64) std::int16_t zq[64], hq[64];
-  alignas(64) std::int32_t acc[64];
-  auto quant = [&](int e) { fwref::quantize_n(z, kL, m.s_z[e], zq); };
-  auto lin1 = [&] { fwref::gemv_w16_x16(w1, kH, kL, zq, acc); };
-  auto act = [&](int e) { fwref::rescale_tanh_quantize_n(acc, m.s_z[e], m.s_w1, m.v, m.s_hid, kH, hq); };
-  auto lin2 = [&] { fwref::gemv_w16_x16(w2, kL, kH, hq, acc); };
-  auto out = [&] { fwref::rescale_bias_n(acc, m.mult2, m.b2, kL, k), std::memcpy(z, k, sizeof(float) * kL); };
+  alignas(64) std::int16_t zq[64], hq[64];  // int16 codes, what the w16 products read
+  auto quant = [&](int e) { fwref::quantize_n(m.z, kL, m.s_z[e], zq); };
+  auto lin1 = [&] { fwref::gemv_w16_x16(w1, kH, kL, zq, m.acc); };
+  auto act = [&](int e) { fwref::rescale_tanh_quantize_n(m.acc, m.s_z[e], m.s_w1, m.v, m.s_hid, kH, hq); };
+  auto lin2 = [&] { fwref::gemv_w16_x16(w2, kL, kH, hq, m.acc); };
+  auto out = [&] { fwref::rescale_bias_n(m.acc, m.mult2, m.b2, kL, m.k), std::memcpy(m.z, m.k, sizeof(float) * kL); };
   const auto separate = [&] {
     for (int e = 0; e < kE; ++e) quant(e), lin1(), act(e), lin2(), out();
   };
   const fwref::FieldW16 f{w1, w2, kH, kL, m.s_w1, m.s_hid, m.mult2, m.b2};
   const auto fused = [&] {
-    for (int e = 0; e < kE; ++e) fwref::field_w16_avx2(f, z, m.s_z[e], m.v, z);
+    for (int e = 0; e < kE; ++e) fwref::field_w16_avx2(f, m.z, m.s_z[e], m.v, m.z);
   };
   std::printf("separate steps, serial chain: %.1f ns per evaluation\n", per_eval_ns(separate));
   const double a0 = per_eval_ns([&] { for (int e = 0; e < kE; ++e) quant(e); });
@@ -52,12 +47,7 @@ int main() {
   std::printf("  alone: quantize %.1f, lin1_z %.1f, rescale+tanh+requantize %.1f, lin2 %.1f, rescale+bias %.1f ns\n",
               a0, a1, a2, a3, a4);
   std::printf("fused call, serial chain: %.1f ns per evaluation\n", per_eval_ns(fused));
-  // the two interleaved, 9 rounds (a shared machine's slow phases hit both alike): medians of the rounds
-  std::vector<double> sep, one;
-  for (int r = 0; r < 9; ++r) sep.push_back(per_eval_ns(separate)), one.push_back(per_eval_ns(fused));
-  std::sort(sep.begin(), sep.end());
-  std::sort(one.begin(), one.end());
-  std::printf("interleaved, 9 rounds: separate steps %.1f ns, fused call %.1f ns per evaluation (medians)\n", sep[4],
-              one[4]);
+  const auto [sep, one] = interleaved_per_eval_ns(separate, fused);
+  std::printf("interleaved, 9 rounds: separate steps %.1f ns, fused call %.1f ns per evaluation (medians)\n", sep, one);
   return 0;
 }

@@ -26,36 +26,29 @@ int main() {
   alignas(64) static std::uint8_t w1[fwref::w8_bytes(kH, kL)], w2[fwref::w8_bytes(kL, kH)];
   fwref::pack_i8_w8(m.q1.data(), kH, kL, w1);
   fwref::pack_i8_w8(m.q2.data(), kL, kH, w2);
-  float* z = m.z;
-  alignas(64) float k[64] = {};
-  alignas(64) std::int8_t zq[64], hq[64];
-  alignas(64) std::int32_t acc[64];
+  alignas(64) std::int8_t codes[2][64];  // z's and the hidden layer's int8 codes, what the w8 products read
   // the steps of one evaluation; each chain feeds k back as the next z (the RK4 loop's dependency)
-  auto quant = [&](int e) { fwref::quantize_n(z, kL, m.s_z[e], zq); };
-  auto lin1 = [&] { fwref::gemv_w8_codes(fn, w1, kH, kL, zq, acc); };
-  auto act = [&](int e) { fwref::rescale_tanh_quantize_n(acc, m.s_z[e], m.s_w1, m.v, m.s_hid, kH, hq); };
-  auto lin2 = [&] { fwref::gemv_w8_codes(fn, w2, kL, kH, hq, acc); };
-  auto out = [&] { fwref::rescale_bias_n(acc, m.mult2, m.b2, kL, k), std::memcpy(z, k, sizeof(float) * kL); };
+  const auto steps = [&](int e, int skip) {
+    if (skip != 0) fwref::quantize_n(m.z, kL, m.s_z[e], codes[0]);
+    if (skip != 1) fwref::gemv_w8_codes(fn, w1, kH, kL, codes[0], m.acc);
+    if (skip != 2) fwref::rescale_tanh_quantize_n(m.acc, m.s_z[e], m.s_w1, m.v, m.s_hid, kH, codes[1]);
+    if (skip != 3) fwref::gemv_w8_codes(fn, w2, kL, kH, codes[1], m.acc);
+    if (skip != 4) fwref::rescale_bias_n(m.acc, m.mult2, m.b2, kL, m.k), std::memcpy(m.z, m.k, sizeof(float) * kL);
+  };
   const double full = per_eval_ns([&] {
-    for (int e = 0; e < kE; ++e) quant(e), lin1(), act(e), lin2(), out();
+    for (int e = 0; e < kE; ++e) steps(e, -1);
   });
   std::printf("separate steps, serial chain: %.1f ns per evaluation\n", full);
   const char* names[5] = {"quantize z", "lin1_z product", "rescale+V+tanh+requantize", "lin2 product", "rescale+bias"};
   for (int skip = 0; skip < 5; ++skip) {
     const double t = per_eval_ns([&] {
-      for (int e = 0; e < kE; ++e) {
-        if (skip != 0) quant(e);
-        if (skip != 1) lin1();
-        if (skip != 2) act(e);
-        if (skip != 3) lin2();
-        if (skip != 4) out();
-      }
+      for (int e = 0; e < kE; ++e) steps(e, skip);
     });
     std::printf("  without %-26s %.1f ns (its share %.1f ns)\n", names[skip], t, full - t);
   }
   const fwref::FieldW8 f{w1, w2, kH, kL, m.s_w1, m.s_hid, m.mult2, m.b2};
   const double fused = per_eval_ns([&] {
-    for (int e = 0; e < kE; ++e) fwref::field_w8_avx512vnni(f, z, m.s_z[e], m.v, z);
+    for (int e = 0; e < kE; ++e) fwref::field_w8_avx512vnni(f, m.z, m.s_z[e], m.v, m.z);
   });
   std::printf("fused call, serial chain: %.1f ns per evaluation\n", fused);
   return 0;

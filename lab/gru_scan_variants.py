@@ -99,7 +99,7 @@ def main(argv: list[str]) -> int:
     src, out = Path(argv[0]), Path(argv[1])
     model = onnx.load(str(src))
     if not any(n.op_type == "Scan" for n in model.graph.node):
-        print(f"error: {src} has no Scan node (an int8 GRU exported before the Scan?)", file=sys.stderr)
+        print(f"error: {src} has no Scan node (an unrolled int8 GRU?)", file=sys.stderr)
         return 1
     if timing_only:
         out.mkdir(parents=True, exist_ok=True)

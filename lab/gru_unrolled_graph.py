@@ -1,5 +1,5 @@
-"""A run's int8 GRU as the unrolled graph (export/onnx_gru_unrolled.py), the one exported before the
-Scan, to time beside the exported graph (docs/bench.md, "The int8 GRU in one Scan"):
+"""A run's int8 GRU as the unrolled graph (export/onnx_gru_unrolled.py: 12 nodes per step, the alternative
+to the exported Scan), to time beside the exported graph (docs/bench.md, "The int8 GRU in one Scan"):
 
     python lab/gru_unrolled_graph.py RUN OUT.onnx
     python lab/ort_batch_timing.py RUN --models gru --batch 1 --extra unrolled=OUT.onnx

@@ -8,6 +8,7 @@
 #include <chrono>
 #include <cstdint>
 #include <random>
+#include <utility>
 #include <vector>
 
 template <class F>
@@ -31,12 +32,24 @@ double per_eval_ns(F f) {
   return median_call_ns(f) / kE;
 }
 
+// Two ways of one computation timed in `rounds` interleaved rounds (a shared machine's slow phases hit both
+// alike): the medians of the rounds' per-evaluation figures, first a's, then b's.
+template <class A, class B>
+std::pair<double, double> interleaved_per_eval_ns(A a, B b, int rounds = 9) {
+  std::vector<double> ta, tb;
+  for (int r = 0; r < rounds; ++r) ta.push_back(per_eval_ns(a)), tb.push_back(per_eval_ns(b));
+  std::sort(ta.begin(), ta.end());
+  std::sort(tb.begin(), tb.end());
+  return {ta[ta.size() / 2], tb[tb.size() / 2]};
+}
+
 // The int8 benchmarks' field: int8 weights of lin1_z (kH x kL) and lin2 (kL x kH), their per-row scales, the
 // row of V, lin2's bias and folded multipliers, the stage scales and a starting state z, from one seeded draw.
 struct I8Field {
   std::vector<std::int8_t> q1 = std::vector<std::int8_t>(kH * kL), q2 = std::vector<std::int8_t>(kL * kH);
   float s_w1[kH], s_w2[kH], mult2[kL], b2[kL], v[kH], s_z[kE], s_hid = 1.0f / 127.0f;
-  alignas(64) float z[64] = {};
+  alignas(64) float z[64] = {}, k[64] = {};  // the state and the field's output (fed back as the next state)
+  alignas(64) std::int32_t acc[64];           // a product's accumulators
 
   I8Field() {
     std::mt19937 rng(1);

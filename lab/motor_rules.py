@@ -1,6 +1,6 @@
-"""The two alarm-motor rules on validation (docs/detect.md "Which motor: the two rules"):
+"""The two alarm-motor rules on validation (docs/detect.md "Which motor"):
 A = core.alarm (summed motor_proba over the alarm's voting windows, rotor-side alarm class only),
-B = detect's former rule (mean motor_proba over the alarm's active windows whose own fault class is
+B = the alternative (mean motor_proba over the alarm's active windows whose own fault class is
 rotor-side, rotor-side alarm class only). Both read at the window evaluate scores (the first active
 window at or after onset) for detected rotor-side fault flights with a known motor."""
 import sys
