@@ -2,7 +2,9 @@
 A = core.alarm (summed motor_proba over the alarm's voting windows, rotor-side alarm class only),
 B = the alternative (mean motor_proba over the alarm's active windows whose own fault class is
 rotor-side, rotor-side alarm class only). Both read at the window evaluate scores (the first active
-window at or after onset) for detected rotor-side fault flights with a known motor."""
+window at or after onset) for detected rotor-side fault flights with a known motor.
+
+Usage: python lab/motor_rules.py RUN [SPLIT]   (SPLIT defaults to validation)"""
 import sys
 from pathlib import Path
 
