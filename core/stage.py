@@ -76,7 +76,7 @@ class StageWriter:
     def __init__(self, root: Path, name: str, config: dict[str, dict], command: str, out: Path):
         self.root, self.name, self.config, self.command, self.out = root, name, config, command, out
         self.inputs: dict[str, dict] = {}
-        self.previous = records.load_record(root, name)
+        self.previous = records.previous_record(root, name)
 
     def path(self, rel: str) -> Path:
         """Where the stage writes output ``rel`` (its parents made)."""
