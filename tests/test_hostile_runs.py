@@ -98,3 +98,37 @@ def test_a_damaged_record_blocks_only_its_own_stage(fault_sims, tmp_path):
     assert cli("report", "--run", str(run)).returncode == 0
     res = cli("check", "--run", str(run))
     assert res.returncode == 0 and "report:" in res.stdout, res.stderr
+
+
+class _Planted:
+    """A class no checkpoint may carry: its pickle names this module's global."""
+
+
+def test_a_pickle_planted_in_a_checkpoint_runs_nothing_and_gives_no_torch_advice(tmp_path):
+    import pytest
+    import torch
+
+    from quadfdi.core.errors import QuadfdiError
+    from quadfdi.models.checkpoint import load_checkpoint
+
+    path = tmp_path / "cnode.pt"
+    torch.save({"version": 1, "architecture": {"kind": "cnode"}, "payload": _Planted()}, path)
+    with pytest.raises(QuadfdiError) as exc:
+        load_checkpoint(path, "cnode")
+    text = str(exc.value)
+    assert "pickled objects" in text and "weights_only" not in text and "\n" not in text
+
+
+def test_a_foreign_file_in_the_shard_cache_is_named_not_a_traceback(fault_sims, tmp_path):
+    import numpy as np
+
+    from quadfdi.core.npzio import write_npz
+
+    run = copy_run(fault_sims["old"], tmp_path / "run")
+    shards = sorted((run / "cache" / "sim").glob("*.npz"))
+    assert shards
+    write_npz(shards[0], {"something": np.arange(3.0)})  # a valid npz of another content, under the shard's name
+    res = cli("sim", "--out", str(run), "--set", "sim.n_traj=4", "--set", "sim.duration_s=8.0",
+              "--set", "sim.onset_frac=[0.1, 0.3]", "--set", "sim.ramp_frac=[0.2, 0.4]")
+    one_line_error(res)
+    assert "is not a shard of this simulation" in res.stderr and shards[0].name in res.stderr
