@@ -132,3 +132,17 @@ def test_a_foreign_file_in_the_shard_cache_is_named_not_a_traceback(fault_sims, 
               "--set", "sim.onset_frac=[0.1, 0.3]", "--set", "sim.ramp_frac=[0.2, 0.4]")
     one_line_error(res)
     assert "is not a shard of this simulation" in res.stderr and shards[0].name in res.stderr
+
+
+def test_an_output_folder_that_is_a_file_is_refused_before_the_compute(fault_sims, tmp_path):
+    """figures/ replaced by a regular file: the stage that writes into it refuses before computing, naming
+    the file, and no later command is left saying "File exists"."""
+    run = copy_run(fault_sims["old"], tmp_path / "run")
+    assert cli("sim", "plot", "--run", str(run), "--traj", "0").returncode == 0
+    shutil.rmtree(run / "figures")
+    (run / "figures").write_text("a file where the figures folder was\n")
+    res = cli("sim", "plot", "--run", str(run), "--traj", "0")
+    one_line_error(res)
+    assert "figures is a file" in res.stderr
+    res = cli("check", "--run", str(run))
+    assert "File exists" not in res.stderr
