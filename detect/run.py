@@ -21,6 +21,8 @@ import numpy as np
 
 from quadfdi.core.alarm import AlarmConfig, alarm_records, check_policy, run_alarm
 from quadfdi.core.errors import QuadfdiError
+from quadfdi.core.resample import GRID_DT
+from quadfdi.formats.flight import GRID_TOL_S, check_time
 from quadfdi.detect.inputs import FlightInputs, flight_inputs, read_flight, windows
 from quadfdi.detect.motor import rotor_columns, window_motor
 
@@ -94,10 +96,14 @@ def detect(model: str | Path, flight: str | Path | dict, net: str = "cnode", pre
     window = int(manifest["window"])
     stride = int(manifest["config"]["sim"]["stride"])
     dt = float(manifest["sample_dt_s"])
+    if abs(dt - GRID_DT) > GRID_TOL_S:
+        raise QuadfdiError(f"{folder}: the model reads samples every {dt:g} s; flights are on the {GRID_DT:g} s grid")
     names = [str(c) for c in manifest["class_names"]]
     if "Healthy" not in names:
         raise QuadfdiError(f"{folder}: the model has no Healthy class ({names})")
-    fi = flight_inputs(flight if isinstance(flight, dict) else read_flight(flight), profile, window, stride)
+    arrays = flight if isinstance(flight, dict) else read_flight(flight)
+    check_time(arrays["time"], str(arrays.get("log_file", flight) if isinstance(flight, dict) else flight))
+    fi = flight_inputs(arrays, profile, window, stride)
     if [c["name"] for c in manifest["channels"]] != fi.channel_names:
         raise QuadfdiError(f"{folder}: the manifest's channels are not profile {profile!r}'s")
     logits, motor_logits = model_logits(folder, manifest, net, precision, runtime, windows(fi, window))

@@ -32,6 +32,9 @@ def run(args: argparse.Namespace) -> int:
 
     if (args.dataset is None) == (args.flight is None) or (args.dataset is not None and args.index is None):
         raise QuadfdiError("stream-file needs either FLIGHT or --dataset DATASET.npz --flight N")
+    src = args.dataset or args.flight
+    if Path(args.out).exists() and Path(src).exists() and Path(args.out).samefile(src):
+        raise QuadfdiError(f"stream-file: --out {args.out} is the input {src}: refusing to overwrite it")
     record = record_of(args.model)
     rs = from_dataset(args.dataset, args.index, record) if args.dataset else from_flight(args.flight, record)
     write_stream(args.out, rs)
