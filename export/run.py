@@ -17,6 +17,7 @@ import torch
 
 from quadfdi.core.atomic import ensure_dir, write_bytes
 from quadfdi.core.config import Config
+from quadfdi.core.contracts import ROTOR_SIDE_CLASSES
 from quadfdi.core.errors import QuadfdiError
 from quadfdi.core.rundir import RunDir
 from quadfdi.core.stage import stage
@@ -42,7 +43,6 @@ from quadfdi.models.inputs import profile_of, profiled_dataset
 from quadfdi.models.checkpoint import check_dataset_matches, checkpoint_class_names, load_checkpoint
 from quadfdi.train.metrics import compute_metrics
 from quadfdi.models.networks import SolverSpec
-from quadfdi.models.motor import ROTOR_SIDE_CLASSES
 
 
 @dataclass
