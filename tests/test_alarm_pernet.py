@@ -1,4 +1,4 @@
-"""One alarm policy per network (issue 14 point 4): [alarm.<net>] tables in the config, ``quadfdi
+"""One alarm policy per network: [alarm.<net>] tables in the config, ``quadfdi
 export --alarm-from evaluation``, the manifest's ``alarm_per_model``, weights.bin's ``alarm.models``
 as Python and the C++ (fwref_stream --info --model) read it, an old record without the table, and
 detect running each network's own policy. The session's flightlog-min export (tests/conftest.py) has
@@ -91,10 +91,11 @@ def test_record_table_round_trip_and_an_old_record():
 def test_export_writes_each_networks_policy_and_cpp_reads_it(flightlog_export, host_build):  # noqa: F811
     """The session's export: manifest alarm_per_model (source "config"), the record's table, and
     fwref_stream --info --model picking each network's policy (the GRU's is not the CNODE's)."""
-    from quadfdi.formats.stream import record_of
+    from quadfdi.formats.export_folder import Export
     from quadfdi.formats.onboard import policy_of
 
-    m, rec = _manifest(flightlog_export), record_of(flightlog_export)
+    ex = Export.open(flightlog_export)
+    m, rec = ex.manifest, ex.onboard()
     per = m["alarm_per_model"]
     assert sorted(per) == ["cnode", "gru"] and {p["source"] for p in per.values()} == {"config"}
     assert per["cnode"]["policy"] == m["alarm"] != per["gru"]["policy"]
@@ -102,6 +103,7 @@ def test_export_writes_each_networks_policy_and_cpp_reads_it(flightlog_export, h
     for net in ("cnode", "gru"):
         info = _info(host_build, flightlog_export / "weights.bin", "--model", net)
         assert _policy(info) == per[net]["policy"] == policy_of(rec, net)[0] and info["policy_from"] == "alarm.models"
+        assert ex.policy(net) == (per[net]["policy"], "config")  # the manifest side: the same rule, the same policy
     plain = _info(host_build, flightlog_export / "weights.bin")
     assert _policy(plain) == m["alarm"] and plain["policy_from"] == "alarm.policy"
     assert plain["alarm_models"] == "cnode:0.5,2,3,3,0;gru:0.40000000000000002,1,2,2,0"
@@ -121,10 +123,10 @@ def _strip_table(export: Path, dst: Path) -> Path:
 
 
 def test_cpp_reads_an_old_record_as_one_policy_for_every_model(flightlog_export, host_build, tmp_path):  # noqa: F811
-    from quadfdi.formats.stream import record_of
+    from quadfdi.formats.export_folder import read_record
 
     folder = _strip_table(flightlog_export, tmp_path / "old")
-    rec = record_of(folder)
+    rec = read_record(folder / "weights.bin")
     assert rec["alarm_models"] is None
     for net in ("cnode", "gru", "sgru"):
         info = _info(host_build, folder / "weights.bin", "--model", net)
