@@ -1,16 +1,15 @@
 """Alarms of every evaluation flight with and without the prediction set's ``decided`` (docs/detect.md):
     PYTHONPATH=. python scripts/cmp_decided.py RUN   (RUN/export/manifest.json gives the policy)"""
-import json
 import sys
 from dataclasses import replace
 from pathlib import Path
 
-from quadfdi.detect.run import policy_of
+from quadfdi.formats.export_folder import Export
 from quadfdi.evaluate.alarms import flight_alarms
 from quadfdi.evaluate.load import load_run
 
 run = Path(sys.argv[1])
-pol = policy_of(json.loads((run / "export/manifest.json").read_text()))
+pol = Export.open(run / "export").policy("cnode")[0]
 sets, infos = load_run(run)
 for fl in sets:
     if fl.decided is None: continue

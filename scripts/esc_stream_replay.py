@@ -14,7 +14,8 @@ import tempfile
 from pathlib import Path
 
 from quadfdi.detect.stream_cli import from_flight
-from quadfdi.formats.stream import from_dataset, record_of, write_stream
+from quadfdi.formats.stream import from_dataset, write_stream
+from quadfdi.formats.export_folder import Export
 from tests.test_stream import _check_replay
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -24,7 +25,7 @@ def main(argv: list[str]) -> int:
     run, index, real = Path(argv[0]), int(argv[1]), argv[2]
     export, exe = run / "export", ROOT / "firmware_ref/build"
     tmp = Path(tempfile.mkdtemp(prefix="esc_stream_replay_"))
-    rec = record_of(export)
+    rec = Export.open(export).onboard()
     print(f"record: profile {rec.get('profile')}, {len(rec['raw_channels'])} raw, {len(rec['channels'])} model channels")
     paths = {"sim": tmp / "sim.bin", "real": tmp / "real.bin"}
     write_stream(paths["sim"], from_dataset(run / "dataset.npz", index, rec))

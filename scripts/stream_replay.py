@@ -35,7 +35,8 @@ from quadfdi.core.contracts import FP32_CPP_REL_TOL
 from quadfdi.detect.run import softmax
 from quadfdi.bench.stream_latency import split_timings
 from quadfdi.detect.runtimes import cpp_logits, ort_logits
-from quadfdi.formats.stream import from_dataset, read_stream, record_of, write_stream
+from quadfdi.formats.stream import from_dataset, read_stream, write_stream
+from quadfdi.formats.export_folder import Export
 from quadfdi.detect.streamref import read_lines, sgru_logits, stepped_of, windows_of
 from quadfdi.formats.manifest import load_manifest
 from quadfdi.runtimes.build import HOST_BUILD, build_host
@@ -98,7 +99,7 @@ def main(argv: list[str]) -> int:
     export, dataset = Path(argv[0]), Path(argv[1])
     per_class = int(argv[2]) if len(argv) > 2 else 2
     build_host(HOST_BUILD, log=lambda _: None)
-    record, manifest = record_of(export), load_manifest(export / "manifest.json")
+    record, manifest = Export.open(export).onboard(), load_manifest(export / "manifest.json")
     ds = sim_dataset.load_dataset(dataset)
     test = [i for i, s in enumerate(ds["split_names"]) if str(s).startswith("test")]
     flights = [int(i) for c in range(len(ds["class_names"]))
