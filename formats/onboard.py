@@ -1,5 +1,6 @@
-"""weights.bin's on-board record: the section a streaming runtime reads besides the weights: the channel profile (its id, the raw channels the stream delivers in their order, the
-model's channels), the window, stride and sample period, the hover filter's constants, where the
+"""weights.bin's on-board record: the section a streaming runtime reads besides the weights: the
+channel profile (its id, the raw channels the stream delivers in their order, the model's
+channels), the window, stride and sample period, the hover filter's constants, where the
 cell count comes from, and the alarm policy (core.alarm). Layout: ``ONBOARD_*`` below (the model
 sections' is formats/weights_layout.py); the C++ reader: firmware_ref/include/fwref/onboard.hpp;
 docs/formats.md.
@@ -184,12 +185,16 @@ def _check_models(rows: np.ndarray, where: str) -> None:
                            f"of {sorted(POLICY_MODELS.values())}")
     latch = ALARM_MODELS_COLUMNS.index("latch")
     for r, p in zip(rows, _models_table(rows).values()):
-        try:
-            if int(r[latch]) not in (0, 1):
-                raise QuadfdiError("latch")
-            check_policy(p["threshold"], p["k"], p["n"], p["clear_m"])
-        except QuadfdiError:
-            raise QuadfdiError(f"{where}: the on-board record's alarm.models row {r.tolist()} is not a valid policy") from None
+        if int(r[latch]) not in (0, 1) or not _valid(p):
+            raise QuadfdiError(f"{where}: the on-board record's alarm.models row {r.tolist()} is not a valid policy")
+
+
+def _valid(p: dict) -> bool:
+    try:
+        check_policy(p["threshold"], p["k"], p["n"], p["clear_m"])
+    except QuadfdiError:
+        return False
+    return True
 
 
 def onboard_dict(s: Section) -> dict:
