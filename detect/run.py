@@ -61,8 +61,8 @@ def detect(model: str | Path, flight: str | Path | dict, net: str = "cnode", pre
     ``flight``: a log or flight.npz path, or flight.npz's arrays (sim.flight_npz.flight_arrays)."""
     folder = Path(model)
     export = Export.open(folder)
-    profile, window, stride, dt, names = export.profile(), export.window, export.stride, export.sample_dt_s, \
-        export.class_names
+    profile, window, stride, dt = export.profile(), export.window, export.stride, export.sample_dt_s
+    names = export.class_names
     if "Healthy" not in names:
         raise QuadfdiError(f"{folder}: the model has no Healthy class ({names})")
     fi = flight_inputs(flight if isinstance(flight, dict) else read_flight(flight), profile, window, stride)
