@@ -94,15 +94,16 @@ def run_kernels(args: argparse.Namespace) -> int:
     from quadfdi.bench.kernels import kernel_counts, kernels_table
     from quadfdi.bench.latency import find_fwref
     from quadfdi.bench.run import test_windows
-    from quadfdi.core.jsonio import read_json, write_json
+    from quadfdi.core.jsonio import write_json
     from quadfdi.core.rundir import open_run
+    from quadfdi.formats.export_folder import Export
 
     run, _cfg = open_run(args.run, [], need=("dataset", "export"))
-    manifest = read_json(run.export / "manifest.json")
+    export = Export.open(run.export)
     fwref, how = find_fwref(args.fwref, log=lambda s: print(s, file=sys.stderr))
     if fwref is None:
         raise QuadfdiError(f"no fwref_infer to count: {how}")
-    records = kernel_counts(fwref, str(run.export / "weights.bin"), test_windows(run, manifest).x, manifest)
+    records = kernel_counts(fwref, str(export.weights_path), test_windows(run, export).x, export.manifest)
     kernels = Path(fwref).parent / "fwref_kernels"  # absent when find_fwref built fwref_infer alone
     info = subprocess.run([str(kernels), "--info"], capture_output=True, text=True) if kernels.is_file() else \
         subprocess.CompletedProcess([], 1, "", "")
@@ -119,15 +120,15 @@ def run_stream(args: argparse.Namespace) -> int:
     from quadfdi.bench.latency import check_cpus
     from quadfdi.bench.report_stream import stream_report
     from quadfdi.bench.stream import stream_section
-    from quadfdi.core.jsonio import read_json, write_json
+    from quadfdi.core.jsonio import write_json
     from quadfdi.core.rundir import open_run
+    from quadfdi.formats.export_folder import Export
 
     cpus = check_cpus(args.cpus)
     if args.flights < 1:
         raise QuadfdiError(f"--flights must be 1 or more, found {args.flights}")
     run, _cfg = open_run(args.run, [], need=("dataset", "export"))
-    manifest = read_json(run.export / "manifest.json")
-    section = stream_section(run.root, manifest, args.fwref, cpus, args.flights,
+    section = stream_section(run.root, Export.open(run.export), args.fwref, cpus, args.flights,
                              log=lambda s: print(s, file=sys.stderr))
     print("\n".join(stream_report({"stream": section})))
     if args.json:

@@ -1,4 +1,4 @@
-"""The streaming runtime's memory (bench.json ``stream.memory``, issue 16 point 4).
+"""The streaming runtime's memory (bench.json ``stream.memory``).
 
 ``sizeof(fwref::Stream)`` (ring buffer, window, hover estimate and alarm state) with the model's own
 limits (W, C, K, the stream's raw channels R, the policy's n): the size of one static object
@@ -16,19 +16,21 @@ import subprocess
 import tempfile
 from pathlib import Path
 
+from quadfdi.formats.export_folder import Export
+
 MCU_FLAGS = {"cortex-m4": ["-mcpu=cortex-m4", "-mthumb", "-mfpu=fpv4-sp-d16", "-mfloat-abi=hard"],
              "cortex-m7": ["-mcpu=cortex-m7", "-mthumb", "-mfpu=fpv5-d16", "-mfloat-abi=hard"]}  # mcu/toolchain
 PROBE = "quadfdi_stream_probe"
 PROBE_CPP = f'#include "fwref/stream.hpp"\nfwref::Stream {PROBE};\n'
 
 
-def limit_macros(record: dict, manifest: dict) -> dict[str, int]:
+def limit_macros(record: dict, export: Export) -> dict[str, int]:
     """The FWREF_MAX_* values that size fwref::Stream for this model (what the Cortex-M generators
     runtimes/mcu_weights_src and mcu_stream_src set)."""
     from quadfdi.formats.onboard import max_alarm_n
 
-    return {"FWREF_MAX_WINDOW": int(record["window"]), "FWREF_MAX_CHANNELS": int(manifest["n_channels"]),
-            "FWREF_MAX_CLASSES": len(manifest["class_names"]), "FWREF_MAX_RAW_CHANNELS": len(record["raw_channels"]),
+    return {"FWREF_MAX_WINDOW": int(record["window"]), "FWREF_MAX_CHANNELS": len(export.channel_names),
+            "FWREF_MAX_CLASSES": len(export.class_names), "FWREF_MAX_RAW_CHANNELS": len(record["raw_channels"]),
             "FWREF_MAX_ALARM_N": max_alarm_n(record)}  # the largest n of the record's per-network policies
 
 
@@ -68,11 +70,11 @@ def _image(cpu: str) -> dict | None:
             "bss_bytes": s.get(".bss", 0), "note": "as last built (its own weights and stream files)"}
 
 
-def stream_memory(record: dict, manifest: dict, exe: Path | None, weights: Path,
+def stream_memory(record: dict, export: Export, exe: Path | None,
                   cores: tuple[str, ...] = tuple(MCU_FLAGS)) -> list[dict]:
     """One record per target: host (c++) and each Cortex-M core of ``cores`` (skipped with a reason
-    if no compiler)."""
-    macros = limit_macros(record, manifest)
+    if no compiler); ``record`` is ``export``'s on-board record."""
+    macros = limit_macros(record, export)
     rows = []
     targets = [("host", "c++", "nm", [])] + [(cpu, "arm-none-eabi-g++", "arm-none-eabi-nm", f)
                                               for cpu, f in MCU_FLAGS.items() if cpu in cores]
@@ -88,7 +90,7 @@ def stream_memory(record: dict, manifest: dict, exe: Path | None, weights: Path,
                 row["image"] = _image(target) or "no stream image built (python scripts/stream_mcu.py builds one)"
             rows.append(row)
     if exe is not None:
-        info = subprocess.run([str(exe), "--weights", str(weights), "--info"], capture_output=True, text=True,
+        info = subprocess.run([str(exe), "--weights", str(export.weights_path), "--info"], capture_output=True, text=True,
                               check=False)
         line = next((ln for ln in info.stdout.splitlines() if ln.startswith("stream_bytes=")), None)
         rows[0]["fwref_stream_build_bytes"] = int(line.split("=")[1]) if line else None

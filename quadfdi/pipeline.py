@@ -78,7 +78,7 @@ def _export(run: RunDir, cfg: Config) -> None:
     from quadfdi.export.run import export_run
 
     # the evaluate stage just chose each network's alarm policy on validation: the export carries those
-    chosen = (run.root / "evaluation" / "evaluation.json").is_file()
+    chosen = run.evaluation.is_file()
     export_run(run, cfg, alarm_from="evaluation" if chosen else "config")
 
 

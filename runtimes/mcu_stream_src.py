@@ -3,6 +3,8 @@ recorded flights (stream files, docs/formats.md "Stream file"), as C++ constants
 
     python -m quadfdi.runtimes.mcu_stream_src --weights W --out DIR STREAM.bin [STREAM.bin ...]
 
+W is an export folder's weights.bin (formats.export_folder: the folder's manifest and hashes are checked).
+
 Writes DIR/fwref_stream_limits.h (the stream's capacities: -DFWREF_STREAM_LIMITS_HEADER for every
 unit of the image), DIR/fwref_stream_data.hpp (the record as ``kParams``, its alarm.rotor_side as the alarm's
 ``rotor_mask``: the image reports the motor under rule 5 as the host does; ``kParamsCnode`` /
@@ -27,17 +29,15 @@ from pathlib import Path
 
 import numpy as np
 
+from quadfdi.core.channels import profile_enum
+from quadfdi.core.contracts import cpp_policy_values
 from quadfdi.core.errors import QuadfdiError
+from quadfdi.formats.export_folder import Export
 from quadfdi.formats.stream import read_stream
-from quadfdi.formats.onboard import onboard_dict
-from quadfdi.formats.weights_bin import read_weights
-from quadfdi.formats.onboard import ONBOARD_PROFILES, max_alarm_n, policy_of
+from quadfdi.formats.onboard import max_alarm_n, policy_of
 from quadfdi.runtimes.mcu_weights_src import FileError, section_body
 
 PROG = "python -m quadfdi.runtimes.mcu_stream_src"
-
-PROFILE_ENUM = {"paper": "kPaper", "flightlog-min": "kFlightlogMin", "flightlog-nocur": "kFlightlogNocur",
-                "flightlog-esc": "kFlightlogEsc"}
 
 
 def _floats(a: np.ndarray) -> str:
@@ -69,14 +69,13 @@ def rotor_mask(rec: dict, classes: int) -> str:
 
 def params(rec: dict, classes: int, a: dict) -> str:
     """A fwref::StreamParams initializer: the record's stream and the alarm policy ``a``."""
-    return f"""fwref::StreamParams{{fwref::Profile::{PROFILE_ENUM[rec['profile']]}, {rec['window']}, {rec['stride']},
+    return f"""fwref::StreamParams{{fwref::Profile::{profile_enum(rec['profile'])}, {rec['window']}, {rec['stride']},
     {len(rec['raw_channels'])}, {len(rec['channels'])}, {classes}, {rec['sample_dt_s']!r},
-    fwref::AlarmParams{{{a['threshold']!r}, {a['k']}, {a['n']}, {a['clear_m']}, {str(a['latch']).lower()},
+    fwref::AlarmParams{{{cpp_policy_values(a)},
                        {rec['healthy']}, {classes}, {rotor_mask(rec, classes)}u}}}}"""
 
 
 def header(rec: dict, classes: int, flights: int, extra: dict | None = None) -> str:
-    assert rec["profile"] in ONBOARD_PROFILES
     extra = extra or {}
     flags = "".join(f"#define FWREF_STREAM_HAS_{flag} {int(any(e[4] == flag and (e[0], e[1]) in extra for e in EXTRA))}\n"
                     for flag in ("SGRU", "CNODE_MOTOR", "GRU_MOTOR"))
@@ -151,10 +150,10 @@ def main(argv: list[str]) -> int:
     ap.add_argument("streams", nargs="+")
     args = ap.parse_args(argv)
     try:
-        wf = read_weights(args.weights)
-        if wf.onboard is None:
-            raise QuadfdiError(f"{args.weights} has no on-board record (re-run `quadfdi export`)")
-        rec = onboard_dict(wf.onboard)
+        export = Export.open(Path(args.weights).parent)
+        if export.weights_path.resolve() != Path(args.weights).resolve():
+            raise QuadfdiError(f"{args.weights} is not its export folder's weights.bin")
+        wf, rec = export.weights(), export.onboard()
         classes = int(wf.section("cnode", "fp32").dims[2])
         rotor_mask(rec, classes)  # refuses flags that do not cover the model's classes, before writing
         extra = extra_sections(wf, Path(args.weights).parent)

@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from quadfdi.core.contracts import FP32_CPP_REL_TOL
-from quadfdi.formats.stream import record_of
+from quadfdi.formats.export_folder import Export
 from quadfdi.detect.streamref import read_lines
 from quadfdi.runtimes.build import MCU_CPUS, _configure_and_build, build_host, mcu_options, source_dir
 from quadfdi.runtimes.mcu import CLOCK_MHZ, qemu_command
@@ -125,7 +125,7 @@ def main(argv: list[str]) -> int:
     res = subprocess.run(qemu_command(cpu, build / "fwref_mcu_stream.elf"), capture_output=True, text=True, check=False,
                          timeout=3600)
     assert "RESULT DONE" in res.stdout, res.stdout[-2000:] + res.stderr[-2000:]
-    record = record_of(export)
+    record = Export.open(export).onboard()
     k = int(res.stdout.split("STRIDE ", 1)[1].split("\n", 1)[0].split().__len__()) - 10  # after "STRIDE ": 10 fields + K
     strides, perf = parse(res.stdout, k)
     print(f"{export} ({record['profile']}) on {cpu} ({MCU_CPUS[cpu]}): {len(streams)} flights, "
