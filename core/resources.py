@@ -24,7 +24,7 @@ FIRMWARE = "quadfdi.firmware_ref"
 # firmware_ref's files that a build reads: what the wheel ships (pyproject.toml's package-data lists
 # the same patterns; tests/test_wheel.py holds the two together) and what names a build folder.
 # firmware_ref/tools/*.py are measurement helpers that no build runs.
-FWREF_PATTERNS = ("CMakeLists.txt", "include/**/*", "src/**/*", "mcu/**/*", "tools/*.cpp", "tools/*.hpp")
+FWREF_PATTERNS = ("CMakeLists.txt", "*.cmake", "include/**/*", "src/**/*", "mcu/**/*", "tools/*.cpp", "tools/*.hpp")
 _CONFIG_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_-]*")  # a bare word; anything else is a path
 
 
