@@ -15,7 +15,7 @@ from quadfdi.core.errors import QuadfdiError
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("ingest", help="read a PX4 ULog / ArduPilot .BIN flight into flight.npz",
+    p = sub.add_parser("ingest", help="read a PX4 ULog, ArduPilot .BIN or Crazyflie uSD flight log into flight.npz",
                        description="Ingest a real flight log into <out>/flight.npz (docs/flight_format.md). "
                                    "`quadfdi ingest bench LOG...` measures throughput instead.")
     p.add_argument("logs", nargs="+", metavar="LOG", help="the log file (or: bench LOG...)")

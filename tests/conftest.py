@@ -11,6 +11,9 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
+# The shared real data (flight logs, CrazyPAD) beside the checkout, or where this workplace keeps it.
+SHARED_DATA = next((p for p in (ROOT.parent / "shared" / "data", Path("/work/shared/data")) if p.is_dir()),
+                   ROOT.parent / "shared" / "data")
 
 # Small but complete: every class in every split (n_traj 24 -> 6 per class).
 SMALL_SIM = ["--set", "sim.n_traj=24", "--set", "sim.duration_s=8.0", "--set", "sim.onset_frac=[0.1, 0.3]",
