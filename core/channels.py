@@ -2,7 +2,10 @@
 
 The simulator's 23 telemetry channels come first, in the order of the paper's dataset (so a model
 trained on the simulator reads the same columns as one reading an ingested flight), then the
-channels only richer logs (and the realistic suite) carry. Everything that names a channel — the
+channels only richer logs (and the realistic suite) carry. Each autopilot's vibration metric is its
+own channel, as the simulator computes it from its accelerometer: ``vib_px4`` is PX4's
+``accel_vibration_metric`` (m/s^2), ``vib_ap`` ArduPilot's VIBE as the in-plane mean
+(VibeX + VibeY) / 2 (the simulator has no vertical vibration model, so VibeZ is not used). Everything that names a channel — the
 simulator's sensors, ``flight.npz``, channel profiles, the stream files and the generated C++
 header — takes names and units from here.
 """
@@ -16,7 +19,7 @@ SIM_CHANNELS: tuple[tuple[str, str], ...] = (
     ("thr1", "-"), ("thr2", "-"), ("thr3", "-"), ("thr4", "-"),
 )
 EXTRA_CHANNELS: tuple[tuple[str, str], ...] = (
-    ("vib_acc", "m/s^2"), ("rpm1", "rpm"), ("rpm2", "rpm"), ("rpm3", "rpm"), ("rpm4", "rpm"),
+    ("vib_px4", "m/s^2"), ("vib_ap", "m/s^2"), ("rpm1", "rpm"), ("rpm2", "rpm"), ("rpm3", "rpm"), ("rpm4", "rpm"),
     ("esc_temp1", "degC"), ("esc_temp2", "degC"), ("esc_temp3", "degC"), ("esc_temp4", "degC"),
     ("esc_cur1", "A"), ("esc_cur2", "A"), ("esc_cur3", "A"), ("esc_cur4", "A"),
 )

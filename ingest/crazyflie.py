@@ -166,7 +166,7 @@ def _channels(c: dict[str, np.ndarray], mmap: list[int], lr: LogRead) -> None:
         lr.channels[f"thr{k + 1}"] = Channel(f"thr{k + 1}", t, c[f"motor.m{m + 1}"] / COMMAND_FULL,
                                              f"motor.m{m + 1} / {COMMAND_FULL:g} (power command, before battery "
                                              "compensation)")
-    for name in ("pitch", "p", "q", "r", "I_b", "SoC", "T1", "T2", "T3", "T4", "vib_acc",
+    for name in ("pitch", "p", "q", "r", "I_b", "SoC", "T1", "T2", "T3", "T4", "vib_px4", "vib_ap",
                  *(f"{g}{k}" for g in ("rpm", "esc_temp", "esc_cur") for k in range(1, 5))):
         lr.status.setdefault(name, ABSENT)
 

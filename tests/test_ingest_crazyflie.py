@@ -34,7 +34,7 @@ def test_a_log_without_extension_is_read_by_its_first_byte():
     lr = read_log(HEALTHY)
     assert lr.autopilot == "crazyflie"
     assert {"x", "y", "z", "vx", "vy", "vz", "roll", "yaw", "V_b", "thr1", "thr2", "thr3", "thr4"} <= set(lr.channels)
-    assert all(lr.status[c].startswith("absent") for c in ("pitch", "p", "q", "r", "I_b", "vib_acc"))
+    assert all(lr.status[c].startswith("absent") for c in ("pitch", "p", "q", "r", "I_b", "vib_px4", "vib_ap"))
 
 
 def test_the_declared_event_type_without_records_is_ignored_and_noted():
