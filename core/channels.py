@@ -29,3 +29,12 @@ CHANNEL_UNITS = dict(ALL_CHANNELS)
 SIM_CHANNEL_NAMES = tuple(n for n, _ in SIM_CHANNELS)
 SIM_CHANNEL_UNITS = tuple(u for _, u in SIM_CHANNELS)
 ANGLE_CHANNELS = frozenset({"roll", "pitch", "yaw"})  # unwrapped before resampling, wrapped after
+# The logging group of each channel: channels an autopilot logs from one message, at one rate
+# (the simulator draws one rate per group and flight; `quadfdi ingest rates` measures them on logs).
+RATE_GROUP: dict[str, str] = {
+    **{c: "pos" for c in ("x", "y", "z", "vx", "vy", "vz")}, **{c: "att" for c in ("roll", "pitch", "yaw")},
+    **{c: "rate" for c in ("p", "q", "r")}, **{c: "batt" for c in ("V_b", "I_b", "SoC")},
+    **{f"T{k}": "esc" for k in range(1, 5)}, **{f"thr{k}": "act" for k in range(1, 5)},
+    "vib_px4": "vib_px4", "vib_ap": "vib_ap",
+    **{f"{g}{k}": "esc" for g in ("rpm", "esc_temp", "esc_cur") for k in range(1, 5)},
+}

@@ -162,3 +162,22 @@ def test_gap_factor_bridges_the_missions_vibration_gaps(ingested, tmp_path):
     res = quadfdi("ingest", str(LOGS / name), "--out", str(tmp_path / "bad"), "--gap-factor", "1")
     assert res.returncode == 2 and "--gap-factor must be at least 1.5" in res.stderr and len(res.stderr.strip().splitlines()) == 1
     assert not (tmp_path / "bad").exists()
+
+
+def test_ingest_rates_tabulates_each_groups_rate_on_the_shared_logs():
+    """What sim.realistic_params.LOG_HZ_MEASURED is made from: PX4's logger defaults on the v1.15/1.16
+    logs (attitude 20 Hz, rates 50 Hz, battery 5 Hz, vibration 1 Hz) and the v1.9 log's slower battery."""
+    import json
+
+    from quadfdi.sim import realistic_params as P
+
+    logs = [str(LOGS / n) for n in ("px4_quad_6s_gps_interference.ulg", "px4_quad_6s_uavcan_mission.ulg",
+                                    "ardupilot_plane_1s.BIN")]
+    res = quadfdi("ingest", "rates", *logs)
+    assert res.returncode == 0, res.stderr
+    out = json.loads(res.stdout)
+    gps, mission, plane = out["logs"]
+    assert gps["rates"]["att"] == 20.0 and gps["rates"]["rate"] == 50.0 and gps["rates"]["vib_px4"] == 1.0
+    assert mission["rates"]["batt"] == 1.8 and "not a multirotor" in plane["refused"]
+    for g, rates in out["groups"].items():
+        assert set(rates) <= set(P.LOG_HZ_MEASURED[g]), g
