@@ -30,8 +30,10 @@ sim-bench: setup
 sweep-bench: setup
 	$(PY) -m quadfdi.cli sweep bench
 
+# The seed study, then its headline tables into README.md's results block (quadfdi/readme_study.py).
 study: setup
-	$(PY) -m quadfdi.cli train study --run $(RUN) --readme README.md
+	$(PY) -m quadfdi.cli train study --run $(RUN)
+	$(PY) -m quadfdi.cli readme --run $(RUN) --block results
 
 solvers: setup
 	$(PY) -m quadfdi.cli solvers study --run $(RUN) --set solvers.sample=128

@@ -34,7 +34,7 @@ def _command(args: argparse.Namespace) -> str:
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
     from quadfdi.core.cliargs import add_config_args
-    from quadfdi.core.config import BenchConfig
+    from quadfdi.bench.config import BenchConfig
 
     p = sub.add_parser("bench", help="latency, memory and limits of a run's deployed runtimes (bench.json)",
                        description=DESCRIPTION)
@@ -45,7 +45,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--cpus", default=None,
                    help="CPUs every benchmark process is pinned to (default: the run's bench.cpus)")
     p.add_argument("--fwref", default=None,
-                   help="fwref_infer program (default: firmware_ref/build/fwref_infer, built if missing)")
+                   help="fwref_infer program (default: the per-user build cache's, built if missing)")
     add_config_args(p, config=False)
     p.set_defaults(func=run_bench)
     acts = p.add_subparsers(dest="action", metavar="{limits,kernels,stream}")
@@ -56,7 +56,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     pk = acts.add_parser("kernels", help="C++ instructions per kernel and per MAC (callgrind, 8 minus 4 windows)")
     pk.add_argument("--run", required=True, help="run folder with an export and a dataset (e.g. runs/paper)")
     pk.add_argument("--fwref", default=None,
-                    help="fwref_infer program (default: firmware_ref/build/fwref_infer, built if missing)")
+                    help="fwref_infer program (default: the per-user build cache's, built if missing)")
     pk.add_argument("--json", default=None, help="also write the records to this JSON file")
     pk.set_defaults(func=run_kernels)
     ps = acts.add_parser("stream", help="fwref_stream's latency per sample and per decision, and the stream "
@@ -64,7 +64,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     ps.add_argument("--run", required=True, help="run folder with an export and a dataset")
     ps.add_argument("--flights", type=int, default=BenchConfig.stream_flights, help="test flights (default: %(default)s)")
     ps.add_argument("--cpus", default=BenchConfig.cpus, help="CPUs to pin to (default: %(default)s)")
-    ps.add_argument("--fwref", default=None, help="fwref_infer whose build holds fwref_stream (default: firmware_ref/build)")
+    ps.add_argument("--fwref", default=None, help="fwref_infer whose build holds fwref_stream (default: the per-user build cache)")
     ps.add_argument("--json", default=None, help="also write the section to this JSON file")
     ps.set_defaults(func=run_stream)
 
@@ -94,15 +94,16 @@ def run_kernels(args: argparse.Namespace) -> int:
     from quadfdi.bench.kernels import kernel_counts, kernels_table
     from quadfdi.bench.latency import find_fwref
     from quadfdi.bench.run import test_windows
-    from quadfdi.core.jsonio import read_json, write_json
+    from quadfdi.core.jsonio import write_json
     from quadfdi.core.rundir import open_run
+    from quadfdi.formats.export_folder import Export
 
     run, _cfg = open_run(args.run, [], need=("dataset", "export"))
-    manifest = read_json(run.export / "manifest.json")
+    export = Export.open(run.export)
     fwref, how = find_fwref(args.fwref, log=lambda s: print(s, file=sys.stderr))
     if fwref is None:
         raise QuadfdiError(f"no fwref_infer to count: {how}")
-    records = kernel_counts(fwref, str(run.export / "weights.bin"), test_windows(run, manifest).x, manifest)
+    records = kernel_counts(fwref, str(export.weights_path), test_windows(run, export).x, export.manifest)
     kernels = Path(fwref).parent / "fwref_kernels"  # absent when find_fwref built fwref_infer alone
     info = subprocess.run([str(kernels), "--info"], capture_output=True, text=True) if kernels.is_file() else \
         subprocess.CompletedProcess([], 1, "", "")
@@ -119,15 +120,15 @@ def run_stream(args: argparse.Namespace) -> int:
     from quadfdi.bench.latency import check_cpus
     from quadfdi.bench.report_stream import stream_report
     from quadfdi.bench.stream import stream_section
-    from quadfdi.core.jsonio import read_json, write_json
+    from quadfdi.core.jsonio import write_json
     from quadfdi.core.rundir import open_run
+    from quadfdi.formats.export_folder import Export
 
     cpus = check_cpus(args.cpus)
     if args.flights < 1:
         raise QuadfdiError(f"--flights must be 1 or more, found {args.flights}")
     run, _cfg = open_run(args.run, [], need=("dataset", "export"))
-    manifest = read_json(run.export / "manifest.json")
-    section = stream_section(run.root, manifest, args.fwref, cpus, args.flights,
+    section = stream_section(run.root, Export.open(run.export), args.fwref, cpus, args.flights,
                              log=lambda s: print(s, file=sys.stderr))
     print("\n".join(stream_report({"stream": section})))
     if args.json:

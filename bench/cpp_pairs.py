@@ -41,7 +41,7 @@ def measure_cpp_pairs(build_dir: Path, weights: Path, x: np.ndarray, n: int, cpu
     or {"skipped": why}."""
     exe = build_dir / "fwref_pair"
     if not exe.is_file():
-        return {"skipped": f"{exe} is missing: build firmware_ref (cmake --build firmware_ref/build)"}
+        return {"skipped": f"{exe} is missing: build firmware_ref (python -m quadfdi.runtimes.build)"}
     rounds = max(1, min(n, len(x)) // PER_ROUND)
     out: dict = {}
     with tempfile.TemporaryDirectory(prefix="quadfdi-pair-") as tmp:

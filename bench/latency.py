@@ -24,7 +24,6 @@ from __future__ import annotations
 import math
 import os
 import shutil
-import subprocess
 import sys
 import tempfile
 import time
@@ -36,11 +35,10 @@ import numpy as np
 
 from quadfdi.bench.limits import cpu_prefix, run_json, worker_env
 from quadfdi.bench.ort_pairs import measure_ort_pairs
-from quadfdi.core.config import BenchConfig
+from quadfdi.bench.config import BenchConfig
 from quadfdi.core.errors import QuadfdiError
 
-ROOT = Path(__file__).resolve().parents[1]
-DEFAULT_FWREF = ROOT / "firmware_ref" / "build" / "fwref_infer"
+BENCH_PROGRAMS = ("fwref_infer", "fwref_pair")  # the C++ programs the latency tables time
 
 
 @dataclass(frozen=True)
@@ -131,30 +129,27 @@ def sample_windows(x: np.ndarray, n: int, seed: int = 0) -> np.ndarray:
 def find_fwref(explicit: str | None, log: Callable[[str], None]) -> tuple[str | None, str]:
     """(path to fwref_infer or None, how it was found or why not).
 
-    An explicit ``--fwref`` must exist. Otherwise firmware_ref/build/fwref_infer is used as it is;
-    if missing, it is built with firmware_ref's documented command (cmake, Release).
+    An explicit ``--fwref`` must exist. Otherwise fwref_infer and fwref_pair are built (or found up to
+    date) in the per-user build cache (runtimes.build: ``python -m quadfdi.runtimes.build`` prints it);
+    without cmake or a compiler, or when the build fails, the C++ rows are skipped with the reason.
     """
     if explicit:
         p = Path(explicit)
         if not p.is_file() or not os.access(p, os.X_OK):
-            raise QuadfdiError(f"--fwref {p}: no such executable (build it: cmake -S firmware_ref -B "
-                               f"firmware_ref/build -DCMAKE_BUILD_TYPE=Release && cmake --build firmware_ref/build)")
+            raise QuadfdiError(f"--fwref {p}: no such executable (leave --fwref out to build firmware_ref in the "
+                               "per-user cache, or print that build's folder: python -m quadfdi.runtimes.build)")
         return str(p), "given with --fwref"
-    if DEFAULT_FWREF.is_file():
-        return str(DEFAULT_FWREF), "firmware_ref/build/fwref_infer (existing build)"
-    cmake = shutil.which("cmake")
-    if cmake is None or not (ROOT / "firmware_ref" / "CMakeLists.txt").is_file():
-        return None, "C++ reference not measured: firmware_ref/build/fwref_infer is missing and cmake is not available"
-    log("bench: building the C++ reference (cmake -S firmware_ref -B firmware_ref/build, Release)")
-    build = ROOT / "firmware_ref" / "build"
-    for cmd in ([cmake, "-S", str(ROOT / "firmware_ref"), "-B", str(build), "-DCMAKE_BUILD_TYPE=Release"],
-                [cmake, "--build", str(build), "-j2", "--target", "fwref_infer", "fwref_pair"]):
-        res = subprocess.run(cmd, capture_output=True, text=True, timeout=900)
-        if res.returncode != 0:
-            last = (res.stderr.strip().splitlines() or res.stdout.strip().splitlines() or ["?"])[-1]
-            return None, f"C++ reference not measured: building it failed: {last}"
-    return (str(DEFAULT_FWREF), "built firmware_ref/build/fwref_infer") if DEFAULT_FWREF.is_file() else \
-        (None, "C++ reference not measured: the build produced no fwref_infer")
+    from quadfdi.runtimes.build import build_host
+
+    missing = [t for t in ("cmake", "c++") if shutil.which(t) is None]
+    if missing:
+        return None, f"C++ reference not measured: {' and '.join(missing)} not found (they build firmware_ref)"
+    log("bench: building the C++ reference in the per-user cache (CMake, Release) unless it is up to date")
+    try:
+        build = build_host(targets=BENCH_PROGRAMS, log=lambda _: None)
+    except QuadfdiError as exc:
+        return None, f"C++ reference not measured: building it failed: {exc}"
+    return str(build / "fwref_infer"), f"{build / 'fwref_infer'} (per-user build cache)"
 
 
 def check_cpus(cpus: str) -> str:

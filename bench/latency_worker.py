@@ -35,7 +35,7 @@ from pathlib import Path
 from quadfdi.bench.timing.common import MIN_SAMPLES, WARMUP_SECONDS, batches_of, peak_rss_kib, proc_status_kib, \
     reset_peak_rss, summarise, time_calls
 from quadfdi.bench.timing.pytorch import parse_solver
-from quadfdi.core.config import BenchConfig
+from quadfdi.bench.config import BenchConfig
 
 RUNTIMES = ("torch", "ort", "cpp")
 

@@ -1,7 +1,7 @@
 """The bench stage: the deployed runtimes timed -> bench.json and the bench figures.
 
 ``bench_run(run, cfg)`` reads ``runs/<name>/`` (dataset.npz for the test windows, cnode.pt and
-gru.pt, export/manifest.json and the files it lists, firmware_ref/build/fwref_infer, and
+gru.pt, export/manifest.json and the files it lists, fwref_infer (the per-user build cache's), and
 parity/mcu.json when present), measures with the settings of ``cfg.bench`` (the ``[bench]``
 config section; ``quick`` replaces the counts with tiny ones) and writes:
 
@@ -25,9 +25,11 @@ import time
 from pathlib import Path
 from typing import Callable
 
-from quadfdi.core.config import BenchConfig, Config
+from quadfdi.bench.config import BenchConfig
+from quadfdi.core.config import Config
 from quadfdi.core.errors import QuadfdiError
 from quadfdi.core.rundir import RunDir
+from quadfdi.formats.export_folder import Export
 
 SCHEMA_VERSION = 1
 SOLVERS_JSON = Path("solvers") / "solvers.json"  # written by solverstudy.run.study_run
@@ -52,7 +54,7 @@ def _machine(cpus: str) -> dict:
             "numpy": numpy.__version__, "load_average_start": list(os.getloadavg())}
 
 
-def _profiles(run: RunDir, manifest: dict, test_x, fwref: str | None, fw_flags: dict | None, cpus: str,
+def _profiles(export: Export, test_x, fwref: str | None, fw_flags: dict | None, cpus: str,
               quick: bool, latency: list[dict], bc: BenchConfig, log: Callable[[str], None]) -> dict:
     """ORT per-op profiles and C++ callgrind counts (bench.profile), keyed 'model_precision'."""
     import numpy as np
@@ -63,7 +65,7 @@ def _profiles(run: RunDir, manifest: dict, test_x, fwref: str | None, fw_flags: 
 
     t0 = time.perf_counter()
     out: dict = {"ort": {}, "cpp": {}}
-    steps = int(manifest["solver"]["steps"])
+    steps = export.steps
     with tempfile.TemporaryDirectory(prefix="quadfdi-prof-") as tmp:
         tmpd = Path(tmp)
         x = sample_windows(test_x, 20 if quick else bc.profile_windows, seed=1)
@@ -73,12 +75,12 @@ def _profiles(run: RunDir, manifest: dict, test_x, fwref: str | None, fw_flags: 
         for model in ("cnode", "gru"):
             for precision in ("fp32",) if quick else ("fp32", "int8"):
                 key = f"{model}_{precision}"
-                art = str(run.export / manifest["artifacts"][key])
+                art = str(export.artifact(model, precision))
                 solver = f"rk4-{steps}" if model == "cnode" else "gru"
                 out["ort"][key] = ort_profile(art, str(tmpd / "w.npy"), model, precision, solver, cpu_prefix(cpus),
                                               len(x), tmpd / f"{key}.json")
                 if fwref:
-                    cg = callgrind_cpp(fwref, str(run.export / "weights.bin"), str(tmpd / "w.f32"), n_cg, model,
+                    cg = callgrind_cpp(fwref, str(export.weights_path), str(tmpd / "w.f32"), n_cg, model,
                                        precision == "int8")
                     if cg is not None:
                         out["cpp"][key] = cg
@@ -92,7 +94,7 @@ def _profiles(run: RunDir, manifest: dict, test_x, fwref: str | None, fw_flags: 
                       and r["precision"] == precision and r["batch"] == 1), None)
             if r and "ir_per_window" in cg:
                 cg["instructions_per_ns_at_p50"] = cg["ir_per_window"] / (r["p50_us"] * 1e3)
-                cg["ir_per_mac"] = cg["ir_per_window"] / manifest["models"][model]["macs_per_window"]
+                cg["ir_per_mac"] = cg["ir_per_window"] / export.manifest["models"][model]["macs_per_window"]
     out["seconds"] = time.perf_counter() - t0
     log(f"bench profiles: ORT per-op and C++ callgrind in {out['seconds']:.0f} s")
     return out
@@ -113,7 +115,7 @@ def solver_records(run_root: Path) -> tuple[list, dict]:
     return list(load_records(run_root)), {"file": str(SOLVERS_JSON)}
 
 
-def test_windows(run: RunDir, manifest: dict):
+def test_windows(run: RunDir, export: Export):
     """The run's test windows, checked against the export and the checkpoints."""
     from quadfdi.formats.dataset import load_dataset, make_windows
 
@@ -123,14 +125,15 @@ def test_windows(run: RunDir, manifest: dict):
     test = make_windows(load_dataset(run.dataset), "test")
     if len(test) == 0:
         raise QuadfdiError(f"{run.dataset} has no test windows to time")
-    if test.x.shape[1:] != (manifest["window"], manifest["n_channels"]):
-        raise QuadfdiError(f"{run.dataset}: windows are {test.x.shape[1:]}, the export expects "
-                           f"({manifest['window']}, {manifest['n_channels']}): re-run `quadfdi export`")
+    want = (export.window, len(export.channel_names))
+    if test.x.shape[1:] != want:
+        raise QuadfdiError(f"{run.dataset}: windows are {test.x.shape[1:]}, the export expects {want}: "
+                           f"re-run `quadfdi export`")
     return test
 
 
 def _private_fwref(fwref_path: str | None, tmp: Path) -> tuple[str | None, dict | None]:
-    """Copy fwref_infer into ``tmp`` (a rebuild of firmware_ref/build while timing cannot change
+    """Copy fwref_infer into ``tmp`` (a rebuild of its build folder while timing cannot change
     the copy); (copy path, its build flags and sha256), or (None, None)."""
     if not fwref_path:
         return None, None
@@ -143,7 +146,7 @@ def _private_fwref(fwref_path: str | None, tmp: Path) -> tuple[str | None, dict 
     return fw_copy, fw_flags
 
 
-def _measure(run: RunDir, cfg: Config, manifest: dict, test_x, fw_copy: str | None, fw_flags: dict | None,
+def _measure(run: RunDir, cfg: Config, export: Export, test_x, fw_copy: str | None, fw_flags: dict | None,
              cpus: str, quick: bool, log: Callable[[str], None]) -> dict:
     """Limits (before and after), latency, floors, profiles and memory, each timed."""
     from quadfdi.bench.floors import attach_distance, below_floor, floors, violation_text
@@ -154,7 +157,8 @@ def _measure(run: RunDir, cfg: Config, manifest: dict, test_x, fw_copy: str | No
     from quadfdi.bench.stream import stream_section
 
     timing: dict[str, float] = {}
-    window, channels = manifest["window"], manifest["n_channels"]
+    manifest = export.manifest
+    window, channels = export.window, len(export.channel_names)
     t0 = time.perf_counter()
     # the thread counts the latencies are timed at (1 always: the batch-1 floors use it); a 2-thread
     # pass for a bench that times 1 thread only cost the tiny pipeline of the tests ~10 s for nothing
@@ -168,29 +172,29 @@ def _measure(run: RunDir, cfg: Config, manifest: dict, test_x, fw_copy: str | No
     after = measure_limits(cpus, quick, window, channels, log=log, threads=(1,))
     limits = merge_limits([limits, after])
     timing["limits"] += time.perf_counter() - t0
-    floor_list = floors(manifest["models"], int(manifest["solver"]["steps"]), limits)
+    floor_list = floors(manifest["models"], export.steps, limits)
     attach_distance(lat["latency"], floor_list)
     if below_floor(lat["latency"]):  # re-measure once: a probe slowed by another user reads the machine low
         log(f"bench: below the floor, re-measuring the limits: {violation_text(below_floor(lat['latency']))}")
         t0 = time.perf_counter()
         limits = merge_limits([limits, measure_limits(cpus, quick, window, channels, log=log, threads=(1,))])
         timing["limits"] += time.perf_counter() - t0
-        floor_list = floors(manifest["models"], int(manifest["solver"]["steps"]), limits)
+        floor_list = floors(manifest["models"], export.steps, limits)
         attach_distance(lat["latency"], floor_list)
     t0 = time.perf_counter()
-    # issue 15's C++ int8 / fp32 ratios: both precisions in one process (bench/cpp_pairs.py says why)
+    # the C++ int8 / fp32 ratios: both precisions in one process (bench/cpp_pairs.py says why)
     n = Counts.of(cfg.bench, quick).n
     cpp_pairs = {"skipped": "the C++ reference is not measured (--skip-cpp or no build)"} if not fw_flags else \
-        measure_cpp_pairs(Path(fw_flags["build_dir"]), run.export / "weights.bin", sample_windows(test_x, n), n,
+        measure_cpp_pairs(Path(fw_flags["build_dir"]), export.weights_path, sample_windows(test_x, n), n,
                           cpus, cfg.bench.worker_timeout_s, log)
     timing["cpp_pairs"] = time.perf_counter() - t0
     t0 = time.perf_counter()
-    profiles = _profiles(run, manifest, test_x, fw_copy, fw_flags, cpus, quick, lat["latency"], cfg.bench, log)
+    profiles = _profiles(export, test_x, fw_copy, fw_flags, cpus, quick, lat["latency"], cfg.bench, log)
     timing["profiles"] = time.perf_counter() - t0
     memory = memory_records(run.root, manifest, lat["runtime_memory"], fw_copy)
     t0 = time.perf_counter()
     stream = {"skipped": "the C++ reference is not measured (--skip-cpp or no build)"} if not fw_flags else \
-        stream_section(run.root, manifest, str(Path(fw_flags["build_dir"]) / "fwref_infer"), cpus,
+        stream_section(run.root, export, str(Path(fw_flags["build_dir"]) / "fwref_infer"), cpus,
                        1 if quick else cfg.bench.stream_flights, log,
                        ("cortex-m4",) if quick else ("cortex-m4", "cortex-m7"))
     timing["stream"] = time.perf_counter() - t0
@@ -202,7 +206,7 @@ def _command(run: RunDir, quick: bool, skip_cpp: bool) -> str:
     return f"quadfdi bench --run {run.root}" + (" --quick" if quick else "") + (" --skip-cpp" if skip_cpp else "")
 
 
-def graph_nodes(run: RunDir, manifest: dict) -> dict:
+def graph_nodes(export: Export) -> dict:
     """Per exported ONNX graph: nodes as written and after ONNX Runtime's optimizer (with op counts);
     ``ort_body_nodes``: the nodes in a Scan's body after the optimizer (run once per step)."""
     import onnx
@@ -210,15 +214,15 @@ def graph_nodes(run: RunDir, manifest: dict) -> dict:
     from quadfdi.runtimes.ort import optimized_nodes
 
     out = {}
-    for key, name in manifest["artifacts"].items():
-        path = run.export / name
+    for key, name in export.manifest["artifacts"].items():
+        path = export.root / name
         ort_ops = optimized_nodes(path)
         out[key] = {"file": name, "nodes": len(onnx.load(str(path)).graph.node), "ort_nodes": ort_ops.pop("total"),
                     "ort_body_nodes": ort_ops.pop("body"), "ort_ops": ort_ops}
     return out
 
 
-def _bench_dict(run: RunDir, manifest: dict, m: dict, machine: dict, fwref: tuple[str | None, str],
+def _bench_dict(run: RunDir, export: Export, m: dict, machine: dict, fwref: tuple[str | None, str],
                 command: str, quick: bool) -> dict:
     """bench.json's content (docs/bench.md) from the measurements ``m`` of ``_measure``."""
     from quadfdi.bench.floors import below_floor, targets, violation_text
@@ -227,7 +231,7 @@ def _bench_dict(run: RunDir, manifest: dict, m: dict, machine: dict, fwref: tupl
 
     solvers, solver_meta = solver_records(run.root)
     fwref_path, fwref_note = fwref
-    steps = int(manifest["solver"]["steps"])
+    steps = export.steps
     lat = m["lat"]
     return {
         "schema_version": SCHEMA_VERSION,
@@ -236,7 +240,7 @@ def _bench_dict(run: RunDir, manifest: dict, m: dict, machine: dict, fwref: tupl
         "quick": quick,
         "machine": machine,
         "limits": m["limits"],
-        "models": {k: {**v, "export_steps": steps} for k, v in manifest["models"].items()},
+        "models": {k: {**v, "export_steps": steps} for k, v in export.manifest["models"].items()},
         "latency": lat["latency"],
         "floors": m["floors"],
         "targets": targets(lat["latency"], m["floors"]) + int8_targets(lat["latency"], m["floors"], lat["ort_pairs"],
@@ -244,7 +248,7 @@ def _bench_dict(run: RunDir, manifest: dict, m: dict, machine: dict, fwref: tupl
         "ort_pairs": lat["ort_pairs"],
         "cpp_pairs": m["cpp_pairs"],
         "floor_violations": violation_text(below_floor(lat["latency"])),
-        "graphs": graph_nodes(run, manifest),
+        "graphs": graph_nodes(export),
         "memory": m["memory"],
         "mcu": mcu_records(run.root)[1],
         "stream": m["stream"],
@@ -292,27 +296,25 @@ def _bench_into(run: RunDir, cfg: Config, dest: RunDir, log: Callable[[str], Non
     from quadfdi.bench.latency import find_fwref
     from quadfdi.bench.figures import draw_bench_figures
     from quadfdi.core.jsonio import to_jsonable, write_json
-    from quadfdi.formats.manifest import check_files, load_manifest
-
     t_start = time.perf_counter()
-    manifest = load_manifest(run.export / "manifest.json")
-    check_files(manifest, run.export)
-    test = test_windows(run, manifest)
+    export = Export.open(run.export)
+    test = test_windows(run, export)
     machine = _machine(cpus)
     fwref_found = (None, "C++ reference not measured: --skip-cpp") if skip_cpp else find_fwref(fwref, log)
     if not fwref_found[0]:
         log(f"bench: {fwref_found[1]}")
     with tempfile.TemporaryDirectory(prefix="quadfdi-fwref-copy-") as tmp:
         fw_copy, fw_flags = _private_fwref(fwref_found[0], Path(tmp))
-        m = _measure(run, cfg, manifest, test.x, fw_copy, fw_flags, cpus, quick, log)
+        m = _measure(run, cfg, export, test.x, fw_copy, fw_flags, cpus, quick, log)
     machine["load_average_end"] = list(os.getloadavg())
     timing = m["timing"]
     timing["total"] = time.perf_counter() - t_start
-    bench = to_jsonable(_bench_dict(run, manifest, m, machine, fwref_found, command or _command(run, quick, skip_cpp),
+    bench = to_jsonable(_bench_dict(run, export, m, machine, fwref_found, command or _command(run, quick, skip_cpp),
                                     quick))
     write_json(bench_json_path(dest), bench, indent=1)
     figs = draw_bench_figures(bench, dest.figures)
     log(f"bench: wrote {bench_json_path(run)} and {len(figs)} figures in {timing['total']:.0f} s "
         f"(limits {timing['limits']:.0f} s, latency {timing['latency']:.0f} s, profiles {timing['profiles']:.0f} s); "
-        f"`quadfdi report --run {run.root}` rewrites report.md")
+        f"`quadfdi report --run {run.root}` rewrites report.md"
+        + ("; a quick run (few windows, 1 thread only): not figures to quote" if quick else ""))
     return bench

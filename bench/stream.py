@@ -1,6 +1,6 @@
-"""bench.json's ``stream`` section (issue 16 point 4): the streaming runtime's cost per sample.
+"""bench.json's ``stream`` section: the streaming runtime's cost per sample.
 
-``stream_section(run, manifest, fwref_infer, cpus, flights, log)`` replays ``flights`` test flights
+``stream_section(run_root, export, fwref_infer, cpus, flights, log)`` replays ``flights`` test flights
 of the run's dataset (round-robin over the classes, written as stream files by formats.stream)
 through ``fwref_stream`` (the host build beside fwref_infer) for every windowed model (cnode, gru)
 and precision (fp32, int8), pinned like the rest of the bench:
@@ -25,6 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from quadfdi.core.errors import QuadfdiError
+from quadfdi.formats.export_folder import Export
 
 
 def pick_flights(dataset, n: int) -> list[int]:
@@ -44,9 +45,9 @@ def find_stream_exe(fwref_infer: str | None) -> tuple[Path | None, str]:
     """fwref_stream beside fwref_infer (the same host build), built there if missing."""
     import shutil
 
-    from quadfdi.runtimes.build import HOST_BUILD
+    from quadfdi.runtimes.build import host_build_dir
 
-    build = Path(fwref_infer).parent if fwref_infer else HOST_BUILD
+    build = Path(fwref_infer).parent if fwref_infer else host_build_dir()
     exe = build / "fwref_stream"
     if exe.is_file():
         return exe, f"{exe} (existing build)"
@@ -58,18 +59,10 @@ def find_stream_exe(fwref_infer: str | None) -> tuple[Path | None, str]:
     return (exe, f"built {exe}") if res.returncode == 0 and exe.is_file() else (None, f"building {exe} failed")
 
 
-def _record(export: Path) -> dict | None:
-    from quadfdi.formats.stream import record_of
-
-    try:
-        return record_of(export)
-    except QuadfdiError:
-        return None
-
-
-def stream_section(run_root: Path, manifest: dict, fwref_infer: str | None, cpus: str, flights: int,
+def stream_section(run_root: Path, export: Export, fwref_infer: str | None, cpus: str, flights: int,
                    log: Callable[[str], None] = print, cores: tuple[str, ...] = ("cortex-m4", "cortex-m7")) -> dict:
-    """The section (module docstring); ``cores``: the Cortex-M cores whose sizeof is compiled."""
+    """The section (module docstring) of the opened export folder ``export`` (formats.export_folder);
+    ``cores``: the Cortex-M cores whose sizeof is compiled."""
     from quadfdi.bench.limits import cpu_prefix
     from quadfdi.bench.stream_latency import latency_records
     from quadfdi.bench.stream_memory import stream_memory
@@ -77,12 +70,12 @@ def stream_section(run_root: Path, manifest: dict, fwref_infer: str | None, cpus
     from quadfdi.formats import dataset as sim_dataset
 
     t0 = time.perf_counter()
-    export = run_root / "export"
     if flights <= 0:
         return {"skipped": "bench.stream_flights = 0"}
-    record = _record(export)
-    if record is None:
-        return {"skipped": f"{export}/weights.bin has no on-board record (re-run `quadfdi export`)"}
+    try:
+        record = export.onboard()
+    except QuadfdiError as exc:  # an export written before the record
+        return {"skipped": str(exc)}
     exe, how = find_stream_exe(fwref_infer)
     if exe is None:
         return {"skipped": f"no fwref_stream: {how}"}
@@ -96,8 +89,8 @@ def stream_section(run_root: Path, manifest: dict, fwref_infer: str | None, cpus
             paths.append(tmp / f"f{f}.bin")
             write_stream(paths[-1], from_dataset(dataset_path, f, record, ds))
         try:
-            latency = latency_records(exe, export / "weights.bin", paths, tmp, cpu_prefix(cpus))
-            memory = stream_memory(record, manifest, exe, export / "weights.bin", cores)
+            latency = latency_records(exe, export.weights_path, paths, tmp, cpu_prefix(cpus))
+            memory = stream_memory(record, export, exe, cores)
         except subprocess.CalledProcessError as exc:  # a failed replay or compile skips the section, not the bench
             err = (exc.stderr or "").strip().splitlines()
             prog = next((Path(str(c)).name for c in exc.cmd if "taskset" not in str(c) and not str(c).startswith("-")

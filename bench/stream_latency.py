@@ -1,4 +1,4 @@
-"""The streaming runtime's host latency per sample (bench.json ``stream.latency``, issue 16 point 4).
+"""The streaming runtime's host latency per sample (bench.json ``stream.latency``).
 
 ``replay_timings(exe, weights, net, precision, path, tmp, prefix)`` runs ``fwref_stream --timings``
 on one stream file (lines to ``--out``, so a decided push pays for formatting its line into memory,

@@ -1,12 +1,12 @@
-"""The streaming runtime's memory (bench.json ``stream.memory``, issue 16 point 4).
+"""The streaming runtime's memory (bench.json ``stream.memory``).
 
 ``sizeof(fwref::Stream)`` (ring buffer, window, hover estimate and alarm state) with the model's own
 limits (W, C, K, the stream's raw channels R, the policy's n): the size of one static object
 compiled from fwref/stream.hpp for the host (``c++``) and for each Cortex-M core
 (``arm-none-eabi-g++`` with the firmware's flags, mcu/toolchain-arm-none-eabi.cmake), read with
 ``nm -S``. Also the host program's own ``stream_bytes`` (its generous build limits, ``fwref_stream
---info``) and, when scripts/stream_mcu.py left one in firmware_ref/build-mcu-*, the stream image's
-sections (``arm-none-eabi-size``).
+--info``) and, when scripts/stream_mcu.py left one in the Cortex-M build folder
+(runtimes.build.mcu_build_dir), the stream image's sections (``arm-none-eabi-size``).
 """
 
 from __future__ import annotations
@@ -16,18 +16,21 @@ import subprocess
 import tempfile
 from pathlib import Path
 
+from quadfdi.formats.export_folder import Export
+
 MCU_FLAGS = {"cortex-m4": ["-mcpu=cortex-m4", "-mthumb", "-mfpu=fpv4-sp-d16", "-mfloat-abi=hard"],
              "cortex-m7": ["-mcpu=cortex-m7", "-mthumb", "-mfpu=fpv5-d16", "-mfloat-abi=hard"]}  # mcu/toolchain
 PROBE = "quadfdi_stream_probe"
 PROBE_CPP = f'#include "fwref/stream.hpp"\nfwref::Stream {PROBE};\n'
 
 
-def limit_macros(record: dict, manifest: dict) -> dict[str, int]:
-    """The FWREF_MAX_* values that size fwref::Stream for this model (what gen_weights/gen_stream set)."""
+def limit_macros(record: dict, export: Export) -> dict[str, int]:
+    """The FWREF_MAX_* values that size fwref::Stream for this model (what the Cortex-M generators
+    runtimes/mcu_weights_src and mcu_stream_src set)."""
     from quadfdi.formats.onboard import max_alarm_n
 
-    return {"FWREF_MAX_WINDOW": int(record["window"]), "FWREF_MAX_CHANNELS": int(manifest["n_channels"]),
-            "FWREF_MAX_CLASSES": len(manifest["class_names"]), "FWREF_MAX_RAW_CHANNELS": len(record["raw_channels"]),
+    return {"FWREF_MAX_WINDOW": int(record["window"]), "FWREF_MAX_CHANNELS": len(export.channel_names),
+            "FWREF_MAX_CLASSES": len(export.class_names), "FWREF_MAX_RAW_CHANNELS": len(record["raw_channels"]),
             "FWREF_MAX_ALARM_N": max_alarm_n(record)}  # the largest n of the record's per-network policies
 
 
@@ -43,11 +46,11 @@ def eigen_include() -> list[str]:
 
 def sizeof_stream(compiler: str, nm: str, flags: list[str], macros: dict[str, int], tmp: Path) -> int:
     """sizeof(fwref::Stream) under ``compiler`` and ``flags``: the symbol size of one static object."""
-    from quadfdi.runtimes.build import FW_ROOT
+    from quadfdi.core.resources import firmware_sources
 
     src, obj = tmp / "probe.cpp", tmp / "probe.o"
     src.write_text(PROBE_CPP)
-    cmd = [compiler, "-std=c++17", "-O2", "-I", str(FW_ROOT / "include"), *eigen_include(), *flags,
+    cmd = [compiler, "-std=c++17", "-O2", "-I", str(firmware_sources() / "include"), *eigen_include(), *flags,
            *(f"-D{k}={v}" for k, v in macros.items()), "-c", str(src), "-o", str(obj)]
     subprocess.run(cmd, check=True, capture_output=True, text=True)
     out = subprocess.run([nm, "-S", "--defined-only", str(obj)], check=True, capture_output=True, text=True).stdout
@@ -55,7 +58,7 @@ def sizeof_stream(compiler: str, nm: str, flags: list[str], macros: dict[str, in
 
 
 def _image(cpu: str) -> dict | None:
-    """The stream image a Cortex-M build left (firmware_ref/build-mcu-*/fwref_mcu_stream.elf), or None."""
+    """The stream image a Cortex-M build left (runtimes.build.mcu_build_dir's fwref_mcu_stream.elf), or None."""
     from quadfdi.runtimes.build import mcu_build_dir
     from quadfdi.runtimes.mcu import section_sizes
 
@@ -67,11 +70,11 @@ def _image(cpu: str) -> dict | None:
             "bss_bytes": s.get(".bss", 0), "note": "as last built (its own weights and stream files)"}
 
 
-def stream_memory(record: dict, manifest: dict, exe: Path | None, weights: Path,
+def stream_memory(record: dict, export: Export, exe: Path | None,
                   cores: tuple[str, ...] = tuple(MCU_FLAGS)) -> list[dict]:
     """One record per target: host (c++) and each Cortex-M core of ``cores`` (skipped with a reason
-    if no compiler)."""
-    macros = limit_macros(record, manifest)
+    if no compiler); ``record`` is ``export``'s on-board record."""
+    macros = limit_macros(record, export)
     rows = []
     targets = [("host", "c++", "nm", [])] + [(cpu, "arm-none-eabi-g++", "arm-none-eabi-nm", f)
                                               for cpu, f in MCU_FLAGS.items() if cpu in cores]
@@ -87,7 +90,7 @@ def stream_memory(record: dict, manifest: dict, exe: Path | None, weights: Path,
                 row["image"] = _image(target) or "no stream image built (python scripts/stream_mcu.py builds one)"
             rows.append(row)
     if exe is not None:
-        info = subprocess.run([str(exe), "--weights", str(weights), "--info"], capture_output=True, text=True,
+        info = subprocess.run([str(exe), "--weights", str(export.weights_path), "--info"], capture_output=True, text=True,
                               check=False)
         line = next((ln for ln in info.stdout.splitlines() if ln.startswith("stream_bytes=")), None)
         rows[0]["fwref_stream_build_bytes"] = int(line.split("=")[1]) if line else None

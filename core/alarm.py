@@ -1,4 +1,4 @@
-"""The alarm policy (issue 14 point 4), specified once: per-window class probabilities -> alarms.
+"""The alarm policy, specified once: per-window class probabilities -> alarms.
 
 Inputs per flight: the windows in time order, each with class probabilities ``proba`` (K,)
 (``Healthy`` is one column, index ``healthy``) and optionally ``motor_proba`` (4,).
@@ -21,8 +21,14 @@ Inputs per flight: the windows in time order, each with class probabilities ``pr
    mirror can differ only on near-exact ties.
 5. **Which motor is reported** (``reported_motor``: detect's alarms.json, evaluate's "motor
    right"): the motor of rule 4 where the alarm's class is rotor-side (``rotor``: MotorFault,
-   OverheatFault, PropellerFault for the realistic classes), none otherwise. The ONE motor rule
-   (issue 14; why this one and not a mean over rotor-side windows: docs/detect.md "Which motor").
+   OverheatFault, PropellerFault for the realistic classes: core.contracts.CLASS_TABLE), none
+   otherwise. The ONE motor rule (why this one and not a mean over rotor-side windows: docs/detect.md
+   "Which motor").
+
+Which policy a network runs (``resolve_policy``): the ONE rule for the config ([alarm] and its
+[alarm.<net>] tables), an export's manifest (``alarm`` and ``alarm_per_model``) and weights.bin's
+on-board record (``alarm.policy`` and ``alarm.models``; the C++ ``fwref::policy_for`` is its mirror):
+the network's own entry over the single policy over AlarmConfig's defaults.
 
 Everything is integer logic on the vote bits except the threshold comparison and the sums, so a
 C++ mirror (firmware_ref) reproduces it exactly given the same p_fault comparisons.
@@ -36,21 +42,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from quadfdi.core.coerce import coerce
+from quadfdi.core.contracts import POLICY_KEYS, POLICY_NETWORKS as NETWORKS, POLICY_TYPES, ROTOR_SIDE_CLASSES
+from quadfdi.core.sections import coerce
 from quadfdi.core.errors import QuadfdiError
-
-# The rotor-side classes by name (models.motor.ROTOR_SIDE_CLASSES; core cannot import train: a test
-# checks they agree). Rule 5 reports a motor for these alarm classes only.
-ROTOR_SIDE_CLASSES = ("MotorFault", "OverheatFault", "PropellerFault")
 
 
 def rotor_columns(names, rotor_side_classes=ROTOR_SIDE_CLASSES) -> np.ndarray:
-    """(K,) bool: the class columns of ``names`` that are rotor-side."""
+    """(K,) bool: the class columns of ``names`` that are rotor-side (rule 5 reports a motor for these)."""
     return np.array([str(n) in rotor_side_classes for n in names], dtype=bool)
-
-
-POLICY_KEYS = ("threshold", "k", "n", "clear_m", "latch")  # one policy's parameters
-NETWORKS = ("cnode", "gru", "sgru")  # the networks an [alarm.<net>] table may name
 
 
 @dataclass(frozen=True)
@@ -80,8 +79,8 @@ class AlarmConfig:
         return {key: getattr(self, key) for key in POLICY_KEYS}
 
     def policy_for(self, net: str) -> dict:
-        """``net``'s policy: the default with its table's keys."""
-        return {**self.policy(), **(getattr(self, net) if net in NETWORKS else {})}
+        """``net``'s policy: the default with its table's keys (``resolve_policy``)."""
+        return resolve_policy(net, {n: getattr(self, n) for n in NETWORKS if getattr(self, n)}, self.policy())[0]
 
     @staticmethod
     def fold_tables(body: dict, source: str) -> dict:
@@ -107,8 +106,19 @@ class AlarmConfig:
         unknown = sorted(set(value) - set(POLICY_KEYS))
         if unknown:
             raise QuadfdiError(f"unknown key {where}.{unknown[0]}; valid keys of [{where}]: {', '.join(POLICY_KEYS)}")
-        hints = {"threshold": float, "k": int, "n": int, "clear_m": int, "latch": bool}
-        return {key: coerce(value[key], hints[key], f"{where}.{key}") for key in POLICY_KEYS if key in value}
+        return {key: coerce(value[key], POLICY_TYPES[key], f"{where}.{key}") for key in POLICY_KEYS if key in value}
+
+
+def resolve_policy(net: str, own: dict | None, single: dict | None, where: str | None = None) -> tuple[dict, bool]:
+    """(policy, whether ``net`` has its own): ``net``'s entry of ``own`` (network -> keys) over the
+    ``single`` policy over AlarmConfig's defaults; every key of POLICY_KEYS, in that order. ``where``
+    (a prefix for the error) checks the result (check_policy). The one rule of the module docstring."""
+    mine = (own or {}).get(net)
+    merged = {**AlarmConfig().policy(), **(single or {}), **(mine or {})}
+    pol = {key: merged[key] for key in POLICY_KEYS}
+    if where is not None:
+        check_policy(pol["threshold"], pol["k"], pol["n"], pol["clear_m"], where)
+    return pol, mine is not None
 
 
 def check_policy(threshold: float, k: int, n: int, clear_m: int, where: str = "") -> None:

@@ -7,6 +7,7 @@ from __future__ import annotations
 import contextlib
 import logging
 import os
+import signal
 import sys
 from collections.abc import Callable, Iterator, Sequence
 
@@ -66,9 +67,16 @@ def start_local_cluster(n_workers: int, coarse: bool = True) -> LocalCluster:
     """``n_workers`` worker processes of one thread each on this machine (dashboard on a free port),
     configured for coarse jobs (``COARSE_JOBS``: read by the scheduler and the nannies at start);
     ``coarse=False`` keeps Dask's defaults (``quadfdi sweep bench --dask-defaults`` compares)."""
-    with dask.config.set(COARSE_JOBS if coarse else {}):
-        return LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True, dashboard_address=":0",
-                            silence_logs=logging.ERROR, env=_worker_env())
+    # Ctrl-C reaches every process of the terminal's group: the workers start with SIGINT ignored (the
+    # disposition survives their exec), so only this process handles it, closes the cluster and says
+    # so in one line, instead of each worker printing its own traceback.
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        with dask.config.set(COARSE_JOBS if coarse else {}):
+            return LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True, dashboard_address=":0",
+                                silence_logs=logging.ERROR, env=_worker_env())
+    finally:
+        signal.signal(signal.SIGINT, previous)
 
 
 @contextlib.contextmanager

@@ -1,10 +1,13 @@
 """Job keys and the result cache: a job's result is a file named by the hash of what made it.
 
-A key is the sha256 of (kind, config dict, arguments, the sha256 of every input file, the code
-version). The code version is the git commit (or the package version outside a checkout) plus a
-hash of the source files of the packages the job runs, so an uncommitted edit to ``sim/`` changes
-the key of a simulation job while an edit to ``train/`` does not. Execution settings (scheduler,
-number of workers) are never part of a key: the same job gives the same bytes on any executor.
+A key is the sha256 of (kind, config dict, arguments, the sha256 of every input file, the code). The
+code is a hash of the source files of the packages the job runs, always with the floors every stage
+stands on (core, formats, models, runtimes), plus firmware_ref's C++ sources for the stages that
+build them (parity, bench). So an uncommitted edit to ``sim/`` changes the key of a simulation job
+while an edit to ``train/`` does not, and a commit that touches neither changes nothing. Each
+package is found through the import system and hashed by paths relative to it, so the same sources
+give the same key in a checkout and in an installed wheel. Execution settings (scheduler, number of
+workers) are never part of a key: the same job gives the same bytes on any executor.
 
 Results live in ``<run>/cache/<kind>/<key>.npz`` (arrays), ``<key>.json`` (metrics) or ``<key>.bin``
 (opaque bytes, e.g. a saved model), written
@@ -18,16 +21,16 @@ import functools
 import hashlib
 import json
 import os
-import subprocess
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from quadfdi.core.errors import QuadfdiError
+from quadfdi.core.resources import firmware_digest, package_folder
 
-ROOT = Path(__file__).resolve().parents[1]
 CACHE_DIR = "cache"  # <run>/cache/<kind>/<key>.<ext>
+FLOORS = ("core", "formats", "models", "runtimes")  # imported by every stage: part of every key
+NATIVE = ("parity", "bench")  # stages whose jobs build and run firmware_ref's C++
 
 
 def file_sha256(path: str | os.PathLike) -> str:
@@ -39,42 +42,27 @@ def file_sha256(path: str | os.PathLike) -> str:
 
 
 @functools.lru_cache(maxsize=None)
-def _git_commit() -> str | None:
-    try:
-        out = subprocess.run(["git", "rev-parse", "HEAD"], cwd=ROOT, capture_output=True, text=True, timeout=10)
-    except (OSError, subprocess.SubprocessError):
-        return None
-    return (out.stdout.strip() or None) if out.returncode == 0 else None
-
-
-def _package_version() -> str:
-    from importlib.metadata import PackageNotFoundError, version
-
-    try:
-        return version("quadfdi")
-    except PackageNotFoundError:
-        return "unknown"
-
-
-@functools.lru_cache(maxsize=None)
 def source_hash(packages: tuple[str, ...]) -> str:
-    """sha256 over the .py files of ``packages`` (top-level folders of the project), by relative path."""
+    """sha256 over the .py files of ``packages`` (the project's folders: ``sim`` is ``quadfdi.sim``,
+    ``quadfdi`` the app layer alone, its sub-packages hashed under their own names), by path relative
+    to each package."""
     h = hashlib.sha256()
     for pkg in sorted(set(packages)):
-        folder = ROOT / pkg
-        if not folder.is_dir():
-            raise QuadfdiError(f"job code: package folder {folder} does not exist")
-        for f in sorted(folder.rglob("*.py")):
-            h.update(str(f.relative_to(ROOT)).encode() + b"\0")
+        folder = package_folder("quadfdi" if pkg == "quadfdi" else f"quadfdi.{pkg}")
+        files = folder.glob("*.py") if pkg == "quadfdi" else folder.rglob("*.py")
+        for f in sorted(files, key=lambda f: f.relative_to(folder).as_posix()):
+            h.update(f"{pkg}/{f.relative_to(folder).as_posix()}".encode() + b"\0")
             h.update(f.read_bytes() + b"\0")
     return h.hexdigest()
 
 
 def code_version(packages: tuple[str, ...]) -> dict[str, str]:
-    """What identifies the code a job runs: commit (or package version) and its sources' hash."""
-    commit = _git_commit()
-    return {"version": f"git:{commit}" if commit else f"pkg:{_package_version()}",
-            "sources": source_hash(tuple(sorted({"core", *packages})))}
+    """What identifies the code a job runs: the hash of its packages' sources (``FLOORS`` always) and,
+    for the stages in ``NATIVE``, of the C++ sources."""
+    out = {"sources": source_hash(tuple(sorted({*FLOORS, *packages})))}
+    if set(NATIVE) & set(packages):
+        out["firmware_ref"] = firmware_digest()
+    return out
 
 
 def job_key(kind: str, config: dict, args: dict | None = None, inputs: dict[str, str | os.PathLike] | None = None,

@@ -1,7 +1,9 @@
-"""Channel profiles (issue 14 point 1): a model's inputs as a named, ordered list of channels, each
-computed from named raw channels (docs/profiles.md). Used identically by ``train`` (dataset
-flights) and ``detect`` (ingested real flights); the profile's name is stored in the checkpoint
-(``profile``) and in the export manifest (``profile``).
+"""Channel profiles: a model's inputs as a named, ordered list of channels, each computed from named
+raw channels (docs/profiles.md). The profiles themselves, their channels and ids are core/channels.py's
+tables (``PROFILE_TABLE``, ``MODEL_CHANNELS``); this module computes them. Used identically by
+``train`` (dataset flights) and ``detect`` (ingested real flights); the profile's name is stored in
+the checkpoint (``profile``), in the export manifest (``profile``) and, by id, in weights.bin's
+on-board record.
 
 - ``paper``: the identity over the dataset's channels (the default; every earlier run is one).
 - ``flightlog-min``: what a stock autopilot logs, with no heading-dependent channel and no
@@ -24,58 +26,20 @@ ingested flight.npz: ``vib_px4`` is PX4's metric only, so a log of another autop
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
+from quadfdi.core.channels import PROFILE_BY_NAME, PROFILE_NAMES
 from quadfdi.core.errors import QuadfdiError
 from quadfdi.core.hover import INPUTS as HOVER_INPUTS
 
 DEFAULT_PROFILE = "paper"
-
-
-@dataclass(frozen=True)
-class ProfileChannel:
-    name: str
-    unit: str
-    raw: tuple[str, ...]  # raw channels it is computed from
-    formula: str  # what docs/profiles.md shows
-
-
-MIN_CHANNELS = (
-    ProfileChannel("roll", "rad", ("roll",), "roll"),
-    ProfileChannel("pitch", "rad", ("pitch",), "pitch"),
-    ProfileChannel("p", "rad/s", ("p",), "p"),
-    ProfileChannel("q", "rad/s", ("q",), "q"),
-    ProfileChannel("r", "rad/s", ("r",), "r"),
-    ProfileChannel("vx_h", "m/s", ("vx", "vy", "yaw"), "cos(yaw) vx + sin(yaw) vy"),
-    ProfileChannel("vy_h", "m/s", ("vx", "vy", "yaw"), "-sin(yaw) vx + cos(yaw) vy"),
-    ProfileChannel("vz", "m/s", ("vz",), "vz"),
-    ProfileChannel("v_cell", "V", ("V_b",), "V_b / cells"),
-    ProfileChannel("i_rel", "-", ("I_b",), "I_b / hover current"),
-    *(ProfileChannel(f"m{k}_rel", "-", (f"thr{k}",), f"thr{k} / hover collective command") for k in range(1, 5)),
-    ProfileChannel("vib", "m/s^2", ("vib_px4",), "PX4 accel_vibration_metric"),
-)
-# flightlog-min without the current: vehicles whose current sensor is absent or uncalibrated
-NOCUR_CHANNELS = tuple(c for c in MIN_CHANNELS if c.name != "i_rel")
-ESC_CHANNELS = MIN_CHANNELS + (
-    *(ProfileChannel(f"rpm{k}_rel", "-", ("rpm1", "rpm2", "rpm3", "rpm4"),
-                     f"rpm{k} / ((((rpm1 + rpm2) + rpm3) + rpm4) * 0.25)") for k in range(1, 5)),
-    *(ProfileChannel(f"esc{k}_i_rel", "-", ("esc_cur1", "esc_cur2", "esc_cur3", "esc_cur4"),
-                     f"esc_cur{k} / ((((esc_cur1 + esc_cur2) + esc_cur3) + esc_cur4) * 0.25)") for k in range(1, 5)),
-    *(ProfileChannel(f"esc{k}_t_rel", "K", ("esc_temp1", "esc_temp2", "esc_temp3", "esc_temp4"),
-                     f"esc_temp{k} - ((((esc_temp1 + esc_temp2) + esc_temp3) + esc_temp4) * 0.25)") for k in range(1, 5)),
-)
-PROFILES = {"paper": None, "flightlog-min": MIN_CHANNELS, "flightlog-nocur": NOCUR_CHANNELS,
-            "flightlog-esc": ESC_CHANNELS}
-VIBRATION = {"flightlog-min": "px4", "flightlog-nocur": "px4", "flightlog-esc": "px4"}  # which vibration quantity
-ESC_RAW = ("rpm1", "rpm2", "rpm3", "rpm4", "esc_cur1", "esc_cur2", "esc_cur3", "esc_cur4",
-           "esc_temp1", "esc_temp2", "esc_temp3", "esc_temp4")  # sim.esc_telemetry's
+PROFILES = {p.name: p.model for p in PROFILE_BY_NAME.values()}  # name -> model channels (None: paper)
+VIBRATION = {p.name: p.vibration for p in PROFILE_BY_NAME.values() if p.vibration}  # which vibration quantity
 
 
 def check_profile(name: str) -> None:
-    if name not in PROFILES:
-        raise QuadfdiError(f"unknown channel profile {name!r}; valid: {', '.join(PROFILES)}")
+    if name not in PROFILE_BY_NAME:
+        raise QuadfdiError(f"unknown channel profile {name!r}; valid: {', '.join(PROFILE_NAMES)}")
 
 
 def uses_hover(name: str) -> bool:
@@ -96,15 +60,13 @@ def channel_units(name: str, raw_units: list[str] | tuple[str, ...]) -> list[str
 
 
 def required_raw(name: str, raw_names: list[str] | tuple[str, ...] = ()) -> list[str]:
-    """Raw channels the profile reads (the hover estimate's included), in first-use order."""
+    """Raw channels the profile reads (the hover estimate's included), in stream order (``paper``:
+    ``raw_names`` themselves)."""
     check_profile(name)
-    spec = PROFILES[name]
-    if spec is None:
+    raw = PROFILE_BY_NAME[name].raw
+    if raw is None:
         return list(raw_names)
-    out: list[str] = []
-    for ch in spec:
-        out += [r for r in ch.raw if r not in out]
-    return out + [r for r in HOVER_INPUTS if r not in out and r != "I_b"]  # the hover current is optional
+    return list(raw) + [r for r in HOVER_INPUTS if r not in raw and r != "I_b"]  # the hover current is optional
 
 
 def apply_profile(name: str, raw: dict[str, np.ndarray], cells, hover_cmd, hover_cur) -> np.ndarray:

@@ -4,6 +4,12 @@ A record names every output of a published stage (relative path, sha256, bytes),
 consumed (with the sha256 its producer recorded), the config sections it used and the command.
 Readers trust a file only when a record lists it with the hash the file has now
 (``verify_input``); docs/formats.md, "Stage records", is the contract.
+
+A run folder may come from someone else (a colleague's results, a downloaded benchmark), so a record
+is input like any other: every path in it must be a relative path that stays inside the run folder
+(no absolute path, no ``..``, no symlink leading out; ``confined``), or the record is refused as
+damaged. A damaged record blocks only what reads its stage's outputs, and re-running that stage
+replaces it.
 """
 
 from __future__ import annotations
@@ -13,7 +19,7 @@ import hashlib
 import json
 import os
 import shutil
-from pathlib import Path
+from pathlib import Path, PurePosixPath
 from typing import Any
 
 from quadfdi.core.errors import QuadfdiError
@@ -36,18 +42,50 @@ def sha256_file(path: Path) -> str:
     return _HASHES[key]
 
 
+MAX_RECORD_BYTES = 16 << 20  # a record lists file names and hashes: far below this
+
+
 def record_path(root: Path, stage: str) -> Path:
     return Path(root) / STAGES / f"{stage}.json"
 
 
+def relative_ok(rel: Any) -> bool:
+    """Whether ``rel`` is a relative POSIX path of plain components: no absolute path, no ``..``."""
+    if not isinstance(rel, str) or not rel or "\0" in rel or "\\" in rel:
+        return False
+    p = PurePosixPath(rel)
+    return not p.is_absolute() and all(part not in ("", ".", "..") for part in p.parts) and p.as_posix() == rel
+
+
+def confined(root: Path, rel: Any, where: str) -> Path:
+    """``root / rel``, or a one-line error when ``rel`` would lead out of ``root`` (an absolute path,
+    ``..``, or a symlinked folder on the way)."""
+    if not relative_ok(rel):
+        raise QuadfdiError(f"{where} names {rel!r}, which is not a relative path inside {root}: refused")
+    base = Path(root).resolve()
+    full = Path(root) / rel
+    parent = full.parent.resolve()
+    if parent != base and base not in parent.parents:
+        raise QuadfdiError(f"{where} names {rel!r}, which leads out of {root} through a symlink: refused")
+    return full
+
+
 def read_record(path: Path) -> dict[str, Any]:
-    """A record's content, or a one-line error naming the file (a record is small, strict JSON)."""
+    """A record's content, or a one-line error naming the file (a record is small, strict JSON whose
+    every path stays inside the run folder)."""
     try:
+        if Path(path).stat().st_size > MAX_RECORD_BYTES:
+            raise QuadfdiError(f"stage record {path} is larger than {MAX_RECORD_BYTES} bytes: re-run the stage")
         rec = json.loads(Path(path).read_text())
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise QuadfdiError(f"stage record {path} cannot be read ({exc}): re-run the stage") from None
-    if not isinstance(rec, dict) or rec.get("schema_version") != SCHEMA_VERSION or not isinstance(rec.get("outputs"), list):
+    if not isinstance(rec, dict) or rec.get("schema_version") != SCHEMA_VERSION or not isinstance(rec.get("outputs"), list) \
+            or not isinstance(rec.get("inputs", []), list):
         raise QuadfdiError(f"stage record {path} is not a quadfdi stage record of schema {SCHEMA_VERSION}: re-run the stage")
+    for entry in rec["outputs"] + rec.get("inputs", []):
+        if not isinstance(entry, dict) or not relative_ok(entry.get("path")) or not isinstance(entry.get("sha256"), str):
+            raise QuadfdiError(f"stage record {path} lists {entry.get('path') if isinstance(entry, dict) else entry!r}, "
+                               "not a relative path inside the run folder with its sha256: refused (re-run the stage)")
     return rec
 
 
@@ -56,11 +94,37 @@ def load_record(root: Path, stage: str) -> dict[str, Any] | None:
     return read_record(p) if p.is_file() else None
 
 
+def previous_record(root: Path, stage: str) -> dict[str, Any] | None:
+    """The stage's own published record for a re-run of it: None when absent or damaged (the re-run
+    replaces a damaged record; the files it listed stay where they are)."""
+    try:
+        return load_record(root, stage)
+    except QuadfdiError:
+        return None
+
+
 def all_records(root: Path) -> dict[str, dict[str, Any]]:
+    """Every readable stage record; a damaged one is left out (``damaged_records`` names it)."""
+    return scan_records(root)[0]
+
+
+def damaged_records(root: Path) -> dict[str, str]:
+    """{stage: why} of the records that cannot be read or trusted."""
+    return scan_records(root)[1]
+
+
+def scan_records(root: Path) -> tuple[dict[str, dict[str, Any]], dict[str, str]]:
     d = Path(root) / STAGES
+    good: dict[str, dict[str, Any]] = {}
+    bad: dict[str, str] = {}
     if not d.is_dir():
-        return {}
-    return {p.stem: read_record(p) for p in sorted(d.glob("*.json"))}
+        return good, bad
+    for p in sorted(d.glob("*.json")):
+        try:
+            good[p.stem] = read_record(p)
+        except QuadfdiError as exc:
+            bad[p.stem] = str(exc)
+    return good, bad
 
 
 def producer_of(root: Path, rel: str) -> tuple[str, dict, dict] | None:
@@ -88,10 +152,15 @@ def verify_input(root: Path, rel: str, config: dict[str, dict] | None = None,
     ``config`` whose ``sections`` differ from those the producer recorded.
     """
     root = Path(root)
-    path = root / rel
+    path = confined(root, rel, "an input")
     found = producer_of(root, rel)
     if found is None:
         state = "does not exist" if not path.exists() else "is not a published output of any stage"
+        bad = damaged_records(root)
+        if bad:
+            stage, why = next(iter(bad.items()))
+            raise QuadfdiError(f"{path} {state} in a readable record, and .stages/{stage}.json is damaged ({why}): "
+                               f"re-run quadfdi {stage}")
         raise QuadfdiError(f"{path} {state} (no record in {root / STAGES} lists it): run the stage that writes it")
     stage, rec, entry = found
     if not path.is_file() or path.is_symlink():
@@ -129,24 +198,44 @@ def _remove_file(path: Path) -> None:
         path.unlink()
 
 
-def roll_forward(root: Path, stage: str, fault=lambda point: None) -> None:
-    """Finish the publish of ``.publish/<stage>``: it holds a complete set (the commit point passed)."""
+def _remove_output(root: Path, rel: str) -> None:
+    """Remove a recorded output: only inside ``root`` (a record is checked when read; a symlinked
+    folder on the way is refused here)."""
+    _remove_file(confined(root, rel, "a stage record"))
+
+
+def roll_forward(root: Path, stage: str, fault=lambda point: None) -> str:
+    """Finish the publish of ``.publish/<stage>``: it holds a complete set (the commit point passed).
+    A publish folder this quadfdi cannot have written (its record unreadable, a path leading out of
+    the run folder, or the folder itself a symlink) is deleted, not rolled forward; what was done."""
     root = Path(root)
     pub = root / PUBLISH / stage
-    new = read_record(pub / RECORD) if (pub / RECORD).is_file() else load_record(root, stage)
+    try:
+        if pub.is_symlink() or (root / PUBLISH).is_symlink():
+            raise QuadfdiError(f"{pub} is a symlink")
+        new = read_record(pub / RECORD) if (pub / RECORD).is_file() else previous_record(root, stage)
+        for entry in (new or {}).get("outputs", []):
+            confined(pub, entry["path"], str(pub / RECORD))
+            confined(root, entry["path"], str(pub / RECORD))
+    except QuadfdiError as exc:
+        if pub.is_symlink():
+            pub.unlink()
+        else:
+            shutil.rmtree(pub, ignore_errors=True)
+        return f"removed a damaged publish of {stage} ({exc})"
     if new is None:  # record already placed and the folder half removed: nothing left to move
         shutil.rmtree(pub, ignore_errors=True)
-        return
-    old = load_record(root, stage)
+        return f"rolled forward {stage}"
+    old = previous_record(root, stage)
     keep = {e["path"] for e in new["outputs"]}
     for entry in (old or {}).get("outputs", []):
         if entry["path"] not in keep:  # e.g. the ONNX files of an earlier --steps
-            _remove_file(root / entry["path"])
+            _remove_output(root, entry["path"])
     moved = 0
     for entry in new["outputs"]:
-        src = pub / entry["path"]
-        if src.is_file():  # absent: moved before an interruption, or carried forward in place
-            dst = root / entry["path"]
+        src = confined(pub, entry["path"], f"{pub / RECORD}")
+        if src.is_file() and not src.is_symlink():  # absent: moved before an interruption, or carried in place
+            dst = confined(root, entry["path"], f"{pub / RECORD}")
             dst.parent.mkdir(parents=True, exist_ok=True)
             os.replace(src, dst)
             moved += 1
@@ -156,6 +245,7 @@ def roll_forward(root: Path, stage: str, fault=lambda point: None) -> None:
         (root / STAGES).mkdir(exist_ok=True)
         os.replace(pub / RECORD, record_path(root, stage))
     shutil.rmtree(pub, ignore_errors=True)
+    return f"rolled forward {stage}"
 
 
 def recover(root: Path) -> list[str]:
@@ -167,10 +257,12 @@ def recover(root: Path) -> list[str]:
     root = Path(root)
     done = []
     pub = root / PUBLISH
-    if pub.is_dir():
+    if pub.is_dir() and not pub.is_symlink():
         for d in sorted(pub.iterdir()):
-            roll_forward(root, d.name)
-            done.append(f"rolled forward {d.name}")
+            done.append(roll_forward(root, d.name))
+    elif pub.is_symlink():
+        pub.unlink()
+        done.append(f"removed {PUBLISH}, a symlink")
     staging = root / STAGING
     if staging.is_dir():
         for d in sorted(staging.iterdir()):

@@ -13,6 +13,10 @@ from quadfdi.core.config import Config, load_config
 from quadfdi.core.errors import QuadfdiError
 from quadfdi.core.stage import recover_run
 
+# evaluate's result, which export reads (--alarm-from evaluation): relative to the run folder, as stage
+# records name it
+EVALUATION_JSON = "evaluation/evaluation.json"
+
 
 @dataclass(frozen=True)
 class RunDir:
@@ -28,6 +32,7 @@ class RunDir:
     figures = property(lambda self: self.root / "figures")
     metrics = property(lambda self: self.root / "metrics.json")
     export = property(lambda self: self.root / "export")
+    evaluation = property(lambda self: self.root / EVALUATION_JSON)
 
     def checkpoint(self, kind: str) -> Path:
         return self.root / f"{kind}.pt"

@@ -63,8 +63,9 @@ def run_lock(root: str | os.PathLike, command: str | None = None) -> Iterator[No
     try:
         _acquire(fd, path)
         info = f"pid {os.getpid()}, command {command or _command()!r}, started {_dt.datetime.now(_dt.timezone.utc):%Y-%m-%d %H:%M:%S} UTC"
-        os.ftruncate(fd, 0)
-        os.pwrite(fd, (info + "\n").encode(), 0)
+        with contextlib.suppress(OSError):  # a full disk: the lock holds without its holder's line
+            os.ftruncate(fd, 0)
+            os.pwrite(fd, (info + "\n").encode(), 0)
         _HELD[key] = [fd, 1]
         try:
             yield

@@ -57,6 +57,17 @@ def check_target(path: Path) -> None:
         raise QuadfdiError(f"{path} is a {kind}, not a regular file: refusing to replace it (move it away first)")
 
 
+def check_parents(root: Path, rel: str) -> None:
+    """Every folder on the way to output ``rel`` is a folder or absent: a regular file or a symlink named
+    like an output folder (``export`` or ``figures`` as a file) is refused, naming it."""
+    p = Path(root)
+    for part in Path(rel).parts[:-1]:
+        p = p / part
+        if p.is_symlink() or (p.exists() and not p.is_dir()):
+            raise QuadfdiError(f"{p} is a {'symlink' if p.is_symlink() else 'file'}, but quadfdi writes into a "
+                               f"folder there: move it away first")
+
+
 def check_free_space(root: Path, need_bytes: int, what: str) -> None:
     free = shutil.disk_usage(root).free
     if need_bytes > free:
@@ -76,7 +87,7 @@ class StageWriter:
     def __init__(self, root: Path, name: str, config: dict[str, dict], command: str, out: Path):
         self.root, self.name, self.config, self.command, self.out = root, name, config, command, out
         self.inputs: dict[str, dict] = {}
-        self.previous = records.load_record(root, name)
+        self.previous = records.previous_record(root, name)
 
     def path(self, rel: str) -> Path:
         """Where the stage writes output ``rel`` (its parents made)."""
@@ -141,6 +152,7 @@ class StageWriter:
     def publish(self) -> None:
         outputs = self._outputs()
         for e in outputs:
+            check_parents(self.root, e["path"])
             check_target(self.root / e["path"])
         rec = {"schema_version": records.SCHEMA_VERSION, "stage": self.name, "outputs": outputs,
                "inputs": [self.inputs[k] for k in sorted(self.inputs)], "config": self.config,
@@ -170,6 +182,9 @@ def stage(root: str | os.PathLike, name: str, config: dict[str, dict], *, target
     root = ensure_dir(root)
     with run_lock(root):
         records.recover(root)
+        previous = records.previous_record(root, name)
+        for rel in (*targets, *(e["path"] for e in (previous or {}).get("outputs", []))):
+            check_parents(root, rel)  # before the compute: the stage writes where it wrote last time
         for rel in targets:
             check_target(root / rel)
         if need_bytes:

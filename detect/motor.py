@@ -15,8 +15,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from quadfdi.core.alarm import rotor_columns  # noqa: F401 (detect.run and tests import it from here)
-
 
 def window_fault_class(proba: np.ndarray, healthy: int) -> np.ndarray:
     """(n,) the argmax of each window's probabilities over the fault columns (NaN rows: -1)."""

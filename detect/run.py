@@ -19,34 +19,13 @@ from typing import Callable
 
 import numpy as np
 
-from quadfdi.core.alarm import AlarmConfig, alarm_records, check_policy, run_alarm
+from quadfdi.core.alarm import alarm_records, run_alarm
 from quadfdi.core.errors import QuadfdiError
+from quadfdi.core.resample import GRID_DT
+from quadfdi.formats.flight import GRID_TOL_S, check_time
 from quadfdi.detect.inputs import FlightInputs, flight_inputs, read_flight, windows
-from quadfdi.detect.motor import rotor_columns, window_motor
-
-NETS = ("cnode", "gru")
-
-
-def load_export(folder: str | Path) -> dict:
-    from quadfdi.formats.manifest import check_files, load_manifest
-
-    root = Path(folder)
-    manifest = load_manifest(root / "manifest.json")
-    check_files(manifest, root)
-    return manifest
-
-
-def policy_of(manifest: dict, net: str = "cnode") -> tuple[dict, str]:
-    """(policy, source) of ``net``: its manifest ``alarm_per_model`` entry (source "config" or
-    "evaluation.json sha256 ..."), else the manifest's ``alarm`` ("manifest alarm": an export written
-    before the per-network policies, or a network it does not list), else the [alarm] defaults."""
-    entry = (manifest.get("alarm_per_model") or {}).get(net)
-    if entry is not None:
-        pol, source = {**AlarmConfig().policy(), **entry["policy"]}, str(entry["source"])
-    else:
-        pol, source = {**AlarmConfig().policy(), **(manifest.get("alarm") or {})}, "manifest alarm"
-    check_policy(pol["threshold"], pol["k"], pol["n"], pol["clear_m"], f"manifest alarm ({net}).")
-    return pol, source
+from quadfdi.detect.motor import window_motor
+from quadfdi.formats.export_folder import Export
 
 
 def softmax(logits: np.ndarray) -> np.ndarray:
@@ -55,24 +34,18 @@ def softmax(logits: np.ndarray) -> np.ndarray:
     return e / e.sum(axis=1, keepdims=True)
 
 
-def has_motor(manifest: dict, net: str) -> bool:
-    """Whether the exported ``net`` has a motor head (manifest ``motor_head``, export.manifest.motor_entry)."""
-    return net in ((manifest.get("motor_head") or {}).get("models") or [])
-
-
-def model_logits(folder: Path, manifest: dict, net: str, precision: str, runtime: str,
+def model_logits(export: Export, net: str, precision: str, runtime: str,
                  x: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
     """(n, K) float32 logits of ``x`` from ORT (the exported graph) or the C++ reference (weights.bin),
     and (n, 4) motor logits for a model with a motor head (else None)."""
     from quadfdi.runtimes.fwref import cpp_outputs
     from quadfdi.runtimes.ort import outputs
 
-    motor = has_motor(manifest, net)
+    motor = export.has_motor(net)
     if runtime == "ort":
-        out = outputs(folder / manifest["artifacts"][f"{net}_{precision}"], x,
-                      ["logits"] + (["motor_logits"] if motor else []))
+        out = outputs(export.artifact(net, precision), x, ["logits"] + (["motor_logits"] if motor else []))
         return out[0], out[1] if motor else None
-    return cpp_outputs(folder / "weights.bin", net, precision == "int8", x, motor)
+    return cpp_outputs(export.weights_path, net, precision == "int8", x, motor)
 
 
 def exposure_s(fi: FlightInputs, window: int, dt: float) -> float:
@@ -89,18 +62,19 @@ def detect(model: str | Path, flight: str | Path | dict, net: str = "cnode", pre
     (alarms.json), ``arrays`` (windows.npz) and ``inputs`` (FlightInputs, for the figure).
     ``flight``: a log or flight.npz path, or flight.npz's arrays (sim.flight_npz.flight_arrays)."""
     folder = Path(model)
-    manifest = load_export(folder)
-    profile = str((manifest.get("profile") or {}).get("name", "paper"))
-    window = int(manifest["window"])
-    stride = int(manifest["config"]["sim"]["stride"])
-    dt = float(manifest["sample_dt_s"])
-    names = [str(c) for c in manifest["class_names"]]
+    export = Export.open(folder)
+    profile, window, stride, dt = export.profile(), export.window, export.stride, export.sample_dt_s
+    if abs(dt - GRID_DT) > GRID_TOL_S:
+        raise QuadfdiError(f"{folder}: the model reads samples every {dt:g} s; flights are on the {GRID_DT:g} s grid")
+    names = export.class_names
     if "Healthy" not in names:
         raise QuadfdiError(f"{folder}: the model has no Healthy class ({names})")
-    fi = flight_inputs(flight if isinstance(flight, dict) else read_flight(flight), profile, window, stride)
-    if [c["name"] for c in manifest["channels"]] != fi.channel_names:
+    arrays = flight if isinstance(flight, dict) else read_flight(flight)
+    check_time(arrays["time"], str(arrays.get("log_file", flight) if isinstance(flight, dict) else flight))
+    fi = flight_inputs(arrays, profile, window, stride)
+    if export.channel_names != fi.channel_names:
         raise QuadfdiError(f"{folder}: the manifest's channels are not profile {profile!r}'s")
-    logits, motor_logits = model_logits(folder, manifest, net, precision, runtime, windows(fi, window))
+    logits, motor_logits = model_logits(export, net, precision, runtime, windows(fi, window))
     n, k = len(fi.starts), len(names)
     proba = np.full((n, k), np.nan)
     proba[fi.decided] = softmax(logits)
@@ -108,7 +82,7 @@ def detect(model: str | Path, flight: str | Path | dict, net: str = "cnode", pre
     if motor_logits is not None:
         motor_p = np.full((n, 4), np.nan)
         motor_p[fi.decided] = softmax(motor_logits)
-    pol, pol_source = policy_of(manifest, net)
+    pol, pol_source = export.policy(net)
     healthy = names.index("Healthy")
     p_in = np.where(fi.decided[:, None], proba, 0.0)
     p_in[~fi.decided, healthy] = 1.0  # undecided windows never vote (and are marked not valid)
@@ -116,7 +90,7 @@ def detect(model: str | Path, flight: str | Path | dict, net: str = "cnode", pre
     trace = run_alarm(p_in[None], pol["threshold"], pol["k"], pol["n"], pol["clear_m"], pol["latch"],
                       healthy=healthy, valid=fi.decided[None], motor_proba=None if m_in is None else m_in[None])
     t_end = fi.time[fi.starts + window - 1]
-    rotor = rotor_columns(names, list((manifest.get("motor_head") or {}).get("rotor_side_classes") or []))
+    rotor = export.rotor_side()
     alarms = alarm_records(trace, t_end[None], p_in[None], names, rotor=rotor)
     record = {"flight": fi.name, "model": str(folder), "net": net, "precision": precision, "runtime": runtime,
               "profile": profile, "policy": pol,

@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
+from quadfdi.core.channels import AIRBORNE
 from quadfdi.core.errors import QuadfdiError
 from quadfdi.formats.stream import RawStream
 
@@ -28,11 +29,15 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from quadfdi.formats.stream import from_dataset, record_of, write_stream
+    from quadfdi.formats.export_folder import Export
+    from quadfdi.formats.stream import from_dataset, write_stream
 
     if (args.dataset is None) == (args.flight is None) or (args.dataset is not None and args.index is None):
         raise QuadfdiError("stream-file needs either FLIGHT or --dataset DATASET.npz --flight N")
-    record = record_of(args.model)
+    src = args.dataset or args.flight
+    if Path(args.out).exists() and Path(src).exists() and Path(args.out).samefile(src):
+        raise QuadfdiError(f"stream-file: --out {args.out} is the input {src}: refusing to overwrite it")
+    record = Export.open(args.model).onboard()
     rs = from_dataset(args.dataset, args.index, record) if args.dataset else from_flight(args.flight, record)
     write_stream(args.out, rs)
     print(f"stream-file: {rs.source}: {len(rs.time)} samples x {len(rs.names)} channels ({rs.profile}, "
@@ -50,6 +55,6 @@ def from_flight(path: str | Path, record: dict) -> RawStream:
     arrays = read_flight(path)
     cells = _cells(arrays)
     raw, _ = _raw_channels(arrays, record["profile"])
-    cols = [np.asarray(arrays["airborne"], np.float32) if r == "airborne" else raw[r] for r in record["raw_channels"]]
+    cols = [np.asarray(arrays["airborne"], np.float32) if r == AIRBORNE else raw[r] for r in record["raw_channels"]]
     return RawStream(Path(path).name, record["profile"], list(record["raw_channels"]), float(record["sample_dt_s"]),
                      cells, np.asarray(arrays["time"], np.float64), np.stack(cols, axis=1).astype(np.float32))

@@ -101,7 +101,7 @@ def stream_alarm(record: dict, decided: np.ndarray, logits: np.ndarray, motor_lo
     the alarm's class is rotor-side by the record's ``rotor_side``, -1 otherwise; a record without the
     flags: every class rotor-side) as fwref/stream.hpp's Decision::alarm.motor, and the stride's motor
     (n,) (the head's argmax, -1 where undecided or without a head: Decision::motor). The policy: ``net``'s
-    (the record's alarm.models row, export/onboard_record.policy_of, as fwref_stream --model picks it), or
+    (the record's alarm.models row, formats.onboard.policy_of, as fwref_stream --model picks it), or
     the record's single policy when ``net`` is None."""
     from quadfdi.core.alarm import reported_motor, run_alarm
     from quadfdi.formats.onboard import policy_of

@@ -20,7 +20,7 @@ import itertools
 import numpy as np
 
 from quadfdi.core.alarm import AlarmConfig
-from quadfdi.core.evalconfig import EvaluateConfig, parse_kn
+from quadfdi.evaluate.config import EvaluateConfig, parse_kn
 from quadfdi.evaluate.load import DatasetInfo, Flights
 from quadfdi.evaluate.metrics import metrics_from_sums
 from quadfdi.evaluate.outcomes import SCALAR_KEYS, alarm_outcomes

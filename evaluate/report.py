@@ -9,11 +9,12 @@ from __future__ import annotations
 from pathlib import Path
 
 from quadfdi.core.reportmd import demote, not_run, optional_json
+from quadfdi.core.rundir import EVALUATION_JSON
 from quadfdi.core.tables import md_table
 from quadfdi.evaluate.figures import SWEEP_PNG
 from quadfdi.evaluate.protocol import OOD_ALL
 
-JSON_NAME = Path("evaluation") / "evaluation.json"
+JSON_NAME = Path(EVALUATION_JSON)
 MD_NAME = Path("evaluation") / "evaluation.md"
 HEADING = "## Evaluation (validation-chosen alarm policy, flight bootstrap)"
 

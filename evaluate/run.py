@@ -15,6 +15,7 @@ from typing import Callable
 from quadfdi.core import records
 from quadfdi.core.config import Config
 from quadfdi.core.jsonio import write_json
+from quadfdi.core.resources import source_tree
 from quadfdi.core.atomic import write_text
 from quadfdi.formats.predictions import INDEX_NAME
 from quadfdi.core.stage import stage
@@ -23,15 +24,18 @@ from quadfdi.evaluate.load import load_run
 from quadfdi.evaluate.protocol import evaluate_sets
 from quadfdi.evaluate.report import JSON_NAME, MD_NAME, markdown
 
-ROOT = Path(__file__).resolve().parents[1]
 SCHEMA_VERSION = 1
 
 
 def git_state() -> tuple[str | None, bool]:
-    """(HEAD commit of the code, whether the working tree differs from it); (None, True) outside git."""
+    """(HEAD commit of the code, whether the working tree differs from it); (None, True) outside git,
+    as for an installed wheel (whose site-packages may well lie inside some other git tree)."""
+    root = source_tree()
+    if root is None:
+        return None, True
     try:
-        head = subprocess.run(["git", "rev-parse", "HEAD"], cwd=ROOT, capture_output=True, text=True, timeout=10)
-        dirty = subprocess.run(["git", "status", "--porcelain"], cwd=ROOT, capture_output=True, text=True, timeout=30)
+        head = subprocess.run(["git", "rev-parse", "HEAD"], cwd=root, capture_output=True, text=True, timeout=10)
+        dirty = subprocess.run(["git", "status", "--porcelain"], cwd=root, capture_output=True, text=True, timeout=30)
     except (OSError, subprocess.SubprocessError):
         return None, True
     if head.returncode != 0:

@@ -42,17 +42,17 @@ def run_export_sgru(args: argparse.Namespace) -> int:
 
 def run_export(args: argparse.Namespace) -> int:
     from quadfdi.core.errors import QuadfdiError
-    from quadfdi.export.alarm_policies import policies_per_model
+    from quadfdi.export.alarm_policies import policies_of
 
     if args.run is None:
         raise QuadfdiError("quadfdi export needs --run <run folder>")
     run, cfg = open_run(args.run, args.overrides, need=("dataset",))
-    policies_per_model(run.root, cfg.alarm, args.alarm_from)  # a refusal before torch and onnx are imported
+    policies = policies_of(run, cfg.alarm, args.alarm_from)  # a refusal before torch and onnx are imported
     from quadfdi.export.run import export_run
 
     if args.steps is not None:
         cfg = replace_section(cfg, "export", steps=args.steps)
-    manifest = export_run(run, cfg, alarm_from=args.alarm_from)
+    manifest = export_run(run, cfg, policies=policies)
     ok = manifest["verification"]["passed"]
     print(f"export: verification {'passed' if ok else 'FAILED'}; manifest {run.export / 'manifest.json'}")
     return 0 if ok else 1

@@ -29,7 +29,7 @@ from quadfdi.formats.binfmt import Section, pack
 from quadfdi.formats.weights_bin import cnode_dims, gru_dims
 from quadfdi.formats.weights_layout import REFERENCE_MAGIC, REFERENCE_VERSION
 
-if TYPE_CHECKING:  # the reader needs neither torch nor onnx (firmware_ref/tools/gen_weights.py uses it)
+if TYPE_CHECKING:  # the reader needs neither torch nor onnx (runtimes/mcu_weights_src.py uses it)
     import torch
 
     from quadfdi.export.graph import Built

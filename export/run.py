@@ -17,6 +17,7 @@ import torch
 
 from quadfdi.core.atomic import ensure_dir, write_bytes
 from quadfdi.core.config import Config
+from quadfdi.core.contracts import ROTOR_SIDE_CLASSES
 from quadfdi.core.errors import QuadfdiError
 from quadfdi.core.rundir import RunDir
 from quadfdi.core.stage import stage
@@ -35,14 +36,13 @@ from quadfdi.export.verify import batch_independence, int8_vs_fp32, motor_verifi
 from quadfdi.runtimes.ort import outputs, session
 from quadfdi.runtimes.pytorch import torch_logits
 from quadfdi.formats.onboard import onboard_section
-from quadfdi.export.alarm_policies import policies_per_model
+from quadfdi.export.alarm_policies import Policies, policies_of
 from quadfdi.formats.weights_bin import weights_bytes
 from quadfdi.formats.dataset import Dataset, class_names, load_dataset, make_windows
 from quadfdi.models.inputs import profile_of, profiled_dataset
 from quadfdi.models.checkpoint import check_dataset_matches, checkpoint_class_names, load_checkpoint
 from quadfdi.train.metrics import compute_metrics
 from quadfdi.models.networks import SolverSpec
-from quadfdi.models.motor import ROTOR_SIDE_CLASSES
 
 
 @dataclass
@@ -125,23 +125,27 @@ def coverage_of(graphs: Graphs, log: Callable[[str], None]) -> dict[str, dict]:
     return cov
 
 
-def export_run(run: RunDir, cfg: Config, log: Callable[[str], None] = print, alarm_from: str = "config") -> dict:
+def export_run(run: RunDir, cfg: Config, log: Callable[[str], None] = print, alarm_from: str = "config",
+               policies: Policies | None = None) -> dict:
     """Build, calibrate, verify and publish every export artifact of ``run`` as one stage
     (core.stage: staged, then moved into export/ with the stage record); return the manifest.
     Files of an earlier export the new one does not have (another --steps) are removed.
     ``alarm_from``: each network's alarm policy from the config or evaluation.json (export.alarm_policies;
-    refused before anything is written)."""
-    policies = policies_per_model(run.root, cfg.alarm, alarm_from)
+    refused before anything is written); ``policies``: those policies already read (``quadfdi export``
+    reads them before importing torch), else read here. evaluation.json, when they came from it, is an
+    input of the stage."""
+    policies = policies or policies_of(run, cfg.alarm, alarm_from)
     sections = cfg.to_dict()
     with stage(run.root, "export", {"sim": sections["sim"], "export": sections["export"]},
                targets=("export/manifest.json", "export/weights.bin", "export/reference.bin")) as st:
         st.consume("dataset.npz", ("sim",))
         for kind in MODEL_KINDS:
             st.consume(f"{kind}.pt", ("sim",))
+        policies.consume(st)
         return _export_into(run, cfg, RunDir(st.out), log, policies)
 
 
-def _export_into(run: RunDir, cfg: Config, dest: RunDir, log: Callable[[str], None], policies: dict) -> dict:
+def _export_into(run: RunDir, cfg: Config, dest: RunDir, log: Callable[[str], None], policies: Policies) -> dict:
     t0 = time.perf_counter()
     ecfg = cfg.export
     steps, opset = ecfg.steps, ecfg.opset
@@ -168,8 +172,7 @@ def _export_into(run: RunDir, cfg: Config, dest: RunDir, log: Callable[[str], No
     ref_idx = pick_windows(test_w.y, ecfg.reference_windows)
     files = {names[k]: blobs[k] for k in names}
     onboard = onboard_section(profile, ds.channel_names, int(cnode.window), cfg.sim.stride, ds.config.sim.sample_dt_s,
-                              cfg.alarm.policy(), manifest_class_names({"cnode": cblob}),
-                              {net: p["policy"] for net, p in policies.items()})
+                              policies.default, manifest_class_names({"cnode": cblob}), policies.per_network())
     files["weights.bin"] = weights_bytes(cp, cq, gp, gq, onboard)
     files["reference.bin"] = reference_bytes(test_w.x[ref_idx], test_w.y[ref_idx], ref_idx, cnode, cp,
                                              graphs.cnode_int8, gru, gp, graphs.gru_int8)
@@ -180,7 +183,7 @@ def _export_into(run: RunDir, cfg: Config, dest: RunDir, log: Callable[[str], No
         steps=steps, opset=opset, ir_version=IR_VERSION, stage_times=cp.times, files=files, coverage=cov,
         calib_windows=len(calib_idx), interp_exact=cq.interp_exact, verification=verification,
         metrics=metrics, reference_index=ref_idx, reference_labels=test_w.y[ref_idx],
-        profile=profile_entry(profile, cblob, gblob), alarm=cfg.alarm.policy(), alarm_per_model=policies,
+        profile=profile_entry(profile, cblob, gblob), alarm=policies.default, alarm_per_model=policies.per_model,
         motor=motor_entry({"cnode": cblob, "gru": gblob}, list(ROTOR_SIDE_CLASSES)),
         encoding={"cnode": encoding_of(cq.act, weight_qmax(cq.act), graphs.cnode_int8.model),
                   "gru": encoding_of(gq.act, weight_qmax(gq.act), graphs.gru_int8.model)})

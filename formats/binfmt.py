@@ -11,8 +11,8 @@ can check each size before it reads (llm.c style: magic, version and dimensions 
     SECTIONS, back to back
       0  char[4]  b"SECT"
       4  u32      section_size  bytes from the section's first byte to the end of its CRC
-      8  u32      model         0 = none (inputs), 1 = cnode, 2 = gru
-     12  u32      precision     0 = none, 1 = fp32, 2 = int8
+      8  u32      model         core.contracts.MODEL_CODES: 0 = none (inputs), 1 = cnode, 2 = gru, ...
+     12  u32      precision     core.contracts.PRECISION_CODES: 0 = none, 1 = fp32, 2 = int8
      16  u32[8]   dims          meaning per file (weights_bin.py, reference_bin.py)
      48  u32      n_tensors
      52  TENSOR RECORDS
@@ -44,12 +44,9 @@ from pathlib import Path
 
 import numpy as np
 
+from quadfdi.core.contracts import MODEL_CODES as MODELS, PRECISION_CODES as PRECISIONS
 from quadfdi.core.errors import QuadfdiError
 
-MODELS = {"none": 0, "cnode": 1, "gru": 2}
-MODELS.update({"cnode_motor": 16, "gru_motor": 17})  # the optional motor-head sections (formats/weights_layout.py)
-MODELS["sgru"] = 18  # the streaming GRU, in its own file export/sgru_weights.bin (formats/sgru_weights.py)
-PRECISIONS = {"none": 0, "fp32": 1, "int8": 2}
 DTYPES = {1: np.dtype("<f4"), 2: np.dtype("i1"), 3: np.dtype("<i4")}
 NATIVE = {1: np.float32, 2: np.int8, 3: np.int32}
 _DTYPE_CODE = {np.dtype(np.float32): 1, np.dtype(np.int8): 2, np.dtype(np.int32): 3}

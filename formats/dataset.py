@@ -22,6 +22,7 @@ from quadfdi.core.contracts import CLASS_NAMES, SPLITS
 from quadfdi.core.npzio import read_npz, write_npz  # noqa: F401  (re-exported: the dataset's own I/O)
 from quadfdi.core.config import Config, build_config
 from quadfdi.core.errors import QuadfdiError
+from quadfdi.core.sections import section_dict
 
 
 # key -> (dtype kind, number of dimensions); the contract of docs/formats.md.
@@ -70,28 +71,27 @@ class Dataset:
         return float(self.arrays["severity_threshold"])
 
 
-def dataset_arrays(arrays: dict[str, np.ndarray], cfg: Config) -> dict[str, np.ndarray]:
+def dataset_arrays(arrays: dict[str, np.ndarray], sim: Any) -> dict[str, np.ndarray]:
     """The simulator's arrays plus the config (JSON) that made them: what the file holds.
 
-    Only the ``[sim]`` section: it alone decides these bytes, so a change to a later stage's
-    settings (or a new config section) neither changes the dataset nor makes it look stale.
+    Only the ``[sim]`` section (``sim``, i.e. ``cfg.sim``): it alone decides these bytes, so a change
+    to a later stage's settings (or a new config section) neither changes the dataset nor makes it
+    look stale.
     """
+    if not all(hasattr(sim, key) for key in LATER_SIM_KEYS):
+        raise TypeError(f"dataset_arrays takes the [sim] section (cfg.sim), found {type(sim).__name__}")
     out = dict(arrays)
-    sim = cfg.to_dict()["sim"]
-    defaults = _section_dict_defaults()
+    embedded = section_dict(sim)
+    defaults = section_dict(type(sim)())
     for key in LATER_SIM_KEYS:  # absent = default: the paper dataset keeps the bytes it had before they existed
-        if sim[key] == defaults[key]:
-            del sim[key]
-    out["config"] = np.array(json.dumps({"sim": sim}, sort_keys=True))
+        if embedded[key] == defaults[key]:
+            del embedded[key]
+    out["config"] = np.array(json.dumps({"sim": embedded}, sort_keys=True))
     return out
 
 
 # [sim] keys added after the paper dataset was fixed (the realistic suite); embedded only when not default.
 LATER_SIM_KEYS = ("scenario", "classes", "ood_traj")
-
-
-def _section_dict_defaults() -> dict[str, Any]:
-    return Config().to_dict()["sim"]
 
 
 def class_names(arrays: dict[str, np.ndarray]) -> tuple[str, ...]:

@@ -14,6 +14,7 @@ import numpy as np
 
 from quadfdi.core.errors import QuadfdiError
 from quadfdi.core.npzio import read_npz, write_npz
+from quadfdi.core.resample import GRID_DT
 
 # 2: each autopilot's vibration metric its own channel (vib_px4, vib_ap); version 1 held one vib_acc
 # whose meaning depended on the autopilot (ArduPilot's as the 3-axis VIBE norm): re-ingest such files.
@@ -39,4 +40,26 @@ def load_flight(path: str | Path) -> dict[str, np.ndarray]:
     n, c = arrays["telemetry"].shape
     if arrays["mask"].shape != (n, c) or arrays["time"].shape != (n,) or arrays["channel_names"].shape != (c,):
         raise QuadfdiError(f"{path}: telemetry {arrays['telemetry'].shape}, mask, time and channel_names disagree")
+    check_time(arrays["time"], str(path))
     return arrays
+
+
+GRID_TOL_S = 1e-6  # s: a grid time differs from k x GRID_DT by float rounding only
+
+
+def check_time(time, where: str) -> None:
+    """A flight.npz time axis is the 25 Hz grid: finite, increasing by GRID_DT (within GRID_TOL_S) at
+    every step. A reversed, stretched, gapped or NaN axis would place every decision at the wrong time
+    and read every window at the wrong rate: refused in one line."""
+    t = np.asarray(time, np.float64)
+    if t.ndim != 1 or len(t) < 2:
+        raise QuadfdiError(f"{where}: time must hold at least two samples, found shape {t.shape}")
+    if not np.isfinite(t).all():
+        raise QuadfdiError(f"{where}: time holds {int((~np.isfinite(t)).sum())} NaN or infinite values")
+    d = np.diff(t)
+    bad = np.flatnonzero(np.abs(d - GRID_DT) > GRID_TOL_S)
+    if bad.size:
+        i = int(bad[0])
+        what = "goes backwards" if d[i] < 0 else "repeats" if d[i] == 0 else f"steps by {d[i]:.6g} s"
+        raise QuadfdiError(f"{where}: time {what} at sample {i + 1} (t = {t[i]:.6g} -> {t[i + 1]:.6g} s); a flight.npz "
+                           f"is on the {GRID_DT:g} s grid (re-run quadfdi ingest on the log)")

@@ -22,6 +22,7 @@ from pathlib import Path
 
 from quadfdi.core.errors import QuadfdiError
 from quadfdi.core.jsonio import read_json, write_json
+from quadfdi.core.records import confined, relative_ok
 
 SCHEMA_VERSION = 1
 ARTIFACT_KEYS = ("cnode_fp32", "cnode_int8", "gru_fp32", "gru_int8")
@@ -49,6 +50,17 @@ def load_manifest(path: str | Path) -> dict:
     missing = [k for k in ARTIFACT_KEYS if k not in data.get("artifacts", {})]
     if missing:
         raise QuadfdiError(f"manifest {p} lacks artifacts {', '.join(missing)}")
+    files = data.get("files")
+    if not isinstance(files, dict):
+        raise QuadfdiError(f"manifest {p} has no files table: not a quadfdi export manifest")
+    for key, name in data["artifacts"].items():
+        if not relative_ok(name) or name not in files:
+            raise QuadfdiError(f"manifest {p}: artifact {key} is {name!r}, not a file of the export folder that the "
+                               "manifest's files table hashes: refused")
+    for name, entry in files.items():
+        if not relative_ok(name) or not isinstance(entry, dict) or not isinstance(entry.get("sha256"), str):
+            raise QuadfdiError(f"manifest {p}: files lists {name!r}, not a file inside the export folder with its "
+                               "sha256: refused")
     return data
 
 
@@ -56,8 +68,8 @@ def check_files(manifest: dict, folder: str | Path) -> None:
     """Every file the manifest lists exists in ``folder`` with its sha256 (one-line error otherwise)."""
     root = Path(folder)
     for name, entry in manifest["files"].items():
-        f = root / name
-        if not f.is_file():
+        f = confined(root, name, "the manifest")
+        if not f.is_file() or f.is_symlink():
             raise QuadfdiError(f"{f} is listed in the manifest but missing")
         if hashlib.sha256(f.read_bytes()).hexdigest() != entry["sha256"]:
             raise QuadfdiError(f"{f} does not match its sha256 in the manifest (changed after export?)")

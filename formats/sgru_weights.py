@@ -15,7 +15,7 @@ in this order:
 The streaming GRU reads the record's model channels (checked when written); W and stride are the
 decision grid (a decision at the end of every window of the windowed models' grid), not an input
 length. C++: WeightsFile::bind_sgru (fwref/weights_file.hpp), fwref_stream --model sgru, and the
-Cortex-M generator firmware_ref/tools/gen_weights.py --sgru.
+Cortex-M stream image's generator runtimes/mcu_stream_src.py (sgru_weights.bin beside weights.bin).
 """
 
 from __future__ import annotations

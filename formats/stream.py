@@ -15,8 +15,9 @@ Little-endian; a 128-byte fixed header, the channel names, then the samples:
     SAMPLES       f64 t (s), f32 values[R]   (8 + 4R bytes each; NaN = no data for that channel)
 
 The channels are the raw ones the export's on-board record names, in its order
-(export/onboard_record.stream_channels): for a profile with a hover estimate the raw channels it
-reads and ``airborne`` (0/1) last; for ``paper`` the model's own channels.
+(formats/onboard.py stream_channels; the record of an export: formats.export_folder.Export.onboard):
+for a profile with a hover estimate the raw channels it reads and ``airborne`` (0/1) last; for
+``paper`` the model's own channels.
 """
 
 from __future__ import annotations
@@ -27,6 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
+from quadfdi.core.channels import AIRBORNE
 from quadfdi.core.errors import QuadfdiError
 
 MAGIC = b"QFDISTR\0"
@@ -82,17 +84,6 @@ def read_stream(path: str | Path) -> RawStream:
                      float(dt), int(cells), arr["t"].astype(np.float64), arr["v"].astype(np.float32).reshape(-1, r))
 
 
-def record_of(export: str | Path) -> dict:
-    """The export's on-board record (export/onboard_record.onboard_dict), or a one-line refusal."""
-    from quadfdi.formats.onboard import onboard_dict
-    from quadfdi.formats.weights_bin import read_weights
-
-    wf = read_weights(Path(export) / "weights.bin")
-    if wf.onboard is None:
-        raise QuadfdiError(f"{export}/weights.bin has no on-board record (exported before it: re-run `quadfdi export`)")
-    return onboard_dict(wf.onboard)
-
-
 def from_dataset(dataset: str | Path, flight: int, record: dict, ds=None) -> RawStream:
     """Flight ``flight`` of a simulated dataset.npz (every simulated flight is airborne throughout);
     ``ds`` the file already loaded (formats.dataset.load_dataset), for a caller taking several flights."""
@@ -105,7 +96,7 @@ def from_dataset(dataset: str | Path, flight: int, record: dict, ds=None) -> Raw
     names, cols = ds.channel_names, []
     esc = [str(n) for n in ds["esc_channel_names"]] if "esc_telemetry" in ds.arrays else []  # realistic suite
     for r in record["raw_channels"]:
-        if r == "airborne" and record["cells_from_stream"]:
+        if r == AIRBORNE and record["cells_from_stream"]:
             cols.append(np.ones(tel.shape[1], np.float32))
         elif r in names:
             cols.append(tel[flight, :, names.index(r)])

@@ -72,8 +72,12 @@ def build(lr: LogRead, log_path: str | Path, gap_factor: float = resample.GAP_FA
 def read_log(path: str | Path):
     """LogRead of a ULog (.ulg), DataFlash (.bin) or Crazyflie uSD log, chosen by its first bytes, not its name."""
     p = Path(path)
-    if not p.is_file():
+    if p.is_dir():
+        raise QuadfdiError(f"log {p} is a folder, not a log file")
+    if not p.exists():
         raise QuadfdiError(f"log {p} does not exist")
+    if not p.is_file():
+        raise QuadfdiError(f"log {p} is not a regular file (a FIFO or device?)")
     with open(p, "rb") as fh:
         head = fh.read(8)
     if head.startswith(b"ULog"):
@@ -96,10 +100,12 @@ def ingest(log: str | Path, min_airborne_s: float = segments.MIN_AIRBORNE_S,
            gap_factor: float = resample.GAP_FACTOR) -> tuple[LogRead, dict[str, np.ndarray]]:
     """Read, check and assemble one log; raises QuadfdiError (one line) for a refused log."""
     resample.check_gap_factor(gap_factor)
+    segments.check_min_airborne(min_airborne_s)
     try:
         lr = read_log(log)
         segments.check_airborne(lr.airborne, min_airborne_s, lr.data_span)  # the log flew: the land detector's word
         segments.cut_landings(lr)  # the flight.npz's airborne ends at each touchdown
+        segments.check_airborne(lr.airborne, min_airborne_s, lr.data_span)  # and still flew long enough after it
     except QuadfdiError as exc:
         raise QuadfdiError(f"{Path(log).name}: refused: {exc}") from None
     return lr, build(lr, log, gap_factor)

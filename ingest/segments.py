@@ -97,6 +97,15 @@ def cut_landings(lr) -> None:
                            f"{LANDING_LOOKBACK_S:g} s before it (touchdown)")
 
 
+MAX_MIN_AIRBORNE_S = 24 * 3600.0  # s: --min-airborne above a day is a typo
+
+
+def check_min_airborne(min_airborne_s: float) -> None:
+    if not (np.isfinite(min_airborne_s) and 0.0 <= min_airborne_s <= MAX_MIN_AIRBORNE_S):
+        raise QuadfdiError(f"--min-airborne must be a number of seconds in [0, {MAX_MIN_AIRBORNE_S:g}], "
+                           f"found {min_airborne_s}")
+
+
 def check_airborne(airborne: Intervals, min_airborne_s: float, span: tuple[float, float]) -> None:
     """Refuse a log that never flies or flies too briefly (one line, exit 2, nothing written)."""
     dur = span[1] - span[0]

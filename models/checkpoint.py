@@ -7,6 +7,7 @@ classes), so ``torch.load(path, weights_only=True)`` reads it; the architecture 
 
 from __future__ import annotations
 
+import pickle
 from pathlib import Path
 from typing import Any
 
@@ -56,6 +57,10 @@ def load_checkpoint(path: str | Path, kind: str | None = None) -> tuple[torch.nn
     try:
         blob = torch.load(p, map_location="cpu", weights_only=True)
     except Exception as exc:  # torch raises many types for a corrupt file, some with an empty message
+        if "weights only load failed" in str(exc).lower() or isinstance(exc, pickle.UnpicklingError):
+            # torch's own advice (retry with weights_only=False) would run the file's code: not for a user
+            raise QuadfdiError(f"checkpoint {p} holds pickled objects besides tensors: not a quadfdi checkpoint "
+                               "(quadfdi never unpickles code), refused") from None
         first = (str(exc).splitlines() or [type(exc).__name__])[0]
         raise QuadfdiError(f"checkpoint {p} cannot be read (truncated, empty or foreign file?): {first}") from None
     if not isinstance(blob, dict) or blob.get("version") != CHECKPOINT_VERSION or "architecture" not in blob:

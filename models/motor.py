@@ -1,4 +1,4 @@
-"""The motor head (issue 14 point 3): which of the four rotors a rotor-side fault is on.
+"""The motor head: which of the four rotors a rotor-side fault is on.
 
 A model with the head has one more linear layer, ``motor_head``, reading the same final hidden
 representation as the class head (the CNODE's z1, (B, L); the GRU's last hidden state, (B, H)) and
@@ -7,9 +7,10 @@ giving 4 logits, ``motor_logits`` (B, 4). Column m is rotor m + 1 of the project
 seen from above; a real quad X is renumbered by ingest's ``motor_map``), i.e. column m is the
 dataset's ``fault_motor`` value m (0-based, -1 for a flight without a rotor-side fault).
 
-Rotor-side classes are those whose fault sits on one rotor (sim.realistic_faults.plan: MotorFault
-= lost effectiveness of rotor m, OverheatFault = the cooling / heat of rotor m's motor,
-PropellerFault = the damaged propeller of rotor m); a BatteryFault has no motor (fault_motor -1).
+Rotor-side classes are those whose fault sits on one rotor (core.contracts.CLASS_TABLE, the one
+place that says which: MotorFault = lost effectiveness of rotor m, OverheatFault = the cooling /
+heat of rotor m's motor, PropellerFault = the damaged propeller of rotor m); a BatteryFault has no
+motor (fault_motor -1).
 The head is trained with cross-entropy on the windows whose class label is rotor-side, added to
 the class loss with weight ``train.motor_loss_weight``; ``train.motor_head`` = "auto" turns it on
 when the data has a rotor-side class, "off" never. The paper config sets "off" (its outputs keep
@@ -24,14 +25,15 @@ import numpy as np
 import torch
 from torch import nn
 
-ROTOR_SIDE_CLASSES = ("MotorFault", "OverheatFault", "PropellerFault")
+from quadfdi.core.alarm import rotor_columns
+
 N_MOTORS = 4
 MOTOR_HEAD_SETTINGS = ("auto", "off")
 
 
 def rotor_side(class_names: Sequence[str]) -> np.ndarray:
     """(K,) bool: which classes (label order) are rotor-side."""
-    return np.array([str(c) in ROTOR_SIDE_CLASSES for c in class_names], dtype=bool)
+    return rotor_columns(class_names)
 
 
 def wants_motor_head(setting: str, class_names: Sequence[str]) -> bool:

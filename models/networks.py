@@ -17,7 +17,6 @@ import torch
 from torch import nn
 from torchdiffeq import odeint
 
-from quadfdi.core.config import TrainConfig
 from quadfdi.models.control import LinearPath, interp_matrix, knots
 from quadfdi.models.solvers import FIXED_METHODS, SolverSpec, fixed_method, integrate_fixed, nearest_index, stage_times
 
@@ -339,9 +338,10 @@ class GRUClassifier(_Normalised):
         return self.window * 3 * h * (c + h) + h * self.n_classes
 
 
-def build_model(kind: str, n_channels: int, cfg: TrainConfig, window: int = 80, n_classes: int = 4) -> nn.Module:
-    """A fresh model of ``kind`` ("cnode" or "gru") sized by ``cfg``; ``window`` is sim.window,
-    ``n_classes`` the data's class count (K outputs)."""
+def build_model(kind: str, n_channels: int, cfg: Any, window: int = 80, n_classes: int = 4) -> nn.Module:
+    """A fresh model of ``kind`` ("cnode" or "gru") sized by ``cfg``, the [train] section (its solver, steps,
+    rtol, atol, jump_t, latent, hidden, gru_hidden); ``window`` is sim.window, ``n_classes`` the data's
+    class count (K outputs)."""
     if kind == "cnode":
         solver = SolverSpec(cfg.solver, cfg.steps, cfg.rtol, cfg.atol, cfg.jump_t)
         return CNODE(n_channels, window=window, latent=cfg.latent, hidden=cfg.hidden, solver=solver,

@@ -14,7 +14,7 @@ from quadfdi.core.rundir import open_run
 def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "parity", help="C++ firmware reference vs ONNX Runtime and PyTorch; Cortex-M build under QEMU",
-        description="Build firmware_ref (CMake, Release, firmware_ref/build), run the whole test split one window "
+        description="Build firmware_ref (CMake, Release, in the per-user cache), run the whole test split one window "
                     "at a time through C++ fp32/int8, ONNX Runtime fp32/int8 and PyTorch, run fwref_parity on "
                     "reference.bin and (by default) the Cortex-M4/M7 builds under QEMU; write "
                     "<run>/parity/parity.json, parity.md and mcu.json. Exits 2 if a parity target is missed.")

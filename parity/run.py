@@ -2,8 +2,8 @@
 
 ``parity_run(run, cfg)`` reads ``runs/<name>/export/`` (manifest, weights.bin, reference.bin, the
 four ONNX graphs), the run's checkpoints and dataset, and writes ``runs/<name>/parity/``:
-parity.json, parity.md, mcu.json, logits.npz (each atomically). It builds firmware_ref/ (CMake, Release, into
-firmware_ref/build), runs the whole test split one window at a time through C++ fp32 and int8
+parity.json, parity.md, mcu.json, logits.npz (each atomically). It builds firmware_ref/ (CMake, Release, in
+the per-user build cache: runtimes.build), runs the whole test split one window at a time through C++ fp32 and int8
 (fwref_infer), ONNX Runtime fp32 and int8 (batch 1) and PyTorch, runs fwref_parity on
 reference.bin, and (``mcu=True``) the Cortex-M build under QEMU. The report is written first; then
 a missed target is a one-line QuadfdiError.
@@ -18,12 +18,11 @@ import time
 from pathlib import Path
 from typing import Callable
 
-from quadfdi.formats.manifest import check_files, load_manifest
-from quadfdi.formats.weights_bin import read_weights
+from quadfdi.formats.export_folder import Export
 from quadfdi.parity import compare, mcu as mcu_mod
 from quadfdi.runtimes.mcu import tools_missing
 from quadfdi.runtimes import fwref, ort, pytorch
-from quadfdi.runtimes.build import HOST_BUILD, build_host
+from quadfdi.runtimes.build import build_host, source_dir
 from quadfdi.parity.report import markdown
 from quadfdi.core.atomic import ensure_dir, write_text
 from quadfdi.core.config import Config
@@ -32,7 +31,7 @@ from quadfdi.core.npzio import write_npz
 from quadfdi.core.stage import stage
 from quadfdi.core.rundir import RunDir
 from quadfdi.formats.dataset import load_dataset, make_windows
-from quadfdi.models.inputs import profile_of, profiled_dataset
+from quadfdi.models.inputs import profiled_dataset
 from quadfdi.core.jsonio import write_json
 
 SCHEMA_VERSION = 1
@@ -54,20 +53,17 @@ def fwref_parity(build_dir: Path, weights: Path, reference: Path) -> dict:
             "passed": res.returncode == 0, "output": lines}
 
 
-def host_parity(run: RunDir, manifest: dict, build_dir: Path, log: Callable[[str], None],
+def host_parity(run: RunDir, export: Export, build_dir: Path, log: Callable[[str], None],
                 out_dir: Path) -> tuple[dict, dict]:
     """Logits of every runtime on the test split and the pair metrics; (models, timing). The logits
     are also written to parity/logits.npz (keys <model>_<runtime>, plus the labels ``y``)."""
-    export = run.export
-    weights_path = export / "weights.bin"
-    weights = read_weights(weights_path)
-    ds = profiled_dataset(load_dataset(run.dataset), profile_of(manifest))  # the models' input channels
+    weights_path, weights = export.weights_path, export.weights()
+    ds = profiled_dataset(load_dataset(run.dataset), export.profile())  # the models' input channels
     test = make_windows(ds, "test")
     if len(test) == 0:
         raise QuadfdiError(f"{run.dataset} has no test windows to check parity on")
     x = test.x
-    art = manifest["artifacts"]
-    torch_models = pytorch.load_models({k: run.checkpoint(k) for k in ("cnode", "gru")}, manifest["solver"]["steps"])
+    torch_models = pytorch.load_models({k: run.checkpoint(k) for k in ("cnode", "gru")}, export.steps)
     timing, logits = {}, {}
     motor: dict[str, dict] = {}  # a net with a motor head: its motor logits per runtime, from the same runs
     for model in ("cnode", "gru"):
@@ -78,7 +74,7 @@ def host_parity(run: RunDir, manifest: dict, build_dir: Path, log: Callable[[str
         logits[model] = {"cpp_fp32": cf, "cpp_int8": ci}
         timing[f"{model}_cpp"] = time.perf_counter() - t0
         t0 = time.perf_counter()
-        of, oi = (ort.outputs(export / art[f"{model}_{p}"], x, names, batch=1) for p in ("fp32", "int8"))
+        of, oi = (ort.outputs(export.artifact(model, p), x, names, batch=1) for p in ("fp32", "int8"))
         logits[model]["ort_fp32"], logits[model]["ort_int8"] = of[0], oi[0]
         timing[f"{model}_ort"] = time.perf_counter() - t0
         t0 = time.perf_counter()
@@ -127,7 +123,7 @@ def motor_pairs(lg: dict) -> dict:
 
 
 def parity_run(run: RunDir, cfg: Config, log: Callable[[str], None] = print, *, mcu: bool = True,
-               host: bool = True, build_dir: Path = HOST_BUILD, command: str | None = None) -> dict:
+               host: bool = True, build_dir: Path | None = None, command: str | None = None) -> dict:
     """The stage (see the module docstring); returns the parity.json dict.
 
     ``host``: C++ / ONNX Runtime / PyTorch on the test split and fwref_parity on reference.bin.
@@ -164,22 +160,20 @@ def _consume_inputs(run: RunDir, st) -> None:
         st.consume(rel, ("sim",))
 
 
-def _parity_host(run: RunDir, out_dir: Path, log: Callable[[str], None], mcu: bool, build_dir: Path,
+def _parity_host(run: RunDir, out_dir: Path, log: Callable[[str], None], mcu: bool, build_dir: Path | None,
                  command: str | None) -> dict:
     t_start = time.perf_counter()
-    export = run.export
-    manifest = load_manifest(export / "manifest.json")
-    check_files(manifest, export)
-    weights, reference = export / "weights.bin", export / "reference.bin"
+    export = Export.open(run.export)
+    weights, reference = export.weights_path, run.export / "reference.bin"
     command = command or "quadfdi parity --run " + shlex.quote(str(run.root))
 
     timing: dict[str, float] = {}
     t0 = time.perf_counter()
-    build_host(build_dir, log=log)
+    build_dir = build_host(build_dir, log=log)  # default: the per-user build cache (runtimes.build)
     timing["build"] = time.perf_counter() - t0
     fp = fwref_parity(build_dir, weights, reference)
     log(f"parity: fwref_parity on reference.bin: {'OK' if fp['passed'] else 'NOT OK'} (exit {fp['exit_code']})")
-    models, t_host = host_parity(run, manifest, build_dir, log, out_dir)
+    models, t_host = host_parity(run, export, build_dir, log, out_dir)
     timing.update(t_host)
     mcu_report = _mcu_part(mcu, weights, reference, out_dir, timing, log)
     timing["total"] = time.perf_counter() - t_start
@@ -202,9 +196,9 @@ def _parity_host(run: RunDir, out_dir: Path, log: Callable[[str], None], mcu: bo
     report = {
         "schema_version": SCHEMA_VERSION, "producer": "quadfdi parity", "command": command, "run": str(run.root),
         "test_windows": int(models["cnode"]["cpp_fp32_vs_ort_fp32"]["windows"]),
-        "export_steps": int(manifest["solver"]["steps"]),
+        "export_steps": export.steps,
         "firmware": {"build_dir": str(build_dir), "infer": str(build_dir / "fwref_infer"),
-                     "build": f"cmake -S firmware_ref -B {build_dir} -DCMAKE_BUILD_TYPE=Release && "
+                     "build": f"cmake -S {source_dir()} -B {build_dir} -DCMAKE_BUILD_TYPE=Release && "
                               f"cmake --build {build_dir} -j2"},
         "tolerances": {"fp32_rel_tol": compare.FP32_REL_TOL, "int8_argmax_min": compare.INT8_ARGMAX_MIN,
                        "int8_tol_steps": compare.INT8_TOL_STEPS},

@@ -20,13 +20,13 @@ def check_run(root: Path) -> list[str]:
     if not root.is_dir():
         raise QuadfdiError(f"run folder {root} does not exist")
     lines = [f"recovered: {what}" for what in recover_run(root)]
-    recs = records.all_records(root)
-    if not recs:
+    recs, damaged = records.scan_records(root)
+    if not recs and not damaged:
         raise QuadfdiError(f"{root} has no published stage ({root / records.STAGES} is empty): run quadfdi sim first")
     for stage, rec in recs.items():
         for entry in rec["outputs"]:
-            path = root / entry["path"]
-            if not path.is_file() or records.sha256_file(path) != entry["sha256"]:
+            path = records.confined(root, entry["path"], f".stages/{stage}.json")
+            if not path.is_file() or path.is_symlink() or records.sha256_file(path) != entry["sha256"]:
                 raise QuadfdiError(f"{path} is missing or differs from the sha256 recorded in .stages/{stage}.json: "
                                    f"re-run quadfdi {stage}")
         try:  # stale is a consistent state (a stage upstream was re-run): the next stage refuses it
@@ -36,6 +36,9 @@ def check_run(root: Path) -> list[str]:
             note = f"; stale: {exc}"
         lines.append(f"{stage}: {len(rec['outputs'])} files match .stages/{stage}.json "
                      f"(published {rec.get('published_utc', '?')}){note}")
+    if damaged:
+        stage, why = next(iter(damaged.items()))
+        raise QuadfdiError(f"{'; '.join(lines)}; but {why} (re-run quadfdi {stage}; the other stages are intact)")
     return lines
 
 

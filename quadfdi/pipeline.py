@@ -13,7 +13,6 @@ from __future__ import annotations
 import argparse
 import functools
 import time
-from pathlib import Path
 from typing import Callable
 
 from quadfdi.core.cliargs import add_config_args
@@ -21,8 +20,6 @@ from quadfdi.core.config import Config, load_config
 from quadfdi.core.executor import SERIAL, ExecSettings, add_executor_args, session
 from quadfdi.core.rundir import RunDir, create_run
 from quadfdi.core.runlock import run_lock
-
-REPO = Path(__file__).resolve().parents[1]
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -81,7 +78,7 @@ def _export(run: RunDir, cfg: Config) -> None:
     from quadfdi.export.run import export_run
 
     # the evaluate stage just chose each network's alarm policy on validation: the export carries those
-    chosen = (run.root / "evaluation" / "evaluation.json").is_file()
+    chosen = run.evaluation.is_file()
     export_run(run, cfg, alarm_from="evaluation" if chosen else "config")
 
 
@@ -107,9 +104,13 @@ def _realism(run: RunDir, cfg: Config) -> None:
     if not cfg.run.realism_logs:
         print("realism: not part of this pipeline ([run] realism_logs is empty)")
         return
-    from quadfdi.realism.cli import realism_into
+    from quadfdi.realism.cli import listed_logs, realism_into
 
-    realism_into(run, [str(p if Path(p).is_absolute() else (REPO / p).resolve()) for p in cfg.run.realism_logs])
+    logs, why = listed_logs(cfg.run.realism_logs)
+    if why:
+        print(f"realism: {why}")
+    if logs:
+        realism_into(run, logs)
 
 
 def _report(run: RunDir, cfg: Config) -> None:

@@ -1,10 +1,13 @@
-"""``quadfdi readme --run R --readme README.md``: the README's deployment tables, from a run.
+"""``quadfdi readme --run R --readme README.md``: the README's generated blocks, from a run.
 
 Rewrites the ``<!-- deployment:start -->`` ... ``<!-- deployment:end -->`` block of the README
 from the run's own files (export/manifest.json, parity/parity.json, parity/mcu.json, bench.json,
 solvers/solvers.json) and names the machine that measured them (CPU model, vector ISA, date from
-bench.json), because these numbers move with the CPU. Nothing is typed in by hand; a missing file
-is a one-line error naming the command that writes it.
+bench.json), because these numbers move with the CPU; ``--block results`` writes the seed study's
+headline tables (quadfdi.readme_study), ``--block realistic`` the realistic suite's
+(quadfdi.readme_realistic). Nothing is typed in by hand; a missing file is a one-line error naming
+the command that writes it. The deployment and results blocks keep every line within 100
+characters, the README's width.
 """
 
 from __future__ import annotations
@@ -18,8 +21,10 @@ from quadfdi.core.jsonio import read_json
 from quadfdi.core.machine import isa_summary
 from quadfdi.core.mdblock import rewrite_file_block
 from quadfdi.core.tables import md_table
+from quadfdi.readme_text import wrap
 
 BLOCK = "deployment"
+BLOCKS = (BLOCK, "results", "realistic")
 MODELS = (("cnode", "CNODE"), ("gru", "GRU"))
 
 
@@ -28,8 +33,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                        description="Rewrite the README's deployment block from a run's files.")
     p.add_argument("--run", required=True, help="run folder made by quadfdi run")
     p.add_argument("--readme", default="README.md", help="markdown file with the block (default: %(default)s)")
-    p.add_argument("--block", choices=(BLOCK, "realistic"), default=BLOCK,
-                   help="deployment: export, parity, bench and Cortex-M tables; realistic: the evaluation's "
+    p.add_argument("--block", choices=BLOCKS, default=BLOCK,
+                   help="deployment: export, parity, bench and Cortex-M tables; results: the seed study's "
+                        "Tables 3 and 4 (seeds.json; quadfdi.readme_study); realistic: the evaluation's "
                         "model x test-set tables (quadfdi.readme_realistic) (default: %(default)s)")
     p.set_defaults(func=_cli)
 
@@ -39,6 +45,10 @@ def _cli(args: argparse.Namespace) -> int:
         from quadfdi.readme_realistic import realistic_block
 
         text = realistic_block(Path(args.run))
+    elif args.block == "results":
+        from quadfdi.readme_study import results_block
+
+        text = results_block(Path(args.run))
     else:
         text = deployment_block(Path(args.run))
     path = rewrite_file_block(args.readme, args.block, text)
@@ -80,13 +90,13 @@ def precision_table(manifest: dict, parity: dict) -> list[str]:
         f32 = pm["cpp_fp32_vs_ort_fp32"]
         i8 = pm["cpp_int8_vs_ort_int8"]
         steps = i8["target"]["max_diff_steps"]
-        same = (f"bit-identical ({i8['bitwise_identical_windows']}/{i8['windows']} windows)"
+        same = (f"bit-identical ({i8['bitwise_identical_windows']}/{i8['windows']})"
                 if i8["bitwise_identical_windows"] == i8["windows"] else f"max {steps:.2f} logit steps")
         rows.append([label, f"{v['macro_f1_fp32_points']:.2f} -> {v['macro_f1_int8_points']:.2f}",
                      f"{100 * cov['int8_mac_share']:.0f} %", f"{100 * cov['initializer_bytes_ratio']:.1f} %",
                      f"{f32['max_abs_diff']:.1e}", same])
-    return md_table(["model", "int8 vs fp32 macro F1 (points)", "int8 share of MACs", "int8 / fp32 initializer bytes",
-                     "C++ fp32 vs ONNX Runtime, max abs logit diff", "C++ int8 vs ONNX Runtime int8"], rows)
+    return md_table(["model", "macro F1 fp32 -> int8", "int8 MACs", "int8/fp32 bytes", "C++ vs ORT fp32",
+                     "C++ vs ORT int8"], rows)
 
 
 def _p50(records: list[dict], **match) -> float | None:
@@ -104,15 +114,22 @@ def latency_table(bench: dict) -> list[str]:
             for precision in ("fp32", "int8"):
                 p = _p50(lat, runtime=runtime, model=key, precision=precision, batch=1, threads=1)
                 fl = floors.get((key, precision), {}).get("floor_us")
-                ratio = f" ({p / fl:.1f}x floor)" if runtime == "cpp" and p and fl else ""
+                ratio = f" ({p / fl:.1f}x)" if runtime == "cpp" and p and fl else ""
                 row.append(_us(p) + ratio)
-        torch_p = [f"{s}: " + _us(_p50(lat, runtime="torch", model=key, batch=1, threads=1, solver=s))
-                   for s in sorted({r.get("solver") for r in lat if r.get("runtime") == "torch" and r.get("model") == key}
-                                   - {None})]
-        row.append(" / ".join(torch_p) or "—")
         rows.append(row)
-    return md_table(["model", "fp32 floor", "C++ fp32", "C++ int8", "ONNX Runtime fp32", "ONNX Runtime int8",
-                     "PyTorch"], rows)
+    return md_table(["model", "fp32 floor", "C++ fp32 (x floor)", "C++ int8 (x floor)", "ORT fp32", "ORT int8"], rows)
+
+
+def torch_sentence(bench: dict) -> str:
+    """PyTorch's batch-1 p50 per model and solver, one thread (the eager reference, not a deployment)."""
+    lat, parts = bench["latency"], []
+    for key, label in MODELS:
+        solvers = sorted({r.get("solver") for r in lat if r.get("runtime") == "torch" and r.get("model") == key} - {None})
+        times = [(f"{s} " if s != key else "") + _us(_p50(lat, runtime="torch", model=key, batch=1, threads=1, solver=s))
+                 for s in solvers]
+        if times:
+            parts.append(f"{label} {', '.join(times)}")
+    return "PyTorch, batch 1, 1 thread: " + ("; ".join(parts) or "not measured") + "."
 
 
 def mcu_table(mcu: dict) -> list[str]:
@@ -135,16 +152,19 @@ def deployment_block(root: Path) -> str:
     parity = _need(root, "parity/parity.json", f"quadfdi parity --run {root}")
     mcu = _need(root, "parity/mcu.json", f"quadfdi parity --run {root}")
     bench = _need(root, "bench.json", f"quadfdi bench --run {root}")
-    lines = [f"Made by `quadfdi readme --run {root}` from the files of `quadfdi run --out {root}`. "
-             + machine_sentence(bench), "",
-             f"**Precision and runtime** (test split, {parity['test_windows']} windows; "
-             "`export/manifest.json`, `parity/parity.json`):", "", *precision_table(manifest, parity),
-             "**Latency, batch 1, p50, 1 thread** (`bench.json`; floor = max(compute at the measured peak, "
-             "weights at the measured L2 bandwidth)):", "", *latency_table(bench),
+    cpu = bench.get("machine", {}).get("cpu", "")
+    lines = [*wrap(f"Made by `quadfdi readme --run {root}` from the files of `quadfdi run --out {root}`. "
+                   + machine_sentence(bench), keep=(cpu,)), "",
+             *wrap(f"**Precision and runtime** (test split, {parity['test_windows']} windows; `export/manifest.json`, "
+                   "`parity/parity.json`; ORT: ONNX Runtime; C++ vs ORT: max abs logit difference):"), "",
+             *precision_table(manifest, parity),
+             *wrap("**Latency, batch 1, p50, 1 thread** (`bench.json`; floor = max(compute at the measured peak, "
+                   "weights at the measured L2 bandwidth); x floor: against the precision's own floor):"), "",
+             *latency_table(bench), *wrap(torch_sentence(bench)), "",
              "**Cortex-M** (`parity/mcu.json`, minimal images, `arm-none-eabi-size`):", "", *mcu_table(mcu)]
     solvers = root / "solvers" / "solvers.json"
     if solvers.is_file():
         from quadfdi.solverstudy.report import headline
 
-        lines += ["**Solvers** (`solvers/solvers.md`):", "", *headline(root), ""]
+        lines += ["**Solvers** (`solvers/solvers.md`):", "", *(w for h in headline(root) for w in wrap(h)), ""]
     return "\n".join(lines)

@@ -13,6 +13,7 @@ from pathlib import Path
 
 from quadfdi.core.errors import QuadfdiError
 from quadfdi.core.jsonio import read_json
+from quadfdi.core.rundir import RunDir
 from quadfdi.core.tables import md_table
 from quadfdi.evaluate.report import (  # one formatting of an interval and of a policy
     _ci,
@@ -76,7 +77,7 @@ def realism_lines(root: Path) -> list[str]:
 
 
 def realistic_block(root: Path) -> str:
-    path = root / "evaluation" / "evaluation.json"
+    path = RunDir(root).evaluation
     if not path.is_file():
         raise QuadfdiError(f"{path} is missing: run `quadfdi evaluate --run {root}` first")
     ev = read_json(path, "evaluation.json")

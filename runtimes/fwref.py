@@ -46,7 +46,7 @@ def cpp_outputs(weights: Path, net: str, int8: bool, x: np.ndarray, motor: bool 
     """(logits, motor logits or None) of windows ``x`` from the host build's ``fwref_infer`` (built
     on first use; ``build_dir`` an existing build instead)."""
     if build_dir is None:
-        from quadfdi.runtimes.build import HOST_BUILD, build_host
+        from quadfdi.runtimes.build import build_host
 
-        build_dir = build_host(HOST_BUILD, log=lambda _: None)
+        build_dir = build_host(log=lambda _: None)
     return fwref_infer(Path(build_dir) / "fwref_infer", weights, net, int8, x, motor)

@@ -24,9 +24,9 @@ from pathlib import Path
 import numpy as np
 
 from quadfdi.core.contracts import FP32_CPP_REL_TOL
-from quadfdi.formats.stream import record_of
+from quadfdi.formats.export_folder import Export
 from quadfdi.detect.streamref import read_lines
-from quadfdi.runtimes.build import FW_ROOT, HOST_BUILD, MCU_CPUS, _configure_and_build, build_host
+from quadfdi.runtimes.build import MCU_CPUS, _configure_and_build, build_host, mcu_options, source_dir
 from quadfdi.runtimes.mcu import CLOCK_MHZ, qemu_command
 
 
@@ -56,7 +56,7 @@ def compare(export: Path, streams: list[Path], strides: dict, k: int) -> list[st
         for prec in ("fp32", "int8"):
             flips = 0
             for f, path in enumerate(streams):
-                res = subprocess.run([str(HOST_BUILD / "fwref_stream"), "--weights", str(weights),
+                res = subprocess.run([str(build_host(log=lambda _: None) / "fwref_stream"), "--weights", str(weights),
                                       "--model", net, "--in", str(path)] + (["--int8"] if prec == "int8" else []),
                                      capture_output=True, text=True, check=True)
                 host = read_lines(res.stdout, k)
@@ -116,16 +116,16 @@ def main(argv: list[str]) -> int:
         argv = argv[:i] + argv[i + 2:]
     export, build = Path(argv[0]).resolve(), Path(argv[1]).resolve()
     streams = [Path(p).resolve() for p in argv[2:]]
-    build_host(HOST_BUILD, log=lambda _: None)
+    build_host(log=lambda _: None)
     build.mkdir(parents=True, exist_ok=True)
-    options = {"CMAKE_TOOLCHAIN_FILE": str(FW_ROOT / "mcu" / "toolchain-arm-none-eabi.cmake"), "FWREF_CPU": cpu,
-               "FWREF_WEIGHTS": str(export / "weights.bin"), "FWREF_REFERENCE": str(export / "reference.bin"),
-               "Python3_EXECUTABLE": sys.executable, "FWREF_STREAMS": ";".join(str(s) for s in streams)}
-    _configure_and_build(FW_ROOT / "mcu", build, options, f"the {cpu} stream image", ("fwref_mcu_stream",))
+    src = source_dir()
+    options = mcu_options(src, cpu, export / "weights.bin", export / "reference.bin")
+    options["FWREF_STREAMS"] = ";".join(str(s) for s in streams)
+    _configure_and_build(src / "mcu", build, options, f"the {cpu} stream image", ("fwref_mcu_stream",))
     res = subprocess.run(qemu_command(cpu, build / "fwref_mcu_stream.elf"), capture_output=True, text=True, check=False,
                          timeout=3600)
     assert "RESULT DONE" in res.stdout, res.stdout[-2000:] + res.stderr[-2000:]
-    record = record_of(export)
+    record = Export.open(export).onboard()
     k = int(res.stdout.split("STRIDE ", 1)[1].split("\n", 1)[0].split().__len__()) - 10  # after "STRIDE ": 10 fields + K
     strides, perf = parse(res.stdout, k)
     print(f"{export} ({record['profile']}) on {cpu} ({MCU_CPUS[cpu]}): {len(streams)} flights, "

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from quadfdi.core.config import SimConfig
+from quadfdi.sim.config import SimConfig
 from quadfdi.sim.simulate import generate
 
 

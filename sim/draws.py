@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from quadfdi.core.config import SimConfig
+from quadfdi.sim.config import SimConfig
 from quadfdi.sim import reference, sensors
 from quadfdi.sim.params import VehicleParams
 

@@ -35,7 +35,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from quadfdi.core.config import SimConfig
+from quadfdi.sim.config import SimConfig
 from quadfdi.core.rk4 import rk4_step
 from quadfdi.sim import battery, controller, faults, reference, rigid_body, thermal
 from quadfdi.sim.params import VehicleParams

@@ -41,7 +41,7 @@ def publish_dataset(run: RunDir, cfg: Config, show_progress: bool = True, settin
             from quadfdi.sim.shards import simulate_sharded
 
             arrays = simulate_sharded(run, cfg, settings, progress=show_progress, cache_root=cache_root)
-        write_npz(st.path("dataset.npz"), dataset_arrays(arrays, cfg))
+        write_npz(st.path("dataset.npz"), dataset_arrays(arrays, cfg.sim))
         write_text(st.path("config.toml"), dumps_toml(cfg))
     return run.dataset
 

@@ -16,7 +16,7 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
-from quadfdi.core.config import SimConfig
+from quadfdi.sim.config import SimConfig
 from quadfdi.core.errors import QuadfdiError
 from quadfdi.sim import esc_telemetry, esc_thermal, mission, propeller, sensors, telemetry
 from quadfdi.sim import realistic_dynamics as rd

@@ -19,7 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
-from quadfdi.core.config import Config, SimConfig
+from quadfdi.core.config import Config
+from quadfdi.sim.config import SimConfig
 from quadfdi.core.errors import QuadfdiError
 from quadfdi.core.executor import SERIAL, ExecSettings, Job, failures, run_jobs
 from quadfdi.core.jobcache import cache_path, job_key, read_result
@@ -69,9 +70,18 @@ def shard_jobs(run: RunDir, cfg: Config, cache_root: Path | None = None) -> list
     return jobs
 
 
-def join_shards(paths: list[Path]) -> dict[str, np.ndarray]:
-    """The shards' rows in order, plus the per-dataset arrays of the first: generate()'s output."""
+def join_shards(paths: list[Path], rows: list[int] | None = None) -> dict[str, np.ndarray]:
+    """The shards' rows in order, plus the per-dataset arrays of the first: generate()'s output. A
+    cache file is trusted by its name only as far as its content agrees: the same arrays as the first
+    shard, ``rows`` (when given) rows each; otherwise a one-line error names it."""
     parts = [read_result(p) for p in paths]
+    keys = set(parts[0])
+    for i, (p, part) in enumerate(zip(paths, parts)):
+        per_row = [k for k in part if k not in GLOBAL_KEYS]
+        n = {np.shape(part[k])[0] if np.ndim(part[k]) else -1 for k in per_row}
+        if set(part) != keys or len(n) != 1 or (rows is not None and n != {rows[i]}):
+            raise QuadfdiError(f"cached shard {p} is not a shard of this simulation (its arrays or rows differ): "
+                               "delete it and run the same command again")
     out = {k: np.concatenate([p[k] for p in parts]) for k in parts[0] if k not in GLOBAL_KEYS}
     out.update({k: parts[0][k] for k in GLOBAL_KEYS if k in parts[0]})
     return out
@@ -89,4 +99,4 @@ def simulate_sharded(run: RunDir, cfg: Config, settings: ExecSettings = SERIAL, 
         first = bad[0]
         raise QuadfdiError(f"{len(bad)} of {len(jobs)} shards failed ({first.job.label}: {first.error}); "
                            "the others are cached: run the same command again to resume")
-    return join_shards([j.out for j in jobs])
+    return join_shards([j.out for j in jobs], [j.args[2] - j.args[1] for j in jobs])

@@ -14,7 +14,7 @@ from collections.abc import Callable, Sequence
 
 import numpy as np
 
-from quadfdi.core.config import SimConfig
+from quadfdi.sim.config import SimConfig
 from quadfdi.core.errors import QuadfdiError
 from quadfdi.sim import faults, reference, sensors
 from quadfdi.sim.assign import assign

@@ -19,7 +19,7 @@ import math
 
 import numpy as np
 
-from quadfdi.core.config import SimConfig
+from quadfdi.sim.config import SimConfig
 from quadfdi.sim import mission
 from quadfdi.sim import realistic_params as P
 

@@ -30,7 +30,8 @@ from typing import Callable, Sequence
 import numpy as np
 import torch
 
-from quadfdi.core.config import Config, SolversConfig, replace_section
+from quadfdi.core.config import Config, replace_section
+from quadfdi.solverstudy.config import SolversConfig
 from quadfdi.core.errors import QuadfdiError
 from quadfdi.formats.dataset import Windows
 from quadfdi.solverstudy.settings import Setting, parse_settings, reference_setting

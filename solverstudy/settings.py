@@ -12,7 +12,8 @@ import math
 from dataclasses import asdict, dataclass
 from typing import Sequence
 
-from quadfdi.core.config import Config, SolversConfig, replace_section
+from quadfdi.core.config import Config, replace_section
+from quadfdi.solverstudy.config import SolversConfig
 from quadfdi.core.errors import QuadfdiError
 from quadfdi.models.solvers import ADAPTIVE_METHODS, FIXED_METHODS, SolverSpec, fixed_method
 

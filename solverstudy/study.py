@@ -29,7 +29,7 @@ import numpy as np
 import torch
 from sklearn.metrics import f1_score
 
-from quadfdi.core.config import SolversConfig
+from quadfdi.solverstudy.config import SolversConfig
 from quadfdi.solverstudy.matching import matched_tables
 from quadfdi.solverstudy.settings import ATOL_RATIO, LABELS, Setting, default_settings, reference_setting
 from quadfdi.models.networks import CNODE

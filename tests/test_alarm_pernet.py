@@ -1,4 +1,4 @@
-"""One alarm policy per network (issue 14 point 4): [alarm.<net>] tables in the config, ``quadfdi
+"""One alarm policy per network: [alarm.<net>] tables in the config, ``quadfdi
 export --alarm-from evaluation``, the manifest's ``alarm_per_model``, weights.bin's ``alarm.models``
 as Python and the C++ (fwref_stream --info --model) read it, an old record without the table, and
 detect running each network's own policy. The session's flightlog-min export (tests/conftest.py) has
@@ -91,10 +91,11 @@ def test_record_table_round_trip_and_an_old_record():
 def test_export_writes_each_networks_policy_and_cpp_reads_it(flightlog_export, host_build):  # noqa: F811
     """The session's export: manifest alarm_per_model (source "config"), the record's table, and
     fwref_stream --info --model picking each network's policy (the GRU's is not the CNODE's)."""
-    from quadfdi.formats.stream import record_of
+    from quadfdi.formats.export_folder import Export
     from quadfdi.formats.onboard import policy_of
 
-    m, rec = _manifest(flightlog_export), record_of(flightlog_export)
+    ex = Export.open(flightlog_export)
+    m, rec = ex.manifest, ex.onboard()
     per = m["alarm_per_model"]
     assert sorted(per) == ["cnode", "gru"] and {p["source"] for p in per.values()} == {"config"}
     assert per["cnode"]["policy"] == m["alarm"] != per["gru"]["policy"]
@@ -102,6 +103,7 @@ def test_export_writes_each_networks_policy_and_cpp_reads_it(flightlog_export, h
     for net in ("cnode", "gru"):
         info = _info(host_build, flightlog_export / "weights.bin", "--model", net)
         assert _policy(info) == per[net]["policy"] == policy_of(rec, net)[0] and info["policy_from"] == "alarm.models"
+        assert ex.policy(net) == (per[net]["policy"], "config")  # the manifest side: the same rule, the same policy
     plain = _info(host_build, flightlog_export / "weights.bin")
     assert _policy(plain) == m["alarm"] and plain["policy_from"] == "alarm.policy"
     assert plain["alarm_models"] == "cnode:0.5,2,3,3,0;gru:0.40000000000000002,1,2,2,0"
@@ -121,10 +123,10 @@ def _strip_table(export: Path, dst: Path) -> Path:
 
 
 def test_cpp_reads_an_old_record_as_one_policy_for_every_model(flightlog_export, host_build, tmp_path):  # noqa: F811
-    from quadfdi.formats.stream import record_of
+    from quadfdi.formats.export_folder import read_record
 
     folder = _strip_table(flightlog_export, tmp_path / "old")
-    rec = record_of(folder)
+    rec = read_record(folder / "weights.bin")
     assert rec["alarm_models"] is None
     for net in ("cnode", "gru", "sgru"):
         info = _info(host_build, folder / "weights.bin", "--model", net)
@@ -133,9 +135,14 @@ def test_cpp_reads_an_old_record_as_one_policy_for_every_model(flightlog_export,
 
 
 def _eval_json(run: Path, models: dict) -> str:
-    (run / "evaluation").mkdir(exist_ok=True)
+    """Publish an evaluation.json choosing ``models`` as the run's evaluate stage (core.stage), as
+    ``quadfdi evaluate`` would; its sha256."""
+    from quadfdi.core.rundir import EVALUATION_JSON
+    from quadfdi.core.stage import stage
+
     data = json.dumps({"schema_version": 1, "models": {m: {"network": True, "policy": p} for m, p in models.items()}})
-    (run / "evaluation" / "evaluation.json").write_text(data)
+    with stage(run, "evaluate", {}) as st:
+        st.path(EVALUATION_JSON).write_text(data)
     return hashlib.sha256(data.encode()).hexdigest()
 
 
@@ -160,8 +167,16 @@ def test_alarm_from_evaluation_refuses_a_missing_file_or_network(run_copy, capsy
     assert main(argv) == 2
     err = capsys.readouterr().err
     assert "no chosen policy for network 'gru'" in err and len(err.strip().splitlines()) == 1, err
+    # a complete evaluation.json that no evaluate stage published (edited by hand after it): refused
+    sha = _eval_json(run_copy, CHOSEN)
+    (run_copy / "evaluation" / "evaluation.json").write_text(json.dumps({"models": {
+        net: {"policy": {**p, "threshold": 0.2}} for net, p in CHOSEN.items()}}))
+    assert main(argv) == 2
+    err = capsys.readouterr().err
+    assert f"differs from {sha[:16]}... recorded in .stages/evaluate.json" in err and len(err.strip().splitlines()) == 1, err
     assert (run_copy / "export" / "manifest.json").read_bytes() == before
     shutil.rmtree(run_copy / "evaluation")
+    (run_copy / ".stages" / "evaluate.json").unlink()
 
 
 CHOSEN = {"cnode": {"threshold": 0.97, "k": 3, "n": 5, "clear_m": 8, "latch": False},
@@ -202,3 +217,25 @@ def test_alarm_from_evaluation_writes_the_chosen_policies(chosen_export):
     for net in ("cnode", "gru"):
         rec = detect(run / "export", flight, net=net)["record"]
         assert rec["policy"] == CHOSEN[net] and rec["policy_source"] == f"evaluation.json sha256 {sha}"
+
+
+def test_evaluation_json_is_an_input_of_the_export_stage(chosen_export):
+    """The export's stage record lists evaluation.json with the sha256 its policies name; once evaluate
+    publishes another evaluation.json, every export output is stale for the stages that read it."""
+    from quadfdi.core.records import load_record, verify_input
+    from quadfdi.core.rundir import EVALUATION_JSON
+
+    run, m, sha, _ = chosen_export
+    inputs = {i["path"]: i for i in load_record(run, "export")["inputs"]}
+    assert inputs[EVALUATION_JSON] == {"path": EVALUATION_JSON, "sha256": sha, "stage": "evaluate"}
+    assert sorted(inputs) == ["cnode.pt", "dataset.npz", EVALUATION_JSON, "gru.pt"]
+    verify_input(run, "export/manifest.json")  # what parity and bench check before reading the export
+    _eval_json(run, {**CHOSEN, "gru": {**CHOSEN["gru"], "k": 2, "n": 3}})
+    with pytest.raises(QuadfdiError, match=r"made from evaluation/evaluation.json .* re-run quadfdi export"):
+        verify_input(run, "export/manifest.json")
+
+
+def test_an_export_from_the_config_does_not_read_evaluation_json(flightlog_export):
+    from quadfdi.core.records import load_record
+
+    assert all(not i["path"].startswith("evaluation/") for i in load_record(flightlog_export.parent, "export")["inputs"])

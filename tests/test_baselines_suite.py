@@ -194,7 +194,7 @@ def _run(tmp_path, arrays, seed=0):
     run.mkdir()
     cfg = _config(seed)
     (run / "config.toml").write_text(dumps_toml(cfg))
-    write_npz(run / "dataset.npz", dataset_arrays(arrays, cfg))
+    write_npz(run / "dataset.npz", dataset_arrays(arrays, cfg.sim))
     return run
 
 
@@ -202,7 +202,7 @@ def test_run_writes_prediction_sets_and_index(tmp_path):
     run = _run(tmp_path, _arrays(0, 30))
     seed1 = run / "sims" / "seed1"
     seed1.mkdir(parents=True)
-    write_npz(seed1 / "dataset.npz", dataset_arrays(_arrays(1, 30), _config(1)))
+    write_npz(seed1 / "dataset.npz", dataset_arrays(_arrays(1, 30), _config(1).sim))
     add_entries(run, [{"model": "cnode", "sim_seed": 1, "train_seed": 0, "dataset": "sims/seed1/dataset.npz",
                        "predictions": "predictions/cnode_sim1_train0.npz"}])
     written, lines = run_baselines(run, seed=2, models=("logreg_stats", "logreg_physics"))
@@ -231,7 +231,7 @@ def test_cli_errors_write_nothing(tmp_path):
     assert r.returncode == 2 and "validation" in r.stderr and len(r.stderr.strip().splitlines()) == 1
     assert not (run / "predictions").exists()
     # the run's dataset is fine, but the index lists a dataset that is missing: nothing written either
-    write_npz(run / "dataset.npz", dataset_arrays(_arrays(0, 30), _config(0)))
+    write_npz(run / "dataset.npz", dataset_arrays(_arrays(0, 30), _config(0).sim))
     add_entries(run, [{"model": "cnode", "sim_seed": 1, "train_seed": 0, "dataset": "sims/seed1/dataset.npz",
                        "predictions": "predictions/cnode_sim1_train0.npz"}])
     before = sorted(p.name for p in (run / "predictions").iterdir())

@@ -12,9 +12,10 @@ from pathlib import Path
 
 import pytest
 
+from quadfdi.runtimes.build import host_build_dir
 from tests.conftest import ROOT, copy_run, quadfdi, random_weight_run
 
-FWREF = ROOT / "firmware_ref" / "build" / "fwref_infer"
+FWREF = host_build_dir() / "fwref_infer"  # the C++ rows are measured when the cached host build exists
 LATENCY_KEYS = {"model", "runtime", "precision", "solver", "threads", "spinning", "batch", "p50_us", "p90_us",
                 "p99_us", "throughput_wps"}
 MEMORY_KEYS = {"model", "runtime", "precision", "solver", "item", "value", "unit", "source"}
@@ -86,7 +87,7 @@ def test_bench_json_holds_every_field(benched):
     assert all(r.get("spinning") is None for r in recs if r["runtime"] != "ort")
     from quadfdi.bench.latency import Counts
     from quadfdi.bench.timing.cpp import CPP_PROCESSES  # the C++ timings pool several processes (its module doc)
-    from quadfdi.core.config import BenchConfig
+    from quadfdi.bench.config import BenchConfig
     quick = Counts.of(BenchConfig(), quick=True)
     assert all(r["n_calls"] == CPP_PROCESSES * (quick.n if r["batch"] == 1 else quick.batches)
                for r in recs if r["runtime"] == "cpp")
@@ -282,7 +283,7 @@ def test_bench_config_section(tmp_path):
 
 def test_counts_follow_the_config():
     from quadfdi.bench.latency import Counts
-    from quadfdi.core.config import BenchConfig
+    from quadfdi.bench.config import BenchConfig
 
     c = Counts.of(BenchConfig(windows=40, warmup=4, batch=8, batches=3, budget_s=2.0, min_samples=3), quick=False)
     assert (c.n, c.warmup, c.batch, c.batches, c.budget_s, c.min_samples) == (40, 4, 8, 3, 2.0, 3)

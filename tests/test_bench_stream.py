@@ -1,10 +1,9 @@
-"""bench.json's ``stream`` section (bench/stream*.py, issue 16 point 4) on the session's tiny
+"""bench.json's ``stream`` section (bench/stream*.py) on the session's tiny
 flightlog-min export: the replay's timings split by what each push did, the stream object's size
 per target, and the report section."""
 
 from __future__ import annotations
 
-import json
 import shutil
 
 import numpy as np
@@ -13,16 +12,16 @@ import pytest
 from quadfdi.bench.report_stream import stream_report
 from quadfdi.bench.stream import pick_flights, stream_section
 from quadfdi.bench.stream_memory import limit_macros
-from quadfdi.formats.stream import record_of
+from quadfdi.formats.export_folder import Export
 from quadfdi.formats.dataset import load_dataset
 from tests.test_firmware_fixtures import host_build  # noqa: F401 (fixture)
 
 
 @pytest.fixture(scope="module")
 def section(flightlog_export, host_build):  # noqa: F811
-    manifest = json.loads((flightlog_export / "manifest.json").read_text())
-    return stream_section(flightlog_export.parent, manifest, str(host_build / "fwref_infer"), "0", 1,
-                          log=lambda _: None, cores=("cortex-m4",)), manifest
+    export = Export.open(flightlog_export)
+    return stream_section(flightlog_export.parent, export, str(host_build / "fwref_infer"), "0", 1,
+                          log=lambda _: None, cores=("cortex-m4",)), export
 
 
 def test_pick_flights_round_robin_over_test_classes(flightlog_export):
@@ -48,9 +47,11 @@ def test_every_push_is_timed_once_and_decisions_cost_more(section, flightlog_exp
 
 
 def test_stream_object_size_per_target(section, flightlog_export):
-    s, manifest = section
+    s, export = section
     mem = {m["target"]: m for m in s["memory"]}
-    lim = limit_macros(record_of(flightlog_export), manifest)
+    lim = limit_macros(export.onboard(), export)
+    assert lim["FWREF_MAX_CHANNELS"] == export.manifest["n_channels"] and lim["FWREF_MAX_ALARM_N"] == max(
+        export.policy(net)[0]["n"] for net in ("cnode", "gru"))
     w, c = lim["FWREF_MAX_WINDOW"], lim["FWREF_MAX_CHANNELS"]
     host = mem["host"]["stream_bytes"]
     assert host >= 2 * 4 * w * c + w  # ring and window (float32) and the ok flags, at least

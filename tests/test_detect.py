@@ -106,7 +106,7 @@ def test_cpp_runtime_gives_the_ort_alarms(export, mission_npz, tmp_path, host_bu
 
 @pytest.mark.parametrize("log,why", [
     ("px4_quad_battery_monitor_disconnected.ulg", "needs channel 'V_b', which is unusable"),
-    ("px4_fmuv5_quad_real_short.ulg", "needs channel 'vx', which is unusable"),
+    ("px4_fmuv5_quad_real_short.ulg", "too short: 0.4 s airborne"),
     ("px4_quad_6s_gps_interference.ulg", "needs channel 'I_b', which is unusable"),
     ("ardupilot_plane_1s.BIN", "not a multirotor"),
     ("px4_cubeorange_vtol_real.ulg", "not a multirotor"),

@@ -1,4 +1,4 @@
-"""Issue 14's done-when: ``quadfdi detect`` on a flight of the realistic test set reproduces the
+"""``quadfdi detect`` on a flight of the realistic test set reproduces the
 alarms of the evaluation (start, end, class, motor), on the session's tiny flightlog-min export."""
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from quadfdi.detect.run import policy_of
+from quadfdi.formats.export_folder import Export
 from quadfdi.evaluate.alarms import flight_alarms
 from quadfdi.evaluate.load import load_run
 from tests.conftest import quadfdi
@@ -26,7 +26,7 @@ def detected(flightlog_export, tmp_path_factory):
     sets, infos = load_run(run)
     fl = next(s for s in sets if s.model == "cnode")
     info = infos[fl.dataset]
-    pol = policy_of(json.loads((flightlog_export / "manifest.json").read_text()), "cnode")[0]  # detect's default net
+    pol = Export.open(flightlog_export).policy("cnode")[0]  # detect's default net
     test = np.flatnonzero(fl.split == info.split_names.index("test"))
     row = max(test, key=lambda r: (len(flight_alarms(fl, pol, r)), info.arrays["fault_class"][fl.rows[r]] > 0, -r))
     out = tmp_path_factory.mktemp("detect_eval")

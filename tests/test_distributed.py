@@ -56,7 +56,7 @@ def cfg():
 def serial_bytes(cfg, tmp_path_factory) -> bytes:
     """The dataset as the serial simulator writes it in one go (no shards, no executor)."""
     p = tmp_path_factory.mktemp("serial") / "dataset.npz"
-    write_npz(p, dataset_arrays(generate(cfg.sim), cfg))
+    write_npz(p, dataset_arrays(generate(cfg.sim), cfg.sim))
     return p.read_bytes()
 
 
@@ -285,3 +285,24 @@ def test_sweep_bench_measures_three_ways_and_the_cluster_cpu(tmp_path):
     assert w["cpu_serial_s"] > 0 and w["cpu_dask_s"] > 0
     assert w["dask_overhead_cpu_s"] == pytest.approx(w["cpu_dask_s"] - w["cpu_serial_s"])
     assert "CPU of the Dask way beyond the jobs' own (sim)" in (tmp_path / "b" / "sweep_bench.md").read_text()
+
+
+def test_ctrl_c_on_a_local_cluster_sweep_is_one_line(tmp_path):
+    """Ctrl-C reaches the whole process group (the CLI and its local Dask workers): one line, exit 130,
+    no worker traceback."""
+    out = tmp_path / "r"
+    args = [sys.executable, "-m", "quadfdi.cli", "sim", "--out", str(out), "--workers", "2", *CLI_TINY]
+    proc = subprocess.Popen(args, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            start_new_session=True)
+    cache = out / "cache" / KIND
+    deadline = time.time() + 300
+    while time.time() < deadline and not list(cache.glob("*.npz")) and proc.poll() is None:
+        time.sleep(0.02)
+    os.killpg(proc.pid, signal.SIGINT)
+    _, err = proc.communicate(timeout=120)
+    if proc.returncode == 0:
+        pytest.skip("the sweep finished before the interrupt landed")
+    assert proc.returncode == 130, err
+    assert "Traceback" not in err, err[-3000:]
+    lines = [ln for ln in err.splitlines() if ln.strip() and "shards" not in ln and "dask:" not in ln]
+    assert lines == ["quadfdi sim: interrupted"], err[-3000:]

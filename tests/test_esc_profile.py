@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 from quadfdi.core.config import load_config
-from quadfdi.core.profiles import ESC_RAW, apply_profile, channel_names, required_raw
+from quadfdi.core.channels import ESC_RAW
+from quadfdi.core.profiles import apply_profile, channel_names, required_raw
 from quadfdi.formats.dataset import Dataset
 from tests.conftest import ROOT
 from quadfdi.models.inputs import profiled_dataset

@@ -56,7 +56,7 @@ def run(tmp_path_factory):
     for sim_seed, rel in ((0, "dataset.npz"), (1, "sim1/dataset.npz")):
         cfg = load_config(ROOT / "configs/realistic.toml", SMALL + [f"sim.seed={sim_seed}"])
         (root / rel).parent.mkdir(parents=True, exist_ok=True)
-        write_npz(root / rel, dataset_arrays(generate(cfg.sim), cfg))
+        write_npz(root / rel, dataset_arrays(generate(cfg.sim), cfg.sim))
         if sim_seed == 0:
             (root / "config.toml").write_text(dumps_toml(cfg))
         ds = load_dataset(root / rel)

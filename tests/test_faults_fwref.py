@@ -10,7 +10,6 @@ from pathlib import Path
 
 import pytest
 
-from quadfdi.runtimes.build import FW_ROOT
 from tests.test_firmware_fixtures import fw_run, host_build  # noqa: F401 (fixtures)
 
 
@@ -78,7 +77,7 @@ def test_manifest_checks_the_weights(host_build, files, tmp_path):
 
 
 def gen(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, str(FW_ROOT / "tools" / "gen_weights.py"), *args], capture_output=True,
+    return subprocess.run([sys.executable, "-m", "quadfdi.runtimes.mcu_weights_src", *args], capture_output=True,
                           text=True, timeout=300)
 
 

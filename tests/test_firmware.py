@@ -18,7 +18,6 @@ from quadfdi.formats.binfmt import pack
 from quadfdi.formats.weights_bin import MAGIC, read_weights
 from quadfdi.parity import compare
 from quadfdi.runtimes import fwref, ort as ort_rt
-from quadfdi.runtimes.build import FW_ROOT
 from quadfdi.runtimes.build import mcu_build_dir
 from quadfdi.parity.mcu import run_cpu
 from quadfdi.runtimes.mcu import qemu_command, tools_missing
@@ -500,20 +499,17 @@ def test_generator_refuses_a_corrupted_weights_file(fw_run, tmp_path):
     bad = tmp_path / "w.bin"
     for blob in (data[:100], data[:-1] + bytes([data[-1] ^ 1])):
         bad.write_bytes(blob)
-        res = subprocess.run([sys.executable, str(FW_ROOT / "tools" / "gen_weights.py"), "--weights", str(bad),
+        res = subprocess.run([sys.executable, "-m", "quadfdi.runtimes.mcu_weights_src", "--weights", str(bad),
                               "--out", str(tmp_path / "gen")], capture_output=True, text=True)
         assert res.returncode == 2 and len(res.stderr.strip().splitlines()) == 1, res.stderr
-        assert res.stderr.startswith("gen_weights.py: error:")
+        assert res.stderr.startswith("python -m quadfdi.runtimes.mcu_weights_src: error:")
 
 
 def test_generated_arrays_are_exact(fw_run, tmp_path):
     """Hexadecimal float literals: every compiled-in value is the file's float32, bit for bit."""
-    sys.path.insert(0, str(FW_ROOT / "tools"))
-    try:
-        import gen_weights
-    finally:
-        sys.path.pop(0)
-    gen_weights.generate(fw_run / "export" / "weights.bin", None, tmp_path)
+    from quadfdi.runtimes import mcu_weights_src
+
+    mcu_weights_src.generate(fw_run / "export" / "weights.bin", None, tmp_path)
     text = (tmp_path / "fwref_weights_gru_f32.cpp").read_text()
     body = text.split("gru_f32_gru_weight_hh[19200] = {")[1].split("};")[0]
     values = np.array([float.fromhex(v.strip().rstrip("f")) for v in body.split(",")], np.float64)

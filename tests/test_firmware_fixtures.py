@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from quadfdi.runtimes.build import ASAN_BUILD, HOST_BUILD, build_host
+from quadfdi.runtimes.build import build_host
 from tests.conftest import trained_export_run
 
 _CACHE: dict[str, object] = {}
@@ -29,15 +29,15 @@ def fw_run(small_run, tmp_path_factory) -> Path:
 
 @pytest.fixture(scope="session")
 def host_build() -> Path:
-    """firmware_ref/build: Release fwref_infer and fwref_parity (the path `quadfdi parity` uses)."""
+    """The cached host build: Release fwref_infer and fwref_parity (the folder `quadfdi parity` uses)."""
     if "host" not in _CACHE:
-        _CACHE["host"] = build_host(HOST_BUILD, log=lambda _: None)
+        _CACHE["host"] = build_host(log=lambda _: None)
     return _CACHE["host"]  # type: ignore[return-value]
 
 
 @pytest.fixture(scope="session")
 def asan_build() -> Path:
-    """firmware_ref/build-asan: everything with -fsanitize=address,undefined and assertions on."""
+    """The cached sanitizer build: everything with -fsanitize=address,undefined and assertions on."""
     if "asan" not in _CACHE:
-        _CACHE["asan"] = build_host(ASAN_BUILD, sanitize=True, log=lambda _: None)
+        _CACHE["asan"] = build_host(sanitize=True, log=lambda _: None)
     return _CACHE["asan"]  # type: ignore[return-value]

@@ -16,7 +16,7 @@ import pytest
 import torch
 from torchdiffeq import odeint
 
-from quadfdi.core.config import TrainConfig
+from quadfdi.train.config import TrainConfig
 from quadfdi.models.control import LinearPath, interp_matrix
 from quadfdi.models.networks import (
     CNODE,

@@ -1,4 +1,4 @@
-"""The motor head (models.motor, issue 14 point 3): targets and switches, the checkpoint round trip,
+"""The motor head (models.motor): targets and switches, the checkpoint round trip,
 the loss, the exported graphs' second output (fp32 against PyTorch, int8 against fp32), the
 manifest entry, and detect's motor rules. Tiny random models, no training run (cheap)."""
 
@@ -8,9 +8,10 @@ import numpy as np
 import pytest
 import torch
 
-from quadfdi.core.config import TrainConfig
+from quadfdi.train.config import TrainConfig
 from quadfdi.core.errors import QuadfdiError
-from quadfdi.detect.motor import rotor_columns, window_motor
+from quadfdi.core.alarm import rotor_columns
+from quadfdi.detect.motor import window_motor
 from quadfdi.export.calibrate import WindowReader, collect_ranges
 from quadfdi.export.manifest import motor_entry
 from quadfdi.export.onnx_cnode import build_cnode, calibration_probes, cnode_params, quantize_cnode
@@ -23,7 +24,8 @@ from quadfdi.models.checkpoint import load_checkpoint, save_checkpoint
 from quadfdi.train.loop import train_model
 from quadfdi.models.networks import CNODE, GRUClassifier, SolverSpec, build_model, model_signature
 from quadfdi.models.threads import torch_threads
-from quadfdi.models.motor import (ROTOR_SIDE_CLASSES, attach_motor_head, motor_loss, motor_targets, predict_motor_proba,
+from quadfdi.core.contracts import ROTOR_SIDE_CLASSES
+from quadfdi.models.motor import (attach_motor_head, motor_loss, motor_targets, predict_motor_proba,
                          rotor_side, wants_motor_head)
 
 REALISTIC = ["Healthy", "BatteryFault", "MotorFault", "OverheatFault", "PropellerFault"]
@@ -148,10 +150,9 @@ def test_detect_motor_rules():
     assert window_motor(proba, mp, 0, rotor).tolist() == [0, 3, 1, 1, 0]  # window 3: fault class Propeller
     assert window_motor(proba, None, 0, rotor).tolist() == [0] * 5
     # an alarm's motor: core.alarm's rule (summed over the voting windows; rotor-side classes only)
-    from quadfdi.core.alarm import ROTOR_SIDE_CLASSES as CORE_ROTOR_SIDE
     from quadfdi.core.alarm import alarm_episodes, reported_motor, run_alarm
 
-    assert CORE_ROTOR_SIDE == ROTOR_SIDE_CLASSES  # core's copy of models.motor's names
+    assert rotor_side(REALISTIC).tolist() == rotor.tolist() == rotor_columns(REALISTIC).tolist()  # one table
     tr = run_alarm(proba[None, 1:4], 0.35, 1, 1, 1, healthy=0, motor_proba=mp[None, 1:4])
     # classes summed: Motor 0.9 < Propeller 1.1; motors summed: 1.2, 0.6, 0.9, 0.3 -> motor 1
     assert alarm_episodes(tr, np.arange(3.0)[None], proba[None, 1:4], rotor=rotor)[0]["motor"] == 0

@@ -147,12 +147,16 @@ def test_mcu_only_updates_the_report(parity_done):
 
 
 def test_generated_headers_are_current(tmp_path):
-    """The committed C++ headers are what the Python tables generate now (regenerate:
-    `python -m quadfdi.core.contracts --header` and `python -m quadfdi.formats.weights_layout --header`)."""
-    from quadfdi.core import contracts
+    """Every committed generated C++ header is what its Python table generates now (regenerate:
+    `python -m quadfdi.core.contracts --header`, `python -m quadfdi.core.channels --header` and
+    `python -m quadfdi.formats.weights_layout --header`)."""
+    from quadfdi.core import channels, contracts
     from quadfdi.formats import weights_layout
 
-    for module in (contracts, weights_layout):
+    modules = (contracts, channels, weights_layout)
+    generated = sorted(p.name for p in contracts.HEADER_PATH.parent.glob("*_gen.hpp"))
+    assert generated == sorted(m.HEADER_PATH.name for m in modules), "a *_gen.hpp without its generator here"
+    for module in modules:
         fresh = tmp_path / module.HEADER_PATH.name
         assert contracts.header_cli(["--header", str(fresh)], module.HEADER_PATH, module.cpp_header, "m") == 0
         assert module.HEADER_PATH.read_text() == fresh.read_text(), f"stale {module.HEADER_PATH.name}: regenerate it"
@@ -185,6 +189,24 @@ def expected_contract_lines() -> list[str]:
     lines.append(f"parity fp32 {contracts.FP32_CPP_REL_TOL!r} int8 {contracts.INT8_TOL_STEPS!r}")
     lines += [f"rk4 {i} {n}" for i, n in enumerate(RK4_CONSTANT_NAMES)]
     lines.append("rk4_consts_index " + " ".join(str(i) for i in range(len(RK4_CONSTANT_NAMES))))
+    return lines + expected_table_lines()
+
+
+def expected_table_lines() -> list[str]:
+    """fwref_contracts' lines of the classes, section codes, policy keys, channels and profiles."""
+    from quadfdi.core import contracts
+    from quadfdi.core.channels import CHANNELS, PROFILE_TABLE, stream_raw
+
+    lines = [f"known_class {i} {n} rotor {int(r)}" for i, (n, r) in enumerate(contracts.CLASS_TABLE)]
+    lines += [f"model_code {code} {name}" + (" policy" if name in contracts.POLICY_NETWORKS else "")
+              for name, code in sorted(contracts.MODEL_CODES.items(), key=lambda kv: kv[1])]
+    lines += [f"policy_key {i} {k}" for i, k in enumerate(contracts.POLICY_KEYS)]
+    values = dict(zip(contracts.POLICY_KEYS, (0.25, 1, 2, 3, True)))  # the C++ tool's positional AlarmParams
+    lines.append("alarm_params " + " ".join(str(int(values[k])) if k != "threshold" else "0.25" for k in
+                                            ("threshold", "k", "n", "clear_m", "latch")))
+    lines += [f"channel {c.id} {c.name}" for c in CHANNELS]
+    lines += [f"profile {p.id} {p.name} raw {','.join(stream_raw(p)) if p.raw else ''} model "
+              f"{','.join(c.name for c in p.model) if p.raw else ''}" for p in PROFILE_TABLE]
     return lines
 
 

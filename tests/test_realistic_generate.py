@@ -49,7 +49,7 @@ def test_contract_classes_and_splits(ds, cfg, tmp_path):
     assert ds["telemetry"].shape == (n, cfg.sim.n_samples, 25) and np.isfinite(ds["telemetry"]).all()
     assert list(ds["channel_names"][-2:]) == ["vib_px4", "vib_ap"]
     path = tmp_path / "dataset.npz"
-    write_npz(path, dataset_arrays(ds, cfg))
+    write_npz(path, dataset_arrays(ds, cfg.sim))
     loaded = load_dataset(path)
     assert class_names(loaded.arrays) == cfg.sim.classes and split_names(loaded.arrays) == SPLIT_NAMES
     assert loaded.config.sim == cfg.sim  # the embedded [sim] section rebuilds it, new keys included

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from scipy.signal import welch
 
-from quadfdi.core.config import SimConfig
+from quadfdi.sim.config import SimConfig
 from quadfdi.sim import mission, propeller, realistic_loop, telemetry, wind
 from quadfdi.sim import realistic_dynamics as rd
 from quadfdi.sim import realistic_params as P

@@ -9,7 +9,7 @@ import io
 import numpy as np
 import pytest
 
-from quadfdi.core.config import SimConfig
+from quadfdi.sim.config import SimConfig
 from quadfdi.core.errors import QuadfdiError
 from quadfdi.sim import sensors
 from quadfdi.sim.assign import assign, class_counts

@@ -43,13 +43,14 @@ def test_paper_dataset_has_no_realistic_keys(tmp_path):
     import dataclasses
     import json
 
-    from quadfdi.core.config import Config, SimConfig
+    from quadfdi.core.config import Config
+    from quadfdi.sim.config import SimConfig
     from quadfdi.formats.dataset import LATER_SIM_KEYS, class_names, dataset_arrays, split_names
     from quadfdi.sim.simulate import generate
 
     cfg = Config(sim=dataclasses.replace(SimConfig(), n_traj=4, duration_s=4.0, window=40, stride=5,
                                          onset_frac=(0.1, 0.3), ramp_frac=(0.2, 0.4)))
-    arrays = dataset_arrays(generate(cfg.sim), cfg)
+    arrays = dataset_arrays(generate(cfg.sim), cfg.sim)
     embedded = json.loads(str(arrays["config"]))["sim"]
     assert not set(LATER_SIM_KEYS) & set(embedded)
     assert "class_names" not in arrays and "split_names" not in arrays

@@ -19,7 +19,8 @@ import pytest
 from tests.conftest import random_weight_run
 import torch
 
-from quadfdi.core.config import SolversConfig, load_config
+from quadfdi.solverstudy.config import SolversConfig
+from quadfdi.core.config import load_config
 from quadfdi.cli import main as quadfdi_main
 from quadfdi.solverstudy.matching import matched_table
 from quadfdi.solverstudy.matrix import TrainSpec, control_findings, ott_findings

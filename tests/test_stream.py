@@ -1,4 +1,4 @@
-"""The on-board streaming runtime (issue 16): fwref/alarm.hpp against core/alarm.py, weights.bin's
+"""The on-board streaming runtime: fwref/alarm.hpp against core/alarm.py, weights.bin's
 on-board record as the C++ reads it, and fwref_stream replaying a simulated and a real flight against
 the Python window path at every stride (int8 logits bit-identical, fp32 within the parity tolerance,
 alarms identical), plus the defined behaviour on NaN samples, timestamp gaps and refusals; the motor
@@ -102,9 +102,7 @@ def _fwref_stream(exe: Path, export: Path, *args: str) -> subprocess.CompletedPr
 
 
 def test_onboard_record_as_the_cpp_reads_it(flightlog_export, host_build):  # noqa: F811
-    from quadfdi.formats.stream import record_of
-
-    rec = record_of(flightlog_export)
+    rec = _record(flightlog_export)
     res = _fwref_stream(host_build, flightlog_export, "--info")
     assert res.returncode == 0, res.stderr
     got = dict(line.split("=", 1) for line in res.stdout.splitlines())
@@ -153,6 +151,13 @@ def test_onboard_record_round_trip_and_refusals():
         onboard_section("flightlog-x", [], 50, 10, 0.04, policy, ["Healthy"])
 
 
+def _record(export: Path) -> dict:
+    """The export's on-board record, as every reader of an export folder gets it."""
+    from quadfdi.formats.export_folder import Export
+
+    return Export.open(export).onboard()
+
+
 def _manifest(export: Path) -> dict:
     import json
 
@@ -175,9 +180,9 @@ def streams(flightlog_export, tmp_path_factory) -> dict[str, Path]:
     assert res.returncode == 0, res.stderr
     if MISSION.is_file():
         from quadfdi.detect.stream_cli import from_flight
-        from quadfdi.formats.stream import record_of, write_stream
+        from quadfdi.formats.stream import write_stream
 
-        write_stream(paths["real"], from_flight(MISSION, record_of(flightlog_export)))
+        write_stream(paths["real"], from_flight(MISSION, _record(flightlog_export)))
     else:
         paths.pop("real")
     return paths
@@ -194,14 +199,15 @@ def _infer(exe: Path, export: Path, net: str, int8: bool, x: np.ndarray, tmp: Pa
 def _window_path(export: Path, exe: Path, tmp: Path, rs, record: dict, net: str, precision: str):
     """The Python window path on the stream's samples: windows, ORT and C++ window logits, ORT's motor
     logits (None without a motor head) and the alarm (with the head's motor probabilities)."""
-    from quadfdi.detect.run import has_motor, model_logits
+    from quadfdi.detect.run import model_logits
+    from quadfdi.formats.export_folder import Export
     from quadfdi.detect.streamref import stream_alarm, windows_of
 
     sw = windows_of(rs, record)
     x = sw.windows(record["window"])
-    manifest = _manifest(export)
-    ort, motor = model_logits(export, manifest, net, precision, "ort", x)
-    assert (motor is not None) == has_motor(manifest, net)
+    ex = Export.open(export)
+    ort, motor = model_logits(ex, net, precision, "ort", x)
+    assert (motor is not None) == ex.has_motor(net)
     cpp = _infer(exe, export, net, precision == "int8", x, tmp)
     proba, trace, _ = stream_alarm(record, sw.decided, ort, motor, net=net)  # the stream's rules, in Python
     return sw, ort, cpp, proba, trace, motor
@@ -216,10 +222,10 @@ def test_stream_gives_the_window_path_at_every_stride(flightlog_export, streams,
 
 def test_paper_profile_stream_gives_the_window_path(fault_exported, host_build, tmp_path):  # noqa: F811
     """The identity profile (no hover estimate, no airborne channel) on the session's paper-config export."""
-    from quadfdi.formats.stream import from_dataset, record_of, write_stream
+    from quadfdi.formats.stream import from_dataset, write_stream
 
     export = fault_exported / "export"
-    record = record_of(export)
+    record = _record(export)
     assert record["profile"] == "paper" and not record["cells_from_stream"]
     assert record["raw_channels"] == record["channels"] == [c["name"] for c in _manifest(export)["channels"]]
     z = np.load(fault_exported / "dataset.npz")
@@ -251,12 +257,12 @@ def test_stream_reports_the_alarm_motor_for_rotor_side_classes_only(flightlog_ex
     tensor (an older file: every class reports, rule 4 alone) and with no class rotor-side. Everything
     but the alarm motor is identical; the export's motor is core.alarm.reported_motor of the rule-4
     motor; no rotor-side class -> no motor although rule 4 has one at every active stride."""
-    from quadfdi.detect.run import has_motor
+    from quadfdi.formats.export_folder import Export
     from quadfdi.detect.streamref import read_lines
 
     manifest = _manifest(flightlog_export)
     names = manifest["class_names"]
-    net = next(m for m in ("cnode", "gru") if has_motor(manifest, m))
+    net = next(m for m in ("cnode", "gru") if Export.open(flightlog_export).has_motor(m))
     runs: dict[str, dict] = {}
     for name, flags in (("export", "as is"), ("old", None), ("none", [0] * len(names))):
         folder = flightlog_export if name == "export" else _with_rotor_side(flightlog_export, tmp_path / name, flags)
@@ -315,10 +321,10 @@ def test_stream_alarm_mirror_applies_rule_5():
 
 def _check_replay(export: Path, streams: dict[str, Path], exe: Path, tmp: Path, net: str, precision: str) -> list[str]:
     """fwref_stream on each stream against the window path at every stride; a report line per stream."""
-    from quadfdi.formats.stream import read_stream, record_of
+    from quadfdi.formats.stream import read_stream
     from quadfdi.detect.streamref import read_lines
 
-    record = record_of(export)
+    record = _record(export)
     report = []
     for name, path in streams.items():
         rs = read_stream(path)
@@ -370,10 +376,10 @@ def _check_motor(out: dict, decided: np.ndarray, motor: np.ndarray | None, preci
 def test_stream_reference_is_detects_window_path(flightlog_export, streams):
     """detect/streamref.py on the stream file decides the windows detect/inputs.py decides, with the same inputs."""
     from quadfdi.detect.inputs import flight_inputs, read_flight, windows
-    from quadfdi.formats.stream import read_stream, record_of
+    from quadfdi.formats.stream import read_stream
     from quadfdi.detect.streamref import windows_of
 
-    record = record_of(flightlog_export)
+    record = _record(flightlog_export)
     fi = flight_inputs(read_flight(MISSION), record["profile"], record["window"], record["stride"])
     sw = windows_of(read_stream(streams["real"]), record)
     np.testing.assert_array_equal(sw.starts, fi.starts)
@@ -449,11 +455,11 @@ def test_timestamp_steps_at_the_period_gates_edges(flightlog_export, streams, ho
     [lo, hi) one period (the clean run); at hi a gap of 2 (a NaN sample filled in)."""
     import math
 
-    from quadfdi.formats.stream import read_stream, record_of, write_stream
+    from quadfdi.formats.stream import read_stream, write_stream
     from quadfdi.detect.streamref import read_lines
 
     rs0 = read_stream(streams["sim"])
-    dt, dt_rec = rs0.sample_dt_s, record_of(flightlog_export)["sample_dt_s"]  # the record's: float32(0.04)
+    dt, dt_rec = rs0.sample_dt_s, _record(flightlog_export)["sample_dt_s"]  # the record's: float32(0.04)
     gate = subprocess.run([str(host_build / "fwref_period"), float.hex(dt_rec)], capture_output=True, text=True)
     row = dict(kv.split("=", 1) for kv in gate.stdout.split())
     lo, hi = float.fromhex(row["lo"]), float.fromhex(row["hi"])
@@ -519,9 +525,9 @@ def sgru_export(fault_exported, tmp_path_factory) -> Path:
 @pytest.fixture(scope="module")
 def sgru_flight(sgru_export, tmp_path_factory):
     """A test flight of the run as a stream file, its row and the on-board record."""
-    from quadfdi.formats.stream import from_dataset, record_of, write_stream
+    from quadfdi.formats.stream import from_dataset, write_stream
 
-    record = record_of(sgru_export / "export")
+    record = _record(sgru_export / "export")
     z = np.load(sgru_export / "dataset.npz")
     row = int(np.flatnonzero((z["split"] == SPLIT_TEST) & (z["fault_class"] > 0))[0])
     path = tmp_path_factory.mktemp("sgru_streams") / "flight.bin"

@@ -3,14 +3,20 @@ the compute comparison, and its one-step ONNX export. Tiny settings on the sessi
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 import torch
 from conftest import copy_run
 
-from tests.test_firmware_fixtures import host_build  # noqa: F401 (fixture: firmware_ref/build, shared with the firmware tests)
+from tests.test_firmware_fixtures import host_build  # noqa: F401 (fixture: the cached host build, shared with the firmware tests)
 
 TINY = ["--epochs", "2", "--hidden", "8", "--segment", "120", "--tbptt", "40", "--warmup", "10", "--batch", "6"]
+# The same tiny settings from the three places the command reads them: the run's [sgru] section
+# (config.toml), --set, and a flag (which wins over both).
+TINY_FILE = {"epochs": 2, "hidden": 30, "segment": 120, "tbptt": 40, "warmup": 10, "batch": 50}
+TINY_ARGS = ["--set", "sgru.batch=6", "--hidden", "8", "--set", "sgru.hidden=20"]
 
 
 def _cli(*argv: str):
@@ -24,9 +30,24 @@ def _cli(*argv: str):
 
 @pytest.fixture(scope="module")
 def sgru_run(small_run, tmp_path_factory):
+    from quadfdi.core.config import dumps_toml, load_config, replace_section
+
     out = copy_run(small_run, tmp_path_factory.mktemp("sgru") / "run")
-    assert _cli("train", "sgru", "--run", str(out), *TINY) == 0
+    cfg = load_config(out / "config.toml")
+    (out / "config.toml").write_text(dumps_toml(replace_section(cfg, "sgru", **TINY_FILE)))
+    assert _cli("train", "sgru", "--run", str(out), *TINY_ARGS) == 0
     return out
+
+
+def test_train_sgru_settings_come_from_the_sgru_section_then_set_then_flags(sgru_run):
+    from quadfdi.core.jsonio import read_json
+    from quadfdi.train.config import StreamFitConfig
+    from quadfdi.train.stream_gru_run import load_stream_checkpoint
+
+    want = {**dataclasses.asdict(StreamFitConfig()), **TINY_FILE, "batch": 6, "hidden": 8}
+    _, blob = load_stream_checkpoint(sgru_run / "sgru_train0.pt")
+    assert blob["config"] == want
+    assert read_json(sgru_run / "predictions" / "sgru_sim0_train0.json")["settings"] == want
 
 
 def test_train_sgru_writes_a_prediction_set_at_the_window_ends(sgru_run):

@@ -6,6 +6,8 @@ from __future__ import annotations
 import pytest
 import torch
 
+from quadfdi.core.errors import QuadfdiError
+
 
 class _Tiny(torch.nn.Module):
     def __init__(self):
@@ -59,11 +61,11 @@ def test_swapped_validates_the_average_and_gives_the_weights_back():
 
 
 def test_bad_ema_settings_are_refused():
-    from quadfdi.train.stream_gru_config import StreamFitConfig
+    from quadfdi.train.config import StreamFitConfig
     from quadfdi.train.stream_gru_ema import WeightAverage
 
     for bad in (-0.1, 1.0):
-        with pytest.raises(ValueError, match="ema_decay"):
+        with pytest.raises(QuadfdiError, match="ema_decay"):
             StreamFitConfig(ema_decay=bad).validate()
     StreamFitConfig(ema_decay=0.0).validate()  # 0: off, the default
     with pytest.raises(ValueError, match="ema decay"):
@@ -72,7 +74,7 @@ def test_bad_ema_settings_are_refused():
 
 def test_the_average_leaves_the_training_path_alone_and_is_what_is_kept(small_run):
     from quadfdi.formats.dataset import load_dataset
-    from quadfdi.train.stream_gru_config import StreamFitConfig
+    from quadfdi.train.config import StreamFitConfig
     from quadfdi.train.stream_gru_fit import fit_stream_gru
 
     ds = load_dataset(small_run / "dataset.npz")

@@ -7,6 +7,8 @@ import numpy as np
 import pytest
 import torch
 
+from quadfdi.core.errors import QuadfdiError
+
 
 def test_step_motor_targets_name_the_rotor_on_rotor_side_steps_only():
     from quadfdi.train.stream_gru_motor import step_motor_targets
@@ -22,7 +24,7 @@ def test_step_motor_targets_name_the_rotor_on_rotor_side_steps_only():
 
 def test_motor_loss_moves_the_gru_and_is_zero_without_targets():
     from quadfdi.models.stream_gru import StreamGRU
-    from quadfdi.train.stream_gru_config import StreamFitConfig
+    from quadfdi.train.config import StreamFitConfig
     from quadfdi.train.stream_gru_fit import _batch_loss
     from quadfdi.train.stream_gru_motor import MotorAux
 
@@ -46,7 +48,7 @@ def test_motor_loss_moves_the_gru_and_is_zero_without_targets():
 
 
 def test_bad_motor_aux_is_refused():
-    from quadfdi.train.stream_gru_config import StreamFitConfig
+    from quadfdi.train.config import StreamFitConfig
 
-    with pytest.raises(ValueError, match="motor_aux"):
+    with pytest.raises(QuadfdiError, match="motor_aux"):
         StreamFitConfig(motor_aux=-0.5).validate()

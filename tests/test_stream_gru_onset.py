@@ -7,6 +7,8 @@ import numpy as np
 import pytest
 import torch
 
+from quadfdi.core.errors import QuadfdiError
+
 
 def test_onset_weight_one_is_no_emphasis():
     from quadfdi.train.loop import weighted_cross_entropy
@@ -49,9 +51,9 @@ def test_class_shares_of_the_loss_are_kept():
 
 
 def test_bad_onset_settings_are_refused():
-    from quadfdi.train.stream_gru_config import StreamFitConfig
+    from quadfdi.train.config import StreamFitConfig
 
-    with pytest.raises(ValueError, match="onset_weight"):
+    with pytest.raises(QuadfdiError, match="onset_weight"):
         StreamFitConfig(onset_weight=0.0).validate()
-    with pytest.raises(ValueError, match="onset_span"):
+    with pytest.raises(QuadfdiError, match="onset_span"):
         StreamFitConfig(onset_span=0).validate()

@@ -7,6 +7,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from quadfdi.core.errors import QuadfdiError
+
 
 def _labels() -> np.ndarray:
     lab = np.zeros((40, 300), np.int64)
@@ -16,7 +18,7 @@ def _labels() -> np.ndarray:
 
 
 def test_default_draws_the_random_numbers_of_before():
-    from quadfdi.train.stream_gru_config import StreamFitConfig
+    from quadfdi.train.config import StreamFitConfig
     from quadfdi.train.stream_gru_segments import draw_segments, first_fault
 
     cfg = StreamFitConfig(segment=100, warmup=10)
@@ -30,7 +32,7 @@ def test_default_draws_the_random_numbers_of_before():
 
 
 def test_onset_segments_put_the_first_fault_step_inside_after_the_warmup():
-    from quadfdi.train.stream_gru_config import StreamFitConfig
+    from quadfdi.train.config import StreamFitConfig
     from quadfdi.train.stream_gru_segments import draw_segments, first_fault
 
     lab = _labels()
@@ -55,7 +57,7 @@ def test_loss_mask_spares_only_the_warmup_of_mid_flight_segments():
 
 
 def test_start_span_any_reaches_the_flight_end_and_masks_past_it():
-    from quadfdi.train.stream_gru_config import StreamFitConfig
+    from quadfdi.train.config import StreamFitConfig
     from quadfdi.train.stream_gru_segments import draw_segments, loss_mask, segment_columns
 
     cfg = StreamFitConfig(segment=100, warmup=10, zero_start=0.0, start_span="any")
@@ -75,7 +77,7 @@ def test_start_span_any_reaches_the_flight_end_and_masks_past_it():
 
 def test_sampled_class_weights_balance_the_drawn_steps():
     from quadfdi.train.data import class_weights
-    from quadfdi.train.stream_gru_config import StreamFitConfig
+    from quadfdi.train.config import StreamFitConfig
     from quadfdi.train.stream_gru_segments import sampled_class_weights
 
     lab = _labels()
@@ -90,13 +92,13 @@ def test_sampled_class_weights_balance_the_drawn_steps():
 
 
 def test_bad_segment_settings_are_refused():
-    from quadfdi.train.stream_gru_config import StreamFitConfig
+    from quadfdi.train.config import StreamFitConfig
 
-    with pytest.raises(ValueError, match="class_mix"):
+    with pytest.raises(QuadfdiError, match="class_mix"):
         StreamFitConfig(class_mix="windows").validate()
-    with pytest.raises(ValueError, match="start_span"):
+    with pytest.raises(QuadfdiError, match="start_span"):
         StreamFitConfig(start_span="end").validate()
-    with pytest.raises(ValueError, match="onset_segments"):
+    with pytest.raises(QuadfdiError, match="onset_segments"):
         StreamFitConfig(onset_segments=1.5).validate()
-    with pytest.raises(ValueError, match="choose one"):
+    with pytest.raises(QuadfdiError, match="choose one"):
         StreamFitConfig(class_mix="sampled", onset_weight=2.0).validate()

@@ -16,7 +16,7 @@ import numpy as np
 import torch
 from sklearn.metrics import f1_score
 
-from quadfdi.core.config import TrainConfig
+from quadfdi.train.config import TrainConfig
 from quadfdi.core.errors import QuadfdiError
 from quadfdi.formats.dataset import Windows
 from quadfdi.train.data import batch_order

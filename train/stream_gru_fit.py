@@ -1,5 +1,6 @@
 """Training the streaming GRU for streaming use: long segments of whole flights, truncated
-backpropagation through time, random start points and start states, a label at every step.
+backpropagation through time, random start points and start states, a label at every step. The
+settings named below are the keys of the [sgru] section (``StreamFitConfig``, train/config.py).
 
 - Segments: each batch takes ``batch`` training flights; each flight contributes one segment of
   ``segment`` samples that starts at sample 0 with probability ``zero_start`` (a stream that starts
@@ -18,7 +19,7 @@ backpropagation through time, random start points and start states, a label at e
 - Options (train/stream_gru_segments.py, train/stream_gru_motor.py): segments placed around the onset
   (``onset_segments``), starting anywhere and cut at the flight's end (``start_span = "any"``), class
   weights over the drawn steps (``class_mix = "sampled"``), a training-only motor head whose loss is
-  added (``motor_aux``, on by default since wt-sgrub; the logged loss includes it).
+  added (``motor_aux``, on by default: chosen on validation, docs/training.md; the logged loss includes it).
 - Selection: the epoch whose validation macro F1 (the stream's decision at the validation windows'
   ends, stream started at h = 0 at take-off) is best. With ``ema_decay`` > 0 the weights validated
   and kept are an exponential moving average of the trained ones (train/stream_gru_ema.py); off by
@@ -41,7 +42,7 @@ from quadfdi.formats.dataset import Dataset, class_names, window_starts
 from quadfdi.train.data import class_weights, fit_normalisation
 from quadfdi.models.motor import rotor_side
 from quadfdi.models.stream_gru import StreamGRU
-from quadfdi.train.stream_gru_config import StreamFitConfig
+from quadfdi.train.config import StreamFitConfig
 from quadfdi.train.stream_gru_ema import WeightAverage
 from quadfdi.train.stream_gru_motor import MotorAux, step_motor_targets
 from quadfdi.train.stream_gru_onset import (

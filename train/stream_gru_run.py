@@ -3,7 +3,7 @@ windowed networks.
 
 Writes into the run folder:
 - ``sgru_train<T>.pt``: the checkpoint (plain dict, ``torch.load(weights_only=True)``): ``architecture``
-  (``models.stream_gru.stream_signature``), ``state_dict``, ``config`` (StreamFitConfig), ``class_names``,
+  (``models.stream_gru.stream_signature``), ``state_dict``, ``config`` (the [sgru] section), ``class_names``,
   ``channel_names``, ``history``;
 - ``predictions/sgru_sim<S>_train<T>.npz``: a prediction set (formats/predictions.py) holding the stream's
   class probabilities at the end sample of every evaluation window, the stream started at h = 0 at
@@ -31,7 +31,7 @@ from quadfdi.train.data import evaluation_rows
 from quadfdi.models.networks import build_model
 from quadfdi.train.predsets import index_entry, write_prediction_set
 from quadfdi.models.stream_gru import StreamGRU, stream_from_signature, stream_signature
-from quadfdi.train.stream_gru_config import StreamFitConfig
+from quadfdi.train.config import StreamFitConfig
 from quadfdi.train.stream_gru_fit import (
     config_dict,
     fit_stream_gru,
@@ -98,10 +98,11 @@ def load_stream_checkpoint(path: str | Path) -> tuple[StreamGRU, dict[str, Any]]
     return model, blob
 
 
-def train_stream_run(root: str | Path, cfg: Config, fit: StreamFitConfig,
-                     log: Callable[[str], None] = print) -> list[Path]:
-    """Train, then write the checkpoint, the prediction set, its record and its index entry."""
+def train_stream_run(root: str | Path, cfg: Config, log: Callable[[str], None] = print) -> list[Path]:
+    """Train with the [sgru] settings of ``cfg``, then write the checkpoint, the prediction set, its
+    record and its index entry."""
     root = Path(root)
+    fit = cfg.sgru
     ds = load_dataset(root / "dataset.npz")
     sim_seed = int(ds.config.sim.seed)
     model, hist = fit_stream_gru(ds, fit, log)

@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from quadfdi.train.stream_gru_config import StreamFitConfig
+from quadfdi.train.config import StreamFitConfig
 
 
 def first_fault(lab: np.ndarray) -> np.ndarray:

@@ -45,11 +45,12 @@ constexpr long kFmaIters = 1 << 16;
 
 // kChains * kFmaIters vector FMAs: 2 * kVecFloats flops each.
 extern "C" __attribute__((noinline)) float l2bw_fma_kernel(float seed) {
-  V a, b, c[kChains];
-  for (int j = 0; j < kVecFloats; ++j) {
-    a[j] = 0.999f;
-    b[j] = 1e-3f * seed;
-  }
+  // Whole-vector broadcasts, not lane-by-lane stores: with -march=native on AVX-512 Intel parts GCC
+  // tunes for 256-bit vectors (-mprefer-vector-width=256), so a lane loop filled the 64-byte b with
+  // two 32-byte stores and the hot loop then read b from the stack in every FMA.
+  const V a = V{} + 0.999f;
+  const V b = V{} + 1e-3f * seed;
+  V c[kChains];
   for (int k = 0; k < kChains; ++k) c[k] = a * float(k + 1);
   for (long i = 0; i < kFmaIters; ++i) {
 #pragma GCC unroll 16

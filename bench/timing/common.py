@@ -6,7 +6,7 @@ import math
 import time
 from typing import Callable, Sequence
 
-from quadfdi.core.config import BenchConfig
+from quadfdi.bench.config import BenchConfig
 
 WARMUP_SECONDS = BenchConfig.warmup_s  # default: warm-up stops after this long even when fewer calls ran
 MIN_SAMPLES = BenchConfig.min_samples  # default: a time budget never cuts a measurement below this many calls

@@ -31,55 +31,7 @@ namespace {
 using fwref::kMaxChannels;
 using fwref::kMaxWindow;
 
-// ---------------------------------------------------------------------------- printing (no printf:
-// newlib's float formatting allocates; this harness links no heap at all)
-struct Line {
-  char buf[256];
-  int n = 0;
-  Line& s(const char* t) {
-    while (*t && n < 254) buf[n++] = *t++;
-    return *this;
-  }
-  Line& u(std::uint64_t v) {
-    char tmp[24];
-    int k = 0;
-    do tmp[k++] = char('0' + v % 10); while ((v /= 10) && k < 23);
-    while (k && n < 254) buf[n++] = tmp[--k];
-    return *this;
-  }
-  Line& e(double v) {  // %.3e
-    if (std::isnan(v)) return s("nan");
-    if (v < 0) s("-"), v = -v;
-    if (std::isinf(v)) return s("inf");
-    int ex = 0;
-    if (v != 0.0) {
-      while (v >= 10.0) v /= 10.0, ++ex;
-      while (v < 1.0) v *= 10.0, --ex;
-    }
-    std::uint64_t m = std::uint64_t(v * 1000.0 + 0.5);
-    if (m >= 10000) m /= 10, ++ex;
-    u(m / 1000).s(".");
-    const std::uint64_t f = m % 1000;
-    if (f < 100) s("0");
-    if (f < 10) s("0");
-    u(f).s(ex < 0 ? "e-" : "e+");
-    if ((ex < 0 ? -ex : ex) < 10) s("0");
-    return u(std::uint64_t(ex < 0 ? -ex : ex));
-  }
-  Line& f3(double v) {  // %.3f for small non-negative values
-    const std::uint64_t m = std::uint64_t(v * 1000.0 + 0.5);
-    u(m / 1000).s(".");
-    const std::uint64_t f = m % 1000;
-    if (f < 100) s("0");
-    if (f < 10) s("0");
-    return u(f);
-  }
-  void out() {
-    buf[n++] = '\n';
-    buf[n] = '\0';
-    board::puts(buf);
-  }
-};
+using Line = board::Line<256>;
 
 // ---------------------------------------------------------------------------- comparison
 int g_checked = 0, g_failed = 0;

@@ -24,27 +24,7 @@
 
 namespace {
 
-struct Line {  // no printf: newlib's allocates
-  char buf[512];
-  int n = 0;
-  Line& s(const char* t) {
-    while (*t && n < 508) buf[n++] = *t++;
-    return *this;
-  }
-  Line& u(std::uint64_t v) {
-    char tmp[24];
-    int k = 0;
-    do tmp[k++] = char('0' + v % 10); while ((v /= 10) && k < 23);
-    while (k && n < 508) buf[n++] = tmp[--k];
-    return *this;
-  }
-  Line& i(long v) { return v < 0 ? s("-").u(std::uint64_t(-v)) : u(std::uint64_t(v)); }
-  void out() {
-    buf[n++] = '\n';
-    buf[n] = '\0';
-    board::puts(buf);
-  }
-};
+using Line = board::Line<512>;
 
 // Keeps the strides of one push (a gap can give several) so that printing is not timed.
 class Keep final : public fwref::StrideSink {

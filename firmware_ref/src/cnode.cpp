@@ -15,7 +15,6 @@
 #include "cnode_f32_t.hpp"
 #include "cnode_field16.hpp"
 #include "model_common.hpp"
-#include "motor_common.hpp"
 #if defined(FWREF_HAS_W8_VNNI)
 #include "cnode_w8.hpp"
 #endif
@@ -24,12 +23,7 @@ namespace fwref {
 
 namespace {
 
-using detail::all_finite;
-using detail::all_positive_finite;
-using detail::dim_ok;
-using detail::view_ok;
-using detail::int16_copies;
-using detail::StageWeights16;
+using namespace detail;  // src/'s internal helpers (model_common.hpp and the model's own headers)
 
 Status check_dims(const CnodeDims& d) {
   if (d.channels <= 0 || d.window < 2 || d.classes <= 0 || d.hidden <= 0 || d.latent <= 0 || d.steps <= 0 ||
@@ -365,29 +359,6 @@ Status infer(const CnodeI8& m, const float* x, float* logits, CnodeWorkspace& ws
   quantize_all(ws.z.data(), L, m.s_z1, ws.q_lat);
   linear_i8_tensor(m.head_w.q, m.head_w.scale, K, L, ws.q_lat, m.s_z1, m.head_b, logits);
   return all_finite(logits, K) ? Status::kOk : Status::kNonFiniteOutput;
-}
-
-// The motor head (fwref/motor.hpp) after a whole inference: ws.z holds z1 when infer returns (the
-// class head read it; the int8 head quantized a copy of it), so the motor head reads the very z1
-// the class head did.
-Status infer_motor(const CnodeF32& m, const CnodeMotorF32& h, const float* x, float* logits, float* motor,
-                   CnodeWorkspace& ws) {
-  if (motor == nullptr) return Status::kNullArgument;
-  if (h.dims.features != m.dims.latent) return Status::kDimsInvalid;
-  const Status s = infer(m, x, logits, ws);
-  if (s != Status::kOk) return s;
-  detail::motor_head(h, ws.z.data(), motor);
-  return all_finite(motor, h.dims.motors) ? Status::kOk : Status::kNonFiniteOutput;
-}
-
-Status infer_motor(const CnodeI8& m, const CnodeMotorI8& h, const float* x, float* logits, float* motor,
-                   CnodeWorkspace& ws) {
-  if (motor == nullptr) return Status::kNullArgument;
-  if (h.dims.features != m.dims.latent) return Status::kDimsInvalid;
-  const Status s = infer(m, x, logits, ws);
-  if (s != Status::kOk) return s;
-  detail::motor_head(h, ws.z.data(), m.s_z1, motor);
-  return all_finite(motor, h.dims.motors) ? Status::kOk : Status::kNonFiniteOutput;
 }
 
 }  // namespace fwref

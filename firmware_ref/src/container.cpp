@@ -61,14 +61,13 @@ const char* dtype_name(DType t) {
 }
 
 const char* model_name(std::uint32_t model) {
-  if (model == kModelCnodeMotor) return "cnode_motor";
-  if (model == kModelGruMotor) return "gru_motor";
-  if (model == kModelSgru) return "sgru";
-  return model == kModelCnode ? "cnode" : model == kModelGru ? "gru" : model == kModelNone ? "none" : "?";
+  const char* name = model_code_name(model);
+  return name != nullptr ? name : "?";
 }
 
 const char* precision_name(std::uint32_t precision) {
-  return precision == kPrecF32 ? "fp32" : precision == kPrecI8 ? "int8" : precision == kPrecNone ? "none" : "?";
+  const char* name = precision_code_name(precision);
+  return name != nullptr ? name : "?";
 }
 
 std::string TensorInfo::shape_text() const {
@@ -192,8 +191,7 @@ Status Container::parse_section(std::size_t& pos, std::size_t end, int index, st
   }
   const unsigned char* h = b + pos;
   const std::uint32_t size = u32_at(h + 4), model = u32_at(h + 8), prec = u32_at(h + 12);
-  const bool motor = model == kModelCnodeMotor || model == kModelGruMotor || model == kModelSgru;  // the optional codes
-  if (std::memcmp(h, "SECT", 4) != 0 || (model > kModelGru && !motor) || prec > kPrecI8) {
+  if (std::memcmp(h, "SECT", 4) != 0 || model_code_name(model) == nullptr || precision_code_name(prec) == nullptr) {
     *error = fmt("%s: section %d has a bad header (tag %s, model %u, precision %u)", where_.c_str(), index,
                  bytes_repr(h, 4).c_str(), model, prec);
     return Status::kBadHeader;

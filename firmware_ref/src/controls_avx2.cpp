@@ -57,18 +57,7 @@ bool row(const std::int8_t* p, int window, const float* x, int C, const float* m
     h[i].s_x = _mm256_maskload_ps(s_x + 8 * i, h[i].m);
     h[i].acc = _mm256_setzero_si256();
   }
-  int w0 = 0;
-  for (; w0 + 32 <= window; w0 += 32) {  // 32 weights per comparison, as for_each_nonzero
-    const __m256i v = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(p + w0));
-    std::uint32_t nz = ~static_cast<std::uint32_t>(_mm256_movemask_epi8(_mm256_cmpeq_epi8(v, _mm256_setzero_si256())));
-    for (; nz != 0; nz &= nz - 1) {
-      const int w = w0 + __builtin_ctz(nz);
-      sample<NQ>(h, x + long(w) * C, p[w]);
-    }
-  }
-  for (; w0 < window; ++w0) {
-    if (p[w0] != 0) sample<NQ>(h, x + long(w0) * C, p[w0]);
-  }
+  for_each_nonzero_avx2(p, window, [&](int w, std::int32_t pw) { sample<NQ>(h, x + long(w) * C, pw); });
   const __m256 sp = _mm256_set1_ps(s_p);
   for (int i = 0; i < NQ; ++i) {
     const int n = C - 8 * i < 8 ? C - 8 * i : 8;

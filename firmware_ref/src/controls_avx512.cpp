@@ -8,6 +8,8 @@
 #pragma GCC diagnostic ignored "-Wuninitialized"
 #include <immintrin.h>
 
+#include "fwref/vmath_i8.hpp"
+
 namespace fwref {
 
 namespace {
@@ -66,18 +68,9 @@ __attribute__((target("avx2,avx512f"))) bool control_row_avx512(const std::int8_
     h[i].acc = _mm512_setzero_si512();
   }
   const bool two = channels > 16;
-  int w0 = 0;
-  for (; w0 + 32 <= window; w0 += 32) {  // 32 weights per comparison, as for_each_nonzero
-    const __m256i v = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(p + w0));
-    std::uint32_t nz = ~static_cast<std::uint32_t>(_mm256_movemask_epi8(_mm256_cmpeq_epi8(v, _mm256_setzero_si256())));
-    for (; nz != 0; nz &= nz - 1) {
-      const int w = w0 + __builtin_ctz(nz);
-      sample(h, two, x + long(w) * channels, p[w]);
-    }
-  }
-  for (; w0 < window; ++w0) {
-    if (p[w0] != 0) sample(h, two, x + long(w0) * channels, p[w0]);
-  }
+  for_each_nonzero_avx2(p, window, [&](int w, std::int32_t pw) __attribute__((target("avx2,avx512f"))) {
+    sample(h, two, x + long(w) * channels, pw);
+  });
   const __m512 sp = _mm512_set1_ps(s_p);
   finish(h[0], sp, s_u, u, q);
   if (two) finish(h[1], sp, s_u + 16, u != nullptr ? u + 16 : nullptr, q + 16);

@@ -57,6 +57,11 @@ FWREF_F32F void chains_t(const float* wt, int rp, int cols_rt, const float* x, _
   }
 }
 
+// The 8 floats at p of a row with ``left`` floats from p on: lanes past the row's end are 0 (and not read).
+FWREF_F32F __m256 load_block(const float* p, int left) {
+  return left >= 8 ? _mm256_loadu_ps(p) : _mm256_maskload_ps(p, lanes(left));
+}
+
 // ab = tanh8(lin1_z z + v) for NBH blocks (lanes past H: tanh(0 + 0), never read), L = LC (or L).
 template <int NBH, int LC>
 FWREF_F32F void hidden_t(const float* w1t, int H, int L, const float* z, const float* v, float* ab) {
@@ -64,9 +69,7 @@ FWREF_F32F void hidden_t(const float* w1t, int H, int L, const float* z, const f
   chains_t<NBH, LC>(w1t, f32_t_stride(H), L, z, a);
 #pragma GCC unroll 8
   for (int j = 0; j < NBH; ++j) {
-    const int left = H - 8 * j;
-    const __m256 vv = left >= 8 ? _mm256_loadu_ps(v + 8 * j) : _mm256_maskload_ps(v + 8 * j, lanes(left));
-    _mm256_store_ps(ab + 8 * j, tanh8(_mm256_add_ps(a[j], vv)));
+    _mm256_store_ps(ab + 8 * j, tanh8(_mm256_add_ps(a[j], load_block(v + 8 * j, H - 8 * j))));
   }
 }
 
@@ -78,11 +81,11 @@ FWREF_F32F void output_t(const float* w2t, int L, int H, const float* ab, const 
 #pragma GCC unroll 8
   for (int j = 0; j < NBL; ++j) {
     const int left = L - 8 * j;
+    const __m256 y = _mm256_add_ps(s[j], load_block(b2 + 8 * j, left));
     if (left >= 8) {
-      _mm256_storeu_ps(k + 8 * j, _mm256_add_ps(s[j], _mm256_loadu_ps(b2 + 8 * j)));
+      _mm256_storeu_ps(k + 8 * j, y);
     } else {
-      const __m256i m = lanes(left);
-      _mm256_maskstore_ps(k + 8 * j, m, _mm256_add_ps(s[j], _mm256_maskload_ps(b2 + 8 * j, m)));
+      _mm256_maskstore_ps(k + 8 * j, lanes(left), y);
     }
   }
 }

@@ -26,7 +26,7 @@ using w16_avx2_detail::product;
 template <int NBH, int LC>
 FWREF_W16F void hidden(const FieldW16& f, const std::int16_t* zq, __m256 sz, const float* v, std::int16_t* hq) {
   __m256i acc[NBH];
-  product<NBH, LC>(f.lin1z16, f.latent, zq, acc);
+  product<NBH, LC>(f.lin1z, f.latent, zq, acc);
   const __m256 sh = _mm256_set1_ps(f.s_hidden);
   for (int j = 0; j < NBH; ++j) {
     const __m256 m = _mm256_mul_ps(sz, _mm256_loadu_ps(f.s_w1 + 8 * j));  // rescale_i32's f32(s_a * s_w)
@@ -39,7 +39,7 @@ FWREF_W16F void hidden(const FieldW16& f, const std::int16_t* zq, __m256 sz, con
 template <int NBL, int HC>
 FWREF_W16F void output(const FieldW16& f, const std::int16_t* hq, float* k) {
   __m256i acc[NBL];
-  product<NBL, HC>(f.lin2w16, f.hidden, hq, acc);
+  product<NBL, HC>(f.lin2w, f.hidden, hq, acc);
   for (int j = 0; j < NBL; ++j) {
     const __m256 y = _mm256_add_ps(_mm256_mul_ps(_mm256_cvtepi32_ps(acc[j]), _mm256_loadu_ps(f.mult2 + 8 * j)),
                                    _mm256_loadu_ps(f.b2 + 8 * j));

@@ -82,7 +82,7 @@ __attribute__((target("avx512f,avx512vnni"))) void field(const FieldW8& f, const
     _mm_store_si128(reinterpret_cast<__m128i*>(xz + 16 * j), quantize_u8(x, sz));
   }
   __m512i acc[NBH > NBL ? NBH : NBL];
-  product<NBH, LC>(f.lin1z8, H, L, xz, acc);
+  product<NBH, LC>(f.lin1z, H, L, xz, acc);
   const __m512 sh = _mm512_set1_ps(f.s_hidden);
   for (int j = 0; j < NBH; ++j) {
     const __mmask16 m = lanes(H - 16 * j);
@@ -90,7 +90,7 @@ __attribute__((target("avx512f,avx512vnni"))) void field(const FieldW8& f, const
     const __m512 y = _mm512_add_ps(_mm512_mul_ps(_mm512_cvtepi32_ps(acc[j]), mult), _mm512_maskz_loadu_ps(m, v + 16 * j));
     _mm_store_si128(reinterpret_cast<__m128i*>(xh + 16 * j), quantize_u8(tanh16(y), sh));
   }
-  product<NBL, HC>(f.lin2w8, L, H, xh, acc);
+  product<NBL, HC>(f.lin2w, L, H, xh, acc);
   for (int j = 0; j < NBL; ++j) {
     const int left = L - 16 * j;
     const __mmask16 m = lanes(left);

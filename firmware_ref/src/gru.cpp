@@ -7,7 +7,6 @@
 #include "fwref/numerics.hpp"
 #include "fwref/vmath_f32.hpp"
 #include "model_common.hpp"
-#include "motor_common.hpp"
 
 // The host's int8 step (x86-64 with the int16 weight copies): see infer_i8_host below. Elsewhere (the
 // Cortex-M build, FWREF_PORTABLE_KERNELS) the portable path of infer(const GruI8&) runs.
@@ -20,10 +19,7 @@ namespace fwref {
 
 namespace {
 
-using detail::all_finite;
-using detail::all_positive_finite;
-using detail::dim_ok;
-using detail::view_ok;
+using namespace detail;  // src/'s internal helpers (model_common.hpp and the model's own headers)
 
 Status check_dims(const GruDims& d) {
   if (d.channels <= 0 || d.window < 1 || d.classes <= 0 || d.hidden <= 0) return Status::kDimsInvalid;
@@ -291,29 +287,6 @@ Status infer(const GruI8& m, const float* x, float* logits, GruWorkspace& ws, Gr
   quantize_all(ws.h.data(), H, m.s_h, ws.hq);
   linear_i8_tensor(m.head_w.q, m.head_w.scale, d.classes, H, ws.hq, m.s_h, m.head_b, logits);
   return all_finite(logits, d.classes) ? Status::kOk : Status::kNonFiniteOutput;
-}
-
-// The motor head (fwref/motor.hpp) after a whole inference: ws.h holds h_W when infer returns (the
-// class head read it; the int8 head quantized a copy of it), so the motor head reads the very h_W
-// the class head did.
-Status infer_motor(const GruF32& m, const GruMotorF32& h, const float* x, float* logits, float* motor,
-                   GruWorkspace& ws) {
-  if (motor == nullptr) return Status::kNullArgument;
-  if (h.dims.features != m.dims.hidden) return Status::kDimsInvalid;
-  const Status s = infer(m, x, logits, ws);
-  if (s != Status::kOk) return s;
-  detail::motor_head(h, ws.h.data(), motor);
-  return all_finite(motor, h.dims.motors) ? Status::kOk : Status::kNonFiniteOutput;
-}
-
-Status infer_motor(const GruI8& m, const GruMotorI8& h, const float* x, float* logits, float* motor,
-                   GruWorkspace& ws) {
-  if (motor == nullptr) return Status::kNullArgument;
-  if (h.dims.features != m.dims.hidden) return Status::kDimsInvalid;
-  const Status s = infer(m, x, logits, ws);
-  if (s != Status::kOk) return s;
-  detail::motor_head(h, ws.h.data(), m.s_h, motor);
-  return all_finite(motor, h.dims.motors) ? Status::kOk : Status::kNonFiniteOutput;
 }
 
 }  // namespace fwref

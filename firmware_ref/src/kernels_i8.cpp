@@ -21,6 +21,15 @@ namespace {
 // zero (zero products), then the last 1..7 columns as the row's last 8 bytes against x with the
 // already counted lanes zeroed (scalar code only for rows shorter than 8); no load reads past a row.
 // Rows go 4 at a time, so each x vector (and its |x|) serves 4 rows.
+#define FWREF_LOAD32(p) _mm256_loadu_si256(reinterpret_cast<const __m256i*>(p))
+#define FWREF_LOAD16(p) _mm256_zextsi128_si256(_mm_loadu_si128(reinterpret_cast<const __m128i*>(p)))
+#define FWREF_LOAD8(p) _mm256_zextsi128_si256(_mm_loadl_epi64(reinterpret_cast<const __m128i*>(p)))
+// One column step of the 4 rows: x's vector xv (|x| in ax) against each row's LOAD at column ``at``.
+#define FWREF_ROWS4(DOT, LOAD, at)                                                                 \
+  a0 = DOT(a0, ax, _mm256_sign_epi8(LOAD(r0 + (at)), xv));                                         \
+  a1 = DOT(a1, ax, _mm256_sign_epi8(LOAD(r1 + (at)), xv));                                         \
+  a2 = DOT(a2, ax, _mm256_sign_epi8(LOAD(r2 + (at)), xv));                                         \
+  a3 = DOT(a3, ax, _mm256_sign_epi8(LOAD(r3 + (at)), xv));
 #define FWREF_GEMV_BODY(DOT)                                                                       \
   int o = 0;                                                                                       \
   for (; o + 4 <= rows; o += 4) {                                                                  \
@@ -31,29 +40,20 @@ namespace {
     __m256i a0 = _mm256_setzero_si256(), a1 = a0, a2 = a0, a3 = a0;                                \
     int i = 0;                                                                                     \
     for (; i + 32 <= cols; i += 32) {                                                              \
-      const __m256i xv = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(x + i));              \
+      const __m256i xv = FWREF_LOAD32(x + i);                                                      \
       const __m256i ax = _mm256_abs_epi8(xv);                                                      \
-      a0 = DOT(a0, ax, _mm256_sign_epi8(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(r0 + i)), xv)); \
-      a1 = DOT(a1, ax, _mm256_sign_epi8(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(r1 + i)), xv)); \
-      a2 = DOT(a2, ax, _mm256_sign_epi8(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(r2 + i)), xv)); \
-      a3 = DOT(a3, ax, _mm256_sign_epi8(_mm256_loadu_si256(reinterpret_cast<const __m256i*>(r3 + i)), xv)); \
+      FWREF_ROWS4(DOT, FWREF_LOAD32, i)                                                            \
     }                                                                                              \
     if (i + 16 <= cols) {                                                                          \
-      const __m256i xv = _mm256_zextsi128_si256(_mm_loadu_si128(reinterpret_cast<const __m128i*>(x + i))); \
+      const __m256i xv = FWREF_LOAD16(x + i);                                                      \
       const __m256i ax = _mm256_abs_epi8(xv);                                                      \
-      a0 = DOT(a0, ax, _mm256_sign_epi8(_mm256_zextsi128_si256(_mm_loadu_si128(reinterpret_cast<const __m128i*>(r0 + i))), xv)); \
-      a1 = DOT(a1, ax, _mm256_sign_epi8(_mm256_zextsi128_si256(_mm_loadu_si128(reinterpret_cast<const __m128i*>(r1 + i))), xv)); \
-      a2 = DOT(a2, ax, _mm256_sign_epi8(_mm256_zextsi128_si256(_mm_loadu_si128(reinterpret_cast<const __m128i*>(r2 + i))), xv)); \
-      a3 = DOT(a3, ax, _mm256_sign_epi8(_mm256_zextsi128_si256(_mm_loadu_si128(reinterpret_cast<const __m128i*>(r3 + i))), xv)); \
+      FWREF_ROWS4(DOT, FWREF_LOAD16, i)                                                            \
       i += 16;                                                                                     \
     }                                                                                              \
     if (i + 8 <= cols) {                                                                           \
-      const __m256i xv = _mm256_zextsi128_si256(_mm_loadl_epi64(reinterpret_cast<const __m128i*>(x + i))); \
+      const __m256i xv = FWREF_LOAD8(x + i);                                                       \
       const __m256i ax = _mm256_abs_epi8(xv);                                                      \
-      a0 = DOT(a0, ax, _mm256_sign_epi8(_mm256_zextsi128_si256(_mm_loadl_epi64(reinterpret_cast<const __m128i*>(r0 + i))), xv)); \
-      a1 = DOT(a1, ax, _mm256_sign_epi8(_mm256_zextsi128_si256(_mm_loadl_epi64(reinterpret_cast<const __m128i*>(r1 + i))), xv)); \
-      a2 = DOT(a2, ax, _mm256_sign_epi8(_mm256_zextsi128_si256(_mm_loadl_epi64(reinterpret_cast<const __m128i*>(r2 + i))), xv)); \
-      a3 = DOT(a3, ax, _mm256_sign_epi8(_mm256_zextsi128_si256(_mm_loadl_epi64(reinterpret_cast<const __m128i*>(r3 + i))), xv)); \
+      FWREF_ROWS4(DOT, FWREF_LOAD8, i)                                                             \
       i += 8;                                                                                      \
     }                                                                                              \
     if (i < cols && cols >= 8) { /* the last 1..7 columns: the row's last 8 bytes, x's first lanes zeroed */ \
@@ -61,12 +61,9 @@ namespace {
       std::uint64_t xq;                                                                            \
       std::memcpy(&xq, x + cols - 8, 8);                                                           \
       xq &= ~std::uint64_t(0) << (8 * (8 - keep));                                                 \
-      const __m256i xv = _mm256_zextsi128_si256(_mm_cvtsi64_si128(static_cast<long long>(xq)));   \
+      const __m256i xv = _mm256_zextsi128_si256(_mm_cvtsi64_si128(static_cast<long long>(xq)));    \
       const __m256i ax = _mm256_abs_epi8(xv);                                                      \
-      a0 = DOT(a0, ax, _mm256_sign_epi8(_mm256_zextsi128_si256(_mm_loadl_epi64(reinterpret_cast<const __m128i*>(r0 + cols - 8))), xv)); \
-      a1 = DOT(a1, ax, _mm256_sign_epi8(_mm256_zextsi128_si256(_mm_loadl_epi64(reinterpret_cast<const __m128i*>(r1 + cols - 8))), xv)); \
-      a2 = DOT(a2, ax, _mm256_sign_epi8(_mm256_zextsi128_si256(_mm_loadl_epi64(reinterpret_cast<const __m128i*>(r2 + cols - 8))), xv)); \
-      a3 = DOT(a3, ax, _mm256_sign_epi8(_mm256_zextsi128_si256(_mm_loadl_epi64(reinterpret_cast<const __m128i*>(r3 + cols - 8))), xv)); \
+      FWREF_ROWS4(DOT, FWREF_LOAD8, cols - 8)                                                      \
       i = cols;                                                                                    \
     }                                                                                              \
     /* [a0 a1 a2 a3] lane sums: two rounds of hadd, then the two 128-bit halves */                 \
@@ -102,6 +99,10 @@ __attribute__((target("avx2,avx512f,avx512vl,avx512vnni"))) void gemv_i8_avx512v
 }
 
 #undef FWREF_GEMV_BODY
+#undef FWREF_ROWS4
+#undef FWREF_LOAD8
+#undef FWREF_LOAD16
+#undef FWREF_LOAD32
 
 // The packed int16 copy (fwref/kernels_i8.hpp): a panel of NB blocks of 8 rows; per column pair one
 // broadcast of x's pair and NB vpmaddwd (the weights straight from memory) and NB vpaddd; the NB

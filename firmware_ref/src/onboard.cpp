@@ -31,31 +31,36 @@ double threshold_of(std::int32_t lo, std::int32_t hi) {
   return threshold;
 }
 
-// alarm.models (optional): int32 (M, 7) rows model, k, n, clear_m, latch, threshold lo, hi; each
-// model at most once, each row a valid policy (core.alarm.check_policy).
+// alarm.models (optional): int32 (M, kAlarmModelsWidth) rows in contracts_gen.hpp's column order (model
+// code, k, n, clear_m, latch, threshold lo, hi); each model a network with a policy of its own
+// (policy_network), at most once; each row a valid policy (core.alarm.check_policy).
 Status read_policies(const Container& file, const SectionInfo& sec, const AlarmParams& base, OnboardRecord* r,
                      std::string* error) {
   r->model_policies.clear();
   const TensorInfo* t = sec.find("alarm.models");
   if (t == nullptr) return Status::kOk;
-  if (t->dtype != DType::kI32 || t->ndim != 2 || t->shape[1] != 7 || t->shape[0] > 8) {
-    *error = fmt("%s: the on-board record's alarm.models is not int32 (M, 7) with M <= 8", file.where().c_str());
+  namespace c = contracts;
+  if (t->dtype != DType::kI32 || t->ndim != 2 || t->shape[1] != c::kAlarmModelsWidth || t->shape[0] > 8) {
+    *error = fmt("%s: the on-board record's alarm.models is not int32 (M, %d) with M <= 8", file.where().c_str(),
+                 c::kAlarmModelsWidth);
     return Status::kBadShape;
   }
   std::vector<std::int32_t> v(t->count);
   file.copy_i32(*t, v.data());
   for (int i = 0; i < t->shape[0]; ++i) {
-    const std::int32_t* row = &v[std::size_t(i) * 7];
-    const std::uint32_t model = std::uint32_t(row[0]);
+    const std::int32_t* row = &v[std::size_t(i) * c::kAlarmModelsWidth];
+    const std::uint32_t model = std::uint32_t(row[c::kAlarmModelsModel]);
     AlarmParams a = base;
-    a.threshold = threshold_of(row[5], row[6]);
-    a.k = row[1], a.n = row[2], a.clear_m = row[3], a.latch = row[4] != 0;
-    bool known = model == kModelCnode || model == kModelGru || model == kModelSgru;
+    a.threshold = threshold_of(row[c::kAlarmModelsThresholdLo], row[c::kAlarmModelsThresholdHi]);
+    a.k = row[c::kAlarmModelsK], a.n = row[c::kAlarmModelsN], a.clear_m = row[c::kAlarmModelsClearM];
+    const std::int32_t latch = row[c::kAlarmModelsLatch];
+    a.latch = latch != 0;
+    bool known = policy_network(model);
     for (const OnboardRecord::ModelPolicy& seen : r->model_policies) known = known && seen.model != model;
-    if (!known || row[4] < 0 || row[4] > 1 || a.k < 1 || a.k > a.n || a.clear_m < 1 || !(a.threshold > 0.0) ||
+    if (!known || latch < 0 || latch > 1 || a.k < 1 || a.k > a.n || a.clear_m < 1 || !(a.threshold > 0.0) ||
         !(a.threshold <= 1.0)) {
       *error = fmt("%s: the on-board record's alarm.models row %d (model %d) is not a valid policy of a distinct "
-                   "model", file.where().c_str(), i, int(row[0]));
+                   "model", file.where().c_str(), i, int(model));
       return Status::kDimsInvalid;
     }
     r->model_policies.push_back({model, a});
@@ -93,9 +98,9 @@ Status read_onboard(const WeightsFile& wf, OnboardRecord* out, std::string* erro
       return Status::kBadShape;
     }
   }
-  std::vector<std::int32_t> raw(t[0]->count), model(t[1]->count), thr(2), pol(5);
+  std::vector<std::int32_t> raw(t[0]->count), model(t[1]->count), thr(2), pol(contracts::kAlarmPolicyWidth);
   float dt = 0.0f;
-  if (t[2]->count != 1 || t[3]->count != 3 || t[4]->count != 2 || t[5]->count != 5) {
+  if (t[2]->count != 1 || t[3]->count != 3 || t[4]->count != 2 || t[5]->count != pol.size()) {
     *error = fmt("%s: the on-board record's tensors have the wrong sizes", file.where().c_str());
     return Status::kBadShape;
   }
@@ -135,8 +140,10 @@ Status read_onboard(const WeightsFile& wf, OnboardRecord* out, std::string* erro
     }
     r.rotor_classes = int(rs->count);
   }
-  r.params = StreamParams{static_cast<Profile>(d[0]), int(d[1]), int(d[2]), int(d[3]), int(d[4]), 0, double(dt),
-                          AlarmParams{threshold, pol[0], pol[1], pol[2], pol[3] != 0, pol[4], 0, mask}};
+  namespace c = contracts;
+  AlarmParams alarm{threshold, pol[c::kAlarmPolicyK], pol[c::kAlarmPolicyN], pol[c::kAlarmPolicyClearM],
+                    pol[c::kAlarmPolicyLatch] != 0, pol[c::kAlarmPolicyHealthy], 0, mask};
+  r.params = StreamParams{static_cast<Profile>(d[0]), int(d[1]), int(d[2]), int(d[3]), int(d[4]), 0, double(dt), alarm};
   const Status pol_status = read_policies(file, *sec, r.params.alarm, &r, error);
   if (pol_status != Status::kOk) return pol_status;
   r.cells_from_stream = d[5] != 0;

@@ -29,68 +29,45 @@
 
 namespace {
 
-const char* const kUsage =
-    "usage: fwref_pair --weights <weights.bin> --model cnode|gru --in <windows.f32> --per-round K "
-    "--timings <seconds.f64>";
-
-int usage_error(const std::string& problem) {
-  std::fprintf(stderr, "fwref_pair: %s; %s\n", problem.c_str(), kUsage);
-  return 1;
-}
-
-int fail(const std::string& message) {
-  std::fprintf(stderr, "fwref_pair: error: %s\n", message.c_str());
-  return 2;
-}
+const fwref::host::Cli kCli("fwref_pair",
+                            "usage: fwref_pair --weights <weights.bin> --model cnode|gru --in <windows.f32> "
+                            "--per-round K --timings <seconds.f64>");
 
 }  // namespace
 
 int main(int argc, char** argv) {
   std::string weights, model, in, timings, per;
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    if (a == "-h" || a == "--help") {
-      std::printf("%s\n", kUsage);
-      return 0;
-    }
-    std::string* dst = a == "--weights" ? &weights : a == "--model" ? &model : a == "--in" ? &in
-                       : a == "--timings" ? &timings : a == "--per-round" ? &per : nullptr;
-    if (dst == nullptr) return usage_error("unknown argument '" + a + "'");
-    if (i + 1 >= argc) return usage_error(a + " needs a value");
-    *dst = argv[++i];
-  }
+  const int parsed = kCli.parse(argc, argv, {{"--weights", &weights}, {"--model", &model}, {"--in", &in},
+                                             {"--timings", &timings}, {"--per-round", &per}});
+  if (parsed >= 0) return parsed;
   if (weights.empty() || model.empty() || in.empty() || timings.empty() || per.empty()) {
-    return usage_error("--weights, --model, --in, --per-round and --timings are required");
+    return kCli.usage_error("--weights, --model, --in, --per-round and --timings are required");
   }
-  if (model != "cnode" && model != "gru") return usage_error("--model must be cnode or gru, found '" + model + "'");
+  if (model != "cnode" && model != "gru") {
+    return kCli.usage_error("--model must be cnode or gru, found '" + model + "'");
+  }
   char* end = nullptr;
   const long k_per = std::strtol(per.c_str(), &end, 10);
-  if (*end != '\0' || k_per < 1 || k_per > 100000) return usage_error("--per-round must be a positive integer");
+  if (*end != '\0' || k_per < 1 || k_per > 100000) return kCli.usage_error("--per-round must be a positive integer");
 
   std::string error;
-  if (!fwref::host::output_allowed(timings, {weights, in}, {"--weights file", "--in file"}, &error)) return fail(error);
+  if (!fwref::host::output_allowed(timings, {weights, in}, {"--weights file", "--in file"}, &error)) {
+    return kCli.fail(error);
+  }
   fwref::WeightsFile wf;
-  if (wf.load(weights, &error) != fwref::Status::kOk) return fail(error);
+  if (wf.load(weights, &error) != fwref::Status::kOk) return kCli.fail(error);
   fwref::Status status;
   std::unique_ptr<fwref::host::Model> m[2];
   for (int p = 0; p < 2; ++p) {
     m[p] = fwref::host::bind_model(wf, model, p == 1, &status, &error);
-    if (!m[p]) return fail(error);
+    if (!m[p]) return kCli.fail(error);
   }
-  std::vector<unsigned char> bytes;
-  if (!fwref::host::read_file(in, "input", &bytes, &error)) return fail(error);
-  const std::size_t per_window = std::size_t(m[0]->window) * m[0]->channels;
-  const std::size_t window_bytes = per_window * sizeof(float);
-  if (bytes.empty() || bytes.size() % window_bytes != 0) {
-    return fail("input " + in + " holds " + std::to_string(bytes.size()) + " bytes, not a whole positive number of (" +
-                std::to_string(m[0]->window) + ", " + std::to_string(m[0]->channels) + ") float32 windows");
-  }
-  const std::size_t n = bytes.size() / window_bytes, K = std::size_t(k_per);
-  if (n < K) return fail("input " + in + " holds " + std::to_string(n) + " windows, fewer than --per-round " + per);
-  std::vector<float> x(n * per_window);
-  std::memcpy(x.data(), bytes.data(), bytes.size());
-  for (float v : x) {
-    if (!std::isfinite(v)) return fail("input " + in + " holds NaN or Inf");
+  std::vector<float> x;
+  if (!fwref::host::read_windows(in, m[0]->window, m[0]->channels, &x, &error)) return kCli.fail(error);
+  const std::size_t per_window = std::size_t(m[0]->window) * m[0]->channels, n = x.size() / per_window;
+  const std::size_t K = std::size_t(k_per);
+  if (n < K) {
+    return kCli.fail("input " + in + " holds " + std::to_string(n) + " windows, fewer than --per-round " + per);
   }
   const std::size_t rounds = n / K;
   std::vector<float> logits(std::size_t(m[0]->classes > m[1]->classes ? m[0]->classes : m[1]->classes));
@@ -98,7 +75,7 @@ int main(int argc, char** argv) {
   for (int p = 0; p < 2; ++p) {  // warm-up: the one-time weight copies, the workspace, the clock
     for (std::size_t w = 0; w < n; ++w) {
       if ((status = m[p]->run(&x[w * per_window], logits.data())) != fwref::Status::kOk) {
-        return fail("window " + std::to_string(w) + " of " + in + ": " + fwref::status_name(status));
+        return kCli.fail("window " + std::to_string(w) + " of " + in + ": " + fwref::status_name(status));
       }
     }
   }
@@ -107,19 +84,21 @@ int main(int argc, char** argv) {
       const int p = (r % 2 == 0) ? turn : 1 - turn;
       const float* first = &x[r * K * per_window];
       if ((status = m[p]->run(first, logits.data())) != fwref::Status::kOk) {
-        return fail("window " + std::to_string(r * K) + " of " + in + ": " + fwref::status_name(status));
+        return kCli.fail("window " + std::to_string(r * K) + " of " + in + ": " + fwref::status_name(status));
       }
       for (std::size_t j = 0; j < K; ++j) {
         const auto t0 = std::chrono::steady_clock::now();
         status = m[p]->run(first + j * per_window, logits.data());
         const auto t1 = std::chrono::steady_clock::now();
         if (status != fwref::Status::kOk) {
-          return fail("window " + std::to_string(r * K + j) + " of " + in + ": " + fwref::status_name(status));
+          return kCli.fail("window " + std::to_string(r * K + j) + " of " + in + ": " + fwref::status_name(status));
         }
         seconds[(r * 2 + p) * K + j] = std::chrono::duration<double>(t1 - t0).count();
       }
     }
   }
-  if (!fwref::host::write_atomic(timings, seconds.data(), seconds.size() * sizeof(double), &error)) return fail(error);
+  if (!fwref::host::write_atomic(timings, seconds.data(), seconds.size() * sizeof(double), &error)) {
+    return kCli.fail(error);
+  }
   return 0;
 }

@@ -46,22 +46,13 @@
 
 namespace {
 
-const char* const kUsage =
+const fwref::host::Cli kCli(
+    "fwref_stream",
     "usage: fwref_stream --weights <weights.bin> (--info [--model cnode|gru|sgru] | --model cnode|gru|sgru [--int8] "
-    "--in <stream.bin|-> [--out <lines.txt>] [--manifest <manifest.json>] [--timings <seconds.f64>])";
+    "--in <stream.bin|-> [--out <lines.txt>] [--manifest <manifest.json>] [--timings <seconds.f64>])");
 constexpr char kMagic[9] = "QFDISTR";  // + NUL: 8 bytes
 constexpr std::uint32_t kVersion = 1;
 constexpr std::size_t kFixedHeader = 128;  // magic .. source; the channel names follow
-
-int usage_error(const std::string& problem) {
-  std::fprintf(stderr, "fwref_stream: %s; %s\n", problem.c_str(), kUsage);
-  return 1;
-}
-
-int fail(const std::string& message) {
-  std::fprintf(stderr, "fwref_stream: error: %s\n", message.c_str());
-  return 2;
-}
 
 struct Header {
   std::uint32_t channels = 0, cells = 0;
@@ -309,54 +300,39 @@ int main(int argc, char** argv) {
   std::string weights, model, in, out, manifest, timings;
   std::vector<std::string> ins;  // --in, repeatable: flights in sequence, reset() between them
   bool int8 = false, info = false;
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    if (a == "-h" || a == "--help") return std::printf("%s\n", kUsage), 0;
-    if (a == "--int8") { int8 = true; continue; }
-    if (a == "--info") { info = true; continue; }
-    std::string* dst = a == "--weights" ? &weights : a == "--model" ? &model : a == "--in" ? &in : a == "--out" ? &out
-                       : a == "--manifest" ? &manifest : a == "--timings" ? &timings : nullptr;
-    if (dst == nullptr) return usage_error("unknown argument '" + a + "'");
-    if (i + 1 >= argc) return usage_error(a + " needs a value");
-    *dst = argv[++i];
-    if (dst == &in) ins.push_back(in);
-  }
-  if (weights.empty() || (!info && (model.empty() || ins.empty()))) return usage_error("missing arguments");
+  const int parsed = kCli.parse(argc, argv,
+                                {{"--weights", &weights}, {"--model", &model}, {"--in", &in, &ins}, {"--out", &out},
+                                 {"--manifest", &manifest}, {"--timings", &timings}},
+                                {{"--int8", &int8}, {"--info", &info}});
+  if (parsed >= 0) return parsed;
+  if (weights.empty() || (!info && (model.empty() || ins.empty()))) return kCli.usage_error("missing arguments");
   if ((!info || !model.empty()) && model != "cnode" && model != "gru" && model != "sgru") {
-    return usage_error("--model must be cnode, gru or sgru");
+    return kCli.usage_error("--model must be cnode, gru or sgru");
   }
   std::string error;
   for (const std::string* o : {&out, &timings}) {
     for (const std::string& one : ins) {
       if (!o->empty() && !fwref::host::output_allowed(*o, {weights, one, manifest}, {"--weights file", "--in file",
                                                                                       "--manifest file"}, &error)) {
-        return fail(error);
+        return kCli.fail(error);
       }
     }
   }
-  if (!manifest.empty()) {
-    std::vector<unsigned char> text, wbytes;
-    if (!fwref::host::read_file(manifest, "manifest", &text, &error)) return fail(error);
-    if (!fwref::host::read_file(weights, "weights", &wbytes, &error)) return fail(error);
-    const std::string want = fwref::host::manifest_sha256(std::string(text.begin(), text.end()), "weights.bin");
-    if (want.empty() || fwref::host::sha256_hex(wbytes) != want) {
-      return fail("weights " + weights + " is not the weights.bin that " + manifest + " records");
-    }
-  }
+  if (!manifest.empty() && !fwref::host::weights_match_manifest(weights, manifest, &error)) return kCli.fail(error);
   fwref::WeightsFile wf;
-  if (wf.load(weights, &error) != fwref::Status::kOk) return fail(error);
+  if (wf.load(weights, &error) != fwref::Status::kOk) return kCli.fail(error);
   fwref::OnboardRecord rec;
-  if (fwref::read_onboard(wf, &rec, &error) != fwref::Status::kOk) return fail(error);
+  if (fwref::read_onboard(wf, &rec, &error) != fwref::Status::kOk) return kCli.fail(error);
   bool from_table = false;  // the bound model's policy (alarm.models), else the record's single one
   if (!model.empty()) rec.params.alarm = fwref::policy_for(rec, model_code(model), &from_table);
   if (info) return print_info(rec, from_table), 0;
   static Bound m;  // the sgru state and the bound structs: not on the stack
-  if (!bind_stream_model(wf, model, int8, &m, &error)) return fail(error);
+  if (!bind_stream_model(wf, model, int8, &m, &error)) return kCli.fail(error);
   if ((model != "sgru" && m.window_len != rec.params.window) || m.channels != rec.params.channels) {
-    return fail("the on-board record's window/channels disagree with the " + model + " section of " + weights);
+    return kCli.fail("the on-board record's window/channels disagree with the " + model + " section of " + weights);
   }
   if (rec.rotor_classes != 0 && rec.rotor_classes != m.classes) {
-    return fail("the on-board record's alarm.rotor_side has " + std::to_string(rec.rotor_classes) + " classes, the " +
+    return kCli.fail("the on-board record's alarm.rotor_side has " + std::to_string(rec.rotor_classes) + " classes, the " +
                 model + " section of " + weights + " " + std::to_string(m.classes));
   }
 
@@ -364,13 +340,15 @@ int main(int argc, char** argv) {
   std::vector<double> seconds;
   Replay r{rec, m, model, int8, lines, timings.empty() ? nullptr : &seconds};
   for (std::size_t i = 0; i < ins.size(); ++i) {
-    if (!replay_file(ins[i], i, &r, &error)) return fail(error);
+    if (!replay_file(ins[i], i, &r, &error)) return kCli.fail(error);
   }
-  if (!out.empty() && !fwref::host::write_atomic(out, lines.text.data(), lines.text.size(), &error)) return fail(error);
+  if (!out.empty() && !fwref::host::write_atomic(out, lines.text.data(), lines.text.size(), &error)) {
+    return kCli.fail(error);
+  }
   if (!timings.empty() &&
       !fwref::host::write_atomic(timings, seconds.data(), seconds.size() * sizeof(double), &error)) {
     if (!out.empty()) std::remove(out.c_str());
-    return fail(error);
+    return kCli.fail(error);
   }
   return 0;
 }

@@ -17,14 +17,16 @@
 // 5. the GRU's int8 step math (fwref/vmath_gru_i8.hpp) against the portable path's scalar expressions: the input
 //    codes, the gates from the accumulators with the state update and its codes (tools/fwref_vmath_gru.hpp).
 // 6. where the int8 kernel is avx512vnni: the CNODE int8 field in one call (fwref/field_w8_vnni.hpp) against the
-//    separate steps, every H, L in 1..64; (AVX-512F) control_row_avx512 against the AVX2 helpers (fwref_vmath_w8.hpp).
+//    separate steps, every H, L in 1..64 (fwref_vmath_w8.hpp); (AVX-512F) control_row_avx512, as control_row_avx2
+//    where the CPU runs AVX2, against the AVX2 helpers (tools/fwref_vmath_check.hpp's check_control_row).
 // 7. where the CPU runs the avx2field int8 kernel (AVX2 + FMA): the CNODE int8 field in one call on AVX2
 //    (fwref/field_w16_avx2.hpp) against the separate steps, every H, L multiple of 8 up to 64, the other shapes
 //    refused (tools/fwref_vmath_w16.hpp); its lin1_u rows in one call (tools/fwref_vmath_lin16.hpp).
 // 8. where the CPU runs AVX2 + FMA: the fp32 CNODE field in one call on AVX2 (fwref/field_f32_avx2.hpp) against a
 //    scalar statement of its order, bit for bit, and within its bound, every H, L in 1..64 (tools/fwref_vmath_f32t.hpp);
 //    the control rows of its control path and its zero-padded products (tools/fwref_vmath_ctlf32.hpp).
-// Prints one line per check ("tanh: 0 of N differ") and the kernel names; exit 0 when nothing differs, 1 otherwise.
+// Prints one line per check ("tanh: 0 of N differ", tools/fwref_vmath_check.hpp's Tally) and the kernel names; exit 0
+// when nothing differs, 1 otherwise.
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
@@ -36,10 +38,12 @@
 #include <string>
 #include <vector>
 
+#include "fwref/controls_avx2.hpp"
+#include "fwref/controls_avx512.hpp"
 #include "fwref/vmath_f32.hpp"
+#include "fwref_vmath_check.hpp"
 #include "fwref_vmath_gru.hpp"
 #include "fwref_vmath_i8.hpp"
-#include "fwref_vmath_ctl2.hpp"
 #include "fwref_vmath_ctlf32.hpp"
 #include "fwref_vmath_f32t.hpp"
 #include "fwref_vmath_lin16.hpp"
@@ -52,12 +56,7 @@ std::vector<float> special_inputs() {
   std::vector<float> v;
   const float edges[] = {9.0f, 18.0f, 0.0f, 1.0f, 1e-20f};
   for (float e : edges) {
-    for (float s : {1.0f, -1.0f}) {
-      const float x = s * e;
-      v.push_back(x);
-      v.push_back(std::nextafter(x, std::numeric_limits<float>::infinity()));
-      v.push_back(std::nextafter(x, -std::numeric_limits<float>::infinity()));
-    }
+    for (float s : {1.0f, -1.0f}) vmath_check::push_with_neighbours(v, s * e);
   }
   for (std::uint32_t u : {0x00000000u, 0x80000000u, 0x7f800000u, 0xff800000u, 0x7fc00000u, 0xffc00000u,
                           0x7fa00001u, 0xffa00001u, 0x7fffffffu, 0x00000001u, 0x80000001u, 0x007fffffu,
@@ -117,9 +116,7 @@ struct GemvCheck {
 void check_gemv_one(std::mt19937& rng, int rows, int cols, bool bias, int lanes, GemvCheck& c, bool reverse = false) {
   std::normal_distribution<float> nd(0.0f, 1.0f);
   std::vector<float> w(rows * cols + 1), x(cols + 1), b(rows + 1);
-  for (float& f : w) f = nd(rng);
-  for (float& f : x) f = nd(rng);
-  for (float& f : b) f = nd(rng);
+  vmath_check::fill(rng, nd, w, x, b);
   const fwref::MatF m{w.data() + 1, rows, cols};
   const float* bp = bias ? b.data() + 1 : nullptr;
   Eigen::Matrix<float, Eigen::Dynamic, 1> y(rows);
@@ -194,14 +191,6 @@ GemvCheck check_gemv() {
 }
 
 #if defined(FWREF_HAS_F32_AVX512)
-// n floats starting on a 64-byte boundary inside ``v`` (the column-major copies' alignment, which
-// Eigen's aligned_allocator gives only in a build whose own vectors are 512-bit).
-float* floats64(std::vector<float>& v, std::size_t n) {
-  v.assign(n + 16, 0.0f);
-  const std::uintptr_t a = reinterpret_cast<std::uintptr_t>(v.data());
-  return v.data() + ((64 - a % 64) % 64) / sizeof(float);
-}
-
 // gemv_f32_t_avx512 (fwref/kernels_f32_avx512.hpp's column-major copy) on random matrices of every
 // column count 1..140 and the row counts 1..20, 33, 40, 64, 65, 100: bit for bit against a scalar
 // statement of its order and within its bound gamma(ceil(cols / 4) + 2) * sum |w x| (+ the bias add's u |y|).
@@ -217,11 +206,9 @@ bool check_gemv_t(GemvCheck& c) {
   for (int cols = 1; cols <= 140; ++cols) {
     for (int rows : row_counts) {
       std::vector<float> w(rows * cols), x(cols), b(rows), y(rows + 1, 7.0f);
-      for (float& f : w) f = nd(rng);
-      for (float& f : x) f = nd(rng);
-      for (float& f : b) f = nd(rng);
+      vmath_check::fill(rng, nd, w, x, b);
       std::vector<float> wt_store;
-      float* const wt = floats64(wt_store, std::size_t(cols) * fwref::f32_t_stride(rows));
+      float* const wt = vmath_check::floats64(wt_store, std::size_t(cols) * fwref::f32_t_stride(rows));
       fwref::pack_f32_t(w.data(), rows, cols, wt);
       const bool bias = (rows + cols) % 2 == 0;
       fwref::gemv_f32_t_avx512(wt, rows, cols, x.data(), bias ? b.data() : nullptr, y.data());
@@ -260,22 +247,13 @@ long check_field_t(long* compared) {
   long bad = 0;
   for (int H = 1; H <= 64; ++H) {
     for (int L = 1; L <= 64; ++L) {
-      std::vector<float> w1(H * L), w2(L * H), z(L), v(H), b2(L), a(H), want(L), got(L + 1, 7.0f);
-      for (float& f : w1) f = nd(rng);
-      for (float& f : w2) f = nd(rng);
-      for (float& f : z) f = 3.0f * nd(rng) / std::sqrt(float(L));
-      for (float& f : v) f = nd(rng);
-      for (float& f : b2) f = nd(rng);
-      std::vector<float> s1, s2;
-      float* const t1 = floats64(s1, std::size_t(L) * fwref::f32_t_stride(H));
-      float* const t2 = floats64(s2, std::size_t(H) * fwref::f32_t_stride(L));
-      fwref::pack_f32_t(w1.data(), H, L, t1);
-      fwref::pack_f32_t(w2.data(), L, H, t2);
-      fwref::gemv_f32_t_avx512(t1, H, L, z.data(), v.data(), a.data());
+      const vmath_check::FieldF32Case f(rng, nd, H, L);
+      std::vector<float> a(H), want(L), got(L + 1, 7.0f);
+      fwref::gemv_f32_t_avx512(f.t1, H, L, f.z.data(), f.v.data(), a.data());
       fwref::tanh_n(a.data(), H);
-      fwref::gemv_f32_t_avx512(t2, L, H, a.data(), b2.data(), want.data());
-      if (!fwref::field_f32_t_avx512(t1, t2, H, L, z.data(), v.data(), b2.data(), got.data())) return -1;
-      for (int o = 0; o < L; ++o) bad += fwref::float_bits(want[o]) != fwref::float_bits(got[o]);
+      fwref::gemv_f32_t_avx512(f.t2, L, H, a.data(), f.b2.data(), want.data());
+      if (!fwref::field_f32_t_avx512(f.t1, f.t2, H, L, f.z.data(), f.v.data(), f.b2.data(), got.data())) return -1;
+      for (int o = 0; o < L; ++o) bad += vmath_check::differ(want[o], got[o]);
       bad += got[L] != 7.0f;  // nothing written past k
       *compared += L;
     }
@@ -322,24 +300,20 @@ int main(int argc, char** argv) {
   for (int i = 0; in.size() % 8 != 5; ++i) in.push_back(static_cast<float>(i) * 0.37f);  // a scalar tail
   std::printf("vmath kernel: %s\n", fwref::vmath_f32_kernel_name());
   std::printf("gemv kernel: %s\n", fwref::matvec_f32_kernel_name());
-  const long bt = compare(in, fwref::tanh_n, fwref::tanh_approx);
-  std::printf("tanh: %ld of %zu differ\n", bt, in.size());
-  const long bl = compare(in, fwref::logistic_n, fwref::logistic_approx);
-  std::printf("logistic: %ld of %zu differ\n", bl, in.size());
+  vmath_check::Tally t;
+  t.run("tanh", [&](long* n) { return *n = long(in.size()), compare(in, fwref::tanh_n, fwref::tanh_approx); });
+  t.run("logistic", [&](long* n) { return *n = long(in.size()), compare(in, fwref::logistic_n, fwref::logistic_approx); });
   const GemvCheck g = check_gemv();
   std::printf("gemv order: %ld of %ld differ\n", g.order_bad, g.order_compared);  // 0 of 0: Eigen's product
   std::printf("gemv bound: %ld of %ld exceed (worst error / bound %.3f)\n", g.bound_bad, g.compared, g.worst);
-  long bg = g.order_bad + g.bound_bad;
+  t.bad += g.order_bad + g.bound_bad;
 #if defined(FWREF_HAS_F32_AVX512)
   GemvCheck gt;
   if (check_gemv_t(gt)) {
     std::printf("gemv_t order: %ld of %ld differ\n", gt.order_bad, gt.order_compared);
     std::printf("gemv_t bound: %ld of %ld exceed (worst error / bound %.3f)\n", gt.bound_bad, gt.compared, gt.worst);
-    bg += gt.order_bad + gt.bound_bad;
-    long compared_field = 0;
-    const long bfield = check_field_t(&compared_field);
-    std::printf("field_t: %ld of %ld differ\n", bfield, compared_field);
-    bg += bfield != 0 ? 1 : 0;
+    t.bad += gt.order_bad + gt.bound_bad;
+    t.run("field_t", check_field_t);
   }
 #endif
 #if defined(FWREF_HAS_F32_FIELD_AVX2)
@@ -349,51 +323,35 @@ int main(int argc, char** argv) {
   if (bfield2 >= 0) {
     std::printf("field_f32_avx2 order: %ld of %ld differ\n", bfield2, compared_f2);
     std::printf("field_f32_avx2 bound: %ld exceed (worst error / bound %.3f)\n", bound_f2, worst_f2);
-    bg += bfield2 != 0 || bound_f2 != 0 ? 1 : 0;
+    t.bad += bfield2 + bound_f2;
   }
 #endif
-  long compared_f = 0;
-  const long bf = check_all_finite(&compared_f);
-  std::printf("all_finite: %ld of %ld differ\n", bf, compared_f);
+  t.run("all_finite", check_all_finite);
   std::printf("vmath_i8 kernel: %s\n", fwref::vmath_i8_kernel_name());
-  long bad_i8 = 0;
-  const auto report = [&](const char* name, long (*check)(long*)) {
-    long n = 0;
-    const long b = check(&n);
-    std::printf("%s: %ld of %ld differ\n", name, b, n);
-    bad_i8 += b;
-  };
-  long compared_q = 0;
-  const long bq = vmath_i8_check::check_quantize(in, &compared_q);
-  std::printf("quantize: %ld of %ld differ\n", bq, compared_q);
-  bad_i8 += bq;
-  report("rescale_tanh_quantize+rescale_bias", vmath_i8_check::check_rescale);
-  report("hidden_rows", vmath_i8_check::check_hidden_rows);
-  report("control_row", vmath_i8_check::check_control_row);
-  report("nonzero", vmath_i8_check::check_nonzero);
-#if defined(FWREF_HAS_CONTROLS_AVX2)
-  report("control_row_avx2", vmath_ctl2_check::check_control);  // the int8 control rows in registers
+  t.run("quantize", [&](long* n) { return vmath_i8_check::check_quantize(in, n); });
+  t.run("rescale_tanh_quantize+rescale_bias", vmath_i8_check::check_rescale);
+  t.run("hidden_rows", vmath_i8_check::check_hidden_rows);
+  t.run("control_row", vmath_i8_check::check_control_row);
+  t.run("nonzero", vmath_i8_check::check_nonzero);
+#if defined(FWREF_HAS_CONTROLS_AVX2)  // the int8 control rows in registers
+  t.run("control_row_avx2", [](long* n) { return vmath_check::check_control_row(fwref::control_row_avx2, n); });
 #endif
-#if defined(FWREF_HAS_CONTROLS_F32_AVX2)  // the fp32 control path of avx2field (counted with the int8 checks)
-  report("control_rows_f32_avx2", vmath_ctlf32_check::check_rows), report("gemv padded", vmath_ctlf32_check::check_padded);
+#if defined(FWREF_HAS_CONTROLS_F32_AVX2)  // the fp32 control path of avx2field
+  t.run("control_rows_f32_avx2", vmath_ctlf32_check::check_rows);
+  t.run("gemv padded", vmath_ctlf32_check::check_padded);
 #endif
-  report("gru_input_row", vmath_gru_check::check_input_row);
-  report("gru_gates", vmath_gru_check::check_gates);
-  report("gru_gate_rows", vmath_gru_check::check_gate_rows);
+  t.run("gru_input_row", vmath_gru_check::check_input_row);
+  t.run("gru_gates", vmath_gru_check::check_gates);
+  t.run("gru_gate_rows", vmath_gru_check::check_gate_rows);
 #if defined(FWREF_HAS_W8_VNNI)
-  long compared_w8 = 0;
-  const long bw8 = vmath_w8_check::check_field(&compared_w8);
-  if (bw8 >= 0) std::printf("field_w8: %ld of %ld differ\n", bw8, compared_w8);
-  bad_i8 += bw8 > 0 ? bw8 : 0;
-  if (bw8 >= 0) report("control_row_avx512", vmath_w8_check::check_control);  // the same CPU condition
+  if (t.run("field_w8", vmath_w8_check::check_field) >= 0) {  // the CPU runs AVX-512F + VNNI: its control rows too
+    t.run("control_row_avx512", [](long* n) { return vmath_check::check_control_row(fwref::control_row_avx512, n); });
+  }
 #endif
 #if defined(FWREF_HAS_FIELD_W16_AVX2)
-  long compared_w16 = 0;
-  const long bw16 = vmath_w16_check::check_field(&compared_w16);
-  if (bw16 >= 0) std::printf("field_w16: %ld of %ld differ\n", bw16, compared_w16);
-  bad_i8 += bw16 > 0 ? bw16 : 0;
-  long compared_l16 = 0, bl16 = bw16 >= 0 ? vmath_lin16_check::check_linear(&compared_l16) : -1;  // avx2field's CPU
-  if (bl16 >= 0) std::printf("linear_w16: %ld of %ld differ\n", bl16, compared_l16), bad_i8 += bl16;
+  if (t.run("field_w16", vmath_w16_check::check_field) >= 0) {  // the CPU runs avx2field: its lin1_u rows too
+    t.run("linear_w16", vmath_lin16_check::check_linear);
+  }
 #endif
-  return bt == 0 && bl == 0 && bg == 0 && bf == 0 && bad_i8 == 0 ? 0 : 1;
+  return t.bad == 0 ? 0 : 1;
 }

@@ -12,13 +12,13 @@
 #pragma once
 
 #include <cmath>
-#include <limits>
 #include <random>
 #include <vector>
 
 #include "fwref/controls_f32_avx2.hpp"
 #include "fwref/numerics.hpp"
 #include "fwref/vmath_f32.hpp"
+#include "fwref_vmath_check.hpp"
 
 namespace vmath_ctlf32_check {
 
@@ -27,8 +27,6 @@ namespace vmath_ctlf32_check {
 inline long check_rows(long* compared) {
   std::mt19937 rng(79);
   std::normal_distribution<float> nd(0.0f, 1.0f);
-  const float odd[4] = {std::numeric_limits<float>::quiet_NaN(), std::numeric_limits<float>::infinity(),
-                        -std::numeric_limits<float>::infinity(), 3e38f};
   long bad = 0;
   for (int C = 1; C <= 32; ++C) {
     const int up = (C + 7) & ~7;
@@ -42,7 +40,7 @@ inline long check_rows(long* compared) {
       }
       for (float& f : x) f = 3.0f * nd(rng);
       for (int c = 0; c < C; ++c) mean[c] = 0.3f * nd(rng), sd[c] = 0.5f + std::fabs(nd(rng));
-      if ((C + W) % 4 == 0) x[(C * 7 + W) % (W * C)] = odd[(C + W) % 16 / 4];
+      if ((C + W) % 4 == 0) x[(C * 7 + W) % (W * C)] = vmath_check::kOdd[(C + W) % 16 / 4];
       for (int s = 0; s < S; ++s) {
         for (int c = 0; c < C; ++c) {
           float u = 0.0f;

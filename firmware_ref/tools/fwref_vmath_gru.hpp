@@ -53,27 +53,25 @@ inline long check_input_row(long* compared) {
   std::mt19937 rng(515);
   std::uniform_real_distribution<float> pos(0.05f, 3.0f);
   const float pow2[] = {0.0078125f, 0.5f, 1.0f, 4.0f};
-  long bad = 0;
-  for (int n = 1; n <= 70; ++n) {
-    for (int rep = 0; rep < 4; ++rep) {
-      std::vector<float> x(n), mean(n), std_(n), s_x(n);
-      for (int i = 0; i < n; ++i) {
-        if (rep < 2) {  // random rows with special values
-          x[i] = pick(rng, 4.0f), mean[i] = pick(rng, 1.0f), std_[i] = pos(rng), s_x[i] = pos(rng) / 64;
-        } else {  // mean 0, std 1, a power-of-two scale: x / s_x exactly a tie or a bound, or a float next to it
-          const float s = pow2[rng() % 4];
-          const float k = static_cast<float>(static_cast<int>(rng() % 262) - 131) + 0.5f;
-          const float edges[] = {k, -128.5f, -128.0f, 127.0f, 127.5f};
-          float v = edges[rng() % 5] * s;
-          if (rng() % 3 == 0) v = std::nextafter(v, rng() % 2 ? 1e30f : -1e30f);
-          x[i] = v, mean[i] = 0.0f, std_[i] = 1.0f, s_x[i] = s;
-        }
+  return vmath_check::every_length(4, [&](int n, int rep) {
+    long bad = 0;
+    std::vector<float> x(n), mean(n), std_(n), s_x(n);
+    for (int i = 0; i < n; ++i) {
+      if (rep < 2) {  // random rows with special values
+        x[i] = pick(rng, 4.0f), mean[i] = pick(rng, 1.0f), std_[i] = pos(rng), s_x[i] = pos(rng) / 64;
+      } else {  // mean 0, std 1, a power-of-two scale: x / s_x exactly a tie or a bound, or a float next to it
+        const float s = pow2[rng() % 4];
+        const float k = static_cast<float>(static_cast<int>(rng() % 262) - 131) + 0.5f;
+        const float edges[] = {k, -128.5f, -128.0f, 127.0f, 127.5f};
+        float v = edges[rng() % 5] * s;
+        if (rng() % 3 == 0) v = std::nextafter(v, rng() % 2 ? 1e30f : -1e30f);
+        x[i] = v, mean[i] = 0.0f, std_[i] = 1.0f, s_x[i] = s;
       }
-      bad += input_row<std::int8_t>(x, mean, std_, s_x, rep % 2 == 0, compared);
-      bad += input_row<std::int16_t>(x, mean, std_, s_x, rep % 2 == 1, compared);
     }
-  }
-  return bad;
+    bad += input_row<std::int8_t>(x, mean, std_, s_x, rep % 2 == 0, compared);
+    bad += input_row<std::int16_t>(x, mean, std_, s_x, rep % 2 == 1, compared);
+    return bad;
+  });
 }
 
 // The portable path's arithmetic (src/gru.cpp: linear_i8_folded's and linear_i8_tensor's rescale into
@@ -134,22 +132,20 @@ long gates_once(const GateRows& rows, float s_h, const std::vector<float>& h0, l
 inline long check_gates(long* compared) {
   std::mt19937 rng(8080);
   std::uniform_real_distribution<float> scale(1e-7f, 1e-4f);
-  long bad = 0;
-  for (int hidden = 1; hidden <= 70; ++hidden) {
-    for (int rep = 0; rep < 4; ++rep) {
-      GateRows rows(hidden);
-      for (int o = 0; o < 3 * hidden; ++o) {
-        rows.acc_x[o] = pick_acc(rng), rows.acc_h[o] = pick_acc(rng);
-        rows.s_wx[o] = scale(rng), rows.s_wh[o] = scale(rng) * 100.0f;
-        rows.b_ih[o] = pick(rng, 1.0f), rows.b_hh[o] = pick(rng, 1.0f);
-      }
-      std::vector<float> h0(hidden);
-      for (float& v : h0) v = pick(rng, 0.5f);
-      const float s_h = rep == 0 ? 1.0f / 127.0f : rep == 1 ? 0.0123f : scale(rng) * 1000.0f;
-      bad += gates_once<std::int8_t>(rows, s_h, h0, compared) + gates_once<std::int16_t>(rows, s_h, h0, compared);
+  return vmath_check::every_length(4, [&](int hidden, int rep) {
+    long bad = 0;
+    GateRows rows(hidden);
+    for (int o = 0; o < 3 * hidden; ++o) {
+      rows.acc_x[o] = pick_acc(rng), rows.acc_h[o] = pick_acc(rng);
+      rows.s_wx[o] = scale(rng), rows.s_wh[o] = scale(rng) * 100.0f;
+      rows.b_ih[o] = pick(rng, 1.0f), rows.b_hh[o] = pick(rng, 1.0f);
     }
-  }
-  return bad;
+    std::vector<float> h0(hidden);
+    for (float& v : h0) v = pick(rng, 0.5f);
+    const float s_h = rep == 0 ? 1.0f / 127.0f : rep == 1 ? 0.0123f : scale(rng) * 1000.0f;
+    bad += gates_once<std::int8_t>(rows, s_h, h0, compared) + gates_once<std::int16_t>(rows, s_h, h0, compared);
+    return bad;
+  });
 }
 
 inline long check_gate_rows(long* compared) {

@@ -27,19 +27,15 @@
 #include <vector>
 
 #include "fwref/vmath_i8.hpp"
+#include "fwref_vmath_check.hpp"
 
 namespace vmath_i8_check {
 
 // Inputs x such that x / s hits the quantizer's edges for the scale s.
 inline std::vector<float> quantize_edges(float s) {
   std::vector<float> v;
-  auto with_neighbours = [&](float x) {
-    v.push_back(x);
-    v.push_back(std::nextafter(x, std::numeric_limits<float>::infinity()));
-    v.push_back(std::nextafter(x, -std::numeric_limits<float>::infinity()));
-  };
-  for (int k = -131; k <= 130; ++k) with_neighbours((static_cast<float>(k) + 0.5f) * s);  // ties
-  for (float b : {-128.5f, -128.0f, 127.0f, 127.5f, 1e9f, -1e9f}) with_neighbours(b * s);
+  for (int k = -131; k <= 130; ++k) vmath_check::push_with_neighbours(v, (static_cast<float>(k) + 0.5f) * s);  // ties
+  for (float b : {-128.5f, -128.0f, 127.0f, 127.5f, 1e9f, -1e9f}) vmath_check::push_with_neighbours(v, b * s);
   for (std::uint32_t u : {0x00000000u, 0x80000000u, 0x7f800000u, 0xff800000u, 0x7fc00000u, 0xffc00000u,
                           0x7fa00001u, 0xffa00001u, 0x00000001u, 0x80000001u, 0x007fffffu, 0x7f7fffffu, 0xff7fffffu}) {
     v.push_back(fwref::bits_float(u));
@@ -93,30 +89,28 @@ inline std::int32_t pick_acc(std::mt19937& rng) {
 inline long check_rescale(long* compared) {
   std::mt19937 rng(4321);
   std::uniform_real_distribution<float> scale(1e-6f, 1e-3f);
-  long bad = 0;
-  for (int n = 1; n <= 70; ++n) {
-    for (int rep = 0; rep < 4; ++rep) {
-      std::vector<std::int32_t> acc(n);
-      std::vector<float> s_w(n), v(n), b(n), y(n + 1, 7.0f);
-      for (int i = 0; i < n; ++i) acc[i] = pick_acc(rng), s_w[i] = scale(rng), v[i] = pick(rng, 2.0f), b[i] = pick(rng, 1.0f);
-      const float s_a = rep == 0 ? 1.0f / 127.0f : scale(rng) * 100.0f;
-      const float s_q = rep % 2 == 0 ? 1.0f / 127.0f : 0.0123f;
-      std::vector<std::int16_t> q(n + 1, 77);
-      fwref::rescale_tanh_quantize_n(acc.data(), s_a, s_w.data(), v.data(), s_q, n, q.data());
-      fwref::rescale_bias_n(acc.data(), s_w.data(), b.data(), n, y.data());
-      bad += (q[n] != 77) + (fwref::float_bits(y[n]) != fwref::float_bits(7.0f));
-      for (int i = 0; i < n; ++i) {
-        const std::int16_t want = fwref::quantize(fwref::tanh_approx(fwref::rescale_i32(acc[i], s_a, s_w[i]) + v[i]), s_q);
-        const float want_y = static_cast<float>(acc[i]) * s_w[i] + b[i];
-        if (q[i] != want || fwref::float_bits(y[i]) != fwref::float_bits(want_y)) {
-          if (bad < 5) std::printf("  rescale n=%d i=%d acc=%d: code %d vs %d, y %a vs %a\n", n, i, acc[i], q[i], want, y[i], want_y);
-          ++bad;
-        }
+  return vmath_check::every_length(4, [&](int n, int rep) {
+    long bad = 0;
+    std::vector<std::int32_t> acc(n);
+    std::vector<float> s_w(n), v(n), b(n), y(n + 1, 7.0f);
+    for (int i = 0; i < n; ++i) acc[i] = pick_acc(rng), s_w[i] = scale(rng), v[i] = pick(rng, 2.0f), b[i] = pick(rng, 1.0f);
+    const float s_a = rep == 0 ? 1.0f / 127.0f : scale(rng) * 100.0f;
+    const float s_q = rep % 2 == 0 ? 1.0f / 127.0f : 0.0123f;
+    std::vector<std::int16_t> q(n + 1, 77);
+    fwref::rescale_tanh_quantize_n(acc.data(), s_a, s_w.data(), v.data(), s_q, n, q.data());
+    fwref::rescale_bias_n(acc.data(), s_w.data(), b.data(), n, y.data());
+    bad += (q[n] != 77) + (fwref::float_bits(y[n]) != fwref::float_bits(7.0f));
+    for (int i = 0; i < n; ++i) {
+      const std::int16_t want = fwref::quantize(fwref::tanh_approx(fwref::rescale_i32(acc[i], s_a, s_w[i]) + v[i]), s_q);
+      const float want_y = static_cast<float>(acc[i]) * s_w[i] + b[i];
+      if (q[i] != want || fwref::float_bits(y[i]) != fwref::float_bits(want_y)) {
+        if (bad < 5) std::printf("  rescale n=%d i=%d acc=%d: code %d vs %d, y %a vs %a\n", n, i, acc[i], q[i], want, y[i], want_y);
+        ++bad;
       }
-      *compared += 2 * n;
     }
-  }
-  return bad;
+    *compared += 2 * n;
+    return bad;
+  });
 }
 
 // The hidden layer's rows as the CNODE has them (acc from int8 products, y mostly in tanh's steep
@@ -149,39 +143,37 @@ inline long check_hidden_rows(long* compared) {
 inline long check_control_row(long* compared) {
   std::mt19937 rng(99);
   std::uniform_real_distribution<float> pos(0.05f, 3.0f), p_scale(1e-3f, 2e-2f);
-  long bad = 0;
-  for (int n = 1; n <= 70; ++n) {
-    for (int rep = 0; rep < 3; ++rep) {
-      std::vector<float> mean(n), std_(n), s_x(n), s_u(n);
-      for (int i = 0; i < n; ++i) mean[i] = pick(rng, 1.0f), std_[i] = pos(rng), s_x[i] = pos(rng) / 64, s_u[i] = pos(rng) / 64;
-      std::vector<std::int32_t> acc(n + 1, 0), ref(n, 0);
-      acc[n] = 12345;
-      for (int sample = 0; sample < 3; ++sample) {
-        std::vector<float> x(n);
-        for (float& f : x) f = pick(rng, 4.0f);
-        const std::int32_t p = static_cast<std::int32_t>(rng() % 255) - 127;
-        fwref::accumulate_codes(x.data(), mean.data(), std_.data(), s_x.data(), n, p, acc.data());
-        for (int i = 0; i < n; ++i) ref[i] += p * fwref::quantize(fwref::normalise(x[i], mean[i], std_[i]), s_x[i]);
-      }
-      bad += acc[n] != 12345;
-      for (int i = 0; i < n; ++i) bad += acc[i] != ref[i];
-      const float s_p = p_scale(rng);
-      std::vector<float> u(n + 1, 7.0f);
-      std::vector<std::int8_t> q(n + 1, 77);
-      fwref::rescale_quantize_row(acc.data(), s_p, s_x.data(), s_u.data(), n, rep == 2 ? nullptr : u.data(), q.data());
-      bad += (q[n] != 77) + (fwref::float_bits(u[n]) != fwref::float_bits(7.0f));
-      for (int i = 0; i < n; ++i) {
-        const float want_u = fwref::rescale_i32(acc[i], s_p, s_x[i]);
-        const std::int8_t want_q = fwref::quantize(want_u, s_u[i]);
-        if (q[i] != want_q || (rep != 2 && fwref::float_bits(u[i]) != fwref::float_bits(want_u))) {
-          if (bad < 5) std::printf("  control row n=%d i=%d: code %d vs %d, u %a vs %a\n", n, i, q[i], want_q, u[i], want_u);
-          ++bad;
-        }
-      }
-      *compared += 2 * n;
+  return vmath_check::every_length(3, [&](int n, int rep) {
+    long bad = 0;
+    std::vector<float> mean(n), std_(n), s_x(n), s_u(n);
+    for (int i = 0; i < n; ++i) mean[i] = pick(rng, 1.0f), std_[i] = pos(rng), s_x[i] = pos(rng) / 64, s_u[i] = pos(rng) / 64;
+    std::vector<std::int32_t> acc(n + 1, 0), ref(n, 0);
+    acc[n] = 12345;
+    for (int sample = 0; sample < 3; ++sample) {
+      std::vector<float> x(n);
+      for (float& f : x) f = pick(rng, 4.0f);
+      const std::int32_t p = static_cast<std::int32_t>(rng() % 255) - 127;
+      fwref::accumulate_codes(x.data(), mean.data(), std_.data(), s_x.data(), n, p, acc.data());
+      for (int i = 0; i < n; ++i) ref[i] += p * fwref::quantize(fwref::normalise(x[i], mean[i], std_[i]), s_x[i]);
     }
-  }
-  return bad;
+    bad += acc[n] != 12345;
+    for (int i = 0; i < n; ++i) bad += acc[i] != ref[i];
+    const float s_p = p_scale(rng);
+    std::vector<float> u(n + 1, 7.0f);
+    std::vector<std::int8_t> q(n + 1, 77);
+    fwref::rescale_quantize_row(acc.data(), s_p, s_x.data(), s_u.data(), n, rep == 2 ? nullptr : u.data(), q.data());
+    bad += (q[n] != 77) + (fwref::float_bits(u[n]) != fwref::float_bits(7.0f));
+    for (int i = 0; i < n; ++i) {
+      const float want_u = fwref::rescale_i32(acc[i], s_p, s_x[i]);
+      const std::int8_t want_q = fwref::quantize(want_u, s_u[i]);
+      if (q[i] != want_q || (rep != 2 && fwref::float_bits(u[i]) != fwref::float_bits(want_u))) {
+        if (bad < 5) std::printf("  control row n=%d i=%d: code %d vs %d, u %a vs %a\n", n, i, q[i], want_q, u[i], want_u);
+        ++bad;
+      }
+    }
+    *compared += 2 * n;
+    return bad;
+  });
 }
 
 inline long check_nonzero(long* compared) {

@@ -9,7 +9,6 @@
 
 #include <cmath>
 #include <cstdint>
-#include <limits>
 #include <random>
 #include <vector>
 
@@ -17,6 +16,7 @@
 #include "fwref/linear_w16_avx2.hpp"
 #include "fwref/numerics.hpp"
 #include "fwref/vmath_i8.hpp"
+#include "fwref_vmath_check.hpp"
 
 namespace vmath_lin16_check {
 
@@ -25,8 +25,6 @@ namespace vmath_lin16_check {
 inline long check_one(std::mt19937& rng, int rows, int cols, int n, int draw) {
   std::normal_distribution<float> nd(0.0f, 1.0f);
   std::uniform_int_distribution<int> wd(-127, 127), xd(-128, 127);
-  const float odd[4] = {std::numeric_limits<float>::quiet_NaN(), std::numeric_limits<float>::infinity(),
-                        -std::numeric_limits<float>::infinity(), 3e38f};
   std::vector<std::int8_t> q(rows * cols), x(n * cols);
   for (auto& w : q) w = static_cast<std::int8_t>(draw % 2 == 1 ? (wd(rng) < 0 ? -127 : 127) : wd(rng));
   for (auto& c : x) c = static_cast<std::int8_t>(xd(rng));
@@ -35,7 +33,7 @@ inline long check_one(std::mt19937& rng, int rows, int cols, int n, int draw) {
   fwref::expand_i8_to_i16(q.data(), rows, cols, w16.data());
   std::vector<float> s_w(rows), b(rows), want(n * rows), got(n * rows + 1, 7.0f);
   for (int o = 0; o < rows; ++o) s_w[o] = (0.5f + std::fabs(nd(rng))) * 1e-3f, b[o] = nd(rng);
-  if ((rows + cols + draw) % 5 == 0) b[(cols + draw) % rows] = odd[(rows + cols) % 4];
+  if ((rows + cols + draw) % 5 == 0) b[(cols + draw) % rows] = vmath_check::kOdd[(rows + cols) % 4];
   for (int s = 0; s < n; ++s) {
     fwref::linear_i8_folded(q.data(), s_w.data(), rows, cols, x.data() + s * cols, b.data(), want.data() + s * rows);
   }

@@ -1,9 +1,12 @@
-// tools/host_common.hpp -- scope: what the two host programs (fwref_infer, fwref_parity) share:
-// the four bound models behind one interface, the no-heap guard around inference, and file
-// helpers (whole-file read, atomic write: temp file + rename, so no half-written output).
+// tools/host_common.hpp -- scope: what the host programs (fwref_infer, fwref_pair, fwref_parity, fwref_stream)
+// share: the four bound models behind one interface, the no-heap guard around inference, the command line
+// (usage, one-line errors and their exit codes), and file helpers (whole-file read, the windows file, atomic
+// write: temp file + rename, so no half-written output).
 #pragma once
 
 #include <cerrno>
+#include <cmath>
+#include <initializer_list>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -103,6 +106,90 @@ inline bool read_file(const std::string& path, const char* what, std::vector<uns
   std::fclose(f);
   if (failed) *error = std::string("cannot read ") + what + " " + path;
   return !failed;
+}
+
+// A host program's command line: options that take a value and flags, -h / --help; a usage error is one line
+// on stderr and exit 1, a failure (bad input, a file that cannot be read or written) one line and exit 2.
+class Cli {
+ public:
+  struct Value {
+    const char* name;
+    std::string* dst;
+    std::vector<std::string>* every = nullptr;  // a repeatable option: each of its values in order
+  };
+  struct Flag {
+    const char* name;
+    bool* dst;
+  };
+  Cli(const char* program, const char* usage) : program_(program), usage_(usage) {}
+
+  // -1 when the whole line was read into the options; else the exit code: 0 after printing the usage
+  // (-h, --help), 1 after a usage error.
+  int parse(int argc, char** argv, std::initializer_list<Value> values, std::initializer_list<Flag> flags = {}) const {
+    for (int i = 1; i < argc; ++i) {
+      const std::string a = argv[i];
+      if (a == "-h" || a == "--help") return std::printf("%s\n", usage_), 0;
+      const Flag* f = find(flags, a);
+      if (f != nullptr) {
+        *f->dst = true;
+        continue;
+      }
+      const Value* v = find(values, a);
+      if (v == nullptr) return usage_error("unknown argument '" + a + "'");
+      if (i + 1 >= argc) return usage_error(a + " needs a value");
+      *v->dst = argv[++i];
+      if (v->every != nullptr) v->every->push_back(*v->dst);
+    }
+    return -1;
+  }
+  int usage_error(const std::string& problem) const {
+    std::fprintf(stderr, "%s: %s; %s\n", program_, problem.c_str(), usage_);
+    return 1;
+  }
+  int fail(const std::string& message) const {
+    std::fprintf(stderr, "%s: error: %s\n", program_, message.c_str());
+    return 2;
+  }
+
+ private:
+  template <class Option>
+  static const Option* find(std::initializer_list<Option> options, const std::string& name) {
+    for (const Option& o : options) {
+      if (name == o.name) return &o;
+    }
+    return nullptr;
+  }
+  const char* program_;
+  const char* usage_;
+};
+
+// ``path``'s raw little-endian float32 windows (n, window, channels), n >= 1 from the file size, every value
+// finite, into ``x``; false with a one-line reason in ``error`` (the first non-finite value named).
+inline bool read_windows(const std::string& path, int window, int channels, std::vector<float>* x, std::string* error) {
+  std::vector<unsigned char> bytes;
+  if (!read_file(path, "input", &bytes, error)) return false;
+  const std::size_t per_window = std::size_t(window) * channels, window_bytes = per_window * sizeof(float);
+  char buf[512];
+  if (bytes.empty() || bytes.size() % window_bytes != 0) {
+    std::snprintf(buf, sizeof buf,
+                  "input %s holds %zu bytes, not a whole positive number of (%d, %d) float32 windows of %zu bytes "
+                  "(the weights' window and channel count)",
+                  path.c_str(), bytes.size(), window, channels, window_bytes);
+    *error = buf;
+    return false;
+  }
+  x->resize(bytes.size() / sizeof(float));
+  std::memcpy(x->data(), bytes.data(), bytes.size());
+  for (std::size_t i = 0; i < x->size(); ++i) {
+    if (!std::isfinite((*x)[i])) {
+      const std::size_t in_window = i % per_window;
+      std::snprintf(buf, sizeof buf, "input %s: window %zu holds NaN or Inf (first at sample %zu, channel %zu)",
+                    path.c_str(), i / per_window, in_window / channels, in_window % channels);
+      *error = buf;
+      return false;
+    }
+  }
+  return true;
 }
 
 // Write ``n`` bytes to ``path`` through a temp file in the same folder and a rename: a reader never

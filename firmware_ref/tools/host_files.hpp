@@ -13,6 +13,8 @@
 
 #include <sys/stat.h>
 
+#include "host_common.hpp"
+
 namespace fwref {
 namespace host {
 
@@ -102,6 +104,25 @@ inline std::string manifest_sha256(const std::string& manifest, const std::strin
     pos = manifest.find(key, pos + 1);
   }
   return std::string();
+}
+
+// weights.bin at ``weights`` is the file whose sha256 the export's manifest at ``manifest`` records (--manifest);
+// false with a one-line reason in ``error``.
+inline bool weights_match_manifest(const std::string& weights, const std::string& manifest, std::string* error) {
+  std::vector<unsigned char> text, wbytes;
+  if (!read_file(manifest, "manifest", &text, error) || !read_file(weights, "weights", &wbytes, error)) return false;
+  const std::string expected = manifest_sha256(std::string(text.begin(), text.end()), "weights.bin");
+  if (expected.empty()) {
+    *error = "manifest " + manifest + " has no sha256 for weights.bin (files.weights.bin.sha256)";
+    return false;
+  }
+  const std::string found = sha256_hex(wbytes);
+  if (found != expected) {
+    *error = "weights " + weights + ": sha256 " + found.substr(0, 16) + "... differs from " + expected.substr(0, 16) +
+             "... recorded in " + manifest + " (files.weights.bin.sha256)";
+    return false;
+  }
+  return true;
 }
 
 }  // namespace host

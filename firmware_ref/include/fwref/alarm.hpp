@@ -22,20 +22,9 @@
 
 #include <cstdint>
 
-namespace fwref {
+#include "fwref/contracts_gen.hpp"  // AlarmParams: the policy's keys from core/contracts.py POLICY_FIELDS
 
-struct AlarmParams {
-  double threshold;  // p_fault >= threshold votes (0 < threshold <= 1)
-  int k;             // votes among ...
-  int n;             // ... the last n windows raise (1 <= k <= n)
-  int clear_m;       // consecutive non-voting windows clear (>= 1)
-  bool latch;        // never clear once raised
-  int healthy;       // the Healthy class's column
-  int classes;       // K
-  // Bit c set: class c is rotor-side and its alarm reports a motor (core.alarm rule 5; weights.bin's
-  // alarm.rotor_side). Every bit set by default: every class reports one (rule 4 alone).
-  std::uint32_t rotor_mask = 0xFFFFFFFFu;
-};
+namespace fwref {
 
 struct AlarmStep {
   bool vote, active, raised, cleared;

@@ -177,12 +177,5 @@ Status infer(const CnodeF32& m, const float* window, float* logits, CnodeWorkspa
 Status infer(const CnodeI8& m, const float* window, float* logits, CnodeWorkspace& ws,
              CnodeTrace* trace = nullptr);
 
-// The class logits and, from the same inference, the motor head's ``motor`` (kMotors) logits
-// (fwref/motor.hpp); kDimsInvalid if the head does not read this model's width.
-Status infer_motor(const CnodeF32& m, const CnodeMotorF32& head, const float* window, float* logits, float* motor,
-                   CnodeWorkspace& ws);
-Status infer_motor(const CnodeI8& m, const CnodeMotorI8& head, const float* window, float* logits, float* motor,
-                   CnodeWorkspace& ws);
-
 }  // namespace fwref
 

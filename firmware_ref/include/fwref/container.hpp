@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "fwref/contracts_gen.hpp"  // the section codes kModel* / kPrec* (core/contracts.py MODEL_CODES)
 #include "fwref/status.hpp"
 
 namespace fwref {
@@ -18,10 +19,6 @@ namespace fwref {
 enum class DType : std::uint32_t { kF32 = 1, kI8 = 2, kI32 = 3 };
 const char* dtype_name(DType t);
 
-constexpr std::uint32_t kModelNone = 0, kModelCnode = 1, kModelGru = 2;
-constexpr std::uint32_t kModelCnodeMotor = 16, kModelGruMotor = 17;  // the optional motor-head sections
-constexpr std::uint32_t kModelSgru = 18;  // the streaming GRU (its own file, formats/sgru_weights.py)
-constexpr std::uint32_t kPrecNone = 0, kPrecF32 = 1, kPrecI8 = 2;
 const char* model_name(std::uint32_t model);
 const char* precision_name(std::uint32_t precision);
 

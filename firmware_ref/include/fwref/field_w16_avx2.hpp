@@ -28,6 +28,7 @@
 
 #include <cstdint>
 
+#include "fwref/field_i8.hpp"
 #include "fwref/kernels_i8.hpp"
 #include "fwref/vmath_f32.hpp"
 
@@ -36,16 +37,7 @@ namespace fwref {
 #if defined(__x86_64__) && defined(FWREF_VMATH_AVX2) && defined(FWREF_HAS_W16_KERNEL) && \
     defined(FWREF_CNODE_W_INT16) && !defined(FWREF_PORTABLE_KERNELS)
 #define FWREF_HAS_FIELD_W16_AVX2 1
-struct FieldW16 {
-  const std::int16_t* lin1z16;  // expand_i8_to_i16 of lin1_z (H, L)
-  const std::int16_t* lin2w16;  // expand_i8_to_i16 of lin2 (L, H)
-  int hidden;                   // H
-  int latent;                   // L
-  const float* s_w1;            // lin1_z's row scales (H)
-  float s_hidden;               // the hidden codes' scale
-  const float* mult2;           // f32(s_hidden * lin2's row scale) (L): rescale_i32's multipliers
-  const float* b2;              // lin2's bias (L)
-};
+using FieldW16 = FieldI8<std::int16_t>;  // lin1z, lin2w: expand_i8_to_i16 copies
 
 bool field_w16_avx2(const FieldW16& f, const float* z, float s_z, const float* v, float* k);
 // True when the run-time int8 kernel is avx2field (src/kernels_i8.cpp).

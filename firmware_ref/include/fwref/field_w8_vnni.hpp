@@ -23,21 +23,13 @@
 
 #include <cstdint>
 
+#include "fwref/field_i8.hpp"
 #include "fwref/kernels_w8_vnni.hpp"
 
 namespace fwref {
 
 #if defined(FWREF_HAS_W8_VNNI)
-struct FieldW8 {
-  const std::uint8_t* lin1z8;  // pack_i8_w8 of lin1_z (H, L)
-  const std::uint8_t* lin2w8;  // pack_i8_w8 of lin2 (L, H)
-  int hidden;                  // H
-  int latent;                  // L
-  const float* s_w1;           // lin1_z's row scales (H)
-  float s_hidden;              // the hidden codes' scale
-  const float* mult2;          // f32(s_hidden * lin2's row scale) (L): rescale_i32's multipliers
-  const float* b2;             // lin2's bias (L)
-};
+using FieldW8 = FieldI8<std::uint8_t>;  // lin1z, lin2w: pack_i8_w8 copies
 
 bool field_w8_avx512vnni(const FieldW8& f, const float* z, float s_z, const float* v, float* k);
 #endif

@@ -101,12 +101,5 @@ Status check(const GruI8& m);
 Status infer(const GruF32& m, const float* window, float* logits, GruWorkspace& ws, GruTrace* trace = nullptr);
 Status infer(const GruI8& m, const float* window, float* logits, GruWorkspace& ws, GruTrace* trace = nullptr);
 
-// The class logits and, from the same inference, the motor head's ``motor`` (kMotors) logits
-// (fwref/motor.hpp); kDimsInvalid if the head does not read this model's width.
-Status infer_motor(const GruF32& m, const GruMotorF32& head, const float* window, float* logits, float* motor,
-                   GruWorkspace& ws);
-Status infer_motor(const GruI8& m, const GruMotorI8& head, const float* window, float* logits, float* motor,
-                   GruWorkspace& ws);
-
 }  // namespace fwref
 

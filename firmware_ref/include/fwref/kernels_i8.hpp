@@ -266,14 +266,6 @@ inline void gemv_w16_x16(const std::int16_t* w, int rows, int cols, const std::i
 }
 #undef FWREF_M_W16_COLS4_FIRST
 #undef FWREF_M_W16_COLS4
-// The same with int8 x (widened here, once per call).
-inline void gemv_i8w16(const std::int16_t* w, int rows, int cols, const std::int8_t* x, std::int32_t* acc) {
-  const int stride = w16_stride(cols);
-  alignas(8) std::int16_t x16[w16_stride(kMaxGemvCols)];
-  for (int i = 0; i < cols; ++i) x16[i] = x[i];
-  for (int i = cols; i < stride; ++i) x16[i] = 0;
-  gemv_w16_x16(w, rows, cols, x16, acc);
-}
 #endif
 inline const char* gemv_i8_kernel_name() { return "cortex-m-dsp-4row"; }
 
@@ -316,13 +308,6 @@ extern GemvW16Fn g_gemv_w16;
 inline void gemv_w16_x16(const std::int16_t* w, int rows, int cols, const std::int16_t* x16, std::int32_t* acc) {
   g_gemv_w16(w, rows, cols, x16, acc);
 }
-inline void gemv_i8w16(const std::int16_t* w, int rows, int cols, const std::int8_t* x, std::int32_t* acc) {
-  const int stride = w16_stride(cols);
-  alignas(32) std::int16_t x16[w16_stride(kMaxGemvCols)];
-  for (int i = 0; i < cols; ++i) x16[i] = x[i];
-  for (int i = cols; i < stride; ++i) x16[i] = 0;
-  g_gemv_w16(w, rows, cols, x16, acc);
-}
 // The reference of the packed layout: one product at a time.
 inline void gemv_w16_portable(const std::int16_t* w, int rows, int cols, const std::int16_t* x16, std::int32_t* acc) {
   const int stride = w16_stride(cols);
@@ -354,6 +339,23 @@ inline void gemv_i8(const std::int8_t* w, int rows, int cols, const std::int8_t*
 }
 inline const char* gemv_i8_kernel_name() { return "portable"; }
 
+#endif
+
+#if defined(FWREF_HAS_W16_KERNEL)
+// The int16 product with int8 x, widened here (once per call) into the zero-padded int16 x the kernel reads:
+// 32-byte aligned for x86-64's vector loads, 8 on Cortex-M (LDRD; no more stack than that needs).
+inline void gemv_i8w16(const std::int16_t* w, int rows, int cols, const std::int8_t* x, std::int32_t* acc) {
+#if defined(__x86_64__)
+  constexpr std::size_t kAlign = 32;
+#else
+  constexpr std::size_t kAlign = 8;
+#endif
+  const int stride = w16_stride(cols);
+  alignas(kAlign) std::int16_t x16[w16_stride(kMaxGemvCols)];
+  for (int i = 0; i < cols; ++i) x16[i] = x[i];
+  for (int i = cols; i < stride; ++i) x16[i] = 0;
+  gemv_w16_x16(w, rows, cols, x16, acc);
+}
 #endif
 
 // Rows [o0, o0 + rows) of the matrix: from its int16 copy ``w16`` when there is one and the kernel

@@ -7,7 +7,7 @@
 // int8 product with per-row weight scales (pattern A), the arithmetic of the class head, so the
 // result is bit-identical to ONNX Runtime's. Column m is rotor m + 1 (docs/ingest.md, motor
 // numbering). The weights are the optional sections "cnode_motor" / "gru_motor" of weights.bin;
-// a file without them is a model without the head. Inference: cnode.hpp / gru.hpp infer_motor.
+// a file without them is a model without the head. Inference: infer_motor below.
 #pragma once
 
 #include "fwref/config.hpp"
@@ -50,5 +50,12 @@ Status check(const CnodeMotorF32& m);
 Status check(const CnodeMotorI8& m);
 Status check(const GruMotorF32& m);
 Status check(const GruMotorI8& m);
+
+// The class logits and, from the same inference, the motor head's ``motor`` (kMotors) logits, on what the
+// class head read; kDimsInvalid if the head does not read this model's width. One definition (src/motor.cpp)
+// for the (model, head, workspace) triples of fwref/cnode.hpp and fwref/gru.hpp: (CnodeF32, CnodeMotorF32,
+// CnodeWorkspace), (CnodeI8, CnodeMotorI8, CnodeWorkspace) and the same for the GRU; another triple does not link.
+template <class Model, class Head, class Workspace>
+Status infer_motor(const Model& m, const Head& head, const float* window, float* logits, float* motor, Workspace& ws);
 
 }  // namespace fwref

@@ -1,12 +1,13 @@
 // fwref/profile.hpp -- scope: the channel profiles of core/profiles.py on one raw sample, in
 // float32, as the streaming runtime (fwref/stream.hpp) applies them. Header-only, no heap.
 //
-// A stream delivers the raw channels the on-board record names (formats/onboard.py), in
-// this order for the profiles with a hover estimate (``airborne`` 0/1 last):
-//   flightlog-min:   roll pitch p q r vx vy yaw vz V_b I_b thr1 thr2 thr3 thr4 vib_px4 airborne
-//   flightlog-nocur: roll pitch p q r vx vy yaw vz V_b     thr1 thr2 thr3 thr4 vib_px4 airborne
-//   flightlog-esc:   flightlog-min's, then rpm1..rpm4 esc_cur1..esc_cur4 esc_temp1..esc_temp4 before airborne
-// and the model's own channels for ``paper`` (the identity). The model channels, as Python:
+// The profiles (enum Profile, their ids), their stream channels and model channels come from
+// fwref/channels_gen.hpp, generated from core/channels.py's tables: a stream delivers the raw
+// channels the on-board record names (formats/onboard.py), for the profiles with a hover estimate
+// the profile's raw channels then ``airborne`` (0/1) last, for ``paper`` the model's own channels.
+// This file reads a hover profile's raw columns by position: roll pitch p q r vx vy yaw vz V_b first
+// (the generator refuses a profile that does not start so), the current at ``i_b``, thr1..4 and
+// vib_px4 from ``thr``, the ESC block from ``rpm``. The model channels, as Python:
 //   roll pitch p q r | vx_h = c vx + s vy | vy_h = -s vx + c vy | vz | v_cell = V_b / cells |
 //   i_rel = I_b / hover_cur (min, esc) | m1..4_rel = thr / hover_cmd | vib = vib_px4 |
 //   (esc only) rpmk_rel = rpmk / ((((rpm1 + rpm2) + rpm3) + rpm4) * 0.25f), esck_i_rel likewise over esc_cur1..4,
@@ -20,47 +21,9 @@
 #include <cmath>
 #include <cstring>
 
+#include "fwref/channels_gen.hpp"  // Profile, ProfileSpec and the profiles' channel lists, from core/channels.py
+
 namespace fwref {
-
-enum class Profile : int { kPaper = 0, kFlightlogMin = 1, kFlightlogNocur = 2, kFlightlogEsc = 3 };
-constexpr int kProfileCount = 4;
-
-struct ProfileSpec {
-  const char* name;
-  int raw;          // raw channels (0: paper, the model's own)
-  int channels;     // model channels (0: paper)
-  const char* const* raw_names;
-  const char* const* model_names;
-  int i_b;          // raw column of the current (-1: none)
-  int thr;          // raw column of thr1 (thr1..thr4 follow)
-  int rpm;          // raw column of rpm1 (rpm1..4, then esc_cur1..4, then esc_temp1..4 follow; -1: none)
-};
-
-namespace profile_tables {
-constexpr const char* kMinRaw[] = {"roll", "pitch", "p", "q", "r", "vx", "vy", "yaw", "vz",
-                                   "V_b", "I_b", "thr1", "thr2", "thr3", "thr4", "vib_px4", "airborne"};
-constexpr const char* kNocurRaw[] = {"roll", "pitch", "p", "q", "r", "vx", "vy", "yaw", "vz",
-                                     "V_b", "thr1", "thr2", "thr3", "thr4", "vib_px4", "airborne"};
-constexpr const char* kMinModel[] = {"roll", "pitch", "p", "q", "r", "vx_h", "vy_h", "vz", "v_cell",
-                                     "i_rel", "m1_rel", "m2_rel", "m3_rel", "m4_rel", "vib"};
-constexpr const char* kNocurModel[] = {"roll", "pitch", "p", "q", "r", "vx_h", "vy_h", "vz", "v_cell",
-                                       "m1_rel", "m2_rel", "m3_rel", "m4_rel", "vib"};
-constexpr const char* kEscRaw[] = {"roll", "pitch", "p", "q", "r", "vx", "vy", "yaw", "vz",
-                                   "V_b", "I_b", "thr1", "thr2", "thr3", "thr4", "vib_px4",
-                                   "rpm1", "rpm2", "rpm3", "rpm4", "esc_cur1", "esc_cur2", "esc_cur3", "esc_cur4",
-                                   "esc_temp1", "esc_temp2", "esc_temp3", "esc_temp4", "airborne"};
-constexpr const char* kEscModel[] = {"roll", "pitch", "p", "q", "r", "vx_h", "vy_h", "vz", "v_cell",
-                                     "i_rel", "m1_rel", "m2_rel", "m3_rel", "m4_rel", "vib",
-                                     "rpm1_rel", "rpm2_rel", "rpm3_rel", "rpm4_rel",
-                                     "esc1_i_rel", "esc2_i_rel", "esc3_i_rel", "esc4_i_rel",
-                                     "esc1_t_rel", "esc2_t_rel", "esc3_t_rel", "esc4_t_rel"};
-constexpr ProfileSpec kSpecs[kProfileCount] = {
-    {"paper", 0, 0, nullptr, nullptr, -1, -1, -1},
-    {"flightlog-min", 17, 15, kMinRaw, kMinModel, 10, 11, -1},
-    {"flightlog-nocur", 16, 14, kNocurRaw, kNocurModel, -1, 10, -1},
-    {"flightlog-esc", 29, 27, kEscRaw, kEscModel, 10, 11, 16},
-};
-}  // namespace profile_tables
 
 inline const ProfileSpec& profile_spec(Profile p) { return profile_tables::kSpecs[static_cast<int>(p)]; }
 

@@ -43,6 +43,10 @@
 #include "fwref/numerics.hpp"
 #include "fwref/vmath_f32.hpp"
 
+#if defined(__x86_64__) && !defined(FWREF_PORTABLE_KERNELS)
+#include <immintrin.h>
+#endif
+
 namespace fwref {
 
 // FWREF_VMATH_I8_AVX2: 1 where the vector code below is compiled (AVX2 + FMA, the activations
@@ -197,19 +201,10 @@ inline void rescale_quantize_row(const std::int32_t* acc, float s_p, const float
 
 // The interpolation rows are mostly zeros (two weights per row): on AVX2 32 weights per comparison,
 // then (and elsewhere throughout) 8 at a time past the zeros, one by one where a word is not zero.
+namespace nonzero_detail {
+
 template <class F>
-inline void for_each_nonzero(const std::int8_t* p, int n, F&& f) {
-  int w0 = 0;
-#if FWREF_VMATH_I8_AVX2
-  for (; w0 + 32 <= n; w0 += 32) {
-    const __m256i v = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(p + w0));
-    std::uint32_t nz = ~static_cast<std::uint32_t>(_mm256_movemask_epi8(_mm256_cmpeq_epi8(v, _mm256_setzero_si256())));
-    for (; nz != 0; nz &= nz - 1) {
-      const int w = w0 + __builtin_ctz(nz);
-      f(w, static_cast<std::int32_t>(p[w]));
-    }
-  }
-#endif
+inline void from(const std::int8_t* p, int w0, int n, F& f) {
   for (; w0 < n; w0 += 8) {
     std::uint64_t eight = 1;
     if (w0 + 8 <= n) std::memcpy(&eight, p + w0, 8);
@@ -219,6 +214,37 @@ inline void for_each_nonzero(const std::int8_t* p, int n, F&& f) {
       if (pw != 0) f(w, pw);
     }
   }
+}
+
+}  // namespace nonzero_detail
+
+#if defined(__x86_64__) && !defined(FWREF_PORTABLE_KERNELS)
+#define FWREF_HAS_NONZERO_AVX2 1
+// for_each_nonzero's AVX2 walk however this file is built (a target attribute), for the AVX2 and AVX-512
+// control rows (src/controls_avx2.cpp, src/controls_avx512.cpp): call it on an AVX2 CPU only. A caller
+// compiled with a target attribute gives its lambda the same attribute, so that f is inlined into the walk.
+template <class F>
+__attribute__((target("avx2"), always_inline)) inline void for_each_nonzero_avx2(const std::int8_t* p, int n, F&& f) {
+  int w0 = 0;
+  for (; w0 + 32 <= n; w0 += 32) {
+    const __m256i v = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(p + w0));
+    std::uint32_t nz = ~static_cast<std::uint32_t>(_mm256_movemask_epi8(_mm256_cmpeq_epi8(v, _mm256_setzero_si256())));
+    for (; nz != 0; nz &= nz - 1) {
+      const int w = w0 + __builtin_ctz(nz);
+      f(w, static_cast<std::int32_t>(p[w]));
+    }
+  }
+  nonzero_detail::from(p, w0, n, f);
+}
+#endif
+
+template <class F>
+inline void for_each_nonzero(const std::int8_t* p, int n, F&& f) {
+#if FWREF_VMATH_I8_AVX2 && defined(FWREF_HAS_NONZERO_AVX2)
+  for_each_nonzero_avx2(p, n, f);
+#else
+  nonzero_detail::from(p, 0, n, f);
+#endif
 }
 
 }  // namespace fwref

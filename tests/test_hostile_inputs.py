@@ -1,0 +1,78 @@
+"""Inputs that used to be accepted as success or to reach a traceback: flights whose time axis is
+reversed, stretched or NaN, an output that is its own input, an export manifest naming a file
+outside its folder, and ingest arguments out of range. Each ends in one line and exit 2, with
+nothing written."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from quadfdi.formats.flight import load_flight, write_flight
+from tests.conftest import SHARED_DATA, quadfdi
+from tests.faultkit import one_line_error
+
+MISSION = SHARED_DATA / "flightlogs" / "px4_quad_6s_uavcan_mission.ulg"
+pytestmark = pytest.mark.skipif(not MISSION.is_file(), reason="the shared real flight logs are not here")
+
+
+@pytest.fixture(scope="module")
+def mission_npz(tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("mission")
+    res = quadfdi("ingest", str(MISSION), "--out", str(out))
+    assert res.returncode == 0, res.stderr
+    return out / "flight.npz"
+
+
+@pytest.mark.parametrize("case, change, words", [
+    ("reversed", lambda t: t[::-1].copy(), "goes backwards"),
+    ("stretched x3", lambda t: t * 3.0, "steps by 0.12"),
+    ("NaN times", lambda t: np.where(np.arange(len(t)) == 7, np.nan, t), "NaN"),
+    ("duplicated", lambda t: np.concatenate([t[:5], t[4:-1]]), "repeats"),
+])
+def test_detect_refuses_a_bad_time_axis(flightlog_export, mission_npz, tmp_path, case, change, words):
+    arrays = dict(load_flight(mission_npz))
+    arrays["time"] = change(np.asarray(arrays["time"]))
+    bad = tmp_path / "flight.npz"
+    write_flight(bad, arrays)
+    out = tmp_path / "out"
+    res = quadfdi("detect", "--model", str(flightlog_export), str(bad), "--out", str(out))
+    one_line_error(res)
+    assert words in res.stderr and not out.exists(), case
+
+
+def test_stream_file_refuses_to_overwrite_its_input(flightlog_export, mission_npz, tmp_path):
+    flight = tmp_path / "flight.npz"
+    shutil.copy(mission_npz, flight)
+    before = flight.read_bytes()
+    res = quadfdi("stream-file", "--model", str(flightlog_export), str(flight), "--out", str(flight))
+    one_line_error(res)
+    assert "refusing to overwrite" in res.stderr and flight.read_bytes() == before
+
+
+def test_a_manifest_artifact_outside_the_export_is_refused(flightlog_export, mission_npz, tmp_path):
+    export = tmp_path / "export"
+    shutil.copytree(flightlog_export, export)
+    m = json.loads((export / "manifest.json").read_text())
+    m["artifacts"]["cnode_fp32"] = "../../../../etc/passwd"
+    (export / "manifest.json").write_text(json.dumps(m))
+    res = quadfdi("detect", "--model", str(export), str(mission_npz), "--out", str(tmp_path / "out"))
+    one_line_error(res)
+    assert "not a file of the export folder" in res.stderr
+
+
+@pytest.mark.parametrize("value", ["nan", "-5", "inf"])
+def test_ingest_refuses_a_minimum_airborne_out_of_range(tmp_path, value):
+    res = quadfdi("ingest", str(MISSION), "--out", str(tmp_path / "f"), "--min-airborne", value)
+    one_line_error(res)
+    assert "--min-airborne" in res.stderr and not (tmp_path / "f").exists()
+
+
+def test_ingest_names_a_folder_given_as_the_log(tmp_path):
+    res = quadfdi("ingest", str(tmp_path), "--out", str(tmp_path / "f"))
+    one_line_error(res)
+    assert "is a folder, not a log file" in res.stderr

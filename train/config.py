@@ -1,0 +1,110 @@
+"""The training stage's sections.
+
+- [train]: the windowed CNODE and GRU (paper Table 2 and Sections II-D to II-F; docs/training.md).
+- [sgru]: the streaming GRU of ``quadfdi train sgru`` (train/stream_gru_fit.py says what each setting does;
+  docs/training.md "Streaming GRU"). The command's flags (``--hidden 40``) override the run's [sgru]
+  as ``--set sgru.hidden=40`` does; the settings used are recorded in the checkpoint and in
+  predictions/sgru_sim<S>_train<T>.json.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from quadfdi.core.errors import QuadfdiError
+from quadfdi.core.limits import MAX_THREADS
+from quadfdi.core.profiles import check_profile
+from quadfdi.core.sections import at_most, choice, not_negative, positive
+
+
+@dataclass(frozen=True)
+class TrainConfig:
+    """Model and training settings (paper Table 2 and Sections II-D to II-F)."""
+
+    seed: int = 0
+    model: str = "both"  # cnode | gru | both
+    epochs: int = 14
+    batch_size: int = 96
+    lr: float = 2e-2  # Adam, initial learning rate of the CNODE (a sweep: docs/training.md)
+    gru_lr: float = 3e-3  # Adam, initial learning rate of the GRU (at 1e-2 it lost 1 point of F1)
+    lr_schedule: str = "cosine"  # constant | cosine (decays to 0 over the epochs, per batch)
+    latent: int = 40  # CNODE latent dimension
+    hidden: int = 64  # CNODE vector-field hidden width
+    gru_hidden: int = 80
+    solver: str = "rk4"  # training solver of the CNODE: dopri5 | bosh3 | rk4 | euler | midpoint
+    steps: int = 8  # fixed-step solvers: N steps over [0, 1]
+    rtol: float = 1e-3  # adaptive solvers
+    atol: float = 1e-4
+    jump_t: bool = True  # adaptive solvers: tell torchdiffeq where the path's knots are
+    log_eps: float = 1e-8  # the epsilon of Eq. (12)
+    # One intra-op thread: tiny matrices (batch 96 x 64); oversubscribed OpenMP made the GRU ~50x slower.
+    threads: int = 1
+    seeds: tuple[int, ...] = (0, 1, 2)  # the multi-seed study
+    max_train_windows: int = 0  # cap: a seeded subsample of the training windows (train.data); 0 = all
+    profile: str = "paper"  # the models' input channels (core.profiles, docs/profiles.md): paper | flightlog-min | flightlog-nocur | flightlog-esc
+    # The motor head (models.motor, docs/training.md): "auto" = on when the data has a rotor-side class, "off" never.
+    motor_head: str = "off"
+    motor_loss_weight: float = 0.5  # weight of the motor cross-entropy added to the class loss
+    # Training-only motor-share wander (train.augment, docs/training.md "Motor-share wander"): the largest per-window
+    # amplitude of the multiplicative noise on m1_rel..m4_rel (0 = off) and its correlation time.
+    share_wander: float = 0.0
+    share_wander_tau_s: float = 0.3
+
+    def validate(self) -> None:
+        positive(self, "epochs", "batch_size", "lr", "latent", "hidden", "gru_hidden", "steps", "rtol", "atol", "threads", "gru_lr")
+        not_negative(self, "seed", "max_train_windows")
+        if min(self.seeds, default=0) < 0:
+            raise QuadfdiError(f"train.seeds must not be negative, found {list(self.seeds)}")
+        at_most(self, MAX_THREADS, "threads")
+        choice(self, "model", ("cnode", "gru", "both"))
+        choice(self, "lr_schedule", ("constant", "cosine"))
+        choice(self, "solver", ("dopri5", "bosh3", "rk4", "euler", "midpoint"))
+        check_profile(self.profile)
+        choice(self, "motor_head", ("auto", "off"))
+        not_negative(self, "motor_loss_weight", "share_wander")
+        positive(self, "share_wander_tau_s")
+
+
+@dataclass(frozen=True)
+class StreamFitConfig:
+    """The [sgru] section: how the streaming GRU is trained (train/stream_gru_fit.py)."""
+
+    hidden: int = 60  # 3H(C+H)+HK = 15 600 MACs per sample at C = 25, K = 5: under 1/6 of the windowed GRU per second
+    epochs: int = 120  # with 250-sample segments: the optimiser steps of 30 epochs of 1,000 (docs/training.md)
+    batch: int = 32  # flights per batch
+    segment: int = 250  # samples per training segment (10 s at 25 Hz; chosen over 1,000 on validation, docs/training.md)
+    tbptt: int = 125  # samples per truncated-backpropagation chunk (5 s)
+    warmup: int = 50  # loss-free steps at the start of a mid-flight segment (2 s)
+    zero_start: float = 0.5  # share of segments that start at take-off
+    noise_start: float = 0.5  # share of mid-flight segments that start at a random state
+    lr: float = 3e-3
+    clip: float = 1.0
+    weight_decay: float = 0.0  # AdamW's decoupled weight decay (0: Adam)
+    head_dropout: float = 0.0  # dropout on h before the head, training only
+    log_eps: float = 1e-8
+    onset_weight: float = 1.0  # loss weight of the first onset_span steps of a fault run (1: off; train/stream_gru_onset.py)
+    onset_span: int = 250  # steps (10 s at 25 Hz) after the label turns to a fault that get onset_weight
+    ema_decay: float = 0.0  # weight moving average per optimiser step, validated and kept (0: off; train/stream_gru_ema.py)
+    class_mix: str = "steps"  # class weights over every training step, or "sampled": the sampler's steps (train/stream_gru_segments.py)
+    onset_segments: float = 0.0  # share of fault flights' mid-flight segments placed around the onset (0: off)
+    start_span: str = "fit"  # mid-flight segment starts: where a whole segment fits, or "any" sample (cut at the end)
+    motor_aux: float = 0.5  # weight of a training-only motor head's loss (0: off; train/stream_gru_motor.py); 0.5 chosen on validation (docs/training.md)
+    seed: int = 0
+    threads: int = 1
+
+    def validate(self) -> None:
+        positive(self, "hidden", "epochs", "batch", "segment", "tbptt", "lr", "clip", "log_eps", "threads", "onset_weight",
+                 "onset_span")
+        not_negative(self, "warmup", "weight_decay", "motor_aux", "seed")
+        at_most(self, MAX_THREADS, "threads")
+        for name in ("zero_start", "noise_start", "onset_segments"):
+            if not 0.0 <= getattr(self, name) <= 1.0:
+                raise QuadfdiError(f"sgru.{name} is a probability in [0, 1], found {getattr(self, name)}")
+        for name in ("head_dropout", "ema_decay"):
+            if not 0.0 <= getattr(self, name) < 1.0:
+                raise QuadfdiError(f"sgru.{name} must lie in [0, 1), found {getattr(self, name)}")
+        choice(self, "class_mix", ("steps", "sampled"))
+        choice(self, "start_span", ("fit", "any"))
+        if self.class_mix == "sampled" and self.onset_weight != 1.0:
+            raise QuadfdiError("sgru.class_mix = 'sampled' and sgru.onset_weight != 1 each set the class weights: "
+                               "choose one")
