@@ -33,9 +33,9 @@ def test_channel_ids_are_stable_and_flight_columns_unchanged():
 
     assert [c.name for c in channels.CHANNELS] == CHANNEL_IDS
     assert [c.id for c in channels.CHANNELS] == list(range(len(CHANNEL_IDS)))  # kChannelNames[id] in the C++
-    assert channels.CHANNEL_NAMES == tuple(CHANNEL_IDS[:36])  # flight.npz's columns
+    assert channels.CHANNEL_NAMES == tuple(CHANNEL_IDS[:37])  # flight.npz's columns
     assert channels.SIM_CHANNEL_NAMES == tuple(CHANNEL_IDS[:23])
-    assert {c.kind for c in channels.CHANNELS[36:]} == {"stream"} and channels.AIRBORNE == "airborne"
+    assert {c.kind for c in channels.CHANNELS[37:]} == {"stream"} and channels.AIRBORNE == "airborne"
     header = channels.cpp_header()
     assert header.count("constexpr int kChannel") == len(CHANNEL_IDS) + 1  # one per channel and the count
     assert len(set(line.split("=")[0] for line in header.splitlines() if line.startswith("constexpr int kChannel"))) \

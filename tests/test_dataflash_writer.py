@@ -45,14 +45,16 @@ def test_written_log_is_read_by_pymavlink_and_ingested_back(realistic_sim, tmp_p
     names, g = [str(c) for c in arrays["channel_names"]], arrays["time"]
     src, sn, t = ds.arrays["telemetry"][0], [str(c) for c in ds.arrays["channel_names"]], ds.arrays["time"]
     t0 = float(g[0])  # the log starts armed on the ground, a second before the flight
-    # exact through the file (float32) where the log's 10 Hz keeps the signal; 10 Hz decimation elsewhere
-    tol = {"V_b": 1e-5, "I_b": 1e-5, "z": 0.02, "roll": 0.06, "pitch": 0.06, "yaw": 0.02, "thr1": 0.1, "vib_ap": 0.12}
-    for name, bound in tol.items():
+    # The log holds the flight's 25 Hz values at the 10 Hz sample times the writer chose; ingest
+    # interpolates them linearly (no filter below 25 Hz): so the exact reference is that interpolation.
+    written = np.flatnonzero(np.diff(np.floor(t * RATE_HZ), prepend=-1) > 0)
+    for name in ("V_b", "I_b", "z", "vx", "roll", "pitch", "p", "r", "thr1", "thr3", "vib_ap"):
         j = names.index(name)
-        ok = arrays["mask"][:, j] & (g - t0 - 1.0 >= 0)
-        ref = np.interp(g[ok] - t0 - 1.0, t, src[:, sn.index(name)])
+        ok = arrays["mask"][:, j] & (g - t0 - 1.0 >= t[written[0]]) & (g - t0 - 1.0 <= t[written[-1]])
+        ref = np.interp(g[ok] - t0 - 1.0, t[written], src[written, sn.index(name)])
         err = np.abs(arrays["telemetry"][ok, j] - ref)
-        assert ok.sum() > 600 and float(err.max()) <= bound, (name, float(err.max()))
+        tol = 1e-3 if name.startswith("thr") else 2e-5 * max(1.0, float(np.abs(ref).max()))  # PWM is whole us
+        assert ok.sum() > 600 and float(err.max()) <= tol, (name, float(err.max()))
 
 
 def test_a_template_without_the_messages_is_one_line(tmp_path):
