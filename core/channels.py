@@ -10,8 +10,10 @@ checks that the committed header is what this module generates):
   it). The simulator's 23 telemetry channels come first, in the order of the paper's dataset (so a
   model trained on the simulator reads the same columns as one reading an ingested flight), then the
   channels only richer logs (and the realistic suite) carry: together flight.npz's columns, in id
-  order. Last the two channels only a stream carries: ``vib_px4`` (a PX4 log's ``vib_acc``, PX4's
-  ``accel_vibration_metric``; ArduPilot's VIBE is another quantity) and ``airborne`` (0/1).
+  order. Each autopilot's vibration metric is its own channel, as the simulator computes it from its
+  accelerometer: ``vib_px4`` is PX4's ``accel_vibration_metric`` (m/s^2), ``vib_ap`` ArduPilot's
+  VIBE as the in-plane mean (VibeX + VibeY) / 2 (the simulator has no vertical vibration model, so
+  VibeZ is not used). Last ``airborne`` (0/1), which only a stream carries.
 - ``MODEL_CHANNELS``: what a profile gives a model, each computed from named raw channels with the
   formula docs/profiles.md shows (core/profiles.py computes them; fwref/profile.hpp in float32).
 - ``PROFILE_TABLE``: each profile as the raw channels a vehicle must log for it (in the order a
@@ -51,14 +53,14 @@ CHANNELS: tuple[Channel, ...] = (
     Channel(18, "T4", "degC", "sim"),
     Channel(19, "thr1", "-", "sim"), Channel(20, "thr2", "-", "sim"), Channel(21, "thr3", "-", "sim"),
     Channel(22, "thr4", "-", "sim"),
-    Channel(23, "vib_acc", "m/s^2", "log"),
+    Channel(23, "vib_px4", "m/s^2", "log"),
     Channel(24, "rpm1", "rpm", "log"), Channel(25, "rpm2", "rpm", "log"), Channel(26, "rpm3", "rpm", "log"),
     Channel(27, "rpm4", "rpm", "log"),
     Channel(28, "esc_temp1", "degC", "log"), Channel(29, "esc_temp2", "degC", "log"),
     Channel(30, "esc_temp3", "degC", "log"), Channel(31, "esc_temp4", "degC", "log"),
     Channel(32, "esc_cur1", "A", "log"), Channel(33, "esc_cur2", "A", "log"), Channel(34, "esc_cur3", "A", "log"),
     Channel(35, "esc_cur4", "A", "log"),
-    Channel(36, "vib_px4", "m/s^2", "stream"),  # a PX4 log's vib_acc (detect/inputs.py maps it)
+    Channel(36, "vib_ap", "m/s^2", "log"),
     Channel(37, "airborne", "-", "stream"),  # 0/1, the last channel of a stream with a hover estimate
 )
 CHANNEL_IDS = {c.name: c.id for c in CHANNELS}
@@ -70,6 +72,15 @@ CHANNEL_UNITS = dict(ALL_CHANNELS)
 SIM_CHANNEL_NAMES = tuple(n for n, _ in SIM_CHANNELS)
 SIM_CHANNEL_UNITS = tuple(u for _, u in SIM_CHANNELS)
 ANGLE_CHANNELS = frozenset({"roll", "pitch", "yaw"})  # unwrapped before resampling, wrapped after
+# The logging group of each channel: channels an autopilot logs from one message, at one rate
+# (the simulator draws one rate per group and flight; `quadfdi ingest rates` measures them on logs).
+RATE_GROUP: dict[str, str] = {
+    **{c: "pos" for c in ("x", "y", "z", "vx", "vy", "vz")}, **{c: "att" for c in ("roll", "pitch", "yaw")},
+    **{c: "rate" for c in ("p", "q", "r")}, **{c: "batt" for c in ("V_b", "I_b", "SoC")},
+    **{f"T{k}": "esc" for k in range(1, 5)}, **{f"thr{k}": "act" for k in range(1, 5)},
+    "vib_px4": "vib_px4", "vib_ap": "vib_ap",
+    **{f"{g}{k}": "esc" for g in ("rpm", "esc_temp", "esc_cur") for k in range(1, 5)},
+}
 AIRBORNE = "airborne"  # the raw channel (0/1) that profiles with a hover estimate add last to a stream
 
 

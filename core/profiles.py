@@ -20,8 +20,8 @@ on-board record.
   temperature MINUS the four's collective of the same sample (K): no ambient, no common heating,
   no state (docs/profiles.md says why not "relative to ambient").
 
-Raw names are the channel table's; an ingested flight's ``vib_acc`` is mapped to ``vib_px4`` only
-when the log is a PX4 log (``raw_from_flight``, detect/).
+Raw names are the channel table's (core/channels.py), the same in a simulated dataset and in an
+ingested flight.npz: ``vib_px4`` is PX4's metric only, so a log of another autopilot lacks it.
 """
 
 from __future__ import annotations

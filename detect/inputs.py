@@ -21,10 +21,9 @@ import numpy as np
 
 from quadfdi.core import hover
 from quadfdi.core.errors import QuadfdiError
-from quadfdi.core.profiles import VIBRATION, apply_profile, channel_names, required_raw, uses_hover
+from quadfdi.core.profiles import apply_profile, channel_names, required_raw, uses_hover
 
 MULTIROTOR_FRAMES = ("quadrotor", "quad", "quad-x", "quad-plus", "x", "plus")
-FLIGHT_VIBRATION = "vib_acc"  # flight.npz's vibration channel; which quantity it is depends on the autopilot
 
 
 @dataclass
@@ -60,15 +59,9 @@ def _raw_channels(arrays: dict, profile: str) -> tuple[dict[str, np.ndarray], np
     names = [str(n) for n in arrays["channel_names"]]
     status = {n: str(s) for n, s in zip(names, arrays["channel_status"])}
     where = str(arrays["log_file"])
-    alias = {}
-    if VIBRATION.get(profile) == "px4":
-        if str(arrays["autopilot"]) != "px4":
-            raise QuadfdiError(f"{where}: profile {profile!r} reads PX4's accel_vibration_metric; this "
-                               f"{arrays['autopilot']} log's vibration is another quantity (ArduPilot VIBE)")
-        alias["vib_px4"] = FLIGHT_VIBRATION
     raw, used = {}, np.ones(len(arrays["time"]), bool)
     for r in required_raw(profile, names):
-        src = alias.get(r, r)
+        src = r
         if src not in names:
             raise QuadfdiError(f"{where}: profile {profile!r} needs channel {src!r}, which flight.npz does not have")
         if status[src] != "ok":

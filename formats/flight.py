@@ -16,7 +16,9 @@ from quadfdi.core.errors import QuadfdiError
 from quadfdi.core.npzio import read_npz, write_npz
 from quadfdi.core.resample import GRID_DT
 
-FORMAT_VERSION = 1
+# 2: each autopilot's vibration metric its own channel (vib_px4, vib_ap); version 1 held one vib_acc
+# whose meaning depended on the autopilot (ArduPilot's as the 3-axis VIBE norm): re-ingest such files.
+FORMAT_VERSION = 2
 REQUIRED = ("format_version", "time", "telemetry", "mask", "channel_names", "channel_units", "channel_sources",
             "channel_status", "channel_rates_hz", "channel_counts", "airborne", "airborne_segments",
             "armed_segments", "log_sha256", "log_file", "autopilot", "vehicle", "resampling", "notes")
@@ -33,7 +35,8 @@ def load_flight(path: str | Path) -> dict[str, np.ndarray]:
         if key not in arrays:
             raise QuadfdiError(f"{path}: missing field {key!r} (not a quadfdi flight.npz)")
     if int(arrays["format_version"]) != FORMAT_VERSION:
-        raise QuadfdiError(f"{path}: format_version {int(arrays['format_version'])}, this quadfdi reads {FORMAT_VERSION}")
+        raise QuadfdiError(f"{path}: format_version {int(arrays['format_version'])}, this quadfdi reads {FORMAT_VERSION} "
+                           "(re-run `quadfdi ingest` on the log)")
     n, c = arrays["telemetry"].shape
     if arrays["mask"].shape != (n, c) or arrays["time"].shape != (n,) or arrays["channel_names"].shape != (c,):
         raise QuadfdiError(f"{path}: telemetry {arrays['telemetry'].shape}, mask, time and channel_names disagree")

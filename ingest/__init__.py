@@ -1,4 +1,4 @@
-"""``quadfdi ingest``: real PX4 ULog / ArduPilot DataFlash flights -> ``flight.npz`` (docs/flight_format.md).
+"""``quadfdi ingest``: real PX4 ULog, ArduPilot DataFlash and Crazyflie uSD-card flight logs -> ``flight.npz`` (docs/flight_format.md).
 
 One job per module: ``model`` (channel table, the read result), ``frames`` (NED/FRD -> the
 simulator's z-up frames), ``motors`` (geometry, motor order, command normalisation), ``battery``

@@ -133,8 +133,9 @@ def motor_channels(c: dict, params: dict, mmap: list[int], lr: LogRead) -> None:
 def extra_channels(c: dict, mmap: list[int], lr: LogRead) -> None:
     if "VIBE" in c:
         v = c["VIBE"]
-        lr.channels["vib_acc"] = Channel("vib_acc", v["t"], np.sqrt(v["VibeX"] ** 2 + v["VibeY"] ** 2 + v["VibeZ"] ** 2),
-                                         "VIBE: |(VibeX, VibeY, VibeZ)|")
+        # The in-plane mean: what the simulator computes (sim.propeller; no vertical vibration model).
+        lr.channels["vib_ap"] = Channel("vib_ap", v["t"], (v["VibeX"].astype(float) + v["VibeY"].astype(float)) / 2.0,
+                                        "VIBE: (VibeX + VibeY) / 2")
     if "ESC" not in c:
         for k in range(4):
             for name in ("rpm", "esc_temp", "esc_cur"):
@@ -184,6 +185,7 @@ def read_ardupilot(path: str) -> LogRead:
     v_max = power_channels(c, params, lr)
     motor_channels(c, params, mmap, lr)
     extra_channels(c, mmap, lr)
+    lr.status["vib_px4"] = "absent: PX4's accel_vibration_metric (an ArduPilot log carries VIBE as vib_ap)"
     lr.vehicle["battery"] = battery.cell_count([("BATT_CELLS", params.get("BATT_CELLS"))], v_max)
     flight_state(c, lr)
     checks.plausibility(lr)

@@ -15,10 +15,11 @@ from quadfdi.core.errors import QuadfdiError
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("ingest", help="read a PX4 ULog / ArduPilot .BIN flight into flight.npz",
+    p = sub.add_parser("ingest", help="read a PX4 ULog, ArduPilot .BIN or Crazyflie uSD flight log into flight.npz",
                        description="Ingest a real flight log into <out>/flight.npz (docs/flight_format.md). "
-                                   "`quadfdi ingest bench LOG...` measures throughput instead.")
-    p.add_argument("logs", nargs="+", metavar="LOG", help="the log file (or: bench LOG...)")
+                                   "`quadfdi ingest bench LOG...` measures throughput instead; `quadfdi ingest "
+                                   "rates LOG...` prints each channel group's logged rate.")
+    p.add_argument("logs", nargs="+", metavar="LOG", help="the log file (or: bench LOG..., rates LOG...)")
     p.add_argument("--out", default=None, help="folder to write flight.npz and ingest.json into")
     p.add_argument("--min-airborne", type=float, default=None,
                    help="refuse logs with less airborne time, s (default: 2)")
@@ -55,6 +56,13 @@ def run(args: argparse.Namespace) -> int:
         if len(args.logs) < 2:
             raise QuadfdiError("quadfdi ingest bench needs at least one LOG")
         print(json.dumps(bench(args.logs[1:], max(1, args.repeat)), indent=2))
+        return 0
+    if args.logs[0] == "rates":
+        from quadfdi.ingest.rates import group_rates
+
+        if len(args.logs) < 2:
+            raise QuadfdiError("quadfdi ingest rates needs at least one LOG")
+        print(json.dumps(group_rates(args.logs[1:]), indent=2))
         return 0
     if len(args.logs) != 1:
         raise QuadfdiError("quadfdi ingest takes one LOG per call (give --out per flight)")

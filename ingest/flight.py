@@ -70,7 +70,7 @@ def build(lr: LogRead, log_path: str | Path, gap_factor: float = resample.GAP_FA
 
 
 def read_log(path: str | Path):
-    """LogRead of a ULog (.ulg) or DataFlash (.bin) file, chosen by its first bytes, not its name."""
+    """LogRead of a ULog (.ulg), DataFlash (.bin) or Crazyflie uSD log, chosen by its first bytes, not its name."""
     p = Path(path)
     if p.is_dir():
         raise QuadfdiError(f"log {p} is a folder, not a log file")
@@ -88,7 +88,12 @@ def read_log(path: str | Path):
         from quadfdi.ingest.ardupilot import read_ardupilot
 
         return read_ardupilot(str(p))
-    raise QuadfdiError(f"{p} is neither a PX4 ULog nor an ArduPilot DataFlash log (first bytes {head[:4]!r})")
+    if head[:1] == b"\xbc":  # Crazyflie uSD event log (no extension)
+        from quadfdi.ingest.crazyflie import read_crazyflie
+
+        return read_crazyflie(str(p))
+    raise QuadfdiError(f"{p} is neither a PX4 ULog, an ArduPilot DataFlash nor a Crazyflie uSD log "
+                       f"(first bytes {head[:4]!r})")
 
 
 def ingest(log: str | Path, min_airborne_s: float = segments.MIN_AIRBORNE_S,

@@ -49,6 +49,9 @@ class LogRead:
     airborne_source: str
     data_span: tuple[float, float]  # first and last sample time of the data topics (not the header)
     notes: list[str] = field(default_factory=list)  # traps met: dropped samples, ignored publishers
+    # The airborne intervals end at a land detector's "landed", which lags touchdown (segments.cut_landings
+    # cuts it back); False where they come from a rule that ends at touchdown itself.
+    landing_lag: bool = True
 
     def note(self, text: str) -> None:
         self.notes.append(text)

@@ -191,6 +191,7 @@ def read_px4(path: str) -> LogRead:
     attitude_channels(tp, lr.channels)
     v_max = battery_channels(tp, lr.channels, lr.status)
     px4_vibration.vibration_channel(tp, ulog.msg_info_dict, lambda name: read_topic(path, name), lr)
+    lr.status["vib_ap"] = "absent: ArduPilot's VIBE metric (a PX4 log carries vib_px4)"
     px4_motors.motor_channels(tp, params, mmap, lr)
     px4_motors.esc_channels(tp, mmap, lr)
     b = tp.get("battery_status")

@@ -1,5 +1,5 @@
-"""PX4's accelerometer vibration metric -> ``vib_acc`` in m/s^2 (the quantity the realistic suite
-simulates as ``vib_px4``), from whichever of PX4's three definitions the log holds.
+"""PX4's accelerometer vibration metric -> ``vib_px4`` in m/s^2 (the quantity the realistic suite
+simulates under the same name), from whichever of PX4's three definitions the log holds.
 
 All three are the same filter, PX4's EMA m <- 0.99 m + 0.01 |x_k - x_(k-1)| run once per
 integrated IMU sample, on different x (sources and line citations: docs/ingest.md, "Vibration"):
@@ -53,14 +53,14 @@ def _from_delta_velocity(t: np.ndarray, metric: np.ndarray, dt_s: np.ndarray, ac
                          src: str, dt_src: str, lr: LogRead) -> None:
     info = _jitter(dt_s, accel_norm)
     dt = info["integration_interval_s"]
-    lr.channels["vib_acc"] = Channel("vib_acc", t, metric.astype(float) / dt,
+    lr.channels["vib_px4"] = Channel("vib_px4", t, metric.astype(float) / dt,
                                      f"{src} / median {dt_src} ({dt * 1e3:.2f} ms)")
     lr.vehicle["vibration"] = dict(info, source=src, logged_unit="m/s (delta velocity)",
                                    conversion=f"divided by the median {dt_src}", interval_source=dt_src)
 
 
 def vibration_channel(tp, info: dict, read_topic, lr: LogRead) -> None:
-    """Set ``lr.channels['vib_acc']`` (m/s^2) and ``lr.vehicle['vibration']``, or ``lr.status``.
+    """Set ``lr.channels['vib_px4']`` (m/s^2) and ``lr.vehicle['vibration']``, or ``lr.status``.
 
     ``tp``: ingest.px4.Topics; ``info``: the ULog's msg_info_dict; ``read_topic(name)``: that topic's
     instance 0 read from the log on demand (sensor_combined runs at 200 Hz in newer logs: not
@@ -71,11 +71,11 @@ def vibration_channel(tp, info: dict, read_topic, lr: LogRead) -> None:
     if imu is not None and "accel_vibration_metric" in imu:
         src = "vehicle_imu_status[0].accel_vibration_metric"
         if ver is None:
-            lr.status["vib_acc"] = ("unusable: the log has no firmware version (ver_sw_release) to tell PX4's "
+            lr.status["vib_px4"] = ("unusable: the log has no firmware version (ver_sw_release) to tell PX4's "
                                     "two accel_vibration_metric definitions (m/s before 1.13, m/s^2 since) apart")
             return
         if ver[:2] >= ACCEL_UNITS_SINCE:
-            lr.channels["vib_acc"] = Channel("vib_acc", imu["t"], imu["accel_vibration_metric"].astype(float), src)
+            lr.channels["vib_px4"] = Channel("vib_px4", imu["t"], imu["accel_vibration_metric"].astype(float), src)
             vi = tp.get("vehicle_imu")
             extra = _jitter(vi["delta_velocity_dt"].astype(float) * 1e-6, 0.0) if vi is not None else {}
             extra.pop("jitter_term_bound_m_s2", None)
@@ -84,7 +84,7 @@ def vibration_channel(tp, info: dict, read_topic, lr: LogRead) -> None:
             return
         vi = tp.get("vehicle_imu")
         if vi is None or "delta_velocity_dt" not in vi:
-            lr.status["vib_acc"] = (f"unusable: PX4 {'.'.join(map(str, ver))} logs accel_vibration_metric as a "
+            lr.status["vib_px4"] = (f"unusable: PX4 {'.'.join(map(str, ver))} logs accel_vibration_metric as a "
                                     "delta velocity (m/s) and the log has no vehicle_imu.delta_velocity_dt to convert it")
             return
         _from_delta_velocity(imu["t"], imu["accel_vibration_metric"], vi["delta_velocity_dt"].astype(float) * 1e-6,
@@ -96,7 +96,7 @@ def vibration_channel(tp, info: dict, read_topic, lr: LogRead) -> None:
         return  # absent: no vibration metric in this log
     sc = read_topic("sensor_combined")
     if sc is None or "accelerometer_integral_dt" not in sc:
-        lr.status["vib_acc"] = ("unusable: estimator_status.vibe[2] is a delta-velocity metric (m/s) and the log "
+        lr.status["vib_px4"] = ("unusable: estimator_status.vibe[2] is a delta-velocity metric (m/s) and the log "
                                 "has no sensor_combined.accelerometer_integral_dt to convert it")
         return
     acc = np.sqrt(sum(sc[f"accelerometer_m_s2[{i}]"].astype(float) ** 2 for i in range(3)))

@@ -86,8 +86,9 @@ def end_at_touchdown(airborne: Intervals, t: np.ndarray, vz_up: np.ndarray, t_en
 
 
 def cut_landings(lr) -> None:
-    """``end_at_touchdown`` on a LogRead's airborne intervals with its ``vz`` channel (in place)."""
-    if not lr.airborne:
+    """``end_at_touchdown`` on a LogRead's airborne intervals with its ``vz`` channel (in place); nothing
+    for a log whose airborne rule ends at touchdown itself (``landing_lag`` False)."""
+    if not lr.airborne or not lr.landing_lag:
         return
     vz = lr.channels.get("vz")
     t, v = (vz.t, vz.v) if vz is not None else (np.zeros(0), np.zeros(0))

@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from quadfdi.core.channels import RATE_GROUP
 from quadfdi.sim import propeller
 from quadfdi.sim import realistic_params as P
 
@@ -34,7 +35,7 @@ ESC_SPAWN = 5  # spawn_key (5, i): flight i's ESC telemetry noise (1..4 are take
 ESC_CHANNEL_NAMES = ("rpm1", "rpm2", "rpm3", "rpm4", "esc_cur1", "esc_cur2", "esc_cur3", "esc_cur4",
                      "esc_temp1", "esc_temp2", "esc_temp3", "esc_temp4")
 ESC_CHANNEL_UNITS = ("rpm",) * 4 + ("A",) * 4 + ("degC",) * 4
-ESC_RATE_OF = {n: "esc" for n in ESC_CHANNEL_NAMES}  # sim.realistic_params.LOG_HZ["esc"]: 5 Hz
+ESC_RATE_OF = {n: RATE_GROUP[n] for n in ESC_CHANNEL_NAMES}  # core.channels: the esc group
 POLE_PAIRS = 7  # 14-pole outrunner (2212 / 2216 class)
 ERPM_STEP = 100.0  # eRPM per telemetry unit (BLHeli_32 / KISS ESC telemetry frame)
 ESC_CUR_NOISE_A = 0.1  # A, white, per telemetry sample

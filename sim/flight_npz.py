@@ -4,8 +4,8 @@
     python -m quadfdi.sim.flight_npz DATASET.npz INDEX OUT/flight.npz
 
 Every ingest channel the dataset has is copied from ``telemetry`` or ``esc_telemetry`` (the realistic
-suite's ESC rpm, current and temperature, sim.esc_telemetry) with a full mask; ``vib_acc`` is the PX4
-metric ``vib_px4`` (``autopilot`` "px4", the quantity the flightlog profiles read); the others (the
+suite's ESC rpm, current and temperature, sim.esc_telemetry) with a full mask, both vibration metrics
+(``vib_px4``, ``vib_ap``) among them (``autopilot`` "sim"); the others (the
 ESC channels of a dataset without them, ESC temperatures of one made before sim.esc_thermal) are
 absent, fully masked, with that reason. The flight
 is airborne throughout (every simulated flight starts in the air); the vehicle is a quadrotor with
@@ -28,9 +28,6 @@ from quadfdi.formats.flight import FORMAT_VERSION, write_flight
 from quadfdi.core.channels import CHANNEL_NAMES, CHANNEL_UNITS
 from quadfdi.formats.dataset import load_dataset
 
-ALIAS = {"vib_acc": "vib_px4"}  # flight.npz name -> dataset name
-
-
 def _columns(arrays: dict) -> dict[str, np.ndarray]:
     """dataset channel name -> (N, T) view, from telemetry and (if present) esc_telemetry."""
     cols = {str(n): arrays["telemetry"][:, :, j] for j, n in enumerate(arrays["channel_names"])}
@@ -51,7 +48,7 @@ def flight_arrays(arrays: dict, index: int, source: str) -> dict[str, np.ndarray
     shape = (t, len(CHANNEL_NAMES))
     tel, mask, status, sources = np.full(shape, np.nan, np.float32), np.zeros(shape, bool), [], []
     for j, name in enumerate(CHANNEL_NAMES):
-        src = ALIAS.get(name, name)
+        src = name
         if src in cols:
             tel[:, j], mask[:, j] = cols[src][index], True
             status.append("ok")
@@ -69,7 +66,7 @@ def flight_arrays(arrays: dict, index: int, source: str) -> dict[str, np.ndarray
             "channel_counts": mask.sum(axis=0).astype(np.int64), "airborne": np.ones(t, bool),
             "airborne_segments": np.array([span]), "armed_segments": np.array([span]),
             "log_sha256": np.array(hashlib.sha256(tel.tobytes()).hexdigest()), "log_file": np.array(f"{source}#{index}"),
-            "autopilot": np.array("px4"), "vehicle": np.array(json.dumps(vehicle, sort_keys=True)),
+            "autopilot": np.array("sim"), "vehicle": np.array(json.dumps(vehicle, sort_keys=True)),
             "resampling": np.array(json.dumps(resample.spec(), sort_keys=True)),
             "notes": np.array(json.dumps([f"simulated flight {index} of {source}"]))}
 

@@ -89,7 +89,8 @@ def _esc(rec: rl.Record, fp: rf.FaultPlan, draws: list[dict], seed: int, idx: np
     flight = stack(draws, ("t_amb", "wind_ms", "wind_dir"))
     series.update(esc_thermal.esc_temperatures(F, I, V, rec.x[..., 3:6].astype(np.float64), flight,
                                                esc_thermal.draw(seed, idx), float(t_rec[1] - t_rec[0])))
-    return telemetry.to_grid(series, time, esc_telemetry.ESC_CHANNEL_NAMES, esc_telemetry.ESC_RATE_OF)
+    return telemetry.to_grid(series, time, telemetry.log_rates(seed, idx), esc_telemetry.ESC_CHANNEL_NAMES,
+                             esc_telemetry.ESC_RATE_OF)
 
 
 def _states(rec: rl.Record, n: int) -> np.ndarray:
@@ -109,7 +110,7 @@ def _chunk(cfg: SimConfig, idx: np.ndarray, cls: np.ndarray, split: np.ndarray, 
     dt_rec = 1.0 / P.RECORD_HZ
     t_rec = np.arange(rec.x.shape[0]) * dt_rec
     noise = telemetry.sensor_noise(cfg.seed, idx, rec.x.shape[0])
-    tel = telemetry.to_grid(_series(rec, fp, draws, veh, noise, t_rec, dt_rec), time)
+    tel = telemetry.to_grid(_series(rec, fp, draws, veh, noise, t_rec, dt_rec), time, telemetry.log_rates(cfg.seed, idx))
     esc = _esc(rec, fp, draws, cfg.seed, idx, t_rec, time)
     if not (np.isfinite(tel).all() and np.isfinite(esc).all()):
         raise QuadfdiError("sim: a logged channel does not cover the telemetry grid (resampler mask)")

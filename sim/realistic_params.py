@@ -143,12 +143,19 @@ BATT_FADE = 0.4  # capacity x (1 - 0.4 s) on top of the aged pack
 INCIPIENT_SMAX = (0.25, 0.45)  # the out-of-distribution incipient set: below severity_max's range
 MANOEUVRE_SNAP_P = 0.5  # share of in-flight onsets moved to the start of the next manoeuvre
 
-# --- logging (sim/telemetry.py): each channel at its PX4 default logger interval ---------------
-# src/modules/logger/logged_topics.cpp: vehicle_local_position 100 ms, vehicle_attitude 50 ms,
-# vehicle_angular_velocity 20 ms, battery_status 200 ms, actuator_outputs 100 ms,
-# vehicle_imu_status 1000 ms; esc_status at its ESC-telemetry rate (~5 Hz per ESC for
-# BLHeli_32 round-robin telemetry); ArduPilot logs VIBE at 10 Hz.
+# --- logging (sim/telemetry.py): each channel group at a rate drawn per flight ------------------
+# The rates real logs have, per channel group (the command below, on the shared logs: the PX4 quad
+# logs of ../shared/data/flightlogs, its ArduCopter log and a CrazyPAD Crazyflie log): PX4's
+# logger defaults (vehicle_local_position 10 Hz, vehicle_attitude 20 Hz, vehicle_angular_velocity
+# 50 Hz, battery_status 5 Hz, actuator_outputs 10 Hz, vehicle_imu_status 1 Hz) and a PX4 1.9 log's
+# (8, 27.7, 27.7, 1.8, 9.2 Hz, vibration 2.7 Hz, ESC 3.2 Hz), ArduCopter's 10 Hz, the Crazyflie's
+# 100 Hz. Each flight draws each group's rate uniformly from its list (RATES_SPAWN stream); a rate
+# above the 50 Hz record is taken at 50 Hz: after the 25 Hz grid's anti-alias low-pass the two reach
+# the models alike.
 RECORD_HZ = 50.0  # the simulator records every channel at this rate, then decimates
-LOG_HZ = {"pos": 10.0, "att": 20.0, "rate": 50.0, "batt": 5.0, "esc": 5.0, "act": 10.0, "vib_px4": 1.0,
-          "vib_ap": 10.0}
+# `quadfdi ingest rates ../shared/data/flightlogs/* ../shared/data/crazypad/motor_data/normal_flight/E9_log00`:
+LOG_HZ_MEASURED = {"pos": (8.0, 9.8, 10.0, 10.1, 100.9), "att": (9.8, 20.0, 20.2, 27.7, 100.9),
+                   "rate": (9.8, 27.7, 50.0, 50.1), "batt": (1.8, 5.0, 5.1, 9.9, 100.9), "esc": (3.2, 4.0),
+                   "act": (8.8, 9.2, 9.8, 10.0, 100.9), "vib_px4": (1.0, 1.1, 2.7), "vib_ap": (9.8,)}
+RATES_SPAWN = 8  # spawn_key (8, i): flight i's logging rates (1..7 are taken; 7: sim.variability AERO_SPAWN)
 MARGIN_S = 1.0  # simulated past the last sample so every logged channel covers the grid

@@ -1,12 +1,12 @@
 """What a flight controller logs, from the realistic suite's 50 Hz record, through the ingest resampler.
 
-Channel by channel (the paper's 23 plus the two vibration metrics), each at its PX4 default logger
-rate (sim.realistic_params.LOG_HZ): position and velocity of the estimate (vehicle_local_position,
-10 Hz), attitude of the estimate (vehicle_attitude, 20 Hz, yaw wrapped to (-pi, pi]), body rates
-(vehicle_angular_velocity, 50 Hz), V_b, I_b and SoC (battery_status, 5 Hz), motor temperatures
-(esc_status, 5 Hz), motor outputs u (actuator_outputs, 10 Hz), vib_px4 (vehicle_imu_status, 1 Hz),
-vib_ap (ArduPilot VIBE, 10 Hz). A log sample at rate r is the record sample nearest k / r (the
-logger writes the latest message: up to 10 ms of timestamp jitter at 20 Hz, as in real logs).
+Channel by channel (the paper's 23 plus the two vibration metrics), each group at a logging rate
+drawn per flight from the rates real logs have (sim.realistic_params.LOG_HZ_MEASURED, ``log_rates``):
+position and velocity of the estimate (``pos``), attitude of the estimate (``att``, yaw wrapped to
+(-pi, pi]), body rates (``rate``), V_b, I_b and SoC (``batt``), motor temperatures (``esc``), motor
+outputs u (``act``), vib_px4 (PX4's vehicle_imu_status) and vib_ap (ArduPilot's VIBE). A log sample
+at rate r is the record sample nearest k / r (the logger writes the latest message: up to 10 ms of
+timestamp jitter at 20 Hz, as in real logs).
 Every channel then goes through ``core.resample.resample`` onto the 25 Hz grid, the function
 real PX4/ArduPilot logs go through (anti-alias low-pass for channels above 25 Hz, linear
 interpolation otherwise), so simulated and real flights reach the models the same way.
@@ -22,6 +22,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.signal import lfilter
 
+from quadfdi.core.channels import RATE_GROUP
 from quadfdi.core.frames import wrap
 from quadfdi.core.resample import resample
 from quadfdi.sim import battery, propeller, sensors
@@ -29,10 +30,7 @@ from quadfdi.sim import realistic_params as P
 
 CHANNEL_NAMES = sensors.CHANNEL_NAMES + ("vib_px4", "vib_ap")
 CHANNEL_UNITS = sensors.CHANNEL_UNITS + ("m/s^2", "m/s^2")
-RATE_OF = {**{c: "pos" for c in ("x", "y", "z", "vx", "vy", "vz")}, **{c: "att" for c in ("roll", "pitch", "yaw")},
-           **{c: "rate" for c in ("p", "q", "r")}, "V_b": "batt", "I_b": "batt", "SoC": "batt",
-           **{f"T{i}": "esc" for i in range(1, 5)}, **{f"thr{i}": "act" for i in range(1, 5)},
-           "vib_px4": "vib_px4", "vib_ap": "vib_ap"}
+RATE_OF = {c: RATE_GROUP[c] for c in CHANNEL_NAMES}
 SENSOR_SPAWN = 4  # spawn_key (4, i): flight i's ADC/thermistor noise
 
 
@@ -80,29 +78,39 @@ def vibration(F: np.ndarray, cut: np.ndarray, residual_g: np.ndarray, mass: np.n
     return px4, ap
 
 
+def log_rates(seed: int, idx: np.ndarray) -> dict[str, np.ndarray]:
+    """Per channel group, the (B,) logging rates of flights ``idx``: each drawn uniformly from the group's
+    measured rates (from flight i's own stream, in group order), capped at the record rate."""
+    out = {g: np.empty(len(idx)) for g in P.LOG_HZ_MEASURED}
+    for b, i in enumerate(idx):
+        rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(P.RATES_SPAWN, int(i))))
+        for g, rates in P.LOG_HZ_MEASURED.items():
+            out[g][b] = min(rates[int(rng.integers(len(rates)))], P.RECORD_HZ)
+    return out
+
+
 def log_indices(n_rec: int, rate_hz: float) -> np.ndarray:
     """Record indices of a channel logged at rate_hz: nearest record sample to k / rate_hz."""
     k = np.arange(int(np.floor((n_rec - 1) / P.RECORD_HZ * rate_hz + 1e-9)) + 1)
     return np.floor(k * P.RECORD_HZ / rate_hz + 0.5).astype(np.int64)
 
 
-def to_grid(series: dict[str, np.ndarray], grid: np.ndarray, names: tuple[str, ...] = CHANNEL_NAMES,
-            rate_of: dict[str, str] | None = None) -> np.ndarray:
-    """Every channel ``names`` (name -> (n_rec, B) at RECORD_HZ) logged at its rate (``rate_of``, default
-    RATE_OF) and resampled onto grid: (B, len(grid), len(names)) float64. Each flight's channel is one
-    ``resample`` call (the ingest API is per channel); NaN where the resampler masks (none when the
-    record covers the grid)."""
+def to_grid(series: dict[str, np.ndarray], grid: np.ndarray, rates: dict[str, np.ndarray],
+            names: tuple[str, ...] = CHANNEL_NAMES, rate_of: dict[str, str] | None = None) -> np.ndarray:
+    """Every channel ``names`` (name -> (n_rec, B) at RECORD_HZ) logged at its group's rate (``rate_of``,
+    default RATE_OF; ``rates``: group -> (B,) Hz, ``log_rates``) and resampled onto grid:
+    (B, len(grid), len(names)) float64. Each flight's channel is one ``resample`` call (the ingest API
+    is per channel); NaN where the resampler masks (none when the record covers the grid)."""
     rate_of = RATE_OF if rate_of is None else rate_of
     n_rec, B = next(iter(series.values())).shape
     out = np.empty((B, len(grid), len(names)))
     for c, name in enumerate(names):
-        idx = log_indices(n_rec, P.LOG_HZ[rate_of[name]])
-        t = idx / P.RECORD_HZ
-        v = series[name][idx]
-        if name == "yaw":
-            v = wrap(v)
         for b in range(B):
-            out[b, :, c] = resample(t, v[:, b], grid, angle=name == "yaw")[0]
+            idx = log_indices(n_rec, float(rates[rate_of[name]][b]))
+            v = series[name][idx, b]
+            if name == "yaw":
+                v = wrap(v)
+            out[b, :, c] = resample(idx / P.RECORD_HZ, v, grid, angle=name == "yaw")[0]
     return out
 
 

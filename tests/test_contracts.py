@@ -19,9 +19,9 @@ from quadfdi.core.errors import QuadfdiError
 
 # Pinned: an id never changes (a profile, a mask, weights.bin and the C++ name a channel by it).
 CHANNEL_IDS = ["x", "y", "z", "vx", "vy", "vz", "roll", "pitch", "yaw", "p", "q", "r", "V_b", "I_b", "SoC",
-               "T1", "T2", "T3", "T4", "thr1", "thr2", "thr3", "thr4", "vib_acc", "rpm1", "rpm2", "rpm3", "rpm4",
+               "T1", "T2", "T3", "T4", "thr1", "thr2", "thr3", "thr4", "vib_px4", "rpm1", "rpm2", "rpm3", "rpm4",
                "esc_temp1", "esc_temp2", "esc_temp3", "esc_temp4", "esc_cur1", "esc_cur2", "esc_cur3", "esc_cur4",
-               "vib_px4", "airborne"]
+               "vib_ap", "airborne"]
 MIN_MODEL = ["roll", "pitch", "p", "q", "r", "vx_h", "vy_h", "vz", "v_cell", "i_rel", "m1_rel", "m2_rel", "m3_rel",
              "m4_rel", "vib"]
 ESC_MODEL = [*MIN_MODEL, "rpm1_rel", "rpm2_rel", "rpm3_rel", "rpm4_rel", "esc1_i_rel", "esc2_i_rel", "esc3_i_rel",
@@ -33,9 +33,9 @@ def test_channel_ids_are_stable_and_flight_columns_unchanged():
 
     assert [c.name for c in channels.CHANNELS] == CHANNEL_IDS
     assert [c.id for c in channels.CHANNELS] == list(range(len(CHANNEL_IDS)))  # kChannelNames[id] in the C++
-    assert channels.CHANNEL_NAMES == tuple(CHANNEL_IDS[:36])  # flight.npz's columns
+    assert channels.CHANNEL_NAMES == tuple(CHANNEL_IDS[:37])  # flight.npz's columns
     assert channels.SIM_CHANNEL_NAMES == tuple(CHANNEL_IDS[:23])
-    assert {c.kind for c in channels.CHANNELS[36:]} == {"stream"} and channels.AIRBORNE == "airborne"
+    assert {c.kind for c in channels.CHANNELS[37:]} == {"stream"} and channels.AIRBORNE == "airborne"
     header = channels.cpp_header()
     assert header.count("constexpr int kChannel") == len(CHANNEL_IDS) + 1  # one per channel and the count
     assert len(set(line.split("=")[0] for line in header.splitlines() if line.startswith("constexpr int kChannel"))) \

@@ -52,7 +52,7 @@ def test_mission_vibration_reaches_detect_in_m_s2(mission_npz):
     z = np.load(mission_npz)
     vib = json.loads(str(z["vehicle"]))["vibration"]
     assert vib["source"] == "estimator_status.vibe[2]" and vib["integration_interval_s"] == pytest.approx(0.004)
-    j = [str(n) for n in z["channel_names"]].index("vib_acc")
+    j = [str(n) for n in z["channel_names"]].index("vib_px4")
     assert "accelerometer_integral_dt" in str(z["channel_sources"][j]) and str(z["channel_status"][j]) == "ok"
     assert 5 < np.nanmedian(z["telemetry"][:, j]) < 40  # m/s^2 (0.06 before: m/s read as m/s^2)
 

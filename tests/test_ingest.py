@@ -17,19 +17,19 @@ LOGS = Path(os.environ.get("QUADFDI_FLIGHTLOGS", ROOT.parent / "shared" / "data"
 pytestmark = pytest.mark.skipif(not LOGS.is_dir(), reason=f"shared flight logs not found at {LOGS} "
                                 "(CI places shared/ beside the clone)")
 
-CORE = ["z", "vz", "roll", "pitch", "yaw", "p", "q", "r", "thr1", "thr2", "thr3", "thr4", "vib_acc"]
+CORE = ["z", "vz", "roll", "pitch", "yaw", "p", "q", "r", "thr1", "thr2", "thr3", "thr4", "vib_px4"]
 # log -> (channels that must be "ok", channels that must not be, {channel: documented rate in Hz})
 INGESTS = {
     "px4_sitl_quad_esc.ulg": (CORE + ["x", "V_b", "rpm1", "esc_temp4", "esc_cur1"], ["I_b"],
-                              {"roll": 20, "p": 50, "thr1": 10, "V_b": 5, "rpm1": 4, "vib_acc": 1}),
+                              {"roll": 20, "p": 50, "thr1": 10, "V_b": 5, "rpm1": 4, "vib_px4": 1}),
     "px4_quad_6s_vibration_tipover.ulg": (CORE + ["x", "y", "V_b", "I_b", "rpm1", "rpm4", "esc_cur4"], ["T1"],
-                                          {"roll": 20, "p": 50, "thr1": 10, "V_b": 5, "rpm1": 4, "vib_acc": 1}),
+                                          {"roll": 20, "p": 50, "thr1": 10, "V_b": 5, "rpm1": 4, "vib_px4": 1}),
     "px4_quad_6s_gps_interference.ulg": (CORE + ["x", "V_b"], ["I_b", "rpm1", "esc_cur1"],
-                                         {"roll": 20, "p": 50, "thr1": 10, "V_b": 5, "vib_acc": 1}),
+                                         {"roll": 20, "p": 50, "thr1": 10, "V_b": 5, "vib_px4": 1}),
     "px4_quad_6s_uavcan_mission.ulg": (CORE + ["x", "V_b", "I_b", "rpm1", "esc_temp1", "esc_cur1"],
                                        ["T1"], {"roll": 28, "V_b": 1.8, "thr1": 9, "rpm1": 3, "esc_cur1": 3}),
     "px4_quad_battery_monitor_disconnected.ulg": (CORE + ["x"], ["V_b", "I_b", "SoC"],
-                                                  {"roll": 20, "p": 50, "thr1": 10, "vib_acc": 1}),
+                                                  {"roll": 20, "p": 50, "thr1": 10, "vib_px4": 1}),
 }
 REFUSALS = {
     # 2.7 s airborne by the land detector, 0.4 s once the landing is cut back to its touchdown
@@ -138,19 +138,19 @@ def test_usage_errors_are_one_line(tmp_path):
     foreign = tmp_path / "x.ulg"
     foreign.write_bytes(b"not a log at all")
     res = quadfdi("ingest", str(foreign), "--out", str(tmp_path / "o"))
-    assert res.returncode == 2 and "neither a PX4 ULog nor an ArduPilot DataFlash" in res.stderr
+    assert res.returncode == 2 and "neither a PX4 ULog, an ArduPilot DataFlash nor a Crazyflie" in res.stderr
     assert not (tmp_path / "o").exists()
 
 
 def test_gap_factor_bridges_the_missions_vibration_gaps(ingested, tmp_path):
     """--gap-factor 7 spans the mission's estimator_status gaps (longest 1.41 s, median interval 0.21 s):
-    vib_acc's airborne coverage grows, nothing else of the log changes, the factor is recorded."""
+    vib_px4's airborne coverage grows, nothing else of the log changes, the factor is recorded."""
     name = "px4_quad_6s_uavcan_mission.ulg"
     res = quadfdi("ingest", str(LOGS / name), "--out", str(tmp_path / "g7"), "--gap-factor", "7")
     assert res.returncode == 0, res.stderr
     a, b = _load(ingested[name]), _load(tmp_path / "g7")
     names = [str(n) for n in a["channel_names"]]
-    j = names.index("vib_acc")
+    j = names.index("vib_px4")
     air = a["airborne"]
     assert a["mask"][air, j].mean() < 0.75 and b["mask"][air, j].mean() > 0.95
     assert json.loads(str(a["resampling"]))["gap_factor"] == 3.0 and json.loads(str(b["resampling"]))["gap_factor"] == 7.0
@@ -162,3 +162,22 @@ def test_gap_factor_bridges_the_missions_vibration_gaps(ingested, tmp_path):
     res = quadfdi("ingest", str(LOGS / name), "--out", str(tmp_path / "bad"), "--gap-factor", "1")
     assert res.returncode == 2 and "--gap-factor must be at least 1.5" in res.stderr and len(res.stderr.strip().splitlines()) == 1
     assert not (tmp_path / "bad").exists()
+
+
+def test_ingest_rates_tabulates_each_groups_rate_on_the_shared_logs():
+    """What sim.realistic_params.LOG_HZ_MEASURED is made from: PX4's logger defaults on the v1.15/1.16
+    logs (attitude 20 Hz, rates 50 Hz, battery 5 Hz, vibration 1 Hz) and the v1.9 log's slower battery."""
+    import json
+
+    from quadfdi.sim import realistic_params as P
+
+    logs = [str(LOGS / n) for n in ("px4_quad_6s_gps_interference.ulg", "px4_quad_6s_uavcan_mission.ulg",
+                                    "ardupilot_plane_1s.BIN")]
+    res = quadfdi("ingest", "rates", *logs)
+    assert res.returncode == 0, res.stderr
+    out = json.loads(res.stdout)
+    gps, mission, plane = out["logs"]
+    assert gps["rates"]["att"] == 20.0 and gps["rates"]["rate"] == 50.0 and gps["rates"]["vib_px4"] == 1.0
+    assert mission["rates"]["batt"] == 1.8 and "not a multirotor" in plane["refused"]
+    for g, rates in out["groups"].items():
+        assert set(rates) <= set(P.LOG_HZ_MEASURED[g]), g

@@ -112,7 +112,9 @@ def test_arducopter_ground_log_parameters_and_channels():
     assert v["pwm_range"][:2] == [1120.0, 1920.0] and abs(v["thrust_expo"] - 0.6) < 1e-6
     assert v["motor_map"] == [2, 1, 3, 0]  # front-left, rear-left, rear-right, front-right
     assert v["battery"]["cells"] == 4  # 16.4 V, from the voltage (no BATT_CELLS)
-    assert {"x", "roll", "p", "V_b", "thr1", "vib_acc"} <= set(lr.channels)
+    assert {"x", "roll", "p", "V_b", "thr1", "vib_ap"} <= set(lr.channels) and "vib_px4" not in lr.channels
+    vibe = lr.channels["vib_ap"]  # VIBE's in-plane mean, the simulator's definition (not the 3-axis norm)
+    assert vibe.source == "VIBE: (VibeX + VibeY) / 2"
     assert lr.airborne == []
     assert json.dumps(v, default=float)
 

@@ -40,8 +40,8 @@ def test_firmware_version_from_ver_sw_release():
 
 def test_px4_19_vibe2_divided_by_the_logged_integration_interval(reads):
     lr = reads["v19"]
-    ch, meta = lr.channels["vib_acc"], lr.vehicle["vibration"]
-    assert "vib_acc" not in lr.status and meta["source"] == "estimator_status.vibe[2]" and meta["firmware"] == "1.9.0"
+    ch, meta = lr.channels["vib_px4"], lr.vehicle["vibration"]
+    assert "vib_px4" not in lr.status and meta["source"] == "estimator_status.vibe[2]" and meta["firmware"] == "1.9.0"
     raw = _topic("px4_quad_6s_uavcan_mission.ulg", ["estimator_status.vibe[2]", "estimator_status.timestamp"])
     dt = np.median(_topic("px4_quad_6s_uavcan_mission.ulg",
                           ["sensor_combined.accelerometer_integral_dt"])["sensor_combined.accelerometer_integral_dt"]) * 1e-6
@@ -60,7 +60,7 @@ def test_px4_112_metric_is_a_delta_velocity_and_agrees_with_ecl(reads):
     assert meta["logged_unit"] == "m/s (delta velocity)" and meta["firmware"] == "1.12.3"
     assert meta["integration_interval_s"] == pytest.approx(0.005, abs=1e-4)
     ecl = _topic("px4_fmuv5_quad_real_short.ulg", ["estimator_status.vibe[2]"])["estimator_status.vibe[2]"]
-    ratio = np.median(lr.channels["vib_acc"].v) / (np.median(ecl) / meta["integration_interval_s"])
+    ratio = np.median(lr.channels["vib_px4"].v) / (np.median(ecl) / meta["integration_interval_s"])
     assert 0.65 < ratio < 1.35, ratio
 
 
@@ -84,7 +84,7 @@ def test_px4_113_and_later_metric_is_used_as_logged():
     topics = _Topics(vehicle_imu_status={"t": t, "accel_vibration_metric": np.array([4.0, 4.5, 5.0, 4.0])},
                      vehicle_imu={"t": t, "delta_velocity_dt": np.array([5000.0, 5000, 5010, 4990])})
     px4_vibration.vibration_channel(topics, {"ver_sw_release": 0x01100000}, lambda n: None, lr)
-    np.testing.assert_array_equal(lr.channels["vib_acc"].v, [4.0, 4.5, 5.0, 4.0])
+    np.testing.assert_array_equal(lr.channels["vib_px4"].v, [4.0, 4.5, 5.0, 4.0])
     meta = lr.vehicle["vibration"]
     assert meta["conversion"] == "none" and meta["firmware"] == "1.16.0" and meta["integration_interval_s"] == 0.005
 
@@ -94,11 +94,11 @@ def test_no_version_or_no_interval_is_unusable_never_guessed():
     imu = {"t": t, "accel_vibration_metric": m}
     lr = _lr()
     px4_vibration.vibration_channel(_Topics(vehicle_imu_status=imu), {}, lambda n: None, lr)
-    assert "vib_acc" not in lr.channels and "no firmware version" in lr.status["vib_acc"]
+    assert "vib_px4" not in lr.channels and "no firmware version" in lr.status["vib_px4"]
     lr = _lr()
     px4_vibration.vibration_channel(_Topics(vehicle_imu_status=imu), {"ver_sw_release": 0x010B0200}, lambda n: None, lr)
-    assert "vib_acc" not in lr.channels and "vehicle_imu.delta_velocity_dt" in lr.status["vib_acc"]
+    assert "vib_px4" not in lr.channels and "vehicle_imu.delta_velocity_dt" in lr.status["vib_px4"]
     lr = _lr()
     px4_vibration.vibration_channel(_Topics(estimator_status={"t": t, "vibe[2]": m}), {"ver_sw_release": 0x01080000},
                                     lambda n: None, lr)
-    assert "vib_acc" not in lr.channels and "accelerometer_integral_dt" in lr.status["vib_acc"]
+    assert "vib_px4" not in lr.channels and "accelerometer_integral_dt" in lr.status["vib_px4"]

@@ -109,50 +109,47 @@ def test_sharded_generation_keeps_every_flight(cfg, ds, tmp_path):
         np.testing.assert_array_equal(got[k], ds[k], err_msg=k)
 
 
-# the earlier arrays of this module's dataset (every key but esc_*, sorted, name + dtype + bytes). First
-# hashed with the code before the ESC channels existed (main at 66fa8db: c2e7df13...a690f420), which
-# proved the ESC stream changes no earlier array; re-pinned when the healthy vibration floor and boot
-# SoC were widened on purpose (sim/realistic_params.py, docs/params.md "Vibration floor"), so it now
-# guards those arrays against any unintended change, the ESC channels' included. Re-pinned again when
-# the forward-flight rotor moment entered the physics on purpose (sim/realistic_params.FLAP_PER_MS,
-# docs/params.md "Forward-flight rotor moment"): every trajectory of a translating vehicle moves. And
-# again for the motor mount twist (sim/realistic_params.MOUNT_TWIST_DEG, docs/params.md "Motor mount
-# twist"; before: 3e9fb693...599784ccc): every vehicle's motor shares move. And when thr1..4 became the
-# thrust fraction instead of the ESC output (sim/realistic_params.py "thrust curve"; before:
-# 6f44ece9...e1f79b8515): only those four columns moved, the ESC pin below did not (same dynamics).
-PRE_ESC_SHA256 = "a550436fcc67d8de1c23815a24a193b3d670251c91365f8d5c0201a75992b3df"
+# Regression pins of this module's dataset, so that any change to the simulator's output shows as a
+# reviewable diff. Split in two: what the vehicle did (every array but the logged telemetry) and what
+# its logger wrote (telemetry, esc_telemetry: the logging rates drawn per flight, sensor noise, the
+# resampler). The logging-rate draw has its own stream (sim.realistic_params.RATES_SPAWN), so it moves
+# only the second; the ESC streams draw after everything else, so they move only esc_telemetry.
+STATE_SHA256 = "d8d093d54f2e81edbef7b99cef73521647e5cf28d4ee7ddedcfce6024b6ce044"
+LOGGED_SHA256 = "68e1e921f01b70abbcd8f2e83619c79c5a4610f781ca1c18b2d6e4cc8665c85d"
+LOGGED = ("telemetry", "esc_telemetry")
 
 
-def test_esc_channels_change_no_earlier_array(ds):
-    """The ESC telemetry (sim.esc_telemetry) draws from its own stream after everything else: every
-    array that existed before it is bit-identical (a paper- or flightlog-min-profile model sees the
-    same inputs); the new channels are the key ``esc_telemetry``."""
+def _digest(ds, keys) -> str:
     import hashlib
 
     h = hashlib.sha256()
-    for k in sorted(ds):
-        if not k.startswith("esc_"):
-            a = np.ascontiguousarray(ds[k])
-            h.update(k.encode()), h.update(str(a.dtype).encode()), h.update(a.tobytes())
-    assert h.hexdigest() == PRE_ESC_SHA256
+    for k in keys:
+        a = np.ascontiguousarray(ds[k])
+        h.update(k.encode()), h.update(str(a.dtype).encode()), h.update(a.tobytes())
+    return h.hexdigest()
+
+
+def test_simulated_state_and_logged_telemetry_are_pinned(ds):
+    assert _digest(ds, [k for k in sorted(ds) if k not in LOGGED]) == STATE_SHA256
+    assert _digest(ds, LOGGED) == LOGGED_SHA256
     assert list(ds["esc_channel_names"]) == [f"rpm{k}" for k in range(1, 5)] + [f"esc_cur{k}" for k in range(1, 5)] \
         + [f"esc_temp{k}" for k in range(1, 5)]
     assert ds["esc_telemetry"].shape == ds["telemetry"].shape[:2] + (12,) and np.isfinite(ds["esc_telemetry"]).all()
 
 
-# the rpm and current columns of esc_telemetry (its first 8): computed with main at 89a6b5e (before the
-# ESC temperature columns existed) and with the code that added them: equal, so the temperatures' own
-# stream (sim.esc_thermal, spawn key 6) moved none of them. Re-pinned with PRE_ESC_SHA256 when the
-# forward-flight rotor moment changed the thrusts these columns follow (before: a9a2bf6a...73854838); from then on a regression pin of those columns.
-# Re-pinned for the motor mount twist (before: 3af77fbd...6cbf12a), as PRE_ESC_SHA256.
-ESC_RPM_CUR_SHA256 = "da7c52f1cdecfa297c8bead6119c9dcb583acacfa599e96359ed2fbbdfcfce89"
+def test_logging_rates_are_drawn_per_flight_from_the_measured_table(cfg):
+    """Each group's rate is one of the rates real logs have (capped at the 50 Hz record), drawn from the
+    flight's own stream: the same flight gets the same rates in any batch."""
+    from quadfdi.sim import realistic_params as P
+    from quadfdi.sim.telemetry import log_rates
 
-
-def test_esc_temperatures_move_no_rpm_or_current_column(ds):
-    import hashlib
-
-    a = np.ascontiguousarray(ds["esc_telemetry"][..., :8])
-    assert a.dtype == np.float32 and hashlib.sha256(a.tobytes()).hexdigest() == ESC_RPM_CUR_SHA256
+    idx = np.arange(cfg.sim.n_traj)
+    rates = log_rates(cfg.sim.seed, idx)
+    alone = log_rates(cfg.sim.seed, idx[5:6])
+    for g, table in P.LOG_HZ_MEASURED.items():
+        allowed = {min(r, P.RECORD_HZ) for r in table}
+        assert set(rates[g]) <= allowed and rates[g][5] == alone[g][0]
+    assert len(set(rates["att"])) > 1 and len(set(rates["batt"])) > 1  # flights differ
 
 
 def test_esc_temperatures_sit_near_the_flights_ambient(ds):

@@ -6,7 +6,7 @@ namespace fwref {
 
 // Raw channel ids (core/channels.py CHANNELS): never renumbered, never reused.
 constexpr int kChannelCount = 38;
-constexpr const char* kChannelNames[kChannelCount] = {"x", "y", "z", "vx", "vy", "vz", "roll", "pitch", "yaw", "p", "q", "r", "V_b", "I_b", "SoC", "T1", "T2", "T3", "T4", "thr1", "thr2", "thr3", "thr4", "vib_acc", "rpm1", "rpm2", "rpm3", "rpm4", "esc_temp1", "esc_temp2", "esc_temp3", "esc_temp4", "esc_cur1", "esc_cur2", "esc_cur3", "esc_cur4", "vib_px4", "airborne"};
+constexpr const char* kChannelNames[kChannelCount] = {"x", "y", "z", "vx", "vy", "vz", "roll", "pitch", "yaw", "p", "q", "r", "V_b", "I_b", "SoC", "T1", "T2", "T3", "T4", "thr1", "thr2", "thr3", "thr4", "vib_px4", "rpm1", "rpm2", "rpm3", "rpm4", "esc_temp1", "esc_temp2", "esc_temp3", "esc_temp4", "esc_cur1", "esc_cur2", "esc_cur3", "esc_cur4", "vib_ap", "airborne"};
 constexpr int kChannelX = 0;  // m, sim
 constexpr int kChannelY = 1;  // m, sim
 constexpr int kChannelZ = 2;  // m, sim
@@ -30,7 +30,7 @@ constexpr int kChannelThr1 = 19;  // -, sim
 constexpr int kChannelThr2 = 20;  // -, sim
 constexpr int kChannelThr3 = 21;  // -, sim
 constexpr int kChannelThr4 = 22;  // -, sim
-constexpr int kChannelVibAcc = 23;  // m/s^2, log
+constexpr int kChannelVibPx4 = 23;  // m/s^2, log
 constexpr int kChannelRpm1 = 24;  // rpm, log
 constexpr int kChannelRpm2 = 25;  // rpm, log
 constexpr int kChannelRpm3 = 26;  // rpm, log
@@ -43,7 +43,7 @@ constexpr int kChannelEscCur1 = 32;  // A, log
 constexpr int kChannelEscCur2 = 33;  // A, log
 constexpr int kChannelEscCur3 = 34;  // A, log
 constexpr int kChannelEscCur4 = 35;  // A, log
-constexpr int kChannelVibPx4 = 36;  // m/s^2, stream
+constexpr int kChannelVibAp = 36;  // m/s^2, log
 constexpr int kChannelAirborne = 37;  // -, stream
 
 // The profiles, by the id weights.bin's on-board record stores (dims[0]).
