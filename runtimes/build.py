@@ -99,8 +99,9 @@ def build_host(build_dir: Path = HOST_BUILD, sanitize: bool = False, log: Callab
 
 
 def build_mcu(cpu: str, weights: Path, reference: Path, build_dir: Path | None = None,
-              log: Callable[[str], None] = print) -> Path:
-    """Cross-build the Cortex-M images for ``cpu`` with ``weights`` and ``reference`` compiled in.
+              log: Callable[[str], None] = print, streams: tuple[Path, ...] = ()) -> Path:
+    """Cross-build the Cortex-M images for ``cpu`` with ``weights`` and ``reference`` compiled in;
+    with ``streams`` (stream files) also the stream image fwref_mcu_stream.elf, which replays them.
 
     The caller holds ``locked(build_dir)`` while it also runs the images, so that another process
     cannot rebuild them with other weights in between.
@@ -111,7 +112,9 @@ def build_mcu(cpu: str, weights: Path, reference: Path, build_dir: Path | None =
     build_dir = build_dir or mcu_build_dir(cpu)
     options = {"CMAKE_TOOLCHAIN_FILE": str(FW_ROOT / "mcu" / "toolchain-arm-none-eabi.cmake"), "FWREF_CPU": cpu,
                "FWREF_WEIGHTS": str(Path(weights).resolve()), "FWREF_REFERENCE": str(Path(reference).resolve()),
-               "Python3_EXECUTABLE": sys.executable}
+               "Python3_EXECUTABLE": sys.executable,
+               # "" = no stream image: stream files of another export must not be rebuilt with these weights
+               "FWREF_STREAMS": ";".join(str(Path(s).resolve()) for s in streams)}
     manifest = Path(weights).resolve().parent / "manifest.json"
     # the generator checks weights.bin and reference.bin against the export's manifest; "" = no check
     options["FWREF_MANIFEST"] = str(manifest) if manifest.is_file() else ""
