@@ -123,9 +123,16 @@ def stream_section(t: dict | None) -> list[str]:
             "| M4 worst decision, instr. / cycles | M4 duty, instr. / cycles | M7 decision, mean (worst), instr. "
             "| M7 worst decision | M7 duty |", "|---|---|---|---|---|---|---|---|---|"]
     out += _stream_rows(t) + [""]
-    over = [k for c in t["cores"].values() for k, m in c["models"].items()
-            if max(m["worst_decision_ms"], (m.get("cycles") or {}).get("worst_decision_ms") or 0) > t["sample_period_ms"]]
-    out += [f"Over the {t['sample_period_ms']:.0f} ms sample period: {', '.join(sorted(set(over))) or 'none'}."]
+    over = []
+    for cpu, c in t["cores"].items():
+        for key, m in c["models"].items():
+            net, prec = key.rsplit("_", 1)
+            by_cycles = ((m.get("cycles") or {}).get("worst_decision_ms") or 0) > t["sample_period_ms"]
+            if m["worst_decision_ms"] > t["sample_period_ms"] or by_cycles:
+                over.append(f"{STREAM_TITLES.get(net, net)} {prec} on the {cpu} ("
+                            + ("instructions" if m["worst_decision_ms"] > t["sample_period_ms"] else "estimated cycles")
+                            + ")")
+    out += [f"Worst decision over the {t['sample_period_ms']:.0f} ms sample period: {'; '.join(over) or 'none'}."]
     if t.get("sgru_vs_gru"):
         out += ["Streaming GRU per second of flight, as a share of the windowed GRU's instructions: "
                 + ", ".join(f"{k} {v:.4f}" for k, v in t["sgru_vs_gru"].items()) + "."]

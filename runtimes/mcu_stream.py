@@ -11,13 +11,14 @@ and, per model, precision and flight, the instructions of its pushes (SysTick un
 a decision, nohover or skipped). ``run_image(cpu, elf, trace=True)`` also records QEMU's block
 trace (runtimes/mcu_trace.py) and cuts it at each call of ``board::ticks()``: the image reads the
 counter just before and just after every push, so each push is one segment of the trace, whose
-instructions are the push's -icount figure within one SysTick tick, and whose cycles are the
+instructions are the push's -icount figure within ``icount_slack``, and whose cycles are the
 Cortex-M4 estimate (runtimes/mcu_cycles.py). ``check_against_host`` holds every stride against the
 host's ``fwref_stream`` on the same stream files.
 """
 
 from __future__ import annotations
 
+import math
 import subprocess
 import tempfile
 import time
@@ -52,6 +53,7 @@ class StreamRun:
     text: str
     classes: int
     ratio: float  # instructions per SysTick tick (the image's calibration)
+    calib_ticks: int  # the calibration loop's ticks: the ratio is known to 1 tick in these
     strides: dict[tuple[str, str, int], list[tuple]] = field(default_factory=dict)
     perf: dict[tuple[str, str, int], dict[str, int]] = field(default_factory=dict)
     pushes: dict[str, np.ndarray] | None = None  # traced: per push, in replay order (``push_table``)
@@ -64,10 +66,11 @@ def parse_output(cpu: str, text: str) -> StreamRun:
         last = [ln for ln in text.splitlines() if ln.strip()][-1:] or ["no output"]
         raise QuadfdiError(f"the {cpu} stream image did not finish its replays (last line: {last[0][:160]})")
     head = next(ln for ln in text.splitlines() if ln.startswith("STREAM "))
-    ratio = int(dict(a.split("=") for a in head.split()[1:])["instructions_per_tick_x1000"]) / 1000
+    fields = dict(a.split("=") for a in head.split()[1:])
+    ratio, calib = int(fields["instructions_per_tick_x1000"]) / 1000, int(fields["calib_ticks"])
     first = next((ln.split() for ln in text.splitlines() if ln.startswith("STRIDE ")), None)
     k = len(first) - 11 if first else 0
-    run = StreamRun(cpu, text, k, ratio)
+    run = StreamRun(cpu, text, k, ratio, calib)
     for line in text.splitlines():
         p = line.split()
         if p and p[0] == "STRIDE":
@@ -77,6 +80,14 @@ def parse_output(cpu: str, text: str) -> StreamRun:
         elif p and p[0] == "PERF":
             run.perf[(p[1], p[2], int(p[3]))] = {a.split("=")[0]: int(a.split("=")[1]) for a in p[4:]}
     return run
+
+
+def icount_slack(run: StreamRun, instructions: int, pushes: int) -> int:
+    """How far the image's -icount figure for ``pushes`` pushes of ``instructions`` in all may be from
+    the trace's count of the same: per push one SysTick tick (the counter is read before and after,
+    a tick being ``ratio`` = 40 instructions) and the rounding to an integer; and the calibration's
+    own tick (the ratio is measured to 1 tick in ``calib_ticks``, 2 allowed) over the whole count."""
+    return pushes * (math.ceil(run.ratio) + 1) + math.ceil(2 * instructions / max(run.calib_ticks, 1))
 
 
 def symbol_address(elf: Path, name: str) -> int:
