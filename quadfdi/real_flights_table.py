@@ -54,7 +54,8 @@ def table(results: list[dict]) -> str:
     first = {p: i for i, p in reversed(list(enumerate(c["profile"] for c in results)))}  # profiles as run
     order = sorted(groups, key=lambda k: (first[k[0]], k[1], ("cnode", "gru").index(k[2])))
     rows = [r for k in order if (r := _row(groups[k])) is not None]
-    return "\n".join(HEAD + rows + [""] + [f"- {p} {f}: {why}" for (p, f), why in sorted(refused.items())])
+    notes = [f"- {p} {f}: {why}" for (p, f), why in sorted(refused.items())]
+    return "\n".join(HEAD + rows + ([""] + notes if notes else []))
 
 
 def markdown(results: list[dict], gap_results: list[dict], gap_factor: float) -> str:
