@@ -55,11 +55,15 @@ def default_logs() -> Path:
 def add_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("real-flights", help="the realistic suite's models of each channel profile on every shared "
                                             "real quad log (sim, train, evaluate, export, parity, ingest, detect)",
-                       description=__doc__.split("\n\n")[0])
+                       description="Simulate the realistic suite once; for each channel profile train, apply, "
+                                   "evaluate, export and check (parity on the host) its networks; run quadfdi detect "
+                                   "with each export on every shared real quad log (both networks, runtimes and "
+                                   "precisions); write OUT/real_flights.md and OUT/real_flights.json.")
     add_config_args(p)
     p.set_defaults(config="configs/realistic.toml")
     add_executor_args(p)
-    p.set_defaults(workers=1)
+    workers = next(a for a in p._actions if a.dest == "workers")
+    workers.default, workers.help = 1, "worker processes for the sim and apply jobs (default: 1, in this process)"
     p.add_argument("out", metavar="OUT", help="folder for the runs, the detect outputs and real_flights.md")
     p.add_argument("--profiles", default="min,nocur,esc", help="comma-separated, of " + ", ".join(PROFILES))
     p.add_argument("--logs", default=None, help="the folder of real flight logs (default: ../shared/data/flightlogs "
