@@ -64,7 +64,8 @@ def _image(cpu: str) -> dict | None:
         return None
     s = section_sizes(elf)
     return {"elf": str(elf), "text_bytes": s.get(".text", 0), "data_bytes": s.get(".data", 0),
-            "bss_bytes": s.get(".bss", 0), "note": "as quadfdi parity last built it (the weights and stream files of its run)"}
+            "bss_bytes": s.get(".bss", 0),
+            "note": "as quadfdi parity last built it (the weights and stream files of its run)"}
 
 
 def stream_memory(record: dict, manifest: dict, exe: Path | None, weights: Path,

@@ -106,7 +106,8 @@ def stream_section(t: dict | None) -> list[str]:
         return out + [f"Not run: {(t or {}).get('skipped', 'no Cortex-M part')}.", ""]
     fl, cm = t["flights"], t["cycle_model"]
     checks = [f"{cpu}: {sum(h['strides'] for h in r['host_check'].values())} strides, QEMU {r['seconds']:.1f} s"
-              + (" traced" if any("cycles" in m for m in r["models"].values()) else "") for cpu, r in t["cores"].items()]
+              + (" traced" if any("cycles" in m for m in r["models"].values()) else "")
+              for cpu, r in t["cores"].items()]
     out += [f"Test flights (dataset rows {', '.join(map(str, fl['dataset_rows']))}; "
             f"{', '.join(str(n) for n in fl['samples'].values())} samples, each cut after its first "
             f"{fl['decisions_kept_per_flight']} decided strides) replayed sample by sample through every model of the "

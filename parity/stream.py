@@ -165,7 +165,8 @@ def figures(run: StreamRun, record: dict) -> dict[str, dict]:
              "clock_mhz": mhz, "worst_decision_ms": worst / mhz / 1e3,
              "duty": (dec + (stride - 1) * push) / (stride * dt * mhz * 1e6)}
         if run.pushes is not None:
-            f.update(_cycle_figures(run, [i for i, k in enumerate(keys) if k[:2] == (net, prec)], rows, stride, dt, mhz))
+            idx = [i for i, k in enumerate(keys) if k[:2] == (net, prec)]
+            f.update(_cycle_figures(run, idx, rows, stride, dt, mhz))
         out[f"{net}_{prec}"] = f
     return out
 
@@ -181,7 +182,8 @@ def _cycle_figures(run: StreamRun, idx: list[int], rows: list[dict], stride: int
     dec_c = float(cyc_dec.mean()) if dec.any() else 0.0
     check = {}
     within = True
-    for name, mask, key in (("decisions", dec, "decide_sum"), ("pushes", push, "push_sum"), ("other", other, "other_sum")):
+    parts = (("decisions", dec, "decide_sum"), ("pushes", push, "push_sum"), ("other", other, "other_sum"))
+    for name, mask, key in parts:
         tr, ic, n = int(p["instructions"][mask].sum()), _sum(rows, key), int(mask.sum())
         check[name] = {"trace": tr, "icount": ic, "n": n, "slack": icount_slack(run, ic, n)}
         within = within and abs(tr - ic) <= check[name]["slack"]
@@ -200,8 +202,9 @@ def _cycle_figures(run: StreamRun, idx: list[int], rows: list[dict], stride: int
     if worst is not None:
         classes = run.trace.class_cycles(int(p["lo"][worst]), int(p["hi"][worst]))
         classes["branch_refills"] = int(p["taken"][worst]) * mcu_cycles.REFILL
-        out["cycles"]["worst_decision"] = {"instructions": int(p["instructions"][worst]), "cycles": int(p["cycles"][worst]),
-                                           "taken_branches": int(p["taken"][worst]), "class_cycles": classes}
+        out["cycles"]["worst_decision"] = {"instructions": int(p["instructions"][worst]),
+                                           "cycles": int(p["cycles"][worst]), "taken_branches": int(p["taken"][worst]),
+                                           "class_cycles": classes}
     return out
 
 

@@ -124,7 +124,8 @@ def run_image(cpu: str, elf: Path, trace: bool = False) -> StreamRun:
                 proc.kill()
             err = proc.communicate()[1]
         if proc.returncode != 0:
-            raise QuadfdiError(f"QEMU ({cpu}, traced) exited {proc.returncode}: {(err.strip().splitlines() or ['?'])[-1]}")
+            last = (err.strip().splitlines() or ["?"])[-1]
+            raise QuadfdiError(f"QEMU ({cpu}, traced) exited {proc.returncode}: {last}")
         run = parse_output(cpu, out.read_text(errors="replace") if out.is_file() else "")
     run.trace = tr
     run.pushes = push_table(run, symbol_address(elf, TICKS), symbol_address(elf, PUTS))

@@ -46,7 +46,8 @@ def test_real_flights_on_tiny_settings(tmp_path):
     assert not (out / "flights" / "ingest" / GROUND.split(".")[0] / "flight.npz").exists()
     assert f"- flightlog-min {GROUND.split('.')[0]}: ingest: " in md and "never airborne" in md
     for net in ("cnode", "gru"):  # one row per network, C++ as ONNX Runtime in both precisions
-        row = next(ln for ln in md.splitlines() if ln.startswith(f"| flightlog-min | {net} | {MISSION.split('.')[0]} |"))
+        head = f"| flightlog-min | {net} | {MISSION.split('.')[0]} |"
+        row = next(ln for ln in md.splitlines() if ln.startswith(head))
         assert row.split(" | ")[8] == "yes"
     gap7 = r["flights_gap7"]
     assert len(gap7) == 8 and {c["flight"] for c in gap7} == {MISSION.split(".")[0]}
