@@ -20,9 +20,9 @@ test: setup
 	$(PY) -m pytest -q -n 2 --dist loadfile
 
 # README's real-flight table: the three profiles' realistic-suite models, parity, then `quadfdi detect`
-# on every shared real quad log (scripts/real_flight_models.py; 11 min on 2 cores, 2026-12-03).
+# on every shared real quad log (`quadfdi real-flights`, quadfdi/real_flights.py).
 real-flights: setup
-	PYTHONPATH=. $(PY) scripts/real_flight_models.py $(REAL_OUT)
+	$(PY) -m quadfdi.cli real-flights $(REAL_OUT)
 
 sim-bench: setup
 	$(PY) -m quadfdi.cli sim bench --config $(CONFIG)

@@ -5,8 +5,8 @@ limits (W, C, K, the stream's raw channels R, the policy's n): the size of one s
 compiled from fwref/stream.hpp for the host (``c++``) and for each Cortex-M core
 (``arm-none-eabi-g++`` with the firmware's flags, mcu/toolchain-arm-none-eabi.cmake), read with
 ``nm -S``. Also the host program's own ``stream_bytes`` (its generous build limits, ``fwref_stream
---info``) and, when scripts/stream_mcu.py left one in the Cortex-M build folder
-(runtimes.build.mcu_build_dir), the stream image's sections (``arm-none-eabi-size``).
+--info``) and the sections of the stream image that ``quadfdi parity`` (its Cortex-M part) last
+built for each core (``arm-none-eabi-size`` of ``runtimes.mcu_stream.stream_elf(cpu)``).
 """
 
 from __future__ import annotations
@@ -58,16 +58,17 @@ def sizeof_stream(compiler: str, nm: str, flags: list[str], macros: dict[str, in
 
 
 def _image(cpu: str) -> dict | None:
-    """The stream image a Cortex-M build left (runtimes.build.mcu_build_dir's fwref_mcu_stream.elf), or None."""
-    from quadfdi.runtimes.build import mcu_build_dir
+    """The stream image parity's Cortex-M part last built for ``cpu``, or None."""
     from quadfdi.runtimes.mcu import section_sizes
+    from quadfdi.runtimes.mcu_stream import stream_elf
 
-    elf = mcu_build_dir(cpu) / "fwref_mcu_stream.elf"
+    elf = stream_elf(cpu)
     if not elf.is_file() or shutil.which("arm-none-eabi-size") is None:
         return None
     s = section_sizes(elf)
     return {"elf": str(elf), "text_bytes": s.get(".text", 0), "data_bytes": s.get(".data", 0),
-            "bss_bytes": s.get(".bss", 0), "note": "as last built (its own weights and stream files)"}
+            "bss_bytes": s.get(".bss", 0),
+            "note": "as quadfdi parity last built it (the weights and stream files of its run)"}
 
 
 def stream_memory(record: dict, export: Export, exe: Path | None,
@@ -87,7 +88,7 @@ def stream_memory(record: dict, export: Export, exe: Path | None,
                 row["stream_bytes"] = sizeof_stream(cc, nm, flags, macros, Path(d))
                 row["source"] = f"{cc} -O2 {' '.join(flags)} of fwref/stream.hpp: nm -S of one fwref::Stream"
             if target != "host":
-                row["image"] = _image(target) or "no stream image built (python scripts/stream_mcu.py builds one)"
+                row["image"] = _image(target) or "no stream image built (`quadfdi parity --run RUN` builds one)"
             rows.append(row)
     if exe is not None:
         info = subprocess.run([str(exe), "--weights", str(export.weights_path), "--info"], capture_output=True, text=True,

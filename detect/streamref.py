@@ -23,6 +23,7 @@ import numpy as np
 from quadfdi.core import hover
 from quadfdi.core.profiles import apply_profile, uses_hover
 from quadfdi.formats.stream import RawStream
+from quadfdi.runtimes.fwref import stream_lines as read_lines  # noqa: F401  (fwref_stream's output reader)
 
 
 @dataclass
@@ -126,20 +127,3 @@ def stream_alarm(record: dict, decided: np.ndarray, logits: np.ndarray, motor_lo
     rotor = record.get("rotor_side")
     trace.motor = reported_motor(trace.cls, trace.motor, np.ones(proba.shape[1], bool) if rotor is None else rotor)
     return proba, trace, wmotor
-
-
-def read_lines(text: str, classes: int) -> dict[str, np.ndarray]:
-    """fwref_stream's output -> arrays per stride: index, t, status (str), logits (n, K) float32,
-    proba (n, K), vote, active, raised, cleared (bool), cls, motor (the alarm's), wmotor (the stride's
-    motor-head argmax; -1 from a reader without the column) (int)."""
-    rows = [ln.split() for ln in text.splitlines() if ln and not ln.startswith("#")]
-    k = classes
-    col = lambda j, dt: np.array([r[j] for r in rows], dtype=dt)
-    out = {"index": col(0, np.int64), "t": col(1, np.float64), "status": np.array([r[2] for r in rows]),
-           "logits": np.array([[float(v) for v in r[3:3 + k]] for r in rows], np.float32).reshape(-1, k),
-           "proba": np.array([[float(v) for v in r[3 + k:3 + 2 * k]] for r in rows], np.float64).reshape(-1, k)}
-    for j, name in enumerate(("vote", "active", "raised", "cleared")):
-        out[name] = col(3 + 2 * k + j, np.int64).astype(bool)
-    out["cls"], out["motor"] = col(7 + 2 * k, np.int64), col(8 + 2 * k, np.int64)
-    out["wmotor"] = np.array([int(r[9 + 2 * k]) if len(r) > 9 + 2 * k else -1 for r in rows], np.int64)
-    return out

@@ -1,7 +1,7 @@
 """parity: the C++ firmware reference against ONNX Runtime and PyTorch, on the host and on Cortex-M.
 
-One job per module: ``build`` (cmake builds of firmware_ref/: host, sanitizer, Cortex-M, with a
-lock), ``runners`` (logits of the whole test split from C++ via fwref_infer, ONNX Runtime at batch 1,
-PyTorch), ``compare`` (pair metrics, quantisation steps, the targets), ``mcu`` (cross-build, QEMU
-runs, flash/RAM/instructions), ``report`` (parity.md), ``run`` (the stage: ``parity_run``), ``cli``.
+One job per module: ``compare`` (pair metrics, quantisation steps, the targets), ``mcu`` (cross-build,
+QEMU runs, flash/RAM/instructions), ``stream`` (the on-board streaming cost of every model on the
+Cortex-M, held against the host's fwref_stream), ``report`` (parity.md), ``run`` (the stage:
+``parity_run``), ``cli``. Builds and runtimes are quadfdi.runtimes' (build, fwref, ort, pytorch, mcu).
 """

@@ -16,14 +16,19 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
         "parity", help="C++ firmware reference vs ONNX Runtime and PyTorch; Cortex-M build under QEMU",
         description="Build firmware_ref (CMake, Release, in the per-user cache), run the whole test split one window "
                     "at a time through C++ fp32/int8, ONNX Runtime fp32/int8 and PyTorch, run fwref_parity on "
-                    "reference.bin and (by default) the Cortex-M4/M7 builds under QEMU; write "
-                    "<run>/parity/parity.json, parity.md and mcu.json. Exits 2 if a parity target is missed.")
+                    "reference.bin and (by default) the Cortex-M4/M7 builds under QEMU, with the on-board streaming "
+                    "cost of every model (a few test flights replayed through the stream image, every stride held "
+                    "against the host's fwref_stream; instructions, estimated M4 cycles, duty cycle); write "
+                    "<run>/parity/parity.json, parity.md, mcu.json and mcu_stream.json. Exits 2 if a parity target "
+                    "is missed.")
     add_config_args(p, config=False)
     p.add_argument("--run", required=True, help="run folder holding export/ (after `quadfdi export`)")
     which = p.add_mutually_exclusive_group()
-    which.add_argument("--no-mcu", action="store_true", help="skip the Cortex-M cross-build and QEMU runs")
+    which.add_argument("--no-mcu", action="store_true",
+                       help="skip the Cortex-M cross-build and QEMU runs (and the streaming cost table)")
     which.add_argument("--mcu", action="store_true",
-                       help="only the Cortex-M part: cross-build, QEMU runs, mcu.json (updates parity.json/md)")
+                       help="only the Cortex-M part: cross-build, QEMU runs, mcu.json and mcu_stream.json "
+                            "(updates parity.json/md)")
     p.set_defaults(func=run_parity)
 
 

@@ -7,7 +7,9 @@ For each core (Cortex-M4F on mps2-an386, Cortex-M7 on mps2-an500):
    stack per inference; its exit code says pass or fail;
 3. measure the minimal images with arm-none-eabi-size: model image minus baseline image (the same
    startup, window buffer and main without the model) = the library and its weights alone;
-   the map file splits that into the weights' constant arrays and the library's code.
+   the map file splits that into the weights' constant arrays and the library's code;
+4. with stream inputs (parity/stream.py), build the stream image in the same folder and measure
+   the on-board streaming cost of every model, held against the host's fwref_stream.
 """
 
 from __future__ import annotations
@@ -18,6 +20,7 @@ from pathlib import Path
 from typing import Callable
 
 from quadfdi.core.errors import QuadfdiError
+from quadfdi.parity import stream as stream_mod
 from quadfdi.runtimes.build import MCU_CPUS, build_mcu, locked, mcu_build_dir, require
 from quadfdi.runtimes.mcu import (CLOCK_MHZ, QEMU_TIMEOUT_S, image_memory, map_breakdown, qemu_command,
                                   toolchain_versions)
@@ -56,11 +59,13 @@ def parse_harness(text: str) -> dict:
     return {"calibration": calib, "tensors": tensors, "perf": perf, "result": result}
 
 
-def run_cpu(cpu: str, weights: Path, reference: Path, log: Callable[[str], None] = print) -> dict:
+def run_cpu(cpu: str, weights: Path, reference: Path, log: Callable[[str], None] = print,
+            stream: stream_mod.StreamInputs | None = None) -> dict:
     """Build, run and measure one core; raises QuadfdiError only when it cannot be measured."""
     build_dir = mcu_build_dir(cpu)
     with locked(build_dir):
-        build_mcu(cpu, weights, reference, build_dir, log)
+        paths = stream_mod.write_streams(build_dir, stream) if stream is not None else ()
+        build_mcu(cpu, weights, reference, build_dir, log, streams=paths)
         cmd = qemu_command(cpu, build_dir / "fwref_mcu_parity.elf")
         try:
             res = subprocess.run(cmd, capture_output=True, text=True, timeout=QEMU_TIMEOUT_S)
@@ -69,6 +74,7 @@ def run_cpu(cpu: str, weights: Path, reference: Path, log: Callable[[str], None]
         harness = parse_harness(res.stdout)
         images = {v: image_memory(build_dir / f"fwref_min_{v}.elf") for v in ("baseline",) + VARIANTS}
         maps = {v: map_breakdown(build_dir / f"fwref_min_{v}.map") for v in VARIANTS}
+        streamed = stream_mod.measure(cpu, build_dir, Path(weights).parent, paths, stream, log) if paths else None
     if not harness["tensors"] or harness["result"] is None:
         err = (res.stderr.strip().splitlines() or ["no output"])[-1]
         raise QuadfdiError(f"QEMU ({cpu}) run gave no parity result (exit {res.returncode}: "
@@ -98,7 +104,7 @@ def run_cpu(cpu: str, weights: Path, reference: Path, log: Callable[[str], None]
     return {"machine": MCU_CPUS[cpu], "qemu_command": " ".join(cmd), "exit_code": res.returncode,
             "exit_meaning": EXIT_MEANING.get(res.returncode, "?"), "passed": res.returncode == 0 and not failed,
             "calibration": harness["calibration"], "tensors": harness["tensors"], "baseline_image": base,
-            "models": models, "output": res.stdout}
+            "models": models, "output": res.stdout, "stream": streamed}
 
 
 def check_targets(cpus: dict) -> list[str]:
@@ -117,12 +123,18 @@ def check_targets(cpus: dict) -> list[str]:
 
 
 def mcu_run(weights: Path, reference: Path, cpus: tuple[str, ...] = tuple(MCU_CPUS),
-            log: Callable[[str], None] = print) -> dict:
-    """Everything above for each core; the dict that becomes mcu.json."""
+            log: Callable[[str], None] = print, stream: stream_mod.StreamInputs | str | None = None) -> dict:
+    """Everything above for each core; the dict that becomes mcu.json, and under ``stream`` the one
+    that becomes mcu_stream.json (``{"skipped": reason}`` when ``stream`` is the reason there are no
+    stream inputs, or None)."""
     for tool in ("arm-none-eabi-g++", "arm-none-eabi-size", "qemu-system-arm"):
         require(tool, "the Cortex-M build runs under QEMU")
-    results = {cpu: run_cpu(cpu, weights, reference, log) for cpu in cpus}
-    problems = check_targets(results)
+    inputs = stream if isinstance(stream, stream_mod.StreamInputs) else None
+    results = {cpu: run_cpu(cpu, weights, reference, log, inputs) for cpu in cpus}
+    streamed = {cpu: r.pop("stream") for cpu, r in results.items()}
+    table = (stream_mod.table(streamed, inputs) if inputs is not None
+             else {"skipped": stream or "not requested"})
+    problems = check_targets(results) + table.get("problems", [])
     return {"toolchain": toolchain_versions(), "targets": TARGETS,
             "what": {"flash_bytes": "model image minus baseline image (arm-none-eabi-size -A: .isr_vector, .text, "
                                     ".ARM.exidx, .init_array, .data)",
@@ -139,4 +151,4 @@ def mcu_run(weights: Path, reference: Path, cpus: tuple[str, ...] = tuple(MCU_CP
                                         "dual issue)",
                      "latency_estimate_us": "ESTIMATE: cycles_estimate / clock_mhz_assumed (Cortex-M4 at 168 MHz, "
                                             "Cortex-M7 at 216 MHz)"},
-            "cpus": results, "problems": problems, "passed": not problems}
+            "cpus": results, "problems": problems, "passed": not problems, "stream": table}

@@ -7,6 +7,7 @@ from pathlib import Path
 
 from quadfdi.core.reportmd import demote, not_run, optional_json
 
+STREAM_TITLES = {"cnode": "CNODE", "gru": "GRU", "sgru": "streaming GRU"}
 PAIR_TITLES = {
     "cpp_fp32_vs_ort_fp32": "C++ fp32 vs ONNX Runtime fp32",
     "cpp_fp32_vs_torch": "C++ fp32 vs PyTorch",
@@ -72,6 +73,73 @@ def _mcu_section(mcu: dict) -> list[str]:
     return out
 
 
+def _ms(v: float | None) -> str:
+    return "-" if v is None else f"{v:.2f} ms"
+
+
+def _pct(v: float | None) -> str:
+    return "-" if v is None else f"{100 * v:.2f} %"
+
+
+def _stream_rows(t: dict) -> list[str]:
+    m4, m7 = (t["cores"].get(c, {}).get("models", {}) for c in ("cortex-m4", "cortex-m7"))
+    rows = []
+    for key in dict.fromkeys(list(m4) + list(m7)):
+        a, b = m4.get(key, {}), m7.get(key, {})
+        ins, cyc = a.get("instructions", {}), a.get("cycles", {})
+        net, prec = key.rsplit("_", 1)
+        rows.append(f"| {STREAM_TITLES.get(net, net)} {prec} | {ins.get('push_mean', 0):,.0f} | "
+                    f"{ins.get('decision_mean', 0):,.0f} ({ins.get('decision_max', 0):,}) | "
+                    f"{cyc.get('decision_mean', 0):,.0f} ({cyc.get('decision_max') or 0:,}) | "
+                    f"{_ms(a.get('worst_decision_ms'))} / {_ms(cyc.get('worst_decision_ms'))} | "
+                    f"{_pct(a.get('duty'))} / {_pct(cyc.get('duty'))} | "
+                    f"{b.get('instructions', {}).get('decision_mean', 0):,.0f} "
+                    f"({b.get('instructions', {}).get('decision_max', 0):,}) | {_ms(b.get('worst_decision_ms'))} | "
+                    f"{_pct(b.get('duty'))} |")
+    return rows
+
+
+def stream_section(t: dict | None) -> list[str]:
+    """The on-board streaming cost table (mcu_stream.json, parity/stream.py) in markdown."""
+    out = ["## On-board streaming cost (Cortex-M under QEMU)", ""]
+    if not t or "skipped" in t:
+        return out + [f"Not run: {(t or {}).get('skipped', 'no Cortex-M part')}.", ""]
+    fl, cm = t["flights"], t["cycle_model"]
+    checks = [f"{cpu}: {sum(h['strides'] for h in r['host_check'].values())} strides, QEMU {r['seconds']:.1f} s"
+              + (" traced" if any("cycles" in m for m in r["models"].values()) else "")
+              for cpu, r in t["cores"].items()]
+    out += [f"Test flights (dataset rows {', '.join(map(str, fl['dataset_rows']))}; "
+            f"{', '.join(str(n) for n in fl['samples'].values())} samples, each cut after its first "
+            f"{fl['decisions_kept_per_flight']} decided strides) replayed sample by sample through every model of the "
+            f"export in the stream image (profile {t['profile']}, window {t['window']}, stride {t['stride']}); every "
+            f"stride held against the host's fwref_stream ({'; '.join(checks)}): "
+            + ("**as the host**." if t["passed"] else "**NOT as the host**: " + "; ".join(t["problems"])), "",
+            "Instructions: QEMU `-icount` (SysTick around each push). Cycles: Cortex-M4 only, ESTIMATED from QEMU's "
+            "block trace, each instruction weighted by the Cortex-M4 TRM's cycle table (`quadfdi.runtimes.mcu_cycles`:"
+            f" taken-branch refill {cm['refill_cycles']}, SDIV/UDIV {cm['div_cycles']}; not modelled: "
+            f"{cm['not_modelled']}). Worst decision at {t['clock_mhz']['cortex-m4']:.0f} MHz (M4) / "
+            f"{t['clock_mhz']['cortex-m7']:.0f} MHz (M7); duty cycle = (one decision + stride - 1 pushes) / "
+            f"(stride x {t['sample_period_ms']:.0f} ms) of the core.", "",
+            "| model | M4 push (instr.) | M4 decision, mean (worst), instr. | M4 decision, mean (worst), est. cycles "
+            "| M4 worst decision, instr. / cycles | M4 duty, instr. / cycles | M7 decision, mean (worst), instr. "
+            "| M7 worst decision | M7 duty |", "|---|---|---|---|---|---|---|---|---|"]
+    out += _stream_rows(t) + [""]
+    over = []
+    for cpu, c in t["cores"].items():
+        for key, m in c["models"].items():
+            net, prec = key.rsplit("_", 1)
+            by_cycles = ((m.get("cycles") or {}).get("worst_decision_ms") or 0) > t["sample_period_ms"]
+            if m["worst_decision_ms"] > t["sample_period_ms"] or by_cycles:
+                over.append(f"{STREAM_TITLES.get(net, net)} {prec} on the {cpu} ("
+                            + ("instructions" if m["worst_decision_ms"] > t["sample_period_ms"] else "estimated cycles")
+                            + ")")
+    out += [f"Worst decision over the {t['sample_period_ms']:.0f} ms sample period: {'; '.join(over) or 'none'}."]
+    if t.get("sgru_vs_gru"):
+        out += ["Streaming GRU per second of flight, as a share of the windowed GRU's instructions: "
+                + ", ".join(f"{k} {v:.4f}" for k, v in t["sgru_vs_gru"].items()) + "."]
+    return out + [""]
+
+
 def markdown(report: dict) -> str:
     out = [f"# Parity: {report['run']}", "",
            f"Command: `{report['command']}`. {report['test_windows']} test windows, each run alone (batch 1) "
@@ -89,6 +157,7 @@ def markdown(report: dict) -> str:
     out += ["## fwref_parity on reference.bin", "", f"`{fp['command']}` exited {fp['exit_code']}:", "", "```"]
     out += fp["output"] + ["```", ""]
     out += _mcu_section(report["mcu"])
+    out += stream_section(report["mcu"].get("stream"))
     out += [f"Stage time: {report['timing_s']['total']:.1f} s "
             f"({', '.join(f'{k} {v:.1f} s' for k, v in report['timing_s'].items() if k != 'total')}).", ""]
     return "\n".join(out)

@@ -24,6 +24,7 @@ from quadfdi.runtimes.mcu import tools_missing
 from quadfdi.runtimes import fwref, ort, pytorch
 from quadfdi.runtimes.build import build_host, source_dir
 from quadfdi.parity.report import markdown
+from quadfdi.parity.stream import stream_inputs
 from quadfdi.core.atomic import ensure_dir, write_text
 from quadfdi.core.config import Config
 from quadfdi.core.errors import QuadfdiError
@@ -137,7 +138,7 @@ def parity_run(run: RunDir, cfg: Config, log: Callable[[str], None] = print, *, 
         if not host:
             st.carry_previous()
             report, problem = _mcu_only(parity_dir(run), out_dir, run.export / "weights.bin",
-                                        run.export / "reference.bin", log)
+                                        run.export / "reference.bin", log, lambda: stream_inputs(run.root, build_dir))
         else:
             report = _parity_host(run, out_dir, log, mcu, build_dir, command)
             problem = ("parity target missed: " + "; ".join(report["problems"])
@@ -175,7 +176,7 @@ def _parity_host(run: RunDir, out_dir: Path, log: Callable[[str], None], mcu: bo
     log(f"parity: fwref_parity on reference.bin: {'OK' if fp['passed'] else 'NOT OK'} (exit {fp['exit_code']})")
     models, t_host = host_parity(run, export, build_dir, log, out_dir)
     timing.update(t_host)
-    mcu_report = _mcu_part(mcu, weights, reference, out_dir, timing, log)
+    mcu_report = _mcu_part(mcu, weights, reference, out_dir, timing, log, lambda: stream_inputs(run.root, build_dir))
     timing["total"] = time.perf_counter() - t_start
 
     problems = []
@@ -213,7 +214,7 @@ def _parity_host(run: RunDir, out_dir: Path, log: Callable[[str], None], mcu: bo
 
 
 def _mcu_part(mcu: bool, weights: Path, reference: Path, out_dir: Path, timing: dict,
-              log: Callable[[str], None]) -> dict:
+              log: Callable[[str], None], stream: Callable[[], object]) -> dict:
     if not mcu:
         return {"skipped": "not requested (--no-mcu)"}
     missing = tools_missing()
@@ -221,23 +222,29 @@ def _mcu_part(mcu: bool, weights: Path, reference: Path, out_dir: Path, timing: 
         log(f"parity: Cortex-M part skipped: {missing}")
         return {"skipped": missing}
     t0 = time.perf_counter()
-    report = mcu_mod.mcu_run(weights, reference, log=log)
+    report = mcu_mod.mcu_run(weights, reference, log=log, stream=stream())
     timing["mcu"] = report["timing_s"] = time.perf_counter() - t0
-    _write_json(out_dir / "mcu.json", report)
+    _write_mcu(out_dir, report)
     return report
 
 
+def _write_mcu(out_dir: Path, report: dict) -> None:
+    """mcu.json, and the streaming cost table (parity/stream.py) as mcu_stream.json."""
+    _write_json(out_dir / "mcu.json", {k: v for k, v in report.items() if k != "stream"})
+    _write_json(out_dir / "mcu_stream.json", report["stream"])
+
+
 def _mcu_only(old_dir: Path, out_dir: Path, weights: Path, reference: Path,
-              log: Callable[[str], None]) -> tuple[dict, str | None]:
+              log: Callable[[str], None], stream: Callable[[], object]) -> tuple[dict, str | None]:
     """``quadfdi parity --mcu``: mcu.json, and parity.json/parity.md updated when a host report exists
     (read from the published ``old_dir``, written to the staging ``out_dir``); (report, problem)."""
     missing = tools_missing()
     if missing:
         raise QuadfdiError(f"cannot run the Cortex-M part: {missing}")
     t0 = time.perf_counter()
-    mcu_report = mcu_mod.mcu_run(weights, reference, log=log)
+    mcu_report = mcu_mod.mcu_run(weights, reference, log=log, stream=stream())
     mcu_report["timing_s"] = time.perf_counter() - t0
-    _write_json(out_dir / "mcu.json", mcu_report)
+    _write_mcu(out_dir, mcu_report)
     report_path = old_dir / "parity.json"
     if report_path.is_file():
         report = json.loads(report_path.read_text())
@@ -257,7 +264,10 @@ def _mcu_summary(mcu_report: dict) -> dict:
     """The Cortex-M numbers for parity.json (mcu.json holds everything, with the harness output)."""
     if "cpus" not in mcu_report:
         return mcu_report
+    stream = mcu_report.get("stream", {})
     return {"passed": mcu_report["passed"], "problems": mcu_report["problems"], "file": "mcu.json",
+            "stream": {"skipped": stream["skipped"]} if "skipped" in stream else
+            {"file": "mcu_stream.json", "passed": stream.get("passed"), "problems": stream.get("problems", [])},
             "cpus": {cpu: {"machine": r["machine"], "passed": r["passed"],
                            "models": {k: {f: v[f] for f in ("flash_bytes", "weights_bytes", "static_ram_bytes",
                                                             "stack_peak_bytes", "instructions_per_inference")}

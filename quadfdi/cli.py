@@ -31,6 +31,7 @@ STAGES = {
     "check": "quadfdi.check",
     "readme": "quadfdi.readme",
     "run": "quadfdi.pipeline",
+    "real-flights": "quadfdi.real_flights",
     "sweep": "quadfdi.sweep",
 }
 DESCRIPTION = ("quadfdi: quadrotor fault diagnosis, from the physics simulator to the firmware reference; "

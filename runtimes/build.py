@@ -200,8 +200,9 @@ def build_host(build_dir: Path | None = None, sanitize: bool = False, log: Calla
 
 
 def build_mcu(cpu: str, weights: Path, reference: Path, build_dir: Path | None = None,
-              log: Callable[[str], None] = print) -> Path:
-    """Cross-build the Cortex-M images for ``cpu`` with ``weights`` and ``reference`` compiled in.
+              log: Callable[[str], None] = print, streams: tuple[Path, ...] = ()) -> Path:
+    """Cross-build the Cortex-M images for ``cpu`` with ``weights`` and ``reference`` compiled in;
+    with ``streams`` (stream files) also the stream image fwref_mcu_stream.elf, which replays them.
 
     The caller holds ``locked(build_dir)`` while it also runs the images, so that another process
     cannot rebuild them with other weights in between. CMake runs the weights generator with this
@@ -221,7 +222,9 @@ def mcu_options(src: Path, cpu: str, weights: Path, reference: Path) -> dict[str
     """The CMake options of a Cortex-M build of ``src`` with ``weights`` and ``reference`` compiled in."""
     options = {"CMAKE_TOOLCHAIN_FILE": str(src / "mcu" / "toolchain-arm-none-eabi.cmake"), "FWREF_CPU": cpu,
                "FWREF_WEIGHTS": str(Path(weights).resolve()), "FWREF_REFERENCE": str(Path(reference).resolve()),
-               "Python3_EXECUTABLE": sys.executable}
+               "Python3_EXECUTABLE": sys.executable,
+               # "" = no stream image: stream files of another export must not be rebuilt with these weights
+               "FWREF_STREAMS": ";".join(str(Path(s).resolve()) for s in streams)}
     manifest = Path(weights).resolve().parent / "manifest.json"
     # the generator checks weights.bin and reference.bin against the export's manifest; "" = no check
     options["FWREF_MANIFEST"] = str(manifest) if manifest.is_file() else ""

@@ -50,3 +50,31 @@ def cpp_outputs(weights: Path, net: str, int8: bool, x: np.ndarray, motor: bool 
 
         build_dir = build_host(log=lambda _: None)
     return fwref_infer(Path(build_dir) / "fwref_infer", weights, net, int8, x, motor)
+
+
+def fwref_stream(exe: Path, weights: Path, model: str, int8: bool, stream: Path) -> str:
+    """``exe`` (fwref_stream) replaying the stream file ``stream`` through ``model`` (cnode, gru, or
+    sgru with an sgru_weights.bin): its output, one line per stride (``stream_lines`` reads it)."""
+    cmd = [str(exe), "--weights", str(weights), "--model", model, "--in", str(stream)] + (["--int8"] if int8 else [])
+    res = subprocess.run(cmd, capture_output=True, text=True, timeout=CPP_TIMEOUT_S)
+    if res.returncode != 0:
+        msg = (res.stderr.strip().splitlines() or [f"exit code {res.returncode}"])[-1]
+        raise QuadfdiError(f"fwref_stream ({model} {'int8' if int8 else 'fp32'}) on {stream} failed: {msg}")
+    return res.stdout
+
+
+def stream_lines(text: str, classes: int) -> dict[str, np.ndarray]:
+    """fwref_stream's output -> arrays per stride: index, t, status (str), logits (n, K) float32,
+    proba (n, K), vote, active, raised, cleared (bool), cls, motor (the alarm's), wmotor (the stride's
+    motor-head argmax; -1 from a reader without the column) (int)."""
+    rows = [ln.split() for ln in text.splitlines() if ln and not ln.startswith("#")]
+    k = classes
+    col = lambda j, dt: np.array([r[j] for r in rows], dtype=dt)  # noqa: E731
+    out = {"index": col(0, np.int64), "t": col(1, np.float64), "status": np.array([r[2] for r in rows]),
+           "logits": np.array([[float(v) for v in r[3:3 + k]] for r in rows], np.float32).reshape(-1, k),
+           "proba": np.array([[float(v) for v in r[3 + k:3 + 2 * k]] for r in rows], np.float64).reshape(-1, k)}
+    for j, name in enumerate(("vote", "active", "raised", "cleared")):
+        out[name] = col(3 + 2 * k + j, np.int64).astype(bool)
+    out["cls"], out["motor"] = col(7 + 2 * k, np.int64), col(8 + 2 * k, np.int64)
+    out["wmotor"] = np.array([int(r[9 + 2 * k]) if len(r) > 9 + 2 * k else -1 for r in rows], np.int64)
+    return out

@@ -155,7 +155,7 @@ def fault_exported(small_run, tmp_path_factory) -> Path:
 # end. Measured with --durations on 2026-12-02: the pipeline run (~2 min), the firmware builds and
 # QEMU parity, the streaming runtime's and detect's exports, the bench, the tanhq proof.
 LONG_FILES = ("test_pipeline.py", "test_firmware.py", "test_stream.py", "test_detect.py", "test_bench_report.py",
-              "test_firmware_tanhq.py", "test_distributed.py")
+              "test_real_flights.py", "test_firmware_tanhq.py", "test_distributed.py")
 
 
 def pytest_collection_modifyitems(config, items):

@@ -141,6 +141,53 @@ def test_mcu_only_updates_the_report(parity_done):
     assert r["passed"] and r["mcu"]["cpus"]["cortex-m4"]["models"]["cnode_int8"]["flash_bytes"] <= 64 * 1024
     md = (out / "parity.md").read_text()
     assert "| cortex-m7 (mps2-an500) | gru int8 |" in md and "**met**" in md
+    check_stream_table(out, r)
+
+
+def check_stream_table(out: Path, parity_json: dict) -> None:
+    """mcu_stream.json (parity/stream.py): every model's strides as the host's on both cores; the M4
+    trace's instructions equal -icount's within one SysTick tick per push; cycles >= instructions;
+    the worst decision's time and the duty cycle follow from the counts, the clock and the period."""
+    t = json.loads((out / "mcu_stream.json").read_text())
+    assert t["passed"] and not t["problems"] and parity_json["mcu"]["stream"]["passed"]
+    assert set(t["cores"]) == {"cortex-m4", "cortex-m7"} and t["cycle_model"]["traced_cores"] == ["cortex-m4"]
+    assert len(t["flights"]["dataset_rows"]) == 2 and t["sample_period_ms"] == pytest.approx(40.0)
+    stride, period_s = t["stride"], t["sample_period_ms"] / 1e3
+    for cpu, core in t["cores"].items():
+        assert set(core["models"]) == {"cnode_fp32", "cnode_int8", "gru_fp32", "gru_int8"}
+        assert 39.0 < core["instructions_per_tick"] < 41.0
+        for key, m in core["models"].items():
+            h = core["host_check"][key]
+            assert h["strides"] > 0 and (key.endswith("fp32") or h["vote_flips"] == 0)
+            ins, mhz = m["instructions"], t["clock_mhz"][cpu]
+            assert 0 < ins["push_mean"] <= ins["push_max"] and 0 < ins["decision_mean"] <= ins["decision_max"]
+            assert m["decisions"] == 2 * 3 and m["pushes"] + m["decisions"] + m["other_strides"] == m["samples"]
+            assert m["worst_decision_ms"] == pytest.approx(ins["decision_max"] / mhz / 1e3)
+            assert m["duty"] == pytest.approx((ins["decision_mean"] + (stride - 1) * ins["push_mean"])
+                                              / (stride * period_s * mhz * 1e6), rel=1e-3)
+            if cpu != "cortex-m4":
+                assert "cycles" not in m
+                continue
+            c, chk = m["cycles"], m["trace_check"]
+            # per push one tick (40 instructions) and rounding, and 2 calibration ticks in 100,001 over the count
+            slack = lambda total, n: n * 41 + -(-2 * total // core["calibration_ticks"])  # noqa: E731
+            assert chk["within"] and 99_990 < core["calibration_ticks"] < 100_010
+            for part in ("decisions", "pushes"):
+                n, ic = chk[part]["n"], chk[part]["icount"]
+                assert n > 0 and abs(chk[part]["trace"] - ic) <= slack(ic, n) == chk[part]["slack"]
+            assert abs(chk["decision_max"]["trace"] - ins["decision_max"]) <= slack(ins["decision_max"], 1)
+            assert c["decision_max"] >= chk["decision_max"]["trace"] >= 0.9999 * ins["decision_max"]
+            assert c["per_instruction"] >= 1.0 and c["decision_mean"] >= 0.9999 * ins["decision_mean"]
+            assert c["push_mean"] >= ins["push_mean"] - 41
+            assert c["worst_decision_ms"] == pytest.approx(c["decision_max"] / mhz / 1e3)
+            assert c["duty"] == pytest.approx((c["decision_mean"] + (stride - 1) * c["push_mean"])
+                                              / (stride * period_s * mhz * 1e6), rel=1e-3)
+            w = c["worst_decision"]
+            assert sum(w["class_cycles"].values()) == w["cycles"] <= c["decision_max"]
+            assert w["class_cycles"]["branch_refills"] == w["taken_branches"] * t["cycle_model"]["refill_cycles"]
+    md = (out / "parity.md").read_text()
+    assert "## On-board streaming cost (Cortex-M under QEMU)" in md and "**as the host**" in md
+    assert md.count("| GRU int8 |") == 1 and md.count("| CNODE fp32 |") == 1
 
 
 # ------------------------------------------------------------------------------ contracts written once

@@ -26,7 +26,7 @@ TINY = [*SMALL_SIM, "--set", "train.epochs=1",
         "--set", "bench.fail_below_floor=false"]
 
 FILES = ("config.toml", "dataset.npz", "cnode.pt", "gru.pt", "metrics.json", "export/manifest.json",
-         "export/weights.bin", "parity/parity.json", "parity/mcu.json", "solvers/solvers.json", "bench.json",
+         "export/weights.bin", "parity/parity.json", "parity/mcu.json", "parity/mcu_stream.json", "solvers/solvers.json", "bench.json",
          "predictions/index.json", "evaluation/evaluation.json", "realism/realism.json", "report.md")
 SECTIONS = ("## Simulation", "## Training", "## Evaluation", "## Export", "## Parity", "## Bench", "## Solvers", "## Realism")
 
