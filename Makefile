@@ -15,7 +15,7 @@ run: setup
 
 # Two pytest workers, one per core, each taking whole files (module fixtures are built once): the
 # suite is half subprocesses (C++ builds, QEMU, ONNX Runtime, CLI runs) and half single-threaded
-# Python, so it took 15 min 54 s serially on CI (2026-12-02), over the 15-minute budget.
+# Python, so one worker per core halves its wall time.
 test: setup
 	$(PY) -m pytest -q -n 2 --dist loadfile
 

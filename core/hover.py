@@ -1,4 +1,4 @@
-"""The collective hover estimate (issue 14 point 2): one command and one current for the vehicle,
+"""The collective hover estimate: one command and one current for the vehicle,
 averaged over its first steady seconds of flight and then frozen (PX4's hover-thrust estimator
 settles the same way). The profile ``flightlog-min`` divides the motor commands and the current
 by it, so the inputs do not depend on the vehicle (docs/profiles.md).

@@ -1,9 +1,9 @@
 // mcu/stream_main.cpp -- scope: the streaming runtime (fwref/stream.hpp) on the Cortex-M under
 // QEMU: the four compiled-in models (fwref_weights_*.cpp), with their motor heads when the export has
 // them (infer_motor), and the streaming GRU when the export has it (fwref_stream_data.cpp,
-// tools/gen_stream.py: one step per sample), each replay the compiled-in flights sample by sample
+// quadfdi.runtimes.mcu_stream_src: one step per sample), each replay the compiled-in flights sample by sample
 // with reset() between flights, counting instructions per push (SysTick under -icount). Output over
-// semihosting, parsed by scripts/stream_mcu.py, which holds the strides against the host's fwref_stream:
+// semihosting, parsed by quadfdi.runtimes.mcu_stream (quadfdi parity), which holds the strides against the host's fwref_stream:
 //   STREAM cpu=<cpu> flights=<n> instructions_per_tick=<r>
 //   STRIDE <model> <prec> <flight> <index> <status> <logit bits (u32) x K> <vote> <active> <cls> <motor> <wmotor>
 //   PERF <model> <prec> <flight> samples=<n> push_n=<n> push_sum=<i> push_max=<i> decide_n=<n> decide_sum=<i>
@@ -52,7 +52,7 @@ double g_ratio = 0.0;
 // when it changes).
 bool replay(const fwref::StreamModel& sm, const char* model, const char* prec) {
   using namespace fwref_stream_data;
-  // the model's own alarm policy (the record's alarm.models row, gen_stream.py), as fwref_stream --model
+  // the model's own alarm policy (the record's alarm.models row, quadfdi.runtimes.mcu_stream_src), as fwref_stream --model
   const fwref::StreamParams& params = model[0] == 'c' ? kParamsCnode : model[0] == 'g' ? kParamsGru : kParamsSgru;
   const int R = params.raw_channels, K = params.classes;
   for (int f = 0; f < kFlightCount; ++f) {

@@ -1,4 +1,4 @@
-// fwref/stream.hpp -- scope: the on-board streaming runtime (issue 16, docs/firmware.md
+// fwref/stream.hpp -- scope: the on-board streaming runtime (docs/firmware.md
 // "Streaming"): one raw telemetry sample at a time in, a decision at every stride out, with the
 // arithmetic of the window path (the Python one: detect/, and the C++ one: infer() on a window).
 // C++17, no heap, every buffer sized at compile time by fwref/config.hpp (kMaxWindow,
@@ -63,7 +63,7 @@
 #include "fwref/profile.hpp"
 #include "fwref/status.hpp"
 
-// The Cortex-M stream image sets these two through a generated header (tools/gen_stream.py).
+// The Cortex-M stream image sets these two through a generated header (quadfdi.runtimes.mcu_stream_src).
 #ifdef FWREF_STREAM_LIMITS_HEADER
 #include FWREF_STREAM_LIMITS_HEADER
 #endif
