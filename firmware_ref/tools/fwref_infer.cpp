@@ -74,9 +74,8 @@ int main(int argc, char** argv) {
                                                                ": it is also another output"
                                                          : error);
   }
-  if (!manifest.empty() && !fwref::host::weights_match_manifest(weights, manifest, &error)) return kCli.fail(error);
   fwref::WeightsFile wf;
-  if (wf.load(weights, &error) != fwref::Status::kOk) return kCli.fail(error);
+  if (!fwref::host::load_weights(weights, manifest, &wf, &error)) return kCli.fail(error);
   fwref::Status status;
   std::unique_ptr<fwref::host::Model> m = fwref::host::bind_model(wf, model, int8, &status, &error);
   if (!m) return kCli.fail(error);

@@ -202,7 +202,7 @@ int main(int argc, char** argv) {
   if (wf.load(weights, &error) != Status::kOk) return fail(error);
   Container ref;
   if (ref.load(reference, fwref::layout::kReferenceMagic, fwref::layout::kReferenceVersion, "reference file",
-               &error) != Status::kOk) {
+               fwref::limits::kReferenceFileBytes, &error) != Status::kOk) {
     return fail(error);
   }
   const SectionInfo* inputs = ref.find(fwref::kModelNone, fwref::kPrecNone);
