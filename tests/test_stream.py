@@ -1,4 +1,4 @@
-"""The on-board streaming runtime (issue 16): fwref/alarm.hpp against core/alarm.py, weights.bin's
+"""The on-board streaming runtime: fwref/alarm.hpp against core/alarm.py, weights.bin's
 on-board record as the C++ reads it, and fwref_stream replaying a simulated and a real flight against
 the Python window path at every stride (int8 logits bit-identical, fp32 within the parity tolerance,
 alarms identical), plus the defined behaviour on NaN samples, timestamp gaps and refusals; the motor

@@ -1,17 +1,18 @@
 #!/usr/bin/env bash
 # firmware_ref/fuzz/run.sh SECONDS [OUT]: build the libFuzzer harnesses (clang-14, ASan + UBSan) in
-# firmware_ref/build-fuzz and run each for SECONDS, FUZZ_JOBS (default 2) at a time, then print one line
+# FUZZ_BUILD and run each for SECONDS, FUZZ_JOBS (default 2) at a time, then print one line
 # per harness: executions, exec/s, libFuzzer's final cov: and ft:, findings. Exit 0 when nothing was found,
 # 1 when a harness found a crash, a leak or a timeout (its input is OUT/findings/<harness>-*), 2 when the
 # build failed.
 #   OUT          working corpora, logs and findings (default firmware_ref/build-fuzz/run)
 #   FUZZ_SEEDS   a folder of extra seeds, one subfolder per harness (tests/test_fuzz.py makes them)
 #   FWREF_FUZZ_WEIGHTS  the weights.bin the stream and windows harnesses run (default: the committed seed)
+#   FUZZ_BUILD   the build folder (default firmware_ref/build-fuzz)
 # `make fuzz` runs it with FUZZ_SECONDS (default 600 per harness); `make test` for a few seconds each.
 set -uo pipefail
 here=$(cd "$(dirname "$0")" && pwd)
 seconds=${1:?usage: run.sh SECONDS [OUT]}
-build=$here/../build-fuzz
+build=${FUZZ_BUILD:-$here/../build-fuzz}
 out=${2:-$build/run}
 jobs=${FUZZ_JOBS:-2}
 harnesses=(fuzz_weights fuzz_reference fuzz_windows fuzz_stream)

@@ -12,7 +12,7 @@
 #include "host_common.hpp"
 #include "host_files.hpp"
 
-int main(int argc, char** argv) {
+int main(int argc, char** argv) try {
   if (argc != 5 || std::string(argv[1]) != "--in" || std::string(argv[3]) != "--out") {
     std::fprintf(stderr, "fwref_activations: usage: fwref_activations --in <x.f32> --out <y.f32>\n");
     return 1;
@@ -32,4 +32,6 @@ int main(int argc, char** argv) {
   }
   if (!fwref::host::write_atomic(argv[4], y.data(), y.size() * 4, &error)) return fail(error);
   return 0;
+} catch (const std::exception& e) {
+  return fwref::host::fail_exception("fwref_activations", e);
 }

@@ -20,7 +20,7 @@
 #include "host_common.hpp"
 #include "host_files.hpp"
 
-int main(int argc, char** argv) {
+int main(int argc, char** argv) try {
   std::string in, out;
   fwref::AlarmParams p{0.5, 2, 3, 3, false, 0, 0};
   long windows = 0;
@@ -80,4 +80,6 @@ int main(int argc, char** argv) {
     return std::fprintf(stderr, "fwref_alarm: error: %s\n", error.c_str()), 2;
   }
   return 0;
+} catch (const std::exception& e) {
+  return fwref::host::fail_exception("fwref_alarm", e);
 }

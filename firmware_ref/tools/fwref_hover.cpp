@@ -25,7 +25,7 @@ const fwref::host::Cli kCli("fwref_hover", "usage: fwref_hover --in FLIGHTS.f32 
 
 }  // namespace
 
-int main(int argc, char** argv) {
+int main(int argc, char** argv) try {
   std::string in, out, samples_text;
   const int parsed = kCli.parse(argc, argv, {{"--in", &in}, {"--out", &out}, {"--samples", &samples_text}});
   if (parsed >= 0) return parsed;
@@ -62,4 +62,6 @@ int main(int argc, char** argv) {
   }
   if (!fwref::host::write_atomic(out, est.data(), est.size(), &error)) return kCli.fail(error);
   return 0;
+} catch (const std::exception& e) {
+  return fwref::host::fail_exception("fwref_hover", e);
 }

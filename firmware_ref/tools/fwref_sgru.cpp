@@ -28,7 +28,7 @@ int fail(const char* what) { return std::fprintf(stderr, "fwref_sgru: %s\n", wha
 
 }  // namespace
 
-int main(int argc, char** argv) {
+int main(int argc, char** argv) try {
   if (argc != 3) return fail("usage: fwref_sgru IN.bin OUT.f32");
   std::string error;
   if (!fwref::host::output_allowed(argv[2], {argv[1]}, {"input"}, &error)) return fail(error.c_str());
@@ -108,4 +108,6 @@ int main(int argc, char** argv) {
   }
   if (!fwref::host::write_atomic(argv[2], out.data(), out.size() * 4, &error)) return fail(error.c_str());
   return 0;
+} catch (const std::exception& e) {
+  return fwref::host::fail_exception("fwref_sgru", e);
 }

@@ -243,7 +243,7 @@ bool replay_file(fwref::host::StreamInput& in, const std::string& name, std::siz
 
 }  // namespace
 
-int main(int argc, char** argv) {
+int main(int argc, char** argv) try {
   std::string weights, model, in, out, manifest, timings;
   std::vector<std::string> ins;  // --in, repeatable: flights in sequence, reset() between them
   bool int8 = false, info = false;
@@ -300,4 +300,6 @@ int main(int argc, char** argv) {
     return kCli.fail(error);
   }
   return 0;
+} catch (const std::exception& e) {
+  return fwref::host::fail_exception("fwref_stream", e);
 }

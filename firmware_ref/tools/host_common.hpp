@@ -10,7 +10,9 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <exception>
 #include <memory>
+#include <new>
 #include <string>
 #include <vector>
 
@@ -92,6 +94,14 @@ inline std::unique_ptr<Model> bind_model(WeightsFile& wf, const std::string& kin
     if (out) out->channels = m.dims.channels, out->window = m.dims.window, out->classes = m.dims.classes;
   }
   return out;
+}
+
+// What a program's main() returns when an exception would otherwise escape it (an allocation the bounded
+// sizes still allow, refused by the machine): one line on stderr, exit 2.
+inline int fail_exception(const char* program, const std::exception& e) {
+  const bool memory = dynamic_cast<const std::bad_alloc*>(&e) != nullptr;
+  std::fprintf(stderr, "%s: error: %s%s\n", program, memory ? "out of memory: " : "", e.what());
+  return 2;
 }
 
 // The whole regular file ``path`` of at most ``max_bytes`` into ``out``; false with one line in ``*error``

@@ -15,6 +15,7 @@
 #include <vector>
 
 #include <fcntl.h>
+#include <poll.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -86,8 +87,8 @@ class StreamInput {
   }
 
  private:
-  // A path: a regular file (its size kept in samples_ until the header is read) or a FIFO (opened again,
-  // blocking, to wait for its writer: the first open does not block); anything else refused.
+  // A path: a regular file (its size kept in samples_ until the header is read) or a FIFO (the open does
+  // not block; the first read waits for the writer); anything else refused.
   bool open_path(std::string* error) {
     fd_ = ::open(path_.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC | O_NOCTTY);
     struct stat st {};
@@ -104,13 +105,15 @@ class StreamInput {
       *error = "stream " + path_ + " is " + file_kind(st.st_mode) + ", not a regular file, a FIFO or stdin (-)";
       return false;
     }
-    const int blocking = ::open(path_.c_str(), O_RDONLY | O_CLOEXEC);
-    struct stat again {};
-    const bool same = blocking >= 0 && ::fstat(blocking, &again) == 0 && again.st_dev == st.st_dev &&
-                      again.st_ino == st.st_ino;
-    ::close(fd_);
-    fd_ = blocking;
-    if (!same) return *error = "stream " + path_ + " changed while it was opened", false;
+    // A FIFO's read end returns end-of-file while no writer has opened it, blocking or not: wait until
+    // its writer has written (or come and gone), then read blocking.
+    struct pollfd ready {fd_, POLLIN, 0};
+    while (::poll(&ready, 1, -1) < 0 && errno == EINTR) {
+    }
+    const int flags = ::fcntl(fd_, F_GETFL);
+    if (flags < 0 || ::fcntl(fd_, F_SETFL, flags & ~O_NONBLOCK) != 0) {
+      return *error = "cannot read stream " + path_ + ": " + std::strerror(errno), false;
+    }
     return true;
   }
 
