@@ -9,8 +9,9 @@
 //     skip_gap(), O(W + n) stores -- the missing samples' ring slots marked unusable (at most W), the
 //     hover estimator advanced in O(1) (HoverEstimator::skip), the strides that ended inside the gap
 //     counted in O(1) and the alarm stepped over them in O(min(count, n)) (AlarmPolicy::skip). It
-//     reports nothing and runs no model. It replaces filling the gap sample by sample, which took
-//     25 M iterations for a jump of 1e6 s (1.25 M stride lines, 109 MB) and stalled for minutes;
+//     reports nothing and runs no model. Filling the gap sample by sample would give the same state at
+//     a cost that grows with the gap: 25 M iterations and 1.25 M stride lines (107 MB from fwref_stream)
+//     for a jump of 1e6 s, minutes for 1e9 s, a controller stalled;
 //   - then the sample itself: at most one stride, hence AT MOST ONE DECISION (one window inference, or
 //     for a per-sample model one step and the latest step's logits). After a gap that stride is skipped
 //     (its window holds a missing sample), so a push after a gap costs less than a decided push.
