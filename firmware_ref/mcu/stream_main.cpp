@@ -8,9 +8,12 @@
 //   STRIDE <model> <prec> <flight> <index> <status> <logit bits (u32) x K> <vote> <active> <cls> <motor> <wmotor>
 //   PERF <model> <prec> <flight> samples=<n> push_n=<n> push_sum=<i> push_max=<i> decide_n=<n> decide_sum=<i>
 //        decide_max=<i> other_n=<n> other_sum=<i> other_max=<i>
+//   GAP <model> <prec> <flight> <sample> advanced=<n> refused=<0|1> strides=<n> instructions=<i>
 //   RESULT DONE
 // (push: a push without a stride; decide: a push whose stride ran the model; other: a stride
-// without a decision: nohover or skipped.)
+// without a decision: nohover or skipped. GAP: a push whose timestamp was not the next period -- the
+// stream's index advanced by more than one (a gap, or a new clock) or the time was refused -- with its
+// instruction count: fwref/stream.hpp bounds it by one decision, tests/test_stream_gaps.py checks it.)
 #include <cstdint>
 #include <cstring>
 
@@ -26,7 +29,7 @@ namespace {
 
 using Line = board::Line<512>;
 
-// Keeps the strides of one push (a gap can give several) so that printing is not timed.
+// Keeps the strides of one push (at most one: fwref/stream.hpp) so that printing is not timed.
 class Keep final : public fwref::StrideSink {
  public:
   void on_stride(const fwref::Decision& d) override {
@@ -65,15 +68,22 @@ bool replay(const fwref::StreamModel& sm, const char* model, const char* prec) {
     Stat push, decide, other;
     for (int k = 0; k < fl.samples; ++k) {
       Keep keep;
+      const std::int64_t before = g_stream.samples();
       const std::uint64_t t0 = board::ticks();
-      g_stream.push(fl.values + k * R, fl.t[k], &keep);
+      const fwref::Status st = g_stream.push(fl.values + k * R, fl.t[k], &keep);
       const std::uint64_t ins = std::uint64_t(double(board::ticks() - t0) * g_ratio + 0.5);
+      const std::int64_t advanced = g_stream.samples() - before;
+      if (k > 0 && (advanced != 1 || st != fwref::Status::kOk)) {
+        Line().s("GAP ").s(model).s(" ").s(prec).s(" ").u(f).s(" ").u(k).s(" advanced=").u(std::uint64_t(advanced))
+            .s(" refused=").u(st != fwref::Status::kOk).s(" strides=").u(keep.n).s(" instructions=").u(ins).out();
+      }
       bool decided = false;
       for (int j = 0; j < keep.n; ++j) {
         const fwref::Decision& d = keep.held[j];
         decided = decided || d.status == fwref::StrideStatus::kDecided;
         Line l;
-        l.s("STRIDE ").s(model).s(" ").s(prec).s(" ").u(f).s(" ").i(long(d.index)).s(" ")
+        // the index unsigned: it passes 2^31 after a long gap, and long is 32-bit here
+        l.s("STRIDE ").s(model).s(" ").s(prec).s(" ").u(f).s(" ").u(std::uint64_t(d.index)).s(" ")
             .s(fwref::stride_status_name(d.status));
         for (int c = 0; c < K; ++c) {
           std::uint32_t bits;
