@@ -154,8 +154,9 @@ def fault_exported(small_run, tmp_path_factory) -> Path:
 # loadfile) in collection order, and a long file picked up last leaves the other worker idle at the
 # end. The longest by --durations: the pipeline run (~2 min), the firmware builds and QEMU parity,
 # the streaming runtime's and detect's exports, the bench, the tanhq proof.
-LONG_FILES = ("test_pipeline.py", "test_firmware.py", "test_stream.py", "test_detect.py", "test_bench_report.py",
-              "test_real_flights.py", "test_firmware_tanhq.py", "test_distributed.py")
+LONG_FILES = ("test_wheel.py", "test_pipeline.py", "test_firmware.py", "test_stream.py", "test_firmware_tanhq.py",
+              "test_detect.py", "test_bench_report.py", "test_real_flights.py", "test_fuzz.py", "test_stream_gaps.py",
+              "test_distributed.py")
 
 
 def pytest_collection_modifyitems(config, items):

@@ -59,7 +59,8 @@ def make_seeds(export: Path, out: Path, samples: int = 140) -> Path:
     flight's stream file (the first ``samples`` samples) and the same samples as the stream harness's
     body-only input (times as step counts)."""
     from quadfdi.formats.binfmt import pack, read_file
-    from quadfdi.formats.stream import from_dataset, record_of, stream_bytes
+    from quadfdi.formats.export_folder import Export
+    from quadfdi.formats.stream import from_dataset, stream_bytes
     from quadfdi.formats.weights_layout import MAGIC, REFERENCE_MAGIC, REFERENCE_VERSION, VERSION
 
     dirs = {name: out / name for name in HARNESSES}
@@ -74,7 +75,7 @@ def make_seeds(export: Path, out: Path, samples: int = 140) -> Path:
     tel = rsec[0].tensors["telemetry"].array.astype("<f4")
     (dirs["fuzz_windows"] / "one.f32").write_bytes(tel[:1].tobytes())
     (dirs["fuzz_windows"] / "two.f32").write_bytes(tel[:2].tobytes())
-    record = record_of(export)
+    record = Export.open(export).onboard()
     dataset = export.parent / "dataset.npz"
     z = np.load(dataset)
     flight = int(np.flatnonzero(z["split"] == SPLIT_TEST)[0])

@@ -33,9 +33,10 @@ def _llround(q: float) -> int:
 @pytest.fixture(scope="module")
 def flight(flightlog_export):
     """A simulated test flight with a fault (300 samples), the on-board record and each model's alarm n."""
-    from quadfdi.formats.stream import from_dataset, record_of
+    from quadfdi.formats.export_folder import Export
+    from quadfdi.formats.stream import from_dataset
 
-    record = record_of(flightlog_export)
+    record = Export.open(flightlog_export).onboard()
     dataset = flightlog_export.parent / "dataset.npz"
     z = np.load(dataset)
     row = int(np.flatnonzero((z["split"] == SPLIT_TEST) & (z["fault_class"] > 0))[0])
@@ -192,9 +193,7 @@ def test_a_nan_or_foreign_sample_period_is_refused(flightlog_export, flight, hos
 @pytest.fixture(scope="module")
 def mcu(flightlog_export, flight, tmp_path_factory) -> dict:
     """The stream image (cortex-m4) with the clean flight and its jumps compiled in, run under QEMU."""
-    import sys
-
-    from quadfdi.runtimes.build import FW_ROOT, _configure_and_build
+    from quadfdi.runtimes.build import _configure_and_build, mcu_options, source_dir
     from quadfdi.runtimes.mcu import qemu_command, tools_missing
     from quadfdi.formats.stream import write_stream
 
@@ -212,11 +211,10 @@ def mcu(flightlog_export, flight, tmp_path_factory) -> dict:
         write_stream(paths[-1], _copy(rs, times, rs.values))
     build = tmp / "build"
     build.mkdir()
-    options = {"CMAKE_TOOLCHAIN_FILE": str(FW_ROOT / "mcu" / "toolchain-arm-none-eabi.cmake"), "FWREF_CPU": "cortex-m4",
-               "FWREF_WEIGHTS": str(flightlog_export / "weights.bin"),
-               "FWREF_REFERENCE": str(flightlog_export / "reference.bin"), "Python3_EXECUTABLE": sys.executable,
-               "FWREF_STREAMS": ";".join(str(p) for p in paths)}
-    _configure_and_build(FW_ROOT / "mcu", build, options, "the cortex-m4 stream image", ("fwref_mcu_stream",))
+    src = source_dir()
+    options = mcu_options(src, "cortex-m4", flightlog_export / "weights.bin", flightlog_export / "reference.bin",
+                          tuple(paths))
+    _configure_and_build(src / "mcu", build, options, "the cortex-m4 stream image", ("fwref_mcu_stream",))
     res = subprocess.run(qemu_command("cortex-m4", build / "fwref_mcu_stream.elf"), capture_output=True, text=True,
                          timeout=1200, check=False)
     assert "RESULT DONE" in res.stdout, res.stdout[-2000:] + res.stderr[-2000:]
