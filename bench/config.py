@@ -5,8 +5,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from quadfdi.core.errors import QuadfdiError
-from quadfdi.core.limits import MAX_THREADS
-from quadfdi.core.sections import positive
+from quadfdi.core.limits import MAX_BATCH, MAX_THREADS
+from quadfdi.core.sections import at_most, positive
 
 
 @dataclass(frozen=True)
@@ -34,6 +34,7 @@ class BenchConfig:
     def validate(self) -> None:
         positive(self, "windows", "warmup_s", "batch", "batches", "budget_s", "min_samples", "profile_windows",
                   "callgrind_windows", "worker_timeout_s")
+        at_most(self, MAX_BATCH, "batch")
         if self.warmup < 0:
             raise QuadfdiError(f"bench.warmup must be 0 or more, found {self.warmup}")
         if self.stream_flights < 0:

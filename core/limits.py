@@ -12,6 +12,15 @@ from quadfdi.core.errors import QuadfdiError
 DATASET_BYTES_PER_SAMPLE = 270
 FIRMWARE_MAX_STEPS = 64  # FWREF_MAX_STEPS of firmware_ref: the unrolled CNODE graph may not exceed it
 MAX_THREADS = 256  # beyond any machine this runs on: 100000 threads once hung torch
+# The firmware's capacities (firmware_ref/include/fwref/config.hpp's FWREF_MAX_* defaults; a test
+# reads them there): a model larger than these cannot be deployed, so a config asking for one is
+# refused before any compute instead of ending in an allocation failure.
+MAX_LATENT = 128  # FWREF_MAX_LATENT
+MAX_CNODE_HIDDEN = 256  # FWREF_MAX_CNODE_HIDDEN
+MAX_GRU_HIDDEN = 256  # FWREF_MAX_GRU_HIDDEN
+MAX_WINDOW = 256  # FWREF_MAX_WINDOW
+MAX_BATCH = 65536  # windows or flights per batch: far above what fits a training step on this machine
+MAX_EPOCHS = 100_000
 
 
 def available_memory() -> int | None:

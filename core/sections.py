@@ -82,6 +82,9 @@ def parse_override(text: str) -> tuple[str, str, Any]:
     return section, key, value
 
 
+MAX_INT = 10**9  # no count or size of quadfdi comes near it; a larger integer is a typo
+
+
 def coerce(value: Any, typ: Any, where: str) -> Any:
     """Check ``value`` (parsed from TOML) against the dataclass field type ``typ``."""
     origin = get_origin(typ)
@@ -101,6 +104,8 @@ def coerce(value: Any, typ: Any, where: str) -> Any:
     if typ is int:
         if isinstance(value, bool) or not isinstance(value, int):
             raise QuadfdiError(f"{where} must be an integer, found {value!r}")
+        if abs(value) > MAX_INT:  # every size and count has a tighter bound in its section's validate
+            raise QuadfdiError(f"{where} must be at most {MAX_INT:.0e} in size, found {value}")
         return value
     if typ is float:
         if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):

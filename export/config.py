@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from quadfdi.core.errors import QuadfdiError
-from quadfdi.core.limits import FIRMWARE_MAX_STEPS
+from quadfdi.core.limits import FIRMWARE_MAX_STEPS, MAX_BATCH
 from quadfdi.core.sections import at_most, positive
 
 
@@ -21,5 +21,6 @@ class ExportConfig:
     def validate(self) -> None:
         positive(self, "steps", "opset", "calib_windows", "reference_windows")
         at_most(self, FIRMWARE_MAX_STEPS, "steps")
+        at_most(self, MAX_BATCH, "calib_windows", "reference_windows")
         if self.opset < 17:
             raise QuadfdiError(f"export.opset must be 17 or newer, found {self.opset}")

@@ -25,6 +25,7 @@ import numpy as np
 
 from quadfdi.core.alarm import resolve_policy, rotor_columns
 from quadfdi.core.errors import QuadfdiError
+from quadfdi.core.records import PUBLISH
 from quadfdi.core.profiles import DEFAULT_PROFILE
 from quadfdi.formats.manifest import check_files, load_manifest
 from quadfdi.formats.onboard import record_dict
@@ -44,8 +45,14 @@ class Export:
 
     @classmethod
     def open(cls, folder: str | Path) -> Export:
-        """Load manifest.json (formats.manifest: its schema version) and check every file it lists."""
+        """Load manifest.json (formats.manifest: its schema version) and check every file it lists. The
+        export of a run folder whose publish was interrupted (its ``.publish`` holds a stage: new files may
+        stand beside the old manifest) is refused with what finishes it: ``quadfdi check``."""
         root = Path(folder)
+        pending = root.parent / PUBLISH
+        if pending.is_dir() and any(pending.iterdir()):
+            raise QuadfdiError(f"{root.parent} holds an interrupted publish ({pending}): run `quadfdi check --run "
+                               f"{root.parent}` to finish it, then read {root}")
         manifest = load_manifest(root / MANIFEST)
         check_files(manifest, root)
         return cls(root, manifest)

@@ -6,8 +6,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from quadfdi.core.errors import QuadfdiError
-from quadfdi.core.limits import check_dataset_memory, dataset_bytes
-from quadfdi.core.sections import choice, not_negative, positive
+from quadfdi.core.limits import MAX_WINDOW, check_dataset_memory, dataset_bytes
+from quadfdi.core.sections import at_most, choice, not_negative, positive
 
 
 @dataclass(frozen=True)
@@ -37,6 +37,7 @@ class SimConfig:
     def validate(self) -> None:
         positive(self, "n_traj", "duration_s", "sample_dt_s", "sim_dt_s", "window", "stride", "chunk")
         not_negative(self, "seed")
+        at_most(self, MAX_WINDOW, "window")
         if self.window < 2:
             raise QuadfdiError(f"sim.window must be 2 samples or more (the models need a time step), found {self.window}")
         choice(self, "scenario", ("paper", "realistic"))

@@ -12,7 +12,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from quadfdi.core.errors import QuadfdiError
-from quadfdi.core.limits import MAX_THREADS
+from quadfdi.core.limits import (FIRMWARE_MAX_STEPS, MAX_BATCH, MAX_CNODE_HIDDEN, MAX_EPOCHS, MAX_GRU_HIDDEN,
+                                 MAX_LATENT, MAX_THREADS)
 from quadfdi.core.profiles import check_profile
 from quadfdi.core.sections import at_most, choice, not_negative, positive
 
@@ -56,6 +57,12 @@ class TrainConfig:
         if min(self.seeds, default=0) < 0:
             raise QuadfdiError(f"train.seeds must not be negative, found {list(self.seeds)}")
         at_most(self, MAX_THREADS, "threads")
+        at_most(self, MAX_LATENT, "latent")
+        at_most(self, MAX_CNODE_HIDDEN, "hidden")
+        at_most(self, MAX_GRU_HIDDEN, "gru_hidden")
+        at_most(self, FIRMWARE_MAX_STEPS, "steps")
+        at_most(self, MAX_BATCH, "batch_size")
+        at_most(self, MAX_EPOCHS, "epochs")
         choice(self, "model", ("cnode", "gru", "both"))
         choice(self, "lr_schedule", ("constant", "cosine"))
         choice(self, "solver", ("dopri5", "bosh3", "rk4", "euler", "midpoint"))
@@ -97,6 +104,9 @@ class StreamFitConfig:
                  "onset_span")
         not_negative(self, "warmup", "weight_decay", "motor_aux", "seed")
         at_most(self, MAX_THREADS, "threads")
+        at_most(self, MAX_GRU_HIDDEN, "hidden")
+        at_most(self, MAX_BATCH, "batch")
+        at_most(self, MAX_EPOCHS, "epochs")
         for name in ("zero_start", "noise_start", "onset_segments"):
             if not 0.0 <= getattr(self, name) <= 1.0:
                 raise QuadfdiError(f"sgru.{name} is a probability in [0, 1], found {getattr(self, name)}")
