@@ -115,6 +115,18 @@ def flightlog_export(tmp_path_factory) -> Path:
                               export_sets=tuple(FLIGHTLOG_ALARM)) / "export"
 
 
+@pytest.fixture(scope="session")
+def mission_npz(tmp_path_factory) -> Path:
+    """The shared UAVCAN mission log ingested once (skips where the shared logs are not here)."""
+    log = SHARED_DATA / "flightlogs" / "px4_quad_6s_uavcan_mission.ulg"
+    if not log.is_file():
+        pytest.skip(f"the shared real flight logs are not at {log.parent}")
+    out = tmp_path_factory.mktemp("mission")
+    res = quadfdi("ingest", str(log), "--out", str(out))
+    assert res.returncode == 0, res.stderr
+    return out / "flight.npz"
+
+
 # ---- the fault-injection suite's runs (tests/test_faults*.py)
 
 
