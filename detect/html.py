@@ -26,6 +26,7 @@ table{border-collapse:collapse;margin:0.5em 0} th,td{border:1px solid #ccc;paddi
 th{background:#f2f2f2} td.num{text-align:right;font-variant-numeric:tabular-nums}
 .muted{color:#777} .alarm{color:#b00020;font-weight:600} .ok{color:#17702a} .refused{color:#8a5a00}
 .facts td:first-child{font-weight:600} th.sortable{cursor:pointer} th.sortable:after{content:" \\2195";color:#aaa}
+img{max-width:100%}
 .evidence{border-left:4px solid #b00020;padding-left:1em;margin:1em 0}
 """
 
