@@ -227,3 +227,11 @@ def test_run_report_html_in_chromium(flightlog_export, browser, tmp_path):
     assert any("train" in h.lower() for h in heads), heads
     imgs = browser.execute_script("return Array.from(document.images).map(i => [i.getAttribute('src'), i.naturalWidth])")
     assert imgs and all(not src.startswith(("/", "http")) and width > 0 for src, width in imgs), imgs
+
+
+def test_a_folder_without_logs_is_one_line_exit_2_and_writes_nothing(flightlog_export, tmp_path):
+    (tmp_path / "logs").mkdir()
+    (tmp_path / "logs" / "notes.txt").write_text("no log here\n")
+    res = quadfdi("detect", "--model", str(flightlog_export), str(tmp_path / "logs"), "--out", str(tmp_path / "out"))
+    assert res.returncode == 2 and "no flight log in" in res.stderr and len(res.stderr.strip().splitlines()) == 1
+    assert not (tmp_path / "out").exists()
