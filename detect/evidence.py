@@ -117,6 +117,8 @@ def occlusion(result: dict, flight: dict, export, net: str, precision: str) -> l
     out = []
     for i, a in enumerate(alarms):
         idx = alarm_windows(arr, a)
+        if not len(idx):  # an alarm always holds its raising window; nothing to occlude otherwise
+            continue
         x = x_all[decided_rows[idx]]
         batch = [x]
         for _, cols in groups:

@@ -235,3 +235,16 @@ def test_a_folder_without_logs_is_one_line_exit_2_and_writes_nothing(flightlog_e
     res = quadfdi("detect", "--model", str(flightlog_export), str(tmp_path / "logs"), "--out", str(tmp_path / "out"))
     assert res.returncode == 2 and "no flight log in" in res.stderr and len(res.stderr.strip().splitlines()) == 1
     assert not (tmp_path / "out").exists()
+
+
+def test_drawing_is_downsampled_but_keeps_every_extreme():
+    from quadfdi.detect.flightplot import downsample
+
+    t = np.arange(15000) * 0.04  # a 10-minute flight on the 25 Hz grid
+    v = np.sin(t)
+    v[7777], v[12345], v[3000:3100] = 9.0, -9.0, np.nan  # two one-sample spikes and a gap
+    ts, vs = downsample(t, v, 1000)
+    assert len(ts) <= 2000 and np.all(np.diff(ts) > 0)
+    assert 9.0 in vs and -9.0 in vs and np.isnan(vs).any()  # the spikes survive, the gap stays a gap
+    short = downsample(t[:500], v[:500], 1000)
+    assert np.array_equal(short[0], t[:500]) and np.array_equal(short[1], v[:500])  # drawn as they are
