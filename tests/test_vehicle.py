@@ -97,6 +97,31 @@ def test_the_share_is_the_logs_own_motor_command_over_the_four(pad_reference):
 
 
 @needs_pad
+def test_the_share_model_is_least_squares_on_the_steady_samples(pad_reference):
+    """Against scikit-learn's LinearRegression on the samples the reference names (core.hover's steady
+    samples, forward speed and the yaw rate from d(yaw)/dt): the same coefficients and residual spread."""
+    from sklearn.linear_model import LinearRegression
+
+    from quadfdi.vehicle import quantities as q
+
+    model = load_vehicle(pad_reference[0])["share_model"]
+    assert model["regressors"] == ["v_forward", "yaw_rate"]
+    flights = [read_flight(p) for p in REFERENCE]
+    sel = [q.steady(fl) for fl in flights]
+    x = np.concatenate([np.stack([q.forward_speed(fl)[s], q.yaw_rate(fl)[0][s]], axis=1)
+                        for fl, s in zip(flights, sel)])
+    y = np.concatenate([q.motor_shares(fl)[s] for fl, s in zip(flights, sel)])
+    ok = np.isfinite(x).all(axis=1) & np.isfinite(y).all(axis=1)
+    for k, m in enumerate(model["motors"]):
+        fit = LinearRegression().fit(x[ok], y[ok, k])
+        np.testing.assert_allclose([m["intercept"], m["per_v_forward"], m["per_yaw_rate"]],
+                                   [fit.intercept_, *fit.coef_], rtol=1e-6, atol=1e-9)
+        resid = y[ok, k] - fit.predict(x[ok])
+        assert m["residual_std"] == pytest.approx(np.std(resid, ddof=3), rel=1e-6)
+        assert m["seconds"] == pytest.approx(ok.sum() * 0.04)
+
+
+@needs_pad
 def test_a_too_short_flight_is_refused_in_one_line(tmp_path):
     arrays = load_flight_log(REFERENCE[0])
     t_air = arrays["time"][arrays["airborne"]]

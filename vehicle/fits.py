@@ -91,7 +91,8 @@ def battery_flight(fl: Flight, with_current: bool = True) -> dict | None:
     v = np.where(fl.airborne, fl.col("V_b") / cells, np.nan)
     t = _airborne_minutes(fl)
     cur = np.where(fl.airborne, fl.col("I_b"), np.nan)
-    use_current = with_current and fl.usable("I_b") and np.nanmax(cur, initial=0) - np.nanmin(cur, initial=0) >= MIN_CURRENT_RANGE_A
+    finite = cur[np.isfinite(cur)]
+    use_current = with_current and fl.usable("I_b") and finite.size > 0 and np.ptp(finite) >= MIN_CURRENT_RANGE_A
     fit = lstsq(v, [cur, t] if use_current else [t])
     if fit is None:
         return None

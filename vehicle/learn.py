@@ -134,7 +134,8 @@ def learn(flights: list[Flight]) -> dict:
     ref = {
         "format_version": FORMAT_VERSION, "kind": KIND, "vehicle": veh,
         "flights": [{"file": fl.name, "sha256": fl.sha256, "log_file": str(fl.arrays["log_file"]),
-                     "log_sha256": str(fl.arrays["log_sha256"]), "airborne_s": round(float(fl.airborne.sum() * GRID_DT), 2)}
+                     "log_sha256": str(fl.arrays["log_sha256"]),
+                     "airborne_s": round(float(fl.airborne.sum() * GRID_DT), 2)}
                     for fl in flights],
         "settings": {"min_airborne_s": MIN_AIRBORNE_S, "window_s": WINDOW * GRID_DT, "disagreement_k": K_DISAGREE,
                      "share_samples": "airborne, all four motor commands logged, collective >= "

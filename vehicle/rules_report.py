@@ -69,8 +69,8 @@ def _flights_md(rows: list[dict], refused: list[dict]) -> list[str]:
              " | ".join(f"`{r.name}`" for r in RULES) + " |", "|---|---|---|---|" + "---|" * (len(names) + len(RULES))]
     for r in rows:
         rules = " | ".join(f"{v['score']:.3f} {v['motor']}{' !' if v['alarm'] else ''}" for v in r["rules"].values())
-        lines.append(f"| {r['flight']} | {r.get('role') or '—'} | {r.get('group') or '—'} | {r.get('session') or '—'} | "
-                     + " | ".join(f"{r['shares'][n]:.3f}" for n in names) + f" | {rules} |")
+        head = " | ".join(str(r.get(k) or "—") for k in ("flight", "role", "group", "session"))
+        lines.append(f"| {head} | " + " | ".join(f"{r['shares'][n]:.3f}" for n in names) + f" | {rules} |")
     if refused:
         lines += ["", "Not scored:", ""] + [f"- {x['flight']}: {x['reason']}" for x in refused]
     return lines + [""]

@@ -12,8 +12,8 @@ flight's mean. Between flights: the std (ddof 1) of the flights' means.
 measurement noise of the flight means alone would give. The others' own std cannot be the yardstick:
 two sessions of two flights each (CrazyPAD's E8 and E9) hide in it (a flight from one session sits
 within 1 std of the three others). ``K = 3``: with normal noise a flight passes 3 s by chance 0.27 %
-of the time, so a reference of 4 flights with about 30 compared quantities warns falsely about once
-in 12 references (K = 2: 3 in 4).
+of the time, so a Crazyflie reference of 4 flights and 5 compared quantities (20 comparisons) warns
+falsely about once in 19 references; K = 2 (4.6 % each) would in 3 of 5.
 """
 
 from __future__ import annotations
