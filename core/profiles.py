@@ -90,6 +90,12 @@ def pattern_available(pattern: MaskPattern) -> dict[str, bool]:
     return {g: g not in pattern.groups for g in GROUP_NAMES}
 
 
+def groups_carried(carried: set[str] | frozenset[str]) -> dict[str, bool]:
+    """group -> available: every raw channel of the group is among ``carried`` (a stream's carried
+    channels; fwref/stream.hpp Stream::set_carried makes the same rule)."""
+    return {g.name: set(g.raw) <= set(carried) for g in AVAILABILITY_GROUPS}
+
+
 def flight_pattern(index: int) -> MaskPattern:
     """The pattern a masked profile gives flight ``index`` of a simulated dataset (its ``traj_index``)
     outside training, where windows draw their own (train/masks.py): the patterns in turn, so that

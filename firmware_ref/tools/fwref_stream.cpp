@@ -13,9 +13,11 @@
 // run infer_motor: the motor columns below are then filled.
 //
 // stream.bin (docs/formats.md "Stream file", written by `quadfdi stream-file`): a header (magic,
-// version, channel names, sample period, profile, cell count), then samples (f64 time, f32 values
-// in the header's channel order), read from the path or stdin ("-") one sample at a time. The
-// header's channels, profile and period must be the ones weights.bin's on-board record names.
+// version, channel names, in version 2 the carried flags, sample period, profile, cell count), then
+// samples (f64 time, f32 values in the header's channel order), read from the path or stdin ("-") one
+// sample at a time. The header's channels, profile and period must be the ones weights.bin's on-board
+// record names; a channel the flight lacks (carried flag 0) only the masked profile accepts
+// (Stream::set_carried: its minimum and, with V_b, a cell count are needed).
 // --in may be given several times: the flights run in sequence through one Stream, reset() between
 // them (each flight's lines start with its "# fwref_stream flight=<i>" comment).
 // Output (stdout, or --out written atomically at the end): '#' comment lines, then one line per
@@ -51,7 +53,7 @@ const fwref::host::Cli kCli(
     "usage: fwref_stream --weights <weights.bin> (--info [--model cnode|gru|sgru] | --model cnode|gru|sgru [--int8] "
     "--in <stream.bin|-> [--out <lines.txt>] [--manifest <manifest.json>] [--timings <seconds.f64>])");
 constexpr char kMagic[9] = "QFDISTR";  // + NUL: 8 bytes
-constexpr std::uint32_t kVersion = 1;
+constexpr std::uint32_t kVersion = 2;  // 1: no carried flags (every channel carried)
 constexpr std::size_t kFixedHeader = 128;  // magic .. source; the channel names follow
 
 struct Header {
@@ -59,6 +61,7 @@ struct Header {
   double dt = 0.0;
   std::string profile, source;
   std::vector<std::string> names;
+  std::uint64_t carried = fwref::kAllCarried;  // bit c: the stream carries channel c (version 2's flags)
   std::size_t bytes = 0;
 };
 
@@ -74,8 +77,8 @@ bool read_header(std::FILE* f, const std::string& where, Header* h, std::string*
   std::memcpy(&h->channels, fixed + 16, 4);
   std::memcpy(&h->cells, fixed + 20, 4);
   std::memcpy(&h->dt, fixed + 24, 8);
-  if (version != kVersion) {
-    return *error = "stream " + where + " has version " + std::to_string(version) + ", this reader reads 1", false;
+  if (version != 1 && version != kVersion) {
+    return *error = "stream " + where + " has version " + std::to_string(version) + ", this reader reads 1 and 2", false;
   }
   if (bytes < kFixedHeader || bytes > (1u << 20) || h->channels == 0 || h->channels > 4096) {
     return *error = "stream " + where + " has a bad header (size or channel count)", false;
@@ -91,8 +94,27 @@ bool read_header(std::FILE* f, const std::string& where, Header* h, std::string*
     h->names.emplace_back(rest.data() + pos, len);
     pos += len + 1;
   }
+  if (version >= 2) {  // one carried flag (0/1) per channel after the names
+    if (pos + h->channels > rest.size() || h->channels > 64) {
+      return *error = "stream " + where + " has no room for its carried flags (or over 64 channels)", false;
+    }
+    for (std::uint32_t c = 0; c < h->channels; ++c) {
+      const unsigned char flag = static_cast<unsigned char>(rest[pos + c]);
+      if (flag > 1) return *error = "stream " + where + " has a carried flag that is not 0 or 1", false;
+      if (flag == 0) h->carried &= ~(std::uint64_t(1) << c);
+    }
+  }
   h->bytes = bytes;
   return true;
+}
+
+// The channels the header marks not carried, comma-separated.
+std::string lacking(const Header& h) {
+  std::string out;
+  for (std::size_t c = 0; c < h.names.size() && c < 64; ++c) {
+    if (((h.carried >> c) & 1u) == 0) out += (out.empty() ? "" : ",") + h.names[c];
+  }
+  return out;
 }
 
 std::uint32_t model_code(const std::string& model) {
@@ -240,7 +262,10 @@ bool check_header(const Header& h, const std::string& in, const fwref::OnboardRe
     return *error = "stream " + in + ": sample period " + std::to_string(h.dt) + " s, the model's is " +
                     std::to_string(rec.params.sample_dt_s) + " s", false;
   }
-  if (rec.cells_from_stream && h.cells == 0) return *error = "stream " + in + " does not give the pack's cell count", false;
+  const bool battery = h.names.size() > 9 && h.names[9] == "V_b" && ((h.carried >> 9) & 1u) != 0;  // V_b: column 9
+  if (rec.cells_from_stream && h.cells == 0 && battery) {
+    return *error = "stream " + in + " does not give the pack's cell count", false;
+  }
   return true;
 }
 
@@ -254,20 +279,25 @@ bool replay_file(const std::string& in, std::size_t index, Replay* r, std::strin
   if (!read_header(f, in, &h, error) || !check_header(h, in, r->rec, error)) return false;
   fwref::StreamParams p = r->rec.params;
   p.classes = p.alarm.classes = r->m.classes;
+  const std::string lacks = lacking(h);
+  const std::string refused = "stream " + in + " lacks channels profile '" + h.profile + "' cannot do without: " + lacks;
   if (index == 0) {
-    const fwref::Status status = g_stream.init(p, int(h.cells), r->m.fns);
+    const fwref::Status status = g_stream.init(p, int(h.cells), r->m.fns, h.carried);
+    if (status == fwref::Status::kDimsInvalid && !lacks.empty()) return *error = refused, false;
     if (status != fwref::Status::kOk) return *error = std::string("cannot run this record: ") + fwref::status_name(status), false;
     r->cells = h.cells;
   } else if (h.cells != r->cells) {
     return *error = "stream " + in + " has " + std::to_string(h.cells) + " cells, the first stream " + std::to_string(r->cells), false;
   } else {
     g_stream.reset();
+    if (g_stream.set_carried(h.carried) != fwref::Status::kOk) return *error = refused, false;
   }
   char head[512];
   std::snprintf(head, sizeof head, "# fwref_stream flight=%zu source=%s model=%s precision=%s profile=%s window=%d "
-                "stride=%d classes=%d motor_head=%d\n# index t status logits[%d] proba[%d] vote active raised cleared "
+                "stride=%d classes=%d motor_head=%d available=0x%X\n# index t status logits[%d] proba[%d] vote active raised cleared "
                 "cls motor wmotor\n", index, h.source.c_str(), r->model.c_str(), r->int8 ? "int8" : "fp32",
-                h.profile.c_str(), p.window, p.stride, p.classes, int(r->m.has_motor), p.classes, p.classes);
+                h.profile.c_str(), p.window, p.stride, p.classes, int(r->m.has_motor), unsigned(g_stream.available()),
+                p.classes, p.classes);
   r->lines.add(head);
   const std::size_t rec_bytes = 8 + 4 * std::size_t(h.channels);
   std::vector<unsigned char> buf(rec_bytes);
