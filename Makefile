@@ -5,7 +5,7 @@ RUN ?= runs/paper
 CONFIG ?= configs/paper.toml
 REAL_OUT ?= runs/real-flights
 
-.PHONY: setup run test real-flights sim-bench sweep-bench study solvers solver-matrix clean
+.PHONY: setup run test fuzz real-flights sim-bench sweep-bench study solvers solver-matrix clean
 
 setup:
 	bash scripts/setup.sh
@@ -15,9 +15,16 @@ run: setup
 
 # Two pytest workers, one per core, each taking whole files (module fixtures are built once): the
 # suite is half subprocesses (C++ builds, QEMU, ONNX Runtime, CLI runs) and half single-threaded
-# Python, so it took 15 min 54 s serially on CI (2026-12-02), over the 15-minute budget.
+# Python, so one worker per core halves its wall time.
 test: setup
 	$(PY) -m pytest -q -n 2 --dist loadfile
+
+# The long libFuzzer pass over the C++ readers (firmware_ref/fuzz/run.sh): FUZZ_SECONDS per harness,
+# two at a time; corpora, logs and findings in firmware_ref/build-fuzz/run. `make test` runs the same
+# harnesses for 10 s each (tests/test_fuzz.py).
+FUZZ_SECONDS ?= 600
+fuzz: setup
+	bash firmware_ref/fuzz/run.sh $(FUZZ_SECONDS)
 
 # README's real-flight table: the three profiles' realistic-suite models, parity, then `quadfdi detect`
 # on every shared real quad log (`quadfdi real-flights`, quadfdi/real_flights.py).

@@ -1,12 +1,10 @@
 """C++ int8 against fp32, both precisions of a model in one fwref_pair process, taking turns: the ratios
-issue 15's "C++ int8 at least as fast as fp32" targets are judged on (bench.json ``cpp_pairs``).
+the "C++ int8 at least as fast as fp32" targets are judged on (bench.json ``cpp_pairs``).
 
 The reason is bench/ort_pairs.py's: a process on the shared machines lands in one of two speed modes and
 stays there, and the latency table's C++ figures pool separate processes per precision
-(bench/timing/cpp.py), so their ratio moves with how many of each landed in which mode (the CNODE's
-int8 / fp32 speed read 0.99-1.24 in six benches of 2026-12-03; in one process 0.97-1.04 in three). In one
-process the mode hits both precisions alike (scripts/cnode_parts_micro.cpp: whole infer fp32 6.9-7.1 and
-int8 7.1-7.3 us in four processes, 10.3 / 12.1 and 9.7 / 10.6 us in the two others).
+(bench/timing/cpp.py), so their ratio moves with how many of each landed in which mode. In one process
+the mode hits both precisions alike (docs/bench.md "One process is one sample", lab/cpp_process_spread.py).
 
 firmware_ref's ``fwref_pair`` (tools/fwref_pair.cpp) runs every window through each precision once (a
 warm-up pass), then ``PER_ROUND`` consecutive windows of the bench's seeded sample per precision and round

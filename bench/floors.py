@@ -1,4 +1,4 @@
-"""Each model's latency floor on this machine, and how far each runtime is from it (issue 6).
+"""Each model's latency floor on this machine, and how far each runtime is from it.
 
 floor = max(compute, memory) for one window at batch 1, where
 
@@ -117,7 +117,7 @@ def _pick(records: list[dict], **match) -> list[dict]:
 
 
 def targets(records: list[dict], floor_list: list[dict]) -> list[dict]:
-    """Issue 6's latency targets, each {target, model, precision, measured, threshold, met, detail,
+    """The latency targets, each {target, model, precision, measured, threshold, met, detail,
     cpp_p50_us, and floor_us or ort_p50_us}.
 
     - C++ CNODE and GRU batch-1 p50 within 2x of their floor (fp32 and int8 each against its own);

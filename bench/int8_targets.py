@@ -1,11 +1,11 @@
-"""Issue 15's int8 targets ("int8 that pays"), read from one bench's latency records so that every
-ratio compares runtimes measured in the same run (bench.json ``targets``, next to issue 6's from
+"""The int8 targets ("int8 that pays"), read from one bench's latency records so that every
+ratio compares runtimes measured in the same run (bench.json ``targets``, next to the latency targets from
 bench.floors.targets):
 
 - C++ int8 no slower than C++ fp32 at batch 1, both models; the GRU's int8 at least 1.5x faster. The
   ratio is the median of bench.cpp_pairs' per-round ratios (both precisions in one fwref_pair process);
   without ``cpp_pairs`` (a build without fwref_pair) the latency records' pooled p50s;
-- C++ int8 within 3x of its floor at batch 1 (fp32's 2x is issue 6's row), no runtime below its floor;
+- C++ int8 within 3x of its floor at batch 1 (fp32's 2x is the latency targets' row), no runtime below its floor;
 - ONNX Runtime at one thread without spinning (the like-for-like single-core setting): at batch 96
   int8 faster than fp32, at batch 1 int8 within 2x of fp32, both models. The ratio is the median of
   the per-round ratios of bench.ort_pairs (both graphs in one process, calls interleaved: its doc says
@@ -20,9 +20,9 @@ from __future__ import annotations
 
 from quadfdi.bench.floors import below_floor, floor_for
 
-INT8_FLOOR_X = 3.0  # issue 15: int8 within 3x of its floor (fp32: 2x, issue 6's row)
-GRU_INT8_SPEEDUP = 1.5  # issue 15: the C++ GRU int8 at least 1.5x faster than its fp32
-ORT_BATCH1_SLOWDOWN = 2.0  # issue 15: ORT int8 at batch 1 within 2x of fp32
+INT8_FLOOR_X = 3.0  # int8 within 3x of its floor (fp32: 2x, the latency targets' row)
+GRU_INT8_SPEEDUP = 1.5  # the C++ GRU int8 at least 1.5x faster than its fp32
+ORT_BATCH1_SLOWDOWN = 2.0  # ORT int8 at batch 1 within 2x of fp32
 
 
 def _p50(records: list[dict], runtime: str, model: str, precision: str, batch: int) -> float | None:

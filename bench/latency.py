@@ -1,6 +1,6 @@
 """Per-runtime latency: one fresh pinned process per setting (``bench.latency_worker``), in turn.
 
-The settings (``plan``), SPEC section 6 and issue 6:
+The settings (``plan``), SPEC section 6:
 
 - torch: CNODE with fixed classic RK4 at the export's N (``rk4-N``) and adaptive dopri5 at
   train.rtol with the path's knots as ``jump_t`` (``dopri5-1e-3``); GRU. 1 and 2 intra-op threads.
@@ -204,7 +204,7 @@ def measure_latency(run_root: Path, manifest: dict, test_x: np.ndarray, rtol: fl
             b1, bn = out["records"]
             log(f"bench latency: {spec.label}: batch 1 p50 {b1['p50_us']:.1f} us (p99 {b1['p99_us']:.1f}, "
                 f"{b1['n_calls']} windows), batch {bn['batch']} {bn['throughput_wps']:.0f} windows/s [{dt:.1f} s]")
-        # issue 15's ONNX Runtime ratios: both graphs in one process (bench/ort_pairs.py says why)
+        # the ONNX Runtime int8/fp32 ratios: both graphs in one process (bench/ort_pairs.py says why)
         pairs = measure_ort_pairs(run_root / "export", manifest, windows, counts, cpus, bench.worker_timeout_s, quick,
                                   log)
     return {"latency": records, "ort_pairs": pairs, "runtime_memory": memory, "workers": workers,

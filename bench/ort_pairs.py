@@ -1,22 +1,19 @@
 """ONNX Runtime int8 against fp32, both graphs of a model in one process, calls interleaved: the
-ratios issue 15's ONNX Runtime targets are judged on (bench.json ``ort_pairs``).
+ratios the ONNX Runtime int8 targets are judged on (bench.json ``ort_pairs``).
 
 Why not the latency table's p50s: on the shared machines a process lands in one of two speed modes
 and stays there (docs/bench.md "One process is one sample"); the slow mode takes about 2.2x as long
 for every graph in that process. The latency workers time fp32 and int8 in separate processes, so
-one of the two can land in the slow mode and the ratio of their p50s is off by that factor (a bench
-of 2026-12-03 gave the int8 CNODE 460.6 us at batch 1 against 199.6-200.6 us in the two runs before
-it, and a 4.18x "slowdown" against fp32; eight processes each timing both graphs, 2026-12-03, idle
-machine: two had fp32 225-255 us and int8 411-453 us, six 115-121 and 198-206 us, and every one a
-ratio of 1.70-1.82). Here the two sessions share the process and take turns round by round (fp32
+one of the two can land in the slow mode and the ratio of their p50s is off by that factor, while in
+one process both graphs are slow or fast together and their ratio holds (lab/ort_process_modes.py). Here the two sessions share the process and take turns round by round (fp32
 first in even rounds, int8 first in odd ones), so a mode or a burst of load hits both: each round's
 ratio compares times a few milliseconds apart, and the figure is the median of the rounds' ratios.
 
 The setting is the targets' like-for-like one: one intra-op thread, spinning off. In a round each
 graph gets one untimed call and then ``PER_ROUND_1`` (batch 1) or ``PER_ROUND_N`` (batch
 ``counts.batch``) timed calls, the round's time their median, so that each graph is timed on its own
-cache state (on the paper export, 1, 4, 16 and 64 calls per round gave median ratios within 4 % of
-each other, 2026-12-03, scripts/ort_process_modes.py --per-round-sweep: little eviction either way). Batch 1: ``counts.n / PER_ROUND_1``
+cache state (on the paper export, 1, 4, 16 and 64 calls per round give median ratios within 4 % of
+each other: lab/ort_process_modes.py --per-round-sweep, docs/bench.md). Batch 1: ``counts.n / PER_ROUND_1``
 rounds over the bench's seeded sample of windows (cycled); batch ``counts.batch``: ``PAIR_BATCH_ROUNDS`` rounds (at least ``counts.batches``;
 ``--quick`` keeps ``counts.batches``) of consecutive windows. Each loop also stops at twice
 ``counts.budget_s`` (two graphs), never below ``counts.min_samples`` rounds.

@@ -1,4 +1,4 @@
-"""Profiles that explain a missed latency target (issue 6: "a profile, not a guess").
+"""Profiles that explain a missed latency target (a profile, not a guess).
 
 This machine's virtual CPUs expose no hardware performance counters (``perf stat`` reports
 cycles and instructions as "not supported"), so the profiles are:

@@ -74,7 +74,7 @@ def _speedup_section(bench: dict) -> list[str]:
 
 
 def _pairs_section(bench: dict) -> list[str]:
-    """bench.json ``cpp_pairs`` and ``ort_pairs``: the ratios issue 15's int8 / fp32 targets are judged on."""
+    """bench.json ``cpp_pairs`` and ``ort_pairs``: the ratios the int8 / fp32 targets are judged on."""
     rows = [[model, name, str(p["batch"]), str(p["rounds"]), us(p["fp32_p50_us"]), us(p["int8_p50_us"]),
              f"{p['int8_over_fp32_median']:.3f}", f"{p['int8_over_fp32_p10']:.2f}-{p['int8_over_fp32_p90']:.2f}"]
             for key, name in (("cpp_pairs", "C++"), ("ort_pairs", "ONNX Runtime"))
@@ -83,7 +83,7 @@ def _pairs_section(bench: dict) -> list[str]:
         return []
     text = ("fp32 and int8 in one process, taking turns round by round (C++: fwref_pair, bench/cpp_pairs.py; ONNX "
             "Runtime: 1 thread, spinning off, bench/ort_pairs.py): a process's speed mode or a burst of load hits "
-            "both precisions alike, so issue 15's int8 / fp32 targets below use the median of the rounds' ratios, "
+            "both precisions alike, so the int8 / fp32 targets below use the median of the rounds' ratios, "
             "not the ratio of the separate processes' p50s above.")
     return (["### int8 against fp32 in one process", "", text, ""]
             + md_table(["model", "runtime", "batch", "rounds", "fp32 p50 (us)", "int8 p50 (us)",

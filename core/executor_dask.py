@@ -159,7 +159,7 @@ def run_on_dask(todo: Sequence[Job], settings: "ExecSettings", done: Callable[[J
         job_of = {f.key: j for f, j in zip(futures, todo)}
         # as_completed waits on the *default* client's loop unless told: with a second client in the
         # process (a test's, a notebook's) a result lost with a killed worker was then awaited on two
-        # loops and failed with "Event ... bound to a different event loop" (CI, 2026-12-02).
+        # loops and failed with "Event ... bound to a different event loop".
         for fut in as_completed(futures, loop=client.loop):
             job = job_of[fut.key]
             if fut.status != "finished":

@@ -1,4 +1,4 @@
-"""``quadfdi evaluate``: the evaluation protocol of issue 13 point 6 and the alarm policy of issue 14 point 4
+"""``quadfdi evaluate``: the evaluation protocol and the alarm policy
 over every prediction set a run's index lists (docs/evaluation.md).
 
 Modules: load (index -> per-flight batches), outcomes (per-flight counts under a policy), metrics

@@ -1,4 +1,4 @@
-"""The label-noise ceiling (issue 13 point 6): the best window-level macro F1 and accuracy any
+"""The label-noise ceiling: the best window-level macro F1 and accuracy any
 classifier can reach, given that labels near the severity threshold are ambiguous.
 
 A window ending at sample e is labelled with the flight's fault class when severity[e] >=

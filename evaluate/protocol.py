@@ -24,7 +24,7 @@ from quadfdi.evaluate.metrics import COUNTS, garwood, macro_f1_accuracy, metrics
 from quadfdi.evaluate.outcomes import flight_outcomes
 
 OOD_ALL = "test_ood_all"
-GOAL_POINTS = 0.03  # issue 13: the CNODE beats the best baseline by >= 3 points of macro F1 on OOD sets
+GOAL_POINTS = 0.03  # the goal: a network beats the best baseline by >= 3 points of macro F1 on OOD sets
 PAIRED_METRICS = ("macro_f1", "accuracy", "detection_rate", "fa_per_h", "delay_onset_s")
 
 
@@ -179,7 +179,7 @@ def _paired(pooled: dict, models: list[str], ev) -> list[dict]:
 
 
 def versus_best(pairs: list[dict], best: str | None, models: list[str], ev) -> list[dict]:
-    """Each network minus the best baseline, macro F1 on every set (issue 13's goal: at least
+    """Each network minus the best baseline, macro F1 on every set (the goal: at least
     GOAL_POINTS with the interval of the difference above 0 on the out-of-distribution sets)."""
     out = []
     for net in (m for m in models if is_network(m, ev.networks) and best is not None):

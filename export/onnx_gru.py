@@ -8,8 +8,8 @@ ONNX orders the gates z, r, h where PyTorch orders them r, z, n: the rows are pe
 
 int8: ONNX Runtime has no quantized GRU operator (a ``GRU`` node stays fp32 whatever a quantizer
 is told), so the int8 graph writes the W = 80 steps in operators that quantize, one ``Scan`` whose
-body is one step (issue 15: ONNX Runtime's cost per node; until then unrolled, 972 nodes,
-export/onnx_gru_unrolled.py, bit-identical):
+body is one step (ONNX Runtime pays per node: unrolled it is 972 nodes, export/onnx_gru_unrolled.py,
+bit-identical):
 
     GX = int8(x_norm) @ W_ih^T + b_ih (MatMulIntegerToFloat, rows r,z and rows n)  (W, B, 3H)
          (x_norm quantized per channel, the channel scales folded into W_ih)

@@ -1,8 +1,8 @@
-"""The int8 GRU unrolled over the window: the graph exported until the Scan replaced it (issue 15).
+"""The int8 GRU unrolled over the window, 12 nodes per step: the reference the Scan graph is checked against.
 
 Kept, unchanged, as the reference the exported Scan graph (export/onnx_gru.py ``build_gru_int8``)
 is bit-identical to (tests/test_export_graphs.py), and to time against it (docs/bench.md, "The int8
-GRU in one Scan"; scripts/gru_unrolled_graph.py writes a run's). 12 nodes per step x 80 steps + 12
+GRU in one Scan"; lab/gru_unrolled_graph.py writes a run's). 12 nodes per step x 80 steps + 12
 = 972 nodes after ONNX Runtime's optimizer.
 """
 

@@ -1,4 +1,4 @@
-"""``<run>/export/sgru_weights.bin``: the streaming GRU on board (issue 16), beside weights.bin.
+"""``<run>/export/sgru_weights.bin``: the streaming GRU on board, beside weights.bin.
 
 The streaming GRU has its own weights file so that weights.bin (its bytes, its sha256 in the
 manifest, and every reader written before the streaming GRU) stays exactly what it was. Container

@@ -87,25 +87,55 @@ def write_stream(path: str | Path, rs: RawStream) -> None:
     write_bytes(path, stream_bytes(rs))
 
 
+# The reader's bounds, as fwref_stream's (firmware_ref/include/fwref/read_limits.hpp): the header and the
+# channel count; the whole file is read into memory here, so it is bounded too.
+MAX_HEADER_BYTES = 64 * 1024
+MAX_CHANNELS = 1024
+MAX_FILE_BYTES = 1 << 30
+
+
+def _read_bounded(path: str | Path) -> bytes:
+    """The bytes of the regular file ``path`` (a FIFO or a device is refused: they block or never end)."""
+    import os
+    import stat
+
+    try:
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
+    except OSError as exc:
+        raise QuadfdiError(f"cannot read stream file {path}: {exc.strerror}") from None
+    st = os.fstat(fd)
+    if not stat.S_ISREG(st.st_mode) or st.st_size > MAX_FILE_BYTES:
+        os.close(fd)
+        why = "is not a regular file" if not stat.S_ISREG(st.st_mode) else f"holds {st.st_size} bytes, more than {MAX_FILE_BYTES}"
+        raise QuadfdiError(f"stream file {path} {why}")
+    with os.fdopen(fd, "rb") as fh:
+        return fh.read(MAX_FILE_BYTES + 1)
+
+
 def read_stream(path: str | Path) -> RawStream:
-    """Parse a stream file; a foreign or truncated file is a one-line QuadfdiError."""
-    data = Path(path).read_bytes()
+    """Parse a stream file; a foreign, truncated or inconsistent file (header_bytes, n_channels or the sample
+    period out of range, a partial sample) is a one-line QuadfdiError."""
+    data = _read_bounded(path)
     if len(data) < FIXED.size or data[:8] != MAGIC:
         raise QuadfdiError(f"{path} is not a quadfdi stream file")
     _, version, header_bytes, r, cells, dt, profile, source = FIXED.unpack_from(data)
     if version not in READS:
         raise QuadfdiError(f"{path} has stream version {version}, this reader reads {' and '.join(map(str, READS))}")
+    if not (FIXED.size + r <= header_bytes <= min(MAX_HEADER_BYTES, len(data)) and 1 <= r <= MAX_CHANNELS):
+        raise QuadfdiError(f"{path} has a bad header: header_bytes {header_bytes}, {r} channels")
+    if not (np.isfinite(dt) and dt > 0):
+        raise QuadfdiError(f"{path} has sample period {dt} s: not a positive finite number")
     head = data[FIXED.size:header_bytes]
-    names = [n.decode("ascii") for n in head.split(b"\0")[:r]]
-    end = sum(len(n) + 1 for n in names)
+    names = [n.decode("ascii", "replace") for n in head.split(b"\0")[:r]]
+    end = sum(len(n.encode("ascii", "replace")) + 1 for n in names)
     carried = np.frombuffer(head[end:end + r], np.uint8) if version >= 2 else np.ones(r, np.uint8)
     body = data[header_bytes:]
     rec = np.dtype([("t", "<f8"), ("v", "<f4", (r,))])
     if len(names) != r or len(carried) != r or not np.isin(carried, (0, 1)).all() or len(body) % rec.itemsize:
         raise QuadfdiError(f"{path} is truncated or has a bad header")
     arr = np.frombuffer(body, rec)
-    return RawStream(source.rstrip(b"\0").decode("utf-8", "replace"), profile.rstrip(b"\0").decode("ascii"), names,
-                     float(dt), int(cells), arr["t"].astype(np.float64), arr["v"].astype(np.float32).reshape(-1, r),
+    return RawStream(source.rstrip(b"\0").decode("utf-8", "replace"), profile.rstrip(b"\0").decode("ascii", "replace"),
+                     names, float(dt), int(cells), arr["t"].astype(np.float64), arr["v"].astype(np.float32).reshape(-1, r),
                      carried.astype(bool))
 
 

@@ -1,5 +1,5 @@
 """The streaming GRU: one GRU step per new telemetry sample, the class read from the hidden state
-at every step (issue 16, point 2).
+at every step.
 
 Where the windowed ``models.networks.GRUClassifier`` re-runs W = 80 steps on the latest window at every
 stride, this model carries its hidden state h from sample to sample: a flight controller pushes each

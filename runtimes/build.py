@@ -213,13 +213,14 @@ def build_mcu(cpu: str, weights: Path, reference: Path, build_dir: Path | None =
     require("arm-none-eabi-g++", "it cross-compiles the Cortex-M build")
     src = source_dir()
     build_dir = build_dir or mcu_build_dir(cpu)
-    _configure_and_build(src / "mcu", build_dir, mcu_options(src, cpu, weights, reference), f"the {cpu} images")
+    _configure_and_build(src / "mcu", build_dir, mcu_options(src, cpu, weights, reference, streams), f"the {cpu} images")
     log(f"parity: {cpu} images built in {build_dir}")
     return build_dir
 
 
-def mcu_options(src: Path, cpu: str, weights: Path, reference: Path) -> dict[str, str]:
-    """The CMake options of a Cortex-M build of ``src`` with ``weights`` and ``reference`` compiled in."""
+def mcu_options(src: Path, cpu: str, weights: Path, reference: Path, streams: tuple[Path, ...] = ()) -> dict[str, str]:
+    """The CMake options of a Cortex-M build of ``src`` with ``weights``, ``reference`` and ``streams``
+    compiled in."""
     options = {"CMAKE_TOOLCHAIN_FILE": str(src / "mcu" / "toolchain-arm-none-eabi.cmake"), "FWREF_CPU": cpu,
                "FWREF_WEIGHTS": str(Path(weights).resolve()), "FWREF_REFERENCE": str(Path(reference).resolve()),
                "Python3_EXECUTABLE": sys.executable,

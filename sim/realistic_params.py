@@ -76,7 +76,7 @@ IMBALANCE_G = (0.0, 0.05)  # g at 0.1 m: residual imbalance of a healthy balance
 # with forward speed) and 0.008 (tip-over flight, 6-20 m/s, r = 0.54); the simulator's had 0. A draw
 # of 0.005-0.030 gave command shares rising a median 0.011 per m/s (thrust curve and wind: ~0.63 of
 # the draw), so the range reaches 0.045 to put the mission inside it (docs/params.md "Forward-flight
-# rotor moment", scripts/forward_flight_shares.py). Drawn per flight from its own stream (AERO_SPAWN).
+# rotor moment", lab/forward_flight_shares.py). Drawn per flight from its own stream (AERO_SPAWN).
 FLAP_PER_MS = (0.005, 0.045)
 
 # --- motor mount twist (sim/realistic_dynamics.py) ---------------------------------------------
@@ -89,7 +89,7 @@ FLAP_PER_MS = (0.005, 0.045)
 # -0.038..+0.027 (95 % within +-0.022: the motors' thrust spread alone). ArduCopter warns of it as
 # "yaw imbalance" (twisted arms or motor mounts; ardupilot.org thrust_loss_yaw_imbalance), and a
 # healthy 450 quad's forum log had motor averages 1458/1512/1595/1615 us, a diagonal offset of -0.11
-# (docs/params.md "Motor mount twist", scripts/yaw_trim_shares.py). Per rotor, uniform +-0.75 deg
+# (docs/params.md "Motor mount twist", lab/yaw_trim_shares.py). Per rotor, uniform +-0.75 deg
 # (drawn after FLAP in the AERO_SPAWN stream, so the flap draw did not move).
 MOUNT_TWIST_DEG = 0.75
 
@@ -115,8 +115,8 @@ EST_RATE = (0.02, 0.005)  # gyro noise after the 30 Hz low-pass: nearly white at
 # --- thrust curve (what the ESC does with a command) -----------------------------------------
 # F / F_max = (1 - k) u + k u^2 (PX4 THR_MDL_FAC; 0.3-0.5 for hobby ESCs). The controller inverts
 # it to the ESC output u; the log's thr1..4 is the thrust fraction F_cmd / F_max (docs/flight_format.md,
-# PX4's actuator_motors; ingest turns PWM into it through the firmware's own curve). Before 2026-12-02
-# evening the log held u, which the real flights' thrust fraction did not match (docs/ingest.md).
+# PX4's actuator_motors; ingest turns PWM into it through the firmware's own curve): logging u instead
+# would not match the real flights' thrust fraction (docs/ingest.md).
 THR_MDL_FAC = 0.4
 
 # --- propeller (sim/propeller.py) -------------------------------------------------------------

@@ -1,4 +1,4 @@
-"""Issue 6's "matches": for each adaptive setting, the cheapest fixed setting at least as accurate.
+""""Matches": for each adaptive setting, the cheapest fixed setting at least as accurate.
 
 Pure functions of the study's records (dicts, or the JSON's), so ``render`` recomputes the table
 with another rule without solving anything.
@@ -12,7 +12,7 @@ from quadfdi.solverstudy.settings import ADAPTIVE_METHODS, CONTROLS, F1_TOL, FIX
 
 
 def matches(fixed: dict, adaptive: dict, f1_tol: float = F1_TOL, two_sided: bool = False) -> bool:
-    """Issue 6: max logit error no larger than the adaptive setting's, and macro F1 not more than
+    """Matches: max logit error no larger than the adaptive setting's, and macro F1 not more than
     ``f1_tol`` below it (``two_sided``: not more than ``f1_tol`` away on either side).
 
     One-sided by default: the issue asks for "the cheapest fixed setting at least as accurate",

@@ -1,4 +1,4 @@
-"""Train-solver by deploy-solver matrix, and the control-representation comparison (issue 6).
+"""Train-solver by deploy-solver matrix, and the control-representation comparison.
 
 Several CNODEs are trained on the same data with the same loop (``train.loop.train_model``), the
 same initial weights and the same batches, differing only in the training solver and control:

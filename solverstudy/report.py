@@ -45,7 +45,7 @@ def _rule(meta: dict) -> str:
 
 
 def study_headline(study: dict, adaptive: str = "dopri5 rtol=1e-3 jump") -> str:
-    """One sentence on the cheapest fixed setting that matches ``adaptive`` (issue 6's target)."""
+    """One sentence on the cheapest fixed setting that matches ``adaptive``."""
     row = next((m for m in study["matched"] if m["adaptive"] == adaptive), None)
     if row is None:
         return f"The study has no {adaptive} setting."
@@ -291,7 +291,7 @@ def report_section(run_root: str | Path) -> list[str]:
 
 
 def headline(run_root: str | Path) -> list[str]:
-    """The run report's headline bullet of the study (issue 6's question), or []."""
+    """The run report's headline bullet of the study (the cheapest fixed setting that matches dopri5), or []."""
     study, _ = read_outputs(run_root)
     if not study or not study.get("matched"):
         return []

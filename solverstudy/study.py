@@ -1,4 +1,4 @@
-"""The fixed-vs-adaptive solver study of one trained CNODE (SPEC section 6, issue 6 "Solvers").
+"""The fixed-vs-adaptive solver study of one trained CNODE (SPEC section 6, "Solvers").
 
 Every solver setting is run on the SAME windows, one window per solve, and compared against a
 float64 dopri5 reference at rtol 1e-9 restarted at every knot of the path:

@@ -165,8 +165,8 @@ def fault_exported(small_run, tmp_path_factory) -> Path:
 
 # The longest files first: `make test` hands whole files to two workers (pytest-xdist --dist
 # loadfile) in collection order, and a long file picked up last leaves the other worker idle at the
-# end. Measured with --durations on 2026-12-02: the pipeline run (~2 min), the firmware builds and
-# QEMU parity, the streaming runtime's and detect's exports, the bench, the tanhq proof.
+# end. The longest by --durations: the pipeline run (~2 min), the firmware builds and QEMU parity,
+# the streaming runtime's and detect's exports, the bench, the tanhq proof.
 LONG_FILES = ("test_pipeline.py", "test_firmware.py", "test_stream.py", "test_detect.py", "test_bench_report.py",
               "test_real_flights.py", "test_firmware_tanhq.py", "test_distributed.py", "test_masks_mcu.py",
               "test_masks.py")

@@ -248,8 +248,8 @@ def test_bandwidth_probe_hot_loops_are_vectorised(tmp_path):
     l1, l2 = bandwidth(exe, 16, [], 3, 0.02), bandwidth(exe, 4096, [], 3, 0.02)
     # Both sizes measure; whether L1 reads >= L1_OVER_L2_MIN x faster than 4 MiB is a timing, the
     # bench's to check (bench.json limits.bandwidth_sane, measured pinned on an idle machine): under
-    # `make test`'s two workers the other one shares the cache and memory (it read 72.9 against 50.6
-    # GB/s, 1.44x, on 2026-12-02), so a test asserting it fails with the load, not with the probe.
+    # `make test`'s two workers the other one shares the cache and memory (the ratio then falls to
+    # about 1.4x), so a test asserting it fails with the load, not with the probe.
     assert 0 < l2 < float("inf") and 0 < l1 < float("inf"), (l1, l2)
     assert fma_peak(exe, [], 2, 0.02) > 0
 
@@ -283,7 +283,7 @@ def test_speedup_rows_pair_int8_with_fp32():
 
 
 def test_int8_targets_compare_within_one_run():
-    """Issue 15's ratios: C++ int8 vs fp32 (the GRU needs 1.5x), int8 within 3x of its floor, ORT at one
+    """The int8 targets' ratios: C++ int8 vs fp32 (the GRU needs 1.5x), int8 within 3x of its floor, ORT at one
     thread without spinning (a faster 2-thread record must not be picked)."""
     from quadfdi.bench.int8_targets import int8_targets
 

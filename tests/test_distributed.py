@@ -148,8 +148,8 @@ def test_interrupted_cli_sweep_resumes(cluster, serial_bytes, tmp_path):
     assert not (out / "dataset.npz").exists()
     # The cluster outlives the interrupted client: a worker already running a shard finishes it and
     # writes its file atomically (temp file, then rename), maybe after the CLI's own clean-up. What
-    # must hold is that no temp file stays: wait for such a write to land (fresh-clone CI under load,
-    # 2026-12-02, saw one in flight at the moment of the check).
+    # must hold is that no temp file stays: wait for such a write to land (under load one can still be
+    # in flight at the moment of the check).
     settle = time.time() + 60
     while _tmp_files(out) and time.time() < settle:
         time.sleep(0.1)

@@ -57,7 +57,7 @@ def test_export_writes_every_file_and_a_passing_manifest(exported):
     assert enc["cnode"]["activations"] == "uint8" and enc["cnode"]["weight_bits"] == 7
     assert enc["gru"] == {"activations": "uint8", "activation_zero_point": 128, "weight_bits": 7,
                           "weight_range": [-63, 63], "contrib_ops": ["com.microsoft.MatMulIntegerToFloat"],
-                          "subgraph_ops": ["Scan"]}  # the recurrence in one Scan (issue 15)
+                          "subgraph_ops": ["Scan"]}  # the recurrence in one Scan
     assert enc["cnode"]["contrib_ops"] == ["com.microsoft.MatMulIntegerToFloat"] and enc["cnode"]["subgraph_ops"] == []
     w = read_weights(folder / "weights.bin")
     assert w.section("cnode", "int8").dims[5] == 2

@@ -173,9 +173,9 @@ def test_ort_optimized_node_counts(steps):
     count = {k: v["total"] for k, v in full.items()}
     pow2 = steps in (1, 2, 4, 8)  # 2 nodes fewer per step (field_scales)
     assert count["cnode_fp32"] == 11 + (15 if pow2 else 17) * steps  # N = 8: 131 (was 278)
-    assert count["cnode_int8"] == 17 + (31 if pow2 else 33) * steps  # N = 8: 265 (was 547; + Gather of the samples P reads)
-    # int8 GRU: 972 nodes (12 per step x 80 + 12) unrolled, now the 80 steps in one Scan (issue 15:
-    # ONNX Runtime's per-node cost): 14 nodes, the 12-node step once in its body.
+    assert count["cnode_int8"] == 17 + (31 if pow2 else 33) * steps  # N = 8: 265 (with the Gather of the samples P reads)
+    # int8 GRU: the 80 steps in one Scan (ONNX Runtime pays per node; unrolled: 972 nodes, 12 per step x 80 + 12):
+    # 14 nodes, the 12-node step once in its body.
     assert count["gru_int8"] == 14 and full["gru_int8"]["Scan"] == 1 and full["gru_int8"]["body"] == 12
     assert all(full[k]["body"] == 0 for k in ("cnode_fp32", "cnode_int8", "gru_fp32"))
     assert count["gru_fp32"] <= 8

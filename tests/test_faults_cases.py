@@ -1,4 +1,4 @@
-"""The bad inputs of issue 10 as a table: a careless or unlucky user's edit of a published run, the
+"""Bad inputs as a table: a careless or unlucky user's edit of a published run, the
 command that follows, and the words its one-line error must contain. Each case runs the real
 dispatcher (``quadfdi.cli.main``) in process -- importing torch once, not once per case -- and
 checks one line on stderr, no traceback (an uncaught exception fails the test), and that the run

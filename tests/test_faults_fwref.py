@@ -1,5 +1,5 @@
 """fwref_infer and the Cortex-M weight generator: --out never replaces a symlink, a FIFO, a device
-or an input; outputs get the user's umask; --manifest checks weights.bin's sha256 (issue 10)."""
+or an input; outputs get the user's umask; --manifest checks weights.bin's sha256."""
 
 from __future__ import annotations
 

@@ -3,7 +3,7 @@ tanh_approx / logistic_approx bit for bit (clamp edges, +-0, NaN, +-inf, denorma
 float32 bit patterns), and the fp32 gemv (matvec_f32 / matvec_bias_f32; every column count 1..140,
 rows 1..17, with and without bias) two ways; it exits 1 on any failure.
 
-The gemv is no longer Eigen's order (issue 15: FMA chains, 8 rows per pass; 16 per pass on an AVX-512F
+The gemv is not Eigen's order (FMA chains, 8 rows per pass; 16 per pass on an AVX-512F
 CPU, chosen at run time, both kernels checked there), so it is not compared with Eigen's product bit
 for bit. What each kernel promises instead, and what is checked:
 - its order, stated in fwref/vmath_f32.hpp, bit for bit against a scalar statement of that order

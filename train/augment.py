@@ -3,7 +3,7 @@
 Why (docs/training.md, "Motor-share wander"): on the shared real quad flights the four
 motor commands' shares (command / mean of the four, each 3.2 s window's mean removed) move with a
 within-window standard deviation of 0.025 (GPS-interference hover) to 0.054 (UAVCAN mission),
-against 0.016-0.017 on the realistic suite's healthy hover and survey flights (scripts/share_wander_stats.py); flattening the
+against 0.016-0.017 on the realistic suite's healthy hover and survey flights (lab/share_wander_stats.py); flattening the
 shares of a real flight removed half of the networks' false alarms. The augmentation adds what the
 simulator lacks to the ``m1_rel``..``m4_rel`` inputs of each training batch, never to validation
 or test windows:

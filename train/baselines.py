@@ -1,4 +1,4 @@
-"""Three non-neural baselines under one tuning protocol (issue 13, point 6).
+"""Three non-neural baselines under one tuning protocol.
 
 - ``logreg_stats``: ``StandardScaler`` + multinomial ``LogisticRegression(class_weight="balanced")``
   on the window statistics (``train.features.stat_features``: mean, slope, std per channel; the

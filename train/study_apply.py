@@ -1,6 +1,6 @@
 """``quadfdi train apply``: the networks trained on the run's own simulator seed, predicting on the
 datasets of other simulator seeds, without retraining: more independent flights for the same
-deployed networks (issue 14 point 4: the alarm policy is swept on >= 2 h of healthy validation
+deployed networks (the alarm policy is swept on >= 2 h of healthy validation
 flight; one sim seed's validation split holds 1.03 h).
 
 For each training seed T and network kind:

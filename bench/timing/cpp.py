@@ -8,7 +8,7 @@ memory is its own process's: peak RSS (GNU time's %M) of a one-window run minus 
 The timed run is repeated in ``CPP_PROCESSES`` separate processes and their per-window times pooled:
 on the 2-core AMD EPYC the same binary on the same windows lands in one of two speed modes from one
 process to the next (CNODE fp32 p50 7.1-7.6 us in 8 of 12 processes, 11.1-11.8 us in 4:
-scripts/cpp_process_spread.py, docs/bench.md), so one process is one draw of that mode.
+lab/cpp_process_spread.py, docs/bench.md), so one process is one draw of that mode.
 """
 
 from __future__ import annotations

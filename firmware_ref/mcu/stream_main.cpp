@@ -1,16 +1,19 @@
 // mcu/stream_main.cpp -- scope: the streaming runtime (fwref/stream.hpp) on the Cortex-M under
 // QEMU: the four compiled-in models (fwref_weights_*.cpp), with their motor heads when the export has
 // them (infer_motor), and the streaming GRU when the export has it (fwref_stream_data.cpp,
-// tools/gen_stream.py: one step per sample), each replay the compiled-in flights sample by sample
+// quadfdi.runtimes.mcu_stream_src: one step per sample), each replay the compiled-in flights sample by sample
 // with reset() between flights, counting instructions per push (SysTick under -icount). Output over
-// semihosting, parsed by scripts/stream_mcu.py, which holds the strides against the host's fwref_stream:
+// semihosting, parsed by quadfdi.runtimes.mcu_stream (quadfdi parity), which holds the strides against the host's fwref_stream:
 //   STREAM cpu=<cpu> flights=<n> instructions_per_tick=<r>
 //   STRIDE <model> <prec> <flight> <index> <status> <logit bits (u32) x K> <vote> <active> <cls> <motor> <wmotor>
 //   PERF <model> <prec> <flight> samples=<n> push_n=<n> push_sum=<i> push_max=<i> decide_n=<n> decide_sum=<i>
 //        decide_max=<i> other_n=<n> other_sum=<i> other_max=<i>
+//   GAP <model> <prec> <flight> <sample> advanced=<n> refused=<0|1> strides=<n> instructions=<i>
 //   RESULT DONE
 // (push: a push without a stride; decide: a push whose stride ran the model; other: a stride
-// without a decision: nohover or skipped.)
+// without a decision: nohover or skipped. GAP: a push whose timestamp was not the next period -- the
+// stream's index advanced by more than one (a gap, or a new clock) or the time was refused -- with its
+// instruction count: fwref/stream.hpp bounds it by one decision, tests/test_stream_gaps.py checks it.)
 #include <cstdint>
 #include <cstring>
 
@@ -26,7 +29,7 @@ namespace {
 
 using Line = board::Line<512>;
 
-// Keeps the strides of one push (a gap can give several) so that printing is not timed.
+// Keeps the strides of one push (at most one: fwref/stream.hpp) so that printing is not timed.
 class Keep final : public fwref::StrideSink {
  public:
   void on_stride(const fwref::Decision& d) override {
@@ -52,7 +55,7 @@ double g_ratio = 0.0;
 // when it changes).
 bool replay(const fwref::StreamModel& sm, const char* model, const char* prec) {
   using namespace fwref_stream_data;
-  // the model's own alarm policy (the record's alarm.models row, gen_stream.py), as fwref_stream --model
+  // the model's own alarm policy (the record's alarm.models row, quadfdi.runtimes.mcu_stream_src), as fwref_stream --model
   const fwref::StreamParams& params = model[0] == 'c' ? kParamsCnode : model[0] == 'g' ? kParamsGru : kParamsSgru;
   const int R = params.raw_channels, K = params.classes;
   for (int f = 0; f < kFlightCount; ++f) {
@@ -66,15 +69,22 @@ bool replay(const fwref::StreamModel& sm, const char* model, const char* prec) {
     Stat push, decide, other;
     for (int k = 0; k < fl.samples; ++k) {
       Keep keep;
+      const std::int64_t before = g_stream.samples();
       const std::uint64_t t0 = board::ticks();
-      g_stream.push(fl.values + k * R, fl.t[k], &keep);
+      const fwref::Status st = g_stream.push(fl.values + k * R, fl.t[k], &keep);
       const std::uint64_t ins = std::uint64_t(double(board::ticks() - t0) * g_ratio + 0.5);
+      const std::int64_t advanced = g_stream.samples() - before;
+      if (k > 0 && (advanced != 1 || st != fwref::Status::kOk)) {
+        Line().s("GAP ").s(model).s(" ").s(prec).s(" ").u(f).s(" ").u(k).s(" advanced=").u(std::uint64_t(advanced))
+            .s(" refused=").u(st != fwref::Status::kOk).s(" strides=").u(keep.n).s(" instructions=").u(ins).out();
+      }
       bool decided = false;
       for (int j = 0; j < keep.n; ++j) {
         const fwref::Decision& d = keep.held[j];
         decided = decided || d.status == fwref::StrideStatus::kDecided;
         Line l;
-        l.s("STRIDE ").s(model).s(" ").s(prec).s(" ").u(f).s(" ").i(long(d.index)).s(" ")
+        // the index unsigned: it passes 2^31 after a long gap, and long is 32-bit here
+        l.s("STRIDE ").s(model).s(" ").s(prec).s(" ").u(f).s(" ").u(std::uint64_t(d.index)).s(" ")
             .s(fwref::stride_status_name(d.status));
         for (int c = 0; c < K; ++c) {
           std::uint32_t bits;

@@ -3,10 +3,12 @@
 // same thing about the same broken file.
 #include "fwref/container.hpp"
 
-#include <cerrno>
 #include <cstdarg>
 #include <cstdio>
 #include <cstring>
+#include <utility>
+
+#include "fwref/file_read.hpp"
 
 namespace fwref {
 
@@ -103,26 +105,21 @@ std::uint32_t crc32(const unsigned char* data, std::size_t n, std::uint32_t crc)
 }
 
 Status Container::load(const std::string& path, const char* magic, std::uint32_t version, const char* what,
-                       std::string* error) {
-  where_ = std::string(what) + " " + path;
-  bytes_.clear();
+                       std::uint64_t max_bytes, std::string* error) {
+  std::vector<unsigned char> bytes;
   sections_.clear();
-  std::FILE* f = std::fopen(path.c_str(), "rb");
-  if (f == nullptr) {
-    const int e = errno;
-    *error = e == ENOENT ? fmt("%s does not exist (run `quadfdi export` first)", where_.c_str())
-                         : fmt("cannot read %s: %s", where_.c_str(), std::strerror(e));
-    return Status::kFileOpen;
-  }
-  unsigned char chunk[65536];
-  std::size_t got;
-  while ((got = std::fread(chunk, 1, sizeof chunk, f)) > 0) bytes_.insert(bytes_.end(), chunk, chunk + got);
-  const bool failed = std::ferror(f) != 0;
-  std::fclose(f);
-  if (failed) {
-    *error = fmt("cannot read %s: read error", where_.c_str());
-    return Status::kFileOpen;
-  }
+  bytes_.clear();
+  where_ = std::string(what) + " " + path;
+  const Status s = read_regular_file(path, what, max_bytes, &bytes, error, " (run `quadfdi export` first)");
+  if (s != Status::kOk) return s;
+  return parse_bytes(std::move(bytes), path, magic, version, what, error);
+}
+
+Status Container::parse_bytes(std::vector<unsigned char> bytes, const std::string& path, const char* magic,
+                              std::uint32_t version, const char* what, std::string* error) {
+  where_ = std::string(what) + " " + path;
+  bytes_ = std::move(bytes);
+  sections_.clear();
   return parse(magic, version, what, error);
 }
 

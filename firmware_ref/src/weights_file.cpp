@@ -8,6 +8,9 @@
 #include <cstdint>
 
 #include <cstdio>
+#include <utility>
+
+#include "fwref/read_limits.hpp"
 
 #include "fwref/weights_layout_gen.hpp"
 
@@ -191,7 +194,14 @@ Status WeightsFile::load(const std::string& path, std::string* error) {
   f32_.clear();
   i8_.clear();
   i32_.clear();
-  return file_.load(path, layout::kMagic, layout::kVersion, "weights file", error);
+  return file_.load(path, layout::kMagic, layout::kVersion, "weights file", limits::kWeightsFileBytes, error);
+}
+
+Status WeightsFile::load_bytes(std::vector<unsigned char> bytes, const std::string& path, std::string* error) {
+  f32_.clear();
+  i8_.clear();
+  i32_.clear();
+  return file_.parse_bytes(std::move(bytes), path, layout::kMagic, layout::kVersion, "weights file", error);
 }
 
 Status WeightsFile::bind(CnodeF32* m, std::string* error) { return bind_section(m, error); }

@@ -4,7 +4,8 @@
 //   fwref_alarm --in SEQ.f64 --out STEPS.i32 --windows W --classes K --healthy H --threshold T --k K --n N
 //               --clear-m M [--latch] [--motor] [--rotor-mask BITS]
 //
-// SEQ.f64: flights x W windows x (valid 0/1, proba (K), motor_proba (4) with --motor) float64.
+// SEQ.f64: flights x W windows x (valid 0/1, proba (K), motor_proba (4) with --motor) float64, whole rows, a
+// regular file of at most limits::kToolInputBytes; STEPS.i32 written through a temp file, never over SEQ.f64.
 // STEPS.i32: per window vote, active, raised, cleared, cls, motor (int32). Each flight starts reset.
 // --rotor-mask: AlarmParams::rotor_mask (bit c: class c is rotor-side, core.alarm rule 5; decimal or
 // 0x hex; default every bit, rule 4 alone): motor is the reported motor, -1 for other classes.
@@ -16,8 +17,10 @@
 #include <vector>
 
 #include "fwref/alarm.hpp"
+#include "host_common.hpp"
+#include "host_files.hpp"
 
-int main(int argc, char** argv) {
+int main(int argc, char** argv) try {
   std::string in, out;
   fwref::AlarmParams p{0.5, 2, 3, 3, false, 0, 0};
   long windows = 0;
@@ -51,21 +54,32 @@ int main(int argc, char** argv) {
   if (in.empty() || out.empty() || windows <= 0 || !alarm.configure(p)) {
     return std::fprintf(stderr, "fwref_alarm: bad arguments or policy\n"), 2;
   }
-  std::FILE* f = std::fopen(in.c_str(), "rb");
-  if (!f) return std::fprintf(stderr, "fwref_alarm: cannot open %s\n", in.c_str()), 2;
+  std::string error;
+  if (!fwref::host::output_allowed(out, {in}, {"--in file"}, &error)) {
+    return std::fprintf(stderr, "fwref_alarm: error: %s\n", error.c_str()), 2;
+  }
+  std::vector<unsigned char> bytes;
+  if (!fwref::host::read_file(in, "input", fwref::limits::kToolInputBytes, &bytes, &error)) {
+    return std::fprintf(stderr, "fwref_alarm: error: %s\n", error.c_str()), 2;
+  }
   const std::size_t per = 1 + std::size_t(p.classes) + (motor ? 4 : 0);
+  if (bytes.size() % (per * sizeof(double)) != 0) {
+    return std::fprintf(stderr, "fwref_alarm: error: input %s is not whole rows of %zu float64\n", in.c_str(), per), 2;
+  }
+  const std::size_t rows = bytes.size() / (per * sizeof(double));
   std::vector<double> row(per);
   std::vector<std::int32_t> steps;
-  for (long w = 0;; ++w) {
-    if (std::fread(row.data(), sizeof(double), per, f) != per) break;
-    if (w % windows == 0) alarm.reset();
+  steps.reserve(rows * 6);
+  for (std::size_t w = 0; w < rows; ++w) {
+    std::memcpy(row.data(), bytes.data() + w * per * sizeof(double), per * sizeof(double));
+    if (w % std::size_t(windows) == 0) alarm.reset();
     const fwref::AlarmStep s = alarm.step(&row[1], motor ? &row[1 + p.classes] : nullptr, row[0] != 0.0);
     for (int v : {int(s.vote), int(s.active), int(s.raised), int(s.cleared), s.cls, s.motor}) steps.push_back(v);
   }
-  std::fclose(f);
-  std::FILE* o = std::fopen(out.c_str(), "wb");
-  if (!o) return std::fprintf(stderr, "fwref_alarm: cannot write %s\n", out.c_str()), 2;
-  std::fwrite(steps.data(), sizeof(std::int32_t), steps.size(), o);
-  std::fclose(o);
+  if (!fwref::host::write_atomic(out, steps.data(), steps.size() * sizeof(std::int32_t), &error)) {
+    return std::fprintf(stderr, "fwref_alarm: error: %s\n", error.c_str()), 2;
+  }
   return 0;
+} catch (const std::exception& e) {
+  return fwref::host::fail_exception("fwref_alarm", e);
 }

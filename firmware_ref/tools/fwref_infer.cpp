@@ -9,7 +9,10 @@
 // a window, a bad or truncated weights file or a model the file does not hold: one line on stderr,
 // exit 2, no output file. A usage error: exit 1. Optional --timings writes (n, R) float64 seconds
 // per inference (steady clock around each call; R = --repeat, default 1) for benchmarks.
-// --manifest: weights.bin must have the sha256 export/manifest.json records for it. --out and
+// --manifest: weights.bin must have the sha256 export/manifest.json records for it (checked on the one read
+// of weights.bin that is then parsed). --weights, --in and --manifest must be regular files within
+// fwref/read_limits.hpp's maxima (64 MiB, 1 GiB, 16 MiB): a FIFO, a device or a folder is refused at once,
+// and every size is checked before anything is allocated. --out and
 // --timings must be absent or regular files other than the inputs (a symlink, FIFO, device or an
 // input is refused before anything runs); outputs are created with the user's umask.
 // --motor-out: also the motor head's logits (n, 4) float32 (fwref/motor.hpp), from the same
@@ -35,7 +38,7 @@ const fwref::host::Cli kCli(
 
 }  // namespace
 
-int main(int argc, char** argv) {
+int main(int argc, char** argv) try {
   std::string weights, model, in, out, timings, manifest, motor_out, r;
   bool int8 = false;
   const int parsed = kCli.parse(argc, argv,
@@ -74,9 +77,8 @@ int main(int argc, char** argv) {
                                                                ": it is also another output"
                                                          : error);
   }
-  if (!manifest.empty() && !fwref::host::weights_match_manifest(weights, manifest, &error)) return kCli.fail(error);
   fwref::WeightsFile wf;
-  if (wf.load(weights, &error) != fwref::Status::kOk) return kCli.fail(error);
+  if (!fwref::host::load_weights(weights, manifest, &wf, &error)) return kCli.fail(error);
   fwref::Status status;
   std::unique_ptr<fwref::host::Model> m = fwref::host::bind_model(wf, model, int8, &status, &error);
   if (!m) return kCli.fail(error);
@@ -116,4 +118,6 @@ int main(int argc, char** argv) {
     return kCli.fail(error);
   }
   return 0;
+} catch (const std::exception& e) {
+  return fwref::host::fail_exception("fwref_infer", e);
 }

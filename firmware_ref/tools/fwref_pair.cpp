@@ -14,7 +14,7 @@
 // process alike, so the ratio of two calls a few microseconds apart is free of it; two processes' p50s are not.
 // A wrong input size, NaN or Inf in a window, a bad weights file or a model the file does not hold in both
 // precisions: one line on stderr, exit 2, nothing written. A usage error: exit 1. --timings must be absent or a
-// regular file other than the inputs.
+// regular file other than the inputs; --weights and --in regular files within fwref/read_limits.hpp's maxima.
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -35,7 +35,7 @@ const fwref::host::Cli kCli("fwref_pair",
 
 }  // namespace
 
-int main(int argc, char** argv) {
+int main(int argc, char** argv) try {
   std::string weights, model, in, timings, per;
   const int parsed = kCli.parse(argc, argv, {{"--weights", &weights}, {"--model", &model}, {"--in", &in},
                                              {"--timings", &timings}, {"--per-round", &per}});
@@ -101,4 +101,6 @@ int main(int argc, char** argv) {
     return kCli.fail(error);
   }
   return 0;
+} catch (const std::exception& e) {
+  return fwref::host::fail_exception("fwref_pair", e);
 }

@@ -2,7 +2,8 @@
 // reference.bin (llm.c's test_gpt2 in spirit): for every model and precision the file holds, run
 // its windows one at a time with every intermediate traced, and print per tensor the largest
 // absolute difference and OK or NOT OK. Exit 0 when all pass, 1 when any fails, 2 when a file is
-// unusable. The rule and its tolerances: fwref/parity.hpp.
+// unusable (not a regular file, past fwref/read_limits.hpp's maxima, or broken). The rule and its
+// tolerances: fwref/parity.hpp.
 //
 //   fwref_parity --weights <weights.bin> --reference <reference.bin>
 //   fwref_parity --kernel-info    the CPU's instruction-set flags and the int8 kernel that runs (exit 0)
@@ -174,7 +175,7 @@ int run_section(fwref::WeightsFile& wf, const Container& ref, const SectionInfo&
 
 }  // namespace
 
-int main(int argc, char** argv) {
+int main(int argc, char** argv) try {
   std::string weights, reference;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
@@ -202,7 +203,7 @@ int main(int argc, char** argv) {
   if (wf.load(weights, &error) != Status::kOk) return fail(error);
   Container ref;
   if (ref.load(reference, fwref::layout::kReferenceMagic, fwref::layout::kReferenceVersion, "reference file",
-               &error) != Status::kOk) {
+               fwref::limits::kReferenceFileBytes, &error) != Status::kOk) {
     return fail(error);
   }
   const SectionInfo* inputs = ref.find(fwref::kModelNone, fwref::kPrecNone);
@@ -233,4 +234,6 @@ int main(int argc, char** argv) {
   }
   std::printf("fwref_parity: %d of %d tensors NOT OK\n", cmp.failed, cmp.checked);
   return 1;
+} catch (const std::exception& e) {
+  return fwref::host::fail_exception("fwref_parity", e);
 }

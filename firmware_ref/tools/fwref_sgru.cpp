@@ -10,13 +10,17 @@
 // s_x (C), s_h (1), b_ih (3H), b_hh (3H), head_b (K), w_ih scale (3H), w_hh scale (3H), head scale (K),
 // telemetry (T, C), then int8 w_ih (3H, C) folded, w_hh (3H, H), head_w (K, H).
 // OUT.f32: for every sample, logits (K) then h (H), float32; the stream starts at h = 0.
-// Exit 0 on success, 1 with a one-line message otherwise.
+// IN.bin is a regular file of at most limits::kToolInputBytes whose size its dims give; OUT.f32 is written
+// through a temp file, never over IN.bin. Exit 0 on success, 1 with a one-line message otherwise.
 #include <cstdint>
 #include <cstdio>
 #include <cstring>
+#include <string>
 #include <vector>
 
 #include "fwref/gru_step.hpp"
+#include "host_common.hpp"
+#include "host_files.hpp"
 
 namespace {
 
@@ -24,33 +28,39 @@ int fail(const char* what) { return std::fprintf(stderr, "fwref_sgru: %s\n", wha
 
 }  // namespace
 
-int main(int argc, char** argv) {
+int main(int argc, char** argv) try {
   if (argc != 3) return fail("usage: fwref_sgru IN.bin OUT.f32");
-  std::FILE* f = std::fopen(argv[1], "rb");
-  if (f == nullptr) return fail("cannot open the input");
+  std::string error;
+  if (!fwref::host::output_allowed(argv[2], {argv[1]}, {"input"}, &error)) return fail(error.c_str());
+  std::vector<unsigned char> bytes;
+  if (!fwref::host::read_file(argv[1], "input", fwref::limits::kToolInputBytes, &bytes, &error)) {
+    return fail(error.c_str());
+  }
   char magic[8];
   std::int32_t dims[4];
-  if (std::fread(magic, 1, 8, f) != 8 || std::fread(dims, 4, 4, f) != 4 ||
-      (std::memcmp(magic, "QSGRU1\0\0", 8) != 0 && std::memcmp(magic, "QSGRU8\0\0", 8) != 0)) {
-    std::fclose(f);
+  if (bytes.size() < 24 || (std::memcmp(bytes.data(), "QSGRU1\0\0", 8) != 0 &&
+                            std::memcmp(bytes.data(), "QSGRU8\0\0", 8) != 0)) {
     return fail("not a streaming GRU replay file (magic QSGRU1 or QSGRU8)");
   }
+  std::memcpy(magic, bytes.data(), 8);
+  std::memcpy(dims, bytes.data() + 8, 16);
   const bool i8 = magic[5] == '8';
   const long C = dims[0], H = dims[1], K = dims[2], T = dims[3];
   if (C <= 0 || H <= 0 || K <= 0 || T <= 0 || C > fwref::kMaxChannels || H > fwref::kMaxGruHidden ||
       K > fwref::kMaxClasses || T > (1L << 24)) {
-    std::fclose(f);
     return fail("dimensions out of range");
   }
   const long nf = i8 ? 3 * C + 1 + 6 * H + K + 6 * H + K + T * C
                      : 2 * C + 3 * H * C + 3 * H * H + 6 * H + K * H + K + T * C;
   const long nq = i8 ? 3 * H * C + 3 * H * H + K * H : 0;
+  if (bytes.size() != 24 + 4 * std::size_t(nf) + std::size_t(nq)) return fail("the file size disagrees with its dimensions");
+  if (4 * std::uint64_t(T) * std::uint64_t(K + H) > fwref::limits::kToolInputBytes) {
+    return fail("the output (T x (K + H) float32) would exceed limits::kToolInputBytes");
+  }
   std::vector<float> buf(static_cast<size_t>(nf));
   std::vector<std::int8_t> qbuf(static_cast<size_t>(nq));
-  const bool whole = std::fread(buf.data(), 4, buf.size(), f) == buf.size() &&
-                     std::fread(qbuf.data(), 1, qbuf.size(), f) == qbuf.size() && std::fgetc(f) == EOF;
-  std::fclose(f);
-  if (!whole) return fail("the file size disagrees with its dimensions");
+  std::memcpy(buf.data(), bytes.data() + 24, 4 * buf.size());
+  std::memcpy(qbuf.data(), bytes.data() + 24 + 4 * buf.size(), qbuf.size());
   const float* p = buf.data();
   auto take = [&p](long count) { const float* q = p; p += count; return q; };
   const std::int8_t* pq = qbuf.data();
@@ -96,9 +106,8 @@ int main(int argc, char** argv) {
     if (st != fwref::Status::kOk) return fail("a step failed (non-finite sample or output)");
     for (long j = 0; j < H; ++j) row[K + j] = s.h[j];
   }
-  std::FILE* o = std::fopen(argv[2], "wb");
-  if (o == nullptr || std::fwrite(out.data(), 4, out.size(), o) != out.size() || std::fclose(o) != 0) {
-    return fail("cannot write the output");
-  }
+  if (!fwref::host::write_atomic(argv[2], out.data(), out.size() * 4, &error)) return fail(error.c_str());
   return 0;
+} catch (const std::exception& e) {
+  return fwref::host::fail_exception("fwref_sgru", e);
 }

@@ -13,15 +13,19 @@
 // run infer_motor: the motor columns below are then filled.
 //
 // stream.bin (docs/formats.md "Stream file", written by `quadfdi stream-file`): a header (magic,
-// version, channel names, in version 2 the carried flags, sample period, profile, cell count), then
-// samples (f64 time, f32 values in the header's channel order), read from the path or stdin ("-") one
-// sample at a time. The header's channels, profile and period must be the ones weights.bin's on-board
-// record names; a channel the flight lacks (carried flag 0) only the masked profile accepts
-// (Stream::set_carried: its minimum and, with V_b, a cell count are needed).
+// version, channel names, sample period, profile, cell count), then samples (f64 time, f32 values
+// in the header's channel order), read one sample at a time from a regular file, a FIFO or stdin
+// ("-"); a device, folder or socket is refused (tools/stream_io.hpp). The header is bounded and checked
+// (tools/stream_file.hpp): channels and profile the on-board record's, the period finite, positive and
+// the record's within fwref/read_limits.hpp's tolerance. A regular file must hold whole samples, checked
+// before anything is written. Every --in is opened and its header checked before the first sample runs.
+// A channel the flight lacks (version 2's carried flag 0) only the masked profile accepts
+// (Stream::set_carried: its minimum always, and a cell count while it carries V_b).
 // --in may be given several times: the flights run in sequence through one Stream, reset() between
 // them (each flight's lines start with its "# fwref_stream flight=<i>" comment).
-// Output (stdout, or --out written atomically at the end): '#' comment lines, then one line per
-// stride:  index t status logit_1..K proba_1..K vote active raised cleared cls motor wmotor
+// Output (stdout, or --out through a temp file renamed at the end): '#' comment lines, then one line per
+// reported stride, at most one per sample (fwref/stream.hpp: the strides inside a timestamp gap are
+// counted, not reported):  index t status logit_1..K proba_1..K vote active raised cleared cls motor wmotor
 // (status decided | skipped | nohover; logits %.9g (float32 round trip), proba %.17g, NaN when
 // not decided; cls/motor the alarm's class and reported motor (core/alarm.py's rules 4-5), -1 while no
 // alarm or, for motor, without a motor head or when the alarm's class is not rotor-side (the record's
@@ -30,8 +34,11 @@
 // flags per class, or "all" for a record written before them); threshold..latch are --model's policy
 // (without --model: the record's single policy), policy_from says where from (alarm.models | alarm.policy)
 // and alarm_models lists the table as model:threshold,k,n,clear_m,latch;... ("none" without it).
-// --timings writes (samples,) float64 seconds per push (steady clock). Errors: one line, exit 2,
-// no output file; usage errors exit 1.
+// The last comment line per flight: "# end samples= dropped= decided= skipped= steps= hover_cmd= hover_cur=
+// gap_strides= resyncs=" (dropped: refused times; gap_strides: strides that ended inside a gap; resyncs: new
+// clocks taken, fwref/stream.hpp). --timings writes (samples,) float64 seconds per push (steady clock).
+// Errors: one line, exit 2, no output file (a failed write included: EFBIG under `ulimit -f` removes the
+// temp file); usage errors exit 1. Neither output grows in memory with the stream.
 #include <chrono>
 #include <cmath>
 #include <cstdint>
@@ -45,6 +52,8 @@
 #include "host_common.hpp"
 #include "host_motor.hpp"
 #include "host_files.hpp"
+#include "stream_file.hpp"
+#include "stream_io.hpp"
 
 namespace {
 
@@ -52,71 +61,6 @@ const fwref::host::Cli kCli(
     "fwref_stream",
     "usage: fwref_stream --weights <weights.bin> (--info [--model cnode|gru|sgru] | --model cnode|gru|sgru [--int8] "
     "--in <stream.bin|-> [--out <lines.txt>] [--manifest <manifest.json>] [--timings <seconds.f64>])");
-constexpr char kMagic[9] = "QFDISTR";  // + NUL: 8 bytes
-constexpr std::uint32_t kVersion = 2;  // 1: no carried flags (every channel carried)
-constexpr std::size_t kFixedHeader = 128;  // magic .. source; the channel names follow
-
-struct Header {
-  std::uint32_t channels = 0, cells = 0;
-  double dt = 0.0;
-  std::string profile, source;
-  std::vector<std::string> names;
-  std::uint64_t carried = fwref::kAllCarried;  // bit c: the stream carries channel c (version 2's flags)
-  std::size_t bytes = 0;
-};
-
-bool read_exact(std::FILE* f, void* dst, std::size_t n) { return std::fread(dst, 1, n, f) == n; }
-
-bool read_header(std::FILE* f, const std::string& where, Header* h, std::string* error) {
-  unsigned char fixed[kFixedHeader];
-  if (!read_exact(f, fixed, sizeof fixed)) return *error = "stream " + where + " is shorter than its header", false;
-  if (std::memcmp(fixed, kMagic, 8) != 0) return *error = "stream " + where + " is not a quadfdi stream file", false;
-  std::uint32_t version, bytes;
-  std::memcpy(&version, fixed + 8, 4);
-  std::memcpy(&bytes, fixed + 12, 4);
-  std::memcpy(&h->channels, fixed + 16, 4);
-  std::memcpy(&h->cells, fixed + 20, 4);
-  std::memcpy(&h->dt, fixed + 24, 8);
-  if (version != 1 && version != kVersion) {
-    return *error = "stream " + where + " has version " + std::to_string(version) + ", this reader reads 1 and 2", false;
-  }
-  if (bytes < kFixedHeader || bytes > (1u << 20) || h->channels == 0 || h->channels > 4096) {
-    return *error = "stream " + where + " has a bad header (size or channel count)", false;
-  }
-  h->profile.assign(reinterpret_cast<const char*>(fixed + 32), strnlen(reinterpret_cast<const char*>(fixed + 32), 32));
-  h->source.assign(reinterpret_cast<const char*>(fixed + 64), strnlen(reinterpret_cast<const char*>(fixed + 64), 64));
-  std::vector<char> rest(bytes - kFixedHeader);
-  if (!read_exact(f, rest.data(), rest.size())) return *error = "stream " + where + " is truncated in its header", false;
-  std::size_t pos = 0;
-  for (std::uint32_t c = 0; c < h->channels; ++c) {
-    const std::size_t len = strnlen(rest.data() + pos, rest.size() - pos);
-    if (pos + len >= rest.size()) return *error = "stream " + where + " has unterminated channel names", false;
-    h->names.emplace_back(rest.data() + pos, len);
-    pos += len + 1;
-  }
-  if (version >= 2) {  // one carried flag (0/1) per channel after the names
-    if (pos + h->channels > rest.size() || h->channels > 64) {
-      return *error = "stream " + where + " has no room for its carried flags (or over 64 channels)", false;
-    }
-    for (std::uint32_t c = 0; c < h->channels; ++c) {
-      const unsigned char flag = static_cast<unsigned char>(rest[pos + c]);
-      if (flag > 1) return *error = "stream " + where + " has a carried flag that is not 0 or 1", false;
-      if (flag == 0) h->carried &= ~(std::uint64_t(1) << c);
-    }
-  }
-  h->bytes = bytes;
-  return true;
-}
-
-// The channels the header marks not carried, comma-separated.
-std::string lacking(const Header& h) {
-  std::string out;
-  for (std::size_t c = 0; c < h.names.size() && c < 64; ++c) {
-    if (((h.carried >> c) & 1u) == 0) out += (out.empty() ? "" : ",") + h.names[c];
-  }
-  return out;
-}
-
 std::uint32_t model_code(const std::string& model) {
   return model == "cnode" ? fwref::kModelCnode : model == "gru" ? fwref::kModelGru : fwref::kModelSgru;
 }
@@ -151,10 +95,10 @@ void print_info(const fwref::OnboardRecord& r, bool from_table) {
   std::printf("stream_bytes=%zu\n", sizeof(fwref::Stream));  // this build's capacities (fwref/config.hpp)
 }
 
-// One output line per stride, into a string (stdout is written as it comes, --out at the end).
+// One output line per reported stride, to the output as it comes.
 class Lines final : public fwref::StrideSink {
  public:
-  Lines(int classes, std::FILE* direct) : k_(classes), direct_(direct) {}
+  Lines(int classes, fwref::host::StreamOutput& out) : k_(classes), out_(out) {}
   void on_stride(const fwref::Decision& d) override {
     char buf[96];
     std::string line;
@@ -168,15 +112,12 @@ class Lines final : public fwref::StrideSink {
     line += buf;
     add(line);
   }
-  void add(const std::string& s) {
-    if (direct_) std::fputs(s.c_str(), direct_);
-    else text += s;
-  }
-  std::string text;
+  void add(const std::string& s) { out_.put(s); }
+  bool failed() const { return out_.failed(); }
 
  private:
   int k_;
-  std::FILE* direct_;
+  fwref::host::StreamOutput& out_;
 };
 
 fwref::Stream g_stream;  // 143 kB with the host's defaults (--info: stream_bytes): static, not on the stack
@@ -249,84 +190,67 @@ struct Replay {
   const std::string& model;
   bool int8;
   Lines& lines;
-  std::vector<double>* seconds;  // per push, or null
+  fwref::host::StreamOutput* seconds;  // per push, or null
   std::uint32_t cells = 0;
 };
 
-bool check_header(const Header& h, const std::string& in, const fwref::OnboardRecord& rec, std::string* error) {
-  const std::string want = fwref::profile_spec(rec.params.profile).name;
-  if (h.profile != want) return *error = "stream " + in + " is for profile '" + h.profile + "', the model's is '" + want + "'", false;
-  if (h.names != rec.raw_names) return *error = "stream " + in + ": its channels are not the on-board record's raw channels", false;
-  // the record holds the period as float32 (0.04 -> 0.0399999991): equal within float32's precision
-  if (std::fabs(h.dt - rec.params.sample_dt_s) > 1e-6 * rec.params.sample_dt_s) {
-    return *error = "stream " + in + ": sample period " + std::to_string(h.dt) + " s, the model's is " +
-                    std::to_string(rec.params.sample_dt_s) + " s", false;
-  }
-  const bool battery = h.names.size() > 9 && h.names[9] == "V_b" && ((h.carried >> 9) & 1u) != 0;  // V_b: column 9
-  if (rec.cells_from_stream && h.cells == 0 && battery) {
-    return *error = "stream " + in + " does not give the pack's cell count", false;
-  }
-  return true;
-}
-
-// One stream file (flight ``index`` of the replay): the first init()s the stream, the next ones
-// reset() it (a new flight; their cell count must be the first's).
-bool replay_file(const std::string& in, std::size_t index, Replay* r, std::string* error) {
-  std::FILE* f = in == "-" ? stdin : std::fopen(in.c_str(), "rb");
-  if (f == nullptr) return *error = "cannot open stream " + in, false;
-  struct Closer { std::FILE* f; ~Closer() { if (f != stdin) std::fclose(f); } } closer{f};
-  Header h;
-  if (!read_header(f, in, &h, error) || !check_header(h, in, r->rec, error)) return false;
+// One stream (flight ``index`` of the replay, opened and checked): the first init()s the stream, the next
+// ones reset() it (a new flight; their cell count must be the first's).
+bool replay_file(fwref::host::StreamInput& in, const std::string& name, std::size_t index, Replay* r,
+                 std::string* error) {
+  const fwref::host::StreamHeader& h = in.header();
   fwref::StreamParams p = r->rec.params;
   p.classes = p.alarm.classes = r->m.classes;
-  const std::string lacks = lacking(h);
-  const std::string refused = "stream " + in + " lacks channels profile '" + h.profile + "' cannot do without: " + lacks;
+  const std::string lacks = fwref::host::stream_lacking(h);
+  const std::string refused = "stream " + name + " lacks channels profile '" + h.profile + "' cannot do without: " + lacks;
   if (index == 0) {
     const fwref::Status status = g_stream.init(p, int(h.cells), r->m.fns, h.carried);
     if (status == fwref::Status::kDimsInvalid && !lacks.empty()) return *error = refused, false;
     if (status != fwref::Status::kOk) return *error = std::string("cannot run this record: ") + fwref::status_name(status), false;
     r->cells = h.cells;
   } else if (h.cells != r->cells) {
-    return *error = "stream " + in + " has " + std::to_string(h.cells) + " cells, the first stream " + std::to_string(r->cells), false;
+    return *error = "stream " + name + " has " + std::to_string(h.cells) + " cells, the first stream " + std::to_string(r->cells), false;
   } else {
     g_stream.reset();
     if (g_stream.set_carried(h.carried) != fwref::Status::kOk) return *error = refused, false;
   }
   char head[512];
   std::snprintf(head, sizeof head, "# fwref_stream flight=%zu source=%s model=%s precision=%s profile=%s window=%d "
-                "stride=%d classes=%d motor_head=%d available=0x%X\n# index t status logits[%d] proba[%d] vote active raised cleared "
-                "cls motor wmotor\n", index, h.source.c_str(), r->model.c_str(), r->int8 ? "int8" : "fp32",
+                "stride=%d classes=%d motor_head=%d available=0x%X\n# index t status logits[%d] proba[%d] vote active "
+                "raised cleared cls motor wmotor\n", index, h.source.c_str(), r->model.c_str(), r->int8 ? "int8" : "fp32",
                 h.profile.c_str(), p.window, p.stride, p.classes, int(r->m.has_motor), unsigned(g_stream.available()),
                 p.classes, p.classes);
   r->lines.add(head);
-  const std::size_t rec_bytes = 8 + 4 * std::size_t(h.channels);
-  std::vector<unsigned char> buf(rec_bytes);
+  std::vector<unsigned char> buf(h.sample_bytes());
   std::vector<float> sample(h.channels);
   long long n = 0, dropped = 0;
   for (;; ++n) {
-    const std::size_t got = std::fread(buf.data(), 1, rec_bytes, f);
+    const int got = in.next(buf.data());
     if (got == 0) break;
-    if (got != rec_bytes) return *error = "stream " + in + " ends inside sample " + std::to_string(n), false;
-    double t;
-    std::memcpy(&t, buf.data(), 8);
-    std::memcpy(sample.data(), buf.data() + 8, 4 * std::size_t(h.channels));
+    if (got < 0) return *error = "stream " + name + " ends inside sample " + std::to_string(n), false;
+    const double t = fwref::host::decode_sample(buf.data(), h.channels, sample.data());
     const auto t0 = std::chrono::steady_clock::now();
     const fwref::Status s = g_stream.push(sample.data(), t, &r->lines);
     const auto t1 = std::chrono::steady_clock::now();
-    if (r->seconds) r->seconds->push_back(std::chrono::duration<double>(t1 - t0).count());
+    if (r->seconds) {
+      const double sec = std::chrono::duration<double>(t1 - t0).count();
+      r->seconds->put(&sec, sizeof sec);
+    }
     dropped += s != fwref::Status::kOk ? 1 : 0;
+    if (r->lines.failed() || (r->seconds && r->seconds->failed())) return true;  // main reports the write
   }
   std::snprintf(head, sizeof head, "# end samples=%lld dropped=%lld decided=%lld skipped=%lld steps=%lld "
-                "hover_cmd=%.9g hover_cur=%.9g\n", n, dropped, static_cast<long long>(g_stream.decided()),
-                static_cast<long long>(g_stream.skipped()), static_cast<long long>(g_stream.steps()),
-                double(g_stream.hover_cmd()), double(g_stream.hover_cur()));
+                "hover_cmd=%.9g hover_cur=%.9g gap_strides=%lld resyncs=%lld\n", n, dropped,
+                static_cast<long long>(g_stream.decided()), static_cast<long long>(g_stream.skipped()),
+                static_cast<long long>(g_stream.steps()), double(g_stream.hover_cmd()), double(g_stream.hover_cur()),
+                static_cast<long long>(g_stream.gap_strides()), static_cast<long long>(g_stream.resyncs()));
   r->lines.add(head);
   return true;
 }
 
 }  // namespace
 
-int main(int argc, char** argv) {
+int main(int argc, char** argv) try {
   std::string weights, model, in, out, manifest, timings;
   std::vector<std::string> ins;  // --in, repeatable: flights in sequence, reset() between them
   bool int8 = false, info = false;
@@ -348,9 +272,8 @@ int main(int argc, char** argv) {
       }
     }
   }
-  if (!manifest.empty() && !fwref::host::weights_match_manifest(weights, manifest, &error)) return kCli.fail(error);
   fwref::WeightsFile wf;
-  if (wf.load(weights, &error) != fwref::Status::kOk) return kCli.fail(error);
+  if (!fwref::host::load_weights(weights, manifest, &wf, &error)) return kCli.fail(error);
   fwref::OnboardRecord rec;
   if (fwref::read_onboard(wf, &rec, &error) != fwref::Status::kOk) return kCli.fail(error);
   bool from_table = false;  // the bound model's policy (alarm.models), else the record's single one
@@ -366,19 +289,24 @@ int main(int argc, char** argv) {
                 model + " section of " + weights + " " + std::to_string(m.classes));
   }
 
-  Lines lines(m.classes, out.empty() ? stdout : nullptr);
-  std::vector<double> seconds;
+  std::vector<fwref::host::StreamInput> inputs(ins.size());
+  for (std::size_t i = 0; i < ins.size(); ++i) {
+    if (!inputs[i].open(ins[i], rec, &error)) return kCli.fail(error);
+  }
+  fwref::host::StreamOutput text, seconds;
+  if (!text.open(out, &error) || (!timings.empty() && !seconds.open(timings, &error))) return kCli.fail(error);
+  Lines lines(m.classes, text);
   Replay r{rec, m, model, int8, lines, timings.empty() ? nullptr : &seconds};
   for (std::size_t i = 0; i < ins.size(); ++i) {
-    if (!replay_file(ins[i], i, &r, &error)) return kCli.fail(error);
+    if (!replay_file(inputs[i], ins[i], i, &r, &error)) return kCli.fail(error);
+    if (text.failed() || seconds.failed()) break;  // a failed write: reported below
   }
-  if (!out.empty() && !fwref::host::write_atomic(out, lines.text.data(), lines.text.size(), &error)) {
-    return kCli.fail(error);
-  }
-  if (!timings.empty() &&
-      !fwref::host::write_atomic(timings, seconds.data(), seconds.size() * sizeof(double), &error)) {
+  if (!text.finish(&error)) return seconds.abort(), kCli.fail(error);
+  if (!timings.empty() && !seconds.finish(&error)) {
     if (!out.empty()) std::remove(out.c_str());
     return kCli.fail(error);
   }
   return 0;
+} catch (const std::exception& e) {
+  return fwref::host::fail_exception("fwref_stream", e);
 }

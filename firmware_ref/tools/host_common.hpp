@@ -1,7 +1,7 @@
 // tools/host_common.hpp -- scope: what the host programs (fwref_infer, fwref_pair, fwref_parity, fwref_stream)
 // share: the four bound models behind one interface, the no-heap guard around inference, the command line
-// (usage, one-line errors and their exit codes), and file helpers (whole-file read, the windows file, atomic
-// write: temp file + rename, so no half-written output).
+// (usage, one-line errors and their exit codes), and the input helpers (a bounded whole-file read, the windows
+// file: fwref/file_read.hpp, fwref/read_limits.hpp); outputs are written by tools/host_output.hpp.
 #pragma once
 
 #include <cerrno>
@@ -10,7 +10,9 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <exception>
 #include <memory>
+#include <new>
 #include <string>
 #include <vector>
 
@@ -18,8 +20,11 @@
 #include <unistd.h>
 
 #include "fwref/cnode.hpp"
+#include "fwref/file_read.hpp"
 #include "fwref/gru.hpp"
+#include "fwref/read_limits.hpp"
 #include "fwref/weights_file.hpp"
+#include "host_output.hpp"
 
 #if !defined(__BYTE_ORDER__) || __BYTE_ORDER__ != __ORDER_LITTLE_ENDIAN__
 #error "the host programs read little-endian float32 files directly: build them on a little-endian host"
@@ -91,21 +96,19 @@ inline std::unique_ptr<Model> bind_model(WeightsFile& wf, const std::string& kin
   return out;
 }
 
-// Whole file into ``out``; false with ``*error`` set on failure.
-inline bool read_file(const std::string& path, const char* what, std::vector<unsigned char>* out, std::string* error) {
-  std::FILE* f = std::fopen(path.c_str(), "rb");
-  if (f == nullptr) {
-    *error = std::string(what) + " " + path + (errno == ENOENT ? " does not exist" : std::string(": ") + std::strerror(errno));
-    return false;
-  }
-  unsigned char chunk[65536];
-  std::size_t got;
-  out->clear();
-  while ((got = std::fread(chunk, 1, sizeof chunk, f)) > 0) out->insert(out->end(), chunk, chunk + got);
-  const bool failed = std::ferror(f) != 0;
-  std::fclose(f);
-  if (failed) *error = std::string("cannot read ") + what + " " + path;
-  return !failed;
+// What a program's main() returns when an exception would otherwise escape it (an allocation the bounded
+// sizes still allow, refused by the machine): one line on stderr, exit 2.
+inline int fail_exception(const char* program, const std::exception& e) {
+  const bool memory = dynamic_cast<const std::bad_alloc*>(&e) != nullptr;
+  std::fprintf(stderr, "%s: error: %s%s\n", program, memory ? "out of memory: " : "", e.what());
+  return 2;
+}
+
+// The whole regular file ``path`` of at most ``max_bytes`` into ``out``; false with one line in ``*error``
+// (``what`` names it: "manifest").
+inline bool read_file(const std::string& path, const char* what, std::uint64_t max_bytes,
+                      std::vector<unsigned char>* out, std::string* error) {
+  return read_regular_file(path, what, max_bytes, out, error) == Status::kOk;
 }
 
 // A host program's command line: options that take a value and flags, -h / --help; a usage error is one line
@@ -163,23 +166,24 @@ class Cli {
   const char* usage_;
 };
 
-// ``path``'s raw little-endian float32 windows (n, window, channels), n >= 1 from the file size, every value
-// finite, into ``x``; false with a one-line reason in ``error`` (the first non-finite value named).
+// ``path``'s raw little-endian float32 windows (n, window, channels), n >= 1 from the file size, at most
+// limits::kWindowsFileBytes, every value finite, into ``x``; false with a one-line reason in ``error`` (the first
+// non-finite value named). The size is checked before anything is allocated.
 inline bool read_windows(const std::string& path, int window, int channels, std::vector<float>* x, std::string* error) {
-  std::vector<unsigned char> bytes;
-  if (!read_file(path, "input", &bytes, error)) return false;
+  RegularFile f;
+  if (f.open(path, "input", limits::kWindowsFileBytes, error) != Status::kOk) return false;
   const std::size_t per_window = std::size_t(window) * channels, window_bytes = per_window * sizeof(float);
   char buf[512];
-  if (bytes.empty() || bytes.size() % window_bytes != 0) {
+  if (f.size() == 0 || f.size() % window_bytes != 0) {
     std::snprintf(buf, sizeof buf,
-                  "input %s holds %zu bytes, not a whole positive number of (%d, %d) float32 windows of %zu bytes "
+                  "input %s holds %llu bytes, not a whole positive number of (%d, %d) float32 windows of %zu bytes "
                   "(the weights' window and channel count)",
-                  path.c_str(), bytes.size(), window, channels, window_bytes);
+                  path.c_str(), static_cast<unsigned long long>(f.size()), window, channels, window_bytes);
     *error = buf;
     return false;
   }
-  x->resize(bytes.size() / sizeof(float));
-  std::memcpy(x->data(), bytes.data(), bytes.size());
+  x->assign(static_cast<std::size_t>(f.size() / sizeof(float)), 0.0f);
+  if (f.read_all(x->data(), error) != Status::kOk) return false;
   for (std::size_t i = 0; i < x->size(); ++i) {
     if (!std::isfinite((*x)[i])) {
       const std::size_t in_window = i % per_window;
@@ -190,40 +194,6 @@ inline bool read_windows(const std::string& path, int window, int channels, std:
     }
   }
   return true;
-}
-
-// Write ``n`` bytes to ``path`` through a temp file in the same folder and a rename: a reader never
-// sees a partial file, and a failure leaves nothing behind.
-inline bool write_atomic(const std::string& path, const void* data, std::size_t n, std::string* error) {
-  std::string tmp = path + ".tmp.XXXXXX";
-  std::vector<char> name(tmp.begin(), tmp.end());
-  name.push_back('\0');
-  const int fd = mkstemp(name.data());
-  if (fd < 0) {
-    *error = "cannot write " + path + ": " + std::strerror(errno);
-    return false;
-  }
-  const mode_t mask = ::umask(0);  // mkstemp makes 0600: give the file the user's umask instead
-  ::umask(mask);
-  ::fchmod(fd, 0666 & ~mask);
-  const char* p = static_cast<const char*>(data);
-  std::size_t left = n;
-  bool ok = true;
-  while (ok && left > 0) {
-    const ssize_t w = ::write(fd, p, left);
-    if (w < 0 && errno == EINTR) continue;
-    ok = w > 0;
-    if (ok) p += w, left -= static_cast<std::size_t>(w);
-  }
-  const int write_errno = errno;
-  ok = ok && ::fsync(fd) == 0;
-  ok = (::close(fd) == 0) && ok;
-  if (ok) ok = std::rename(name.data(), path.c_str()) == 0;
-  if (!ok) {
-    *error = "cannot write " + path + ": " + std::strerror(write_errno ? write_errno : errno);
-    std::remove(name.data());
-  }
-  return ok;
 }
 
 }  // namespace host

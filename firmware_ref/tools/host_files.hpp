@@ -2,13 +2,16 @@
 // an output that is not a regular file (symlink, FIFO, device, folder) or that is one of the
 // inputs is refused (fwref_infer --out once replaced a symlink, a FIFO and /dev/full by a regular
 // file, and --out equal to --weights destroyed the weights with exit 0); and weights.bin is
-// checked against the sha256 export/manifest.json records for it (--manifest).
+// checked against the sha256 export/manifest.json records for it (--manifest), from the one read of it
+// that is then parsed (load_weights).
 #pragma once
 
+#include <algorithm>
 #include <cstdint>
 #include <cstdio>
 #include <cstring>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <sys/stat.h>
@@ -86,43 +89,58 @@ inline std::string sha256_hex(const std::vector<unsigned char>& data) {
 
 // The sha256 manifest.json records for ``name`` ("files": {"<name>": {"sha256": "<64 hex>", ...}});
 // empty when the manifest does not list it. The manifest is quadfdi's own strict JSON, so a search
-// for the key and the next "sha256" inside its object is enough (no JSON library on the host side).
+// for the key, then "sha256" inside the object that follows it, is enough (no JSON library on the host
+// side). One pass: every search starts where the previous one ended.
 inline std::string manifest_sha256(const std::string& manifest, const std::string& name) {
-  const std::string key = "\"" + name + "\"";
-  std::size_t pos = manifest.find(key);
-  while (pos != std::string::npos) {
-    std::size_t p = pos + key.size();
-    while (p < manifest.size() && (manifest[p] == ' ' || manifest[p] == '\n' || manifest[p] == '\t')) ++p;
-    if (p < manifest.size() && manifest[p] == ':') {
-      const std::size_t open = manifest.find('{', p), close = manifest.find('}', p);
-      const std::size_t s = manifest.find("\"sha256\"", p);
-      if (open != std::string::npos && s != std::string::npos && s < close) {
-        const std::size_t q = manifest.find('"', manifest.find(':', s) + 1);
-        if (q != std::string::npos && q + 65 <= manifest.size()) return manifest.substr(q + 1, 64);
-      }
-    }
-    pos = manifest.find(key, pos + 1);
+  const std::string key = "\"" + name + "\"", field = "\"sha256\"";
+  const std::size_t n = manifest.size();
+  auto blank = [&](std::size_t p) {
+    while (p < n && (manifest[p] == ' ' || manifest[p] == '\n' || manifest[p] == '\t' || manifest[p] == '\r')) ++p;
+    return p;
+  };
+  std::size_t from = 0, pos;
+  while ((pos = manifest.find(key, from)) != std::string::npos) {
+    std::size_t p = blank(pos + key.size());
+    from = p;
+    if (p >= n || manifest[p] != ':') continue;
+    p = blank(p + 1);
+    if (p >= n || manifest[p] != '{') continue;
+    const std::size_t close = manifest.find('}', p);
+    if (close == std::string::npos) return std::string();
+    const auto s = std::search(manifest.begin() + p, manifest.begin() + close, field.begin(), field.end());
+    from = close;
+    if (s == manifest.begin() + close) continue;
+    const std::size_t q = manifest.find('"', manifest.find(':', std::size_t(s - manifest.begin())) + 1);
+    if (q != std::string::npos && q < close && q + 65 <= n) return manifest.substr(q + 1, 64);
   }
   return std::string();
 }
 
-// weights.bin at ``weights`` is the file whose sha256 the export's manifest at ``manifest`` records (--manifest);
-// false with a one-line reason in ``error``.
-inline bool weights_match_manifest(const std::string& weights, const std::string& manifest, std::string* error) {
+// weights.bin at ``weights`` read once (a regular file of at most limits::kWeightsFileBytes) into ``wf``; with
+// ``manifest`` (--manifest) its bytes must first have the sha256 the export's manifest records for weights.bin.
+// False with a one-line reason in ``error``.
+inline bool load_weights(const std::string& weights, const std::string& manifest, WeightsFile* wf,
+                         std::string* error) {
   std::vector<unsigned char> text, wbytes;
-  if (!read_file(manifest, "manifest", &text, error) || !read_file(weights, "weights", &wbytes, error)) return false;
-  const std::string expected = manifest_sha256(std::string(text.begin(), text.end()), "weights.bin");
-  if (expected.empty()) {
-    *error = "manifest " + manifest + " has no sha256 for weights.bin (files.weights.bin.sha256)";
+  if (!manifest.empty() && !read_file(manifest, "manifest", limits::kManifestFileBytes, &text, error)) return false;
+  if (read_regular_file(weights, "weights file", limits::kWeightsFileBytes, &wbytes, error,
+                        " (run `quadfdi export` first)") != Status::kOk) {
     return false;
   }
-  const std::string found = sha256_hex(wbytes);
-  if (found != expected) {
-    *error = "weights " + weights + ": sha256 " + found.substr(0, 16) + "... differs from " + expected.substr(0, 16) +
-             "... recorded in " + manifest + " (files.weights.bin.sha256)";
-    return false;
+  if (!manifest.empty()) {
+    const std::string expected = manifest_sha256(std::string(text.begin(), text.end()), "weights.bin");
+    if (expected.empty()) {
+      *error = "manifest " + manifest + " has no sha256 for weights.bin (files.weights.bin.sha256)";
+      return false;
+    }
+    const std::string found = sha256_hex(wbytes);
+    if (found != expected) {
+      *error = "weights " + weights + ": sha256 " + found.substr(0, 16) + "... differs from " +
+               expected.substr(0, 16) + "... recorded in " + manifest + " (files.weights.bin.sha256)";
+      return false;
+    }
   }
-  return true;
+  return wf->load_bytes(std::move(wbytes), weights, error) == Status::kOk;
 }
 
 }  // namespace host

@@ -94,9 +94,35 @@ class AlarmPolicy {
     }
     active_ = active_ || rise;
     if (rise) run_ = 0;
-    AlarmStep out{v, active_, rise, clear, -1, -1};
+    return report(AlarmStep{v, active_, rise, clear, -1, -1});
+  }
+
+  // ``m`` windows in a row without a decision (the strides a gap in a stream passed over), in
+  // O(min(m, n)): the state, and the step of the last of them, that m step(..., false) give. An invalid
+  // window only takes its slot (no vote), so past n of them every slot is empty and the rest change
+  // nothing but the ring's head; an active alarm stays active (only valid windows clear it).
+  AlarmStep skip(std::int64_t m) {
+    if (m <= 0) return report(AlarmStep{false, active_, false, false, -1, -1});
+    const int n = p_.n, empty = m < n ? int(m) : n;
+    for (int j = 0; j < empty; ++j) {
+      const int slot = (head_ + j) % n;
+      votes_[slot] = false;
+      for (int c = 0; c < p_.classes; ++c) vp_[slot][c] = 0.0;
+      for (int k = 0; k < 4; ++k) mp_[slot][k] = 0.0;
+    }
+    head_ = int((head_ + m % n) % n);
+    filled_ = m >= n - filled_ ? n : filled_ + int(m);
+    return report(AlarmStep{false, active_, false, false, -1, -1});
+  }
+
+  const AlarmParams& params() const { return p_; }
+  bool active() const { return active_; }
+
+ private:
+  // The episode's class and reported motor (rules 4-5) into ``out`` while active.
+  AlarmStep report(AlarmStep out) const {
     if (active_) {
-      for (int c = 0; c < K; ++c) {
+      for (int c = 0; c < p_.classes; ++c) {
         if (c != p_.healthy && (out.cls < 0 || s_[c] > s_[out.cls])) out.cls = c;
       }
       if (has_motor_ && out.cls >= 0 && ((p_.rotor_mask >> out.cls) & 1u) != 0) {  // rule 5
@@ -107,10 +133,6 @@ class AlarmPolicy {
     return out;
   }
 
-  const AlarmParams& params() const { return p_; }
-  bool active() const { return active_; }
-
- private:
   AlarmParams p_{0.5, 2, 3, 3, false, 0, 2};
   bool votes_[MaxN] = {};
   double vp_[MaxN][MaxClasses] = {};

@@ -3,7 +3,7 @@
 // exact. Nothing here depends on a particular weights file.
 //
 // Host builds use the generous defaults below. The microcontroller build sets every limit to the
-// exported model's own dimensions (firmware_ref/tools/gen_weights.py writes fwref_limits.h and the
+// exported model's own dimensions (quadfdi.runtimes.mcu_weights_src writes fwref_limits.h and the
 // build passes -DFWREF_LIMITS_HEADER="fwref_limits.h"), so no RAM is spent on unused capacity.
 #pragma once
 

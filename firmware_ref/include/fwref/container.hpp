@@ -2,8 +2,10 @@
 // weights.bin and reference.bin share (formats/binfmt.py, docs/formats.md). It checks the
 // magic, the version, the file size against the real size, the file and section CRC-32s, and every
 // size field against the bytes left before it reads them; each failure is a Status plus a one-line
-// message naming the file. Host only (std::vector, std::string): the microcontroller build has its
-// weights compiled in and never parses a file.
+// message naming the file. The file is read by fwref/file_read.hpp (a regular file of at most the
+// caller's maximum, fwref/read_limits.hpp); parse_bytes() checks bytes already in memory (a fuzzer's
+// input, or a file whose sha256 was checked first). Host only (std::vector, std::string): the
+// microcontroller build has its weights compiled in and never parses a file.
 #pragma once
 
 #include <cstddef>
@@ -52,13 +54,18 @@ std::uint32_t crc32(const unsigned char* data, std::size_t n, std::uint32_t crc 
 
 class Container {
  public:
-  // Read and check ``path``; ``magic`` is 8 bytes, ``what`` names the kind ("weights file").
+  // Read and check ``path``, a regular file of at most ``max_bytes``; ``magic`` is 8 bytes, ``what``
+  // names the kind ("weights file").
   Status load(const std::string& path, const char* magic, std::uint32_t version, const char* what,
-              std::string* error);
+              std::uint64_t max_bytes, std::string* error);
+  // Check ``bytes``, the contents of ``path`` (named in messages only).
+  Status parse_bytes(std::vector<unsigned char> bytes, const std::string& path, const char* magic,
+                     std::uint32_t version, const char* what, std::string* error);
 
   const std::vector<SectionInfo>& sections() const { return sections_; }
   const SectionInfo* find(std::uint32_t model, std::uint32_t precision) const;
   const std::string& where() const { return where_; }  // "weights file <path>"
+  const std::vector<unsigned char>& bytes() const { return bytes_; }
 
   // Copy a tensor's values (little-endian in the file) into typed storage.
   void copy_f32(const TensorInfo& t, float* out) const;

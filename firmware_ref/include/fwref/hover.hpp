@@ -35,7 +35,7 @@ class HoverEstimator {
 public:
     // Feed sample number index() (0, 1, ...); returns true while the estimate is frozen.
     bool push(float vz, float roll, float pitch, const float thr[4], float current, bool airborne) {
-        const int32_t i = index_++;
+        const int64_t i = index_++;
         if (frozen_) return true;
         const float c = (((thr[0] + thr[1]) + thr[2]) + thr[3]) * 0.25f;
         const bool finite = std::isfinite(vz) && std::isfinite(roll) && std::isfinite(pitch) &&
@@ -68,20 +68,32 @@ public:
         frozen_ = true;
         return true;
     }
+    // ``m`` samples without data (NaN) at the airborne flag ``airborne`` (a gap in a stream), in O(1): the
+    // state m push()es of them leave (the index advances, the steady run restarts, the airborne count
+    // goes on or restarts). 0 <= m <= 2^62 - index() (fwref/stream.hpp bounds it).
+    void skip(int64_t m, bool airborne) {
+        if (m <= 0) return;
+        index_ += m;
+        if (frozen_) return;
+        if (!airborne) air_run_ = 0;
+        else air_run_ = m > HoverLimits::kSettle + 1 - air_run_ ? HoverLimits::kSettle + 1 : air_run_ + int(m);
+        run_ = 0;
+    }
     void reset() { *this = HoverEstimator(); }
     bool frozen() const { return frozen_; }
     float cmd() const { return cmd_; }
     float cur() const { return cur_; }
-    int32_t freeze_index() const { return freeze_; }  // -1 until frozen
+    int64_t freeze_index() const { return freeze_; }  // -1 until frozen
+    int64_t index() const { return index_; }          // samples fed (push and skip)
 
 private:
     float cmd_ring_[N] = {};
     float cur_ring_[N] = {};
     int head_ = 0;
     int run_ = 0;
-    int32_t index_ = 0;
+    int64_t index_ = 0;
     int air_run_ = HoverLimits::kSettle;
-    int32_t freeze_ = -1;
+    int64_t freeze_ = -1;
     bool frozen_ = false;
     float cmd_ = NAN;
     float cur_ = NAN;

@@ -26,10 +26,13 @@
 
 namespace fwref {
 
-// The reference: -1 for a refused step (not at least half a period, or NaN), else llround(d / dt).
+// The reference: -1 for a refused step (not at least half a period, or NaN), else llround(d / dt);
+// INT64_MAX for 2^62 periods or more (llround's result is unspecified past 2^63, and newlib's
+// converts out of range: the stream refuses any step above kMaxGapPeriods anyway).
 inline std::int64_t periods_reference(double d, double dt) {
   const double periods = d / dt;
   if (!(periods >= 0.5)) return -1;  // also NaN
+  if (!(periods < 0x1p62)) return INT64_MAX;
   return static_cast<std::int64_t>(std::llround(periods));
 }
 

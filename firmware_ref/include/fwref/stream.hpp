@@ -34,7 +34,7 @@
 // after the window's last sample), never a recomputation. Its state:
 //   - h = 0 at init() and reset() (``ResetFn``), i.e. at take-off, as train/stream_gru_run.py
 //     evaluates it (one stream per flight, started at h = 0 on its first sample);
-//   - an unusable sample (NaN/Inf raw or model value, not airborne, or a filled timestamp gap) is
+//   - an unusable sample (NaN/Inf raw or model value, not airborne, or a sample missing in a timestamp gap) is
 //     not stepped: h is held across it (and the strides whose window holds it are kSkipped, as for
 //     the windowed models, so that all models vote on the same strides);
 //   - profiles with a hover estimate: no sample is stepped before the estimate has frozen (the model
@@ -46,15 +46,31 @@
 // the availability mask follows from them once per flight, a lacking group's model channels take
 // their fills and its columns are not checked for NaN. A profile without a mask needs every column.
 //
-// Timestamps: each sample carries its time t (s). The stream runs on the grid of the record's
-// sample period dt. A gap (t - t_prev rounds to g > 1 periods) is HELD, not reset: the g - 1
-// missing samples are pushed as unusable samples (NaN, airborne as before), so the windows
-// containing them are skipped and the stride phase, the hover estimate and the alarm carry on.
-// This is what the window path does with an ingested flight (whose grid marks a logging gap as
-// masked samples), so both decide the same; a reset would throw away the frozen hover estimate,
-// which belongs to the vehicle, not to the gap. A time that does not advance by at least half a
-// period is refused (kBadInput, the sample is dropped). The count of periods, llround((t - t_prev) / dt),
-// is fwref/period.hpp's PeriodGate: the same decision for every t, no division on the one-period path.
+// Timestamps: each sample carries its time t (s); the stream runs on the grid of the record's sample
+// period dt, and a time step counts g = llround((t - t_prev) / dt) periods (fwref/period.hpp's
+// PeriodGate: the same decision for every t, no division on the one-period path). Every push costs at
+// most ONE decision's work, whatever the times (src/stream.cpp says how):
+//   g = 1        the next sample;
+//   1 < g <= 2^40  a gap of g - 1 missing samples, HELD, not reset: the state is what pushing g - 1
+//                unusable samples (NaN, airborne as before) would leave -- the windows holding them are
+//                skipped, the stride phase, the frozen hover estimate and the alarm carry on, the
+//                per-sample model's state is held -- but it is set in O(W + n), not sample by sample:
+//                the strides that END INSIDE the gap are not reported (no sink call: on board nothing
+//                runs between two samples); they are counted (gap_strides()) and step the alarm as
+//                invalid windows; last() is the latest of them. So a push reports at most one stride,
+//                the one its own sample ends, and after a gap that stride is never decided (its window
+//                holds a missing sample): a push after a gap runs no window inference (a per-sample
+//                model still steps once, on the pushed sample);
+//   g < 1 (a time that does not advance by half a period: repeated, backwards) or g > 2^40 (1,400
+//                years at 25 Hz: a corrupt time), and a non-finite t: REFUSED (kBadInput), the sample
+//                dropped, the state untouched;
+//   kResyncRefusals consecutive refused finite times: the clock itself has jumped (a reset, or a
+//                glitch that was accepted as a gap and left the true times behind it): that sample is
+//                taken as the first after a gap of W + n * stride missing samples (every window across
+//                it skipped, the alarm's last n strides empty; hover estimate and an active alarm carry
+//                on), and the stream follows the new clock (resyncs()).
+// The sample index (samples(), Decision::index) counts the grid, gap samples included; past 2^62
+// (1.8e11 years at 25 Hz) every push is refused until reset().
 #pragma once
 
 #include <cstdint>
@@ -68,7 +84,7 @@
 #include "fwref/profile.hpp"
 #include "fwref/status.hpp"
 
-// The Cortex-M stream image sets these two through a generated header (tools/gen_stream.py).
+// The Cortex-M stream image sets these two through a generated header (quadfdi.runtimes.mcu_stream_src).
 #ifdef FWREF_STREAM_LIMITS_HEADER
 #include FWREF_STREAM_LIMITS_HEADER
 #endif
@@ -84,6 +100,9 @@ namespace fwref {
 constexpr int kMaxRawChannels = FWREF_MAX_RAW_CHANNELS;  // channels of one stream sample
 constexpr int kMaxAlarmN = FWREF_MAX_ALARM_N;            // the alarm policy's n
 constexpr int kHoverSteady = 50;                         // core.hover.STEADY_SAMPLES, compiled in
+constexpr std::int64_t kMaxGapPeriods = std::int64_t(1) << 40;  // a longer forward step is a corrupt time
+constexpr int kResyncRefusals = 8;                        // refused times in a row that mean a new clock
+constexpr std::int64_t kMaxSampleIndex = std::int64_t(1) << 62;
 
 // What the stream needs besides the weights: weights.bin's on-board record (fwref/onboard.hpp).
 struct StreamParams {
@@ -164,7 +183,7 @@ struct StepRunner {
   }
 };
 
-// Called for every stride (several when a gap is filled); optional.
+// Called for every reported stride: at most one per push (the stride the pushed sample ends); optional.
 class StrideSink {
  public:
   virtual void on_stride(const Decision& d) = 0;
@@ -186,8 +205,8 @@ class Stream {
   // a column, the masked profile lacking its minimum, or V_b carried without a cell count.
   Status set_carried(std::uint64_t carried);
   std::uint32_t available() const { return avail_; }  // the availability mask (bit g: group g of kGroupNames)
-  // One sample (R raw channels, the record's order) at time t; kBadInput: a time that is not finite or does
-  // not advance by half a period, the sample dropped.
+  // One sample (R raw channels, the record's order) at time t; kBadInput: a refused time (not finite, not
+  // advancing by half a period, more than kMaxGapPeriods ahead), the sample dropped. At most one decision.
   Status push(const float* sample, double t, StrideSink* sink = nullptr);
   void reset();  // a new flight: ring, hover estimate, alarm and time forgotten
 
@@ -197,11 +216,14 @@ class Stream {
   float hover_cmd() const { return hover_.cmd(); }
   float hover_cur() const { return hover_.cur(); }
   std::int64_t decided() const { return decided_; }
-  std::int64_t skipped() const { return skipped_; }
+  std::int64_t skipped() const { return skipped_; }  // reported kSkipped strides (not those inside a gap)
   std::int64_t steps() const { return steps_; }  // per-sample model steps since reset (0 for a windowed model)
+  std::int64_t gap_strides() const { return gap_strides_; }  // strides that ended inside a gap (not reported)
+  std::int64_t resyncs() const { return resyncs_; }          // times the stream took a new clock
 
  private:
   Status push_one(const float* sample, double t, StrideSink* sink);
+  void skip_gap(std::int64_t missing);
   void stride(double t, StrideSink* sink);
   bool step_sample(const float* x, bool ends_stride);
   Status run_window(Decision& d);
@@ -214,14 +236,15 @@ class Stream {
   float ring_[kMaxWindow * kMaxChannels] = {};  // prepared samples, slot = index % W
   bool ok_[kMaxWindow] = {};                    // the sample is usable
   float win_[kMaxWindow * kMaxChannels] = {};   // the window handed to the model, oldest first
-  float nan_sample_[kMaxRawChannels] = {};
   float step_row_[kMaxChannels] = {};
   float step_logits_[kMaxClasses] = {};  // the latest step's (per-sample model)
   double motor_proba_[kMaxClasses > kMotors ? kMaxClasses : kMotors] = {};
   HoverEstimator<kHoverSteady> hover_;
   AlarmPolicy<kMaxAlarmN, kMaxClasses> alarm_;
   Decision last_;
-  std::int64_t next_ = 0, decided_ = 0, skipped_ = 0, steps_ = 0;
+  std::int64_t next_ = 0, decided_ = 0, skipped_ = 0, steps_ = 0, gap_strides_ = 0, resyncs_ = 0;
+  std::int64_t resync_gap_ = 0;  // W + n * stride: the missing samples a new clock stands for
+  int refused_ = 0;              // refused finite times in a row
   double t_prev_ = 0.0;
   PeriodGate gate_;  // the timestamp step's period count, bounds formed once by init()
   bool airborne_prev_ = false;

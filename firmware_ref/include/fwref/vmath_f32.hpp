@@ -17,7 +17,7 @@
 // code, so denormals round identically. Checked by fwref_vmath (tests/test_vmath.py): the clamp edges,
 // +-0, NaN, +-inf, denormals and a walk over the float32 bit patterns.
 //
-// The gemv is NOT Eigen's order (it was until issue 15's fp32 pass: Eigen's lazyProduct has no fused
+// The gemv is NOT Eigen's order (Eigen's lazyProduct has no fused
 // multiply-add and pays a horizontal sum per row, on the CNODE's short rows of 23, 40 and 64 columns):
 // per row 8 FMA chains, one per lane, and one tree of additions, the horizontal sums of 8 rows done
 // together (sum8). Its roundings differ from Eigen's and from ONNX Runtime's MLAS, within the fp32

@@ -21,7 +21,10 @@ namespace fwref {
 
 class WeightsFile {
  public:
+  // A regular file of at most limits::kWeightsFileBytes (fwref/read_limits.hpp).
   Status load(const std::string& path, std::string* error);
+  // ``bytes`` read already (its sha256 checked against a manifest, or a fuzzer's input); ``path`` names it.
+  Status load_bytes(std::vector<unsigned char> bytes, const std::string& path, std::string* error);
 
   // Bind the section (model, precision); kMissingSection if the file does not hold it.
   Status bind(CnodeF32* out, std::string* error);
