@@ -56,6 +56,10 @@ def test_table_groups_minimum_fills_and_patterns():
                                               "no_vibration", "crazyflie", "no_battery_monitor"}
     assert stream_raw(p)[-1] == "airborne" and PROFILE_BY_NAME["flightlog-min"].model == \
         tuple(c for c in MODEL_CHANNELS if c.name in channel_names("flightlog-min", []))
+    from quadfdi.core.config import load_config
+
+    masked = load_config("realistic-mask")  # the realistic suite's dataset, byte for byte, trained masked
+    assert masked.to_dict()["sim"] == load_config("realistic").to_dict()["sim"] and masked.train.profile == MASK
 
 
 def _raw(n: int, seed: int) -> dict[str, np.ndarray]:
