@@ -170,9 +170,8 @@ def flight_raw(arrays: dict, profile: str) -> FlightRaw:
     if available["current"] and not np.isfinite(est.cur):  # no hover current: i_rel cannot be formed
         available["current"] = False
         absent["I_b"] = "gaps during the hover estimate's steady seconds"
-        raw.pop("I_b")
+        raw.pop("I_b")  # the estimate's command and freeze do not read the current
         used = _backed(arrays, raw)
-        est = _hover(raw, airborne, where)
     return FlightRaw(raw, used, cells, est, available, absent)
 
 

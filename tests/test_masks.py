@@ -369,3 +369,23 @@ def test_streams_lacking_what_the_profile_needs_are_refused_in_one_line(flightlo
         assert why in res.stderr, (name, res.stderr)
     with pytest.raises(QuadfdiError, match="needs every channel; the stream lacks I_b"):
         windows_of(cases["fixed"][1], fixed)
+
+
+def test_a_current_without_hover_seconds_or_a_pack_without_cell_count_is_a_lacking_group(flights):
+    """What a fixed profile refuses the masked one runs without: a current with no sample in the hover
+    estimate's steady seconds (current absent, why named), an unknown cell count (battery absent)."""
+    from quadfdi.detect.inputs import flight_inputs
+
+    arrays = {k: v.copy() if isinstance(v, np.ndarray) else v for k, v in flights["uavcan"].items()}
+    names = [str(n) for n in arrays["channel_names"]]
+    arrays["telemetry"][:, names.index("I_b")] = np.nan
+    vehicle = json.loads(str(arrays["vehicle"]))
+    vehicle["battery"]["cells"] = None
+    arrays["vehicle"] = np.array(json.dumps(vehicle))
+    fi = flight_inputs(arrays, MASK, 40, 20)
+    assert not fi.available["current"] and not fi.available["battery"] and fi.decided.any()
+    assert fi.absent["I_b"] == "gaps during the hover estimate's steady seconds" and "cell count" in fi.absent["V_b"]
+    assert np.isnan(fi.hover.cur) and fi.cells == 0
+    np.testing.assert_array_equal(fi.x[:, channel_names(MASK, []).index("i_rel")], 1.0)
+    with pytest.raises(QuadfdiError, match="cell count is unknown"):
+        flight_inputs(arrays, "flightlog-min", 40, 20)
