@@ -17,38 +17,17 @@ from __future__ import annotations
 
 import hashlib
 import re
-import zipfile
 from collections import Counter
 from datetime import datetime, timedelta, timezone
 from pathlib import Path
 
 import numpy as np
 
+from quadfdi.ingest.logkind import log_kind
+
 GPS_EPOCH = datetime(1980, 1, 6, tzinfo=timezone.utc)
 GPS_LEAP_S = 18  # GPS - UTC since 2017-01-01
 _UNSAFE = re.compile(r"[^A-Za-z0-9._-]+")
-
-
-def log_kind(path: Path) -> str | None:
-    """"ulog", "dataflash", "crazyflie", "flight.npz" or None (not a log) from the file's content."""
-    try:
-        with open(path, "rb") as fh:
-            head = fh.read(8)
-    except OSError:
-        return None
-    if head.startswith(b"ULog"):
-        return "ulog"
-    if head[:2] == b"\xa3\x95":
-        return "dataflash"
-    if head[:1] == b"\xbc" and len(head) >= 5 and head[1:3] in (b"\x01\x00", b"\x02\x00"):  # event log v1/v2
-        return "crazyflie"
-    if head[:4] == b"PK\x03\x04":
-        try:
-            with zipfile.ZipFile(path) as z:
-                return "flight.npz" if "log_sha256.npy" in z.namelist() else None
-        except (OSError, zipfile.BadZipFile):
-            return None
-    return None
 
 
 def _safe(text: str) -> str:

@@ -17,6 +17,7 @@ from quadfdi.ingest import segments
 from quadfdi.core import resample
 from quadfdi.core.channels import ANGLE_CHANNELS, CHANNEL_NAMES, CHANNEL_UNITS
 from quadfdi.formats.flight import FORMAT_VERSION
+from quadfdi.ingest.logkind import head_kind
 from quadfdi.ingest.model import LogRead
 
 def flight_span(lr: LogRead) -> tuple[float, float]:
@@ -80,15 +81,17 @@ def read_log(path: str | Path):
         raise QuadfdiError(f"log {p} is not a regular file (a FIFO or device?)")
     with open(p, "rb") as fh:
         head = fh.read(8)
-    if head.startswith(b"ULog"):
+    # any 0xBC start goes to the Crazyflie reader, which names an event-log version it does not know
+    kind = head_kind(head) or ("crazyflie" if head[:1] == b"\xbc" else None)
+    if kind == "ulog":
         from quadfdi.ingest.px4 import read_px4
 
         return read_px4(str(p))
-    if head[:2] == b"\xa3\x95":  # DataFlash message header
+    if kind == "dataflash":
         from quadfdi.ingest.ardupilot import read_ardupilot
 
         return read_ardupilot(str(p))
-    if head[:1] == b"\xbc":  # Crazyflie uSD event log (no extension)
+    if kind == "crazyflie":  # Crazyflie uSD event log (no extension)
         from quadfdi.ingest.crazyflie import read_crazyflie
 
         return read_crazyflie(str(p))

@@ -9,7 +9,6 @@ numbers ``ingest.flight.read_log`` dispatches on, or a zip holding ``log_sha256.
 from __future__ import annotations
 
 import json
-import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -18,6 +17,7 @@ import numpy as np
 from quadfdi.core.errors import QuadfdiError
 from quadfdi.core.jobcache import file_sha256
 from quadfdi.formats.flight import load_flight
+from quadfdi.ingest.logkind import LOG_KINDS, log_kind
 
 
 @dataclass
@@ -67,21 +67,8 @@ class Flight:
 
 def file_kind(path: Path) -> str | None:
     """"log" (a file ``ingest`` reads), "flight.npz" or None, from the file's first bytes."""
-    try:
-        with open(path, "rb") as fh:
-            head = fh.read(8)
-    except OSError:
-        return None
-    if head.startswith(b"ULog") or head[:2] == b"\xa3\x95" or (head[:1] == b"\xbc" and head[1:3] in (b"\x01\x00",
-                                                                                                    b"\x02\x00")):
-        return "log"
-    if head[:4] == b"PK\x03\x04":
-        try:
-            with zipfile.ZipFile(path) as z:
-                return "flight.npz" if "log_sha256.npy" in z.namelist() else None
-        except (OSError, zipfile.BadZipFile):
-            return None
-    return None
+    kind = log_kind(path)
+    return "log" if kind in LOG_KINDS else kind
 
 
 def find_flights(paths: list[str | Path]) -> list[tuple[Path, str]]:
