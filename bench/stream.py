@@ -22,23 +22,12 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
-import numpy as np
 
 from quadfdi.core.errors import QuadfdiError
+from quadfdi.formats.dataset import flights_by_class
 from quadfdi.formats.export_folder import Export
 
 
-def pick_flights(dataset, n: int) -> list[int]:
-    """Up to ``n`` test flights: round-robin over the classes (the first of each, then the second...)."""
-    from quadfdi.formats.dataset import class_names, split_names
-
-    test = [i for i, s in enumerate(split_names(dataset.arrays)) if s == "test"]
-    rows = np.flatnonzero(np.isin(dataset["split"], test))
-    per_class = [rows[dataset["fault_class"][rows] == c].tolist() for c in range(len(class_names(dataset.arrays)))]
-    out: list[int] = []
-    for j in range(max((len(p) for p in per_class), default=0)):
-        out += [int(p[j]) for p in per_class if j < len(p)]
-    return out[:n]
 
 
 def find_stream_exe(fwref_infer: str | None) -> tuple[Path | None, str]:
@@ -81,7 +70,7 @@ def stream_section(run_root: Path, export: Export, fwref_infer: str | None, cpus
         return {"skipped": f"no fwref_stream: {how}"}
     dataset_path = run_root / "dataset.npz"
     ds = sim_dataset.load_dataset(dataset_path)  # one load for every flight
-    rows = pick_flights(ds, flights)
+    rows = flights_by_class(ds, flights)
     with tempfile.TemporaryDirectory(prefix="quadfdi-stream-bench-") as d:
         tmp = Path(d)
         paths = []

@@ -18,9 +18,18 @@ checks that the committed header is what this module generates):
   formula docs/profiles.md shows (core/profiles.py computes them; fwref/profile.hpp in float32).
 - ``PROFILE_TABLE``: each profile as the raw channels a vehicle must log for it (in the order a
   stream delivers them), with the id weights.bin's on-board record stores. Its model channels are
-  derived: every model channel whose raw channels the profile has, in ``MODEL_CHANNELS`` order. So a
-  profile is a set of available channels, and an availability mask over ``CHANNELS`` would be one
-  too. ``paper`` (id 0) is the identity over the dataset's own channels.
+  derived: every model channel whose raw channels the profile has, in ``MODEL_CHANNELS`` order.
+  ``paper`` (id 0) is the identity over the dataset's own channels.
+- ``AVAILABILITY_GROUPS``, ``MINIMUM_RAW`` and ``MASK_PATTERNS``: the masked profile
+  (``flightlog-mask``) takes whatever channels a log has. A group is a set of raw channels a log has
+  or lacks together; the minimum is never masked (the hover estimate and the airborne rule need it);
+  the masked profile's model channels are every model channel over its raw channels, then one
+  availability channel per group (``avail_<group>``: 1 when the flight has the group, else 0,
+  constant over a flight). A model channel whose group a flight lacks takes its ``fill`` (what a
+  level, healthy hover gives), so it stays inside the range the int8 calibration saw and the
+  network learns from the availability channel that it carries nothing. The fills, like the
+  formulas, belong to the profile: changing one is a new profile id. ``MASK_PATTERNS`` names the
+  patterns real logs show; training draws one per window (docs/profiles.md "The masked profile").
 
 Everything that names a channel (the simulator's sensors, ``flight.npz``, profiles, the on-board
 record, stream files and the C++) takes names, units and ids from here.
@@ -90,29 +99,97 @@ class ModelChannel:
     unit: str
     raw: tuple[str, ...]  # raw channels it is computed from
     formula: str  # what docs/profiles.md shows
+    fill: float  # the masked profile's value when the flight lacks the channel's group (float32-exact)
 
 
+# The fills: what a level, healthy hover gives. Attitude, rates and velocities 0 (level, at rest); every
+# share and ratio 1 (by definition at hover: a motor at the collective, the current at the hover
+# current, each ESC at the four's mean); temperature differences 0 (the ESCs alike); ``v_cell`` 3.7 V,
+# a LiPo's nominal cell voltage and the healthy realistic suite's median under load (3.72 V; 5-95 %
+# 3.52-3.98 V: the percentiles of V_b / pack_cells over its healthy flights); vibration 5.5 m/s^2, the
+# geometric middle of the simulator's healthy floor (2-15 m/s^2, log-uniform: sim.realistic_params
+# VIB_FLOOR; the healthy suite's median 6.1 (vib_px4) and 5.5 (vib_ap)).
+V_CELL_FILL = 3.7  # V
+VIB_FILL = 5.5  # m/s^2
 _ROTORS = range(1, 5)
 MODEL_CHANNELS: tuple[ModelChannel, ...] = (
-    ModelChannel("roll", "rad", ("roll",), "roll"),
-    ModelChannel("pitch", "rad", ("pitch",), "pitch"),
-    ModelChannel("p", "rad/s", ("p",), "p"),
-    ModelChannel("q", "rad/s", ("q",), "q"),
-    ModelChannel("r", "rad/s", ("r",), "r"),
-    ModelChannel("vx_h", "m/s", ("vx", "vy", "yaw"), "cos(yaw) vx + sin(yaw) vy"),
-    ModelChannel("vy_h", "m/s", ("vx", "vy", "yaw"), "-sin(yaw) vx + cos(yaw) vy"),
-    ModelChannel("vz", "m/s", ("vz",), "vz"),
-    ModelChannel("v_cell", "V", ("V_b",), "V_b / cells"),
-    ModelChannel("i_rel", "-", ("I_b",), "I_b / hover current"),
-    *(ModelChannel(f"m{k}_rel", "-", (f"thr{k}",), f"thr{k} / hover collective command") for k in _ROTORS),
-    ModelChannel("vib", "m/s^2", ("vib_px4",), "PX4 accel_vibration_metric"),
+    ModelChannel("roll", "rad", ("roll",), "roll", 0.0),
+    ModelChannel("pitch", "rad", ("pitch",), "pitch", 0.0),
+    ModelChannel("p", "rad/s", ("p",), "p", 0.0),
+    ModelChannel("q", "rad/s", ("q",), "q", 0.0),
+    ModelChannel("r", "rad/s", ("r",), "r", 0.0),
+    ModelChannel("vx_h", "m/s", ("vx", "vy", "yaw"), "cos(yaw) vx + sin(yaw) vy", 0.0),
+    ModelChannel("vy_h", "m/s", ("vx", "vy", "yaw"), "-sin(yaw) vx + cos(yaw) vy", 0.0),
+    ModelChannel("vz", "m/s", ("vz",), "vz", 0.0),
+    ModelChannel("v_cell", "V", ("V_b",), "V_b / cells", V_CELL_FILL),
+    ModelChannel("i_rel", "-", ("I_b",), "I_b / hover current", 1.0),
+    *(ModelChannel(f"m{k}_rel", "-", (f"thr{k}",), f"thr{k} / hover collective command", 1.0) for k in _ROTORS),
+    ModelChannel("vib", "m/s^2", ("vib_px4",), "PX4 accel_vibration_metric", VIB_FILL),
+    ModelChannel("vib_ap", "m/s^2", ("vib_ap",), "ArduPilot VIBE in-plane mean", VIB_FILL),
     *(ModelChannel(f"rpm{k}_rel", "-", ("rpm1", "rpm2", "rpm3", "rpm4"),
-                   f"rpm{k} / ((((rpm1 + rpm2) + rpm3) + rpm4) * 0.25)") for k in _ROTORS),
+                   f"rpm{k} / ((((rpm1 + rpm2) + rpm3) + rpm4) * 0.25)", 1.0) for k in _ROTORS),
     *(ModelChannel(f"esc{k}_i_rel", "-", ("esc_cur1", "esc_cur2", "esc_cur3", "esc_cur4"),
-                   f"esc_cur{k} / ((((esc_cur1 + esc_cur2) + esc_cur3) + esc_cur4) * 0.25)") for k in _ROTORS),
+                   f"esc_cur{k} / ((((esc_cur1 + esc_cur2) + esc_cur3) + esc_cur4) * 0.25)", 1.0) for k in _ROTORS),
     *(ModelChannel(f"esc{k}_t_rel", "K", ("esc_temp1", "esc_temp2", "esc_temp3", "esc_temp4"),
-                   f"esc_temp{k} - ((((esc_temp1 + esc_temp2) + esc_temp3) + esc_temp4) * 0.25)") for k in _ROTORS),
+                   f"esc_temp{k} - ((((esc_temp1 + esc_temp2) + esc_temp3) + esc_temp4) * 0.25)", 0.0)
+      for k in _ROTORS),
 )
+
+
+@dataclass(frozen=True)
+class AvailabilityGroup:
+    name: str
+    raw: tuple[str, ...]  # raw channels a log has or lacks together
+
+
+AVAILABILITY_GROUPS: tuple[AvailabilityGroup, ...] = (
+    AvailabilityGroup("pitch", ("pitch",)),  # the Crazyflie logs no pitch
+    AvailabilityGroup("rates", ("p", "q", "r")),
+    AvailabilityGroup("vel_h", ("vx", "vy", "yaw")),  # no position fix, or no yaw: no heading-frame velocity
+    AvailabilityGroup("battery", ("V_b",)),  # a disconnected battery monitor (or no cell count)
+    AvailabilityGroup("current", ("I_b",)),  # absent or uncalibrated
+    AvailabilityGroup("vib_px4", ("vib_px4",)),
+    AvailabilityGroup("vib_ap", ("vib_ap",)),
+    AvailabilityGroup("esc_rpm", ("rpm1", "rpm2", "rpm3", "rpm4")),
+    AvailabilityGroup("esc_cur", ("esc_cur1", "esc_cur2", "esc_cur3", "esc_cur4")),
+    AvailabilityGroup("esc_temp", ("esc_temp1", "esc_temp2", "esc_temp3", "esc_temp4")),
+)
+GROUP_NAMES = tuple(g.name for g in AVAILABILITY_GROUPS)
+GROUP_OF_RAW = {r: g.name for g in AVAILABILITY_GROUPS for r in g.raw}
+# Never masked: what the model needs (attitude, climb rate, the four commands) and what the hover
+# estimate (core.hover: vz, roll, thr1..4) and the airborne rule need; a flight without one is refused.
+MINIMUM_RAW = ("roll", "vz", "thr1", "thr2", "thr3", "thr4")
+AVAIL_PREFIX = "avail_"
+
+
+@dataclass(frozen=True)
+class MaskPattern:
+    name: str
+    groups: tuple[str, ...]  # the groups a log of this kind lacks
+    seen: str  # which logs show it
+
+
+_ESC = ("esc_rpm", "esc_cur", "esc_temp")
+MASK_PATTERNS: tuple[MaskPattern, ...] = (
+    MaskPattern("all", (), "the realistic suite as simulated (every channel)"),
+    MaskPattern("no_current", ("current",), "an absent or uncalibrated current sensor (the GPS-interference flight)"),
+    MaskPattern("no_esc", _ESC, "no ESC telemetry (most PX4 and ArduPilot logs)"),
+    MaskPattern("no_position_fix", ("vel_h",), "no GPS or external position: no horizontal velocity"),
+    MaskPattern("no_rates", ("rates",), "no body rates logged"),
+    MaskPattern("no_pitch", ("pitch",), "no pitch logged"),
+    MaskPattern("no_yaw", ("vel_h",), "no yaw logged (six CrazyPAD E8 logs): no heading-frame velocity"),
+    MaskPattern("px4_vibration_only", ("vib_ap",), "every PX4 log"),
+    MaskPattern("ardupilot_vibration_only", ("vib_px4",), "every ArduPilot log"),
+    MaskPattern("no_vibration", ("vib_px4", "vib_ap"), "an autopilot logging neither metric"),
+    MaskPattern("crazyflie", ("pitch", "rates", "current", "vib_px4", "vib_ap") + _ESC,
+                "the CrazyPAD Crazyflie logs"),
+    MaskPattern("no_battery_monitor", ("battery", "current"),
+                "a disconnected battery monitor (the battery-monitor-disconnected flight)"),
+)
+PATTERN_BY_NAME = {p.name: p for p in MASK_PATTERNS}
+# Training draws "all" with this probability and another pattern uniformly otherwise (train/masks.py):
+# a quarter of the windows keep every channel, so the full-channel decision stays as good as possible.
+ALL_CHANNELS_PROBABILITY = 0.25
 
 
 @dataclass(frozen=True)
@@ -120,14 +197,30 @@ class Profile:
     id: int  # weights.bin's on-board record dims[0]; fwref::Profile
     name: str
     raw: tuple[str, ...] | None  # the channels a vehicle must log, in stream order (None: the dataset's own)
-    vibration: str | None  # which vibration quantity its ``vib`` is
+    vibration: str | None  # which vibration quantity its ``vib`` is ("any": both, each its own channel)
+    masked: bool = False  # takes whatever channels a log has: groups may be absent (AVAILABILITY_GROUPS)
 
     @property
     def model(self) -> tuple[ModelChannel, ...] | None:
-        """Every model channel whose raw channels the profile has (None: ``paper``, the identity)."""
+        """Every model channel whose raw channels the profile has (None: ``paper``, the identity); a
+        masked profile then one availability channel per group."""
         if self.raw is None:
             return None
-        return tuple(c for c in MODEL_CHANNELS if set(c.raw) <= set(self.raw))
+        derived = tuple(c for c in MODEL_CHANNELS if set(c.raw) <= set(self.raw))
+        return derived + (AVAILABILITY_CHANNELS if self.masked else ())
+
+
+AVAILABILITY_CHANNELS = tuple(ModelChannel(AVAIL_PREFIX + g, "-", (), f"1 if the flight has {', '.join(r)}, else 0",
+                                           1.0) for g, r in ((g.name, g.raw) for g in AVAILABILITY_GROUPS))
+
+
+def group_of_model(c: ModelChannel) -> str | None:
+    """The availability group a model channel's raw channels lie in (None: the minimum, or an
+    availability channel itself)."""
+    groups = {GROUP_OF_RAW.get(r) for r in c.raw}
+    if len(groups) > 1:
+        raise ValueError(f"model channel {c.name} mixes availability groups {sorted(map(str, groups))}")
+    return next(iter(groups), None)
 
 
 _MIN_RAW = ("roll", "pitch", "p", "q", "r", "vx", "vy", "yaw", "vz", "V_b", "I_b", "thr1", "thr2", "thr3", "thr4",
@@ -139,6 +232,8 @@ PROFILE_TABLE: tuple[Profile, ...] = (
     Profile(1, "flightlog-min", _MIN_RAW, "px4"),
     Profile(2, "flightlog-nocur", tuple(c for c in _MIN_RAW if c != "I_b"), "px4"),  # no (usable) current sensor
     Profile(3, "flightlog-esc", _MIN_RAW + ESC_RAW, "px4"),
+    # every raw channel a group or the minimum names, in the order fwref/profile.hpp reads
+    Profile(4, "flightlog-mask", _MIN_RAW + ESC_RAW + ("vib_ap",), "any", masked=True),
 )
 PROFILE_BY_NAME = {p.name: p for p in PROFILE_TABLE}
 PROFILE_NAMES = tuple(p.name for p in PROFILE_TABLE)  # in id order
@@ -162,16 +257,35 @@ def _cpp_names(names) -> str:
 def _cpp_spec(p: Profile) -> str:
     """One fwref::ProfileSpec initializer; the columns fwref/profile.hpp reads by name (-1: absent)."""
     if p.raw is None:
-        return f'    {{"{p.name}", 0, 0, nullptr, nullptr, -1, -1, -1}},'
+        return f'    {{"{p.name}", 0, 0, nullptr, nullptr, -1, -1, -1, -1, 0, nullptr, nullptr, nullptr, -1}},'
     raw = stream_raw(p)
     if raw[:len(CPP_FIXED_PREFIX)] != CPP_FIXED_PREFIX or raw[raw.index("thr1"):raw.index("thr1") + 5] != \
             ("thr1", "thr2", "thr3", "thr4", "vib_px4") or ("rpm1" in raw and raw[raw.index("rpm1"):][:12] != ESC_RAW):
         raise ValueError(f"profile {p.name}: fwref/profile.hpp reads {CPP_FIXED_PREFIX}, thr1..4 vib_px4 and the "
                          f"ESC block by position; its raw channels {raw} are not in that order")
     tag = _camel(p.name)
-    col = {n: raw.index(n) if n in raw else -1 for n in ("I_b", "thr1", "rpm1")}
-    return (f'    {{"{p.name}", {len(raw)}, {len(p.model)}, k{tag}Raw, k{tag}Model, {col["I_b"]}, {col["thr1"]}, '
-            f'{col["rpm1"]}}},')
+    col = {n: raw.index(n) if n in raw else -1 for n in ("I_b", "thr1", "rpm1", "vib_ap")}
+    head = (f'    {{"{p.name}", {len(raw)}, {len(p.model)}, k{tag}Raw, k{tag}Model, {col["I_b"]}, {col["thr1"]}, '
+            f'{col["rpm1"]}, {col["vib_ap"]}, ')
+    if not p.masked:
+        return head + "0, nullptr, nullptr, nullptr, -1},"
+    return head + (f"{len(AVAILABILITY_GROUPS)}, k{tag}RawGroup, k{tag}ModelGroup, k{tag}Fill, "
+                   f"{len(p.model) - len(AVAILABILITY_GROUPS)}}},")
+
+
+def _mask_tables(p: Profile) -> str:
+    """A masked profile's per-column group indices and fills (fwref::ProfileSpec raw_group, model_group, fill)."""
+    raw = stream_raw(p)
+    outside = [r for r in raw if r not in GROUP_OF_RAW and r not in MINIMUM_RAW + (AIRBORNE,)]
+    if outside:
+        raise ValueError(f"profile {p.name}: raw channels {outside} are in no availability group nor the minimum")
+    index = {g: i for i, g in enumerate(GROUP_NAMES)}
+    raw_group = [index.get(GROUP_OF_RAW.get(r), -1) for r in raw]
+    model_group = [-1 if c in AVAILABILITY_CHANNELS else index.get(group_of_model(c), -1) for c in p.model]
+    tag = _camel(p.name)
+    return (f"constexpr signed char k{tag}RawGroup[] = {{{', '.join(map(str, raw_group))}}};\n"
+            f"constexpr signed char k{tag}ModelGroup[] = {{{', '.join(map(str, model_group))}}};\n"
+            f"constexpr float k{tag}Fill[] = {{{', '.join(f'{c.fill!r}f' for c in p.model)}}};")
 
 
 def _camel(name: str) -> str:
@@ -190,6 +304,7 @@ def cpp_header() -> str:
     lists = "\n".join(f"constexpr const char* k{_camel(p.name)}Raw[] = {_cpp_names(stream_raw(p))};\n"
                       f"constexpr const char* k{_camel(p.name)}Model[] = {_cpp_names(c.name for c in p.model)};"
                       for p in PROFILE_TABLE if p.raw is not None)
+    lists += "".join("\n" + _mask_tables(p) for p in PROFILE_TABLE if p.masked)
     specs = "\n".join(_cpp_spec(p) for p in PROFILE_TABLE)
     return f"""// GENERATED by `python -m quadfdi.core.channels --header` from core/channels.py; do not edit.
 // The channel table (stable ids) and the channel profiles over it, as fwref/profile.hpp computes them.
@@ -215,7 +330,17 @@ struct ProfileSpec {{
   int i_b;          // raw column of the current (-1: none)
   int thr;          // raw column of thr1 (thr1..thr4, then vib_px4 follow)
   int rpm;          // raw column of rpm1 (rpm1..4, then esc_cur1..4, then esc_temp1..4 follow; -1: none)
+  int vib_ap;       // raw column of vib_ap (-1: none)
+  int groups;       // availability groups a flight may lack (0: a profile without a mask)
+  const signed char* raw_group;    // (raw) each stream column's group; -1: never absent (the minimum, airborne)
+  const signed char* model_group;  // (channels) each model channel's group; -1: the minimum or an availability channel
+  const float* fill;               // (channels) a model channel's value when the flight lacks its group
+  int avail;        // model column of the first availability channel (one per group, in group order; -1: none)
 }};
+
+// The availability groups (core/channels.py AVAILABILITY_GROUPS): bit g of an availability mask.
+constexpr int kGroupCount = {len(AVAILABILITY_GROUPS)};
+constexpr const char* kGroupNames[kGroupCount] = {_cpp_names(GROUP_NAMES)};
 
 namespace profile_tables {{
 // Stream channels (the profile's raw channels, then airborne) and model channels of each hover profile.

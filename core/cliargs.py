@@ -3,8 +3,24 @@
 from __future__ import annotations
 
 import argparse
+import sys
+from typing import Any, Callable
 
+from quadfdi.core.errors import QuadfdiError
 from quadfdi.core.resources import config_names
+
+
+def one_line_main(prog: str, body: Callable[[], Any], errors: tuple[type[BaseException], ...] = ()) -> int:
+    """A ``python -m`` entry point's body: run it, print what it returns, and turn a QuadfdiError (or one of
+    ``errors``) into one line on stderr and exit 2."""
+    try:
+        out = body()
+    except (QuadfdiError, *errors) as exc:
+        print(f"{prog}: error: {exc}", file=sys.stderr)
+        return 2
+    if out is not None:
+        print(out)
+    return 0
 
 
 def add_config_args(p: argparse.ArgumentParser, config: bool = True) -> None:

@@ -20,6 +20,14 @@ The filter, sample by sample on the 25 Hz grid (everything in float32):
 4. Before the freeze the estimate does not exist: a window that ends before it gives no decision
    (``freeze`` is the index of that sample; -1 if the flight never has 2 s of steady flight).
 
+A log without pitch (the masked profile, core/channels.py: the Crazyflie logs none) enters the steady
+test with pitch 0 (level): the arithmetic is unchanged, the caller passes 0 for the absent column
+(detect/inputs.py, fwref/profile.hpp ``hover_inputs``). Measured by dropping the pitch test
+(``python lab/hover_without_pitch.py DATASET.npz LOG...`` on the realistic suite's seed-0 dataset and
+the four shared PX4 quad logs): the frozen estimate and its freeze sample are identical on all four
+real flights and on 7 of the first 8 simulated ones; the eighth freezes earlier, its command within
+0.77 %.
+
 ``firmware_ref/include/fwref/hover.hpp`` is the same arithmetic in C++ (float32, fixed size, no
 heap); tests/test_hover.py checks both give bit-identical estimates on simulated and real flights.
 """

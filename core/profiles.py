@@ -19,6 +19,11 @@ on-board record.
   battery monitor (on the UAVCAN mission the ESC currents sum to 0.53 of I_b); and each ESC's
   temperature MINUS the four's collective of the same sample (K): no ambient, no common heating,
   no state (docs/profiles.md says why not "relative to ambient").
+- ``flightlog-mask``: whatever channels a log has. Its raw channels are every channel an
+  availability group or the minimum names (core/channels.py), its inputs every model channel over
+  them (both vibration metrics, ``vib`` PX4's and ``vib_ap`` ArduPilot's, each its own channel) and
+  one availability channel per group; a group the flight lacks gives its model channels their fill
+  (``apply_profile``'s ``available``). Only the minimum (roll, vz, thr1..4) is required.
 
 Raw names are the channel table's (core/channels.py), the same in a simulated dataset and in an
 ingested flight.npz: ``vib_px4`` is PX4's metric only, so a log of another autopilot lacks it.
@@ -28,7 +33,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from quadfdi.core.channels import PROFILE_BY_NAME, PROFILE_NAMES
+from quadfdi.core.channels import (AVAIL_PREFIX, AVAILABILITY_GROUPS, GROUP_NAMES, MASK_PATTERNS, PROFILE_BY_NAME,
+                                   PROFILE_NAMES, MaskPattern, group_of_model)
 from quadfdi.core.errors import QuadfdiError
 from quadfdi.core.hover import INPUTS as HOVER_INPUTS
 
@@ -69,16 +75,94 @@ def required_raw(name: str, raw_names: list[str] | tuple[str, ...] = ()) -> list
     return list(raw) + [r for r in HOVER_INPUTS if r not in raw and r != "I_b"]  # the hover current is optional
 
 
-def apply_profile(name: str, raw: dict[str, np.ndarray], cells, hover_cmd, hover_cur) -> np.ndarray:
+def is_masked(name: str) -> bool:
+    """The profile takes whatever channels a log has (availability groups may be absent)."""
+    check_profile(name)
+    return PROFILE_BY_NAME[name].masked
+
+
+def group_raw(group: str) -> tuple[str, ...]:
+    return next(g.raw for g in AVAILABILITY_GROUPS if g.name == group)
+
+
+def pattern_available(pattern: MaskPattern) -> dict[str, bool]:
+    """group -> available under a mask pattern (core/channels.py MASK_PATTERNS)."""
+    return {g: g not in pattern.groups for g in GROUP_NAMES}
+
+
+def groups_carried(carried: set[str] | frozenset[str]) -> dict[str, bool]:
+    """group -> available: every raw channel of the group is among ``carried`` (a stream's carried
+    channels; fwref/stream.hpp Stream::set_carried makes the same rule)."""
+    return {g.name: set(g.raw) <= set(carried) for g in AVAILABILITY_GROUPS}
+
+
+def flight_pattern(index: int) -> MaskPattern:
+    """The pattern a masked profile gives flight ``index`` of a simulated dataset (its ``traj_index``)
+    outside training, where windows draw their own (train/masks.py): the patterns in turn, so that
+    every pattern has flights in every split; the window path (models.inputs) and the stream files
+    (formats.stream.from_dataset) of the same flight agree on it."""
+    return MASK_PATTERNS[int(index) % len(MASK_PATTERNS)]
+
+
+def mask_layout(name: str) -> tuple[dict[str, list[int]], np.ndarray, dict[str, int]]:
+    """A masked profile's model columns per group, the (C,) float32 fills and each group's
+    availability column."""
+    spec = PROFILES[name]
+    cols: dict[str, list[int]] = {g: [] for g in GROUP_NAMES}
+    avail = {}
+    for j, c in enumerate(spec):
+        if c.name.startswith(AVAIL_PREFIX) and not c.raw:
+            avail[c.name[len(AVAIL_PREFIX):]] = j
+        elif (g := group_of_model(c)) is not None:
+            cols[g].append(j)
+    return cols, np.array([c.fill for c in spec], np.float32), avail
+
+
+def apply_profile(name: str, raw: dict[str, np.ndarray], cells, hover_cmd, hover_cur,
+                  available: dict | None = None) -> np.ndarray:
     """Profile inputs (..., T, C') float32 from raw channels ``raw[name]`` (..., T).
 
     ``cells`` (the pack's cell count), ``hover_cmd`` and ``hover_cur`` (core.hover) are scalars or
     per-flight arrays (...,). ``paper`` is not computed here (it is the raw telemetry as is).
+    A masked profile: ``available`` maps each group to a bool or a per-flight (...,) bool array
+    (None: every group); a lacking group's raw channels may be left out of ``raw`` and its model
+    channels take their fills, its availability channel 0.
     """
     spec = PROFILES[name]
     if spec is None:
         raise ValueError("the paper profile is the raw telemetry itself")
+    masked = PROFILE_BY_NAME[name].masked
     f32 = {k: np.asarray(v, dtype=np.float32) for k, v in raw.items()}
+    if masked:
+        shape = f32["roll"].shape
+        f32 = {r: f32.get(r, np.full(shape, np.nan, np.float32)) for r in required_raw(name)} | f32
+        with np.errstate(invalid="ignore", divide="ignore"):
+            values = _values(f32, cells, hover_cmd, hover_cur)
+        return _masked(spec, values, available or {}, shape)
+    values = _values(f32, cells, hover_cmd, hover_cur)
+    return np.stack([values[ch.name] for ch in spec], axis=-1).astype(np.float32)
+
+
+def _masked(spec, values: dict[str, np.ndarray], available: dict, shape: tuple[int, ...]) -> np.ndarray:
+    """The masked profile's (..., T, C) inputs: a lacking group's channels at their fill, then the
+    availability channels."""
+    unknown = sorted(set(available) - set(GROUP_NAMES))
+    if unknown:
+        raise ValueError(f"unknown availability groups {unknown}; the groups are {GROUP_NAMES}")
+    have = {g: np.broadcast_to(np.asarray(available.get(g, True), bool)[..., None], shape) for g in GROUP_NAMES}
+    cols = []
+    for c in spec:
+        if c.name.startswith(AVAIL_PREFIX) and not c.raw:
+            cols.append(have[c.name[len(AVAIL_PREFIX):]].astype(np.float32))
+            continue
+        g = group_of_model(c)
+        v = values[c.name]
+        cols.append(v if g is None else np.where(have[g], v, np.float32(c.fill)).astype(np.float32))
+    return np.stack(cols, axis=-1).astype(np.float32)
+
+
+def _values(f32: dict[str, np.ndarray], cells, hover_cmd, hover_cur) -> dict[str, np.ndarray]:
+    """Every model channel the raw channels ``f32`` give, by name (float32, the C++ mirror's order)."""
     per = lambda v: np.asarray(v, dtype=np.float32)[..., None]  # noqa: E731 (per flight -> broadcast over T)
     # cos and sin in float64, then rounded to float32: libm's correctly rounded values, which the C++
     # mirror (firmware_ref fwref/profile.hpp) reproduces bit for bit; numpy's float32 SIMD cos differs
@@ -88,6 +172,8 @@ def apply_profile(name: str, raw: dict[str, np.ndarray], cells, hover_cmd, hover
     values = {"roll": f32["roll"], "pitch": f32["pitch"], "p": f32["p"], "q": f32["q"], "r": f32["r"],
               "vx_h": c * f32["vx"] + s * f32["vy"], "vy_h": -s * f32["vx"] + c * f32["vy"], "vz": f32["vz"],
               "v_cell": f32["V_b"] / per(cells), "vib": f32["vib_px4"]}
+    if "vib_ap" in f32:
+        values["vib_ap"] = f32["vib_ap"]
     if "I_b" in f32:
         values["i_rel"] = f32["I_b"] / per(hover_cur)
     for k in range(1, 5):
@@ -104,4 +190,4 @@ def apply_profile(name: str, raw: dict[str, np.ndarray], cells, hover_cmd, hover
         collective = (((a[0] + a[1]) + a[2]) + a[3]) * np.float32(0.25)
         for k in range(1, 5):
             values[f"esc{k}_t_rel"] = a[k - 1] - collective
-    return np.stack([values[ch.name] for ch in spec], axis=-1).astype(np.float32)
+    return values

@@ -1,1 +1,2 @@
-"""``quadfdi detect``: an exported model on a real flight -> probabilities, alarms, one figure (docs/detect.md)."""
+"""``quadfdi detect``: an exported model on real flights -> probabilities, alarms, the evidence for each
+alarm, a page per flight and a fleet index (docs/detect.md)."""

@@ -1,7 +1,13 @@
 """``quadfdi detect --model RUN/export [--net cnode|gru] [--precision fp32|int8] [--runtime ort|cpp]
-(FLIGHT | --dataset DATASET.npz --flight N) --out DIR``: an exported model on a real flight (a .ulg /
-.BIN log, ingested on the fly, or an ingested flight.npz) or a simulated one (sim/flight_npz.py).
-A flight it cannot use is refused: one line, exit 2, nothing written."""
+(LOG_OR_FOLDER... | --dataset DATASET.npz --flight N) --out DIR [--workers N] [--fleet]``: an exported
+model on real flights (PX4 / ArduPilot / Crazyflie logs, ingested on the fly, or ingested
+flight.npz files) or a simulated one (sim/flight_npz.py).
+
+One flight (one file, or --dataset): DIR/alarms.json, windows.npz, detect.png, evidence.json and
+the page index.html; a flight it cannot use is refused: one line, exit 2, nothing written.
+A folder, several logs, or --fleet: one folder per flight, summary.json and the fleet index
+(detect.batch), with the fleet's exit status (0 no alarm, 1 alarm, 3 some refused, 4 both; 2 error).
+"""
 
 from __future__ import annotations
 
@@ -10,31 +16,61 @@ from pathlib import Path
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("detect", help="run an exported model on a real flight: probabilities, alarms, a figure",
+    p = sub.add_parser("detect", help="run an exported model on real flights: probabilities, alarms, pages",
                        description="Per-window class probabilities, the alarm timeline under the manifest's "
-                                   "policy, DIR/alarms.json, DIR/windows.npz and DIR/detect.png (docs/detect.md).")
-    p.add_argument("flight", metavar="FLIGHT", nargs="?", help="a PX4 .ulg, an ArduPilot .BIN or an ingested flight.npz")
-    p.add_argument("--dataset", help="a simulated dataset.npz instead of FLIGHT (the realistic suite's)")
+                                   "policy, the evidence for each alarm and a page per flight (docs/detect.md). "
+                                   "Exit status of a fleet (a folder, several logs or --fleet): 0 no alarm, "
+                                   "1 an alarm raised, 3 some logs refused (no alarm), 4 an alarm raised and "
+                                   "some logs refused, 2 bad usage or an error.")
+    p.add_argument("logs", metavar="LOG_OR_FOLDER", nargs="*",
+                   help="PX4 .ulg, ArduPilot .BIN, Crazyflie uSD logs or ingested flight.npz files, or folders "
+                        "searched recursively for them (known by content, not by name)")
+    p.add_argument("--dataset", help="a simulated dataset.npz instead of logs (the realistic suite's)")
     p.add_argument("--flight", dest="index", type=int, help="with --dataset: the flight's index")
     p.add_argument("--model", required=True, help="the export folder (RUN/export) holding manifest.json")
     p.add_argument("--net", choices=("cnode", "gru"), default="cnode", help="which network (default: %(default)s)")
     p.add_argument("--precision", choices=("fp32", "int8"), default="fp32")
     p.add_argument("--runtime", choices=("ort", "cpp"), default="ort",
                    help="ONNX Runtime on the exported graph, or the C++ reference on weights.bin")
-    p.add_argument("--out", required=True, help="folder to write alarms.json, windows.npz and detect.png into")
+    p.add_argument("--out", required=True, help="the output folder")
+    p.add_argument("--workers", type=int, default=None,
+                   help="flights decided in parallel processes (default: the CPU count)")
+    p.add_argument("--fleet", action="store_true",
+                   help="the fleet layout and exit status even for one log file")
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
     from quadfdi.core.errors import QuadfdiError
-    from quadfdi.detect.run import detect, write_detect
-    from quadfdi.formats.dataset import load_dataset
-    from quadfdi.sim.flight_npz import flight_arrays
 
-    if (args.dataset is None) == (args.flight is None) or (args.dataset is not None and args.index is None):
-        raise QuadfdiError("detect needs either FLIGHT or --dataset DATASET.npz --flight N")
-    flight = (flight_arrays(load_dataset(args.dataset).arrays, args.index, Path(args.dataset).name) if args.dataset
-              else args.flight)
-    result = detect(args.model, flight, args.net, args.precision, args.runtime)  # refusals raise here
+    if args.workers is not None and args.workers < 1:
+        raise QuadfdiError(f"--workers must be at least 1, not {args.workers}")
+    if args.dataset is not None or args.index is not None:
+        if args.dataset is None or args.index is None or args.logs:
+            raise QuadfdiError("detect needs either logs or --dataset DATASET.npz --flight N")
+        from quadfdi.formats.dataset import load_dataset
+        from quadfdi.sim.flight_npz import flight_arrays
+
+        return single(args, flight_arrays(load_dataset(args.dataset).arrays, args.index, Path(args.dataset).name))
+    if not args.logs:
+        raise QuadfdiError("detect needs either logs or --dataset DATASET.npz --flight N")
+    if len(args.logs) == 1 and Path(args.logs[0]).is_file() and not args.fleet:
+        return single(args, args.logs[0])
+    from quadfdi.detect.batch import detect_many
+
+    return detect_many(args.model, args.logs, args.out, args.net, args.precision, args.runtime,
+                       args.workers)["exit_status"]
+
+
+def single(args: argparse.Namespace, flight) -> int:
+    """One flight into DIR (alarms.json, windows.npz, detect.png, evidence.json, index.html, plotly.min.js)."""
+    from quadfdi.detect.batch import decide_flight, write_flight_folder
+    from quadfdi.detect.html import write_plotly_js
+    from quadfdi.detect.run import write_detect
+
+    result, arrays, evidence, date = decide_flight(flight, args.model, args.net, args.precision,
+                                                   args.runtime)  # refusals raise here
     write_detect(args.out, result)
+    write_plotly_js(Path(args.out))
+    write_flight_folder(Path(args.out), result, arrays, evidence, date, "plotly.min.js", None)
     return 0

@@ -9,6 +9,16 @@ the hover estimate; too short for one decided window.
 A window decides when it ends at or after the hover estimate's freeze and every sample of every
 channel the profile reads is backed by logged data (flight.npz ``mask``); the others are kept on
 the window grid, marked undecided (the alarm policy skips them: core.alarm ``valid``).
+
+The masked profile (``flightlog-mask``) refuses only a flight without the minimum (core/channels.py
+MINIMUM_RAW: the refusal names the channel and ingest's status) or too short for one decided window.
+A group (core/channels.py AVAILABILITY_GROUPS) is available when each of its channels is "ok" in
+flight.npz's ``channel_status``; ``battery`` also needs the pack's cell count, ``current`` a current
+during the hover estimate's steady seconds. A lacking group's channels take their fills
+(core.profiles.apply_profile), an absent pitch enters the hover estimate as 0 (core.hover), and
+``FlightRaw.absent`` says why each of its channels is absent (for alarms.json). ``flight_raw`` is
+what detect and ``quadfdi stream-file`` both read of a flight, so the stream carries the channels
+detect uses.
 """
 
 from __future__ import annotations
@@ -20,10 +30,12 @@ from pathlib import Path
 import numpy as np
 
 from quadfdi.core import hover
+from quadfdi.core.channels import AVAILABILITY_GROUPS, MINIMUM_RAW
 from quadfdi.core.errors import QuadfdiError
-from quadfdi.core.profiles import apply_profile, channel_names, required_raw, uses_hover
+from quadfdi.core.profiles import apply_profile, channel_names, is_masked, required_raw, uses_hover
 
 MULTIROTOR_FRAMES = ("quadrotor", "quad", "quad-x", "quad-plus", "x", "plus")
+NOT_IN_FLIGHT = "absent: not in flight.npz"
 
 
 @dataclass
@@ -38,6 +50,22 @@ class FlightInputs:
     cells: int
     channel_names: list[str]
     airborne_s: float
+    available: dict[str, bool] | None = None  # the masked profile: group -> the flight has it
+    absent: dict[str, str] | None = None  # the masked profile: raw channel -> why it is absent
+
+
+@dataclass
+class FlightRaw:
+    """What a profile reads of one flight: the raw channels it uses (name -> (T,) float32), the (T,)
+    all-backed mask, the cell count (0: unknown, the masked profile without the battery group), the
+    hover estimate, and for the masked profile the groups' availability and why channels are absent."""
+
+    raw: dict[str, np.ndarray]
+    used: np.ndarray
+    cells: int
+    hover: hover.Hover
+    available: dict[str, bool] | None = None
+    absent: dict[str, str] | None = None
 
 
 def read_flight(path: str | Path) -> dict[str, np.ndarray]:
@@ -74,15 +102,83 @@ def _raw_channels(arrays: dict, profile: str) -> tuple[dict[str, np.ndarray], np
     return raw, used
 
 
-def _cells(arrays: dict) -> int:
+def _cells(arrays: dict, required: bool = True) -> int:
+    """The pack's cell count; unknown: a refusal, or 0 when not ``required``."""
     vehicle = json.loads(str(arrays["vehicle"]))
     frame = str(vehicle.get("frame", "")).lower()
     if frame and frame not in MULTIROTOR_FRAMES:
         raise QuadfdiError(f"{arrays['log_file']}: not a quadrotor (frame {frame!r})")
     cells = (vehicle.get("battery") or {}).get("cells")
-    if not cells:
+    if not cells and required:
         raise QuadfdiError(f"{arrays['log_file']}: the pack's cell count is unknown (no BAT*_N_CELLS nor cell_count)")
-    return int(cells)
+    return int(cells or 0)
+
+
+def _masked_raw(arrays: dict, profile: str, cells: int) -> tuple[dict, np.ndarray, dict, dict]:
+    """The masked profile's raw channels: the minimum (or a refusal naming the channel and its status)
+    and every available group's; the (T,) all-backed mask, group -> available, channel -> why absent."""
+    names = [str(n) for n in arrays["channel_names"]]
+    status = {n: str(s) for n, s in zip(names, arrays["channel_status"])}
+    where = str(arrays["log_file"])
+    for r in MINIMUM_RAW:
+        if status.get(r) != "ok":
+            raise QuadfdiError(f"{where}: profile {profile!r} needs channel {r!r} (its minimum), which is "
+                               f"{status.get(r, NOT_IN_FLIGHT)}")
+    available, absent = {}, {}
+    for g in AVAILABILITY_GROUPS:
+        bad = {r: status.get(r, NOT_IN_FLIGHT) for r in g.raw if status.get(r) != "ok"}
+        if not bad and g.name == "battery" and cells < 1:
+            bad = {"V_b": "the pack's cell count is unknown (no BAT*_N_CELLS nor cell_count)"}
+        available[g.name] = not bad
+        first = next(iter(bad.items()), None)
+        absent.update({r: bad.get(r, f"{first[0]} of its group ({g.name}) is {first[1]}") for r in g.raw} if bad else {})
+    raw, used = {}, np.ones(len(arrays["time"]), bool)
+    for r in [c for c in required_raw(profile) if c in MINIMUM_RAW or c not in absent]:
+        j = names.index(r)
+        raw[r] = np.asarray(arrays["telemetry"][:, j], np.float32)
+        used &= np.asarray(arrays["mask"][:, j], bool)
+    return raw, used, available, absent
+
+
+def _hover(raw: dict, airborne: np.ndarray, where: str) -> hover.Hover:
+    """The hover estimate of the raw channels (an absent pitch: level; an absent current: NaN)."""
+    t = len(airborne)
+    fill = {"pitch": np.zeros(t, np.float32)}
+    cols = np.stack([raw.get(c, fill.get(c, np.full(t, np.nan, np.float32))) for c in hover.INPUTS], axis=1)
+    est = hover.estimate(cols, airborne)
+    if not est.ok:
+        raise QuadfdiError(f"{where}: never {hover.STEADY_SAMPLES} steady airborne samples in a row "
+                           f"({hover.STEADY_SAMPLES * 0.04:.0f} s of hover) for the hover estimate (core.hover)")
+    return est
+
+
+def flight_raw(arrays: dict, profile: str) -> FlightRaw:
+    """The raw channels, cell count, hover estimate and availability profile ``profile`` reads of one
+    ingested flight, or a one-line refusal (module docstring)."""
+    where = str(arrays["log_file"])
+    airborne = np.asarray(arrays["airborne"], bool)
+    if not is_masked(profile):
+        cells = _cells(arrays)
+        raw, used = _raw_channels(arrays, profile)
+        est = _hover(raw, airborne, where)
+        if "i_rel" in channel_names(profile, []) and not np.isfinite(est.cur):
+            raise QuadfdiError(f"{where}: the current has gaps during the hover estimate's steady seconds")
+        return FlightRaw(raw, used, cells, est)
+    cells = _cells(arrays, required=False)
+    raw, used, available, absent = _masked_raw(arrays, profile, cells)
+    est = _hover(raw, airborne, where)
+    if available["current"] and not np.isfinite(est.cur):  # no hover current: i_rel cannot be formed
+        available["current"] = False
+        absent["I_b"] = "gaps during the hover estimate's steady seconds"
+        raw.pop("I_b")  # the estimate's command and freeze do not read the current
+        used = _backed(arrays, raw)
+    return FlightRaw(raw, used, cells, est, available, absent)
+
+
+def _backed(arrays: dict, raw: dict) -> np.ndarray:
+    """(T,) bool: every channel of ``raw`` backed by logged data (flight.npz ``mask``)."""
+    names = [str(n) for n in arrays["channel_names"]]
+    return np.asarray(arrays["mask"][:, [names.index(r) for r in raw]], bool).all(axis=1)
 
 
 def flight_inputs(arrays: dict, profile: str, window: int, stride: int) -> FlightInputs:
@@ -91,20 +187,12 @@ def flight_inputs(arrays: dict, profile: str, window: int, stride: int) -> Fligh
     if not uses_hover(profile):
         raise QuadfdiError(f"{where}: profile {profile!r} is the simulator's telemetry (motor temperatures, "
                            "thrust-fraction commands): train with --set train.profile=flightlog-min for real flights")
-    cells = _cells(arrays)
-    raw, used = _raw_channels(arrays, profile)
-    airborne = np.asarray(arrays["airborne"], bool)
-    cols = np.stack([raw.get(c, np.full(len(airborne), np.nan, np.float32)) for c in hover.INPUTS], axis=1)
-    est = hover.estimate(cols, airborne)
-    if not est.ok:
-        raise QuadfdiError(f"{where}: never {hover.STEADY_SAMPLES} steady airborne samples in a row "
-                           f"({hover.STEADY_SAMPLES * 0.04:.0f} s of hover) for the hover estimate (core.hover)")
-    if "i_rel" in channel_names(profile, []) and not np.isfinite(est.cur):
-        raise QuadfdiError(f"{where}: the current has gaps during the hover estimate's steady seconds")
-    x = apply_profile(profile, raw, cells, est.cmd, est.cur)
+    fr = flight_raw(arrays, profile)
+    airborne, est = np.asarray(arrays["airborne"], bool), fr.hover
+    x = apply_profile(profile, fr.raw, fr.cells, est.cmd, est.cur, fr.available)
     t = len(airborne)
     starts = np.arange(0, t - window + 1, stride, dtype=np.int64) if t >= window else np.zeros(0, np.int64)
-    ok = used & airborne & np.isfinite(x).all(axis=1)
+    ok = fr.used & airborne & np.isfinite(x).all(axis=1)
     cs = np.concatenate([[0], np.cumsum(ok)])
     decided = (starts + window - 1 >= est.freeze) & (cs[starts + window] - cs[starts] == window)
     if not decided.any():
@@ -112,8 +200,9 @@ def flight_inputs(arrays: dict, profile: str, window: int, stride: int) -> Fligh
                            f"channel backed after the hover estimate froze at {arrays['time'][est.freeze]:.1f} s "
                            f"({float(airborne.sum()) * 0.04:.1f} s airborne)")
     return FlightInputs(name=Path(where).name, time=np.asarray(arrays["time"], np.float64), x=x, used=ok,
-                        starts=starts, decided=decided, hover=est, cells=cells,
-                        channel_names=channel_names(profile, []), airborne_s=float(airborne.sum()) * 0.04)
+                        starts=starts, decided=decided, hover=est, cells=fr.cells,
+                        channel_names=channel_names(profile, []), airborne_s=float(airborne.sum()) * 0.04,
+                        available=fr.available, absent=fr.absent)
 
 
 def windows(fi: FlightInputs, window: int) -> np.ndarray:

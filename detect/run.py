@@ -5,7 +5,8 @@ Writes into OUT (only once everything is computed; a refusal writes nothing):
 - ``alarms.json``: the flight, model, precision, runtime, profile, the net's policy and where it came
   from (``policy_source``: the manifest's ``alarm_per_model`` source, or "manifest alarm"), hover estimate,
   exposure (flight-seconds covered by decided windows) and the alarms (start_s, end_s, class,
-  motor, peak_p_fault);
+  motor, peak_p_fault); a masked-profile model adds ``channels``: the raw channels ``used``, the
+  ``absent`` ones with why (ingest's status) and the availability ``groups`` (detect/inputs.py);
 - ``windows.npz``: per window on the grid ``t_end``, ``decided``, ``proba`` (NaN if undecided),
   ``votes``, ``active``, ``cls`` (-1 inactive), ``class_names``, ``motor`` (int8, 1..4 or 0: detect.motor)
   and, for a model with a motor head, ``motor_proba`` (n, 4) float32 (NaN if undecided);
@@ -21,6 +22,7 @@ import numpy as np
 
 from quadfdi.core.alarm import alarm_records, run_alarm
 from quadfdi.core.errors import QuadfdiError
+from quadfdi.core.profiles import required_raw
 from quadfdi.core.resample import GRID_DT
 from quadfdi.formats.flight import GRID_TOL_S, check_time
 from quadfdi.detect.inputs import FlightInputs, flight_inputs, read_flight, windows
@@ -100,6 +102,9 @@ def detect(model: str | Path, flight: str | Path | dict, net: str = "cnode", pre
                         "freeze_s": float(fi.time[fi.hover.freeze]), "cells": fi.cells},
               "airborne_s": round(fi.airborne_s, 2), "windows": int(n), "decided_windows": int(fi.decided.sum()),
               "exposure_s": round(exposure_s(fi, window, dt), 2), "alarms": alarms}
+    if fi.available is not None:  # the masked profile: what the decision read and what it went without
+        record["channels"] = {"used": [r for r in required_raw(profile) if r not in fi.absent],
+                              "absent": dict(fi.absent), "groups": dict(fi.available)}
     arrays = {"t_end": t_end, "decided": fi.decided, "proba": proba.astype(np.float32), "votes": trace.votes[0],
               "active": trace.active[0], "cls": trace.cls[0], "class_names": np.array(names),
               "motor": window_motor(proba, motor_p, healthy, rotor)}

@@ -46,15 +46,19 @@ def run(args: argparse.Namespace) -> int:
 
 
 def from_flight(path: str | Path, record: dict) -> RawStream:
-    """A real flight (.ulg / .BIN ingested on the fly, or flight.npz) with detect's refusals."""
-    from quadfdi.detect.inputs import _cells, _raw_channels, read_flight
+    """A real flight (.ulg / .BIN ingested on the fly, or flight.npz) with detect's refusals; the masked
+    profile's stream carries the channels detect uses (detect.inputs.flight_raw), the others NaN."""
+    from quadfdi.detect.inputs import flight_raw, read_flight
 
     if not record["cells_from_stream"]:
         raise QuadfdiError(f"profile {record['profile']!r} is the simulator's telemetry: a real flight cannot feed it "
                            "(train with --set train.profile=flightlog-min)")
     arrays = read_flight(path)
-    cells = _cells(arrays)
-    raw, _ = _raw_channels(arrays, record["profile"])
-    cols = [np.asarray(arrays["airborne"], np.float32) if r == AIRBORNE else raw[r] for r in record["raw_channels"]]
+    fr = flight_raw(arrays, record["profile"])
+    t = len(arrays["time"])
+    carried = np.array([r == AIRBORNE or r in fr.raw for r in record["raw_channels"]])
+    cols = [np.asarray(arrays["airborne"], np.float32) if r == AIRBORNE else fr.raw.get(r, np.full(t, np.nan, np.float32))
+            for r in record["raw_channels"]]
     return RawStream(Path(path).name, record["profile"], list(record["raw_channels"]), float(record["sample_dt_s"]),
-                     cells, np.asarray(arrays["time"], np.float64), np.stack(cols, axis=1).astype(np.float32))
+                     fr.cells, np.asarray(arrays["time"], np.float64), np.stack(cols, axis=1).astype(np.float32),
+                     None if carried.all() else carried)

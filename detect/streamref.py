@@ -4,8 +4,11 @@
 ``windows_of(rs, record)`` applies the same rules as detect/inputs.py to a RawStream
 (formats/stream.py): the hover estimate over the whole stream (core.hover), the profile
 (core.profiles.apply_profile), windows on the grid starts 0, stride, ... and a window decided when
-it ends at or after the freeze and every one of its samples is usable (every raw channel finite,
-airborne, every model value finite). ``paper``: the identity, no hover estimate.
+it ends at or after the freeze and every one of its samples is usable (every carried raw channel
+finite, airborne, every model value finite). ``paper``: the identity, no hover estimate. The masked
+profile: a group is available when the stream carries each of its channels (core.profiles
+groups_carried), an absent pitch enters the hover estimate as 0, a lacking group's model channels
+take their fills; a profile without a mask refuses a stream that does not carry every channel.
 
 ``stepped_of(sw)`` and ``sgru_logits`` state the per-sample model's rules (the streaming GRU,
 fwref/stream.hpp): a sample is stepped when it is usable and the hover estimate has frozen at or
@@ -21,7 +24,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from quadfdi.core import hover
-from quadfdi.core.profiles import apply_profile, uses_hover
+from quadfdi.core.errors import QuadfdiError
+from quadfdi.core.profiles import apply_profile, groups_carried, is_masked, uses_hover
 from quadfdi.formats.stream import RawStream
 from quadfdi.runtimes.fwref import stream_lines as read_lines  # noqa: F401  (fwref_stream's output reader)
 
@@ -52,13 +56,21 @@ def windows_of(rs: RawStream, record: dict) -> StreamWindows:
         ok = np.isfinite(x).all(axis=1)
         est, nohover = None, np.zeros(len(starts), bool)
     else:
+        carried = rs.carried_flags
+        if not carried.all() and not is_masked(profile):
+            raise QuadfdiError(f"stream {rs.source}: profile {profile!r} needs every channel; the stream lacks "
+                               f"{', '.join(n for n, c in zip(rs.names, carried) if not c)}")
         airborne = rs.column("airborne") >= 0.5
-        cols = np.stack([rs.column(c) if c in rs.names else np.full(t, np.nan, np.float32) for c in hover.INPUTS], 1)
+        have = {n for n, c in zip(rs.names, carried) if c}
+        level = {"pitch": np.zeros(t, np.float32)}  # an absent pitch: level in the steady test (core.hover)
+        cols = np.stack([rs.column(c) if c in have else level.get(c, np.full(t, np.nan, np.float32))
+                         for c in hover.INPUTS], 1)
         est = hover.estimate(cols, airborne)
-        raw = {n: rs.column(n) for n in rs.names if n != "airborne"}
+        raw = {n: rs.column(n) for n in rs.names if n != "airborne" and n in have}
+        available = groups_carried(have) if is_masked(profile) else None
         with np.errstate(invalid="ignore", divide="ignore"):
-            x = apply_profile(profile, raw, rs.cells, est.cmd, est.cur)
-        ok = np.isfinite(rs.values[:, :-1]).all(axis=1) & airborne & np.isfinite(x).all(axis=1)
+            x = apply_profile(profile, raw, rs.cells, est.cmd, est.cur, available)
+        ok = np.isfinite(rs.values[:, :-1][:, carried[:-1]]).all(axis=1) & airborne & np.isfinite(x).all(axis=1)
         nohover = ~((est.freeze >= 0) & (ends >= est.freeze))
     cs = np.concatenate([[0], np.cumsum(ok)])
     decided = ~nohover & (cs[starts + window] - cs[starts] == window)

@@ -218,3 +218,15 @@ def make_windows(ds: Dataset, split: str | int | None = None, window: int | None
     """
     traj, start = window_index(ds, split_rows(ds, split), window, stride)
     return gather_windows(ds, traj, start, window)
+
+
+def flights_by_class(ds: Dataset, n: int) -> list[int]:
+    """Up to ``n`` test flights of ``ds``: round-robin over the classes (the first of each, then the
+    second ...), the flights the stream checks replay."""
+    test = [i for i, s in enumerate(split_names(ds.arrays)) if s == "test"]
+    rows = np.flatnonzero(np.isin(ds["split"], test))
+    per_class = [rows[ds["fault_class"][rows] == c].tolist() for c in range(len(class_names(ds.arrays)))]
+    out: list[int] = []
+    for j in range(max((len(p) for p in per_class), default=0)):
+        out += [int(p[j]) for p in per_class if j < len(p)]
+    return out[:n]

@@ -14,6 +14,11 @@ After it, ``alarm.models`` (optional too): one policy per network (export/alarm_
 it) runs ``alarm.policy`` for every model, as does a model it does not list (``policy_of``, which is
 core.alarm.resolve_policy; the C++: fwref::policy_for).
 
+The masked profile (``flightlog-mask``, id 4) needs nothing more here: its availability groups and fills
+belong to the profile id (core/channels.py, compiled into the C++ from fwref/channels_gen.hpp), and which
+channels a flight lacks is the flight's, so the stream file says it (formats/stream.py carried flags),
+not the record; its raw channels stay every channel the profile can read, in one fixed order.
+
 The tables behind the record are written once elsewhere: profile ids and channel names in
 core/channels.py, model codes and the policy columns (``ALARM_POLICY_COLUMNS``,
 ``ALARM_MODELS_COLUMNS``) in core/contracts.py; the C++ reads the same tables from the generated

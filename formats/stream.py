@@ -4,15 +4,23 @@ controller would deliver, for ``fwref_stream`` (firmware_ref's streaming runtime
 Little-endian; a 128-byte fixed header, the channel names, then the samples:
 
     0   char[8]   magic          b"QFDISTR\\0"
-    8   u32       version        1
-    12  u32       header_bytes   where the samples begin (128 + names, padded to a multiple of 8)
+    8   u32       version        2 (1: no carried flags, every channel carried)
+    12  u32       header_bytes   where the samples begin (128 + names + flags, padded to a multiple of 8)
     16  u32       n_channels     R
     20  u32       cells          the pack's cell count (0: unknown / not needed)
     24  f64       sample_dt_s    the grid period (0.04)
     32  char[32]  profile        the channel profile the stream is for (core.profiles), NUL-padded
     64  char[64]  source         the flight it came from, NUL-padded (truncated)
-    128 names     R channel names, each NUL-terminated ASCII, then zero padding
+    128 names     R channel names, each NUL-terminated ASCII
+        carried   u8[R] (version 2): 1 the stream carries the channel, 0 the flight lacks it (its column
+                  is NaN throughout); then zero padding
     SAMPLES       f64 t (s), f32 values[R]   (8 + 4R bytes each; NaN = no data for that channel)
+
+The columns are always the on-board record's, so the C++ reads every profile by position; a flight
+lacking channels says which with the carried flags. Only the masked profile (core/channels.py
+``flightlog-mask``) accepts a stream that does not carry every channel (its minimum always), and
+takes each availability group as present when every channel of it is carried (fwref/stream.hpp
+``Stream::set_carried``); a NaN sample in a carried channel is a gap, as in version 1.
 
 The channels are the raw ones the export's on-board record names, in its order
 (formats/onboard.py stream_channels; the record of an export: formats.export_folder.Export.onboard):
@@ -32,7 +40,8 @@ from quadfdi.core.channels import AIRBORNE
 from quadfdi.core.errors import QuadfdiError
 
 MAGIC = b"QFDISTR\0"
-VERSION = 1
+VERSION = 2
+READS = (1, 2)  # version 1: every channel carried
 FIXED = struct.Struct("<8sIIIId32s64s")  # 128 bytes
 
 
@@ -45,13 +54,25 @@ class RawStream:
     cells: int
     time: np.ndarray  # (T,) float64, s
     values: np.ndarray  # (T, R) float32
+    carried: np.ndarray | None = None  # (R,) bool: the flight has the channel (None: every channel)
 
     def column(self, name: str) -> np.ndarray:
         return self.values[:, self.names.index(name)]
 
+    @property
+    def carried_flags(self) -> np.ndarray:
+        """(R,) bool, every channel carried when ``carried`` is None."""
+        return np.ones(len(self.names), bool) if self.carried is None else np.asarray(self.carried, bool)
+
+    def carries(self, name: str) -> bool:
+        return bool(self.carried_flags[self.names.index(name)])
+
 
 def stream_bytes(rs: RawStream) -> bytes:
-    names = b"".join(n.encode("ascii") + b"\0" for n in rs.names)
+    flags = rs.carried_flags
+    if len(flags) != len(rs.names) or np.isfinite(rs.values[:, ~flags]).any():
+        raise QuadfdiError(f"stream {rs.source}: a channel it does not carry must be NaN throughout, one flag per channel")
+    names = b"".join(n.encode("ascii") + b"\0" for n in rs.names) + flags.astype(np.uint8).tobytes()
     header_bytes = FIXED.size + len(names) + (-(FIXED.size + len(names))) % 8
     head = FIXED.pack(MAGIC, VERSION, header_bytes, len(rs.names), int(rs.cells), float(rs.sample_dt_s),
                       rs.profile.encode("ascii"), rs.source.encode("utf-8")[:63])
@@ -98,25 +119,33 @@ def read_stream(path: str | Path) -> RawStream:
     if len(data) < FIXED.size or data[:8] != MAGIC:
         raise QuadfdiError(f"{path} is not a quadfdi stream file")
     _, version, header_bytes, r, cells, dt, profile, source = FIXED.unpack_from(data)
-    if version != VERSION:
-        raise QuadfdiError(f"{path} has stream version {version}, this reader reads {VERSION}")
+    if version not in READS:
+        raise QuadfdiError(f"{path} has stream version {version}, this reader reads {' and '.join(map(str, READS))}")
     if not (FIXED.size + r <= header_bytes <= min(MAX_HEADER_BYTES, len(data)) and 1 <= r <= MAX_CHANNELS):
         raise QuadfdiError(f"{path} has a bad header: header_bytes {header_bytes}, {r} channels")
     if not (np.isfinite(dt) and dt > 0):
         raise QuadfdiError(f"{path} has sample period {dt} s: not a positive finite number")
-    names = [n.decode("ascii", "replace") for n in data[FIXED.size:header_bytes].split(b"\0")[:r]]
+    head = data[FIXED.size:header_bytes]
+    names = [n.decode("ascii", "replace") for n in head.split(b"\0")[:r]]
+    end = sum(len(n.encode("ascii", "replace")) + 1 for n in names)
+    carried = np.frombuffer(head[end:end + r], np.uint8) if version >= 2 else np.ones(r, np.uint8)
     body = data[header_bytes:]
     rec = np.dtype([("t", "<f8"), ("v", "<f4", (r,))])
-    if len(names) != r or len(body) % rec.itemsize:
+    if len(names) != r or len(carried) != r or not np.isin(carried, (0, 1)).all() or len(body) % rec.itemsize:
         raise QuadfdiError(f"{path} is truncated or has a bad header")
     arr = np.frombuffer(body, rec)
     return RawStream(source.rstrip(b"\0").decode("utf-8", "replace"), profile.rstrip(b"\0").decode("ascii", "replace"),
-                     names, float(dt), int(cells), arr["t"].astype(np.float64), arr["v"].astype(np.float32).reshape(-1, r))
+                     names, float(dt), int(cells), arr["t"].astype(np.float64), arr["v"].astype(np.float32).reshape(-1, r),
+                     carried.astype(bool))
 
 
 def from_dataset(dataset: str | Path, flight: int, record: dict, ds=None) -> RawStream:
     """Flight ``flight`` of a simulated dataset.npz (every simulated flight is airborne throughout);
-    ``ds`` the file already loaded (formats.dataset.load_dataset), for a caller taking several flights."""
+    ``ds`` the file already loaded (formats.dataset.load_dataset), for a caller taking several flights.
+    The masked profile: the flight carries the channels of its mask pattern (core.profiles.flight_pattern,
+    as models.inputs.profiled_dataset gives the window path), the others NaN and not carried."""
+    from quadfdi.core.profiles import flight_pattern, is_masked
+    from quadfdi.core.channels import GROUP_OF_RAW
     from quadfdi.formats.dataset import load_dataset
 
     ds = load_dataset(dataset) if ds is None else ds
@@ -140,5 +169,11 @@ def from_dataset(dataset: str | Path, flight: int, record: dict, ds=None) -> Raw
             raise QuadfdiError(f"{dataset} has no pack_cells: profile {record['profile']!r} needs the cell count")
         cells = int(ds["pack_cells"][flight])
     dt = float(ds.config.sim.sample_dt_s)
+    values = np.stack(cols, axis=1).astype(np.float32)
+    carried = None
+    if is_masked(record["profile"]):
+        lacks = set(flight_pattern(int(ds["traj_index"][flight])).groups)
+        carried = np.array([GROUP_OF_RAW.get(r) not in lacks for r in record["raw_channels"]])
+        values[:, ~carried] = np.nan
     return RawStream(f"{Path(dataset).name}#{flight}", record["profile"], list(record["raw_channels"]), dt, cells,
-                     np.arange(tel.shape[1]) * dt, np.stack(cols, axis=1).astype(np.float32))
+                     np.arange(tel.shape[1]) * dt, values, carried)

@@ -12,6 +12,13 @@ no decision on a real vehicle (detect gives none): ``decided`` tells them, and t
 validation drop them (train.data). The test metrics and prediction sets keep every window (the
 evaluation's window grid); the windows before the freeze there use the estimate from later in the
 flight (docs/profiles.md says so).
+
+The masked profile (``flightlog-mask``): every flight gets the channels of one mask pattern
+(core.profiles.flight_pattern of its ``traj_index``: the patterns in turn), its lacking groups at
+their fills, an absent pitch entering the hover estimate as 0 (core.hover); ``mask_pattern`` (F,)
+stores each flight's pattern index (core/channels.py MASK_PATTERNS). That is the dataset export
+calibrates and verifies on and parity replays. ``patterns=False`` gives every flight every channel
+(``mask_pattern`` 0, "all"): training draws its own pattern per window (train/masks.py).
 """
 
 from __future__ import annotations
@@ -21,8 +28,10 @@ import dataclasses
 import numpy as np
 
 from quadfdi.core.errors import QuadfdiError
+from quadfdi.core.channels import MASK_PATTERNS
 from quadfdi.core.hover import INPUTS as HOVER_INPUTS, collective, estimate_many
-from quadfdi.core.profiles import apply_profile, channel_names, channel_units, required_raw, uses_hover
+from quadfdi.core.profiles import (apply_profile, channel_names, channel_units, flight_pattern, is_masked,
+                                   pattern_available, required_raw, uses_hover)
 from quadfdi.formats.dataset import Dataset
 
 PROFILE_KEY = "profile"  # the checkpoint's key (train.run) and the manifest's (export.manifest)
@@ -35,7 +44,23 @@ def profile_of(blob_or_manifest: dict) -> str:
     return str(value["name"] if isinstance(value, dict) else value)
 
 
-def profiled_dataset(ds: Dataset, profile: str) -> Dataset:
+def flight_patterns(ds: Dataset, patterns: bool = True) -> np.ndarray:
+    """(F,) int: each flight's mask pattern index (0, "all", for every flight when ``patterns`` is False)."""
+    index = np.asarray(ds["traj_index"], np.int64)
+    if not patterns:
+        return np.zeros(len(index), np.int64)
+    return np.array([MASK_PATTERNS.index(flight_pattern(i)) for i in index], np.int64)
+
+
+def _availability(pattern: np.ndarray) -> dict[str, np.ndarray]:
+    """group -> (F,) bool of flights with pattern indices ``pattern``."""
+    per = [pattern_available(MASK_PATTERNS[i]) for i in pattern]
+    return {g: np.array([a[g] for a in per], bool) for g in (per[0] if per else {})}
+
+
+def profiled_dataset(ds: Dataset, profile: str, patterns: bool = True) -> Dataset:
+    """The dataset with the profile's inputs as ``telemetry`` (module docstring); ``patterns``: a
+    masked profile's flights each with their pattern's channels (False: every channel)."""
     if not uses_hover(profile):
         return ds
     names, tel = ds.channel_names, ds["telemetry"]
@@ -49,19 +74,28 @@ def profiled_dataset(ds: Dataset, profile: str) -> Dataset:
         raise QuadfdiError(f"profile {profile!r} needs raw channels {', '.join(missing)}, absent from {ds.path}")
     if "pack_cells" not in ds.arrays:
         raise QuadfdiError(f"profile {profile!r} needs each flight's cell count (pack_cells), absent from {ds.path}")
-    cmd, cur, freeze = estimate_many(tel[:, :, [names.index(c) for c in HOVER_INPUTS]])  # the dataset has I_b
+    hover_cols = tel[:, :, [names.index(c) for c in HOVER_INPUTS]]  # the dataset has I_b
+    masked = is_masked(profile)
+    pattern = flight_patterns(ds, patterns) if masked else None
+    available = _availability(pattern) if masked else None
+    if masked and not available["pitch"].all():  # a log without pitch: level in the steady test (core.hover)
+        hover_cols = hover_cols.copy()
+        hover_cols[~available["pitch"], :, HOVER_INPUTS.index("pitch")] = 0.0
+    cmd, cur, freeze = estimate_many(hover_cols)
     never = freeze < 0  # no decided window at all; their (evaluation-only) inputs use the whole-flight mean
     if never.any():
-        hv = tel[never][:, :, [names.index(c) for c in HOVER_INPUTS]]
+        hv = hover_cols[never]
         cmd[never] = collective(hv[:, :, 3:7]).mean(axis=1)
         cur[never] = hv[:, :, 7].mean(axis=1)
         freeze[never] = tel.shape[1]
     raw = {r: tel[:, :, names.index(r)] for r in required_raw(profile, names)}
-    x = apply_profile(profile, raw, ds["pack_cells"], cmd, cur)
+    x = apply_profile(profile, raw, ds["pack_cells"], cmd, cur, available)
     arrays = dict(ds.arrays)
     arrays.update(telemetry=x, channel_names=np.array(channel_names(profile, names)),
                   channel_units=np.array(channel_units(profile, [str(u) for u in ds["channel_units"]])),
                   hover_cmd=cmd, hover_cur=cur, hover_freeze=freeze)
+    if masked:
+        arrays["mask_pattern"] = pattern
     return dataclasses.replace(ds, arrays=arrays)
 
 

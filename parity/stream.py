@@ -34,6 +34,7 @@ from typing import Callable
 import numpy as np
 
 from quadfdi.core.errors import QuadfdiError
+from quadfdi.formats.dataset import flights_by_class
 from quadfdi.formats.export_folder import Export
 from quadfdi.formats.stream import RawStream
 from quadfdi.runtimes import mcu_cycles
@@ -57,18 +58,6 @@ class StreamInputs:
     rows: list[int]
 
 
-def pick_flights(ds, n: int) -> list[int]:
-    """Up to ``n`` test flights of ``ds``: round-robin over the classes (the first of each, then the
-    second ...)."""
-    from quadfdi.formats.dataset import class_names, split_names
-
-    test = [i for i, s in enumerate(split_names(ds.arrays)) if s == "test"]
-    rows = np.flatnonzero(np.isin(ds["split"], test))
-    per_class = [rows[ds["fault_class"][rows] == c].tolist() for c in range(len(class_names(ds.arrays)))]
-    out: list[int] = []
-    for j in range(max((len(p) for p in per_class), default=0)):
-        out += [int(p[j]) for p in per_class if j < len(p)]
-    return out[:n]
 
 
 def _cut_after_decisions(rs: RawStream, host_exe: Path, weights: Path, classes: int) -> RawStream:
@@ -102,7 +91,7 @@ def stream_inputs(run_root: Path, host_build: Path) -> StreamInputs | str:
     host_exe = build_host(host_build, log=lambda _: None) / "fwref_stream"  # built already by the host part
     classes = len(exp.class_names)
     ds = load_dataset(run_root / "dataset.npz")
-    rows = pick_flights(ds, FLIGHTS)
+    rows = flights_by_class(ds, FLIGHTS)
     if not rows:
         return f"{run_root / 'dataset.npz'} has no test flights"
     streams = {f"f{row}": _cut_after_decisions(from_dataset(run_root / "dataset.npz", row, record, ds), host_exe,

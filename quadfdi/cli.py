@@ -26,6 +26,7 @@ STAGES = {
     "detect": "quadfdi.detect.cli",
     "stream-file": "quadfdi.detect.stream_cli",
     "realism": "quadfdi.realism.cli",
+    "vehicle": "quadfdi.vehicle.cli",
     "evaluate": "quadfdi.evaluate.cli",
     "report": "quadfdi.report",
     "check": "quadfdi.check",

@@ -1,6 +1,7 @@
 """report.md: one markdown report of a whole run, assembled from every stage's own section.
 
-    quadfdi report --run runs/<name>     redraw the bench figures, rewrite report.md (no measuring)
+    quadfdi report --run runs/<name> [--html]   redraw the bench figures, rewrite report.md (no
+                                                measuring); with --html also report.html (report_html)
 
 Each stage owns its section and reads only its own files: ``report_section(run_root) -> list[str]``
 in sim.report, train.report, evaluate.report, export.report, parity.report, bench.report, solverstudy.report
@@ -59,24 +60,35 @@ def run_report_markdown(run_root: str | Path) -> str:
     return "\n".join(lines).rstrip() + "\n"
 
 
-def write_run_report(run_root: str | Path, log: Callable[[str], None] | None = None) -> Path:
-    """Write ``runs/<name>/report.md`` (atomically) from the run folder's files; return its path."""
+def write_run_report(run_root: str | Path, log: Callable[[str], None] | None = None, html: bool = False) -> Path:
+    """Write ``runs/<name>/report.md`` (atomically) from the run folder's files, and with ``html`` the
+    page ``report.html`` and its ``plotly.min.js``; return report.md's path."""
     from quadfdi.core.stage import stage
 
     root = Path(run_root)
     text = run_report_markdown(root)
     path = root / "report.md"
-    with stage(root, "report", {}, targets=("report.md",)) as st:  # published like every stage's output
+    targets = ("report.md",) + (("report.html", "plotly.min.js") if html else ())
+    with stage(root, "report", {}, targets=targets) as st:  # published like every stage's output
         write_text(st.path("report.md"), text)
+        if html:
+            from quadfdi.detect.html import write_plotly_js
+            from quadfdi.report_html import report_html
+
+            write_text(st.path("report.html"), report_html(root, text))
+            write_plotly_js(st.out)
     if log:
-        log(f"wrote {path}")
+        log(f"wrote {path}" + (f" and {root / 'report.html'}" if html else ""))
     return path
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("report", help="rewrite a run's report.md from its files (and redraw the bench figures)",
-                       description="Rewrite a run's report.md from the files its stages wrote; no measuring.")
+    p = sub.add_parser("report", help="rewrite a run's report.md (--html: and report.html) from its files",
+                       description="Rewrite a run's report.md (and with --html report.html) from the files its "
+                                   "stages wrote; no measuring.")
     p.add_argument("--run", required=True, help="run folder (e.g. runs/paper)")
+    p.add_argument("--html", action="store_true",
+                   help="also write report.html: the same report as one page with interactive figures")
     p.set_defaults(func=run_report)
 
 
@@ -93,5 +105,5 @@ def run_report(args: argparse.Namespace) -> int:
             st.redo_previous(("bench.json",))
             for f in redraw_figures(root, st.out):
                 print(f"wrote {root / f.relative_to(st.out)}")
-    write_run_report(root, log=print)
+    write_run_report(root, log=print, html=args.html)
     return 0

@@ -29,6 +29,7 @@ import time
 from pathlib import Path
 from typing import Callable, Iterator
 
+from quadfdi.core.cliargs import one_line_main
 from quadfdi.core.errors import QuadfdiError
 from quadfdi.core.resources import cache_root, firmware_digest, firmware_files
 
@@ -242,12 +243,7 @@ def main(argv: list[str] | None = None) -> int:
                                              "print the folder.")
     ap.add_argument("--asan", action="store_true", help="the sanitizer build (ASan + UBSan, assertions on)")
     args = ap.parse_args(argv)
-    try:
-        print(build_host(sanitize=args.asan, log=lambda _: None))
-    except QuadfdiError as exc:
-        print(f"python -m quadfdi.runtimes.build: error: {exc}", file=sys.stderr)
-        return 2
-    return 0
+    return one_line_main("python -m quadfdi.runtimes.build", lambda: build_host(sanitize=args.asan, log=lambda _: None))
 
 
 if __name__ == "__main__":

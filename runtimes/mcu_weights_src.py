@@ -31,6 +31,7 @@ import sys
 import tempfile
 from pathlib import Path
 
+from quadfdi.core.cliargs import one_line_main
 from quadfdi.core.errors import QuadfdiError
 from quadfdi.formats.reference_bin import read_reference
 from quadfdi.formats.weights_bin import read_weights
@@ -243,12 +244,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--manifest", type=Path, default=None, help="export/manifest.json: check the files' sha256")
     ap.add_argument("--out", required=True, type=Path)
     args = ap.parse_args(argv)
-    try:
+
+    def body() -> None:
         generate(args.weights, args.reference, args.out, args.manifest)
-    except FileError as exc:
-        print(f"{PROG}: error: {exc}", file=sys.stderr)
-        return 2
-    return 0
+
+    return one_line_main(PROG, body, (FileError,))
 
 
 if __name__ == "__main__":

@@ -8,7 +8,7 @@ cd "$(dirname "$0")/.."
 
 DEB_PKGS=(cmake g++ make libeigen3-dev gcc-arm-none-eabi libnewlib-arm-none-eabi
           libstdc++-arm-none-eabi-newlib qemu-system-arm binutils-arm-none-eabi
-          time valgrind util-linux clang-14 libfuzzer-14-dev libclang-rt-14-dev)
+          time valgrind util-linux clang-14 libfuzzer-14-dev libclang-rt-14-dev chromium chromium-driver)
 missing=()
 for p in "${DEB_PKGS[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

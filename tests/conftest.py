@@ -115,6 +115,31 @@ def flightlog_export(tmp_path_factory) -> Path:
                               export_sets=tuple(FLIGHTLOG_ALARM)) / "export"
 
 
+@pytest.fixture(scope="session")
+def mission_npz(tmp_path_factory) -> Path:
+    """The shared UAVCAN mission log ingested once (skips where the shared logs are not here)."""
+    log = SHARED_DATA / "flightlogs" / "px4_quad_6s_uavcan_mission.ulg"
+    if not log.is_file():
+        pytest.skip(f"the shared real flight logs are not at {log.parent}")
+    out = tmp_path_factory.mktemp("mission")
+    res = quadfdi("ingest", str(log), "--out", str(out))
+    assert res.returncode == 0, res.stderr
+    return out / "flight.npz"
+
+
+# ---- a flightlog-mask model (the masked profile: whatever channels a log has) on the same tiny dataset:
+# tests/test_masks.py and tests/test_masks_mcu.py share it
+
+MASKED_TRAIN = [v if not v.startswith("train.profile=") else "train.profile=flightlog-mask" for v in FLIGHTLOG_TRAIN]
+
+
+@pytest.fixture(scope="session")
+def masked_export(flightlog_export, tmp_path_factory) -> Path:
+    """RUN/export of the flightlog-min fixture's dataset trained with the masked profile through the CLI."""
+    return trained_export_run(flightlog_export.parent, tmp_path_factory.mktemp("masked_run") / "run", *MASKED_TRAIN,
+                              export_sets=tuple(FLIGHTLOG_ALARM)) / "export"
+
+
 # ---- the fault-injection suite's runs (tests/test_faults*.py)
 
 
@@ -155,8 +180,8 @@ def fault_exported(small_run, tmp_path_factory) -> Path:
 # end. The longest by --durations: the pipeline run (~2 min), the firmware builds and QEMU parity,
 # the streaming runtime's and detect's exports, the bench, the tanhq proof.
 LONG_FILES = ("test_wheel.py", "test_pipeline.py", "test_firmware.py", "test_stream.py", "test_firmware_tanhq.py",
-              "test_detect.py", "test_bench_report.py", "test_real_flights.py", "test_fuzz.py", "test_stream_gaps.py",
-              "test_distributed.py")
+              "test_masks_mcu.py", "test_masks.py", "test_detect.py", "test_bench_report.py", "test_real_flights.py",
+              "test_fuzz.py", "test_stream_gaps.py", "test_distributed.py")
 
 
 def pytest_collection_modifyitems(config, items):

@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 from quadfdi.bench.report_stream import stream_report
-from quadfdi.bench.stream import pick_flights, stream_section
+from quadfdi.bench.stream import stream_section
+from quadfdi.formats.dataset import flights_by_class
 from quadfdi.bench.stream_memory import limit_macros
 from quadfdi.formats.export_folder import Export
 from quadfdi.formats.dataset import load_dataset
@@ -24,9 +25,9 @@ def section(flightlog_export, host_build):  # noqa: F811
                           log=lambda _: None, cores=("cortex-m4",)), export
 
 
-def test_pick_flights_round_robin_over_test_classes(flightlog_export):
+def test_stream_flights_round_robin_over_test_classes(flightlog_export):
     ds = load_dataset(flightlog_export.parent / "dataset.npz")
-    rows = pick_flights(ds, 3)
+    rows = flights_by_class(ds, 3)
     test = [i for i, s in enumerate(ds["split_names"]) if str(s) == "test"]
     assert len(rows) == 3 and np.isin(ds["split"][rows], test).all()
     assert len(set(ds["fault_class"][rows].tolist())) == min(3, len(set(ds["fault_class"][np.isin(ds["split"], test)])))

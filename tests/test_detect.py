@@ -26,13 +26,6 @@ def export(flightlog_export) -> Path:
     return flightlog_export  # tests/conftest.py: shared with tests/test_stream.py
 
 
-@pytest.fixture(scope="module")
-def mission_npz(tmp_path_factory) -> Path:
-    out = tmp_path_factory.mktemp("flight")
-    res = quadfdi("ingest", str(MISSION), "--out", str(out))
-    assert res.returncode == 0, res.stderr
-    return out / "flight.npz"
-
 
 def test_manifest_carries_the_profile_and_the_policy(export):
     import torch

@@ -20,13 +20,6 @@ MISSION = SHARED_DATA / "flightlogs" / "px4_quad_6s_uavcan_mission.ulg"
 pytestmark = pytest.mark.skipif(not MISSION.is_file(), reason="the shared real flight logs are not here")
 
 
-@pytest.fixture(scope="module")
-def mission_npz(tmp_path_factory) -> Path:
-    out = tmp_path_factory.mktemp("mission")
-    res = quadfdi("ingest", str(MISSION), "--out", str(out))
-    assert res.returncode == 0, res.stderr
-    return out / "flight.npz"
-
 
 @pytest.mark.parametrize("case, change, words", [
     ("reversed", lambda t: t[::-1].copy(), "goes backwards"),

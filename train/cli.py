@@ -24,25 +24,29 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     add_config_args(p, config=False)
     p.set_defaults(func=run_train)
     acts = p.add_subparsers(dest="action", metavar="{study,apply,baselines,sgru}")
-    ps = acts.add_parser("study", help="train with several seeds: seeds.json and results.md (Tables 3-4)")
-    ps.add_argument("--run", required=True, help="run folder holding dataset.npz")
-    ps.add_argument("--seeds", default=None, help="comma-separated seeds (default: train.seeds)")
-    ps.add_argument("--sim-seeds", default=None, help="comma-separated simulator seeds (default: the run's sim.seed); "
-                    "each other seed is simulated into <run>/sims/seed<S>/ first")
-    ps.add_argument("--readme", default=None, help="also copy the table into this README between the results markers")
-    add_config_args(ps, config=False)
-    add_executor_args(ps)
-    ps.set_defaults(func=run_study_cmd)
-    pa = acts.add_parser("apply", help="the run's networks (trained on its sim seed) predicting on other sim seeds' "
-                         "datasets, without retraining: prediction sets for evaluate")
-    pa.add_argument("--run", required=True, help="run folder holding dataset.npz and the train stage")
-    pa.add_argument("--seeds", default=None, help="comma-separated training seeds (default: train.seeds); a seed "
-                    "whose network the train stage does not hold is retrained (cached)")
-    pa.add_argument("--sim-seeds", required=True, help="comma-separated simulator seeds to predict on (other than "
-                    "the run's); each is simulated into <run>/sims/seed<S>/ when missing")
-    add_config_args(pa, config=False)
-    add_executor_args(pa)
-    pa.set_defaults(func=run_apply_cmd)
+    # the two seed sweeps: (name, help, --run, --seeds, --sim-seeds (required?, help), handler)
+    for name, what, run_help, seeds_help, (sim_required, sim_help), func in (
+            ("study", "train with several seeds: seeds.json and results.md (Tables 3-4)",
+             "run folder holding dataset.npz", "comma-separated seeds (default: train.seeds)",
+             (False, "comma-separated simulator seeds (default: the run's sim.seed); each other seed is simulated "
+                     "into <run>/sims/seed<S>/ first"), run_study_cmd),
+            ("apply", "the run's networks (trained on its sim seed) predicting on other sim seeds' datasets, without "
+                      "retraining: prediction sets for evaluate",
+             "run folder holding dataset.npz and the train stage",
+             "comma-separated training seeds (default: train.seeds); a seed whose network the train stage does not "
+             "hold is retrained (cached)",
+             (True, "comma-separated simulator seeds to predict on (other than the run's); each is simulated into "
+                    "<run>/sims/seed<S>/ when missing"), run_apply_cmd)):
+        ps = acts.add_parser(name, help=what)
+        ps.add_argument("--run", required=True, help=run_help)
+        ps.add_argument("--seeds", default=None, help=seeds_help)
+        ps.add_argument("--sim-seeds", required=sim_required, default=None, help=sim_help)
+        if name == "study":
+            ps.add_argument("--readme", default=None, help="also copy the table into this README between the results "
+                            "markers")
+        add_config_args(ps, config=False)
+        add_executor_args(ps)
+        ps.set_defaults(func=func)
     pb = acts.add_parser("baselines", help="logreg (statistics), logreg (physics features), gradient-boosted trees: "
                                           "prediction sets tuned on validation")
     pb.add_argument("--run", required=True, help="run folder holding dataset.npz")

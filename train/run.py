@@ -9,6 +9,7 @@ other training seeds T published before with the same dataset and config stay (k
 
 from __future__ import annotations
 
+import dataclasses
 import re
 import time
 from typing import Callable
@@ -25,7 +26,9 @@ from quadfdi.formats.predictions import add_entries
 from quadfdi.core.rundir import RunDir
 from quadfdi.core.stage import StageWriter, stage
 from quadfdi.formats.dataset import Dataset, Windows, class_names, load_dataset
+from quadfdi.core.profiles import is_masked
 from quadfdi.train.augment import share_wander_for
+from quadfdi.train.masks import chain, fixed_availability, mask_draw_for, masked_validation, pattern_scores
 from quadfdi.train.baseline import fit_baseline, predict_proba_baseline
 from quadfdi.models.checkpoint import save_checkpoint
 from quadfdi.train.data import class_weights, fit_normalisation, split_windows
@@ -53,17 +56,25 @@ def train_all(ds: Dataset, cfg: Config, kinds: list[str], log: Callable[[str], N
     metrics and each network's prediction set (every evaluation window, ``train.predsets``; not
     made when ``predsets`` is False: train.study_apply keeps only the network)."""
     torch.set_num_threads(cfg.train.threads)
-    ds = profiled_dataset(ds, cfg.train.profile)  # the models' input channels (paper: ds itself)
+    profile, masked = cfg.train.profile, is_masked(cfg.train.profile)
+    # the models' input channels (paper: ds itself); a masked profile: every channel, masks per window (train.masks)
+    ds = profiled_dataset(ds, profile, patterns=False)
     k = len(class_names(ds.arrays))
     splits = split_windows(ds, cfg.train.max_train_windows, cfg.train.seed)
     for name in SPLITS:
         if len(getattr(splits, name)) == 0:
             raise QuadfdiError(f"the dataset has no {name} windows: raise sim.n_traj or sim.duration_s")
+    val_all = splits.validation
     mean, std = fit_normalisation(ds)
+    if masked:
+        splits = dataclasses.replace(splits, validation=masked_validation(val_all, profile, ds.channel_names,
+                                                                          cfg.train.seed))
+        mean, std = fixed_availability(profile, mean, std)
     weights = class_weights(splits.train.y, k)
-    augment = share_wander_for(cfg.train, ds.channel_names, float(ds["time"][1] - ds["time"][0]))
+    augment = chain(share_wander_for(cfg.train, ds.channel_names, float(ds["time"][1] - ds["time"][0])),
+                    mask_draw_for(profile, ds.channel_names, cfg.train.seed))
     out: dict = {"models": {}, "history": {}, "proba": {}, "metrics": {}, "splits": splits, "predsets": {},
-                 "ds": ds}
+                 "ds": ds, "mask_patterns": {}}
     for kind in kinds:
         torch.manual_seed(cfg.train.seed)  # same initial weights for the same seed
         model = build_model(kind, ds.n_channels, cfg.train, window=cfg.sim.window, n_classes=k)
@@ -86,6 +97,10 @@ def train_all(ds: Dataset, cfg: Config, kinds: list[str], log: Callable[[str], N
             log(f"  {kind}: prediction set of {len(out['predsets'][kind]['traj'])} evaluation windows in "
                 f"{time.perf_counter() - t0:.1f} s")
         out["metrics"][kind] = evaluate(ds, splits.test, proba)
+        if masked:
+            out["mask_patterns"][kind] = {name: pattern_scores(lambda x: predict_proba(model, x), w, profile,
+                                                               ds.channel_names, k)
+                                          for name, w in (("validation", val_all), ("test", splits.test))}
     base = fit_baseline(splits.train.x, splits.train.y, cfg.train.seed, k)
     out["proba"]["baseline"] = predict_proba_baseline(base, splits.test.x)
     out["metrics"]["baseline"] = evaluate(ds, splits.test, out["proba"]["baseline"])
@@ -110,6 +125,8 @@ def write_outputs(out: RunDir, ds: Dataset, cfg: Config, result: dict, previous:
     old_metrics, old_hist = None if previous is None else previous.metrics, None if previous is None else previous.root / "history.json"
     metrics = read_json(old_metrics, "metrics") if old_metrics is not None and old_metrics.exists() else {}
     metrics.update(result["metrics"])
+    if result.get("mask_patterns"):  # a masked profile: macro F1 per mask pattern (train.masks), per network
+        metrics["mask_patterns"] = {**metrics.get("mask_patterns", {}), **result["mask_patterns"]}
     write_json(out.metrics, metrics, indent=2)
     hist = read_json(old_hist, "training history") if old_hist is not None and old_hist.exists() else {}
     hist.update({k: h.to_dict() for k, h in result["history"].items()})

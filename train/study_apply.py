@@ -72,7 +72,7 @@ def apply_network(checkpoint: str, dataset: str, kind: str) -> dict:
 
     model, blob = load_checkpoint(checkpoint, kind)
     _threads(blob)
-    ds = profiled_dataset(load_dataset(dataset), profile_of(blob))
+    ds = profiled_dataset(load_dataset(dataset), profile_of(blob), patterns=False)  # every channel, as train's sets
     check_dataset_matches(blob, ds.channel_names, dataset)
     if checkpoint_class_names(blob) != list(class_names(ds.arrays)):
         raise QuadfdiError(f"{dataset}: its classes differ from those of the network in {checkpoint}")
@@ -164,7 +164,7 @@ def reproduces(run: RunDir, cfg: Config, kind: str, seed: int, checkpoint: Path)
         return None
     model, blob = load_checkpoint(checkpoint, kind)
     _threads(blob)
-    ds = profiled_dataset(load_dataset(run.dataset), profile_of(blob))
+    ds = profiled_dataset(load_dataset(run.dataset), profile_of(blob), patterns=False)
     mine = prediction_set(model, ds, max_flights=CHECK_FLIGHTS)  # the set's first chunk: same batches, same bits
     got = read_npz(run.root / entry["predictions"], "prediction set")
     b = got["proba"][np.isin(got["traj"], np.unique(mine["traj"]))]

@@ -62,7 +62,8 @@ bool replay(const fwref::StreamModel& sm, const char* model, const char* prec) {
     const Flight& fl = kFlights[f];
     if (f > 0 && fl.cells == kFlights[f - 1].cells) {
       g_stream.reset();
-    } else if (g_stream.init(params, fl.cells, sm) != fwref::Status::kOk) {
+      if (g_stream.set_carried(fl.carried) != fwref::Status::kOk) return false;  // the channels this flight has
+    } else if (g_stream.init(params, fl.cells, sm, fl.carried) != fwref::Status::kOk) {
       return false;
     }
     Stat push, decide, other;

@@ -41,7 +41,7 @@ Status Stream::init(const StreamParams& p, int cells, WindowFn fn, void* ctx) {
   return init(p, cells, m);
 }
 
-Status Stream::init(const StreamParams& p, int cells, const StreamModel& m) {
+Status Stream::init(const StreamParams& p, int cells, const StreamModel& m, std::uint64_t carried) {
   const int models = int(m.window != nullptr) + int(m.window_motor != nullptr) + int(m.step != nullptr);
   if (models != 1 || (m.step != nullptr && m.reset == nullptr)) return Status::kNullArgument;
   const int prof = static_cast<int>(p.profile);
@@ -55,7 +55,8 @@ Status Stream::init(const StreamParams& p, int cells, const StreamModel& m) {
   }
   const ProfileSpec& spec = profile_spec(p.profile);
   const bool hover = p.profile != Profile::kPaper;
-  if (hover ? (p.raw_channels != spec.raw || p.channels != spec.channels || cells < 1)
+  // the masked profile may run without a cell count: set_carried() refuses V_b then
+  if (hover ? (p.raw_channels != spec.raw || p.channels != spec.channels || (cells < 1 && spec.groups == 0))
             : p.raw_channels != p.channels) {
     return Status::kDimsInvalid;
   }
@@ -69,6 +70,18 @@ Status Stream::init(const StreamParams& p, int cells, const StreamModel& m) {
   gate_.init(p.sample_dt_s);
   resync_gap_ = std::int64_t(p.window) + std::int64_t(a.n) * p.stride;
   reset();
+  carried_ = kAllCarried;
+  avail_ = kAllGroups;
+  return set_carried(carried);
+}
+
+Status Stream::set_carried(std::uint64_t carried) {
+  std::uint32_t avail = kAllGroups;
+  if (!profile_available(p_.profile, p_.raw_channels, carried, &avail)) return Status::kDimsInvalid;
+  const bool battery = p_.profile != Profile::kPaper && ((carried >> 9) & 1u) != 0;  // V_b: raw column 9
+  if (battery && !(cells_ >= 1.0f)) return Status::kDimsInvalid;
+  carried_ = carried;
+  avail_ = avail;
   return Status::kOk;
 }
 
@@ -139,12 +152,15 @@ Status Stream::push_one(const float* sample, double t, StrideSink* sink) {
   const int W = p_.window, C = p_.channels, R = p_.raw_channels;
   const int slot = static_cast<int>(next_ % W);
   float* x = &ring_[slot * C];
-  profile_prep(p_.profile, sample, R, cells_, x);
+  profile_prep(p_.profile, sample, R, cells_, x, avail_);
   bool ok = true;
   const bool hover = p_.profile != Profile::kPaper;
-  for (int c = 0; c < (hover ? R - 1 : R); ++c) ok = ok && std::isfinite(sample[c]);
+  for (int c = 0; c < (hover ? R - 1 : R); ++c) {  // a column the flight lacks is not read
+    const bool carried = c >= 64 || ((carried_ >> c) & 1u) != 0;
+    ok = ok && (!carried || std::isfinite(sample[c]));
+  }
   if (hover) {
-    const HoverInputs h = hover_inputs(p_.profile, sample);
+    const HoverInputs h = hover_inputs(p_.profile, sample, avail_);
     hover_.push(h.vz, h.roll, h.pitch, h.thr, h.current, h.airborne);
     ok = ok && h.airborne;
     airborne_prev_ = h.airborne;
@@ -177,7 +193,7 @@ void Stream::stride(double t, StrideSink* sink) {
       if (m_.step != nullptr) continue;  // a per-sample model checked each row as it stepped it
       float* row = &win_[j * C];
       for (int c = 0; c < C; ++c) row[c] = ring_[slot * C + c];
-      if (hover) profile_hover(p_.profile, hover_.cmd(), hover_.cur(), row);
+      if (hover) profile_hover(p_.profile, hover_.cmd(), hover_.cur(), row, avail_);
       for (int c = 0; c < C && ok; ++c) ok = std::isfinite(row[c]);
     }
     d.status = ok && run_window(d) == Status::kOk ? StrideStatus::kDecided : StrideStatus::kSkipped;
@@ -219,7 +235,7 @@ bool Stream::step_sample(const float* x, bool ends_stride) {
   if (p_.profile != Profile::kPaper) {
     if (!hover_.frozen()) return false;
     for (int c = 0; c < C; ++c) step_row_[c] = x[c];
-    profile_hover(p_.profile, hover_.cmd(), hover_.cur(), step_row_);
+    profile_hover(p_.profile, hover_.cmd(), hover_.cur(), step_row_, avail_);
     x = step_row_;
   }
   for (int c = 0; c < C; ++c) {

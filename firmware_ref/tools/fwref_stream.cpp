@@ -19,6 +19,8 @@
 // (tools/stream_file.hpp): channels and profile the on-board record's, the period finite, positive and
 // the record's within fwref/read_limits.hpp's tolerance. A regular file must hold whole samples, checked
 // before anything is written. Every --in is opened and its header checked before the first sample runs.
+// A channel the flight lacks (version 2's carried flag 0) only the masked profile accepts
+// (Stream::set_carried: its minimum always, and a cell count while it carries V_b).
 // --in may be given several times: the flights run in sequence through one Stream, reset() between
 // them (each flight's lines start with its "# fwref_stream flight=<i>" comment).
 // Output (stdout, or --out through a temp file renamed at the end): '#' comment lines, then one line per
@@ -199,20 +201,25 @@ bool replay_file(fwref::host::StreamInput& in, const std::string& name, std::siz
   const fwref::host::StreamHeader& h = in.header();
   fwref::StreamParams p = r->rec.params;
   p.classes = p.alarm.classes = r->m.classes;
+  const std::string lacks = fwref::host::stream_lacking(h);
+  const std::string refused = "stream " + name + " lacks channels profile '" + h.profile + "' cannot do without: " + lacks;
   if (index == 0) {
-    const fwref::Status status = g_stream.init(p, int(h.cells), r->m.fns);
+    const fwref::Status status = g_stream.init(p, int(h.cells), r->m.fns, h.carried);
+    if (status == fwref::Status::kDimsInvalid && !lacks.empty()) return *error = refused, false;
     if (status != fwref::Status::kOk) return *error = std::string("cannot run this record: ") + fwref::status_name(status), false;
     r->cells = h.cells;
   } else if (h.cells != r->cells) {
     return *error = "stream " + name + " has " + std::to_string(h.cells) + " cells, the first stream " + std::to_string(r->cells), false;
   } else {
     g_stream.reset();
+    if (g_stream.set_carried(h.carried) != fwref::Status::kOk) return *error = refused, false;
   }
   char head[512];
   std::snprintf(head, sizeof head, "# fwref_stream flight=%zu source=%s model=%s precision=%s profile=%s window=%d "
-                "stride=%d classes=%d motor_head=%d\n# index t status logits[%d] proba[%d] vote active raised cleared "
-                "cls motor wmotor\n", index, h.source.c_str(), r->model.c_str(), r->int8 ? "int8" : "fp32",
-                h.profile.c_str(), p.window, p.stride, p.classes, int(r->m.has_motor), p.classes, p.classes);
+                "stride=%d classes=%d motor_head=%d available=0x%X\n# index t status logits[%d] proba[%d] vote active "
+                "raised cleared cls motor wmotor\n", index, h.source.c_str(), r->model.c_str(), r->int8 ? "int8" : "fp32",
+                h.profile.c_str(), p.window, p.stride, p.classes, int(r->m.has_motor), unsigned(g_stream.available()),
+                p.classes, p.classes);
   r->lines.add(head);
   std::vector<unsigned char> buf(h.sample_bytes());
   std::vector<float> sample(h.channels);

@@ -3,9 +3,10 @@
 // fwref_stream reads before the first sample, and what fuzz/fuzz_stream.cpp feeds hostile bytes to.
 // Every size is bounded (fwref/read_limits.hpp) before anything is allocated; every failure is one line.
 //
-//   0  char[8] magic "QFDISTR\0" | 8 u32 version 1 | 12 u32 header_bytes | 16 u32 n_channels R | 20 u32 cells
-//   24 f64 sample_dt_s | 32 char[32] profile | 64 char[64] source | 128 R NUL-terminated names, padding
-//   then samples of 8 + 4R bytes: f64 t, f32 values[R]
+//   0  char[8] magic "QFDISTR\0" | 8 u32 version 2 (or 1) | 12 u32 header_bytes | 16 u32 n_channels R
+//   20 u32 cells | 24 f64 sample_dt_s | 32 char[32] profile | 64 char[64] source | 128 R NUL-terminated
+//   names, then (version 2) R carried flags u8 (1: the stream carries the channel, 0: the flight lacks it),
+//   padding; then samples of 8 + 4R bytes: f64 t, f32 values[R]. Version 1 carries every channel.
 #pragma once
 
 #include <cmath>
@@ -22,7 +23,7 @@ namespace fwref {
 namespace host {
 
 constexpr char kStreamMagic[9] = "QFDISTR";  // + NUL: 8 bytes
-constexpr std::uint32_t kStreamVersion = 1;
+constexpr std::uint32_t kStreamVersion = 2;  // 1 is read too: no carried flags, every channel carried
 constexpr std::size_t kStreamFixedHeader = 128;  // magic .. source; the channel names follow
 
 struct StreamHeader {
@@ -30,6 +31,8 @@ struct StreamHeader {
   double dt = 0.0;
   std::string profile, source;
   std::vector<std::string> names;
+  std::uint32_t version = 0;
+  std::uint64_t carried = kAllCarried;  // bit c: the stream carries channel c (version 2's flags; c < 64)
   std::size_t sample_bytes() const { return 8 + 4 * std::size_t(channels); }
 };
 
@@ -37,14 +40,14 @@ struct StreamHeader {
 inline bool parse_stream_fixed(const unsigned char* fixed, const std::string& where, StreamHeader* h,
                                std::string* error) {
   if (std::memcmp(fixed, kStreamMagic, 8) != 0) return *error = "stream " + where + " is not a quadfdi stream file", false;
-  std::uint32_t version;
+  std::uint32_t& version = h->version;
   std::memcpy(&version, fixed + 8, 4);
   std::memcpy(&h->bytes, fixed + 12, 4);
   std::memcpy(&h->channels, fixed + 16, 4);
   std::memcpy(&h->cells, fixed + 20, 4);
   std::memcpy(&h->dt, fixed + 24, 8);
-  if (version != kStreamVersion) {
-    return *error = "stream " + where + " has version " + std::to_string(version) + ", this reader reads 1", false;
+  if (version != 1 && version != kStreamVersion) {
+    return *error = "stream " + where + " has version " + std::to_string(version) + ", this reader reads 1 and 2", false;
   }
   if (h->bytes < kStreamFixedHeader || h->bytes > limits::kStreamHeaderBytes || h->channels == 0 ||
       h->channels > limits::kStreamChannels || h->bytes - kStreamFixedHeader < std::size_t(h->channels)) {
@@ -72,12 +75,32 @@ inline bool parse_stream_names(const char* rest, std::size_t n, const std::strin
     h->names.emplace_back(rest + pos, len);
     pos += len + 1;
   }
+  h->carried = kAllCarried;
+  if (h->version < 2) return true;
+  if (h->channels > 64 || n - pos < h->channels) {  // one flag per channel after the names
+    return *error = "stream " + where + " has no room for its carried flags, or more than 64 channels", false;
+  }
+  for (std::uint32_t c = 0; c < h->channels; ++c) {
+    const unsigned char flag = static_cast<unsigned char>(rest[pos + c]);
+    if (flag > 1) return *error = "stream " + where + " has a carried flag that is not 0 or 1", false;
+    if (flag == 0) h->carried &= ~(std::uint64_t(1) << c);
+  }
   return true;
+}
+
+// The channels the header marks not carried, comma-separated.
+inline std::string stream_lacking(const StreamHeader& h) {
+  std::string out;
+  for (std::size_t c = 0; c < h.names.size() && c < 64; ++c) {
+    if (((h.carried >> c) & 1u) == 0) out += (out.empty() ? "" : ",") + h.names[c];
+  }
+  return out;
 }
 
 // The header against the on-board record: profile, channel names (hence their count), a sample period
 // that is finite, positive and the record's within limits::kStreamPeriodRelTol, a cell count within
-// limits::kStreamCells (and given when the record takes it from the stream).
+// limits::kStreamCells (and given when the record takes it from the stream and the stream carries V_b:
+// the masked profile runs a flight without its battery group on no cell count).
 inline bool check_stream_header(const StreamHeader& h, const std::string& where, const OnboardRecord& rec,
                                 std::string* error) {
   const std::string want = profile_spec(rec.params.profile).name;
@@ -106,7 +129,10 @@ inline bool check_stream_header(const StreamHeader& h, const std::string& where,
     return *error = "stream " + where + " gives " + std::to_string(h.cells) + " cells, more than " +
                     std::to_string(limits::kStreamCells), false;
   }
-  if (rec.cells_from_stream && h.cells == 0) return *error = "stream " + where + " does not give the pack's cell count", false;
+  const bool battery = h.names.size() > 9 && h.names[9] == "V_b" && ((h.carried >> 9) & 1u) != 0;  // V_b: column 9
+  if (rec.cells_from_stream && h.cells == 0 && battery) {
+    return *error = "stream " + where + " does not give the pack's cell count", false;
+  }
   return true;
 }
 

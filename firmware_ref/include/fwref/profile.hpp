@@ -16,9 +16,17 @@
 // does the same), every other operation one float32 operation. ``prep`` computes a sample's values
 // that do not depend on the hover estimate (at push); ``hover`` divides the hover columns once the
 // estimate exists (at the decision): thr / cmd is the same float32 division either way.
+//
+// The masked profile (``flightlog-mask``, ProfileSpec::groups > 0) reads vib_ap too (``vib_ap``, a model
+// channel after vib) and takes an availability mask ``avail`` (bit g: the flight has group g of
+// kGroupNames; ``profile_available`` forms it from the columns a stream carries): a lacking group's
+// model channels take their fills (ProfileSpec::fill), its availability channel 0 (1 when present),
+// an absent pitch enters the hover estimate as 0 (level) and an absent current as NaN
+// (``hover_inputs``). The fills replace whatever the absent columns hold, so those may be NaN.
 #pragma once
 
 #include <cmath>
+#include <cstdint>
 #include <cstring>
 
 #include "fwref/channels_gen.hpp"  // Profile, ProfileSpec and the profiles' channel lists, from core/channels.py
@@ -27,21 +35,47 @@ namespace fwref {
 
 inline const ProfileSpec& profile_spec(Profile p) { return profile_tables::kSpecs[static_cast<int>(p)]; }
 
+constexpr std::uint32_t kAllGroups = (1u << kGroupCount) - 1u;  // an availability mask with every group
+constexpr std::uint64_t kAllCarried = ~std::uint64_t(0);       // a stream carrying every column
+
+// Raw column ``col`` is present under availability mask ``avail`` (a column outside every group always is).
+inline bool column_present(const ProfileSpec& s, std::uint32_t avail, int col) {
+  return s.groups == 0 || s.raw_group[col] < 0 || ((avail >> s.raw_group[col]) & 1u) != 0;
+}
+
+// The availability mask of a stream carrying the columns ``carried`` (bit r: raw column r, r < 64): a
+// group is available when every column of it is carried. False when the profile cannot run the
+// stream: a profile without a mask lacking a column, or the masked profile lacking its minimum (a
+// column outside every group, airborne included).
+inline bool profile_available(Profile p, int raw_n, std::uint64_t carried, std::uint32_t* avail) {
+  const ProfileSpec& s = profile_spec(p);
+  *avail = kAllGroups;
+  for (int r = 0; r < raw_n && r < 64; ++r) {
+    if ((carried >> r) & 1u) continue;
+    if (s.groups == 0 || s.raw_group[r] < 0) return false;
+    *avail &= ~(1u << s.raw_group[r]);
+  }
+  return true;
+}
+
 // The inputs of the hover estimate (fwref/hover.hpp) in one raw sample of a hover profile.
 struct HoverInputs {
   float vz, roll, pitch, thr[4], current;
   bool airborne;
 };
 
-inline HoverInputs hover_inputs(Profile p, const float* raw) {
+inline HoverInputs hover_inputs(Profile p, const float* raw, std::uint32_t avail = kAllGroups) {
   const ProfileSpec& s = profile_spec(p);
-  HoverInputs h{raw[8], raw[0], raw[1], {raw[s.thr], raw[s.thr + 1], raw[s.thr + 2], raw[s.thr + 3]},
-                s.i_b >= 0 ? raw[s.i_b] : NAN, raw[s.raw - 1] >= 0.5f};  // NaN airborne: not airborne
+  const float pitch = column_present(s, avail, 1) ? raw[1] : 0.0f;  // an absent pitch: level (core/hover.py)
+  const float current = s.i_b >= 0 && column_present(s, avail, s.i_b) ? raw[s.i_b] : NAN;
+  HoverInputs h{raw[8], raw[0], pitch, {raw[s.thr], raw[s.thr + 1], raw[s.thr + 2], raw[s.thr + 3]},
+                current, raw[s.raw - 1] >= 0.5f};  // NaN airborne: not airborne
   return h;
 }
 
 // x (C) <- the sample's hover-independent model values; hover columns hold the raw current / commands.
-inline void profile_prep(Profile p, const float* raw, int raw_n, float cells, float* x) {
+inline void profile_prep(Profile p, const float* raw, int raw_n, float cells, float* x,
+                         std::uint32_t avail = kAllGroups) {
   if (p == Profile::kPaper) {
     std::memcpy(x, raw, sizeof(float) * static_cast<std::size_t>(raw_n));
     return;
@@ -60,6 +94,7 @@ inline void profile_prep(Profile p, const float* raw, int raw_n, float cells, fl
   if (s.i_b >= 0) x[j++] = raw[s.i_b];
   for (int k = 0; k < 4; ++k) x[j++] = raw[s.thr + k];
   x[j++] = raw[s.thr + 4];  // vib_px4
+  if (s.vib_ap >= 0) x[j++] = raw[s.vib_ap];
   if (s.rpm >= 0) {  // rpm1..4, then esc_cur1..4: each over the four's collective of this sample
     for (int g = 0; g < 2; ++g) {
       const float* a = raw + s.rpm + 4 * g;
@@ -70,14 +105,24 @@ inline void profile_prep(Profile p, const float* raw, int raw_n, float cells, fl
     const float common = (((t[0] + t[1]) + t[2]) + t[3]) * 0.25f;
     for (int k = 0; k < 4; ++k) x[j++] = t[k] - common;
   }
+  if (s.groups == 0) return;
+  for (int c = 0; c < s.avail; ++c) {  // a lacking group's channels: their fills
+    const int g = s.model_group[c];
+    if (g >= 0 && ((avail >> g) & 1u) == 0) x[c] = s.fill[c];
+  }
+  for (int g = 0; g < s.groups; ++g) x[s.avail + g] = ((avail >> g) & 1u) != 0 ? 1.0f : 0.0f;
 }
 
 // One prepared sample (C) -> the model's values: the hover columns divided by the frozen estimate.
-inline void profile_hover(Profile p, float hover_cmd, float hover_cur, float* x) {
+// A lacking current keeps its fill (no division).
+inline void profile_hover(Profile p, float hover_cmd, float hover_cur, float* x, std::uint32_t avail = kAllGroups) {
   if (p == Profile::kPaper) return;
   const ProfileSpec& s = profile_spec(p);
   int j = 9;
-  if (s.i_b >= 0) x[j] = x[j] / hover_cur, ++j;
+  if (s.i_b >= 0) {
+    if (column_present(s, avail, s.i_b)) x[j] = x[j] / hover_cur;
+    ++j;
+  }
   for (int k = 0; k < 4; ++k, ++j) x[j] = x[j] / hover_cmd;
 }
 

@@ -41,6 +41,11 @@
 //     row needs it), so the state starts at h = 0 on the freezing sample; strides before: kNoHover.
 // detect/streamref.py ``step_rows`` is the Python statement of these rules.
 //
+// Channels a flight lacks (the masked profile only, fwref/profile.hpp): init() and set_carried() take
+// the columns the flight's stream carries (formats/stream.py's carried flags; bit r: raw column r);
+// the availability mask follows from them once per flight, a lacking group's model channels take
+// their fills and its columns are not checked for NaN. A profile without a mask needs every column.
+//
 // Timestamps: each sample carries its time t (s); the stream runs on the grid of the record's sample
 // period dt, and a time step counts g = llround((t - t_prev) / dt) periods (fwref/period.hpp's
 // PeriodGate: the same decision for every t, no division on the one-period path). Every push costs at
@@ -190,9 +195,16 @@ class StrideSink {
 class Stream {
  public:
   // kDimsTooLarge / kDimsInvalid when the parameters exceed this build's capacity or disagree with
-  // the profile; ``cells`` the pack's cell count (profiles with a hover estimate; ignored otherwise).
+  // the profile; ``cells`` the pack's cell count (profiles with a hover estimate; ignored otherwise;
+  // the masked profile needs it only while the stream carries V_b); ``carried`` as set_carried.
   Status init(const StreamParams& p, int cells, WindowFn fn, void* ctx);
-  Status init(const StreamParams& p, int cells, const StreamModel& m);  // kNullArgument: not exactly one model
+  Status init(const StreamParams& p, int cells, const StreamModel& m,  // kNullArgument: not exactly one model
+              std::uint64_t carried = kAllCarried);
+  // The raw columns this flight's stream carries (bit r: column r); call after init() or reset(), before
+  // the flight's first sample. kDimsInvalid (the previous columns kept): a profile without a mask lacking
+  // a column, the masked profile lacking its minimum, or V_b carried without a cell count.
+  Status set_carried(std::uint64_t carried);
+  std::uint32_t available() const { return avail_; }  // the availability mask (bit g: group g of kGroupNames)
   // One sample (R raw channels, the record's order) at time t; kBadInput: a refused time (not finite, not
   // advancing by half a period, more than kMaxGapPeriods ahead), the sample dropped. At most one decision.
   Status push(const float* sample, double t, StrideSink* sink = nullptr);
@@ -218,6 +230,8 @@ class Stream {
 
   StreamParams p_{};
   float cells_ = 0.0f;
+  std::uint64_t carried_ = kAllCarried;  // the raw columns the flight's stream carries
+  std::uint32_t avail_ = kAllGroups;     // the availability mask they give (fwref/profile.hpp)
   StreamModel m_{};
   float ring_[kMaxWindow * kMaxChannels] = {};  // prepared samples, slot = index % W
   bool ok_[kMaxWindow] = {};                    // the sample is usable

@@ -1,0 +1,90 @@
+"""``quadfdi vehicle learn|rules``: a vehicle reference from its healthy flights, and the simple reference
+rules on other flights (docs/vehicle.md).
+
+    quadfdi vehicle learn LOG_OR_FLIGHT... --out vehicle.json
+    quadfdi vehicle rules --vehicle vehicle.json LOG_OR_FOLDER... --out DIR
+
+Bad input (a refused reference, an unreadable vehicle.json, a path that does not exist, nothing to
+score) is one line on stderr, exit 2, and nothing written.
+"""
+
+from __future__ import annotations
+
+import argparse
+import shlex
+import sys
+from pathlib import Path
+
+from quadfdi.core.errors import QuadfdiError
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("vehicle", help="learn a vehicle reference from its healthy flights; score flights against it",
+                       description="A reference of one airframe from its own healthy flights (motor command shares, "
+                                   "hover collective, pack, vibration, ESC), and the simple share rules on other "
+                                   "flights (docs/vehicle.md).")
+    acts = p.add_subparsers(dest="action", required=True, metavar="{learn,rules}")
+    pl = acts.add_parser("learn", help="learn vehicle.json from healthy flights of one airframe")
+    pl.add_argument("flights", nargs="+", metavar="LOG_OR_FLIGHT",
+                    help="healthy flights: PX4 .ulg, ArduPilot .BIN, Crazyflie uSD logs or flight.npz files")
+    pl.add_argument("--out", required=True, help="the reference file to write (vehicle.json)")
+    pl.set_defaults(func=run_learn)
+    pr = acts.add_parser("rules", help="score flights with the four share rules against a reference")
+    pr.add_argument("flights", nargs="+", metavar="LOG_OR_FOLDER", help="flights, or folders searched by content")
+    pr.add_argument("--vehicle", required=True, help="the reference (quadfdi vehicle learn)")
+    pr.add_argument("--out", required=True, help="folder to write rules.json and rules.md into")
+    pr.set_defaults(func=run_rules)
+
+
+def _refuse_folder_output(out: Path) -> None:
+    if out.is_dir():
+        raise QuadfdiError(f"--out {out} is a folder; give the reference file to write (e.g. {out / 'vehicle.json'})")
+
+
+def run_learn(args: argparse.Namespace) -> int:
+    from quadfdi.formats.vehicle import write_vehicle
+    from quadfdi.vehicle.flights import find_flights, read_flight
+    from quadfdi.vehicle.learn import learn
+
+    out = Path(args.out)
+    _refuse_folder_output(out)
+    found = find_flights(args.flights)
+    if not found:
+        raise QuadfdiError(f"no flight log or flight.npz found in {' '.join(args.flights)}")
+    ref = learn([read_flight(path, name) for path, name in found])
+    write_vehicle(out, ref)
+    for w in ref["warnings"]:
+        print(f"quadfdi vehicle: warning: {w}", file=sys.stderr)
+    shares = ", ".join(f"{m['log_motor']} {m['mean']:.3f}" for m in ref["motor_share"])
+    print(f"wrote {out}: {len(found)} flights, {ref['motor_share'][0]['seconds']:.1f} s airborne; motor shares "
+          f"{shares}; hover collective {ref['hover']['cmd']['mean']:.3f}; {len(ref['warnings'])} warnings")
+    return 0
+
+
+def run_rules(args: argparse.Namespace) -> int:
+    from quadfdi.core.jobcache import file_sha256
+    from quadfdi.formats.vehicle import load_vehicle
+    from quadfdi.vehicle import crazypad
+    from quadfdi.vehicle.rules import RULES, score_paths, thresholds
+    from quadfdi.vehicle.rules_report import write_outputs
+
+    out = Path(args.out)
+    if out.exists() and not out.is_dir():
+        raise QuadfdiError(f"--out {out} exists and is not a folder")
+    ref = load_vehicle(args.vehicle)
+    rows, paths, refused = score_paths(args.flights, ref)
+    if not rows:
+        reasons = "; ".join(f"{x['flight']}: {x['reason']}" for x in refused[:3])
+        raise QuadfdiError(f"no flight could be scored ({len(refused)} refused{': ' + reasons if reasons else ''})")
+    crazypad.label(rows, paths, ref)
+    command = shlex.join(["quadfdi", "vehicle", "rules", "--vehicle", args.vehicle, *args.flights, "--out", args.out])
+    result = {"command": command,
+              "reference": {"file": Path(args.vehicle).name, "sha256": file_sha256(args.vehicle),
+                            "flights": [f["file"] for f in ref["flights"]]},
+              "thresholds": thresholds(ref), "flights": rows, "refused": refused,
+              "table": crazypad.table(rows, tuple(r.name for r in RULES)) if any(r["group"] for r in rows) else []}
+    write_outputs(out, result)
+    alarms = {r.name: sum(row["rules"][r.name]["alarm"] for row in rows) for r in RULES}
+    print(f"wrote {out / 'rules.md'}: {len(rows)} flights scored, {len(refused)} not; alarms per rule "
+          + ", ".join(f"{k} {v}" for k, v in alarms.items()))
+    return 0
