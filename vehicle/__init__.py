@@ -7,6 +7,6 @@ What a caller may use: ``learn.learn`` (flights -> the reference, formats/vehicl
 flight's quantities against a reference, for ``quadfdi detect --vehicle``), ``crazypad.label`` and
 ``crazypad.table`` (the CrazyPAD protocol's groups and table).
 One job per module: ``flights`` (reading), ``quantities`` (per-sample quantities), ``stats`` (spreads,
-disagreement), ``fits`` (least-squares models), ``learn``, ``rules``, ``crazypad``, ``rules_report``
-(markdown), ``cli``.
+disagreement), ``fits`` (least-squares models), ``learn``, ``compare`` (a flight against a reference), ``rules``,
+``crazypad``, ``rules_report`` (markdown), ``cli``.
 """

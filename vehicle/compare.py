@@ -130,7 +130,8 @@ def compare(fl: Flight, reference: dict) -> tuple[dict, tuple[np.ndarray, np.nda
     out = {"version": VERSION, "learned_from": [f["file"] for f in reference["flights"]],
            "reference_flight": str(fl.arrays["log_sha256"]) in own,
            "share_model": bool(reference["share_model"].get("motors")),
-           "motor_share": motor, "largest_deviation": largest_deviation(motor), "hover_collective": _hover(fl, reference),
+           "motor_share": motor, "largest_deviation": largest_deviation(motor),
+           "hover_collective": _hover(fl, reference),
            "sag_v_per_a_cell": _sag(fl, reference), "vibration": _vibration(fl, reference), "esc": _esc(fl, reference),
            "rules": {name: dict(r, threshold=limits[name]["threshold"]) for name, r in rules.items()}}
     return out, (shares, ref, modelled)
