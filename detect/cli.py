@@ -41,8 +41,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="the fleet layout and exit status even for one log file")
     p.add_argument("--vehicle", help="a vehicle reference (quadfdi vehicle learn) every flight is read beside")
     p.add_argument("--vehicles", metavar="MAP",
-                   help="a .toml or .json map of log path globs (relative to the map) to vehicle.json files: each "
-                        "flight is read beside the first match's reference; a flight matching none, without one")
+                   help="a .toml or .json map of log path globs (relative to the map; * within a folder, ** across "
+                        "folders) to vehicle.json files: each flight is read beside the first match's reference; a "
+                        "flight matching none, without one")
     p.set_defaults(func=run)
 
 
