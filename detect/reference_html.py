@@ -39,8 +39,9 @@ def section(record: dict | None, note: str | None) -> str:
     return (f"<h2>Vehicle reference</h2><p id=\"reference\" data-file=\"{esc(record['file'])}\">"
             f"{esc(record['file'])} (sha256 {esc(record['sha256'][:12])}, {esc(record['chosen_by'])}), learned from "
             f"{len(record['learned_from'])} healthy flight(s): what this vehicle's own flights say, beside the model "
-            f"(which does not read it).{own} Shares: airborne means against the reference's share model at this "
-            "flight's forward speed and yaw rate; z: the deviation in the reference's between-flight spreads.</p>"
+            f"(which does not read it).{own} Shares: means over {esc(record['motor_share'][0]['basis'])} (the "
+            "model at this flight's forward speed and yaw rate); z: the deviation in the reference's between-flight "
+            "spreads.</p>"
             "<table id=\"reference-quantities\"><tr><th>quantity</th><th>this flight</th><th>reference</th>"
             "<th>deviation</th><th>between-flight spread</th><th>z</th><th>unit</th></tr>" + "".join(rows)
             + "</table><table id=\"reference-rules\"><tr><th>share rule</th><th>score</th><th>motor</th>"

@@ -7,11 +7,14 @@ Each quantity is an *entry*: ``value`` (this flight), ``reference`` (what the re
 for a reference of one flight) and ``z`` (deviation / spread: how many of the vehicle's own day-to-day
 changes the flight is away; null without a spread).
 
-- ``motor_share``, per project rotor (and the log's name of that motor): the mean over the flight's airborne
-  samples with all four commands (quantities.share_samples) of the share, against the mean over the same
-  samples of the reference's share model at each sample's forward speed and yaw rate (fits.predict_shares;
-  ``modelled_s`` says on how many seconds: where a regressor is not logged, the reference's airborne mean
-  share stands in); spread: the reference's between-flight std of the airborne mean share.
+- ``motor_share``, per project rotor (and the log's name of that motor): the mean share over the flight's
+  steady samples (core.hover's test, the samples the share model was fitted on) against the mean over the
+  same samples of the reference's share model at each sample's forward speed and yaw rate
+  (fits.predict_shares): a reference flight scores 0 against a reference of itself, where its airborne mean
+  (climbs and banks included) would not. A flight with under 4 s of such samples (a regressor not logged:
+  no yaw) is compared on its airborne samples (quantities.share_samples) with the reference's airborne mean
+  share (``basis`` says which; ``airborne``: the flight's airborne mean share, the rules' input). Spread:
+  the reference's between-flight std of the airborne mean share.
 - ``hover_collective``: core.hover's estimate on this flight against the reference flights' estimates.
 - ``sag_v_per_a_cell``: the pack's voltage drop per ampere per cell (fits.battery_flight), when the
   reference's flights and this one log a current that moves; else null with ``why``.
@@ -54,13 +57,18 @@ def share_series(fl: Flight, reference: dict) -> tuple[np.ndarray, np.ndarray, n
 
 
 def _motor_share(fl: Flight, reference: dict, shares: np.ndarray, ref: np.ndarray, modelled: np.ndarray) -> list[dict]:
-    sel = q.share_samples(fl)
+    air = q.share_samples(fl)
+    steady = air & q.steady(fl) & modelled
+    if steady.sum() >= fits.MIN_FIT_SAMPLES:
+        sel, basis, expect = steady, "steady samples against the share model", ref
+    else:
+        sel, basis = air, "airborne samples against the reference's airborne mean share"
+        expect = np.broadcast_to(np.array([m["mean"] for m in reference["motor_share"]], float), shares.shape)
     out = []
     for k, m in enumerate(reference["motor_share"]):
-        val, exp = flight_stat(shares[:, k], sel)["mean"], flight_stat(ref[:, k], sel)["mean"]
-        out.append(entry(val, exp, m["between_std"], "-", rotor=k + 1, log_motor=m["log_motor"],
-                         seconds=round(float(sel.sum() * GRID_DT), 2),
-                         modelled_s=round(float((sel & modelled).sum() * GRID_DT), 2)))
+        val, exp = flight_stat(shares[:, k], sel)["mean"], flight_stat(expect[:, k], sel)["mean"]
+        out.append(entry(val, exp, m["between_std"], "-", rotor=k + 1, log_motor=m["log_motor"], basis=basis,
+                         seconds=round(float(sel.sum() * GRID_DT), 2), airborne=flight_stat(shares[:, k], air)["mean"]))
     return out
 
 
