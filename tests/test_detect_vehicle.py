@@ -175,8 +175,8 @@ def test_flight_page_in_chromium_draws_the_reference_band(fleet, browser):  # no
         "const ax = d.data.find(t => t.name === 'motor 1').yaxis;"
         "return {ax: ax, ref: d.data.filter(t => t.meta && t.meta.kind && t.meta.kind.startsWith('reference'))"
         ".map(t => ({kind: t.meta.kind, motor: t.meta.motor, log: t.meta.log_motor, spread: t.meta.spread,"
-        " yaxis: t.yaxis, y: t.y.filter(v => v !== null)})), section: !!document.getElementById('reference-quantities'),"
-        " reference: window.quadfdi.reference.file}")
+        " yaxis: t.yaxis, y: t.y.filter(v => v !== null)})),"
+        " section: !!document.getElementById('reference-quantities'), reference: window.quadfdi.reference.file}")
     rec = _alarms_json(fleet, DAMAGED_KEY)["vehicle_reference"]
     assert drawn["section"] and drawn["reference"] == "cf.json"
     bands = {t["motor"]: t for t in drawn["ref"] if t["kind"] == "reference band"}
