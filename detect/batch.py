@@ -37,6 +37,8 @@ class Job:
     precision: str
     runtime: str
     out: str  # the fleet folder
+    reference: object = None  # detect.reference.Reference or None
+    reference_note: str | None = None  # why there is none
 
 
 def exit_status(rows: list[dict], refused: list[dict]) -> int:
@@ -65,6 +67,7 @@ def spark(arrays: dict) -> list[list]:
 
 def summary_row(result: dict, flight: dict, date: str | None, name: str, log: str) -> dict:
     from quadfdi.detect.page import vehicle_facts
+    from quadfdi.detect.reference import summary as reference_summary
 
     rec, arr = result["record"], result["arrays"]
     time = np.asarray(flight["time"], np.float64)
@@ -80,20 +83,31 @@ def summary_row(result: dict, flight: dict, date: str | None, name: str, log: st
             "alarms": [{k: a.get(k) for k in ("class", "motor", "start_s", "end_s", "peak_p_fault")}
                        for a in rec["alarms"]],
             "worst_p_fault": round(worst, 4), "threshold": float(rec["policy"]["threshold"]),
-            "t0": float(time[0]), "t1": float(time[-1]), "spark": spark(arr)}
+            "t0": float(time[0]), "t1": float(time[-1]), "spark": spark(arr),
+            "vehicle_reference": reference_summary(rec.get("vehicle_reference")),
+            "reference_note": result.get("reference_note")}
 
 
-def decide_flight(log: str | Path | dict, model: str, net: str, precision: str, runtime: str) -> tuple:
-    """(detect result, flight arrays, evidence, date) of one log, flight.npz or flight arrays."""
+def decide_flight(log: str | Path | dict, model: str, net: str, precision: str, runtime: str,
+                  reference=None, reference_note: str | None = None) -> tuple:
+    """(detect result, flight arrays, evidence, date) of one log, flight.npz or flight arrays, read beside
+    ``reference`` (detect.reference.Reference; a reference of another vehicle refuses the flight first)."""
     from quadfdi.detect.evidence import occlusion
     from quadfdi.detect.inputs import read_flight
     from quadfdi.detect.logfiles import log_date
+    from quadfdi.detect.reference import NO_REFERENCE, add_to_evidence, apply
     from quadfdi.detect.run import detect
     from quadfdi.formats.export_folder import Export
 
     flight = log if isinstance(log, dict) else read_flight(log)
+    ref_record, series = None, None
+    if reference is not None:
+        ref_record, series = apply(flight, reference, str(flight["log_file"]) if isinstance(log, dict) else log)
     result = detect(model, flight, net, precision, runtime)
+    result["record"]["vehicle_reference"] = ref_record
+    result["vehicle_series"], result["reference_note"] = series, None if series else reference_note or NO_REFERENCE
     evidence = occlusion(result, flight, Export.open(model), net, precision)
+    add_to_evidence(evidence, series, flight["time"])
     date = None if isinstance(log, dict) else log_date(Path(log))
     return result, flight, evidence, date
 
@@ -117,7 +131,8 @@ def run_job(job: Job) -> dict:
         from quadfdi.core.jsonio import write_json
         from quadfdi.core.npzio import write_npz
 
-        result, flight, evidence, date = decide_flight(job.log, job.model, job.net, job.precision, job.runtime)
+        result, flight, evidence, date = decide_flight(job.log, job.model, job.net, job.precision, job.runtime,
+                                                       job.reference, job.reference_note)
         folder = ensure_dir(Path(job.out) / job.name)
         write_npz(folder / "windows.npz", result["arrays"])
         write_json(folder / "alarms.json", result["record"], indent=2)
@@ -156,9 +171,10 @@ def _results(jobs: list[Job], workers: int, progress: bool):
 
 def detect_many(model: str | Path, logs: list[str | Path], out: str | Path, net: str = "cnode",
                 precision: str = "fp32", runtime: str = "ort", workers: int | None = None,
-                log: Callable[[str], None] = print, progress: bool = True) -> dict:
-    """Detect every log of ``logs`` (files or folders) into ``out``; the summary (also
-    ``out/summary.json``), whose ``exit_status`` is the command's."""
+                log: Callable[[str], None] = print, progress: bool = True, refs=None) -> dict:
+    """Detect every log of ``logs`` (files or folders) into ``out``, each beside the reference ``refs``
+    (detect.reference.References) gives it; the summary (also ``out/summary.json``), whose
+    ``exit_status`` is the command's."""
     from quadfdi.core.atomic import ensure_dir, write_text
     from quadfdi.core.jsonio import write_json
     from quadfdi.detect.html import write_plotly_js
@@ -180,7 +196,10 @@ def detect_many(model: str | Path, logs: list[str | Path], out: str | Path, net:
                            "Crazyflie uSD or flight.npz, known by their first bytes)")
     folder = ensure_dir(out)
     write_plotly_js(folder)
-    jobs = [Job(str(f), name, str(model), net, precision, runtime, str(folder)) for f, name in found]
+    from quadfdi.detect.reference import References
+
+    refs = refs or References()
+    jobs = [Job(str(f), name, str(model), net, precision, runtime, str(folder), *refs.for_log(f)) for f, name in found]
     workers = max(1, min(workers or os.cpu_count() or 1, len(jobs)))
     rows, refused = [], []
     for r in _results(jobs, workers, progress):
@@ -197,4 +216,8 @@ def detect_many(model: str | Path, logs: list[str | Path], out: str | Path, net:
     n_alarm = sum(1 for r in rows if r["alarms"])
     log(f"detect: {len(jobs)} log(s): {len(rows)} decided ({n_alarm} with alarms), {len(refused)} refused; "
         f"wrote {folder / 'index.html'}")
+    without = [r for r in rows if r["vehicle_reference"] is None]
+    if without:
+        log(f"detect: {len(without)} of {len(rows)} decided flight(s) with no vehicle reference: the model judges "
+            "them against the simulated vehicles")
     return summary

@@ -8,6 +8,10 @@ sample: a rotor working harder than the others stands out without any vehicle sc
 ESC rpm, current and temperature; last, p(class) of each fault class and p_fault at each window's
 end with the policy's threshold. Every panel shares the x axis: zooming one zooms all.
 
+With a vehicle reference (detect.reference), the motor share panel also draws each motor's reference
+share at the flight's operating point (dashed, airborne samples) inside its band of +- the reference's
+between-flight spread (``meta.kind`` "reference" and "reference band").
+
 Overlays on every panel: each alarm's span (red; open-ended alarms run to the end) with a marker
 trace at its start (``meta.kind`` "alarm": what tests and scripts read back), the spans where no
 decision was made, shaded by reason, and the airborne segments' take-off and touchdown lines.
@@ -24,6 +28,7 @@ import numpy as np
 from quadfdi.detect.html import rounded
 
 MAX_BUCKETS = 1000
+SHARE_PANEL = "motor command / mean of four"
 COLORS = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b")
 DEG = 180.0 / np.pi
 UNDECIDED = {"ground": ("not airborne", "rgba(120,120,120,0.18)"),
@@ -90,7 +95,7 @@ def signal_panels(flight: dict) -> list[tuple[str, list[tuple[str, np.ndarray, b
         [("V_b / cell" if cells else "V_b", None if vb is None else vb / (cells or 1), True)])
     add("current, A", [("I_b", ch("I_b"), True)])
     shares = _shares([ch(f"thr{m}") for m in range(1, 5)], 0.05)
-    add("motor command / mean of four", [(f"motor {m + 1}", s, True) for m, s in enumerate(shares or [])])
+    add(SHARE_PANEL, [(f"motor {m + 1}", s, True) for m, s in enumerate(shares or [])])
     add("vibration, m/s^2", [(n, ch(n), True) for n in ("vib_px4", "vib_ap")])
     add("ESC rpm", [(f"rpm{m}", ch(f"rpm{m}"), True) for m in range(1, 5)])
     add("ESC current, A", [(f"esc_cur{m}", ch(f"esc_cur{m}"), True) for m in range(1, 5)])
@@ -187,6 +192,42 @@ def _overlays(result: dict, flight: dict, axis: str, legend: str) -> tuple[list[
     return traces, shapes, notes
 
 
+def _rgba(color: str, alpha: float) -> str:
+    return f"rgba({int(color[1:3], 16)},{int(color[3:5], 16)},{int(color[5:7], 16)},{alpha})"
+
+
+def reference_traces(series: dict, time: np.ndarray, axis: str, legend: str) -> list[dict]:
+    """Each motor's reference share (dashed) and its band (a filled polygon per airborne run, at most
+    ``MAX_BUCKETS`` points a motor: the reference moves slowly, a stride keeps its shape); one legend
+    entry for them all (a click hides or shows every one)."""
+    from quadfdi.vehicle.stats import runs
+
+    air = np.asarray(series["airborne"], bool)
+    out = []
+    for k in range(4):
+        ref, spread, color = series["reference"][:, k], series["spread"][k], COLORS[k % len(COLORS)]
+        meta = {"motor": k + 1, "log_motor": series["log_motor"][k], "spread": spread}
+        group = {"legend": legend, "legendgroup": "reference", "showlegend": not out,
+                 "name": "vehicle reference \u00b1 between-flight spread"}
+        if spread:
+            ok = air & np.isfinite(ref)
+            step = max(1, int(ok.sum()) // MAX_BUCKETS + 1)
+            xs, ys = [], []
+            for a, b in runs(ok):
+                idx = np.unique(np.r_[np.arange(a, b, step), b - 1])
+                t, lo, hi = time[idx], ref[idx] - spread, ref[idx] + spread
+                xs += rounded(t, 6) + rounded(t[::-1], 6) + [None]
+                ys += rounded(hi) + rounded(lo[::-1]) + [None]
+            out.append({"type": "scatter", "mode": "lines", "x": xs, "y": ys, "xaxis": "x", "yaxis": axis,
+                        "fill": "toself", "fillcolor": _rgba(color, 0.15), "line": {"width": 0}, "hoverinfo": "skip",
+                        "meta": dict(meta, kind="reference band"), **group})
+        line = _line(f"reference motor {k + 1} ({series['log_motor'][k]})", time, np.where(air, ref, np.nan), axis,
+                     color, legend=legend)
+        line["line"]["dash"], line["meta"] = "dash", dict(meta, kind="reference")
+        out.append(dict(line, legendgroup="reference", showlegend=not out))
+    return out
+
+
 def figure(result: dict, flight: dict) -> dict:
     """{"data", "layout"} of the flight's linked panels (plotly.js)."""
     time = np.asarray(flight["time"], np.float64)
@@ -208,6 +249,8 @@ def figure(result: dict, flight: dict) -> dict:
         if p < len(panels):
             data += [_line(name, time, v, axis, COLORS[j % len(COLORS)], vis, legend)
                      for j, (name, v, vis) in enumerate(panels[p][1])]
+            if panels[p][0] == SHARE_PANEL and result.get("vehicle_series") is not None:
+                data += reference_traces(result["vehicle_series"], time, axis, legend)
         else:
             layout[key]["range"] = [-0.03, 1.08]
             data += probability_traces(result, axis, legend)

@@ -1,11 +1,13 @@
 """The fleet index (``DIR/index.html``): one row per decided flight, sortable by any column (a few
 lines of JavaScript), each linking to its page, with a sparkline of p_fault over the flight; then
-the logs that were refused, each with its one-line reason. It reads only ``summary.json``'s rows,
+the logs that were refused, each with its one-line reason; with vehicle references, columns of each
+flight against its reference (detect.reference_html). It reads only ``summary.json``'s rows,
 so it needs no plotting library: the sparklines are inline SVG."""
 
 from __future__ import annotations
 
 from quadfdi.detect.html import esc, fmt, page
+from quadfdi.detect.reference_html import index_cells, index_columns
 
 SORT_JS = """
 document.querySelectorAll('th.sortable').forEach(function (th) {
@@ -56,7 +58,7 @@ def sparkline(row: dict, width: int = 160, height: int = 28) -> str:
     return "".join(parts) + "</svg>"
 
 
-def _row(r: dict) -> str:
+def _row(r: dict, with_reference: bool) -> str:
     veh = r["vehicle"]
     vehicle = f"{veh['autopilot']}, {veh['frame']}, {veh['cells'] or '?'}S"
     alarms = "; ".join(f"{a['class']}{' m' + str(a['motor']) if a.get('motor') else ''} at {a['start_s']:.1f} s"
@@ -67,7 +69,8 @@ def _row(r: dict) -> str:
              (f"{r['decided_s']:.2f}", fmt(r["decided_s"])), (absent, esc(absent)),
              (str(len(r["alarms"])), f'<span class="{"alarm" if r["alarms"] else "ok"}">{esc(alarms)}</span>'),
              (f"{r['worst_p_fault']:.4f}", fmt(r["worst_p_fault"], 3)), (f"{r['worst_p_fault']:.4f}", sparkline(r))]
-    tds = "".join(f'<td data-v="{esc(v)}"{" class=num" if i in (3, 4, 7) else ""}>{h}</td>'
+    cells += index_cells(r) if with_reference else []
+    tds = "".join(f'<td data-v="{esc(v)}"{" class=num" if i in (3, 4, 7) or i > 9 else ""}>{h}</td>'
                   for i, (v, h) in enumerate(cells))
     return f'<tr data-name="{esc(r["name"])}">{tds}</tr>'
 
@@ -75,9 +78,11 @@ def _row(r: dict) -> str:
 def index_page(summary: dict) -> str:
     rows, refused = summary["flights"], summary["refused"]
     n_alarm = sum(1 for r in rows if r["alarms"])
-    heads = "".join(f'<th class="sortable" data-type="{t}">{esc(h)}</th>' for h, t in COLUMNS)
-    table = (f'<table id="flights"><thead><tr>{heads}</tr></thead><tbody>'
-             + "".join(_row(r) for r in rows) + "</tbody></table>") if rows else "<p>No flight was decided.</p>"
+    extra = index_columns(rows)
+    heads = "".join(f'<th class="sortable" data-type="{t}">{esc(h)}</th>' for h, t in COLUMNS + tuple(extra))
+    body = "".join(_row(r, bool(extra)) for r in rows)
+    table = (f'<table id="flights"><thead><tr>{heads}</tr></thead><tbody>{body}</tbody></table>' if rows
+             else "<p>No flight was decided.</p>")
     ref = ""
     if refused:
         ref = ("<h2>Refused logs</h2><table id=\"refused\"><tr><th>log</th><th>reason</th></tr>"
@@ -88,5 +93,8 @@ def index_page(summary: dict) -> str:
             f"<p>Model {esc(m['export'])}: {esc(m['net'])} {esc(m['precision'])} on {esc(m['runtime'])}, profile "
             f"{esc(m['profile'] or '?')}. Exit status {summary['exit_status']} ({esc(summary['exit_meaning'])}). "
             "Click a column's title to sort; the sparkline is p_fault at each decided window's end (dotted: the "
-            "alarm threshold; red: alarms).</p>" + table + ref)
+            "alarm threshold; red: alarms)." + (" With a vehicle reference: each motor's share, the hover collective, "
+            "the sag and the vibration minus what the vehicle's own healthy flights give (\u03c3: the reference's "
+            "between-flight spread), and the largest-deviation share rule's score (red: above its threshold); "
+            "the model does not read them." if extra else "") + "</p>" + table + ref)
     return page("quadfdi detect \u2014 flights", body, None, SORT_JS)

@@ -1,10 +1,11 @@
 """One flight's page (``index.html``): the flight's facts, its alarms (each a link that zooms every
 panel to it), the linked panels (detect.flightplot), an evidence section per alarm
-(detect.evidence: which input groups carried p_fault past the threshold, the motor shares), and
-the channels the log holds with where each came from.
+(detect.evidence: which input groups carried p_fault past the threshold, the motor shares and,
+with a vehicle reference, their deviations from it), the flight against the vehicle reference
+(detect.reference_html), and the channels the log holds with where each came from.
 
 The page loads the plotting library from ``script_src`` (``../plotly.min.js`` in a fleet folder)
-and keeps what it drew in ``window.quadfdi`` (``figure``, ``alarms``, ``evidence``), so a test or a
+and keeps what it drew in ``window.quadfdi`` (``figure``, ``alarms``, ``evidence``, ``reference``), so a test or a
 script reads back what is on screen.
 """
 
@@ -16,11 +17,13 @@ import numpy as np
 
 from quadfdi.detect.flightplot import UNDECIDED, figure
 from quadfdi.detect.html import esc, fmt, json_script, page
+from quadfdi.detect.reference_html import evidence_table, section
 
 SCRIPT = """
 const q = window.quadfdi = {figure: JSON.parse(document.getElementById('figure-data').textContent),
   alarms: JSON.parse(document.getElementById('alarms-data').textContent),
-  evidence: JSON.parse(document.getElementById('evidence-data').textContent)};
+  evidence: JSON.parse(document.getElementById('evidence-data').textContent),
+  reference: JSON.parse(document.getElementById('reference-data').textContent)};
 const cfg = {displaylogo: false, responsive: true};
 Plotly.newPlot('flight-plot', q.figure.data, q.figure.layout, cfg);
 q.evidence.forEach(function (ev) {
@@ -104,7 +107,7 @@ def _evidence_html(ev: dict) -> str:
                   "<tr><th>motor</th><th>during the alarm</th><th>outside every alarm</th><th>change</th></tr>"
                   + srows + "</table>")
     return (f"<div class=\"evidence\" id=\"evidence-{ev['alarm']}\" data-start-s=\"{ev['start_s']}\">{head}"
-            f"<div id=\"evidence-plot-{ev['alarm']}\"></div>{table}{shares}</div>")
+            f"<div id=\"evidence-plot-{ev['alarm']}\"></div>{table}{shares}{evidence_table(ev)}</div>")
 
 
 def _channels_table(flight: dict) -> str:
@@ -134,9 +137,10 @@ def flight_page(result: dict, flight: dict, evidence: list[dict], date: str | No
             f"decision ({spans}); dashed green: the land detector's take-off and touchdown.</p>"
             "<div id=\"flight-plot\"></div>"
             + (f"<h2>Evidence</h2>{''.join(_evidence_html(ev) for ev in evidence)}" if evidence else "")
+            + section(rec.get("vehicle_reference"), result.get("reference_note"))
             + f"<h2>Log</h2>{_channels_table(flight)}"
             + ("<details><summary>Ingest notes</summary><ul>" + "".join(f"<li>{esc(n)}</li>" for n in notes)
                + "</ul></details>" if notes else "")
             + json_script("figure-data", fig) + json_script("alarms-data", rec["alarms"])
-            + json_script("evidence-data", evidence))
+            + json_script("evidence-data", evidence) + json_script("reference-data", rec.get("vehicle_reference")))
     return page(f"{rec['flight']} \u2014 quadfdi detect", body, script_src, SCRIPT)

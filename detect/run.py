@@ -7,6 +7,7 @@ Writes into OUT (only once everything is computed; a refusal writes nothing):
   exposure (flight-seconds covered by decided windows) and the alarms (start_s, end_s, class,
   motor, peak_p_fault); a masked-profile model adds ``channels``: the raw channels ``used``, the
   ``absent`` ones with why (ingest's status) and the availability ``groups`` (detect/inputs.py);
+  ``vehicle_reference``: null here, filled by detect.reference when a reference is given;
 - ``windows.npz``: per window on the grid ``t_end``, ``decided``, ``proba`` (NaN if undecided),
   ``votes``, ``active``, ``cls`` (-1 inactive), ``class_names``, ``motor`` (int8, 1..4 or 0: detect.motor)
   and, for a model with a motor head, ``motor_proba`` (n, 4) float32 (NaN if undecided);
@@ -101,7 +102,8 @@ def detect(model: str | Path, flight: str | Path | dict, net: str = "cnode", pre
                         "cur_a": None if not np.isfinite(fi.hover.cur) else float(fi.hover.cur),
                         "freeze_s": float(fi.time[fi.hover.freeze]), "cells": fi.cells},
               "airborne_s": round(fi.airborne_s, 2), "windows": int(n), "decided_windows": int(fi.decided.sum()),
-              "exposure_s": round(exposure_s(fi, window, dt), 2), "alarms": alarms}
+              "exposure_s": round(exposure_s(fi, window, dt), 2), "alarms": alarms,
+              "vehicle_reference": None}  # detect.reference: what the vehicle's own healthy flights say
     if fi.available is not None:  # the masked profile: what the decision read and what it went without
         record["channels"] = {"used": [r for r in required_raw(profile) if r not in fi.absent],
                               "absent": dict(fi.absent), "groups": dict(fi.available)}

@@ -1,5 +1,6 @@
 """``vehicle.json``: a reference of one airframe, learned from its own healthy flights (docs/formats.md,
-"Vehicle reference"; written by ``quadfdi vehicle learn``, read by ``quadfdi vehicle rules``).
+"Vehicle reference"; written by ``quadfdi vehicle learn``, read by ``quadfdi vehicle rules`` and
+``quadfdi detect --vehicle``), and the vehicles map of ``quadfdi detect --vehicles`` (``read_vehicle_map``).
 
 Strict JSON (no NaN: a quantity that cannot be estimated is ``null``), top-level keys:
 
@@ -85,3 +86,30 @@ def check_vehicle(data, where: str) -> None:
         raise QuadfdiError(f"{where}: motor_share must hold four entries (project rotors 1..4)")
     for k, entry in enumerate(shares):
         check_stat(entry, len(flights), f"{where}: motor_share[{k}]")
+
+
+def read_vehicle_map(path: str | Path) -> list[tuple[str, Path]]:
+    """A vehicles map: ``(log path glob, vehicle.json path)`` in the file's order, both relative to the map
+    file's folder (an absolute one as it is). TOML (``"glob" = "vehicle.json"`` lines) or JSON (one object
+    of the same), known by the suffix; one-line QuadfdiError for anything else."""
+    p = Path(path)
+    if not p.is_file():
+        raise QuadfdiError(f"vehicles map {p} does not exist or is not a regular file")
+    if p.suffix.lower() not in (".toml", ".json"):
+        raise QuadfdiError(f"vehicles map {p}: expected a .toml or .json file (log path glob = vehicle.json)")
+    if p.suffix.lower() == ".json":
+        data = read_json(p, "vehicles map")
+    else:
+        import tomllib
+
+        try:
+            data = tomllib.loads(p.read_text())
+        except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
+            raise QuadfdiError(f"vehicles map {p} cannot be read as TOML: {' '.join(str(exc).split())}") from None
+    if not isinstance(data, dict) or not data:
+        raise QuadfdiError(f"vehicles map {p}: expected at least one line `\"log path glob\" = \"vehicle.json\"`")
+    bad = [k for k, v in data.items() if not k.strip() or not isinstance(v, str) or not v.strip()]
+    if bad:
+        raise QuadfdiError(f"vehicles map {p}: {bad[0]!r} must map a log path glob to a vehicle.json path (a string), "
+                           f"not {data[bad[0]]!r}")
+    return [(str(p.parent / k), p.parent / v) for k, v in data.items()]

@@ -180,7 +180,7 @@ def fault_exported(small_run, tmp_path_factory) -> Path:
 # end. The longest by --durations: the pipeline run (~2 min), the firmware builds and QEMU parity,
 # the streaming runtime's and detect's exports, the bench, the tanhq proof.
 LONG_FILES = ("test_wheel.py", "test_pipeline.py", "test_firmware.py", "test_stream.py", "test_firmware_tanhq.py",
-              "test_masks_mcu.py", "test_masks.py", "test_detect.py", "test_bench_report.py", "test_real_flights.py",
+              "test_masks_mcu.py", "test_masks.py", "test_detect_vehicle.py", "test_detect.py", "test_bench_report.py", "test_real_flights.py",
               "test_fuzz.py", "test_stream_gaps.py", "test_distributed.py")
 
 

@@ -114,3 +114,20 @@ def vibration_flight(fl: Flight, name: str) -> dict | None:
         return None
     coef, resid, n = fit
     return {"floor": coef[0], "per_collective": coef[1], "residual_std": resid, "seconds": round(n * GRID_DT, 2)}
+
+
+def predict_shares(model: dict, fl: Flight) -> np.ndarray | None:
+    """(T, 4) each motor's share that ``share_model``'s fit gives at the flight's own forward speed and yaw
+    rate, each regressor clipped to the 5-95 % range the reference flew (a line is not extrapolated beyond
+    what it saw); NaN where a regressor is missing; None when the reference holds no fit."""
+    if not model.get("motors"):
+        return None
+    regs = {"v_forward": q.forward_speed(fl), "yaw_rate": q.yaw_rate(fl)[0]}
+    out = np.empty((len(fl.arrays["time"]), 4))
+    for k, m in enumerate(model["motors"]):
+        y = np.full(len(out), float(m["intercept"]))
+        for name in model["regressors"]:
+            lo, hi = model["range_5_95"][name]
+            y = y + float(m[f"per_{name}"]) * np.clip(regs[name], lo, hi)
+        out[:, k] = y
+    return out
