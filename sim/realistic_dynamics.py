@@ -60,6 +60,10 @@ class Vehicle(NamedTuple):
     C: np.ndarray  # (B,) aged capacity [A h]
     C_label: np.ndarray  # (B,) label (new) capacity: what the coulomb counter divides by
     T_amb: np.ndarray  # (B, 1)
+    # the airframe class's propulsion scale (sim.fleet_params; the 450 class: exactly the nominal values)
+    gamma: np.ndarray | float = NOM.gamma  # (B,) rotor drag torque per newton of thrust [m], ~ prop radius
+    c_P: np.ndarray | float = NOM.c_P  # (B,) induced power F^1.5 coefficient, ~ 1 / prop radius
+    ctrl: np.ndarray | float = 1.0  # (B, 3) the class's rate-loop output scale (roll, pitch, yaw)
 
 
 def rotor_positions(frame: np.ndarray, arm: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -75,10 +79,13 @@ def vehicle(draws: list[dict]) -> Vehicle:
     rx, ry = rotor_positions(d["frame"], d["arm"])
     scale = (d["mass"] / NOM.m) * (d["arm"] / NOM.L) ** 2  # point-mass scaling of the inertia
     R = d["cells"] * P.R_CELL_5AH * (5.0 / d["capacity"]) * (1 + P.AGE_R_GROWTH * d["age"]) + P.R_LEADS
+    size = np.array([float(x.get("size", 1.0)) for x in draws])  # prop and motor scale of the class (fleet)
+    ctrl = np.stack([size ** 1.5, size ** 1.5, size ** 0.5], -1)  # sim.fleet_params: Froude-similar tuning
     return Vehicle(d["mass"], d["payload_kg"], d["payload_t"], NOM.J[None, :] * scale[:, None], rx, ry, d["cg"],
                    d["flap"] * d["arm"] / np.sqrt(2.0), d["arm"][:, None] * d["twist"],
                    F_max[:, None] * d["kf"], NOM.h_nom * d["cool"], d["motor_tau"], d["cells"], R,
-                   d["capacity"] * (1 - P.AGE_FADE * d["age"]), d["capacity"], d["t_amb"][:, None])
+                   d["capacity"] * (1 - P.AGE_FADE * d["age"]), d["capacity"], d["t_amb"][:, None],
+                   NOM.gamma * size, NOM.c_P / size, ctrl)
 
 
 class Held(NamedTuple):
@@ -114,7 +121,7 @@ def deriv(x: np.ndarray, u: Held, veh: Vehicle) -> tuple[np.ndarray, tuple]:
     T_m, F = x[:, 13:17], x[:, 17:21]
     d = faults.derating(T_m, 1.0, NOM)
     Fp = np.maximum(F, 0.0)
-    P_el = NOM.c_P * (u.rho_Q_T * Fp * np.sqrt(Fp)).sum(axis=1) + NOM.P_av
+    P_el = veh.c_P * (u.rho_Q_T * Fp * np.sqrt(Fp)).sum(axis=1) + NOM.P_av
     V, I, lim = terminal(x[:, 12], P_el, veh, u.R, u.delta)
     dx = np.empty_like(x)
     Mx = (F * (veh.ry - veh.cg[:, 1:2])).sum(axis=1)
@@ -164,7 +171,8 @@ def held_inputs(thr: np.ndarray, kappa: np.ndarray, s: np.ndarray, ev: np.ndarra
     m = veh.m0 + np.where(t >= veh.t_pay, veh.dm, 0.0)
     phys = SimpleNamespace(m=m, g=NOM.g, Jxx=veh.J[:, 0], Jyy=veh.J[:, 1], Jzz=veh.J[:, 2], k_L=NOM.k_L,
                            k_Omega=NOM.k_Omega)
-    return Held(F_base, rQ / (rT * np.sqrt(rT)), NOM.gamma * SPIN * rQ / rT + veh.twist, h, NOM.a_Q * s_h[:, None] * oh,
+    gamma = np.asarray(veh.gamma, np.float64).reshape(-1, 1)
+    return Held(F_base, rQ / (rT * np.sqrt(rT)), gamma * SPIN * rQ / rT + veh.twist, h, NOM.a_Q * s_h[:, None] * oh,
                 R, C, delta, wind, phys)
 
 
