@@ -91,7 +91,7 @@ def dataset_arrays(arrays: dict[str, np.ndarray], sim: Any) -> dict[str, np.ndar
 
 
 # [sim] keys added after the paper dataset was fixed (the realistic suite); embedded only when not default.
-LATER_SIM_KEYS = ("scenario", "classes", "ood_traj")
+LATER_SIM_KEYS = ("scenario", "classes", "ood_traj", "flights_per_vehicle", "reference_flights")
 
 
 def class_names(arrays: dict[str, np.ndarray]) -> tuple[str, ...]:
