@@ -28,7 +28,7 @@ def test_a_bare_name_is_a_shipped_config_anything_else_a_path():
     with pytest.raises(QuadfdiError, match=r"no shipped config named 'papr'; shipped: fleet, paper, realistic, realistic-mask"):
         resources.config_file("papr")
     assert load_config("realistic").to_dict() == load_config(ROOT / "configs" / "realistic.toml").to_dict()
-    with pytest.raises(QuadfdiError, match=r"config file nope.toml does not exist \(shipped configs, by name: paper, "):
+    with pytest.raises(QuadfdiError, match=r"config file nope.toml does not exist \(shipped configs, by name: fleet, paper, "):
         load_config("nope.toml")
 
 
