@@ -91,7 +91,7 @@ def dataset_arrays(arrays: dict[str, np.ndarray], sim: Any) -> dict[str, np.ndar
 
 
 # [sim] keys added after the paper dataset was fixed (the realistic suite); embedded only when not default.
-LATER_SIM_KEYS = ("scenario", "classes", "ood_traj")
+LATER_SIM_KEYS = ("scenario", "classes", "ood_traj", "flights_per_vehicle", "reference_flights")
 
 
 def class_names(arrays: dict[str, np.ndarray]) -> tuple[str, ...]:
@@ -107,6 +107,22 @@ def split_names(arrays: dict[str, np.ndarray]) -> tuple[str, ...]:
     if "split_names" in arrays:
         return tuple(str(c) for c in arrays["split_names"])
     return tuple(SPLITS)
+
+
+# Per-flight fleet keys (the fleet suite, sim/fleet.py); absent from paper and realistic datasets.
+FLEET_KEYS = ("vehicle_id", "vehicle_flight", "reference_flight", "airframe_class")
+
+
+def vehicle_columns(arrays: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """Per flight: ``vehicle_id`` int32, ``vehicle_flight`` (its index on that vehicle) int16,
+    ``reference_flight`` bool (a healthy reference flight), ``airframe_class`` int8 (code of
+    ``airframe_class_names``). A dataset without them flew a new vehicle per flight: vehicle = row,
+    flight 0, no reference flight, class 0 (the 450 class)."""
+    n = arrays["telemetry"].shape[0]
+    if all(k in arrays for k in FLEET_KEYS):
+        return {k: np.asarray(arrays[k]) for k in FLEET_KEYS}
+    return {"vehicle_id": np.arange(n, dtype=np.int32), "vehicle_flight": np.zeros(n, np.int16),
+            "reference_flight": np.zeros(n, bool), "airframe_class": np.zeros(n, np.int8)}
 
 
 def validate_arrays(arrays: dict[str, Any], where: str) -> None:
@@ -126,6 +142,10 @@ def validate_arrays(arrays: dict[str, Any], where: str) -> None:
     for key, shape in expect.items():
         if arrays[key].shape != shape:
             raise QuadfdiError(f"{where}: field {key!r} must have shape {shape}, found {arrays[key].shape}")
+    present = [k for k in FLEET_KEYS if k in arrays]
+    if present and (len(present) != len(FLEET_KEYS) or any(arrays[k].shape != (n,) for k in present)):
+        raise QuadfdiError(f"{where}: the fleet fields {list(FLEET_KEYS)} must all be present with shape {(n,)}, "
+                           f"found {[(k, arrays[k].shape) for k in present]}")
     if arrays["states"].shape[:2] != (n, t) or arrays["states"].shape[2] != arrays["state_names"].shape[0]:
         raise QuadfdiError(f"{where}: field 'states' has shape {arrays['states'].shape}, inconsistent with telemetry {(n, t, c)}")
     if not np.isfinite(arrays["telemetry"]).all():

@@ -33,6 +33,9 @@ class SimConfig:
     scenario: str = "paper"  # paper: Eqs. 1-9 as published | realistic: sim/realistic*.py
     classes: tuple[str, ...] = ("Healthy", "BatteryFault", "MotorFault", "OverheatFault")  # label order
     ood_traj: int = 0  # realistic: flights per out-of-distribution test set (4 sets), on top of n_traj
+    # --- fleet suite (docs/fleet.md): each vehicle flies several flights, its first ones healthy ---
+    flights_per_vehicle: int = 0  # fleet: flights of every vehicle (n_traj and ood_traj are multiples of it)
+    reference_flights: int = 0  # fleet: the first flights of each vehicle, healthy (the reference flights)
 
     def validate(self) -> None:
         positive(self, "n_traj", "duration_s", "sample_dt_s", "sim_dt_s", "window", "stride", "chunk")
@@ -40,7 +43,7 @@ class SimConfig:
         at_most(self, MAX_WINDOW, "window")
         if self.window < 2:
             raise QuadfdiError(f"sim.window must be 2 samples or more (the models need a time step), found {self.window}")
-        choice(self, "scenario", ("paper", "realistic"))
+        choice(self, "scenario", ("paper", "realistic", "fleet"))
         self._validate_classes()
         if not 0.0 <= self.fault_ratio <= 1.0:
             raise QuadfdiError(f"sim.fault_ratio must be in [0, 1], found {self.fault_ratio}")
@@ -85,11 +88,26 @@ class SimConfig:
         if bad or len(set(self.classes)) != len(self.classes) or self.classes[:1] != ("Healthy",) or len(self.classes) < 2:
             raise QuadfdiError(f"sim.classes must start with Healthy and list distinct classes of {list(known)}, "
                                f"found {list(self.classes)}")
-        if self.scenario == "realistic" and self.vehicle != "f450_3s":
-            raise QuadfdiError("sim.scenario='realistic' draws its vehicles around the nominal f450_3s "
+        if self.scenario != "paper" and self.vehicle != "f450_3s":
+            raise QuadfdiError(f"sim.scenario={self.scenario!r} draws its vehicles around the nominal f450_3s "
                                f"(sim/realistic_params.py); sim.vehicle must be 'f450_3s', found {self.vehicle!r}")
         if self.ood_traj < 0:
             raise QuadfdiError(f"sim.ood_traj must not be negative, found {self.ood_traj}")
+        self._validate_fleet()
+
+    def _validate_fleet(self) -> None:
+        f, r = self.flights_per_vehicle, self.reference_flights
+        if self.scenario != "fleet":
+            if f or r:
+                raise QuadfdiError("sim.flights_per_vehicle and sim.reference_flights belong to sim.scenario='fleet' "
+                                   f"(found {f} and {r} with scenario {self.scenario!r})")
+            return
+        if not 1 <= r < f:
+            raise QuadfdiError(f"sim.scenario='fleet' needs 1 <= sim.reference_flights < sim.flights_per_vehicle, "
+                               f"found {r} and {f}")
+        if self.n_traj % f or self.ood_traj % f:
+            raise QuadfdiError(f"sim.n_traj ({self.n_traj}) and sim.ood_traj ({self.ood_traj}) must be whole "
+                               f"multiples of sim.flights_per_vehicle ({f}): every vehicle flies all its flights")
 
     @property
     def estimated_bytes(self) -> int:

@@ -30,6 +30,7 @@ SPLIT_NAMES = ("train", "validation", "test", "test_ood_mission", "test_ood_vehi
                "test_incipient")
 BATTERY_SUBMODES = ("resistance", "capacity_fade", "cell_imbalance")
 FRAME_NAMES = ("plus", "x")
+DrawFn = Callable[[int, int], dict]  # (flight index, test group) -> the flight's draws
 
 
 def labels(cfg: SimConfig) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -102,8 +103,8 @@ def _states(rec: rl.Record, n: int) -> np.ndarray:
 
 
 def _chunk(cfg: SimConfig, idx: np.ndarray, cls: np.ndarray, split: np.ndarray, group: np.ndarray,
-           time: np.ndarray) -> dict[str, np.ndarray]:
-    draws = [draw_flight(cfg, int(i), int(g)) for i, g in zip(idx, group)]
+           time: np.ndarray, draw: DrawFn) -> dict[str, np.ndarray]:
+    draws = [draw(int(i), int(g)) for i, g in zip(idx, group)]
     fp = rf.plan(draws, cfg.classes, cls, cfg.duration_s)
     rec = rl.integrate(draws, fp, cfg.seed, idx, cfg.duration_s, cfg.sim_dt_s)
     veh = rd.vehicle(draws)
@@ -153,27 +154,47 @@ def generate(cfg: SimConfig, indices: Sequence[int] | None = None,
              progress: Callable[[int], None] | None = None) -> dict[str, np.ndarray]:
     """The realistic dataset's arrays (docs/formats.md, "Realistic suite"); rows = ``indices``
     (default all n_traj + 4 ood_traj flights), each bit-identical to its row in any other run."""
-    N = n_flights(cfg)
-    idx = np.arange(N, dtype=np.int64) if indices is None else np.asarray(list(indices), np.int64).reshape(-1)
-    if idx.size == 0 or idx.min() < 0 or idx.max() >= N:
-        raise QuadfdiError(f"sim: trajectory indices must lie in 0..{N - 1} (n_traj + 4 ood_traj)")
+    idx = row_indices(n_flights(cfg), indices, "n_traj + 4 ood_traj")
     cls_all, split_all, group_all = labels(cfg)
+    out = simulate_rows(cfg, idx, (cls_all, split_all, group_all), lambda i, g: draw_flight(cfg, i, g), progress)
+    out.update(name_tables(cfg, SPLIT_NAMES))
+    return out
+
+
+def row_indices(n: int, indices: Sequence[int] | None, what: str) -> np.ndarray:
+    """``indices`` as int64 (default 0..n-1), each checked to lie in 0..n-1."""
+    idx = np.arange(n, dtype=np.int64) if indices is None else np.asarray(list(indices), np.int64).reshape(-1)
+    if idx.size == 0 or idx.min() < 0 or idx.max() >= n:
+        raise QuadfdiError(f"sim: trajectory indices must lie in 0..{n - 1} ({what})")
+    return idx
+
+
+def simulate_rows(cfg: SimConfig, idx: np.ndarray, lab: tuple[np.ndarray, np.ndarray, np.ndarray], draw: DrawFn,
+                  progress: Callable[[int], None] | None = None) -> dict[str, np.ndarray]:
+    """The per-flight arrays of rows ``idx``, chunk by chunk; ``lab`` = (class, split, group) of every
+    flight, ``draw(i, group)`` flight i's draws (sim.variability.draw_flight's dict)."""
+    cls_all, split_all, group_all = lab
     time = np.arange(cfg.n_samples, dtype=np.float64) * cfg.sample_dt_s
     parts = []
     for start in range(0, idx.size, cfg.chunk):
         c = idx[start:start + cfg.chunk]
-        parts.append(_chunk(cfg, c, cls_all[c], split_all[c], group_all[c], time))
+        parts.append(_chunk(cfg, c, cls_all[c], split_all[c], group_all[c], time, draw))
         if progress is not None:
             progress(int(c.size))
     out = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
-    out.update({
-        "time": time, "channel_names": np.array(telemetry.CHANNEL_NAMES), "channel_units": np.array(telemetry.CHANNEL_UNITS),
+    out["time"] = time
+    return out
+
+
+def name_tables(cfg: SimConfig, split_names: tuple[str, ...]) -> dict[str, np.ndarray]:
+    """The dataset-wide arrays: channel, state, class, split and code names, the label threshold."""
+    return {
+        "channel_names": np.array(telemetry.CHANNEL_NAMES), "channel_units": np.array(telemetry.CHANNEL_UNITS),
         "esc_channel_names": np.array(esc_telemetry.ESC_CHANNEL_NAMES),
         "esc_channel_units": np.array(esc_telemetry.ESC_CHANNEL_UNITS),
         "state_names": np.array(sensors.STATE_NAMES), "state_units": np.array(sensors.STATE_UNITS),
         "severity_threshold": np.array(cfg.severity_threshold, dtype=np.float64),
-        "class_names": np.array(cfg.classes), "split_names": np.array(SPLIT_NAMES),
+        "class_names": np.array(cfg.classes), "split_names": np.array(split_names),
         "mission_names": np.array(mission.MISSION_TYPES), "fault_mode_names": np.array(MODES),
         "battery_submode_names": np.array(BATTERY_SUBMODES), "frame_names": np.array(FRAME_NAMES),
-    })
-    return out
+    }

@@ -60,6 +60,17 @@ class Vehicle(NamedTuple):
     C: np.ndarray  # (B,) aged capacity [A h]
     C_label: np.ndarray  # (B,) label (new) capacity: what the coulomb counter divides by
     T_amb: np.ndarray  # (B, 1)
+    # the airframe class's propulsion scale (sim.fleet_params; the 450 class: exactly the nominal values)
+    gamma: np.ndarray | float = NOM.gamma  # (B,) rotor drag torque per newton of thrust [m], ~ prop radius
+    c_P: np.ndarray | float = NOM.c_P  # (B,) induced power F^1.5 coefficient, ~ 1 / prop radius
+    ctrl: np.ndarray | float = 1.0  # (B, 3) the class's rate-loop output scale (roll, pitch, yaw)
+    # motor thermal node (sim.thermal's Eq. 5) scaled to the class's motor: (B, 1) each
+    R_w: np.ndarray | float = NOM.R_w  # winding resistance
+    c_F: np.ndarray | float = NOM.c_F  # mechanical loss per N^2
+    C_th: np.ndarray | float = NOM.C_th  # heat capacity; h, h_min and the fault heat a_Q scale with it
+    heat: np.ndarray | float = 1.0  # C_th / NOM.C_th
+    k_L: np.ndarray | float = NOM.k_L  # (B,) linear drag ~ frontal area (size^2)
+    k_Omega: np.ndarray | float = NOM.k_Omega  # (B,) rotational damping ~ rotor thrust x arm^2 (size^4)
 
 
 def rotor_positions(frame: np.ndarray, arm: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -75,10 +86,16 @@ def vehicle(draws: list[dict]) -> Vehicle:
     rx, ry = rotor_positions(d["frame"], d["arm"])
     scale = (d["mass"] / NOM.m) * (d["arm"] / NOM.L) ** 2  # point-mass scaling of the inertia
     R = d["cells"] * P.R_CELL_5AH * (5.0 / d["capacity"]) * (1 + P.AGE_R_GROWTH * d["age"]) + P.R_LEADS
+    size = np.array([float(x.get("size", 1.0)) for x in draws])  # prop and motor scale of the class (fleet)
+    ctrl = np.stack([size ** 1.5, size ** 1.5, size ** 0.5], -1)  # sim.fleet_params: Froude-similar tuning
+    mot = np.array([[float(x.get(k, 1.0)) for k in ("motor_R_w", "motor_c_F", "motor_heat")] for x in draws])
+    heat = mot[:, 2:3]
     return Vehicle(d["mass"], d["payload_kg"], d["payload_t"], NOM.J[None, :] * scale[:, None], rx, ry, d["cg"],
                    d["flap"] * d["arm"] / np.sqrt(2.0), d["arm"][:, None] * d["twist"],
-                   F_max[:, None] * d["kf"], NOM.h_nom * d["cool"], d["motor_tau"], d["cells"], R,
-                   d["capacity"] * (1 - P.AGE_FADE * d["age"]), d["capacity"], d["t_amb"][:, None])
+                   F_max[:, None] * d["kf"], NOM.h_nom * d["cool"] * heat, d["motor_tau"], d["cells"], R,
+                   d["capacity"] * (1 - P.AGE_FADE * d["age"]), d["capacity"], d["t_amb"][:, None],
+                   NOM.gamma * size, NOM.c_P / size, ctrl, NOM.R_w * mot[:, 0:1], NOM.c_F * mot[:, 1:2],
+                   NOM.C_th * heat, heat, NOM.k_L * size ** 2, NOM.k_Omega * size ** 4)
 
 
 class Held(NamedTuple):
@@ -114,7 +131,7 @@ def deriv(x: np.ndarray, u: Held, veh: Vehicle) -> tuple[np.ndarray, tuple]:
     T_m, F = x[:, 13:17], x[:, 17:21]
     d = faults.derating(T_m, 1.0, NOM)
     Fp = np.maximum(F, 0.0)
-    P_el = NOM.c_P * (u.rho_Q_T * Fp * np.sqrt(Fp)).sum(axis=1) + NOM.P_av
+    P_el = veh.c_P * (u.rho_Q_T * Fp * np.sqrt(Fp)).sum(axis=1) + NOM.P_av
     V, I, lim = terminal(x[:, 12], P_el, veh, u.R, u.delta)
     dx = np.empty_like(x)
     Mx = (F * (veh.ry - veh.cg[:, 1:2])).sum(axis=1)
@@ -125,10 +142,10 @@ def deriv(x: np.ndarray, u: Held, veh: Vehicle) -> tuple[np.ndarray, tuple]:
     Mx = Mx + veh.flap * T * ay
     My = My - veh.flap * T * ax
     rigid_body._deriv(x, T, Mx, My, Mz, u.phys, dx[:, :12])
-    dx[:, 3:6] += (NOM.k_L / u.phys.m)[:, None] * u.wind
+    dx[:, 3:6] += (u.phys.k_L / u.phys.m)[:, None] * u.wind
     dx[:, 12] = -I / (3600.0 * u.C)
     I_m = thermal.motor_currents(F, I)
-    dx[:, 13:17] = thermal.deriv(T_m, I_m, F, u.h, u.Q_f, veh.T_amb, NOM)
+    dx[:, 13:17] = thermal.deriv(T_m, I_m, F, u.h, u.Q_f, veh.T_amb, veh)  # sim.thermal with the class's motor
     dx[:, 17:21] = (u.F_base * d - F) / veh.tau_m
     return dx, (V, I, lim, d)
 
@@ -156,15 +173,16 @@ def held_inputs(thr: np.ndarray, kappa: np.ndarray, s: np.ndarray, ev: np.ndarra
     cut = propeller.cut_of_severity(s_p)[:, None] * oh
     rT, rQ = propeller.thrust_factor(cut), propeller.torque_factor(cut)
     F_base = veh.fmax * c * rT * kappa[:, None] * thrust_fraction(thr)
-    h = np.maximum(veh.h * (1.0 - NOM.a_h * s_h[:, None] * oh), NOM.h_min)
+    h = np.maximum(veh.h * (1.0 - NOM.a_h * s_h[:, None] * oh), NOM.h_min * veh.heat)
     sub = fp.submode
     R = veh.R * (1 + P.BATT_R_GROWTH * s_b * sub[:, 0]) + fp.r_spike * (ev * fp.kind[:, 1])
     C = veh.C * (1 - P.BATT_FADE * s_b * sub[:, 1])
     delta = P.IMBALANCE_CELL_SOC * s_b * sub[:, 2]
     m = veh.m0 + np.where(t >= veh.t_pay, veh.dm, 0.0)
-    phys = SimpleNamespace(m=m, g=NOM.g, Jxx=veh.J[:, 0], Jyy=veh.J[:, 1], Jzz=veh.J[:, 2], k_L=NOM.k_L,
-                           k_Omega=NOM.k_Omega)
-    return Held(F_base, rQ / (rT * np.sqrt(rT)), NOM.gamma * SPIN * rQ / rT + veh.twist, h, NOM.a_Q * s_h[:, None] * oh,
+    phys = SimpleNamespace(m=m, g=NOM.g, Jxx=veh.J[:, 0], Jyy=veh.J[:, 1], Jzz=veh.J[:, 2], k_L=veh.k_L,
+                           k_Omega=veh.k_Omega)
+    gamma = np.asarray(veh.gamma, np.float64).reshape(-1, 1)
+    return Held(F_base, rQ / (rT * np.sqrt(rT)), gamma * SPIN * rQ / rT + veh.twist, h, NOM.a_Q * veh.heat * s_h[:, None] * oh,
                 R, C, delta, wind, phys)
 
 

@@ -69,7 +69,7 @@ def initial(draws: list[dict], veh: rd.Vehicle, m: dict) -> tuple[np.ndarray, Ct
     gain = veh.fmax.mean(axis=1) / rd.NOM.F_max * (rd.NOM.m / veh.m0)
     i_z = np.clip(rd.NOM.g * (1.0 / gain - 1.0), -rd.NOM.iz_max, rd.NOM.iz_max)
     yaw_trim = -(W / 4.0) * veh.twist.sum(axis=1) / rd.NOM.Jzz  # the twisted mounts' yaw moment, cancelled
-    i_rate = np.stack([veh.cg[:, 1] * W / rd.NOM.Jxx, -veh.cg[:, 0] * W / rd.NOM.Jyy, yaw_trim], -1)
+    i_rate = np.stack([veh.cg[:, 1] * W / rd.NOM.Jxx, -veh.cg[:, 0] * W / rd.NOM.Jyy, yaw_trim], -1) / veh.ctrl
     i_max = np.array([rd.NOM.irate_max_rp, rd.NOM.irate_max_rp, rd.NOM.irate_max_yaw])
     i_rate = np.clip(i_rate, -i_max, i_max)
     return x, CtrlState(i_z=i_z, i_rate=i_rate)
@@ -128,7 +128,7 @@ def integrate(draws: list[dict], fp: rf.FaultPlan, seed: int, idx: np.ndarray, d
         xh = x[:, :12] + e
         r = tuple(a[j] for a in exo.ref)
         T, tau, cs = controller.thrust_torque(xh, r, cs, ones, rd.NOM, dt)
-        thr = rd.motor_output(rd.mix(T, tau, veh))
+        thr = rd.motor_output(rd.mix(T, tau * veh.ctrl, veh))  # ctrl: the airframe class's tuning
         u = rd.held_inputs(thr, rd.kappa_v(V_prev, veh), exo.s_phys[j], ev[n], fp, veh, w, t)
         k1, (V_prev, I, lim, _) = rd.deriv(x, u, veh)
         rec.limited[:] += lim

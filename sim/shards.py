@@ -31,16 +31,20 @@ KIND = "sim"
 # The realistic suite adds its name tables (sim/realistic.py generate()).
 GLOBAL_KEYS = ("time", "channel_names", "channel_units", "state_names", "state_units", "severity_threshold",
                "class_names", "split_names", "mission_names", "fault_mode_names", "battery_submode_names",
-               "frame_names", "esc_channel_names", "esc_channel_units")
+               "frame_names", "esc_channel_names", "esc_channel_units", "airframe_class_names")
 
 
 def n_rows(sim: SimConfig) -> int:
     """Rows of the dataset: n_traj, plus the 4 x ood_traj out-of-distribution test flights of the
-    realistic suite (sim/realistic.py n_flights)."""
+    realistic suite (sim/realistic.py n_flights), 6 x ood_traj of the fleet suite (sim/fleet.py)."""
     if sim.scenario == "realistic":
         from quadfdi.sim.realistic import n_flights
 
         return n_flights(sim)
+    if sim.scenario == "fleet":
+        from quadfdi.sim.fleet import n_flights as fleet_flights
+
+        return fleet_flights(sim)
     return sim.n_traj
 
 

@@ -169,6 +169,10 @@ def generate(cfg: SimConfig, indices: Sequence[int] | None = None,
         from quadfdi.sim.realistic import generate as generate_realistic
 
         return generate_realistic(cfg, indices, progress)
+    if cfg.scenario == "fleet":  # the fleet suite (docs/fleet.md): the realistic physics, vehicles flown many times
+        from quadfdi.sim.fleet import generate as generate_fleet
+
+        return generate_fleet(cfg, indices, progress)
     vp = get_vehicle(cfg.vehicle)
     idx = _indices(cfg, indices)
     cls_all, split_all = assign(cfg.seed, cfg.n_traj, cfg.fault_ratio, cfg.split)

@@ -65,6 +65,9 @@ def _vehicle(rng: np.random.Generator, group: int, duration: float) -> dict:
     }
 
 
+draw_vehicle = _vehicle  # the vehicle part alone (sim.fleet draws one per fleet vehicle from its own stream)
+
+
 def _wind(rng: np.random.Generator, group: int, duration: float) -> dict:
     u = rng.uniform()
     lo, hi = P.OOD_WIND_MS if group == OOD_WIND else P.WIND_MS

@@ -20,15 +20,15 @@ from tests.conftest import ROOT
 
 
 def test_a_bare_name_is_a_shipped_config_anything_else_a_path():
-    assert resources.config_names() == ["paper", "realistic", "realistic-mask"]
+    assert resources.config_names() == ["fleet", "paper", "realistic", "realistic-mask"]
     assert resources.config_file("paper").read_bytes() == (ROOT / "configs" / "paper.toml").read_bytes()
     assert resources.config_file("paper.toml") == Path("paper.toml")  # a file in the current folder
     assert resources.config_file("./paper") == Path("paper")
     assert resources.config_file(Path("realistic")) == Path("realistic")
-    with pytest.raises(QuadfdiError, match=r"no shipped config named 'papr'; shipped: paper, realistic, realistic-mask"):
+    with pytest.raises(QuadfdiError, match=r"no shipped config named 'papr'; shipped: fleet, paper, realistic, realistic-mask"):
         resources.config_file("papr")
     assert load_config("realistic").to_dict() == load_config(ROOT / "configs" / "realistic.toml").to_dict()
-    with pytest.raises(QuadfdiError, match=r"config file nope.toml does not exist \(shipped configs, by name: paper, "):
+    with pytest.raises(QuadfdiError, match=r"config file nope.toml does not exist \(shipped configs, by name: fleet, paper, "):
         load_config("nope.toml")
 
 

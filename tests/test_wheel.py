@@ -91,7 +91,7 @@ def test_the_wheel_holds_quadfdi_its_configs_and_cpp_sources_and_no_build(wheel)
         assert z.read("quadfdi/configs/paper.toml") == (ROOT / "configs" / "paper.toml").read_bytes()
         assert {n for n in names if n.startswith("quadfdi/configs/")} == \
             {"quadfdi/configs/__init__.py", "quadfdi/configs/paper.toml", "quadfdi/configs/realistic.toml",
-             "quadfdi/configs/realistic-mask.toml"}
+             "quadfdi/configs/realistic-mask.toml", "quadfdi/configs/fleet.toml"}
         modules = {f"{pkg.replace('.', '/')}/{f.relative_to(ROOT / folder).as_posix()}"
                    for pkg, folder in _package_dirs().items() for f in (ROOT / folder).rglob("*.py")
                    if "__pycache__" not in f.parts and (f.parent / "__init__.py").is_file()}  # not tools/*.py
@@ -156,7 +156,7 @@ def test_installed_quadfdi_is_the_wheel_and_names_configs(venv, place):
     res = subprocess.run([str(venv / "bin" / "quadfdi"), "sim", "--config", "paperr", "--out", "x"], cwd=cwd,
                          env=_env(cache), capture_output=True, text=True, timeout=300)
     assert res.returncode == 2 and res.stderr.strip().splitlines() == [
-        "quadfdi sim: error: no shipped config named 'paperr'; shipped: paper, realistic, realistic-mask "
+        "quadfdi sim: error: no shipped config named 'paperr'; shipped: fleet, paper, realistic, realistic-mask "
         "(a file needs a path: a '/' or the .toml suffix)"]
     assert not (cwd / "x").exists()
 
