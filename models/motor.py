@@ -3,7 +3,7 @@
 A model with the head has one more linear layer, ``motor_head``, reading the same final hidden
 representation as the class head (the CNODE's z1, (B, L); the GRU's last hidden state, (B, H)) and
 giving 4 logits, ``motor_logits`` (B, 4). Column m is rotor m + 1 of the project numbering
-(docs/ingest.md, "Motor numbering": rotor 1 on +x, 2 on +y, 3 on -x, 4 on -y, counter-clockwise
+(docs/ingest.md, "Motor order": rotor 1 on +x, 2 on +y, 3 on -x, 4 on -y, counter-clockwise
 seen from above; a real quad X is renumbered by ingest's ``motor_map``), i.e. column m is the
 dataset's ``fault_motor`` value m (0-based, -1 for a flight without a rotor-side fault).
 

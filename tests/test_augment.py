@@ -1,4 +1,4 @@
-"""train.augment: the training-only motor-share wander (docs/detect.md "Motor-share wander in training")."""
+"""train.augment: the training-only motor-share wander (docs/training.md "Motor-share wander")."""
 
 from __future__ import annotations
 

@@ -22,7 +22,7 @@ from quadfdi.models.networks import SolverSpec
 # a logit by a small fraction of the logit range (a few % here), so a window changes class only
 # when its two best fp32 logits are that close; after two epochs on the small run a few of its
 # ~50 test windows may sit that close, and one flip costs ~2 %. The paper-scale model keeps
-# > 99 % (docs/formats.md, "Measured"); 90 % still fails on a broken scale or weight layout,
+# > 99 % (docs/formats.md, "Activation encoding"); 90 % still fails on a broken scale or weight layout,
 # which scrambles most windows.
 MIN_INT8_ARGMAX_AGREEMENT = 0.90
 # Trained, not random: macro F1 of the fp32 graphs on the test split above what predicting the
