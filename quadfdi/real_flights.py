@@ -24,7 +24,7 @@ every CrazyPAD log then goes through ``quadfdi detect``.
    only on logs with ESC telemetry; the UAVCAN mission again with its gaps bridged); every CrazyPAD
    log (``--crazypad``) with the masked export, in ``--workers`` processes
    (quadfdi/real_flights_crazypad.py; the fixed profiles need pitch, which no Crazyflie log has);
-5. ``OUT/real_flights.md`` (quadfdi/real_flights_table.py) and ``OUT/real_flights.json``.
+5. ``OUT/real_flights.md`` (quadfdi/real_flights_report.py) and ``OUT/real_flights.json``.
 
 It is an app-layer command because it runs seven stages (sim, train, evaluate, export, parity,
 ingest, detect) that no stage may import side by side. A stage that fails stops it with its
@@ -131,7 +131,7 @@ def run_real_flights(args: argparse.Namespace) -> int:
     from quadfdi.real_flights_crazypad import detect_crazypad
     from quadfdi.real_flights_detect import detect_shared
     from quadfdi.real_flights_suite import suite
-    from quadfdi.real_flights_table import markdown
+    from quadfdi.real_flights_report import markdown
 
     profs, logs, names, crazypad = _checked_args(args)
     cfg = load_config(args.config, args.overrides)

@@ -1,4 +1,5 @@
-"""The tables of ``quadfdi real-flights`` (quadfdi/real_flights.py): OUT/real_flights.md from its results.
+"""The full tables of ``quadfdi real-flights``' OUT/real_flights.md (quadfdi/real_flights.py; the
+document is put together by quadfdi/real_flights_report.py):
 
 - the realistic suite (quadfdi/real_flights_suite.py's table);
 - the shared real logs: one row per profile, flight and network: the ONNX Runtime fp32 alarms (class,
@@ -15,7 +16,6 @@
 
 from __future__ import annotations
 
-import platform
 from collections import Counter
 
 HEAD = ["| profile | net | flight | airborne s | hover frozen s | decided windows | exposure s | "
@@ -160,44 +160,3 @@ def crazypad_tables(cp: dict) -> tuple[str, str]:
         per_log.append(f"| {f} | {c['group']} | {c['record']['exposure_s']:.1f} | {_short(c['record']['alarms'])} | "
                        f"{_short(g['record']['alarms']) if 'record' in g else 'refused'} |")
     return "\n".join(head + rows), "\n".join(per_log + ([""] + refused if refused else []))
-
-
-def machine() -> str:
-    """The CPU model and the cores this process may use (the tables' timings depend on them)."""
-    import os
-
-    model = platform.processor() or platform.machine()
-    try:
-        for line in open("/proc/cpuinfo"):
-            if line.startswith("model name"):
-                model = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-    return f"{model}, {len(os.sched_getaffinity(0))} cores"
-
-
-def markdown(r: dict) -> str:
-    """real_flights.md from ``run_real_flights``' result."""
-    from quadfdi.real_flights_suite import suite_table
-
-    t = r["times"]
-    text = [f"# Real flights\n\n`{r['command']}` on {machine()}: {t['total_s'] / 60:.1f} min.\n",
-            f"## The realistic suite: {r['suite']['set']} flights, sim seeds 0 and 1, train seed 0\n",
-            suite_table(r["suite"]) + "\n", "## The shared real quad logs\n", "Default gap rule:\n", table(r["flights"]) + "\n"]
-    if r["flights_gap7"]:
-        text += [f"The UAVCAN mission with logging gaps bridged up to {r['gap_factor']:g} x the median interval "
-                 f"(`quadfdi ingest --gap-factor {r['gap_factor']:g}`):\n", table(r["flights_gap7"]) + "\n"]
-    bridged = [dict(c, flight=f"{c['flight']} (gaps bridged)") for c in r["flights_gap7"]]
-    text += ["Healthy flights (" + ", ".join(r["healthy"]) + "; the mission also bridged):\n",
-             "\n".join(healthy_lines(r["flights"] + bridged, r["healthy"])) + "\n"]
-    cp = r["crazypad"]
-    cases = r["flights"] + bridged + (cp["cases"] if cp else [])
-    text += ["## Runtimes and precisions\n", "Every shared log" + (" and every CrazyPAD log" if cp else "") + ":\n",
-             "\n".join(agreement_lines(disagreements(cases))) + "\n"]
-    if cp:
-        groups, per_log = crazypad_tables(cp)
-        text += [f"## CrazyPAD (flightlog-mask)\n\n{cp['logs']} logs of {cp['root']} x 8 cases in {cp['wall_s']:.0f} s "
-                 f"({cp['workers']} worker process{'es' if cp['workers'] > 1 else ''}). Decided and alarmed: ONNX Runtime fp32.\n", groups + "\n",
-                 per_log + "\n"]
-    return "\n".join(text)

@@ -118,6 +118,15 @@ def test_suite_rows_are_evaluates_and_patterns_keep_the_policy(rf):
                             {n: ev["models"][n]["policy"] for n in ("cnode", "gru")}, infos, "test", cfg)
     assert paired_fixed(pooled, pair["a"], pair["b"], cfg)["diff"]["macro_f1"] == pair["diff"]["macro_f1"]
     _pattern_set_is_the_network_on_masked_windows(out / "mask")
+    md = (out / "real_flights.md").read_text()
+    summary = md.split("## Summary\n", 1)[1].split("\n## ", 1)[0]  # CNODE / GRU side by side
+    rows = [ln for ln in summary.splitlines() if ln.startswith("| flightlog-")]
+    assert [ln.split(" | ")[1] for ln in rows] == ["every", "every"] + [p.name for p in MASK_PATTERNS if p.name != "all"]
+    every_min = next(x for x in r["suite"]["rows"] if x["profile"] == "flightlog-min" and x["net"] == "gru")
+    assert rows[0].split(" | ")[2].endswith(f" / {every_min['metrics']['macro_f1']['value']:.3f} "
+                                            f"[{every_min['metrics']['macro_f1']['lo']:.3f}, "
+                                            f"{every_min['metrics']['macro_f1']['hi']:.3f}]")
+    assert "flightlog-mask minus flightlog-min with every channel" in summary
     index = json.loads((out / "mask" / "predictions" / "index.json").read_text())["entries"]
     assert {e["model"] for e in index} == {"cnode", "gru"}  # pattern sets are not evaluate's models
 
@@ -158,6 +167,9 @@ def test_crazypad_logs_every_case_and_group(rf):
     assert e8["group"] == "M3 cut 2 mm" and e8["session"] == "E8" and {"vx", "vy", "yaw"} <= set(e8["record"]["channels_absent"])
     md = (out / "real_flights.md").read_text()
     assert "## CrazyPAD (flightlog-mask)" in md and "| healthy | 0 / 1 | 1 |" in md and "| debris (tape) | 1 / 0 | 1 |" in md
+    summary = md.split("## Summary\n", 1)[1].split("\n## ", 1)[0]  # one column per group, E8 / E9
+    assert "| | healthy | M3 cut 2 mm | debris (tape) |" in summary
+    assert "| logs | 0 / 1 | 1 / 0 | 1 / 0 |" in summary and "| decided | 0 / 1 | 1 / 0 | 1 / 0 |" in summary
     d = disagreements(r["flights"] + cp["cases"])
     assert d["cpp_vs_ort_fp32"]["differ"] == [] and d["cpp_vs_ort_int8"]["differ"] == []
     assert d["cpp_vs_ort_fp32"]["compared"] == 2 * 2 + 3 * 2  # (profile, flight, net) decided: mission, CrazyPAD
