@@ -28,7 +28,9 @@ every CrazyPAD log then goes through ``quadfdi detect``.
 
 It is an app-layer command because it runs seven stages (sim, train, evaluate, export, parity,
 ingest, detect) that no stage may import side by side. A stage that fails stops it with its
-one-line error; a log that ingest or detect refuses is a row of the refusals, not an error.
+one-line error, but for export and parity: a profile whose networks they refuse keeps its suite rows
+and decides no log, and the refusal is a line of the tables. A log that ingest or detect refuses is
+a row of the refusals, not an error.
 The logs are ``../shared/data/flightlogs`` and ``../shared/data/crazypad/motor_data`` beside a
 checkout; from an installed package ``--logs`` and ``--crazypad`` name them (without CrazyPAD logs
 that part is skipped, in one line).
@@ -145,16 +147,18 @@ def run_real_flights(args: argparse.Namespace) -> int:
     with session(settings):
         _sim(out / "base", cfg, settings)
         times["sim_s"] = time.monotonic() - t0
-        exports = {p: model(out, p, settings, trains[p]) for p in profs}
+        made = {p: model(out, p, settings, trains[p]) for p in profs}
         times["models_s"] = time.monotonic() - t0 - times["sim_s"]
+    exports = {p: e for p, e in made.items() if isinstance(e, Path)}
     result = {"command": _command(args), "logs": str(logs), "exports": {p: str(e) for p, e in exports.items()},
+              "export_refused": {PROFILES[p]: e for p, e in made.items() if not isinstance(e, Path)},
               "suite": suite(out, {p: PROFILES[p] for p in profs}, cfg)}
     t1 = time.monotonic()
     result.update(detect_shared(out, exports, logs, names, PROFILES))
     times["detect_shared_s"] = time.monotonic() - t1
     result["crazypad"] = None
-    if "mask" not in profs or crazypad is None:
-        print("real-flights: CrazyPAD logs skipped: " + ("no flightlog-mask profile in --profiles" if "mask" not in profs
+    if "mask" not in exports or crazypad is None:
+        print("real-flights: CrazyPAD logs skipped: " + ("no flightlog-mask export" if "mask" not in exports
                                                          else f"no folder at {default_crazypad()} (give --crazypad DIR)"))
     else:
         result["crazypad"] = detect_crazypad(out / "crazypad", exports["mask"], crazypad, args.workers or os.cpu_count())
@@ -202,9 +206,11 @@ def _link(src: Path, dst: Path) -> None:
         shutil.copy(src, dst)
 
 
-def model(out: Path, prof: str, settings: ExecSettings, train: dict, log: Callable[[str], None] = print) -> Path:
+def model(out: Path, prof: str, settings: ExecSettings, train: dict, log: Callable[[str], None] = print) -> Path | str:
     """Profile ``prof``'s export, from the sim stages in ``out / "base"`` (module docstring, step 2);
-    ``train``: the [train] keys that differ from the run's config (its profile at least)."""
+    ``train``: the [train] keys that differ from the run's config (its profile at least). An export
+    or parity check that refuses the trained networks is the profile's one-line reason instead: the
+    networks are evaluated by then, so the suite's table keeps them; no log is decided with them."""
     from quadfdi.core.config import replace_section
     from quadfdi.core.rundir import open_run
     from quadfdi.evaluate.run import evaluate_run
@@ -232,6 +238,10 @@ def model(out: Path, prof: str, settings: ExecSettings, train: dict, log: Callab
     evaluate_run(run.root, cfg, f"quadfdi evaluate --run {run.root}")
     if prof == "mask":
         run_patterns(run, applied, [cfg.sim.seed] + APPLY_SIM_SEEDS, settings)
-    export_run(run, cfg, alarm_from="evaluation")
-    parity_run(run, cfg, mcu=False, command=f"quadfdi parity --run {run.root} --no-mcu")
+    try:
+        export_run(run, cfg, alarm_from="evaluation")
+        parity_run(run, cfg, mcu=False, command=f"quadfdi parity --run {run.root} --no-mcu")
+    except QuadfdiError as exc:
+        log(f"real-flights: {PROFILES[prof]}: no export, its logs not decided: {exc}")
+        return " ".join(str(exc).split())
     return run.export

@@ -111,7 +111,9 @@ def summary(r: dict) -> str:
     """The summary (module docstring) of ``run_real_flights``' result."""
     bridged = [dict(c, flight=f"{c['flight']} (gaps bridged)") for c in r["flights_gap7"]]
     cp = r["crazypad"]
-    text = suite_summary(r["suite"]) + [""] + shared_summary(r)
+    text = suite_summary(r["suite"]) + [""]
+    text += [f"{p}: no export, no log decided: {why}." for p, why in r.get("export_refused", {}).items()]
+    text += shared_summary(r)
     text += agreement_summary(r["flights"] + bridged + (cp["cases"] if cp else []))
     if cp:
         text += [""] + crazypad_summary(cp)

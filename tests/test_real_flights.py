@@ -58,7 +58,7 @@ def test_real_flights_on_tiny_settings(rf):
     out, res, r = rf
     md = (out / "real_flights.md").read_text()
     assert md.startswith("# Real flights\n") and md.endswith("|\n") and md in res.stdout
-    assert r["exports"] == {p: str(out / p / "export") for p in ("min", "mask")}
+    assert r["exports"] == {p: str(out / p / "export") for p in ("min", "mask")} and r["export_refused"] == {}
     assert all((out / p / "parity" / "parity.json").is_file() for p in ("min", "mask"))
     for prof in ("min", "mask"):
         mission = [c for c in r["flights"] if c["flight"] == MISSION.split(".")[0] and c["profile"] == f"flightlog-{prof}"]
