@@ -62,23 +62,38 @@ def suite_summary(s: dict) -> list[str]:
     return out
 
 
+def _healthy_alarms(cases: list[dict], healthy: list[str]) -> dict[str, list[str]]:
+    """Profile -> each network's alarms on each healthy flight, once per (class, motor, start) with
+    the runtimes and precisions that raised it named unless all four did."""
+    seen: dict[tuple, dict[tuple, set[str]]] = {}
+    for c in cases:
+        if c["flight"] in healthy and "record" in c:
+            for a in c["record"]["alarms"]:
+                seen.setdefault((c["profile"], c["net"], c["flight"]), {}).setdefault(
+                    (a["class"], a["motor"], a["start_s"]), set()).add(f"{c['runtime']} {c['precision']}")
+    out: dict[str, list[str]] = {}
+    for (prof, net, flight), alarms in seen.items():
+        text = [f"{k}{'' if m is None else ' m' + str(m)} at {t:.1f} s" + ("" if len(rp) == 4 else f" ({', '.join(sorted(rp))})")
+                for (k, m, t), rp in sorted(alarms.items(), key=lambda kv: kv[0][2])]
+        out.setdefault(prof, []).append(f"{net.upper()} on {flight}: " + ", ".join(text))
+    return out
+
+
 def shared_summary(r: dict) -> list[str]:
-    """Per profile: shared logs decided and refused (ONNX Runtime fp32, CNODE), and the alarms on the
-    healthy ones in any case (the mission's bridged pass included)."""
+    """Per profile: shared logs decided and refused (ONNX Runtime fp32, CNODE), and on the healthy
+    ones what it decided and every alarm in any runtime and precision (the mission's bridged pass included)."""
     per: dict[str, dict[str, bool]] = {}
     for c in r["flights"]:
         if (c["net"], c["runtime"], c["precision"]) == ("cnode", "ort", "fp32"):
             per.setdefault(c["profile"], {})[c["flight"]] = "record" in c
-    parts = [f"{p} {sum(d.values())} / {len(d) - sum(d.values())}" for p, d in per.items()]
-    alarms = sorted({f"{c['profile']} {c['net']} on {c['flight']}: {a['class']}"
-                     f"{'' if a['motor'] is None else ' m' + str(a['motor'])} at {a['start_s']:.1f} s "
-                     f"({c['runtime']} {c['precision']})"
-                     for c in r["flights"] + r["flights_gap7"] if c["flight"] in r["healthy"] and "record" in c
-                     for a in c["record"]["alarms"]})
-    healthy = {c["flight"] for c in r["flights"] if c["flight"] in r["healthy"]}
-    return ["Shared real quad logs decided / refused: " + ", ".join(parts) + ". On the healthy ones "
-            f"({len(healthy)}; the mission also bridged), in every runtime and precision: "
-            + ("no alarm from any profile." if not alarms else "ALARMS " + "; ".join(alarms) + ".")]
+    alarms = _healthy_alarms(r["flights"] + r["flights_gap7"], r["healthy"])
+    healthy = [f"{p} {sum(v for f, v in d.items() if f in r['healthy'])} decided, "
+               + ("ALARMS " + "; ".join(alarms[p]) if p in alarms else "no alarm") for p, d in per.items()]
+    n = len({c["flight"] for c in r["flights"] if c["flight"] in r["healthy"]})
+    return ["Shared real quad logs decided / refused: " + ", ".join(f"{p} {sum(d.values())} / {len(d) - sum(d.values())}"
+                                                              for p, d in per.items())
+            + f". On the {n} healthy ones (the mission also bridged), in every runtime and precision unless named: "
+            + "; ".join(healthy) + "."]
 
 
 def agreement_summary(cases: list[dict]) -> list[str]:

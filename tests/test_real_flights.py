@@ -297,3 +297,7 @@ def test_disagreements_healthy_lines_and_crazypad_tables():
     (line,) = healthy_lines(shared, ["mission"])
     assert line.startswith("- flightlog-min cnode: 1 of 1 healthy flights decided (12.5 s): ALARMS ")
     assert "mission PropellerFault m3 at 9.3 s (cpp fp32)" in line and "(cpp int8)" in line
+    from quadfdi.real_flights_report import _healthy_alarms  # the summary: one alarm, its cases named
+
+    assert _healthy_alarms(shared, ["mission"]) == {"flightlog-min": ["CNODE on mission: PropellerFault m3 at 9.3 s "
+                                                                      "(cpp fp32, cpp int8)"]}
