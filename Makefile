@@ -26,8 +26,9 @@ FUZZ_SECONDS ?= 600
 fuzz: setup
 	bash firmware_ref/fuzz/run.sh $(FUZZ_SECONDS)
 
-# README's real-flight table: the three profiles' realistic-suite models, parity, then `quadfdi detect`
-# on every shared real quad log (`quadfdi real-flights`, quadfdi/real_flights.py).
+# README's real-flight tables: the fixed and masked profiles' realistic-suite models (the masked one
+# under every mask pattern), parity, then `quadfdi detect` on every shared real quad log and every
+# CrazyPAD log (`quadfdi real-flights`, quadfdi/real_flights.py).
 real-flights: setup
 	$(PY) -m quadfdi.cli real-flights $(REAL_OUT)
 

@@ -1,33 +1,48 @@
-"""``quadfdi real-flights OUT``: the real-flight table from nothing. The realistic suite is simulated
-once, each channel profile's networks are trained, applied, evaluated, exported and checked, and
-every shared real quad log then goes through ``quadfdi detect`` with each of them.
+"""``quadfdi real-flights OUT``: the real-flight tables from nothing. The realistic suite is simulated
+once, each channel profile's networks -- the fixed flightlog-min, -nocur and -esc and the masked
+flightlog-mask -- are trained on it, applied, evaluated, exported and checked, compared on the
+suite's test flights (the masked one under every mask pattern), and every shared real quad log and
+every CrazyPAD log then goes through ``quadfdi detect``.
 
-    quadfdi real-flights OUT [--profiles min,nocur,esc] [--logs DIR] [--flights LOG,...] [--workers N]
-                             [--config configs/realistic.toml] [--set SECTION.KEY=VALUE ...]
+    quadfdi real-flights OUT [--profiles min,nocur,esc,mask] [--logs DIR] [--flights LOG,...]
+                             [--crazypad DIR] [--workers N] [--config realistic] [--mask-config realistic-mask]
+                             [--set SECTION.KEY=VALUE ...]
 
-1. sim (``--config``, ``--set``) into ``OUT/base`` (sim seed of the config);
-2. per profile P, a copy of that sim stage in ``OUT/P``, then train with ``train.profile=flightlog-P``,
-   train apply (training seed 0 on sim seed 1: the validation and test flights the alarm policy is
-   chosen and scored on), evaluate (each network's alarm policy chosen on validation), export with
-   those policies, and parity on the host (C++ against ONNX Runtime and PyTorch; no Cortex-M);
-3. every log (``--flights``, default ``LOGS``) ingested once into ``OUT/flights/ingest/<flight>``, then
-   detect with each export, both networks, both runtimes (ort, cpp) and both precisions into
-   ``OUT/flights/<P>/<flight>/<net>/<runtime>/<precision>/`` (the flightlog-esc model only on logs
-   with ESC telemetry); the UAVCAN mission again with the gap rule bridged at 7 x the median
-   interval (``OUT/flights_gap7``);
-4. ``OUT/real_flights.md`` (both tables, quadfdi/real_flights_table.py) and ``OUT/real_flights.json``.
+1. sim (``--config``, ``--set``) into ``OUT/base`` (sim seed of the config), and sim seed 1 into
+   ``OUT/base/sims/seed1``: one simulation that every profile trains and is scored on;
+2. per profile P, both datasets linked into ``OUT/P``, then train (``train.profile=flightlog-P``; the
+   masked profile with ``--mask-config``'s [train], the ``--set train.*`` overrides on top: its own
+   network sizes, the same data), train apply (training seed 0 on sim seed 1), evaluate (each
+   network's alarm policy chosen on validation), export with those policies, parity on the host (C++
+   against ONNX Runtime and PyTorch; no Cortex-M); for the masked profile also its test flights under
+   each mask pattern (train.study_apply.run_patterns);
+3. the realistic suite's table (quadfdi/real_flights_suite.py): each network's test flights under
+   the policy its evaluation chose -- the masked one also under each pattern, not re-tuned -- with
+   flight-bootstrap intervals and the paired difference to flightlog-min;
+4. every log (``--flights``, default ``LOGS``) through detect (quadfdi/real_flights_detect.py) with
+   each export, both networks, both runtimes (ort, cpp) and both precisions (the flightlog-esc model
+   only on logs with ESC telemetry; the UAVCAN mission again with its gaps bridged); every CrazyPAD
+   log (``--crazypad``) with the masked export, in ``--workers`` processes
+   (quadfdi/real_flights_crazypad.py; the fixed profiles need pitch, which no Crazyflie log has);
+5. ``OUT/real_flights.md`` (quadfdi/real_flights_report.py) and ``OUT/real_flights.json``.
 
 It is an app-layer command because it runs seven stages (sim, train, evaluate, export, parity,
 ingest, detect) that no stage may import side by side. A stage that fails stops it with its
-one-line error; a log that ingest or detect refuses is a row of the refusals list, not an error.
-The logs are ``../shared/data/flightlogs`` beside a checkout; from an installed package ``--logs``
-names them.
+one-line error, but for export and parity: a profile whose networks they refuse keeps its suite rows
+and decides no log, and the refusal is a line of the tables. A log that ingest or detect refuses is
+a row of the refusals, not an error.
+The logs are ``../shared/data/flightlogs`` and ``../shared/data/crazypad/motor_data`` beside a
+checkout; from an installed package ``--logs`` and ``--crazypad`` name them (without CrazyPAD logs
+that part is skipped, in one line).
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
+import os
 import shutil
+import time
 from pathlib import Path
 from typing import Callable
 
@@ -38,11 +53,8 @@ from quadfdi.core.executor import ExecSettings, add_executor_args, session
 LOGS = ("px4_quad_6s_uavcan_mission.ulg", "px4_quad_6s_vibration_tipover.ulg", "px4_quad_6s_gps_interference.ulg",
         "px4_fmuv5_quad_real_short.ulg", "px4_quad_battery_monitor_disconnected.ulg", "px4_sitl_quad_esc.ulg",
         "ardupilot_copter_quadx_ground.BIN")
-ESC_LOGS = {"px4_quad_6s_uavcan_mission.ulg", "px4_quad_6s_vibration_tipover.ulg", "px4_sitl_quad_esc.ulg"}
-MISSION = "px4_quad_6s_uavcan_mission.ulg"
-MISSION_GAP_FACTOR = 7.0  # the mission's logging gaps: bridged up to 7 x the median interval
-PROFILES = {"min": "flightlog-min", "esc": "flightlog-esc", "nocur": "flightlog-nocur"}
-CASES = tuple((net, rt, pr) for net in ("cnode", "gru") for rt in ("ort", "cpp") for pr in ("fp32", "int8"))
+PROFILES = {"min": "flightlog-min", "esc": "flightlog-esc", "nocur": "flightlog-nocur", "mask": "flightlog-mask"}
+DEFAULT_PROFILES = "min,nocur,esc,mask"
 SIM_STAGE = ("config.toml", "dataset.npz", ".stages/sim.json")
 APPLY_TRAIN_SEEDS, APPLY_SIM_SEEDS = [0], [1]
 
@@ -52,31 +64,48 @@ def default_logs() -> Path:
     return Path(__file__).resolve().parents[2] / "shared" / "data" / "flightlogs"
 
 
+def default_crazypad() -> Path:
+    """``../shared/data/crazypad/motor_data`` beside the checkout this package runs from."""
+    return Path(__file__).resolve().parents[2] / "shared" / "data" / "crazypad" / "motor_data"
+
+
 def add_parser(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("real-flights", help="the realistic suite's models of each channel profile on every shared "
-                                            "real quad log (sim, train, evaluate, export, parity, ingest, detect)",
+    p = sub.add_parser("real-flights", help="the realistic suite's models of each channel profile on its test flights "
+                                            "(the masked one under every mask pattern), every shared real quad log "
+                                            "and every CrazyPAD log (sim, train, evaluate, export, parity, detect)",
                        description="Simulate the realistic suite once; for each channel profile train, apply, "
-                                   "evaluate, export and check (parity on the host) its networks; run quadfdi detect "
-                                   "with each export on every shared real quad log (both networks, runtimes and "
-                                   "precisions); write OUT/real_flights.md and OUT/real_flights.json.")
+                                   "evaluate, export and check (parity on the host) its networks; compare them on "
+                                   "the suite's test flights (the masked model under every mask pattern); run "
+                                   "quadfdi detect with each export on every shared real quad log and with the "
+                                   "masked export on every CrazyPAD log (both networks, runtimes and precisions); "
+                                   "write OUT/real_flights.md and OUT/real_flights.json.")
     add_config_args(p)
-    p.set_defaults(config="configs/realistic.toml")
+    p.set_defaults(config="realistic")
     add_executor_args(p)
     workers = next(a for a in p._actions if a.dest == "workers")
-    workers.default, workers.help = 1, "worker processes for the sim and apply jobs (default: 1, in this process)"
+    workers.help = ("worker processes: of the sim and apply jobs (default 1, in this process) and of the CrazyPAD "
+                    "detections (default: one per core)")
     p.add_argument("out", metavar="OUT", help="folder for the runs, the detect outputs and real_flights.md")
-    p.add_argument("--profiles", default="min,nocur,esc", help="comma-separated, of " + ", ".join(PROFILES))
+    p.add_argument("--profiles", default=DEFAULT_PROFILES, help="comma-separated, of " + ", ".join(PROFILES)
+                                                                + " (default: %(default)s)")
+    p.add_argument("--mask-config", default="realistic-mask",
+                   help="the config whose [train] trains the masked profile; its [sim] is not read: every "
+                        "profile trains on --config's simulation (default: %(default)s)")
     p.add_argument("--logs", default=None, help="the folder of real flight logs (default: ../shared/data/flightlogs "
                                                 "beside the checkout)")
     p.add_argument("--flights", default=None, help="comma-separated log file names in --logs (default: "
                                                    + ", ".join(LOGS) + ")")
+    p.add_argument("--crazypad", default=None, help="the CrazyPAD folder of condition folders of Crazyflie logs "
+                                                    "(default: ../shared/data/crazypad/motor_data beside the "
+                                                    "checkout; skipped when absent)")
     p.set_defaults(func=run_real_flights)
 
 
-def _checked_args(args: argparse.Namespace) -> tuple[list[str], Path, list[str]]:
-    """(profiles, logs folder, log names), or a one-line QuadfdiError before anything is written."""
+def _checked_args(args: argparse.Namespace) -> tuple[list[str], Path, list[str], Path | None]:
+    """(profiles, logs folder, log names, CrazyPAD folder or None), or a one-line QuadfdiError before
+    anything is written."""
     profs = [p for p in args.profiles.split(",") if p]
-    if not profs or set(profs) - set(PROFILES):
+    if not profs or set(profs) - set(PROFILES) or len(set(profs)) != len(profs):
         raise QuadfdiError(f"--profiles takes comma-separated names of {', '.join(PROFILES)}, found {args.profiles!r}")
     if args.logs is None:
         logs = default_logs()
@@ -91,111 +120,128 @@ def _checked_args(args: argparse.Namespace) -> tuple[list[str], Path, list[str]]
     missing = [n for n in names if not (logs / n).is_file()]
     if not names or missing:
         raise QuadfdiError(f"{logs}: no log {', '.join(missing) or '(none named)'}")
-    return profs, logs.resolve(), names
+    crazypad = default_crazypad() if args.crazypad is None else Path(args.crazypad)
+    if args.crazypad is not None and not crazypad.is_dir():
+        raise QuadfdiError(f"--crazypad {crazypad}: no such folder")
+    return profs, logs.resolve(), names, crazypad.resolve() if crazypad.is_dir() else None
 
 
 def run_real_flights(args: argparse.Namespace) -> int:
     from quadfdi.core.atomic import write_text
     from quadfdi.core.config import load_config
     from quadfdi.core.jsonio import write_json
-    from quadfdi.real_flights_table import markdown
+    from quadfdi.real_flights_crazypad import detect_crazypad
+    from quadfdi.real_flights_detect import detect_shared
+    from quadfdi.real_flights_suite import suite
+    from quadfdi.real_flights_report import markdown
 
-    profs, logs, names = _checked_args(args)
+    profs, logs, names, crazypad = _checked_args(args)
     cfg = load_config(args.config, args.overrides)
-    out = Path(args.out)
-    settings = ExecSettings.from_args(args)
+    trains = {p: {"profile": PROFILES[p]} for p in profs}
+    if "mask" in profs:
+        mask_cfg = load_config(args.mask_config, [o for o in args.overrides if o.startswith("train.")])
+        trains["mask"] = dict(_fields(mask_cfg.train), profile=PROFILES["mask"])
+    out, times, t0 = Path(args.out), {}, time.monotonic()
+    settings = ExecSettings(args.scheduler, args.workers or (1 if args.scheduler == "local" else None))
+    settings.validate()
     with session(settings):
         _sim(out / "base", cfg, settings)
-        exports = {p: model(out, p, settings) for p in profs}
-    results = detect_all(out / "flights", exports, logs, names)
-    gap7 = detect_all(out / "flights_gap7", exports, logs, [n for n in names if n == MISSION], MISSION_GAP_FACTOR)
-    text = markdown(results, gap7, MISSION_GAP_FACTOR)
-    write_json(out / "real_flights.json", {"logs": str(logs), "exports": {p: str(e) for p, e in exports.items()},
-                                            "flights": results, "flights_gap7": gap7}, indent=1)
+        times["sim_s"] = time.monotonic() - t0
+        made = {p: model(out, p, settings, trains[p]) for p in profs}
+        times["models_s"] = time.monotonic() - t0 - times["sim_s"]
+    exports = {p: e for p, e in made.items() if isinstance(e, Path)}
+    result = {"command": _command(args), "logs": str(logs), "exports": {p: str(e) for p, e in exports.items()},
+              "export_refused": {PROFILES[p]: e for p, e in made.items() if not isinstance(e, Path)},
+              "suite": suite(out, {p: PROFILES[p] for p in profs}, cfg)}
+    t1 = time.monotonic()
+    result.update(detect_shared(out, exports, logs, names, PROFILES))
+    times["detect_shared_s"] = time.monotonic() - t1
+    result["crazypad"] = None
+    if "mask" not in exports or crazypad is None:
+        print("real-flights: CrazyPAD logs skipped: " + ("no flightlog-mask export" if "mask" not in exports
+                                                         else f"no folder at {default_crazypad()} (give --crazypad DIR)"))
+    else:
+        result["crazypad"] = detect_crazypad(out / "crazypad", exports["mask"], crazypad, args.workers or os.cpu_count())
+    times["total_s"] = time.monotonic() - t0
+    result["times"] = {k: round(v, 1) for k, v in times.items()}
+    text = markdown(result)
+    write_json(out / "real_flights.json", result, indent=1)
     write_text(out / "real_flights.md", text)
     print(text)
     return 0
 
 
+def _fields(section) -> dict:
+    return {f.name: getattr(section, f.name) for f in dataclasses.fields(section)}
+
+
+def _command(args: argparse.Namespace) -> str:
+    parts = ["quadfdi real-flights", str(args.out)]
+    for opt in ("profiles", "logs", "flights", "crazypad", "workers", "config", "mask_config"):
+        value = getattr(args, opt)
+        if value is not None and not (opt == "profiles" and value == DEFAULT_PROFILES):
+            parts += [f"--{opt.replace('_', '-')}", str(value)]
+    return " ".join(parts + [f"--set {o}" for o in args.overrides])
+
+
 def _sim(run_dir: Path, cfg, settings: ExecSettings) -> None:
+    """The suite's dataset (the config's sim seed) and sim seed 1's in ``run_dir/sims/seed1``."""
     from quadfdi.core.rundir import create_run
     from quadfdi.sim.cli import generate_into
+    from quadfdi.train.study_sims import study_datasets
 
     print(f"real-flights: sim into {run_dir}", flush=True)
-    generate_into(create_run(run_dir, cfg), cfg, settings=settings)
+    run = create_run(run_dir, cfg)
+    generate_into(run, cfg, settings=settings)
+    study_datasets(run, cfg, [s for s in APPLY_SIM_SEEDS if s != cfg.sim.seed], settings)
 
 
-def model(out: Path, prof: str, settings: ExecSettings, log: Callable[[str], None] = print) -> Path:
-    """Profile ``prof``'s export, from the sim stage in ``out / "base"`` (module docstring, step 2)."""
+def _link(src: Path, dst: Path) -> None:
+    """``dst`` the same file as ``src`` (a hard link; a copy across file systems): every stage replaces
+    its outputs by renaming, never writes into them, so the runs share one dataset on disk."""
+    dst.parent.mkdir(parents=True, exist_ok=True)
+    try:
+        os.link(src, dst)
+    except OSError:
+        shutil.copy(src, dst)
+
+
+def model(out: Path, prof: str, settings: ExecSettings, train: dict, log: Callable[[str], None] = print) -> Path | str:
+    """Profile ``prof``'s export, from the sim stages in ``out / "base"`` (module docstring, step 2);
+    ``train``: the [train] keys that differ from the run's config (its profile at least). An export
+    or parity check that refuses the trained networks is the profile's one-line reason instead: the
+    networks are evaluated by then, so the suite's table keeps them; no log is decided with them."""
+    from quadfdi.core.config import replace_section
     from quadfdi.core.rundir import open_run
     from quadfdi.evaluate.run import evaluate_run
     from quadfdi.export.run import export_run
     from quadfdi.parity.run import parity_run
     from quadfdi.train.run import train_run
-    from quadfdi.train.study_apply import run_apply, with_stage_train
+    from quadfdi.train.study_apply import run_apply, run_patterns, with_stage_train
+    from quadfdi.train.study_sims import sim_seed_folder
 
     run_dir = out / prof
     shutil.rmtree(run_dir, ignore_errors=True)
-    for name in SIM_STAGE:
-        (run_dir / name).parent.mkdir(parents=True, exist_ok=True)
-        shutil.copy(out / "base" / name, run_dir / name)
-    profile = [f"train.profile={PROFILES[prof]}"]
+    base = open_run(out / "base")[0]
+    for seed in [None] + APPLY_SIM_SEEDS:
+        src = base if seed is None else sim_seed_folder(base, seed)
+        dst = run_dir if seed is None else run_dir / src.root.relative_to(base.root)
+        if src.root.is_dir():
+            for name in SIM_STAGE:
+                _link(src.root / name, dst / name)
     log(f"real-flights: {PROFILES[prof]}: train, apply, evaluate, export, parity in {run_dir}")
-    run, cfg = open_run(run_dir, profile, need=("dataset",))
-    train_run(run, cfg, cfg.train.model)
-    run, cfg = open_run(run_dir, need=("dataset",))  # apply takes [train] from the networks just trained
-    run_apply(run, with_stage_train(run, cfg), APPLY_TRAIN_SEEDS, APPLY_SIM_SEEDS, settings)
+    run, cfg = open_run(run_dir, need=("dataset",))
+    trained = replace_section(cfg, "train", **train)
+    train_run(run, trained, trained.train.model)
+    applied = with_stage_train(run, cfg)  # apply takes [train] from the networks just trained
+    run_apply(run, applied, APPLY_TRAIN_SEEDS, APPLY_SIM_SEEDS, settings)
     evaluate_run(run.root, cfg, f"quadfdi evaluate --run {run.root}")
-    export_run(run, cfg, alarm_from="evaluation")
-    parity_run(run, cfg, mcu=False, command=f"quadfdi parity --run {run.root} --no-mcu")
-    return run.export
-
-
-def _ingest(log: Path, out: Path, gap: float | None) -> tuple[Path | None, str | None]:
-    """(flight.npz, None) or (None, ingest's one-line refusal)."""
-    from quadfdi.core.jsonio import write_json
-    from quadfdi.core.resample import GAP_FACTOR
-    from quadfdi.formats.flight import write_flight
-    from quadfdi.ingest import segments
-    from quadfdi.ingest.cli import summary
-    from quadfdi.ingest.flight import ingest
-
-    shutil.rmtree(out, ignore_errors=True)
+    if prof == "mask":
+        run_patterns(run, applied, [cfg.sim.seed] + APPLY_SIM_SEEDS, settings)
     try:
-        lr, arrays = ingest(str(log), segments.MIN_AIRBORNE_S, GAP_FACTOR if gap is None else gap)
+        export_run(run, cfg, alarm_from="evaluation")
+        parity_run(run, cfg, mcu=False, command=f"quadfdi parity --run {run.root} --no-mcu")
     except QuadfdiError as exc:
-        return None, " ".join(str(exc).split())
-    write_flight(out / "flight.npz", arrays)
-    write_json(out / "ingest.json", summary(lr, arrays))
-    return out / "flight.npz", None
-
-
-def detect_all(out: Path, exports: dict[str, Path], logs: Path, names: list[str],
-               gap: float | None = None) -> list[dict]:
-    """Every case (module docstring, step 3) of every log: one dict each, with ``record`` (what
-    alarms.json holds) or ``refused`` (the one-line reason)."""
-    from quadfdi.detect.run import detect, write_detect
-
-    results = []
-    for name in names:
-        stem = name.split(".")[0]
-        flight, refused = _ingest(logs / name, out / "ingest" / stem, gap)
-        for prof, export in exports.items():
-            if prof == "esc" and name not in ESC_LOGS:
-                continue
-            shutil.rmtree(out / prof / stem, ignore_errors=True)
-            for net, rt, pr in CASES:
-                case = {"profile": PROFILES[prof], "flight": stem, "net": net, "runtime": rt, "precision": pr}
-                if flight is None:
-                    case["refused"] = f"ingest: {refused}"
-                else:
-                    try:
-                        result = detect(export, flight, net, pr, rt)
-                        write_detect(out / prof / stem / net / rt / pr, result, log=lambda _: None)
-                        case["record"] = result["record"]
-                    except QuadfdiError as exc:
-                        case["refused"] = " ".join(str(exc).split())
-                print(prof, stem, net, rt, pr, "refused: " + case["refused"][:160] if "refused" in case else "ok",
-                      flush=True)
-                results.append(case)
-    return results
+        log(f"real-flights: {PROFILES[prof]}: no export, its logs not decided: {exc}")
+        return " ".join(str(exc).split())
+    return run.export

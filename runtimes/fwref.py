@@ -46,10 +46,23 @@ def cpp_outputs(weights: Path, net: str, int8: bool, x: np.ndarray, motor: bool 
     """(logits, motor logits or None) of windows ``x`` from the host build's ``fwref_infer`` (built
     on first use; ``build_dir`` an existing build instead)."""
     if build_dir is None:
-        from quadfdi.runtimes.build import build_host
-
-        build_dir = build_host(log=lambda _: None)
+        build_dir = _host_build()
     return fwref_infer(Path(build_dir) / "fwref_infer", weights, net, int8, x, motor)
+
+
+_HOST_BUILDS: dict[Path, Path] = {}  # sources' cache folder -> its host build, built by this process
+
+
+def _host_build() -> Path:
+    """The host build of the installed sources, built once per process: CMake's up-to-date check
+    costs 0.6 s, more than ``fwref_infer`` on a flight, and a folder of logs calls this once a flight.
+    A change to the sources is a new cache folder (runtimes.build), hence a new build."""
+    from quadfdi.runtimes.build import build_host, fwref_home
+
+    home = fwref_home()
+    if home not in _HOST_BUILDS or not (_HOST_BUILDS[home] / "fwref_infer").is_file():
+        _HOST_BUILDS[home] = build_host(log=lambda _: None)
+    return _HOST_BUILDS[home]
 
 
 def fwref_stream(exe: Path, weights: Path, model: str, int8: bool, stream: Path) -> str:

@@ -4,6 +4,8 @@ format of ``formats.predictions`` (docs/formats.md, "Prediction sets"); a model 
 (models.motor) adds ``motor_proba`` (n, 4), the softmax of its motor logits; every set carries
 ``decided`` (models.inputs.decided: False before the flight's hover freeze, where detect and
 the streaming runtime give no decision; evaluate treats those windows as not voting).
+``prediction_sets`` makes several sets from the same windows, each turned by its own variant (the
+masked profile's windows under each mask pattern: train.study_apply.run_patterns).
 
 The windows are made and scored a few flights at a time, so the full evaluation set (38 880
 windows of 80 x 25 float32 on the realistic suite, 311 MB) is never held at once.
@@ -12,7 +14,7 @@ windows of 80 x 25 float32 on the realistic suite, 311 MB) is never held at once
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable, Mapping
 
 import numpy as np
 import torch
@@ -33,20 +35,34 @@ def prediction_set(model: torch.nn.Module, ds: Dataset, flights_per_chunk: int =
     """``model``'s prediction set on ``ds``: every window of every evaluation flight (the first
     ``max_flights`` of them when given: a check, not a set to publish), flight by flight in dataset
     order, windows in time order (the order of ``formats.dataset.make_windows``)."""
-    rows = evaluation_rows(ds)[:max_flights]
+    return prediction_sets(model, ds, evaluation_rows(ds)[:max_flights], {"": None}, flights_per_chunk)[""]
+
+
+def prediction_sets(model: torch.nn.Module, ds: Dataset, rows: np.ndarray,
+                    variants: Mapping[str, Callable[[np.ndarray], np.ndarray] | None],
+                    flights_per_chunk: int = FLIGHTS_PER_CHUNK) -> dict[str, dict[str, np.ndarray]]:
+    """Variant name -> ``model``'s prediction set on the windows of the flights ``rows`` (dataset
+    rows, in order) as ``variant`` (n, W, C) -> (n, W, C) turns them (None: as made), e.g. one
+    mask pattern each (train.masks.Masker). The windows are made once a chunk for every variant."""
     names = class_names(ds.arrays)
     keys = ("proba", "y_true", "traj", "t_end", "decided") + (("motor_proba",) if has_motor_head(model) else ())
-    parts: dict[str, list[np.ndarray]] = {k: [] for k in keys}
+    parts = {v: {k: [] for k in keys} for v in variants}
     for i in range(0, len(rows), flights_per_chunk):
         traj, start = window_index(ds, rows[i:i + flights_per_chunk])
         w = gather_windows(ds, traj, start)
-        parts["proba"].append(predict_proba(model, w.x))
-        if "motor_proba" in parts:
-            parts["motor_proba"].append(predict_motor_proba(model, w.x))
-        parts["y_true"].append(w.y)
-        parts["traj"].append(w.traj)
-        parts["t_end"].append(w.t_end)
-        parts["decided"].append(decided(ds, w.traj, w.start))
+        common = {"y_true": w.y, "traj": w.traj, "t_end": w.t_end, "decided": decided(ds, w.traj, w.start)}
+        for name, variant in variants.items():
+            x = w.x if variant is None else variant(w.x)
+            parts[name]["proba"].append(predict_proba(model, x))
+            if "motor_proba" in keys:
+                parts[name]["motor_proba"].append(predict_motor_proba(model, x))
+            for k, v in common.items():
+                parts[name][k].append(v)
+    return {name: _set_arrays(p, ds, names) for name, p in parts.items()}
+
+
+def _set_arrays(parts: dict[str, list[np.ndarray]], ds: Dataset, names: list[str]) -> dict[str, np.ndarray]:
+    """The chunks of one prediction set joined, in the format's dtypes."""
     out = {k: np.concatenate(v) if v else np.zeros((0, len(names)) if k == "proba" else 0) for k, v in parts.items()}
     out["proba"] = out["proba"].astype(np.float32).reshape(-1, len(names))  # the format's dtype
     if "motor_proba" in out:

@@ -21,6 +21,13 @@ and ``predictions/applied.json`` (which network made each set); then indexed (fo
 the entry's ``dataset`` being S's. The index's ``sim_seed`` is the seed of the flights predicted
 on; a set of ``quadfdi train study --sim-seeds`` (networks trained on S) has the same key and
 replaces it, and the reverse.
+
+``run_patterns`` (the masked profile, ``quadfdi real-flights``): the train stage's masked networks on
+the test flights of each simulator seed with every window under one mask pattern (core/channels.py
+MASK_PATTERNS, each but "all": every channel is the indexed set), published as the stage ``patterns``:
+``predictions/<kind>_<pattern>_sim<S>_train<T>.npz`` and ``predictions/patterns.json``. They are not
+indexed: ``quadfdi evaluate`` chooses a policy per indexed model on its validation flights, and a
+pattern's set is to be scored under the policy chosen with every channel, not tuned to the pattern.
 """
 
 from __future__ import annotations
@@ -37,8 +44,9 @@ from quadfdi.core.jobcache import cache_path, job_key, read_result
 from quadfdi.core.rundir import RunDir
 from quadfdi.train.study_jobs import MODELS
 
-NET_KIND, APPLY_KIND = "study_net", "study_apply"
-SUMMARY = "predictions/applied.json"
+NET_KIND, APPLY_KIND, PATTERN_KIND = "study_net", "study_apply", "study_patterns"
+SUMMARY, PATTERNS_SUMMARY = "predictions/applied.json", "predictions/patterns.json"
+SEP = "__"  # a pattern job's result keys: <pattern>__<prediction-set key>
 CHECK_FLIGHTS = 16  # evaluation flights re-predicted to show a retrained network is the indexed one
 
 
@@ -230,3 +238,76 @@ def run_apply(run: RunDir, cfg: Config, seeds: list[int], sim_seeds: list[int], 
     drop_missing_entries(run.root)
     return summary
 
+
+
+def pattern_network(checkpoint: str, dataset: str, kind: str, split: str) -> dict:
+    """The masked network in ``checkpoint`` on the windows of ``split``'s flights of ``dataset``, every
+    window under each mask pattern but "all" in turn (a job): each set's arrays keyed ``<pattern>__<key>``."""
+    from quadfdi.core.channels import MASK_PATTERNS
+    from quadfdi.formats.dataset import load_dataset, split_rows
+    from quadfdi.models.checkpoint import check_dataset_matches, load_checkpoint
+    from quadfdi.models.inputs import profile_of, profiled_dataset
+    from quadfdi.train.masks import Masker
+    from quadfdi.train.predsets import prediction_sets
+
+    model, blob = load_checkpoint(checkpoint, kind)
+    _threads(blob)
+    profile = profile_of(blob)
+    ds = profiled_dataset(load_dataset(dataset), profile, patterns=False)
+    check_dataset_matches(blob, ds.channel_names, dataset)
+    masker = Masker(profile, ds.channel_names)
+    mask = lambda k: lambda x: masker.apply(x.copy(), np.full(len(x), k))  # noqa: E731
+    variants = {p.name: mask(k) for k, p in enumerate(MASK_PATTERNS) if p.name != "all"}
+    sets = prediction_sets(model, ds, split_rows(ds, split), variants)
+    return {f"{name}{SEP}{key}": a for name, arrays in sets.items() for key, a in arrays.items()}
+
+
+def run_patterns(run: RunDir, cfg: Config, sim_seeds: list[int], settings: ExecSettings = SERIAL,
+                 split: str = "test", log: Callable[[str], None] = print) -> dict:
+    """Publish the masked networks' prediction sets under every mask pattern (module docstring) on
+    ``split``'s flights of ``sim_seeds``; return the summary (patterns.json). ``cfg``: the run's config
+    with the train stage's [train] (``with_stage_train``)."""
+    from quadfdi.core.channels import MASK_PATTERNS
+    from quadfdi.core.jsonio import write_json
+    from quadfdi.core.profiles import is_masked
+    from quadfdi.core.stage import stage
+    from quadfdi.train.predsets import index_entry, write_prediction_set
+    from quadfdi.train.study_sims import study_datasets
+
+    if not is_masked(cfg.train.profile):
+        raise QuadfdiError(f"{run.root}: mask patterns need the masked profile's networks; the run's train stage "
+                           f"trained profile {cfg.train.profile!r}")
+    nets = {kind: stage_checkpoint(run, cfg, kind) for kind in MODELS}
+    if any(p is None for p in nets.values()):
+        raise QuadfdiError(f"{run.root}: no train-stage network of {', '.join(k for k, p in nets.items() if p is None)} "
+                           "trained with the run's [sim] and [train]: run quadfdi train first")
+    data = study_datasets(run, cfg, sim_seeds, settings, log)
+    sections, seed = cfg.to_dict(), cfg.train.seed
+    order = [p.name for p in MASK_PATTERNS]
+    with stage(run.root, "patterns", {"sim": sections["sim"], "train": sections["train"]},
+               targets=(PATTERNS_SUMMARY,)) as st:
+        st.consume("dataset.npz", ("sim",))
+        for path in nets.values():
+            st.consume(path.relative_to(run.root).as_posix())
+        jobs = []
+        for d in data:
+            for kind, path in nets.items():
+                key = job_key(PATTERN_KIND, {}, {"model": kind, "split": split}, {"checkpoint": path, "dataset": d.path},
+                              packages=("sim", "train"))
+                jobs.append((Job(PATTERN_KIND, key, pattern_network, (str(path), str(d.path), kind, split),
+                                 cache_path(run.root, PATTERN_KIND, key, "npz"),
+                                 label=f"{kind} on sim {d.sim_seed} under every pattern", torch=True), kind, d))
+        summary = {"split": split, "train_seed": seed, "sets": []}
+        for r, (_, kind, d) in zip(run_jobs([j[0] for j in jobs], settings, desc="patterns", log=log), jobs):
+            if not r.ok:
+                raise QuadfdiError(f"prediction sets of {r.job.label} failed: {r.error}")
+            arrays: dict[str, dict] = {}
+            for k, a in read_result(r.job.out).items():
+                name, _, field = k.partition(SEP)
+                arrays.setdefault(name, {})[field] = a
+            for name, pred in sorted(arrays.items(), key=lambda kv: order.index(kv[0])):
+                entry = dict(index_entry(f"{kind}_{name}", d.sim_seed, seed, d.rel), kind=kind, pattern=name)
+                write_prediction_set(st.out / entry["predictions"], pred)
+                summary["sets"].append(entry)
+        write_json(st.path(PATTERNS_SUMMARY), summary, indent=2)
+    return summary
