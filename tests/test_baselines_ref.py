@@ -96,6 +96,10 @@ def test_reference_models_fit_beside_their_twins_without_reference_flights(run):
         assert out[m].proba.shape == (len(evals.y), 2) and np.isfinite(out[m].proba).all()
         assert "share_dev1" in rec["features"] and "thr_ratio1" not in rec["features"]
     assert evals.ref_flight.any()  # predicted, never scored (evaluate leaves them out)
+    plain_evals, plain = fit_baselines(ds, seed=0, models=MODELS, cap=0)
+    assert np.array_equal(plain_evals.ref_flight, evals.ref_flight)  # the twins do not depend on the flag
+    for m in MODELS:
+        assert np.array_equal(plain[m].proba, out[m].proba) and plain[m].record["chosen"] == out[m].record["chosen"]
 
 
 def test_run_writes_the_reference_sets_and_evaluation_leaves_reference_flights_out(run):
@@ -122,6 +126,7 @@ def test_configs_and_datasets_without_vehicles_are_unchanged(tmp_path):
         root.mkdir()
         write_npz(root / "dataset.npz", dataset_arrays(_arrays(0), _config(0).sim))
         written, lines = run_baselines(root, seed=0, which="run", cap=200, reference=reference)
+        lines = [line.split("; tuning")[0] for line in lines]  # the CPU seconds are not under test
         outs.append(({p.name: p.read_bytes() for p in written if p.suffix == ".npz"}, lines))
     (plain, plain_lines), (ref, ref_lines) = outs
     assert plain == ref and set(plain) == {f"{m}_sim0_train0.npz" for m in MODELS}

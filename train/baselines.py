@@ -42,7 +42,7 @@ from sklearn.pipeline import Pipeline
 from sklearn.preprocessing import StandardScaler
 from threadpoolctl import threadpool_limits
 
-from quadfdi.formats.dataset import Dataset, class_names, make_windows, split_names
+from quadfdi.formats.dataset import Dataset, class_names, make_windows, split_names, vehicle_columns
 from quadfdi.train.features import physics_feature_names, physics_features, stat_feature_names, stat_features
 from quadfdi.train.features_ref import ref_feature_names, ref_features
 from quadfdi.train.vehicle_ref import VehicleRefs, has_vehicles, vehicle_refs
@@ -118,7 +118,7 @@ def split_block(ds: Dataset, code: int, seed: int = 0, cap: int | None = None, r
     when ``cap`` is given; of the non-reference flights' windows with ``exclude_reference``) and the
     number of windows it was drawn from; with ``refs``, the reference-relative features too."""
     w = make_windows(ds, split_names(ds.arrays)[code])
-    ref_flight = np.zeros(len(w), bool) if refs is None else refs.reference_flight[w.traj]
+    ref_flight = vehicle_columns(ds.arrays)["reference_flight"][w.traj].astype(bool)
     pool = np.flatnonzero(~ref_flight) if exclude_reference else np.arange(len(w))
     idx = pool if cap is None else pool[train_subsample(len(pool), seed, cap)]
     names = ds.channel_names
