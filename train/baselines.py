@@ -16,9 +16,9 @@
 On such a dataset every model's choice reads the validation flights that are not reference flights: the
 flights the evaluation scores (evaluate/load.py leaves reference flights out).
 
-The tuning budget is the same for the three: ``N_CONFIGS`` hyperparameter configurations each
-(``GRIDS``), every one fitted on the same training windows and scored by macro F1 on the
-VALIDATION windows; the best is kept (the first on a tie). Test and out-of-distribution windows
+The tuning budget is the same for every baseline: ``N_CONFIGS`` hyperparameter configurations each
+(``GRIDS``), every one fitted on the same training windows (a reference model's: those of the
+non-reference flights, under the same cap) and scored by macro F1 on the VALIDATION windows; the best is kept (the first on a tie). Test and out-of-distribution windows
 are only predicted, never scored for a choice. Training windows are subsampled without replacement
 (seeded, ``MAX_TRAIN_WINDOWS``) so that the five fits of a baseline take about a minute on one
 core; every fit runs on one thread (``threadpool_limits(1)``).
@@ -240,7 +240,7 @@ def fit_baselines(ds: Dataset, seed: int, models: Sequence[str] = MODELS,
         raise ValueError(f"{ds.path}: the baselines need training (0) and validation (1) flights")
     if list(usable_models(ds, models)) != list(models):
         raise ValueError(f"{ds.path}: {', '.join(REF_MODELS)} need vehicles with reference flights (a fleet dataset)")
-    refs = vehicle_refs(ds.arrays, ds.path.name) if set(models) & set(REF_MODELS) else None
+    refs = vehicle_refs(ds.arrays, ds.path.name if ds.path else "dataset") if set(models) & set(REF_MODELS) else None
     trains = {False: split_block(ds, 0, seed, cap, refs)}
     if refs is not None:
         trains[True] = split_block(ds, 0, seed, cap, refs, exclude_reference=True)
