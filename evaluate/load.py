@@ -3,7 +3,9 @@
 A prediction set (formats.predictions) is a flat list of windows; the protocol works per flight, so
 each set becomes a ``Flights`` batch: flights in dataset-row order, windows in time order, padded
 at the end (``valid``). The dataset contributes only its per-flight arrays and the severity (for
-the label-noise ceiling): the telemetry is never read.
+the label-noise ceiling): the telemetry is never read. A fleet dataset's reference flights
+(``reference_flight``) are left out of every set: they are what a vehicle reference is learned from,
+so a model that reads the reference saw them, and no model is scored on them (docs/evaluation.md).
 """
 
 from __future__ import annotations
@@ -72,7 +74,7 @@ def load_dataset_info(path: Path) -> DatasetInfo:
             missing = [k for k in DATASET_KEYS if k not in z.files]
             if missing:
                 raise QuadfdiError(f"dataset {path} lacks {', '.join(missing)} (not a quadfdi dataset?)")
-            arrays = {k: z[k] for k in DATASET_KEYS}
+            arrays = {k: z[k] for k in DATASET_KEYS + (("reference_flight",) if "reference_flight" in z.files else ())}
             names = tuple(str(s) for s in z["split_names"]) if "split_names" in z.files else PAPER_SPLITS
     except (zipfile.BadZipFile, ValueError, OSError, EOFError) as exc:
         raise QuadfdiError(f"dataset {path} is not a readable .npz (truncated or foreign file?): {exc}") from None
@@ -139,7 +141,10 @@ def load_run(run_root: Path) -> tuple[list[Flights], dict[str, DatasetInfo]]:
     for e in entries:
         if e["dataset"] not in infos:
             infos[e["dataset"]] = load_dataset_info(run_root / e["dataset"])
-        sets.append(to_flights(e, _read_set(run_root / e["predictions"]), infos[e["dataset"]]))
+        fl = to_flights(e, _read_set(run_root / e["predictions"]), infos[e["dataset"]])
+        if "reference_flight" in infos[e["dataset"]].arrays:
+            fl = fl.subset(~infos[e["dataset"]].arrays["reference_flight"][fl.rows].astype(bool))
+        sets.append(fl)
     names = {s.class_names for s in sets}
     if len(names) != 1:
         raise QuadfdiError(f"prediction sets disagree on the class names: {sorted(names)}")

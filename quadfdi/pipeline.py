@@ -64,7 +64,8 @@ def _study(run: RunDir, cfg: Config, settings: ExecSettings = SERIAL) -> None:
 def _baselines(run: RunDir, cfg: Config) -> None:
     from quadfdi.train.baselines_run import run_baselines
 
-    _, lines = run_baselines(run.root, cfg.train.seed)  # every dataset the index lists (the study's sim seeds)
+    # every dataset the index lists (the study's sim seeds); the reference models where [train] asks for them
+    _, lines = run_baselines(run.root, cfg.train.seed, reference=cfg.train.baselines_reference)
     print("\n".join(lines))
 
 

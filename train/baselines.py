@@ -7,11 +7,18 @@
   internal resistance from dV/dI, voltage per cell, motor command ratios, temperature differences
   and their slopes, vibration level, SoC slope);
 - ``gbt``: ``HistGradientBoostingClassifier(class_weight="balanced")``, seeded, on statistics and
-  physics features together.
+  physics features together;
+- ``logreg_physics_ref``, ``gbt_ref`` (``REF_MODELS``, on a dataset whose vehicles have reference flights,
+  train.features_ref): the same, the physics features that describe the airframe taken relative to the
+  window's own vehicle's reference (train/vehicle_ref.py). They never read a reference flight: not in
+  training (their features there are in-sample), not in the choice, not in their reported scores.
 
-The tuning budget is the same for the three: ``N_CONFIGS`` hyperparameter configurations each
-(``GRIDS``), every one fitted on the same training windows and scored by macro F1 on the
-VALIDATION windows; the best is kept (the first on a tie). Test and out-of-distribution windows
+On such a dataset every model's choice reads the validation flights that are not reference flights: the
+flights the evaluation scores (evaluate/load.py leaves reference flights out).
+
+The tuning budget is the same for every baseline: ``N_CONFIGS`` hyperparameter configurations each
+(``GRIDS``), every one fitted on the same training windows (a reference model's: those of the
+non-reference flights, under the same cap) and scored by macro F1 on the VALIDATION windows; the best is kept (the first on a tie). Test and out-of-distribution windows
 are only predicted, never scored for a choice. Training windows are subsampled without replacement
 (seeded, ``MAX_TRAIN_WINDOWS``) so that the five fits of a baseline take about a minute on one
 core; every fit runs on one thread (``threadpool_limits(1)``).
@@ -35,10 +42,13 @@ from sklearn.pipeline import Pipeline
 from sklearn.preprocessing import StandardScaler
 from threadpoolctl import threadpool_limits
 
-from quadfdi.formats.dataset import Dataset, class_names, make_windows, split_names
+from quadfdi.formats.dataset import Dataset, class_names, make_windows, split_names, vehicle_columns
 from quadfdi.train.features import physics_feature_names, physics_features, stat_feature_names, stat_features
+from quadfdi.train.features_ref import ref_feature_names, ref_features
+from quadfdi.train.vehicle_ref import VehicleRefs, has_vehicles, vehicle_refs
 
 MODELS = ("logreg_stats", "logreg_physics", "gbt")
+REF_MODELS = ("logreg_physics_ref", "gbt_ref")  # each with its reference-free twin's grid
 N_CONFIGS = 5  # hyperparameter configurations tried per baseline: the same budget for each
 MAX_TRAIN_WINDOWS = 8000  # seeded subsample of the training windows (realistic suite: 31,680 in all)
 MAX_ITER_LR = 3000
@@ -56,6 +66,7 @@ GRIDS: dict[str, list[dict[str, Any]]] = {
         {"learning_rate": 0.1, "max_iter": 100, "max_leaf_nodes": 7, "min_samples_leaf": 100},
     ],
 }
+GRIDS.update({m: GRIDS[m[:-len("_ref")]] for m in REF_MODELS})
 assert all(len(g) == N_CONFIGS for g in GRIDS.values()), "every baseline gets the same tuning budget"
 _SUBSAMPLE_KEY = 0xBA5E  # spawn key of the training-window subsample's generator
 
@@ -63,7 +74,8 @@ _SUBSAMPLE_KEY = 0xBA5E  # spawn key of the training-window subsample's generato
 @dataclass(frozen=True)
 class Block:
     """Features and labels of a set of windows: ``stats`` (n, 3 C), ``physics`` (n, F), ``y``, ``traj``
-    (n,) int64, ``t_end`` (n,) float64, ``split`` (n,) int8."""
+    (n,) int64, ``t_end`` (n,) float64, ``split`` (n,) int8, ``ref_phys`` (n, G) the reference-relative
+    physics features (G = 0 without vehicle references), ``ref_flight`` (n,) bool (a reference flight's)."""
 
     stats: np.ndarray
     physics: np.ndarray
@@ -71,13 +83,25 @@ class Block:
     traj: np.ndarray
     t_end: np.ndarray
     split: np.ndarray
+    ref_phys: np.ndarray
+    ref_flight: np.ndarray
 
     def inputs(self, model: str) -> np.ndarray:
         if model == "logreg_stats":
             return self.stats
         if model == "logreg_physics":
             return self.physics
+        if model == "logreg_physics_ref":
+            return self.ref_phys
+        if model == "gbt_ref":
+            return np.concatenate([self.stats, self.ref_phys], axis=1)
         return np.concatenate([self.stats, self.physics], axis=1)
+
+    def where(self, keep: np.ndarray) -> "Block":
+        return Block(*(getattr(self, f)[keep] for f in BLOCK_FIELDS))
+
+
+BLOCK_FIELDS = ("stats", "physics", "y", "traj", "t_end", "split", "ref_phys", "ref_flight")
 
 
 @dataclass
@@ -88,24 +112,33 @@ class BaselineResult:
     record: dict[str, Any] = field(default_factory=dict)
 
 
-def split_block(ds: Dataset, code: int, seed: int = 0, cap: int | None = None) -> tuple[Block, int]:
+def split_block(ds: Dataset, code: int, seed: int = 0, cap: int | None = None, refs: VehicleRefs | None = None,
+                exclude_reference: bool = False) -> tuple[Block, int]:
     """The features of the windows of split ``code`` (a seeded subsample of at most ``cap`` of them
-    when ``cap`` is given) and the number of windows the split holds."""
+    when ``cap`` is given; of the non-reference flights' windows with ``exclude_reference``) and the
+    number of windows it was drawn from; with ``refs``, the reference-relative features too."""
     w = make_windows(ds, split_names(ds.arrays)[code])
-    idx = np.arange(len(w)) if cap is None else train_subsample(len(w), seed, cap)
+    ref_flight = vehicle_columns(ds.arrays)["reference_flight"][w.traj].astype(bool)
+    pool = np.flatnonzero(~ref_flight) if exclude_reference else np.arange(len(w))
+    idx = pool if cap is None else pool[train_subsample(len(pool), seed, cap)]
     names = ds.channel_names
     cells = ds.arrays.get("pack_cells")
-    stats, phys = [], []
+    stats, phys, rel = [], [], []
     for s in range(0, len(idx), CHUNK):
         rows = idx[s:s + CHUNK]
         x = w.x[rows]  # (m, W, C)
+        k = None if cells is None else cells[w.traj[rows]]
         stats.append(stat_features(x, names))
-        phys.append(physics_features(x, names, None if cells is None else cells[w.traj[rows]]))
+        phys.append(physics_features(x, names, k))
+        if refs is not None:
+            rel.append(ref_features(x, names, k, *refs.windows(w.traj[rows], w.start[rows], x.shape[1])))
     n_stat, n_phys = 3 * len(names), len(physics_feature_names(names))
+    n_rel = 0 if refs is None else len(ref_feature_names(names))
     block = Block(stats=np.concatenate(stats) if stats else np.zeros((0, n_stat)),
                   physics=np.concatenate(phys) if phys else np.zeros((0, n_phys)),
-                  y=w.y[idx], traj=w.traj[idx], t_end=w.t_end[idx], split=np.full(len(idx), code, np.int8))
-    return block, len(w)
+                  y=w.y[idx], traj=w.traj[idx], t_end=w.t_end[idx], split=np.full(len(idx), code, np.int8),
+                  ref_phys=np.concatenate(rel) if rel else np.zeros((len(idx), n_rel)), ref_flight=ref_flight[idx])
+    return block, len(pool)
 
 
 def train_subsample(n: int, seed: int, cap: int = MAX_TRAIN_WINDOWS) -> np.ndarray:
@@ -145,8 +178,8 @@ class QuantileBins(TransformerMixin, BaseEstimator):
 
 def make_estimator(model: str, params: dict[str, Any], seed: int):
     if model not in GRIDS:
-        raise ValueError(f"unknown baseline {model!r}; valid: {', '.join(MODELS)}")
-    if model == "gbt":
+        raise ValueError(f"unknown baseline {model!r}; valid: {', '.join(MODELS + REF_MODELS)}")
+    if model in ("gbt", "gbt_ref"):
         return Pipeline([("bins", QuantileBins(N_BINS)),
                          ("clf", HistGradientBoostingClassifier(**params, class_weight="balanced", early_stopping=False,
                                                                 max_bins=N_BINS, random_state=int(seed)))])
@@ -192,27 +225,39 @@ def eval_codes(ds: Dataset) -> list[int]:
     return sorted(int(c) for c in np.unique(ds["split"]) if int(c) >= 1)
 
 
+def usable_models(ds: Dataset, models: Sequence[str]) -> list[str]:
+    """``models`` less the reference models when the dataset's vehicles have no reference flights."""
+    return [m for m in models if m not in REF_MODELS or has_vehicles(ds.arrays)]
+
+
 def fit_baselines(ds: Dataset, seed: int, models: Sequence[str] = MODELS,
                   cap: int = MAX_TRAIN_WINDOWS) -> tuple[Block, dict[str, BaselineResult]]:
-    """Fit ``models`` on ``ds`` (tuned on validation); the evaluation windows and each model's result."""
+    """Fit ``models`` on ``ds`` (tuned on validation); the evaluation windows and each model's result.
+    A reference model is refused (ValueError) on a dataset without vehicle references (``usable_models``)."""
     classes = class_names(ds.arrays)
     codes = eval_codes(ds)
     if 0 not in set(np.unique(ds["split"]).tolist()) or 1 not in codes:
         raise ValueError(f"{ds.path}: the baselines need training (0) and validation (1) flights")
-    train, n_train = split_block(ds, 0, seed, cap)
-    if len(np.unique(train.y)) < 2:
+    if list(usable_models(ds, models)) != list(models):
+        raise ValueError(f"{ds.path}: {', '.join(REF_MODELS)} need vehicles with reference flights (a fleet dataset)")
+    refs = vehicle_refs(ds.arrays, ds.path.name if ds.path else "dataset") if set(models) & set(REF_MODELS) else None
+    trains = {False: split_block(ds, 0, seed, cap, refs)}
+    if refs is not None:
+        trains[True] = split_block(ds, 0, seed, cap, refs, exclude_reference=True)
+    if len(np.unique(trains[False][0].y)) < 2:
         raise ValueError(f"{ds.path}: the training windows hold a single class")
-    blocks = [split_block(ds, c)[0] for c in codes]
+    blocks = [split_block(ds, c, refs=refs)[0] for c in codes]
     order = np.lexsort((np.concatenate([b.t_end for b in blocks]), np.concatenate([b.traj for b in blocks])))
-    evals = Block(*(np.concatenate([getattr(b, f) for b in blocks])[order]
-                    for f in ("stats", "physics", "y", "traj", "t_end", "split")))
-    val = blocks[0]
+    evals = Block(*(np.concatenate([getattr(b, f) for b in blocks])[order] for f in BLOCK_FIELDS))
+    val = blocks[0].where(~blocks[0].ref_flight)  # the flights the evaluation scores
+    scored = ~evals.ref_flight
     out = {}
     for model in models:
+        train, n_train = trains[model in REF_MODELS]
         est, record = tune(model, train, val, len(classes), seed)
         with threadpool_limits(1):
             proba = full_proba(est, evals.inputs(model), len(classes))
-        record.update(report_scores(evals, proba, codes, split_names(ds.arrays), classes))
+        record.update(report_scores(evals.where(scored), proba[scored], codes, split_names(ds.arrays), classes))
         record.update(n_train_windows=len(train.y), n_train_available=n_train, max_train_windows=int(cap),
                       features=feature_names(model, ds.channel_names))
         out[model] = BaselineResult(proba=proba, record=record)
@@ -238,4 +283,8 @@ def feature_names(model: str, channel_names: Sequence[str]) -> list[str]:
         return stat_feature_names(names)
     if model == "logreg_physics":
         return physics_feature_names(names)
+    if model == "logreg_physics_ref":
+        return ref_feature_names(names)
+    if model == "gbt_ref":
+        return stat_feature_names(names) + ref_feature_names(names)
     return stat_feature_names(names) + physics_feature_names(names)

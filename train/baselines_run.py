@@ -7,7 +7,9 @@ dataset (simulator seed S, read from its embedded config) and baseline seed T, e
 T)`` -- every evaluation window (split >= 1) of the dataset, format of formats/predictions.py -- and
 ``predictions/baselines_sim{S}_train{T}.json`` records the grid, the validation macro F1 of every
 configuration, the one chosen, fit times and the training-window cap. The index entries are added
-last.
+last. The reference models (``train.baselines.REF_MODELS``, asked for with ``reference=True``: the
+[train] key ``baselines_reference``) are fitted on the datasets whose vehicles have reference flights;
+on any other dataset they are skipped, and the summary says so in one line.
 
 Nothing is written until every dataset has been fitted: a bad dataset (missing, foreign, without
 validation flights, two datasets with one simulator seed) stops the command with a one-line
@@ -27,7 +29,7 @@ from quadfdi.core.jsonio import write_json
 from quadfdi.core.npzio import write_npz
 from quadfdi.formats.predictions import add_entries, check_prediction_set, prediction_path, read_index
 from quadfdi.formats.dataset import class_names, load_dataset, split_names
-from quadfdi.train.baselines import MAX_TRAIN_WINDOWS, MODELS, N_CONFIGS, fit_baselines
+from quadfdi.train.baselines import MAX_TRAIN_WINDOWS, MODELS, N_CONFIGS, REF_MODELS, fit_baselines, usable_models
 
 DATASET = "dataset.npz"  # the run's own dataset, relative to the run folder
 
@@ -77,28 +79,35 @@ def fit_run(run_root: str | Path, seed: int, which: str = "all", models: Sequenc
     done: list[dict[str, Any]] = []
     for rel, sim_seed in check_run(root, which):
         ds = load_dataset(root / rel)  # one dataset in memory at a time
+        use = usable_models(ds, models)
         try:
-            evals, results = fit_baselines(ds, seed, models, cap)
+            evals, results = fit_baselines(ds, seed, use, cap)
         except ValueError as exc:
             raise QuadfdiError(f"{root / rel}: {exc}") from None
         done.append({"dataset": rel, "sim_seed": sim_seed, "evals": evals, "results": results,
                      "class_names": list(class_names(ds.arrays)), "split_names": list(split_names(ds.arrays)),
-                     "motor_proba": suspected_motor(evals, ds.channel_names)})
+                     "motor_proba": suspected_motor(evals, ds.channel_names),
+                     "motor_proba_ref": suspected_motor(evals, ds.channel_names, reference=True),
+                     "skipped": [m for m in models if m not in use]})
     return done
 
 
-def suspected_motor(evals, channel_names) -> np.ndarray | None:
+def suspected_motor(evals, channel_names, reference: bool = False) -> np.ndarray | None:
     """(n, 4) one-hot: the rotor whose window-mean command is highest over the mean of the four (the
     physics feature ``thr_ratio<i>``: a weak motor or a damaged propeller needs more command for its
-    share of thrust). A fixed physics rule, not learned; shared by the three baselines, so the
-    evaluation can score their localisation. None when the dataset has no motor commands."""
+    share of thrust); with ``reference``, highest over its reference share (``share_dev<i>``; None
+    without reference features). A fixed physics rule, not learned; shared by the baselines of each
+    kind, so the evaluation can score their localisation. None when the dataset has no motor commands."""
     from quadfdi.train.features import physics_feature_names
+    from quadfdi.train.features_ref import ref_feature_names
 
-    names = physics_feature_names(channel_names)
-    cols = [names.index(f"thr_ratio{i}") for i in range(1, 5) if f"thr_ratio{i}" in names]
-    if len(cols) != 4:
+    names = (ref_feature_names if reference else physics_feature_names)(channel_names)
+    feats = evals.ref_phys if reference else evals.physics
+    cols = [names.index(f"{'share_dev' if reference else 'thr_ratio'}{i}") for i in range(1, 5)
+            if f"{'share_dev' if reference else 'thr_ratio'}{i}" in names]
+    if len(cols) != 4 or feats.shape[1] != len(names):
         return None
-    return np.eye(4, dtype=np.float32)[np.argmax(evals.physics[:, cols], axis=1)]
+    return np.eye(4, dtype=np.float32)[np.argmax(feats[:, cols], axis=1)]
 
 
 def write_run(run_root: str | Path, done: list[dict[str, Any]], seed: int, cap: int = MAX_TRAIN_WINDOWS) -> list[Path]:
@@ -116,8 +125,9 @@ def write_run(run_root: str | Path, done: list[dict[str, Any]], seed: int, cap: 
             arrays = {"proba": res.proba.astype(np.float32), "y_true": ev.y.astype(np.int64),
                       "traj": ev.traj.astype(np.int64), "t_end": ev.t_end.astype(np.float64),
                       "split": ev.split.astype(np.int8), "class_names": np.array(d["class_names"])}
-            if d.get("motor_proba") is not None:
-                arrays["motor_proba"] = d["motor_proba"]
+            motor = d.get("motor_proba_ref" if model in REF_MODELS else "motor_proba")
+            if motor is not None:
+                arrays["motor_proba"] = motor
             check_prediction_set(arrays, str(path))
             path.parent.mkdir(parents=True, exist_ok=True)
             write_npz(path, arrays)
@@ -133,13 +143,17 @@ def write_run(run_root: str | Path, done: list[dict[str, Any]], seed: int, cap: 
 
 
 def run_baselines(run_root: str | Path, seed: int, which: str = "all", models: Sequence[str] = MODELS,
-                  cap: int = MAX_TRAIN_WINDOWS) -> tuple[list[Path], list[str]]:
+                  cap: int = MAX_TRAIN_WINDOWS, reference: bool = False) -> tuple[list[Path], list[str]]:
     """Fit, then write: the files written (prediction sets, records, the index) and a summary line per
-    dataset x model (chosen configuration, macro F1 per split, tuning CPU time)."""
-    done = fit_run(run_root, seed, which, models, cap)
+    dataset x model (chosen configuration, macro F1 per split, tuning CPU time); with ``reference``, the
+    reference models too (one line per dataset that has no vehicle references: skipped)."""
+    done = fit_run(run_root, seed, which, tuple(models) + (REF_MODELS if reference else ()), cap)
     written = write_run(run_root, done, seed, cap)
     lines = []
     for d in done:
+        if d["skipped"]:
+            lines.append(f"sim {d['sim_seed']}: {', '.join(d['skipped'])} skipped: {d['dataset']} has no vehicles "
+                         "with reference flights")
         for model, res in d["results"].items():
             r = res.record
             f1 = " ".join(f"{k}={v:.3f}" for k, v in r["macro_f1_by_split"].items())

@@ -128,7 +128,7 @@ def run_baselines_cmd(args: argparse.Namespace) -> int:
     cap = MAX_TRAIN_WINDOWS if args.max_train_windows is None else args.max_train_windows
     if seed < 0 or cap < 0:
         raise QuadfdiError(f"--seed and --max-train-windows must not be negative, found {seed} and {cap}")
-    written, lines = run_baselines(run.root, seed, args.datasets, cap=cap)
+    written, lines = run_baselines(run.root, seed, args.datasets, cap=cap, reference=cfg.train.baselines_reference)
     print("\n".join(lines))
     print(f"wrote {len(written)} files into {run.root / 'predictions'}")
     return 0

@@ -50,6 +50,9 @@ class TrainConfig:
     # amplitude of the multiplicative noise on m1_rel..m4_rel (0 = off) and its correlation time.
     share_wander: float = 0.0
     share_wander_tau_s: float = 0.3
+    # `quadfdi train baselines` also fits logreg_physics_ref and gbt_ref: physics features relative to each vehicle's
+    # reference (train/features_ref.py; datasets whose vehicles have reference flights, others skip them).
+    baselines_reference: bool = False
 
     def validate(self) -> None:
         positive(self, "epochs", "batch_size", "lr", "latent", "hidden", "gru_hidden", "steps", "rtol", "atol", "threads", "gru_lr")

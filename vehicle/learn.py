@@ -108,6 +108,12 @@ def _esc(flights: list[Flight], names: list[str]) -> dict:
     return {k: {"unit": per[0][k][1], "motors": _motor_stats([p[k][0] for p in per], sels, names)} for k in common}
 
 
+def _motor_temp(flights: list[Flight], names: list[str]) -> list[dict] | None:
+    """Airborne motor temperature offsets (K) when every flight logs T1..T4 (simulated flights), else None."""
+    per = [q.motor_temp_offsets(fl) for fl in flights]
+    return None if any(p is None for p in per) else _motor_stats(per, [fl.airborne for fl in flights], names)
+
+
 def _warnings(ref: dict, flights: list[Flight]) -> list[str]:
     """One line per quantity on which flights disagree (stats.disagreements), naming each such flight."""
     checked = [(f"motor {m['log_motor']} command share", m) for m in ref["motor_share"]]
@@ -143,7 +149,7 @@ def learn(flights: list[Flight]) -> dict:
         "motor_share": _motor_stats([q.motor_shares(fl) for fl in flights], sels, names),
         "share_model": fits.share_model(flights, names),
         "hover": _hover(flights), "battery": _battery(flights), "vibration": _vibration(flights),
-        "esc": _esc(flights, names),
+        "esc": _esc(flights, names), "motor_temp": _motor_temp(flights, names),
     }
     ref["warnings"] = _warnings(ref, flights)
     return ref

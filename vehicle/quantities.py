@@ -8,6 +8,7 @@ project rotor order (NaN where a channel is not logged or masked).
 - steady samples: core/hover.py's test (settled 2 s after a take-off, |vz| <= 0.5 m/s, |roll| and
   |pitch| <= 0.25 rad, collective >= 0.05), with 0 for a roll or pitch the log does not have.
 - ESC shares (rpm, current: over the four's mean; temperature: minus the four's mean, K).
+- motor temperature offsets (``T1..T4`` minus the four's mean, K): simulated flights only.
 """
 
 from __future__ import annotations
@@ -98,3 +99,12 @@ def esc_quantities(fl: Flight) -> dict[str, tuple[np.ndarray, str]]:
         t = np.stack([fl.col(f"esc_temp{k}") for k in ROTORS], axis=1)
         out["temp_offset"] = (t - t.mean(axis=1, keepdims=True), "K")
     return out
+
+
+def motor_temp_offsets(fl: Flight) -> np.ndarray | None:
+    """(T, 4) each motor's temperature minus the four's mean (K), or None when T1..T4 are not all logged
+    (a real log never has them: only the simulator models the motor windings' temperature)."""
+    if not all(fl.usable(f"T{k}") for k in ROTORS):
+        return None
+    t = np.stack([fl.col(f"T{k}") for k in ROTORS], axis=1)
+    return t - t.mean(axis=1, keepdims=True)
