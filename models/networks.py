@@ -18,20 +18,11 @@ from torch import nn
 from torchdiffeq import odeint
 
 from quadfdi.models.control import LinearPath, interp_matrix, knots
+from quadfdi.models.regularise import drop_channels, drop_latent
 from quadfdi.models.solvers import FIXED_METHODS, SolverSpec, fixed_method, integrate_fixed, nearest_index, stage_times
 
-__all__ = [
-    "MODEL_KINDS",
-    "STD_FLOOR",
-    "CNODE",
-    "GRUClassifier",
-    "SolverSpec",
-    "VectorField",
-    "build_model",
-    "check_windows",
-    "model_from_signature",
-    "model_signature",
-]
+__all__ = ["MODEL_KINDS", "STD_FLOOR", "CNODE", "GRUClassifier", "SolverSpec", "VectorField", "build_model",
+           "check_windows", "model_from_signature", "model_signature"]
 
 MODEL_KINDS = ("cnode", "gru")
 
@@ -99,6 +90,7 @@ class _Normalised(nn.Module):
         self.register_buffer("mean", torch.zeros(n_channels))  # (C,), training split only
         self.register_buffer("std", torch.ones(n_channels))  # (C,), floored at STD_FLOOR
         self.motor_head: nn.Linear | None = None  # models.motor.attach_motor_head: (B, width) -> (B, 4)
+        self.dropout_in = self.dropout_latent = 0.0  # training-only rates (models.regularise); not state
 
     def set_normalisation(self, mean: Any, std: Any) -> None:
         """Store the training split's per-channel mean and std, (C,) each; std floored at STD_FLOOR."""
@@ -225,9 +217,10 @@ class CNODE(_Normalised):
     def features(self, x_raw: torch.Tensor) -> torch.Tensor:
         """x_raw (batch, W, C) -> z1 (batch, latent), what the class and motor heads read."""
         self.nfe = 0
-        x_norm = self.normalise(x_raw)
+        x_norm = drop_channels(self.normalise(x_raw), self.dropout_in, self.training)
         z0 = torch.tanh(self.encoder(x_norm[:, 0]))
-        return self._integrate_fixed(z0, x_norm) if self.solver.is_fixed else self._integrate_adaptive(z0, x_norm)
+        z1 = self._integrate_fixed(z0, x_norm) if self.solver.is_fixed else self._integrate_adaptive(z0, x_norm)
+        return drop_latent(z1, self.dropout_latent, self.training)
 
     @torch.no_grad()
     def trace(self, x_raw: torch.Tensor) -> dict[str, Any]:
@@ -319,8 +312,8 @@ class GRUClassifier(_Normalised):
 
     def features(self, x_raw: torch.Tensor) -> torch.Tensor:
         """x_raw (batch, W, C) -> h_W (batch, H), what the class and motor heads read."""
-        _, h_last = self.gru(self.normalise(x_raw))  # (1, batch, H)
-        return h_last[0]
+        _, h_last = self.gru(drop_channels(self.normalise(x_raw), self.dropout_in, self.training))  # (1, batch, H)
+        return drop_latent(h_last[0], self.dropout_latent, self.training)
 
     @torch.no_grad()
     def trace(self, x_raw: torch.Tensor) -> dict[str, torch.Tensor]:
@@ -340,15 +333,17 @@ class GRUClassifier(_Normalised):
 
 def build_model(kind: str, n_channels: int, cfg: Any, window: int = 80, n_classes: int = 4) -> nn.Module:
     """A fresh model of ``kind`` ("cnode" or "gru") sized by ``cfg``, the [train] section (its solver, steps,
-    rtol, atol, jump_t, latent, hidden, gru_hidden); ``window`` is sim.window, ``n_classes`` the data's
-    class count (K outputs)."""
+    rtol, atol, jump_t, latent, hidden, gru_hidden; dropout_in, dropout_latent when it has them); ``window`` is
+    sim.window, ``n_classes`` the data's class count (K outputs)."""
     if kind == "cnode":
         solver = SolverSpec(cfg.solver, cfg.steps, cfg.rtol, cfg.atol, cfg.jump_t)
-        return CNODE(n_channels, window=window, latent=cfg.latent, hidden=cfg.hidden, solver=solver,
-                     n_classes=n_classes)
-    if kind == "gru":
-        return GRUClassifier(n_channels, hidden=cfg.gru_hidden, window=window, n_classes=n_classes)
-    raise ValueError(f"unknown model kind {kind!r}; valid: {', '.join(MODEL_KINDS)}")
+        model = CNODE(n_channels, window=window, latent=cfg.latent, hidden=cfg.hidden, solver=solver, n_classes=n_classes)
+    elif kind == "gru":
+        model = GRUClassifier(n_channels, hidden=cfg.gru_hidden, window=window, n_classes=n_classes)
+    else:
+        raise ValueError(f"unknown model kind {kind!r}; valid: {', '.join(MODEL_KINDS)}")
+    model.dropout_in, model.dropout_latent = getattr(cfg, "dropout_in", 0.0), getattr(cfg, "dropout_latent", 0.0)
+    return model
 
 
 def model_signature(model: nn.Module) -> dict[str, int | str]:

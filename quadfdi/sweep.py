@@ -46,8 +46,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    "(those of quadfdi run; default: %(default)s)")
     p.add_argument("--metrics", default=",".join(DEFAULT_METRICS),
                    help="dotted paths into each point's results (train.<metrics.json>, export.<manifest.json>, "
-                        "parity.<parity.json>, bench.<bench.json>); the first is drawn (default: %(default)s)")
+                        "parity.<parity.json>, bench.<bench.json>; history.<net>.val_macro_f1 and .best_epoch: the "
+                        "validation score of the epoch kept); the first is drawn (default: %(default)s)")
     p.add_argument("--out", default=None, help="sweep folder (e.g. runs/sweep)")
+    p.add_argument("--dataset-from", default=None, metavar="RUN",
+                   help="reuse this run folder's dataset at every point instead of simulating (--stages without sim; "
+                        "every point's [sim] must equal the run's)")
     add_executor_args(p)
     p.set_defaults(func=run_sweep_cmd)
     acts = p.add_subparsers(dest="action", metavar="{bench}")
@@ -116,15 +120,20 @@ def stage_order() -> tuple[str, ...]:
     return tuple(name for name, _ in STAGES)
 
 
-def _run_stages(stages: tuple[str, ...], run: RunDir, cfg: Config, cache_root: Path) -> None:
+def _run_stages(stages: tuple[str, ...], run: RunDir, cfg: Config, cache_root: Path, dataset: str | None = None) -> None:
     """The pipeline's own stage functions (``quadfdi.pipeline.STAGES``), except sim, which joins the
-    shards the sweep's first step cached in ``cache_root``. Their printout goes to the point's
-    log.txt: on workers it would interleave in the sweep's terminal."""
+    shards the sweep's first step cached in ``cache_root`` (or, with ``dataset``, links that dataset:
+    quadfdi.sweep_reuse). Their printout goes to the point's log.txt: on workers it would interleave in
+    the sweep's terminal."""
     from quadfdi.pipeline import STAGES
     from quadfdi.sim.publish import generate_sharded
 
     funcs = dict(STAGES)
     with open(run.root / "log.txt", "w") as fh, contextlib.redirect_stdout(fh):
+        if dataset is not None:
+            from quadfdi.sweep_reuse import publish_linked
+
+            publish_linked(run, cfg, Path(dataset))
         for stage in stages:
             if stage == "sim":
                 generate_sharded(run, cfg, progress=False, cache_root=cache_root)
@@ -151,28 +160,36 @@ def point_metrics(run: RunDir) -> dict:
     for name, path in files.items():
         if path.is_file():
             out.update(flatten(read_json(path, name), name + "."))
+    hist = run.root / "history.json"  # the validation score of the epoch kept (train.loop), per network
+    for kind, h in (read_json(hist, "training history") if hist.is_file() else {}).items():
+        if isinstance(h, dict) and h.get("best_epoch", -1) >= 0:
+            out[f"history.{kind}.val_macro_f1"] = h["val_macro_f1"][h["best_epoch"]]
+            out[f"history.{kind}.best_epoch"] = h["best_epoch"]
     return out
 
 
-def run_point(point_dir: str, cfg: Config, stages: tuple[str, ...], cache_root: str) -> dict:
+def run_point(point_dir: str, cfg: Config, stages: tuple[str, ...], cache_root: str, dataset: str | None = None) -> dict:
     """One grid point (a job): run ``stages`` into ``point_dir``; return every numeric result."""
     run = create_run(point_dir, cfg)
-    _run_stages(stages, run, cfg, Path(cache_root))
+    _run_stages(stages, run, cfg, Path(cache_root), dataset)
     return point_metrics(run)
 
 
-def point_jobs(out: Path, points: list[tuple[dict, Config]], stages: tuple[str, ...]) -> list[Job]:
+def point_jobs(out: Path, points: list[tuple[dict, Config]], stages: tuple[str, ...],
+               dataset: Path | None = None) -> list[Job]:
     packages = tuple(sorted({p for s in stages for p in PACKAGES[s]} | {"quadfdi"}))
+    inputs = {"dataset": dataset} if dataset is not None else None
+    src = str(dataset) if dataset is not None else None
     jobs = []
     for values, cfg in points:
-        key = job_key(KIND, cfg.to_dict(), {"stages": list(stages)}, packages=packages)
-        jobs.append(Job(KIND, key, run_point, (str(out / "points" / point_name(values)), cfg, stages, str(out)),
+        key = job_key(KIND, cfg.to_dict(), {"stages": list(stages)}, inputs=inputs, packages=packages)
+        jobs.append(Job(KIND, key, run_point, (str(out / "points" / point_name(values)), cfg, stages, str(out), src),
                         cache_path(out, KIND, key, "json"), label=point_name(values), torch=stages != ("sim",)))
     return jobs
 
 
 def run_sweep(out: Path, points: list[tuple[dict, Config]], stages: tuple[str, ...], settings: ExecSettings,
-              progress: bool = True) -> list[JobResult]:
+              progress: bool = True, dataset: Path | None = None) -> list[JobResult]:
     """The datasets' shards (each distinct [sim] section once), then one job per point."""
     from quadfdi.sim.shards import shard_jobs
 
@@ -187,7 +204,7 @@ def run_sweep(out: Path, points: list[tuple[dict, Config]], stages: tuple[str, .
             if bad:
                 raise QuadfdiError(f"{len(bad)} simulation shards failed ({bad[0].job.label}: {bad[0].error}); "
                                    "run the same command again to resume")
-        return run_jobs(point_jobs(out, points, stages), settings, desc="sweep points", progress=progress)
+        return run_jobs(point_jobs(out, points, stages, dataset), settings, desc="sweep points", progress=progress)
 
 
 def run_sweep_cmd(args: argparse.Namespace) -> int:
@@ -198,13 +215,19 @@ def run_sweep_cmd(args: argparse.Namespace) -> int:
     settings = ExecSettings.from_args(args)
     grid = parse_grid(args.grid)
     stages = parse_stages(args.stages)
-    if "sim" not in stages:
-        raise QuadfdiError("--stages must include sim: every point makes its own run folder from its config")
+    if ("sim" in stages) == (args.dataset_from is not None):
+        raise QuadfdiError("--stages must include sim, or leave it out and name a run whose dataset every point "
+                           "reuses with --dataset-from RUN")
     metrics = [m.strip() for m in args.metrics.split(",") if m.strip()]
     points = grid_points(args.config, args.overrides, grid)
+    dataset = None
+    if args.dataset_from is not None:
+        from quadfdi.sweep_reuse import source_dataset
+
+        dataset = source_dataset(args.dataset_from, points)
     out = Path(args.out)
     create_run(out, load_config(args.config, args.overrides))  # the sweep's base config, beside its table
-    results = run_sweep(out, points, stages, settings)
+    results = run_sweep(out, points, stages, settings, dataset=dataset)
     paths = write_sweep_report(out, grid, points, results, metrics, stages)
     failed = sum(not r.ok for r in results)
     print(f"sweep: {len(results) - failed} of {len(results)} points done" + (f", {failed} failed" if failed else ""))

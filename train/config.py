@@ -53,6 +53,10 @@ class TrainConfig:
     # `quadfdi train baselines` also fits logreg_physics_ref and gbt_ref: physics features relative to each vehicle's
     # reference (train/features_ref.py; datasets whose vehicles have reference flights, others skip them).
     baselines_reference: bool = False
+    # Regularisation (docs/training.md "Recipe search"); the defaults change nothing.
+    weight_decay: float = 0.0  # AdamW's decoupled weight decay on every parameter (0: Adam, as before it existed)
+    dropout_in: float = 0.0  # training only: each normalised input channel of a window zeroed with this probability
+    dropout_latent: float = 0.0  # training only: dropout on the CNODE's z1 / the GRU's h_W before the heads
 
     def validate(self) -> None:
         positive(self, "epochs", "batch_size", "lr", "latent", "hidden", "gru_hidden", "steps", "rtol", "atol", "threads", "gru_lr")
@@ -73,6 +77,10 @@ class TrainConfig:
         choice(self, "motor_head", ("auto", "off"))
         not_negative(self, "motor_loss_weight", "share_wander")
         positive(self, "share_wander_tau_s")
+        not_negative(self, "weight_decay")
+        for name in ("dropout_in", "dropout_latent"):
+            if not 0.0 <= getattr(self, name) < 1.0:
+                raise QuadfdiError(f"train.{name} must lie in [0, 1), found {getattr(self, name)}")
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,105 @@
+"""The recipe's regularisation keys: weight decay (AdamW), input-channel and latent dropout.
+
+Off by default (the same optimiser and the same weights as without the keys), dropout only while
+training (the eval logits and the exported graph do not depend on the rates), bounds refused in one line.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+import quadfdi.train.loop as loop
+from quadfdi.core.config import Config, load_config
+from quadfdi.core.errors import QuadfdiError
+from quadfdi.formats.dataset import Windows
+from quadfdi.models.networks import build_model
+from tests.conftest import quadfdi
+
+C, W = 6, 20
+
+
+def _windows(n: int = 40, seed: int = 0) -> Windows:
+    rng = np.random.default_rng(seed)
+    z = np.zeros(n, dtype=np.int64)
+    return Windows(x=rng.standard_normal((n, W, C)).astype(np.float32), y=rng.integers(0, 4, n), traj=np.arange(n),
+                   start=z, t_end=z.astype(np.float64))
+
+
+def _trained(kind: str, sets: list[str]) -> dict:
+    cfg = load_config(None, ["train.epochs=2", "train.gru_hidden=8", "train.latent=6", "train.hidden=8",
+                             "train.steps=2", "train.batch_size=16", *sets]).train
+    torch.manual_seed(0)
+    model = build_model(kind, C, cfg, window=W, n_classes=4)
+    loop.train_model(model, _windows(), _windows(seed=1), cfg, np.ones(4, np.float32), log=lambda s: None)
+    return model.state_dict()
+
+
+def test_defaults_change_nothing():
+    cfg = Config().train
+    assert (cfg.weight_decay, cfg.dropout_in, cfg.dropout_latent) == (0.0, 0.0, 0.0)
+    model = build_model("gru", C, cfg, window=W, n_classes=4)
+    assert type(loop.make_optimizer(model, cfg)) is torch.optim.Adam
+
+
+@pytest.mark.parametrize("kind", ["cnode", "gru"])
+def test_weight_decay_zero_is_the_adam_of_before_bit_for_bit(kind, monkeypatch):
+    now = _trained(kind, ["train.weight_decay=0"])
+    decayed = _trained(kind, ["train.weight_decay=0.1"])
+    monkeypatch.setattr(loop, "make_optimizer",  # the optimiser line as it was before weight decay existed
+                        lambda m, cfg: torch.optim.Adam(m.parameters(), lr=loop.learning_rate(m, cfg)))
+    before = _trained(kind, [])
+    assert all(torch.equal(now[k], before[k]) for k in before)
+    assert any(not torch.equal(decayed[k], before[k]) for k in before)
+
+
+@pytest.mark.parametrize("kind", ["cnode", "gru"])
+def test_dropout_is_identity_in_eval_and_acts_in_training(kind):
+    cfg = load_config(None, ["train.latent=6", "train.hidden=8", "train.gru_hidden=8", "train.steps=2"]).train
+    torch.manual_seed(0)
+    plain = build_model(kind, C, cfg, window=W, n_classes=4)
+    rates = load_config(None, ["train.latent=6", "train.hidden=8", "train.gru_hidden=8", "train.steps=2",
+                               "train.dropout_in=0.5", "train.dropout_latent=0.5"]).train
+    dropped = build_model(kind, C, rates, window=W, n_classes=4)
+    dropped.load_state_dict(plain.state_dict())
+    x = torch.from_numpy(_windows(8).x)
+    plain.eval(), dropped.eval()
+    with torch.no_grad():
+        assert torch.equal(plain(x), dropped(x))
+        assert set(plain.state_dict()) == set(dropped.state_dict())
+        dropped.train()
+        assert not torch.equal(plain(x), dropped(x))
+
+
+def test_build_model_reads_the_rates():
+    cfg = load_config(None, ["train.dropout_in=0.1", "train.dropout_latent=0.3"]).train
+    for kind in ("cnode", "gru"):
+        m = build_model(kind, C, cfg, window=W, n_classes=4)
+        assert (m.dropout_in, m.dropout_latent) == (0.1, 0.3)
+
+
+@pytest.mark.parametrize("override", ["train.weight_decay=-0.01", "train.dropout_in=1.0", "train.dropout_latent=-0.1"])
+def test_bounds_refused(override):
+    with pytest.raises(QuadfdiError):
+        load_config(None, [override])
+
+
+def test_cli_refuses_a_bad_rate_in_one_line(tmp_path):
+    res = quadfdi("sim", "--out", str(tmp_path / "run"), "--set", "train.dropout_in=1.5")
+    assert res.returncode == 2 and len(res.stderr.strip().splitlines()) == 1 and not (tmp_path / "run").exists()
+    assert "train.dropout_in must lie in [0, 1), found 1.5" in res.stderr
+
+
+def test_the_exported_graph_does_not_depend_on_the_rates():
+    from quadfdi.export.onnx_cnode import build_cnode, cnode_params
+    from quadfdi.export.onnx_gru import build_gru_fp32, gru_params
+
+    def graphs(sets: list[str]) -> tuple[bytes, bytes]:
+        cfg = load_config(None, ["train.latent=6", "train.hidden=8", "train.gru_hidden=8", *sets]).train
+        torch.manual_seed(0)
+        cnode, gru = (build_model(k, C, cfg, window=W, n_classes=4) for k in ("cnode", "gru"))
+        return (build_cnode(cnode_params(cnode, 2), 18).model.SerializeToString(),
+                build_gru_fp32(gru_params(gru), 18).model.SerializeToString())
+
+    assert graphs([]) == graphs(["train.dropout_in=0.3", "train.dropout_latent=0.5"])
