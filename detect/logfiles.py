@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
-from quadfdi.ingest.logkind import log_kind
+from quadfdi.ingest.logkind import log_kind, walk_logs
 
 GPS_EPOCH = datetime(1980, 1, 6, tzinfo=timezone.utc)
 GPS_LEAP_S = 18  # GPS - UTC since 2017-01-01
@@ -43,21 +43,8 @@ def find_logs(paths: list[str | Path]) -> list[tuple[Path, str]]:
     given alone: its own name), with separators as ``__``: ``normal_flight__E8_log00``. Two paths
     that would share a name (the same file name in two folders given) both get a suffix of their
     absolute path's sha1, so a flight's folder depends only on its own path."""
-    found: list[tuple[Path, str]] = []
-    for given in paths:
-        p = Path(given)
-        if p.is_dir():
-            for f in sorted(q for q in p.rglob("*") if q.is_file() and not q.name.startswith(".")):
-                if log_kind(f) is not None:
-                    rel = (p.resolve().name,) + f.relative_to(p).parts
-                    found.append((f, "__".join(_safe(part) for part in rel)))
-        else:
-            found.append((p, _safe(p.name)))
-    unique, seen = [], set()
-    for f, name in found:  # the same file reached twice is one flight
-        if f.resolve() not in seen:
-            seen.add(f.resolve())
-            unique.append((f, name))
+    unique = [(f, "__".join(_safe(part) for part in parts) if parts else _safe(f.name))
+              for f, parts in walk_logs(paths)]
     counts = Counter(name for _, name in unique)
     return [(f, name + "-" + hashlib.sha1(str(f.resolve()).encode()).hexdigest()[:8] if counts[name] > 1 else name)
             for f, name in unique]

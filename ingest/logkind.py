@@ -36,3 +36,25 @@ def log_kind(path: Path) -> str | None:
             return "flight.npz" if "log_sha256.npy" in z.namelist() else None
     except (OSError, zipfile.BadZipFile):
         return None
+
+
+def walk_logs(paths: list[str | Path]) -> list[tuple[Path, tuple[str, ...] | None]]:
+    """Every file given, and every file a folder given holds (recursively, hidden files skipped) whose
+    :func:`log_kind` is known, in a stable order, each file once (the first way it was reached). A found
+    file comes with its folder's name and its path below it; a file given by name with None, whatever
+    it holds (reading it then says why not)."""
+    found: list[tuple[Path, tuple[str, ...] | None]] = []
+    for given in paths:
+        p = Path(given)
+        if p.is_dir():
+            for f in sorted(q for q in p.rglob("*") if q.is_file() and not q.name.startswith(".")):
+                if log_kind(f) is not None:
+                    found.append((f, (p.resolve().name,) + f.relative_to(p).parts))
+        else:
+            found.append((p, None))
+    unique, seen = [], set()
+    for f, parts in found:
+        if f.resolve() not in seen:
+            seen.add(f.resolve())
+            unique.append((f, parts))
+    return unique

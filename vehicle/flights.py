@@ -17,7 +17,7 @@ import numpy as np
 from quadfdi.core.errors import QuadfdiError
 from quadfdi.core.jobcache import file_sha256
 from quadfdi.formats.flight import load_flight
-from quadfdi.ingest.logkind import LOG_KINDS, log_kind
+from quadfdi.ingest.logkind import LOG_KINDS, log_kind, walk_logs
 
 
 @dataclass
@@ -76,23 +76,11 @@ def find_flights(paths: list[str | Path]) -> list[tuple[Path, str]]:
     in a stable order; a file given by name is kept whatever it holds (reading it then says why not).
     The name is the path below the folder given, prefixed with that folder's name; a file given alone is
     named with its own folder's name (``normal_flight/E8_log00``: CrazyPAD's file names repeat)."""
-    found: list[tuple[Path, str]] = []
     for given in paths:
-        p = Path(given)
-        if p.is_dir():
-            for f in sorted(q for q in p.rglob("*") if q.is_file() and not q.name.startswith(".")):
-                if file_kind(f) is not None:
-                    found.append((f, "/".join((p.resolve().name,) + f.relative_to(p).parts)))
-        elif p.exists():
-            found.append((p, f"{p.resolve().parent.name}/{p.name}"))  # the folder says the condition
-        else:
-            raise QuadfdiError(f"{p} does not exist")
-    unique, seen = [], set()
-    for f, name in found:
-        if f.resolve() not in seen:
-            seen.add(f.resolve())
-            unique.append((f, name))
-    return unique
+        if not Path(given).exists():
+            raise QuadfdiError(f"{given} does not exist")
+    # a file given alone is named with its own folder's name: the folder says the condition
+    return [(f, "/".join(parts) if parts else f"{f.resolve().parent.name}/{f.name}") for f, parts in walk_logs(paths)]
 
 
 def read_flight(path: str | Path, name: str | None = None) -> Flight:
