@@ -2,7 +2,7 @@
 
 ``profiled_dataset(ds, profile)`` returns the dataset with its ``telemetry`` replaced by the
 profile's channels (same flights, samples, labels, splits), so windows, normalisation, calibration
-and reference windows are made as before. ``paper`` returns ``ds`` itself (nothing changes).
+and reference windows are made the same way. ``paper`` returns ``ds`` itself (nothing changes).
 
 For a profile with a hover estimate (core.hover) the per-flight estimate is stored beside it:
 ``hover_cmd``, ``hover_cur`` (float32) and ``hover_freeze`` (sample index; the estimate is applied to

@@ -49,7 +49,7 @@ def head_width(model: nn.Module) -> int:
 def attach_motor_head(model: nn.Module) -> nn.Module:
     """Give ``model`` a fresh ``motor_head`` (Linear(width, 4)); returns the model. Initialised
     from the current torch generator, after every other layer (a model without the head draws the
-    same numbers as before the head existed)."""
+    same numbers as one built with no head at all)."""
     model.motor_head = nn.Linear(head_width(model), N_MOTORS)
     return model
 

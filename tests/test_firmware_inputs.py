@@ -18,7 +18,7 @@ import pytest
 
 from tests.test_firmware_fixtures import host_build  # noqa: F401 (fixture)
 
-ONE_LINE_TIMEOUT = 20  # s: a refusal is immediate; the old readers blocked on a FIFO or allocated 34 GB
+ONE_LINE_TIMEOUT = 20  # s: a refusal is immediate; an unbounded reader would block on a FIFO or allocate 34 GB
 
 
 def _run(cmd: list[str], **kw) -> subprocess.CompletedProcess:

@@ -1,4 +1,4 @@
-"""Inputs that used to be accepted as success or to reach a traceback: flights whose time axis is
+"""Inputs that must never pass as success nor reach a traceback: flights whose time axis is
 reversed, stretched or NaN, an output that is its own input, an export manifest naming a file
 outside its folder, and ingest arguments out of range. Each ends in one line and exit 2, with
 nothing written."""

@@ -54,7 +54,7 @@ class TrainConfig:
     # reference (train/features_ref.py; datasets whose vehicles have reference flights, others skip them).
     baselines_reference: bool = False
     # Regularisation (docs/training.md "Recipe search"); the defaults change nothing.
-    weight_decay: float = 0.0  # AdamW's decoupled weight decay on every parameter (0: Adam, as before it existed)
+    weight_decay: float = 0.0  # AdamW's decoupled weight decay on every parameter (0: plain Adam)
     dropout_in: float = 0.0  # training only: each normalised input channel of a window zeroed with this probability
     dropout_latent: float = 0.0  # training only: dropout on the CNODE's z1 / the GRU's h_W before the heads
 

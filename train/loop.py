@@ -68,7 +68,7 @@ def learning_rate(model: torch.nn.Module, cfg: TrainConfig) -> float:
 
 def make_optimizer(model: torch.nn.Module, cfg: TrainConfig) -> torch.optim.Optimizer:
     """Adam at ``learning_rate``; with ``cfg.weight_decay`` > 0, AdamW (decay decoupled from the
-    gradient's moments, scaled by the scheduled rate). 0 builds exactly the Adam of before."""
+    gradient's moments, scaled by the scheduled rate). 0 builds plain Adam."""
     if cfg.weight_decay > 0:
         return torch.optim.AdamW(model.parameters(), lr=learning_rate(model, cfg), weight_decay=cfg.weight_decay)
     return torch.optim.Adam(model.parameters(), lr=learning_rate(model, cfg))

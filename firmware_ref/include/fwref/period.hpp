@@ -1,7 +1,7 @@
 // fwref/period.hpp -- scope: how many sample periods a timestamp step d = t - t_prev is, as
 // Stream::push decides it (a refusal, one period, or a gap of g > 1), without the double division
 // on the common path. On the Cortex-M4 (single-precision FPU) that division is soft-float: about
-// 0.6k of the 1.45k instructions of a push before this gate (docs/firmware.md "Streaming").
+// 0.6k of the 1.45k instructions a push takes without this gate (docs/firmware.md "Streaming").
 //
 // The decision is defined by the division (the reference, ``periods_reference``):
 //     q = fl(d / dt);  refused when !(q >= 0.5) (NaN included);  otherwise g = llround(q).
