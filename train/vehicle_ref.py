@@ -25,7 +25,7 @@ from quadfdi.formats.dataset import FLEET_KEYS, vehicle_columns
 from quadfdi.sim.flight_npz import flight_arrays
 from quadfdi.train.features import VIBRATION_CHANNELS
 from quadfdi.vehicle import quantities as q
-from quadfdi.vehicle.compare import share_series
+from quadfdi.vehicle.compare import share_series, vibration_floor
 from quadfdi.vehicle.flights import Flight
 from quadfdi.vehicle.learn import learn
 
@@ -78,10 +78,8 @@ def expected_series(fl: Flight, reference: dict, vibs: list[str]) -> np.ndarray:
         r = reference["vibration"].get(name)
         if r is None:
             raise QuadfdiError(f"{fl.name}: the reference holds no {name} (its flights do not log it)")
-        if r["floor"]["mean"] is None:
-            cols.append(np.full((len(coll), 1), float(r["level"]["mean"])))
-        else:
-            cols.append((r["floor"]["mean"] + r["per_collective"]["mean"] * coll)[:, None])
+        floor = vibration_floor(r, coll)
+        cols.append(np.full((len(coll), 1), float(r["level"]["mean"])) if floor is None else floor[:, None])
     return np.concatenate(cols, axis=1)
 
 

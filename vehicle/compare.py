@@ -88,6 +88,14 @@ def _sag(fl: Flight, reference: dict) -> dict:
     return entry(mine["sag_v_per_a"], bat["sag_v_per_a"]["mean"], bat["sag_v_per_a"]["between_std"], "V/A/cell")
 
 
+def vibration_floor(ref: dict, coll):
+    """A vibration metric's reference floor at collective ``coll`` (a number or an array): the mean floor
+    plus the mean slope per collective; None when the reference flights held no floor."""
+    if ref["floor"]["mean"] is None:
+        return None
+    return ref["floor"]["mean"] + ref["per_collective"]["mean"] * coll
+
+
 def _vibration(fl: Flight, reference: dict) -> dict:
     out = {}
     coll = collective(q.motor_commands(fl)).astype(np.float64)
@@ -102,7 +110,7 @@ def _vibration(fl: Flight, reference: dict) -> dict:
                if f is not None and s is not None]
         preds = [f + s * c for f, s in per]
         spread = float(np.std(preds, ddof=1)) if len(preds) >= 2 else ref["level"]["between_std"]
-        exp = ref["floor"]["mean"] + ref["per_collective"]["mean"] * c if ref["floor"]["mean"] is not None else None
+        exp = vibration_floor(ref, c)
         out[name] = entry(float(vib[sel].mean()), exp, spread, "m/s^2", collective=c)
     return out
 
