@@ -60,10 +60,11 @@ def exposure_s(fi: FlightInputs, window: int, dt: float) -> float:
 
 
 def detect(model: str | Path, flight: str | Path | dict, net: str = "cnode", precision: str = "fp32",
-           runtime: str = "ort") -> dict:
+           runtime: str = "ort", vehicle: dict | None = None) -> dict:
     """Everything ``quadfdi detect`` writes, computed (nothing written): a dict with ``record``
     (alarms.json), ``arrays`` (windows.npz) and ``inputs`` (FlightInputs, for the figure).
-    ``flight``: a log or flight.npz path, or flight.npz's arrays (sim.flight_npz.flight_arrays)."""
+    ``flight``: a log or flight.npz path, or flight.npz's arrays (sim.flight_npz.flight_arrays).
+    ``vehicle``: a vehicle reference (vehicle.json's dict) or None, read by profiles that take a reference."""
     folder = Path(model)
     export = Export.open(folder)
     profile, window, stride, dt = export.profile(), export.window, export.stride, export.sample_dt_s
