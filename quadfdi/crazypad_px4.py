@@ -84,8 +84,9 @@ def one_flight(export: str, net: str, path: Path, fraction: float = REFERENCE_FR
         ref = learn([Flight(f"{name} (first {fraction:.0%})", path, fl.sha256, head)])
         test = Flight(f"{name} (rest)", path, fl.sha256, tail)
         row = score_flight(test, ref, thresholds(ref))
-        out = {"flight": name, "split": info, "reference_shares": {m["log_motor"]: m["mean"] for m in ref["motor_share"]},
-               "test_shares": row["shares"], "rules": row["rules"]}
+        shares = {m["log_motor"]: m["mean"] for m in ref["motor_share"]}
+        out = {"flight": name, "split": info, "reference_shares": shares, "test_shares": row["shares"],
+               "rules": row["rules"]}
         for mode, r in (("net_ref", ref), ("net_noref", None)):
             out[mode] = decide_one(export, net, test, r)
         return out

@@ -36,7 +36,8 @@ def _choice_md(ch: dict) -> list[str]:
     f1 = ", ".join(f"{n} {v:.4f}" for n, v in ch["chosen_by"]["val_macro_f1"].items())
     val = ch["policy_validation"]
     pol = (f"chosen on validation flights by `quadfdi evaluate` ({ch['policy_source'][:35]}...)"
-           if ch["policy_chosen_on_validation"] else f"from the config ({ch['policy_source']}), not a validation choice")
+           if ch["policy_chosen_on_validation"] else
+           f"from the config ({ch['policy_source']}), not a validation choice")
     if val:
         pol += (f"; on those flights {val['fa_per_h']:.2f} false alarms per healthy flight-hour, "
                 f"{val['detection_rate']:.0%} of {val['faults']:g} faulty flights detected")
@@ -45,13 +46,18 @@ def _choice_md(ch: dict) -> list[str]:
             f"Policy {policy_text(ch['policy'])}, {pol}. No CrazyPAD flight entered either choice.", ""]
 
 
+def _missed(by: str) -> str:
+    return f"missed {by}" if by.startswith("(") else f"missed by {by}"
+
+
 def _gates_md(gates: list[dict]) -> list[str]:
     lines = ["| gate | value | target | met |", "|---|---|---|---|"]
     for g in gates:
-        value = g["value"] if not isinstance(g["value"], dict) else \
-            f"{_f(g['value']['network'], 3)} (best rule `{g['value']['best_rule']}` {_f(g['value']['best_rule_auroc'], 3)})"
+        v = g["value"]
+        value = v if not isinstance(v, dict) else \
+            f"{_f(v['network'], 3)} (best rule `{v['best_rule']}` {_f(v['best_rule_auroc'], 3)})"
         lines.append(f"| {g['gate']} | {value if value is not None else '—'} | {g['target']} | "
-                     f"{'met' if g['met'] else 'missed by ' + str(g['missed_by'])} |")
+                     f"{'met' if g['met'] else _missed(str(g['missed_by']))} |")
     return lines + [""]
 
 
@@ -89,6 +95,11 @@ def _alarms(net: dict) -> str:
                      for a in net["alarms"]) or "none"
 
 
+def _rule(r: dict) -> str:
+    """A rule's score, motor named, ``!`` when it alarms."""
+    return f"{r['score']:.3f} {r['motor']}{' !' if r['alarm'] else ''}"
+
+
 def _px4_md(px4: dict | None) -> list[str]:
     if px4 is None:
         return ["Not run: no shared flight log folder (`--logs`).", ""]
@@ -96,17 +107,16 @@ def _px4_md(px4: dict | None) -> list[str]:
              "the cut: the first part is the reference's only flight, the rest is decided (its own hover estimate) "
              "and scored against it.", "",
              "| flight | cut at (s) | airborne: reference / test (s) | alarms, reference | alarms, no reference | "
-             "max p(fault) | decided windows | `abs_ref`, `pos_ref` (threshold) |", "|---|---|---|---|---|---|---|---|"]
+             "max p(fault) | decided windows | `abs_ref`, `pos_ref`: score, motor (! alarm) |", "|---|---|---|---|---|---|---|---|"]
     for f in px4["flights"]:
         if "refused" in f:
             lines.append(f"| {f['flight']} | refused: {f['refused']} | | | | | | |")
             continue
         s, r = f["split"], f["rules"]
-        rules = ", ".join(f"{r[k]['score']:.3f} {r[k]['motor']}{' !' if r[k]['alarm'] else ''}" for k in
-                          ("abs_ref", "pos_ref"))
-        lines.append(f"| {f['flight']} | {s['cut_s']:.1f} | {s['reference_airborne_s']:.1f} / {s['test_airborne_s']:.1f}"
-                     f" | {_alarms(f['net_ref'])} | {_alarms(f['net_noref'])} | {f['net_ref']['score']:.3f} | "
-                     f"{f['net_ref']['decided_windows']} | {rules} |")
+        rules = ", ".join(_rule(r[k]) for k in ("abs_ref", "pos_ref"))
+        lines.append(f"| {f['flight']} | {s['cut_s']:.1f} | {s['reference_airborne_s']:.1f} / "
+                     f"{s['test_airborne_s']:.1f} | {_alarms(f['net_ref'])} | {_alarms(f['net_noref'])} | "
+                     f"{f['net_ref']['score']:.3f} | {f['net_ref']['decided_windows']} | {rules} |")
     if px4["absent"]:
         lines += ["", "Not in the folder: " + ", ".join(px4["absent"]) + "."]
     return lines + [""]
@@ -117,8 +127,7 @@ def _flights_md(decided: dict) -> list[str]:
              + " | ".join(f"`{r}`" for r in RULE_NAMES) + " |", "|---|---|---|---|---|---|" + "---|" * len(RULE_NAMES)]
     for r in decided["rows"]:
         n = r["rules"]["net_ref"]
-        rules = " | ".join(f"{r['rules'][k]['score']:.3f} {r['rules'][k]['motor']}{' !' if r['rules'][k]['alarm'] else ''}"
-                           for k in RULE_NAMES)
+        rules = " | ".join(_rule(r["rules"][k]) for k in RULE_NAMES)
         lines.append(f"| {r['flight']} | {r.get('group') or r.get('role') or '—'} | {r.get('session') or '—'} | "
                      f"{_alarms(n)} | {n['score']:.3f} | {n['mean_p_fault']:.3f} | {rules} |")
     if decided["refused"]:

@@ -56,7 +56,7 @@ def _auroc_gate(cells: list[dict], group: str) -> dict:
     slack = AUROC_SLACK[group]
     what = f"AUROC, {group}: the network (with the reference) within {slack:g} of the best rule"
     if net is None or net["auroc"] is None or not known:
-        return _gate(what, None, f">= best rule - {slack:g}", False, "not measurable (no flights)")
+        return _gate(what, None, f">= best rule - {slack:g}", False, "(not measurable: no flights)")
     best = max(known, key=known.get)
     gap = known[best] - slack - net["auroc"]
     return _gate(what, {"network": net["auroc"], "best_rule": best, "best_rule_auroc": known[best]},
@@ -69,12 +69,12 @@ def crazypad_gates(cells: list[dict]) -> list[dict]:
     h = cell(cells, "net_ref", HEALTHY)
     out.append(_gate("healthy test flights alarmed", None if h is None else f"{h['alarmed']} of {h['flights']}",
                      "0", h is not None and h["alarmed"] == 0,
-                     "no healthy test flight" if h is None else f"{h['alarmed']} flight(s)"))
+                     "(no healthy test flight)" if h is None else f"{h['alarmed']} flight(s)"))
     d = cell(cells, "net_ref", DEEP)
     if d is None:
-        out.append(_gate(f"{DEEP} alarmed", None, f">= {SHARE_ALARMED:.0%}", False, "no such flight"))
+        out.append(_gate(f"{DEEP} alarmed", None, f">= {SHARE_ALARMED:.0%}", False, "(no such flight)"))
         out.append(_gate(f"{DEEP}: cut motor (M3) named among the alarmed", None, f">= {SHARE_NAMED:.0%}", False,
-                         "no such flight"))
+                         "(no such flight)"))
     else:
         need = math.ceil(SHARE_ALARMED * d["flights"] - 1e-9)
         out.append(_gate(f"{DEEP} alarmed", f"{d['alarmed']} of {d['flights']}", f">= {need} ({SHARE_ALARMED:.0%})",
@@ -82,7 +82,8 @@ def crazypad_gates(cells: list[dict]) -> list[dict]:
         need_m = math.ceil(SHARE_NAMED * d["alarmed"] - 1e-9)
         out.append(_gate(f"{DEEP}: cut motor (M3) named among the alarmed", f"{d['right_motor']} of {d['alarmed']}",
                          f">= {need_m} ({SHARE_NAMED:.0%})", d["alarmed"] > 0 and d["right_motor"] >= need_m,
-                         "no flight alarmed" if d["alarmed"] == 0 else f"{need_m - d['right_motor']} flight(s)"))
+                         "(no flight alarmed: no motor named)" if d["alarmed"] == 0
+                         else f"{need_m - d['right_motor']} flight(s)"))
     out += [_auroc_gate(cells, DEEP), _auroc_gate(cells, MID)]
     return out
 
@@ -91,10 +92,11 @@ def px4_gate(px4: dict | None) -> dict:
     """The shared healthy PX4 flights' held-out parts free of alarms, the network with the reference."""
     what = "shared healthy PX4 flights: alarms on the held-out part (reference from the first part)"
     if px4 is None:
-        return _gate(what, None, "0", False, "not run (no --logs folder)")
+        return _gate(what, None, "0", False, "(not run: no --logs folder)")
     done = [f for f in px4["flights"] if "net_ref" in f]
     alarmed = [f["flight"] for f in done if f["net_ref"]["alarm"]]
     if not done:
-        return _gate(what, "no flight decided", "0", False, "no flight could be split and decided")
-    return _gate(what, f"{len(alarmed)} of {len(done)} flights alarmed", "0", not alarmed,
+        return _gate(what, "no flight decided", "0", False, "(no flight could be split and decided)")
+    refused = len(px4["flights"]) - len(done)
+    return _gate(what, f"{len(alarmed)} of {len(done)} flights alarmed ({refused} refused)", "0", not alarmed,
                  f"{len(alarmed)} flight(s): {', '.join(alarmed)}")
