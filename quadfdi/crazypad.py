@@ -15,7 +15,8 @@ on simulation, beside the four share rules.
 5. the same network and policy on the shared healthy PX4 flights in ``--logs``, each its own reference from
    its first part (quadfdi/crazypad_px4.py);
 6. ``OUT/crazypad.md`` and ``OUT/crazypad.json`` (atomically). With OUT = ``RUN/crazypad`` the run's
-   report.md carries the summary (quadfdi/crazypad_report.py ``report_section``).
+   report.md is rewritten (``quadfdi report``) and carries the gates and the summary
+   (quadfdi/crazypad_report.py ``report_section``).
 
 Bad input (RUN without an export or with an unmasked profile, no CrazyPAD folder, a reference flight
 missing or refused, ``--logs`` not a folder) is one line, exit 2, nothing written.
@@ -29,6 +30,7 @@ import sys
 from pathlib import Path
 
 from quadfdi.core.errors import QuadfdiError
+from quadfdi.crazypad_report import FOLDER
 
 REFERENCE_FLIGHTS = ("E8_log00", "E8_log01", "E9_log00", "E9_log01")
 HEALTHY_FOLDER = "normal_flight"
@@ -145,4 +147,8 @@ def run_crazypad(args: argparse.Namespace) -> int:
     met = sum(g["met"] for g in result["gates"])
     print(f"wrote {Path(args.out) / 'crazypad.md'}: {len(result['decided']['rows'])} logs decided, "
           f"{len(result['decided']['refused'])} refused; gates met {met} of {len(result['gates'])}")
+    if Path(args.out).resolve() == (Path(args.run) / FOLDER).resolve():  # the run's report carries the table
+        from quadfdi.report import write_run_report
+
+        write_run_report(args.run, log=print)
     return 0

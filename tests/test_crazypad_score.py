@@ -173,11 +173,17 @@ def test_bad_input_is_one_line_exit_2_nothing_written(scored, flightlog_export, 
 def test_the_run_report_carries_the_table(scored, tmp_path):
     from quadfdi.crazypad_report import report_section
 
-    run, out, result = scored
-    fake_run = tmp_path / "run"
-    shutil.copytree(out, fake_run / "crazypad")
-    lines = report_section(fake_run)
-    assert lines[0] == "## CrazyPAD (real labelled damage)"
-    text = "\n".join(lines)
-    assert f"**{result['choice']['net']}**" in text and "| M3 cut >= 3 mm | all |" in text
-    assert report_section(tmp_path / "empty") == []
+    run, _, result = scored
+    assert report_section(run) == []  # no RUN/crazypad: no section
+    copy = tmp_path / "run"
+    shutil.copytree(run, copy)
+    res = quadfdi("crazypad", str(copy / "crazypad"), "--run", str(copy), "--crazypad", str(_pad(tmp_path / "pad")),
+                  "--logs", str(tmp_path / "no-logs-here-either"))
+    assert res.returncode == 2 and "--logs" in res.stderr and not (copy / "crazypad").exists()
+    res = quadfdi("crazypad", str(copy / "crazypad"), "--run", str(copy), "--crazypad", str(tmp_path / "pad"),
+                  "--logs", str(_logs(tmp_path / "logs")))
+    assert res.returncode == 0, res.stderr
+    report = (copy / "report.md").read_text()
+    section = report[report.index("## CrazyPAD (real labelled damage)"):]
+    assert f"**{result['choice']['net']}**" in section and "| M3 cut >= 3 mm | all |" in section
+    assert "| healthy test flights alarmed |" in section
