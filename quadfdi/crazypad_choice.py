@@ -41,8 +41,8 @@ def _open_export(run: Path):
     ex = Export.open(folder)
     profile = ex.profile()
     if not is_masked(profile):
-        raise QuadfdiError(f"--run {run}: its export uses profile {profile!r}, which needs channels a Crazyflie log "
-                           "lacks; the CrazyPAD protocol needs a masked profile (e.g. flightlog-mask)")
+        raise QuadfdiError(f"--run {run}: its export uses profile {profile!r}, not a masked profile: the CrazyPAD "
+                           "logs need one that reads whatever channels a log has (e.g. flightlog-mask)")
     return ex
 
 

@@ -67,7 +67,10 @@ def decide_log(export: str, net: str, path: str, name: str, reference: dict, lim
         fl = read_flight(path, name)
         row = score_flight(fl, reference, limits)
         for mode, ref in (("net_ref", reference), ("net_noref", None)):
-            row["rules"][mode] = decide_one(export, net, fl, ref)
+            try:
+                row["rules"][mode] = decide_one(export, net, fl, ref)
+            except QuadfdiError as exc:
+                raise QuadfdiError(f"{name}, the network {MODES[mode]}: {exc}") from None
     except QuadfdiError as exc:
         return {"flight": name, "path": path, "refused": " ".join(str(exc).split())}
     except Exception as exc:  # noqa: BLE001 (a reader's own exception on a damaged log: this log only)
