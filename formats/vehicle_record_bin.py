@@ -29,7 +29,8 @@ HEADER = struct.Struct("<8sII")
 assert HEADER.size == vr.FILE_HEADER_BYTES
 
 
-def _reference_profile(profile: str) -> int:
+def check_profile(profile: str) -> int:
+    """The id of reference profile ``profile``; a one-line QuadfdiError for a profile that reads no record."""
     p = PROFILE_BY_NAME.get(profile)
     if p is None or not p.reference:
         refs = [q.name for q in PROFILE_TABLE if q.reference]
@@ -50,7 +51,7 @@ def check_record(record, where: str) -> np.ndarray:
 def record_bytes(record, profile: str) -> bytes:
     """The 112 bytes of ``record`` for reference profile ``profile``."""
     rec = check_record(record, "vehicle record")
-    return HEADER.pack(vr.FILE_MAGIC, vr.FILE_VERSION, _reference_profile(profile)) + rec.astype("<f4").tobytes()
+    return HEADER.pack(vr.FILE_MAGIC, vr.FILE_VERSION, check_profile(profile)) + rec.astype("<f4").tobytes()
 
 
 def write_record(path: str | Path, record, profile: str) -> None:
@@ -62,7 +63,7 @@ def write_record(path: str | Path, record, profile: str) -> None:
 def parse_record(data: bytes, profile: str, where: str) -> np.ndarray:
     """The (24,) float32 record of a record file's bytes, for reference profile ``profile``; one-line
     QuadfdiError on a foreign, truncated or longer file, another version or another profile."""
-    want = _reference_profile(profile)
+    want = check_profile(profile)
     if len(data) < 8 or data[:8] != vr.FILE_MAGIC:
         raise QuadfdiError(f"{where} is not a quadfdi vehicle record")
     if len(data) != vr.FILE_BYTES:
@@ -84,10 +85,10 @@ def read_record(path: str | Path, profile: str) -> np.ndarray:
         fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)
     except OSError as exc:
         raise QuadfdiError(f"cannot read {where}: {exc.strerror}") from None
+    if not stat.S_ISREG(os.fstat(fd).st_mode):
+        os.close(fd)
+        raise QuadfdiError(f"{where} is not a regular file")
     with os.fdopen(fd, "rb") as fh:
-        st = os.fstat(fd)
-        if not stat.S_ISREG(st.st_mode):
-            raise QuadfdiError(f"{where} is not a regular file")
         data = fh.read(1 << 20)
     return parse_record(data, profile, where)
 

@@ -11,7 +11,7 @@ namespace fwref {
 Status load_vehicle_record(const std::string& path, Profile expect, VehicleRecord* out, std::string* error) {
   RegularFile f;
   Status s = f.open(path, "vehicle record", limits::kVehicleRecordFileBytes, error,
-                    " (write one with formats.vehicle_record_bin from a vehicle.json)");
+                    " (write one: quadfdi vehicle record VEHICLE.json --out RECORD.bin)");
   if (s != Status::kOk) return s;
   if (f.size() != std::uint64_t(vehicle::kFileBytes)) {
     *error = f.where() + " holds " + std::to_string(f.size()) + " bytes, a vehicle record " +

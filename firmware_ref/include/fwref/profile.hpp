@@ -26,9 +26,9 @@
 //
 // The reference profile (``flightlog-ref``, ProfileSpec::ref >= 0) is the masked one plus ten channels
 // relative to the vehicle record (fwref/vehicle_record.hpp, its arithmetic there) and ``avail_reference``
-// (1 with a record, else 0). ``vehicle`` null or without a reference: every reference channel at its fill;
-// a field the record does not hold (NaN): that channel at its fill; a group the flight lacks: its
-// reference channels at their fills too. ``prep`` puts each motor's expected share s_k in the m{k}_ref
+// (1 when the record's first share is finite, else 0). ``vehicle`` null: every reference channel at its
+// fill; a field the record does not hold (NaN): that channel at its fill (each channel by its own fields,
+// as core/profiles.py); a group the flight lacks: its reference channels at their fills too. ``prep`` puts each motor's expected share s_k in the m{k}_ref
 // column, ``hover`` divides m{k}_rel by it: the same float32 division as core/vehicle_record.py.
 #pragma once
 
@@ -87,7 +87,7 @@ inline HoverInputs hover_inputs(Profile p, const float* raw, std::uint32_t avail
 inline void reference_prep(const ProfileSpec& s, const float* raw, std::uint32_t avail, const VehicleRecord* vehicle,
                            int rpm_rel, float* x) {
   float* ref = x + s.ref;
-  const bool rec = has_reference(vehicle);
+  const bool rec = vehicle != nullptr;
   if (rec) {
     const VehicleRecord& v = *vehicle;
     const float vx = ((avail >> kGroupVelH) & 1u) != 0 ? x[5] : 0.0f;
@@ -161,7 +161,7 @@ inline void profile_hover(Profile p, float hover_cmd, float hover_cur, float* x,
   }
   const int m_rel = j;
   for (int k = 0; k < 4; ++k, ++j) x[j] = x[j] / hover_cmd;
-  if (s.ref < 0 || !has_reference(vehicle)) return;
+  if (s.ref < 0 || vehicle == nullptr) return;
   for (int k = 0; k < 4; ++k) {
     if (reference_held(*vehicle, k)) x[s.ref + k] = x[m_rel + k] / x[s.ref + k];
   }
