@@ -6,7 +6,9 @@ decide within it, and its share of the core over a stride (stride - 1 pushes and
 its duty cycle. ``stream_inputs`` takes ``FLIGHTS`` test flights of the run's own dataset
 (round-robin over the classes) as stream files (formats.stream.from_dataset), each cut after its
 ``DECISIONS``-th decided stride (where the host's fwref_stream decides it), so that the Cortex-M4's
-instruction trace stays short. Cross-built into the stream image (firmware_ref/mcu/stream_main.cpp,
+instruction trace stays short. A reference profile (flightlog-ref) on a fleet dataset: each stream carries
+its vehicle's record (learned from that vehicle's own reference flights, train.vehicle_ref), compiled
+into the image beside the flight's samples and loaded at its reset. Cross-built into the stream image (firmware_ref/mcu/stream_main.cpp,
 runtimes/mcu_stream.py) with every model of the export (CNODE and GRU, fp32 and int8; the streaming
 GRU when the export holds sgru_weights.bin), they run under QEMU on each core:
 
@@ -94,9 +96,31 @@ def stream_inputs(run_root: Path, host_build: Path) -> StreamInputs | str:
     rows = flights_by_class(ds, FLIGHTS)
     if not rows:
         return f"{run_root / 'dataset.npz'} has no test flights"
-    streams = {f"f{row}": _cut_after_decisions(from_dataset(run_root / "dataset.npz", row, record, ds), host_exe,
-                                               export / "weights.bin", classes) for row in rows}
+    vehicles = vehicle_records(ds, record["profile"], rows, str(run_root / "dataset.npz"))
+    streams = {f"f{row}": _cut_after_decisions(from_dataset(run_root / "dataset.npz", row, record, ds, vehicles[row]),
+                                               host_exe, export / "weights.bin", classes) for row in rows}
     return StreamInputs(streams, record, host_exe, rows)
+
+
+def vehicle_records(ds, profile: str, rows: list[int], source: str) -> dict[int, np.ndarray | None]:
+    """Each row's vehicle record for a reference profile on a fleet dataset (the record of its vehicle's
+    reference, learned from that vehicle's own reference flights); None otherwise (no record)."""
+    from quadfdi.core.profiles import has_reference
+    from quadfdi.core.vehicle_record import from_reference
+    from quadfdi.formats.dataset import vehicle_columns
+    from quadfdi.train.vehicle_ref import dataset_flight, has_vehicles
+    from quadfdi.vehicle.learn import learn
+
+    arrays = {k: ds[k] for k in ds.arrays}
+    if not has_reference(profile) or not has_vehicles(arrays):
+        return {row: None for row in rows}
+    cols = vehicle_columns(arrays)
+    vid, ref = np.asarray(cols["vehicle_id"]), np.asarray(cols["reference_flight"], bool)
+    learned = {}
+    for v in sorted({int(vid[row]) for row in rows}):
+        refs = np.flatnonzero((vid == v) & ref)
+        learned[v] = from_reference(learn([dataset_flight(arrays, r, source) for r in refs]))
+    return {row: learned[int(vid[row])] for row in rows}
 
 
 def write_streams(build_dir: Path, inputs: StreamInputs) -> tuple[Path, ...]:

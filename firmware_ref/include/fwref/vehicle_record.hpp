@@ -30,6 +30,7 @@ namespace fwref {
 struct VehicleRecord {
   float v[vehicle::kSize];
 };
+static_assert(sizeof(VehicleRecord) == 4 * vehicle::kSize, "the record is its 24 floats, 96 bytes, and nothing else");
 
 // Every field NaN: no reference.
 inline VehicleRecord no_vehicle() {
