@@ -108,19 +108,13 @@ def vehicle_records(ds, profile: str, rows: list[int], source: str) -> dict[int,
     from quadfdi.core.profiles import has_reference
     from quadfdi.core.vehicle_record import from_reference
     from quadfdi.formats.dataset import vehicle_columns
-    from quadfdi.train.vehicle_ref import dataset_flight, has_vehicles
-    from quadfdi.vehicle.learn import learn
+    from quadfdi.train.vehicle_ref import has_vehicles, learn_references
 
     arrays = {k: ds[k] for k in ds.arrays}
     if not has_reference(profile) or not has_vehicles(arrays):
         return {row: None for row in rows}
-    cols = vehicle_columns(arrays)
-    vid, ref = np.asarray(cols["vehicle_id"]), np.asarray(cols["reference_flight"], bool)
-    learned = {}
-    for v in sorted({int(vid[row]) for row in rows}):
-        refs = np.flatnonzero((vid == v) & ref)
-        learned[v] = from_reference(learn([dataset_flight(arrays, r, source) for r in refs]))
-    return {row: learned[int(vid[row])] for row in rows}
+    refs, vid = learn_references(arrays, source), vehicle_columns(arrays)["vehicle_id"]
+    return {row: from_reference(refs[int(vid[row])]) for row in rows}
 
 
 def write_streams(build_dir: Path, inputs: StreamInputs) -> tuple[Path, ...]:

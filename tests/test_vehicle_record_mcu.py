@@ -1,5 +1,5 @@
 """The vehicle record on the Cortex-M4 under QEMU: the stream image replays flightlog-ref test flights of the
-tiny fleet (tests/test_vehicle_record.py's export), each with its vehicle's record compiled in beside its
+tiny fleet (tests/test_vehicle_record_stream.py's export), each with its vehicle's record compiled in beside its
 samples and loaded at the flight's reset (parity/stream.py), every stride held against the host's fwref_stream
 on the same stream files (int8 bit-identical, fp32 within the parity tolerance); the worst decision of each
 model by the M4 cycle table stays within one 40 ms sample period."""
@@ -10,7 +10,8 @@ import pytest
 
 from quadfdi.runtimes.mcu import tools_missing
 from tests.test_firmware_fixtures import host_build  # noqa: F401 (fixture)
-from tests.test_vehicle_record import fleet_run, ref_export  # noqa: F401 (fixtures)
+from tests.test_vehicle_record import fleet_run  # noqa: F401 (fixtures)
+from tests.test_vehicle_record_stream import ref_export  # noqa: F401 (fixtures)
 
 
 def test_cortex_m4_stream_with_the_vehicle_record(ref_export, host_build):  # noqa: F811
