@@ -28,8 +28,9 @@
 // relative to the vehicle record (fwref/vehicle_record.hpp, its arithmetic there) and ``avail_reference``
 // (1 when the record's first share is finite, else 0). ``vehicle`` null: every reference channel at its
 // fill; a field the record does not hold (NaN): that channel at its fill (each channel by its own fields,
-// as core/profiles.py); a group the flight lacks: its reference channels at their fills too. ``prep`` puts each motor's expected share s_k in the m{k}_ref
-// column, ``hover`` divides m{k}_rel by it: the same float32 division as core/vehicle_record.py.
+// as core/profiles.py); a group the flight lacks: its reference channels at their fills too. ``prep`` puts
+// each motor's expected share s_k in the m{k}_ref column, ``hover`` divides m{k}_rel by it: the same
+// float32 division as core/vehicle_record.py.
 #pragma once
 
 #include <cmath>
