@@ -223,16 +223,18 @@ class Profile:
         per group, and a reference profile ``avail_reference`` last."""
         if self.raw is None:
             return None
-        derived = tuple(c for c in MODEL_CHANNELS if set(c.raw) <= set(self.raw) and (self.reference or not c.reference))
-        return derived + (AVAILABILITY_CHANNELS if self.masked else ()) + ((REFERENCE_AVAILABILITY,) if self.reference else ())
+        derived = tuple(c for c in MODEL_CHANNELS
+                        if set(c.raw) <= set(self.raw) and (self.reference or not c.reference))
+        tail = (REFERENCE_AVAILABILITY,) if self.reference else ()
+        return derived + (AVAILABILITY_CHANNELS if self.masked else ()) + tail
 
 
 AVAILABILITY_CHANNELS = tuple(ModelChannel(AVAIL_PREFIX + g, "-", (), f"1 if the flight has {', '.join(r)}, else 0",
                                            1.0) for g, r in ((g.name, g.raw) for g in AVAILABILITY_GROUPS))
 
 
-REFERENCE_AVAILABILITY = ModelChannel(AVAIL_PREFIX + REFERENCE_GROUP, "-", (), "1 if the vehicle record is loaded, else 0",
-                                      1.0)
+REFERENCE_AVAILABILITY = ModelChannel(AVAIL_PREFIX + REFERENCE_GROUP, "-", (),
+                                      "1 if the vehicle record is loaded, else 0", 1.0)
 
 
 def group_of_model(c: ModelChannel) -> str | None:
