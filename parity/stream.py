@@ -96,25 +96,23 @@ def stream_inputs(run_root: Path, host_build: Path) -> StreamInputs | str:
     rows = flights_by_class(ds, FLIGHTS)
     if not rows:
         return f"{run_root / 'dataset.npz'} has no test flights"
-    vehicles = vehicle_records(ds, record["profile"], rows, str(run_root / "dataset.npz"))
+    vehicles = vehicle_records(ds, record["profile"], rows)
     streams = {f"f{row}": _cut_after_decisions(from_dataset(run_root / "dataset.npz", row, record, ds, vehicles[row]),
                                                host_exe, export / "weights.bin", classes) for row in rows}
     return StreamInputs(streams, record, host_exe, rows)
 
 
-def vehicle_records(ds, profile: str, rows: list[int], source: str) -> dict[int, np.ndarray | None]:
-    """Each row's vehicle record for a reference profile on a fleet dataset (the record of its vehicle's
-    reference, learned from that vehicle's own reference flights); None otherwise (no record)."""
+def vehicle_records(ds, profile: str, rows: list[int]) -> dict[int, np.ndarray | None]:
+    """Each row's vehicle record for a reference profile (train.vehicle_ref.vehicle_records: the record of
+    its vehicle's own reference flights, as host parity reads it); None without one (no record carried)."""
     from quadfdi.core.profiles import has_reference
-    from quadfdi.core.vehicle_record import from_reference
-    from quadfdi.formats.dataset import vehicle_columns
-    from quadfdi.train.vehicle_ref import has_vehicles, learn_references
+    from quadfdi.core.vehicle_record import has_record
+    from quadfdi.train.vehicle_ref import vehicle_records as records_of
 
-    arrays = {k: ds[k] for k in ds.arrays}
-    if not has_reference(profile) or not has_vehicles(arrays):
+    if not has_reference(profile):
         return {row: None for row in rows}
-    refs, vid = learn_references(arrays, source), vehicle_columns(arrays)["vehicle_id"]
-    return {row: from_reference(refs[int(vid[row])]) for row in rows}
+    records = records_of(ds)
+    return {row: records[row] if has_record(records[row]) else None for row in rows}
 
 
 def write_streams(build_dir: Path, inputs: StreamInputs) -> tuple[Path, ...]:

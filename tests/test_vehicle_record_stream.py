@@ -1,5 +1,5 @@
-"""The stream runtime with a vehicle record: a flightlog-ref export (the tiny fleet of
-tests/test_vehicle_record.py trained through the CLI) replaying streams written by `quadfdi stream-file
+"""The stream runtime with a vehicle record: the flightlog-ref export of tests/conftest.py (a tiny fleet trained
+through the CLI, each flight with its vehicle's record) replaying streams written by `quadfdi stream-file
 --vehicle` through fwref_stream as the Python window path decides them (int8 bit-identical to ONNX Runtime),
 `--vehicle RECORD.bin` against the stream's own record, and the refusals."""
 
@@ -15,42 +15,38 @@ import pytest
 
 from quadfdi.core.channels import PROFILE_BY_NAME
 from quadfdi.formats.vehicle_record_bin import write_record
-from tests.conftest import quadfdi, trained_export_run
+from tests.conftest import quadfdi
 from tests.test_firmware_fixtures import host_build  # noqa: F401 (fixture)
-from tests.test_vehicle_record import REF, fleet_refs, fleet_run  # noqa: F401 (fixtures)
-
-REF_TRAIN = ["train.epochs=1", "train.latent=8", "train.hidden=16", "train.gru_hidden=16", "train.max_train_windows=60",
-             f"train.profile={REF}", "train.motor_head=auto"]
+from tests.test_vehicle_record import REF
 
 
 @pytest.fixture(scope="module")
-def ref_export(fleet_run, tmp_path_factory) -> Path:
-    """RUN/export of the tiny fleet trained with flightlog-ref through the CLI."""
-    return trained_export_run(fleet_run, tmp_path_factory.mktemp("ref_run") / "run", *REF_TRAIN) / "export"
-
-
-@pytest.fixture(scope="module")
-def ref_streams(ref_export, fleet_refs, tmp_path_factory) -> dict[str, Path]:
-    """Three test flights of the fleet written by `quadfdi stream-file --vehicle` with their vehicle's reference."""
+def ref_streams(reference_export, tmp_path_factory) -> dict[str, Path]:
+    """Three test flights after their vehicle's reference flights (a fault among them) written by `quadfdi
+    stream-file --vehicle` with their vehicle's reference."""
     from quadfdi.core.contracts import SPLIT_TEST
-    from quadfdi.formats.dataset import load_dataset
+    from quadfdi.formats.dataset import load_dataset, vehicle_columns
     from quadfdi.formats.vehicle import write_vehicle
+    from quadfdi.train.vehicle_ref import learn_references
 
-    run, out = ref_export.parent, tmp_path_factory.mktemp("ref_streams")
+    run, out = reference_export.parent, tmp_path_factory.mktemp("ref_streams")
     ds = load_dataset(run / "dataset.npz")
-    refs, vid = fleet_refs
+    cols = vehicle_columns(ds.arrays)
+    refs, vid = learn_references(ds.arrays, "fleet"), cols["vehicle_id"]
+    rows = np.flatnonzero((ds["split"] == SPLIT_TEST) & ~np.asarray(cols["reference_flight"], bool))[:3].tolist()
+    assert len(rows) == 3 and ds["fault_class"][rows].any(), rows
     paths = {}
-    for row in np.flatnonzero(ds["split"] == SPLIT_TEST)[:3].tolist():
+    for row in rows:
         write_vehicle(out / f"v{row}.json", refs[int(vid[row])])
         paths[f"sim{row}"] = out / f"sim{row}.bin"
-        res = quadfdi("stream-file", "--model", str(ref_export), "--dataset", str(run / "dataset.npz"), "--flight",
+        res = quadfdi("stream-file", "--model", str(reference_export), "--dataset", str(run / "dataset.npz"), "--flight",
                       str(row), "--vehicle", str(out / f"v{row}.json"), "--out", str(paths[f"sim{row}"]))
         assert res.returncode == 0 and "vehicle record" in res.stdout, res.stderr
     return paths
 
 
 @pytest.mark.parametrize("net, precision", [("cnode", "int8"), ("gru", "int8"), ("cnode", "fp32")])
-def test_stream_with_a_record_gives_the_window_path(ref_export, ref_streams, host_build, tmp_path,  # noqa: F811
+def test_stream_with_a_record_gives_the_window_path(reference_export, ref_streams, host_build, tmp_path,  # noqa: F811
                                                     net, precision):
     """fwref_stream loads each stream's record at reset: the Python window path's status, logits (int8: the same
     bits, fp32: within the parity tolerance) and alarm at every stride (tests/test_stream.py's check)."""
@@ -59,7 +55,7 @@ def test_stream_with_a_record_gives_the_window_path(ref_export, ref_streams, hos
 
     for name, path in ref_streams.items():
         assert read_stream(path).vehicle is not None
-        print(name, _check_replay(ref_export, {"sim": path}, host_build, tmp_path, net, precision))
+        print(name, _check_replay(reference_export, {"sim": path}, host_build, tmp_path, net, precision))
 
 
 def _fwref_stream(exe: Path, export: Path, *args: str) -> subprocess.CompletedProcess:
@@ -67,7 +63,7 @@ def _fwref_stream(exe: Path, export: Path, *args: str) -> subprocess.CompletedPr
                            "--int8", *args], capture_output=True, text=True)
 
 
-def test_vehicle_flag_is_the_streams_own_record_and_refusals(ref_export, ref_streams, host_build, tmp_path):  # noqa: F811
+def test_vehicle_flag_is_the_streams_own_record_and_refusals(reference_export, ref_streams, host_build, tmp_path):  # noqa: F811
     """A version 2 stream with --vehicle gives the version 3 stream's lines; without a record the decisions
     differ (the reference channels at their fills); a record for another profile, a truncated one, or
     --vehicle beside a stream carrying its own: one line, exit 2."""
@@ -78,12 +74,12 @@ def test_vehicle_flag_is_the_streams_own_record_and_refusals(ref_export, ref_str
     rs = read_stream(path)
     write_stream(tmp_path / "v2.bin", dataclasses.replace(rs, vehicle=None))
     write_record(tmp_path / "r.bin", rs.vehicle, REF)
-    own, flag, none = (_fwref_stream(host_build, ref_export, *a) for a in
+    own, flag, none = (_fwref_stream(host_build, reference_export, *a) for a in
                        (("--in", str(path)), ("--in", str(tmp_path / "v2.bin"), "--vehicle", str(tmp_path / "r.bin")),
                         ("--in", str(tmp_path / "v2.bin"))))
     assert own.returncode == flag.returncode == none.returncode == 0, (own.stderr, flag.stderr, none.stderr)
     assert "vehicle=stream" in own.stdout and "vehicle=file" in flag.stdout and "vehicle=none" in none.stdout
-    k = len(json.loads((ref_export / "manifest.json").read_text())["class_names"])
+    k = len(json.loads((reference_export / "manifest.json").read_text())["class_names"])
     a, b, c = (stream_lines(r.stdout, k) for r in (own, flag, none))
     np.testing.assert_array_equal(a["logits"].view(np.uint32), b["logits"].view(np.uint32))
     decided = a["status"] == "decided"
@@ -96,5 +92,5 @@ def test_vehicle_flag_is_the_streams_own_record_and_refusals(ref_export, ref_str
                                                               "without one"),
                       ((str(tmp_path / "v2.bin"), str(tmp_path / "trunc.bin")), "holds 60 bytes"),
                       ((str(tmp_path / "v2.bin"), str(tmp_path / "mask.bin")), "is for profile 'flightlog-mask'")):
-        res = _fwref_stream(host_build, ref_export, "--in", args[0], "--vehicle", args[1])
+        res = _fwref_stream(host_build, reference_export, "--in", args[0], "--vehicle", args[1])
         assert res.returncode == 2 and why in res.stderr and len(res.stderr.strip().splitlines()) == 1, res.stderr
