@@ -219,6 +219,7 @@ def table(cpus: dict[str, dict], inputs: StreamInputs) -> dict:
     rec = inputs.record
     problems = [p for r in cpus.values() for p in r["problems"]]
     return {"flights": {"dataset_rows": inputs.rows, "samples": {k: len(v.time) for k, v in inputs.streams.items()},
+                        "vehicle_records": sum(v.vehicle is not None for v in inputs.streams.values()),
                         "decisions_kept_per_flight": DECISIONS},
             "profile": rec["profile"], "window": int(rec["window"]), "stride": int(rec["stride"]),
             "sample_period_ms": 1e3 * float(rec["sample_dt_s"]), "clock_mhz": dict(CLOCK_MHZ),
