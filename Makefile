@@ -5,7 +5,7 @@ RUN ?= runs/paper
 CONFIG ?= configs/paper.toml
 REAL_OUT ?= runs/real-flights
 
-.PHONY: setup run test fuzz real-flights sim-bench sweep-bench study solvers solver-matrix clean
+.PHONY: setup run test fuzz real-flights crazypad sim-bench sweep-bench study solvers solver-matrix clean
 
 setup:
 	bash scripts/setup.sh
@@ -31,6 +31,12 @@ fuzz: setup
 # CrazyPAD log (`quadfdi real-flights`, quadfdi/real_flights.py).
 real-flights: setup
 	$(PY) -m quadfdi.cli real-flights $(REAL_OUT)
+
+# The CrazyPAD protocol scored by the masked run `make real-flights` trains (quadfdi/crazypad.py), written
+# into that run's folder so that its report.md carries the table.
+CRAZYPAD_RUN ?= $(REAL_OUT)/mask
+crazypad: setup
+	$(PY) -m quadfdi.cli crazypad $(CRAZYPAD_RUN)/crazypad --run $(CRAZYPAD_RUN) --workers 2
 
 sim-bench: setup
 	$(PY) -m quadfdi.cli sim bench --config $(CONFIG)

@@ -100,6 +100,7 @@ class ModelChannel:
     raw: tuple[str, ...]  # raw channels it is computed from
     formula: str  # what docs/profiles.md shows
     fill: float  # the masked profile's value when the flight lacks the channel's group (float32-exact)
+    reference: bool = False  # relative to the vehicle record (core/vehicle_record.py): a reference profile's only
 
 
 # The fills: what a level, healthy hover gives. Attitude, rates and velocities 0 (level, at rest); every
@@ -133,6 +134,14 @@ MODEL_CHANNELS: tuple[ModelChannel, ...] = (
     *(ModelChannel(f"esc{k}_t_rel", "K", ("esc_temp1", "esc_temp2", "esc_temp3", "esc_temp4"),
                    f"esc_temp{k} - ((((esc_temp1 + esc_temp2) + esc_temp3) + esc_temp4) * 0.25)", 0.0)
       for k in _ROTORS),
+    # the reference channels (core/vehicle_record.py): each a deviation from the vehicle's own healthy flights
+    *(ModelChannel(f"m{k}_ref", "-", (f"thr{k}",), f"m{k}_rel / the reference's share of motor {k} at the sample's "
+                   "forward speed and yaw rate", 1.0, True) for k in _ROTORS),
+    ModelChannel("vib_ref", "m/s^2", ("vib_px4",), "vib - the reference's floor at the sample's collective", 0.0, True),
+    ModelChannel("vib_ap_ref", "m/s^2", ("vib_ap",), "vib_ap - the reference's floor at the sample's collective",
+                 0.0, True),
+    *(ModelChannel(f"rpm{k}_ref", "-", ("rpm1", "rpm2", "rpm3", "rpm4"), f"rpm{k}_rel / the reference's rpm{k} share",
+                   1.0, True) for k in _ROTORS),
 )
 
 
@@ -160,6 +169,12 @@ GROUP_OF_RAW = {r: g.name for g in AVAILABILITY_GROUPS for r in g.raw}
 # estimate (core.hover: vz, roll, thr1..4) and the airborne rule need; a flight without one is refused.
 MINIMUM_RAW = ("roll", "vz", "thr1", "thr2", "thr3", "thr4")
 AVAIL_PREFIX = "avail_"
+# A reference profile's pseudo-group: the vehicle record (core/vehicle_record.py) is there or not, per flight;
+# it has no raw channel (the record is loaded beside the stream, not logged in it).
+REFERENCE_GROUP = "reference"
+# Training drops the record from this share of the windows (train/masks.py), on top of the drawn mask
+# pattern, so that one model decides with and without a reference.
+NO_REFERENCE_PROBABILITY = 0.3
 
 
 @dataclass(frozen=True)
@@ -199,19 +214,27 @@ class Profile:
     raw: tuple[str, ...] | None  # the channels a vehicle must log, in stream order (None: the dataset's own)
     vibration: str | None  # which vibration quantity its ``vib`` is ("any": both, each its own channel)
     masked: bool = False  # takes whatever channels a log has: groups may be absent (AVAILABILITY_GROUPS)
+    reference: bool = False  # also reads the vehicle record (core/vehicle_record.py); masked profiles only
 
     @property
     def model(self) -> tuple[ModelChannel, ...] | None:
-        """Every model channel whose raw channels the profile has (None: ``paper``, the identity); a
-        masked profile then one availability channel per group."""
+        """Every model channel whose raw channels the profile has (None: ``paper``, the identity; the
+        reference channels only for a reference profile); a masked profile then one availability channel
+        per group, and a reference profile ``avail_reference`` last."""
         if self.raw is None:
             return None
-        derived = tuple(c for c in MODEL_CHANNELS if set(c.raw) <= set(self.raw))
-        return derived + (AVAILABILITY_CHANNELS if self.masked else ())
+        derived = tuple(c for c in MODEL_CHANNELS
+                        if set(c.raw) <= set(self.raw) and (self.reference or not c.reference))
+        tail = (REFERENCE_AVAILABILITY,) if self.reference else ()
+        return derived + (AVAILABILITY_CHANNELS if self.masked else ()) + tail
 
 
 AVAILABILITY_CHANNELS = tuple(ModelChannel(AVAIL_PREFIX + g, "-", (), f"1 if the flight has {', '.join(r)}, else 0",
                                            1.0) for g, r in ((g.name, g.raw) for g in AVAILABILITY_GROUPS))
+
+
+REFERENCE_AVAILABILITY = ModelChannel(AVAIL_PREFIX + REFERENCE_GROUP, "-", (),
+                                      "1 if the vehicle record is loaded, else 0", 1.0)
 
 
 def group_of_model(c: ModelChannel) -> str | None:
@@ -234,6 +257,8 @@ PROFILE_TABLE: tuple[Profile, ...] = (
     Profile(3, "flightlog-esc", _MIN_RAW + ESC_RAW, "px4"),
     # every raw channel a group or the minimum names, in the order fwref/profile.hpp reads
     Profile(4, "flightlog-mask", _MIN_RAW + ESC_RAW + ("vib_ap",), "any", masked=True),
+    # flightlog-mask's channels, then the reference channels (deviations from the vehicle record)
+    Profile(5, "flightlog-ref", _MIN_RAW + ESC_RAW + ("vib_ap",), "any", masked=True, reference=True),
 )
 PROFILE_BY_NAME = {p.name: p for p in PROFILE_TABLE}
 PROFILE_NAMES = tuple(p.name for p in PROFILE_TABLE)  # in id order
@@ -257,7 +282,7 @@ def _cpp_names(names) -> str:
 def _cpp_spec(p: Profile) -> str:
     """One fwref::ProfileSpec initializer; the columns fwref/profile.hpp reads by name (-1: absent)."""
     if p.raw is None:
-        return f'    {{"{p.name}", 0, 0, nullptr, nullptr, -1, -1, -1, -1, 0, nullptr, nullptr, nullptr, -1}},'
+        return f'    {{"{p.name}", 0, 0, nullptr, nullptr, -1, -1, -1, -1, 0, nullptr, nullptr, nullptr, -1, -1, -1}},'
     raw = stream_raw(p)
     if raw[:len(CPP_FIXED_PREFIX)] != CPP_FIXED_PREFIX or raw[raw.index("thr1"):raw.index("thr1") + 5] != \
             ("thr1", "thr2", "thr3", "thr4", "vib_px4") or ("rpm1" in raw and raw[raw.index("rpm1"):][:12] != ESC_RAW):
@@ -268,9 +293,13 @@ def _cpp_spec(p: Profile) -> str:
     head = (f'    {{"{p.name}", {len(raw)}, {len(p.model)}, k{tag}Raw, k{tag}Model, {col["I_b"]}, {col["thr1"]}, '
             f'{col["rpm1"]}, {col["vib_ap"]}, ')
     if not p.masked:
-        return head + "0, nullptr, nullptr, nullptr, -1},"
+        return head + "0, nullptr, nullptr, nullptr, -1, -1, -1},"
+    names = [c.name for c in p.model]
+    ref = (names.index("m1_ref"), names.index(REFERENCE_AVAILABILITY.name)) if p.reference else (-1, -1)
+    if p.reference and names[ref[0]:ref[0] + 10] != [c.name for c in MODEL_CHANNELS if c.reference]:
+        raise ValueError(f"profile {p.name}: fwref/profile.hpp reads the ten reference channels in table order")
     return head + (f"{len(AVAILABILITY_GROUPS)}, k{tag}RawGroup, k{tag}ModelGroup, k{tag}Fill, "
-                   f"{len(p.model) - len(AVAILABILITY_GROUPS)}}},")
+                   f"{p.model.index(AVAILABILITY_CHANNELS[0])}, {ref[0]}, {ref[1]}}},")
 
 
 def _mask_tables(p: Profile) -> str:
@@ -305,6 +334,7 @@ def cpp_header() -> str:
                       f"constexpr const char* k{_camel(p.name)}Model[] = {_cpp_names(c.name for c in p.model)};"
                       for p in PROFILE_TABLE if p.raw is not None)
     lists += "".join("\n" + _mask_tables(p) for p in PROFILE_TABLE if p.masked)
+    group_ids = "\n".join(f"constexpr int kGroup{_camel(g)} = {i};" for i, g in enumerate(GROUP_NAMES))
     specs = "\n".join(_cpp_spec(p) for p in PROFILE_TABLE)
     return f"""// GENERATED by `python -m quadfdi.core.channels --header` from core/channels.py; do not edit.
 // The channel table (stable ids) and the channel profiles over it, as fwref/profile.hpp computes them.
@@ -336,11 +366,14 @@ struct ProfileSpec {{
   const signed char* model_group;  // (channels) each model channel's group; -1: the minimum or an availability channel
   const float* fill;               // (channels) a model channel's value when the flight lacks its group
   int avail;        // model column of the first availability channel (one per group, in group order; -1: none)
+  int ref;          // model column of m1_ref (m1..4_ref vib_ref vib_ap_ref rpm1..4_ref follow; -1: no vehicle record)
+  int avail_ref;    // model column of avail_reference (-1: none)
 }};
 
 // The availability groups (core/channels.py AVAILABILITY_GROUPS): bit g of an availability mask.
 constexpr int kGroupCount = {len(AVAILABILITY_GROUPS)};
 constexpr const char* kGroupNames[kGroupCount] = {_cpp_names(GROUP_NAMES)};
+{group_ids}
 
 namespace profile_tables {{
 // Stream channels (the profile's raw channels, then airborne) and model channels of each hover profile.

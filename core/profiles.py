@@ -33,8 +33,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from quadfdi.core import vehicle_record as vr
 from quadfdi.core.channels import (AVAIL_PREFIX, AVAILABILITY_GROUPS, GROUP_NAMES, MASK_PATTERNS, PROFILE_BY_NAME,
-                                   PROFILE_NAMES, MaskPattern, group_of_model)
+                                   PROFILE_NAMES, REFERENCE_GROUP, MaskPattern, group_of_model)
 from quadfdi.core.errors import QuadfdiError
 from quadfdi.core.hover import INPUTS as HOVER_INPUTS
 
@@ -75,6 +76,12 @@ def required_raw(name: str, raw_names: list[str] | tuple[str, ...] = ()) -> list
     return list(raw) + [r for r in HOVER_INPUTS if r not in raw and r != "I_b"]  # the hover current is optional
 
 
+def has_reference(name: str) -> bool:
+    """The profile reads the vehicle record (core/vehicle_record.py) beside the flight."""
+    check_profile(name)
+    return PROFILE_BY_NAME[name].reference
+
+
 def is_masked(name: str) -> bool:
     """The profile takes whatever channels a log has (availability groups may be absent)."""
     check_profile(name)
@@ -106,9 +113,12 @@ def flight_pattern(index: int) -> MaskPattern:
 
 def mask_layout(name: str) -> tuple[dict[str, list[int]], np.ndarray, dict[str, int]]:
     """A masked profile's model columns per group, the (C,) float32 fills and each group's
-    availability column."""
+    availability column; a reference profile's reference channels are also the ``reference`` group's
+    (a reference channel of a lacking raw group is in both)."""
     spec = PROFILES[name]
     cols: dict[str, list[int]] = {g: [] for g in GROUP_NAMES}
+    if PROFILE_BY_NAME[name].reference:
+        cols[REFERENCE_GROUP] = [j for j, c in enumerate(spec) if c.reference]
     avail = {}
     for j, c in enumerate(spec):
         if c.name.startswith(AVAIL_PREFIX) and not c.raw:
@@ -119,14 +129,15 @@ def mask_layout(name: str) -> tuple[dict[str, list[int]], np.ndarray, dict[str, 
 
 
 def apply_profile(name: str, raw: dict[str, np.ndarray], cells, hover_cmd, hover_cur,
-                  available: dict | None = None) -> np.ndarray:
+                  available: dict | None = None, record: np.ndarray | None = None) -> np.ndarray:
     """Profile inputs (..., T, C') float32 from raw channels ``raw[name]`` (..., T).
 
     ``cells`` (the pack's cell count), ``hover_cmd`` and ``hover_cur`` (core.hover) are scalars or
     per-flight arrays (...,). ``paper`` is not computed here (it is the raw telemetry as is).
     A masked profile: ``available`` maps each group to a bool or a per-flight (...,) bool array
     (None: every group); a lacking group's raw channels may be left out of ``raw`` and its model
-    channels take their fills, its availability channel 0.
+    channels take their fills, its availability channel 0. A reference profile: ``record`` the vehicle
+    record (core/vehicle_record.py), (24,) or per flight (..., 24); None or NaN: no reference.
     """
     spec = PROFILES[name]
     if spec is None:
@@ -138,18 +149,31 @@ def apply_profile(name: str, raw: dict[str, np.ndarray], cells, hover_cmd, hover
         f32 = {r: f32.get(r, np.full(shape, np.nan, np.float32)) for r in required_raw(name)} | f32
         with np.errstate(invalid="ignore", divide="ignore"):
             values = _values(f32, cells, hover_cmd, hover_cur)
-        return _masked(spec, values, available or {}, shape)
+        rec = None
+        if PROFILE_BY_NAME[name].reference:
+            rec = np.broadcast_to(np.asarray(vr.empty() if record is None else record, np.float32),
+                                  shape[:-1] + (vr.SIZE,))
+            have = available or {}
+            values |= vr.reference_values(values, rec, have.get("rates", True), have.get("vel_h", True))
+        return _masked(spec, values, available or {}, shape, rec)
     values = _values(f32, cells, hover_cmd, hover_cur)
     return np.stack([values[ch.name] for ch in spec], axis=-1).astype(np.float32)
 
 
-def _masked(spec, values: dict[str, np.ndarray], available: dict, shape: tuple[int, ...]) -> np.ndarray:
+def _masked(spec, values: dict[str, np.ndarray], available: dict, shape: tuple[int, ...],
+            record: np.ndarray | None = None) -> np.ndarray:
     """The masked profile's (..., T, C) inputs: a lacking group's channels at their fill, then the
-    availability channels."""
+    availability channels; a reference profile's reference channels at their fill where the flight has no
+    record or the record holds nothing for them, ``avail_reference`` 0 without a record."""
     unknown = sorted(set(available) - set(GROUP_NAMES))
     if unknown:
         raise ValueError(f"unknown availability groups {unknown}; the groups are {GROUP_NAMES}")
-    have = {g: np.broadcast_to(np.asarray(available.get(g, True), bool)[..., None], shape) for g in GROUP_NAMES}
+    per_sample = lambda a: np.broadcast_to(np.asarray(a, bool)[..., None], shape)  # noqa: E731
+    have = {g: per_sample(available.get(g, True)) for g in GROUP_NAMES}
+    held = {}
+    if record is not None:
+        have[REFERENCE_GROUP] = per_sample(vr.has_record(record))
+        held = {k: per_sample(v) for k, v in vr.held(record).items()}
     cols = []
     for c in spec:
         if c.name.startswith(AVAIL_PREFIX) and not c.raw:
@@ -157,7 +181,10 @@ def _masked(spec, values: dict[str, np.ndarray], available: dict, shape: tuple[i
             continue
         g = group_of_model(c)
         v = values[c.name]
-        cols.append(v if g is None else np.where(have[g], v, np.float32(c.fill)).astype(np.float32))
+        keep = None if g is None else have[g]
+        if c.reference:
+            keep = held[c.name] if keep is None else keep & held[c.name]
+        cols.append(v if keep is None else np.where(keep, v, np.float32(c.fill)).astype(np.float32))
     return np.stack(cols, axis=-1).astype(np.float32)
 
 
@@ -171,7 +198,8 @@ def _values(f32: dict[str, np.ndarray], cells, hover_cmd, hover_cur) -> dict[str
     c, s = np.cos(yaw).astype(np.float32), np.sin(yaw).astype(np.float32)
     values = {"roll": f32["roll"], "pitch": f32["pitch"], "p": f32["p"], "q": f32["q"], "r": f32["r"],
               "vx_h": c * f32["vx"] + s * f32["vy"], "vy_h": -s * f32["vx"] + c * f32["vy"], "vz": f32["vz"],
-              "v_cell": f32["V_b"] / per(cells), "vib": f32["vib_px4"]}
+              "v_cell": f32["V_b"] / per(cells), "vib": f32["vib_px4"],
+              "collective": ((f32["thr1"] + f32["thr2"]) + f32["thr3"] + f32["thr4"]) * np.float32(0.25)}
     if "vib_ap" in f32:
         values["vib_ap"] = f32["vib_ap"]
     if "I_b" in f32:

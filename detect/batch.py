@@ -103,7 +103,7 @@ def decide_flight(log: str | Path | dict, model: str, net: str, precision: str, 
     ref_record, series = None, None
     if reference is not None:
         ref_record, series = apply(flight, reference, str(flight["log_file"]) if isinstance(log, dict) else log)
-    result = detect(model, flight, net, precision, runtime)
+    result = detect(model, flight, net, precision, runtime, None if reference is None else reference.data)
     result["record"]["vehicle_reference"] = ref_record
     result["vehicle_series"], result["reference_note"] = series, None if series else reference_note or NO_REFERENCE
     evidence = occlusion(result, flight, Export.open(model), net, precision)

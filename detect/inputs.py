@@ -181,15 +181,17 @@ def _backed(arrays: dict, raw: dict) -> np.ndarray:
     return np.asarray(arrays["mask"][:, [names.index(r) for r in raw]], bool).all(axis=1)
 
 
-def flight_inputs(arrays: dict, profile: str, window: int, stride: int) -> FlightInputs:
-    """The profile's windows of one ingested flight (``arrays``: ingest.flight's), or a refusal."""
+def flight_inputs(arrays: dict, profile: str, window: int, stride: int,
+                  record: np.ndarray | None = None) -> FlightInputs:
+    """The profile's windows of one ingested flight (``arrays``: ingest.flight's), or a refusal; ``record``:
+    a reference profile's vehicle record (core/vehicle_record.py; None: the flight is read without one)."""
     where = str(arrays["log_file"])
     if not uses_hover(profile):
         raise QuadfdiError(f"{where}: profile {profile!r} is the simulator's telemetry (motor temperatures, "
                            "thrust-fraction commands): train with --set train.profile=flightlog-min for real flights")
     fr = flight_raw(arrays, profile)
     airborne, est = np.asarray(arrays["airborne"], bool), fr.hover
-    x = apply_profile(profile, fr.raw, fr.cells, est.cmd, est.cur, fr.available)
+    x = apply_profile(profile, fr.raw, fr.cells, est.cmd, est.cur, fr.available, record)
     t = len(airborne)
     starts = np.arange(0, t - window + 1, stride, dtype=np.int64) if t >= window else np.zeros(0, np.int64)
     ok = fr.used & airborne & np.isfinite(x).all(axis=1)

@@ -1,8 +1,10 @@
 """The vehicle reference a flight is read beside (``quadfdi detect --vehicle V`` for every flight, or
 ``--vehicles MAP``: the first log path glob of the map that a flight's path matches), and what it adds
-to the flight's outputs. The networks do not read the reference: it never changes a window's
-probabilities, an alarm or the exit status; it puts beside them what the vehicle's own healthy flights
-say (vehicle.compare, the code of ``quadfdi vehicle learn`` and ``rules``).
+to the flight's outputs. A model of a reference profile (``flightlog-ref``) reads it as its vehicle
+record (core/vehicle_record.py: deviations from the vehicle's own healthy flights among its inputs);
+a model of any other profile does not (it never changes its probabilities, alarms or exit status).
+Either way it puts beside them what the vehicle's own healthy flights say (vehicle.compare, the code
+of ``quadfdi vehicle learn`` and ``rules``).
 
 - ``alarms.json`` ``vehicle_reference``: ``version``, the reference's ``file``, ``sha256`` and how it
   was chosen (``chosen_by``), then vehicle.compare's quantities, deviations and rules; null without one.

@@ -8,6 +8,8 @@ Writes into OUT (only once everything is computed; a refusal writes nothing):
   motor, peak_p_fault); a masked-profile model adds ``channels``: the raw channels ``used``, the
   ``absent`` ones with why (ingest's status) and the availability ``groups`` (detect/inputs.py);
   ``vehicle_reference``: null here, filled by detect.reference when a reference is given;
+  ``model_reference``: whether the model read the vehicle record (a ``flightlog-ref`` model given a
+  reference), decided without one, or reads none (another profile);
 - ``windows.npz``: per window on the grid ``t_end``, ``decided``, ``proba`` (NaN if undecided),
   ``votes``, ``active``, ``cls`` (-1 inactive), ``class_names``, ``motor`` (int8, 1..4 or 0: detect.motor)
   and, for a model with a motor head, ``motor_proba`` (n, 4) float32 (NaN if undecided);
@@ -23,7 +25,8 @@ import numpy as np
 
 from quadfdi.core.alarm import alarm_records, run_alarm
 from quadfdi.core.errors import QuadfdiError
-from quadfdi.core.profiles import required_raw
+from quadfdi.core import vehicle_record as vr
+from quadfdi.core.profiles import has_reference, required_raw
 from quadfdi.core.resample import GRID_DT
 from quadfdi.formats.flight import GRID_TOL_S, check_time
 from quadfdi.detect.inputs import FlightInputs, flight_inputs, read_flight, windows
@@ -60,10 +63,12 @@ def exposure_s(fi: FlightInputs, window: int, dt: float) -> float:
 
 
 def detect(model: str | Path, flight: str | Path | dict, net: str = "cnode", precision: str = "fp32",
-           runtime: str = "ort") -> dict:
+           runtime: str = "ort", vehicle: dict | None = None) -> dict:
     """Everything ``quadfdi detect`` writes, computed (nothing written): a dict with ``record``
     (alarms.json), ``arrays`` (windows.npz) and ``inputs`` (FlightInputs, for the figure).
-    ``flight``: a log or flight.npz path, or flight.npz's arrays (sim.flight_npz.flight_arrays)."""
+    ``flight``: a log or flight.npz path, or flight.npz's arrays (sim.flight_npz.flight_arrays).
+    ``vehicle``: the vehicle reference (vehicle.json's dict), read by a reference profile's model
+    (``flightlog-ref``: its vehicle record, core/vehicle_record.py); other profiles never read it."""
     folder = Path(model)
     export = Export.open(folder)
     profile, window, stride, dt = export.profile(), export.window, export.stride, export.sample_dt_s
@@ -74,7 +79,12 @@ def detect(model: str | Path, flight: str | Path | dict, net: str = "cnode", pre
         raise QuadfdiError(f"{folder}: the model has no Healthy class ({names})")
     arrays = flight if isinstance(flight, dict) else read_flight(flight)
     check_time(arrays["time"], str(arrays.get("log_file", flight) if isinstance(flight, dict) else flight))
-    fi = flight_inputs(arrays, profile, window, stride)
+    reads = has_reference(profile)
+    try:
+        record = vr.from_reference(vehicle) if reads and vehicle is not None else None
+    except ValueError as exc:
+        raise QuadfdiError(f"vehicle reference refused: {exc}") from None
+    fi = flight_inputs(arrays, profile, window, stride, record)
     if export.channel_names != fi.channel_names:
         raise QuadfdiError(f"{folder}: the manifest's channels are not profile {profile!r}'s")
     logits, motor_logits = model_logits(export, net, precision, runtime, windows(fi, window))
@@ -103,7 +113,10 @@ def detect(model: str | Path, flight: str | Path | dict, net: str = "cnode", pre
                         "freeze_s": float(fi.time[fi.hover.freeze]), "cells": fi.cells},
               "airborne_s": round(fi.airborne_s, 2), "windows": int(n), "decided_windows": int(fi.decided.sum()),
               "exposure_s": round(exposure_s(fi, window, dt), 2), "alarms": alarms,
-              "vehicle_reference": None}  # detect.reference: what the vehicle's own healthy flights say
+              "vehicle_reference": None,  # detect.reference: what the vehicle's own healthy flights say
+              "model_reference": ("reads the vehicle record" if record is not None else
+                                  "no vehicle reference: the model decides without one" if reads else
+                                  "the model's profile reads no vehicle reference")}
     if fi.available is not None:  # the masked profile: what the decision read and what it went without
         record["channels"] = {"used": [r for r in required_raw(profile) if r not in fi.absent],
                               "absent": dict(fi.absent), "groups": dict(fi.available)}

@@ -1,7 +1,9 @@
 """``quadfdi stream-file --model RUN/export (FLIGHT | --dataset DATASET.npz --flight N) --out STREAM.bin``:
 a flight as the raw telemetry stream that ``fwref_stream`` (firmware_ref's streaming runtime) reads,
 with the raw channels in the order the export's on-board record names (docs/formats.md "Stream
-file"). A flight the model cannot use is refused as by ``quadfdi detect``: one line, exit 2, nothing written."""
+file"). A flight the model cannot use is refused as by ``quadfdi detect``: one line, exit 2, nothing written.
+``--vehicle vehicle.json`` (a reference profile's export, flightlog-ref): the stream carries the vehicle record
+(formats/vehicle_record_bin.py) and replays with it."""
 
 from __future__ import annotations
 
@@ -25,6 +27,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--dataset", help="a simulated dataset.npz instead of FLIGHT")
     p.add_argument("--flight", dest="index", type=int, help="with --dataset: the flight's index")
     p.add_argument("--out", required=True, help="the stream file to write")
+    p.add_argument("--vehicle", help="a vehicle reference (quadfdi vehicle learn) whose record the stream carries "
+                                     "(a flightlog-ref export)")
     p.set_defaults(func=run)
 
 
@@ -38,10 +42,17 @@ def run(args: argparse.Namespace) -> int:
     if Path(args.out).exists() and Path(src).exists() and Path(args.out).samefile(src):
         raise QuadfdiError(f"stream-file: --out {args.out} is the input {src}: refusing to overwrite it")
     record = Export.open(args.model).onboard()
+    vehicle = None
+    if args.vehicle is not None:
+        from quadfdi.formats.vehicle_record_bin import check_profile, record_from_vehicle_json
+
+        check_profile(record["profile"])
+        vehicle = record_from_vehicle_json(args.vehicle)
     rs = from_dataset(args.dataset, args.index, record) if args.dataset else from_flight(args.flight, record)
+    rs.vehicle = vehicle
     write_stream(args.out, rs)
     print(f"stream-file: {rs.source}: {len(rs.time)} samples x {len(rs.names)} channels ({rs.profile}, "
-          f"{rs.cells} cells) -> {args.out}")
+          f"{rs.cells} cells{', vehicle record' if vehicle is not None else ''}) -> {args.out}")
     return 0
 
 

@@ -8,7 +8,8 @@ it ends at or after the freeze and every one of its samples is usable (every car
 finite, airborne, every model value finite). ``paper``: the identity, no hover estimate. The masked
 profile: a group is available when the stream carries each of its channels (core.profiles
 groups_carried), an absent pitch enters the hover estimate as 0, a lacking group's model channels
-take their fills; a profile without a mask refuses a stream that does not carry every channel.
+take their fills; a profile without a mask refuses a stream that does not carry every channel. A
+reference profile reads the vehicle record the stream carries (``rs.vehicle``; none: no reference).
 
 ``stepped_of(sw)`` and ``sgru_logits`` state the per-sample model's rules (the streaming GRU,
 fwref/stream.hpp): a sample is stepped when it is usable and the hover estimate has frozen at or
@@ -25,7 +26,7 @@ import numpy as np
 
 from quadfdi.core import hover
 from quadfdi.core.errors import QuadfdiError
-from quadfdi.core.profiles import apply_profile, groups_carried, is_masked, uses_hover
+from quadfdi.core.profiles import apply_profile, groups_carried, has_reference, is_masked, uses_hover
 from quadfdi.formats.stream import RawStream
 from quadfdi.runtimes.fwref import stream_lines as read_lines  # noqa: F401  (fwref_stream's output reader)
 
@@ -69,7 +70,8 @@ def windows_of(rs: RawStream, record: dict) -> StreamWindows:
         raw = {n: rs.column(n) for n in rs.names if n != "airborne" and n in have}
         available = groups_carried(have) if is_masked(profile) else None
         with np.errstate(invalid="ignore", divide="ignore"):
-            x = apply_profile(profile, raw, rs.cells, est.cmd, est.cur, available)
+            x = apply_profile(profile, raw, rs.cells, est.cmd, est.cur, available,
+                              record=rs.vehicle if has_reference(profile) else None)
         ok = np.isfinite(rs.values[:, :-1][:, carried[:-1]]).all(axis=1) & airborne & np.isfinite(x).all(axis=1)
         nohover = ~((est.freeze >= 0) & (ends >= est.freeze))
     cs = np.concatenate([[0], np.cumsum(ok)])

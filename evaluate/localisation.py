@@ -59,7 +59,7 @@ def localisation(run: Path, split: int = 2, replicates: int = 2000, seed: int = 
         out.append({"model": e["model"], "sim_seed": e["sim_seed"], "train_seed": e["train_seed"],
                     "flights": int(rows.size), "windows": int(n.sum()), "accuracy": float(ok.sum() / max(n.sum(), 1)),
                     "lo": float(lo), "hi": float(hi),
-                    "source": "physics rule" if e["model"] not in ("cnode", "gru") else "motor head"})
+                    "source": "motor head" if e["model"].split("_")[0] in ("cnode", "gru") else "physics rule"})
     return out
 
 

@@ -39,7 +39,8 @@ from quadfdi.formats.onboard import onboard_section
 from quadfdi.export.alarm_policies import Policies, policies_of
 from quadfdi.formats.weights_bin import weights_bytes
 from quadfdi.formats.dataset import Dataset, class_names, load_dataset, make_windows
-from quadfdi.models.inputs import profile_of, profiled_dataset
+from quadfdi.models.inputs import profile_of
+from quadfdi.train.vehicle_ref import profiled
 from quadfdi.models.checkpoint import check_dataset_matches, checkpoint_class_names, load_checkpoint
 from quadfdi.train.metrics import compute_metrics
 from quadfdi.models.networks import SolverSpec
@@ -150,7 +151,7 @@ def _export_into(run: RunDir, cfg: Config, dest: RunDir, log: Callable[[str], No
     ecfg = cfg.export
     steps, opset = ecfg.steps, ecfg.opset
     profile = profile_of(load_checkpoint(run.checkpoint("cnode"), "cnode")[1])
-    ds = profiled_dataset(load_dataset(run.dataset), profile)  # the models' input channels
+    ds = profiled(load_dataset(run.dataset), profile)  # the models' input channels
     cnode, cblob, gru, gblob = _load_models(run, ds, steps)
     train_w, test_w = make_windows(ds, "train"), make_windows(ds, "test")
     if len(train_w) == 0 or len(test_w) == 0:

@@ -4,7 +4,7 @@ controller would deliver, for ``fwref_stream`` (firmware_ref's streaming runtime
 Little-endian; a 128-byte fixed header, the channel names, then the samples:
 
     0   char[8]   magic          b"QFDISTR\\0"
-    8   u32       version        2 (1: no carried flags, every channel carried)
+    8   u32       version        3 with a vehicle record, else 2 (1: no carried flags, every channel carried)
     12  u32       header_bytes   where the samples begin (128 + names + flags, padded to a multiple of 8)
     16  u32       n_channels     R
     20  u32       cells          the pack's cell count (0: unknown / not needed)
@@ -13,14 +13,19 @@ Little-endian; a 128-byte fixed header, the channel names, then the samples:
     64  char[64]  source         the flight it came from, NUL-padded (truncated)
     128 names     R channel names, each NUL-terminated ASCII
         carried   u8[R] (version 2): 1 the stream carries the channel, 0 the flight lacks it (its column
-                  is NaN throughout); then zero padding
+                  is NaN throughout)
+        vehicle   f32[24] (version 3): the vehicle record the stream replays with (core/vehicle_record.py,
+                  a reference profile only; unaligned, read by copying); then zero padding
     SAMPLES       f64 t (s), f32 values[R]   (8 + 4R bytes each; NaN = no data for that channel)
 
 The columns are always the on-board record's, so the C++ reads every profile by position; a flight
 lacking channels says which with the carried flags. Only the masked profile (core/channels.py
 ``flightlog-mask``) accepts a stream that does not carry every channel (its minimum always), and
 takes each availability group as present when every channel of it is carried (fwref/stream.hpp
-``Stream::set_carried``); a NaN sample in a carried channel is a gap, as in version 1.
+``Stream::set_carried``); a NaN sample in a carried channel is a gap, as in version 1. A reference
+profile's stream (``flightlog-ref``) may carry the vehicle record (version 3): ``fwref_stream`` then loads
+it at reset, as ``streamref.windows_of`` applies it; a version 2 stream of it replays without a reference
+(or with ``fwref_stream --vehicle RECORD.bin``).
 
 The channels are the raw ones the export's on-board record names, in its order
 (formats/onboard.py stream_channels; the record of an export: formats.export_folder.Export.onboard):
@@ -36,12 +41,14 @@ from pathlib import Path
 
 import numpy as np
 
-from quadfdi.core.channels import AIRBORNE
+from quadfdi.core import vehicle_record as vr
+from quadfdi.core.channels import AIRBORNE, PROFILE_BY_NAME
 from quadfdi.core.errors import QuadfdiError
 
 MAGIC = b"QFDISTR\0"
-VERSION = 2
-READS = (1, 2)  # version 1: every channel carried
+VERSION = 2  # without a vehicle record (VEHICLE_VERSION with one)
+VEHICLE_VERSION = 3
+READS = (1, 2, 3)  # version 1: every channel carried
 FIXED = struct.Struct("<8sIIIId32s64s")  # 128 bytes
 
 
@@ -55,6 +62,7 @@ class RawStream:
     time: np.ndarray  # (T,) float64, s
     values: np.ndarray  # (T, R) float32
     carried: np.ndarray | None = None  # (R,) bool: the flight has the channel (None: every channel)
+    vehicle: np.ndarray | None = None  # (24,) float32 vehicle record (a reference profile; None: no reference)
 
     def column(self, name: str) -> np.ndarray:
         return self.values[:, self.names.index(name)]
@@ -73,8 +81,12 @@ def stream_bytes(rs: RawStream) -> bytes:
     if len(flags) != len(rs.names) or np.isfinite(rs.values[:, ~flags]).any():
         raise QuadfdiError(f"stream {rs.source}: a channel it does not carry must be NaN throughout, one flag per channel")
     names = b"".join(n.encode("ascii") + b"\0" for n in rs.names) + flags.astype(np.uint8).tobytes()
+    if rs.vehicle is not None:
+        from quadfdi.formats.vehicle_record_bin import record_bytes
+
+        names += record_bytes(rs.vehicle, rs.profile)[vr.FILE_HEADER_BYTES:]  # checks the profile reads one
     header_bytes = FIXED.size + len(names) + (-(FIXED.size + len(names))) % 8
-    head = FIXED.pack(MAGIC, VERSION, header_bytes, len(rs.names), int(rs.cells), float(rs.sample_dt_s),
+    head = FIXED.pack(MAGIC, VERSION if rs.vehicle is None else VEHICLE_VERSION, header_bytes, len(rs.names), int(rs.cells), float(rs.sample_dt_s),
                       rs.profile.encode("ascii"), rs.source.encode("utf-8")[:63])
     rec = np.zeros(len(rs.time), dtype=[("t", "<f8"), ("v", "<f4", (len(rs.names),))])
     rec["t"], rec["v"] = rs.time, rs.values
@@ -129,21 +141,31 @@ def read_stream(path: str | Path) -> RawStream:
     names = [n.decode("ascii", "replace") for n in head.split(b"\0")[:r]]
     end = sum(len(n.encode("ascii", "replace")) + 1 for n in names)
     carried = np.frombuffer(head[end:end + r], np.uint8) if version >= 2 else np.ones(r, np.uint8)
+    vehicle = head[end + r:end + r + 4 * vr.SIZE] if version >= 3 else None
     body = data[header_bytes:]
     rec = np.dtype([("t", "<f8"), ("v", "<f4", (r,))])
-    if len(names) != r or len(carried) != r or not np.isin(carried, (0, 1)).all() or len(body) % rec.itemsize:
+    if len(names) != r or len(carried) != r or not np.isin(carried, (0, 1)).all() or len(body) % rec.itemsize or \
+            (vehicle is not None and len(vehicle) != 4 * vr.SIZE):
         raise QuadfdiError(f"{path} is truncated or has a bad header")
+    profile = profile.rstrip(b"\0").decode("ascii", "replace")
+    if vehicle is not None:
+        from quadfdi.formats.vehicle_record_bin import check_record
+
+        vehicle = check_record(np.frombuffer(vehicle, "<f4"), f"{path}'s vehicle record")
+        if not getattr(PROFILE_BY_NAME.get(profile), "reference", False):
+            raise QuadfdiError(f"{path} carries a vehicle record, but its profile {profile!r} reads none")
     arr = np.frombuffer(body, rec)
-    return RawStream(source.rstrip(b"\0").decode("utf-8", "replace"), profile.rstrip(b"\0").decode("ascii", "replace"),
-                     names, float(dt), int(cells), arr["t"].astype(np.float64), arr["v"].astype(np.float32).reshape(-1, r),
-                     carried.astype(bool))
+    return RawStream(source.rstrip(b"\0").decode("utf-8", "replace"), profile, names, float(dt), int(cells),
+                     arr["t"].astype(np.float64), arr["v"].astype(np.float32).reshape(-1, r), carried.astype(bool),
+                     vehicle)
 
 
-def from_dataset(dataset: str | Path, flight: int, record: dict, ds=None) -> RawStream:
+def from_dataset(dataset: str | Path, flight: int, record: dict, ds=None, vehicle=None) -> RawStream:
     """Flight ``flight`` of a simulated dataset.npz (every simulated flight is airborne throughout);
     ``ds`` the file already loaded (formats.dataset.load_dataset), for a caller taking several flights.
     The masked profile: the flight carries the channels of its mask pattern (core.profiles.flight_pattern,
-    as models.inputs.profiled_dataset gives the window path), the others NaN and not carried."""
+    as models.inputs.profiled_dataset gives the window path), the others NaN and not carried. ``vehicle``:
+    the vehicle record the stream carries (a reference profile; None: none)."""
     from quadfdi.core.profiles import flight_pattern, is_masked
     from quadfdi.core.channels import GROUP_OF_RAW
     from quadfdi.formats.dataset import load_dataset
@@ -176,4 +198,4 @@ def from_dataset(dataset: str | Path, flight: int, record: dict, ds=None) -> Raw
         carried = np.array([GROUP_OF_RAW.get(r) not in lacks for r in record["raw_channels"]])
         values[:, ~carried] = np.nan
     return RawStream(f"{Path(dataset).name}#{flight}", record["profile"], list(record["raw_channels"]), dt, cells,
-                     np.arange(tel.shape[1]) * dt, values, carried)
+                     np.arange(tel.shape[1]) * dt, values, carried, None if vehicle is None else np.asarray(vehicle, np.float32))

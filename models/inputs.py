@@ -19,6 +19,10 @@ their fills, an absent pitch entering the hover estimate as 0 (core.hover); ``ma
 stores each flight's pattern index (core/channels.py MASK_PATTERNS). That is the dataset export
 calibrates and verifies on and parity replays. ``patterns=False`` gives every flight every channel
 (``mask_pattern`` 0, "all"): training draws its own pattern per window (train/masks.py).
+
+A reference profile (``flightlog-ref``) also reads each flight's vehicle record (core/vehicle_record.py):
+``records`` (F, 24) float32, a NaN row for a flight without one (train/vehicle_ref.py learns them from
+each fleet vehicle's own reference flights); stored as ``vehicle_record``.
 """
 
 from __future__ import annotations
@@ -30,8 +34,9 @@ import numpy as np
 from quadfdi.core.errors import QuadfdiError
 from quadfdi.core.channels import MASK_PATTERNS
 from quadfdi.core.hover import INPUTS as HOVER_INPUTS, collective, estimate_many
-from quadfdi.core.profiles import (apply_profile, channel_names, channel_units, flight_pattern, is_masked,
-                                   pattern_available, required_raw, uses_hover)
+from quadfdi.core import vehicle_record as vr
+from quadfdi.core.profiles import (apply_profile, channel_names, channel_units, flight_pattern, has_reference,
+                                   is_masked, pattern_available, required_raw, uses_hover)
 from quadfdi.formats.dataset import Dataset
 
 PROFILE_KEY = "profile"  # the checkpoint's key (train.run) and the manifest's (export.manifest)
@@ -58,9 +63,10 @@ def _availability(pattern: np.ndarray) -> dict[str, np.ndarray]:
     return {g: np.array([a[g] for a in per], bool) for g in (per[0] if per else {})}
 
 
-def profiled_dataset(ds: Dataset, profile: str, patterns: bool = True) -> Dataset:
+def profiled_dataset(ds: Dataset, profile: str, patterns: bool = True, records: np.ndarray | None = None) -> Dataset:
     """The dataset with the profile's inputs as ``telemetry`` (module docstring); ``patterns``: a
-    masked profile's flights each with their pattern's channels (False: every channel)."""
+    masked profile's flights each with their pattern's channels (False: every channel); ``records``:
+    a reference profile's vehicle records per flight (None: no flight has one)."""
     if not uses_hover(profile):
         return ds
     names, tel = ds.channel_names, ds["telemetry"]
@@ -89,13 +95,20 @@ def profiled_dataset(ds: Dataset, profile: str, patterns: bool = True) -> Datase
         cur[never] = hv[:, :, 7].mean(axis=1)
         freeze[never] = tel.shape[1]
     raw = {r: tel[:, :, names.index(r)] for r in required_raw(profile, names)}
-    x = apply_profile(profile, raw, ds["pack_cells"], cmd, cur, available)
+    if has_reference(profile):
+        n = len(tel)
+        records = np.full((n, vr.SIZE), np.nan, np.float32) if records is None else np.asarray(records, np.float32)
+        if records.shape != (n, vr.SIZE):
+            raise ValueError(f"vehicle records must be ({n}, {vr.SIZE}), found {records.shape}")
+    x = apply_profile(profile, raw, ds["pack_cells"], cmd, cur, available, records if has_reference(profile) else None)
     arrays = dict(ds.arrays)
     arrays.update(telemetry=x, channel_names=np.array(channel_names(profile, names)),
                   channel_units=np.array(channel_units(profile, [str(u) for u in ds["channel_units"]])),
                   hover_cmd=cmd, hover_cur=cur, hover_freeze=freeze)
     if masked:
         arrays["mask_pattern"] = pattern
+    if has_reference(profile):
+        arrays["vehicle_record"] = records
     return dataclasses.replace(ds, arrays=arrays)
 
 

@@ -110,7 +110,9 @@ def stream_section(t: dict | None) -> list[str]:
               for cpu, r in t["cores"].items()]
     out += [f"Test flights (dataset rows {', '.join(map(str, fl['dataset_rows']))}; "
             f"{', '.join(str(n) for n in fl['samples'].values())} samples, each cut after its first "
-            f"{fl['decisions_kept_per_flight']} decided strides) replayed sample by sample through every model of the "
+            f"{fl['decisions_kept_per_flight']} decided strides"
+            + (f"; {fl['vehicle_records']} with its vehicle's record, loaded at reset" if fl.get("vehicle_records") else "")
+            + ") replayed sample by sample through every model of the "
             f"export in the stream image (profile {t['profile']}, window {t['window']}, stride {t['stride']}); every "
             f"stride held against the host's fwref_stream ({'; '.join(checks)}): "
             + ("**as the host**." if t["passed"] else "**NOT as the host**: " + "; ".join(t["problems"])), "",

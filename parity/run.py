@@ -32,7 +32,7 @@ from quadfdi.core.npzio import write_npz
 from quadfdi.core.stage import stage
 from quadfdi.core.rundir import RunDir
 from quadfdi.formats.dataset import load_dataset, make_windows
-from quadfdi.models.inputs import profiled_dataset
+from quadfdi.train.vehicle_ref import profiled
 from quadfdi.core.jsonio import write_json
 
 SCHEMA_VERSION = 1
@@ -59,7 +59,7 @@ def host_parity(run: RunDir, export: Export, build_dir: Path, log: Callable[[str
     """Logits of every runtime on the test split and the pair metrics; (models, timing). The logits
     are also written to parity/logits.npz (keys <model>_<runtime>, plus the labels ``y``)."""
     weights_path, weights = export.weights_path, export.weights()
-    ds = profiled_dataset(load_dataset(run.dataset), export.profile())  # the models' input channels
+    ds = profiled(load_dataset(run.dataset), export.profile())  # the models' input channels
     test = make_windows(ds, "test")
     if len(test) == 0:
         raise QuadfdiError(f"{run.dataset} has no test windows to check parity on")

@@ -6,7 +6,9 @@ decide within it, and its share of the core over a stride (stride - 1 pushes and
 its duty cycle. ``stream_inputs`` takes ``FLIGHTS`` test flights of the run's own dataset
 (round-robin over the classes) as stream files (formats.stream.from_dataset), each cut after its
 ``DECISIONS``-th decided stride (where the host's fwref_stream decides it), so that the Cortex-M4's
-instruction trace stays short. Cross-built into the stream image (firmware_ref/mcu/stream_main.cpp,
+instruction trace stays short. A reference profile (flightlog-ref) on a fleet dataset: each stream carries
+its vehicle's record (learned from that vehicle's own reference flights, train.vehicle_ref), compiled
+into the image beside the flight's samples and loaded at its reset. Cross-built into the stream image (firmware_ref/mcu/stream_main.cpp,
 runtimes/mcu_stream.py) with every model of the export (CNODE and GRU, fp32 and int8; the streaming
 GRU when the export holds sgru_weights.bin), they run under QEMU on each core:
 
@@ -94,9 +96,23 @@ def stream_inputs(run_root: Path, host_build: Path) -> StreamInputs | str:
     rows = flights_by_class(ds, FLIGHTS)
     if not rows:
         return f"{run_root / 'dataset.npz'} has no test flights"
-    streams = {f"f{row}": _cut_after_decisions(from_dataset(run_root / "dataset.npz", row, record, ds), host_exe,
-                                               export / "weights.bin", classes) for row in rows}
+    vehicles = vehicle_records(ds, record["profile"], rows)
+    streams = {f"f{row}": _cut_after_decisions(from_dataset(run_root / "dataset.npz", row, record, ds, vehicles[row]),
+                                               host_exe, export / "weights.bin", classes) for row in rows}
     return StreamInputs(streams, record, host_exe, rows)
+
+
+def vehicle_records(ds, profile: str, rows: list[int]) -> dict[int, np.ndarray | None]:
+    """Each row's vehicle record for a reference profile (train.vehicle_ref.vehicle_records: the record of
+    its vehicle's own reference flights, as host parity reads it); None without one (no record carried)."""
+    from quadfdi.core.profiles import has_reference
+    from quadfdi.core.vehicle_record import has_record
+    from quadfdi.train.vehicle_ref import vehicle_records as records_of
+
+    if not has_reference(profile):
+        return {row: None for row in rows}
+    records = records_of(ds)
+    return {row: records[row] if has_record(records[row]) else None for row in rows}
 
 
 def write_streams(build_dir: Path, inputs: StreamInputs) -> tuple[Path, ...]:
@@ -203,6 +219,7 @@ def table(cpus: dict[str, dict], inputs: StreamInputs) -> dict:
     rec = inputs.record
     problems = [p for r in cpus.values() for p in r["problems"]]
     return {"flights": {"dataset_rows": inputs.rows, "samples": {k: len(v.time) for k, v in inputs.streams.items()},
+                        "vehicle_records": sum(v.vehicle is not None for v in inputs.streams.values()),
                         "decisions_kept_per_flight": DECISIONS},
             "profile": rec["profile"], "window": int(rec["window"]), "stride": int(rec["stride"]),
             "sample_period_ms": 1e3 * float(rec["sample_dt_s"]), "clock_mhz": dict(CLOCK_MHZ),

@@ -33,6 +33,7 @@ STAGES = {
     "readme": "quadfdi.readme",
     "run": "quadfdi.pipeline",
     "real-flights": "quadfdi.real_flights",
+    "crazypad": "quadfdi.crazypad",
     "sweep": "quadfdi.sweep",
 }
 DESCRIPTION = ("quadfdi: quadrotor fault diagnosis, from the physics simulator to the firmware reference; "

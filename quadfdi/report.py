@@ -4,8 +4,8 @@
                                                 measuring); with --html also report.html (report_html)
 
 Each stage owns its section and reads only its own files: ``report_section(run_root) -> list[str]``
-in sim.report, train.report, evaluate.report, export.report, parity.report, bench.report, solverstudy.report
-and realism.report,
+in sim.report, train.report, evaluate.report, export.report, parity.report, bench.report, solverstudy.report,
+realism.report and quadfdi.crazypad_report (RUN/crazypad, when ``quadfdi crazypad`` wrote there),
 in that order, after a headline made of the bullets of ``headline(run_root)`` (train, export, bench
 and solverstudy). A stage whose files are absent says "Not run" under its
 heading; a file that is there but unreadable stops the report with a one-line QuadfdiError.
@@ -24,7 +24,7 @@ from quadfdi.core.errors import QuadfdiError
 from quadfdi.core.reportmd import figure_links
 
 SECTIONS = ("quadfdi.sim.report", "quadfdi.train.report", "quadfdi.evaluate.report", "quadfdi.export.report", "quadfdi.parity.report", "quadfdi.bench.report",
-            "quadfdi.solverstudy.report", "quadfdi.realism.report")
+            "quadfdi.solverstudy.report", "quadfdi.realism.report", "quadfdi.crazypad_report")
 HEADLINES = ("quadfdi.train.report", "quadfdi.evaluate.report", "quadfdi.export.report", "quadfdi.bench.report", "quadfdi.solverstudy.report")
 
 

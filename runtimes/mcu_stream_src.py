@@ -10,7 +10,9 @@ unit of the image), DIR/fwref_stream_data.hpp (the record as ``kParams``, its al
 ``rotor_mask``: the image reports the motor under rule 5 as the host does; ``kParamsCnode`` /
 ``kParamsGru`` / ``kParamsSgru`` the same with each network's policy of the record's alarm.models,
 what the image runs each model with, as fwref_stream --model does) and
-DIR/fwref_stream_data.cpp (per flight: cells, the columns its stream carries, times, samples). Exit 2 and
+DIR/fwref_stream_data.cpp (per flight: cells, the columns its stream carries, its vehicle record when the
+stream carries one (a reference profile: embedded in flash, 96 bytes, loaded into the Stream at the flight's
+reset), times, samples). Exit 2 and
 one line on a file it cannot use. Used by firmware_ref/mcu (FWREF_STREAMS) for mcu/stream_main.cpp.
 
 Besides weights.bin's four models (runtimes/mcu_weights_src.py), the stream image carries, as constant structs in
@@ -99,6 +101,7 @@ struct Flight {{
   const char* name;
   int cells;
   std::uint64_t carried;  // bit r: the stream carries raw column r (the stream file's flags; Stream::set_carried)
+  const fwref::VehicleRecord* vehicle;  // the stream's vehicle record (Stream::set_vehicle), null: none
   int samples;
   const double* t;      // (samples)
   const float* values;  // (samples, raw channels)
@@ -119,9 +122,11 @@ def source(streams: list, extra: dict | None = None) -> str:
     for i, rs in enumerate(streams):
         out.append(f"const double kT{i}[] = {{{_doubles(rs.time)}}};")
         out.append(f"const float kV{i}[] = {{{_floats(rs.values)}}};")
+        if rs.vehicle is not None:
+            out.append(f"const fwref::VehicleRecord kVehicle{i} = {{{{{_floats(rs.vehicle)}}}}};")
     out += ["}  // namespace", "const Flight kFlights[kFlightCount] = {"]
-    out += [f'    {{"{rs.source[:40]}", {rs.cells}, {carried_bits(rs)}u, {len(rs.time)}, kT{i}, kV{i}}},'
-            for i, rs in enumerate(streams)]
+    out += [f'    {{"{rs.source[:40]}", {rs.cells}, {carried_bits(rs)}u, {"nullptr" if rs.vehicle is None else f"&kVehicle{i}"}, '
+            f'{len(rs.time)}, kT{i}, kV{i}}},' for i, rs in enumerate(streams)]
     out += ["};", "}  // namespace fwref_stream_data", ""]
     return "\n".join(out)
 

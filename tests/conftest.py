@@ -127,6 +127,27 @@ def mission_npz(tmp_path_factory) -> Path:
     return out / "flight.npz"
 
 
+# ---- a flightlog-ref model (the masked profile plus deviations from the vehicle's own reference flights) on a
+# tiny fleet (vehicles flying several flights, the first two healthy reference flights): tests of the
+# reference profile (tests/test_reference_profile.py) and of its C++ mirror share it
+
+FLEET_TINY = ["sim.n_traj=16", "sim.ood_traj=4", "sim.flights_per_vehicle=4", "sim.reference_flights=2",
+              "sim.duration_s=14.0", "sim.chunk=48", "sim.window=40", "sim.stride=20", "sim.onset_frac=[0.05, 0.2]",
+              "sim.ramp_frac=[0.05, 0.1]", 'sim.classes=["Healthy", "PropellerFault"]', "sim.fault_ratio=0.5"]
+REFERENCE_TRAIN = [v if not v.startswith("train.profile=") else "train.profile=flightlog-ref" for v in FLIGHTLOG_TRAIN]
+
+
+@pytest.fixture(scope="session")
+def reference_export(tmp_path_factory) -> Path:
+    """RUN/export of a tiny fleet run trained with the flightlog-ref profile through the CLI."""
+    sim = tmp_path_factory.mktemp("fleet_ref") / "tiny"
+    res = quadfdi("sim", "--config", str(ROOT / "configs/fleet.toml"), "--out", str(sim), "--workers", "1",
+                  *[a for v in FLEET_TINY for a in ("--set", v)])
+    assert res.returncode == 0, res.stderr
+    return trained_export_run(sim, tmp_path_factory.mktemp("fleet_ref_run") / "run", *REFERENCE_TRAIN,
+                              export_sets=tuple(FLIGHTLOG_ALARM)) / "export"
+
+
 # ---- a flightlog-mask model (the masked profile: whatever channels a log has) on the same tiny dataset:
 # tests/test_masks.py and tests/test_masks_mcu.py share it
 

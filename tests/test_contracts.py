@@ -48,9 +48,10 @@ def test_profiles_are_channel_lists_over_the_table_and_their_model_channels_deri
     from quadfdi.formats.onboard import stream_channels
 
     assert [(p.id, p.name) for p in PROFILE_TABLE] == [(0, "paper"), (1, "flightlog-min"), (2, "flightlog-nocur"),
-                                                        (3, "flightlog-esc"), (4, "flightlog-mask")]
+                                                        (3, "flightlog-esc"), (4, "flightlog-mask"),
+                                                        (5, "flightlog-ref")]
     assert [profile_enum(p.name) for p in PROFILE_TABLE] == ["kPaper", "kFlightlogMin", "kFlightlogNocur",
-                                                             "kFlightlogEsc", "kFlightlogMask"]
+                                                             "kFlightlogEsc", "kFlightlogMask", "kFlightlogRef"]
     assert channel_names("flightlog-min", []) == MIN_MODEL and channel_names("flightlog-esc", []) == ESC_MODEL
     assert channel_names("flightlog-nocur", []) == [c for c in MIN_MODEL if c != "i_rel"]
     assert PROFILES["paper"] is None and channel_names("paper", ["a", "b"]) == ["a", "b"]
@@ -64,7 +65,8 @@ def test_profiles_are_channel_lists_over_the_table_and_their_model_channels_deri
     # then adds one availability channel per group: tests/test_masks.py)
     assert channel_names("flightlog-mask", [])[:len(ESC_MODEL) + 1] == ESC_MODEL[:15] + ["vib_ap"] + ESC_MODEL[15:]
     mask = set(PROFILE_TABLE[1].raw) - {"I_b"}
-    assert [c.name for c in MODEL_CHANNELS if set(c.raw) <= mask] == channel_names("flightlog-nocur", [])
+    assert [c.name for c in MODEL_CHANNELS if set(c.raw) <= mask and not c.reference] == \
+        channel_names("flightlog-nocur", [])
 
 
 def test_classes_and_rotor_side_are_one_table():

@@ -13,6 +13,11 @@ The dataset the masked models train on has every channel (models.inputs.profiled
 - ``pattern_scores``: the test and validation windows under each pattern in turn, macro F1 per
   pattern (metrics.json ``mask_patterns``); the test metrics themselves keep every channel.
 
+A reference profile (``flightlog-ref``): on top of the pattern, a window loses its vehicle record with
+``NO_REFERENCE_PROBABILITY`` (its own draw from the same stream; validation likewise, drawn once), so
+one model decides with and without a reference; ``pattern_scores`` adds ``no_reference`` (every window
+without its record, every channel).
+
 Masking a window: the model columns of each group the pattern lacks take their fills, the group's
 availability column 0; exactly what core.profiles.apply_profile gives a flight lacking the group
 (the hover estimate stays the flight's: an absent pitch moves it by at most 0.77 % on the flights
@@ -29,8 +34,8 @@ import numpy as np
 import torch
 from sklearn.metrics import f1_score
 
-from quadfdi.core.channels import ALL_CHANNELS_PROBABILITY, MASK_PATTERNS
-from quadfdi.core.profiles import is_masked, mask_layout
+from quadfdi.core.channels import ALL_CHANNELS_PROBABILITY, MASK_PATTERNS, NO_REFERENCE_PROBABILITY, REFERENCE_GROUP
+from quadfdi.core.profiles import has_reference, is_masked, mask_layout
 from quadfdi.formats.dataset import Windows
 
 DRAW_KEY, VALIDATION_KEY = 0x3A5C, 0x3A5D
@@ -42,6 +47,11 @@ def draw_patterns(rng: np.random.Generator, n: int) -> np.ndarray:
     return np.where(rng.random(n) < ALL_CHANNELS_PROBABILITY, 0, others).astype(np.int64)
 
 
+def draw_no_reference(rng: np.random.Generator, n: int) -> np.ndarray:
+    """(n,) bool: True with NO_REFERENCE_PROBABILITY (drawn after the patterns, so theirs stay as they were)."""
+    return rng.random(n) < NO_REFERENCE_PROBABILITY
+
+
 class Masker:
     """The masked profile's columns: ``apply(x, patterns)`` masks windows (n, W, C) in place."""
 
@@ -51,8 +61,19 @@ class Masker:
         if list(channel_names) != profile_channels(profile, []):
             raise ValueError(f"the windows' channels are not profile {profile!r}'s")
         self.cols, self.fill, self.avail = mask_layout(profile)
+        self.reference = has_reference(profile)
 
-    def apply(self, x: np.ndarray, patterns: np.ndarray) -> np.ndarray:
+    def drop_reference(self, x: np.ndarray, rows: np.ndarray) -> np.ndarray:
+        """Windows ``rows`` of ``x`` as without a vehicle record, in place (a no-op for other profiles)."""
+        if self.reference and rows.size:
+            cols = self.cols[REFERENCE_GROUP]
+            x[np.ix_(rows, np.arange(x.shape[1]), cols)] = self.fill[cols]
+            x[rows, :, self.avail[REFERENCE_GROUP]] = 0.0
+        return x
+
+    def apply(self, x: np.ndarray, patterns: np.ndarray, no_reference: np.ndarray | None = None) -> np.ndarray:
+        if no_reference is not None:
+            self.drop_reference(x, np.flatnonzero(no_reference))
         for k, pat in enumerate(MASK_PATTERNS):
             rows = np.flatnonzero(patterns == k)
             if rows.size == 0:
@@ -71,13 +92,17 @@ class MaskDraw:
     def __init__(self, masker: Masker, seed: int) -> None:
         self.masker, self.seed = masker, int(seed)
 
-    def patterns(self, n: int, epoch: int, batch: int) -> np.ndarray:
+    def draws(self, n: int, epoch: int, batch: int) -> tuple[np.ndarray, np.ndarray | None]:
+        """(n,) pattern indices and, for a reference profile, (n,) bool: the window loses its record."""
         rng = np.random.default_rng(np.random.SeedSequence(self.seed, spawn_key=(DRAW_KEY, epoch, batch)))
-        return draw_patterns(rng, n)
+        return draw_patterns(rng, n), draw_no_reference(rng, n) if self.masker.reference else None
+
+    def patterns(self, n: int, epoch: int, batch: int) -> np.ndarray:
+        return self.draws(n, epoch, batch)[0]
 
     def __call__(self, x: torch.Tensor, epoch: int, batch: int) -> torch.Tensor:
         out = x.numpy().copy()
-        return torch.from_numpy(self.masker.apply(out, self.patterns(len(out), epoch, batch)))
+        return torch.from_numpy(self.masker.apply(out, *self.draws(len(out), epoch, batch)))
 
 
 def chain(*augments: Callable | None) -> Callable | None:
@@ -104,7 +129,9 @@ def mask_draw_for(profile: str, channel_names: Sequence[str], seed: int) -> Mask
 def masked_validation(val: Windows, profile: str, channel_names: Sequence[str], seed: int) -> Windows:
     """The validation windows, each under one pattern drawn once (module docstring)."""
     rng = np.random.default_rng(np.random.SeedSequence(seed, spawn_key=(VALIDATION_KEY,)))
-    x = Masker(profile, channel_names).apply(val.x.copy(), draw_patterns(rng, len(val)))
+    masker = Masker(profile, channel_names)
+    patterns = draw_patterns(rng, len(val))
+    x = masker.apply(val.x.copy(), patterns, draw_no_reference(rng, len(val)) if masker.reference else None)
     return dataclasses.replace(val, x=x)
 
 
@@ -127,4 +154,9 @@ def pattern_scores(predict: Callable[[np.ndarray], np.ndarray], windows: Windows
         pred = predict(x).argmax(axis=1)
         f1 = f1_score(windows.y, pred, labels=list(range(n_classes)), average="macro", zero_division=0)
         out[pat.name] = {"macro_f1": round(float(f1), 6), "windows": int(len(windows))}
+    if masker.reference:
+        x = masker.drop_reference(windows.x.copy(), np.arange(len(windows)))
+        f1 = f1_score(windows.y, predict(x).argmax(axis=1), labels=list(range(n_classes)), average="macro",
+                      zero_division=0)
+        out["no_reference"] = {"macro_f1": round(float(f1), 6), "windows": int(len(windows))}
     return out

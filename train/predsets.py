@@ -27,7 +27,8 @@ from quadfdi.train.loop import predict_proba
 from quadfdi.models.motor import N_MOTORS, has_motor_head, predict_motor_proba
 from quadfdi.models.inputs import decided
 
-FLIGHTS_PER_CHUNK = 16  # 16 x 90 windows x 80 x 25 float32 = 11.5 MB at a time
+FLIGHTS_PER_CHUNK = 16
+NO_REFERENCE = "_noref"  # a reference profile's network without the vehicle record: model name <kind>_noref  # 16 x 90 windows x 80 x 25 float32 = 11.5 MB at a time
 
 
 def prediction_set(model: torch.nn.Module, ds: Dataset, flights_per_chunk: int = FLIGHTS_PER_CHUNK,
@@ -36,6 +37,14 @@ def prediction_set(model: torch.nn.Module, ds: Dataset, flights_per_chunk: int =
     ``max_flights`` of them when given: a check, not a set to publish), flight by flight in dataset
     order, windows in time order (the order of ``formats.dataset.make_windows``)."""
     return prediction_sets(model, ds, evaluation_rows(ds)[:max_flights], {"": None}, flights_per_chunk)[""]
+
+
+def reference_sets(model: torch.nn.Module, ds: Dataset, kind: str, masker) -> dict[str, dict[str, np.ndarray]]:
+    """A reference profile's two prediction sets of ``kind``: ``kind`` with each flight's vehicle record and
+    ``kind + NO_REFERENCE`` with none (``masker``: train.masks.Masker; the windows made once for both)."""
+    drop = lambda x: masker.drop_reference(x.copy(), np.arange(len(x)))  # noqa: E731
+    sets = prediction_sets(model, ds, evaluation_rows(ds), {"": None, NO_REFERENCE: drop})
+    return {kind: sets[""], kind + NO_REFERENCE: sets[NO_REFERENCE]}
 
 
 def prediction_sets(model: torch.nn.Module, ds: Dataset, rows: np.ndarray,

@@ -26,9 +26,9 @@ from quadfdi.formats.predictions import add_entries
 from quadfdi.core.rundir import RunDir
 from quadfdi.core.stage import StageWriter, stage
 from quadfdi.formats.dataset import Dataset, Windows, class_names, load_dataset
-from quadfdi.core.profiles import is_masked
+from quadfdi.core.profiles import has_reference, is_masked
 from quadfdi.train.augment import share_wander_for
-from quadfdi.train.masks import chain, fixed_availability, mask_draw_for, masked_validation, pattern_scores
+from quadfdi.train.masks import Masker, chain, fixed_availability, mask_draw_for, masked_validation, pattern_scores
 from quadfdi.train.baseline import fit_baseline, predict_proba_baseline
 from quadfdi.models.checkpoint import save_checkpoint
 from quadfdi.train.data import class_weights, fit_normalisation, split_windows
@@ -36,8 +36,10 @@ from quadfdi.train.loop import predict_proba, train_model
 from quadfdi.train.metrics import compute_metrics
 from quadfdi.models.networks import build_model
 from quadfdi.models.motor import attach_motor_head, motor_targets, wants_motor_head
-from quadfdi.models.inputs import PROFILE_KEY, profiled_dataset
-from quadfdi.train.predsets import (drop_missing_entries, index_entry, prediction_set, relative_prediction_path,
+from quadfdi.models.inputs import PROFILE_KEY
+from quadfdi.train.vehicle_ref import profiled
+from quadfdi.train.predsets import (drop_missing_entries, index_entry, prediction_set, reference_sets,
+                            relative_prediction_path,
                             write_prediction_set)
 
 
@@ -58,7 +60,7 @@ def train_all(ds: Dataset, cfg: Config, kinds: list[str], log: Callable[[str], N
     torch.set_num_threads(cfg.train.threads)
     profile, masked = cfg.train.profile, is_masked(cfg.train.profile)
     # the models' input channels (paper: ds itself); a masked profile: every channel, masks per window (train.masks)
-    ds = profiled_dataset(ds, profile, patterns=False)
+    ds = profiled(ds, profile, patterns=False)
     k = len(class_names(ds.arrays))
     splits = split_windows(ds, cfg.train.max_train_windows, cfg.train.seed)
     for name in SPLITS:
@@ -92,7 +94,9 @@ def train_all(ds: Dataset, cfg: Config, kinds: list[str], log: Callable[[str], N
         proba = predict_proba(model, splits.test.x)  # as before the prediction sets: the test metrics keep their bits
         out["models"][kind], out["history"][kind], out["proba"][kind] = model, hist, proba
         t0 = time.perf_counter()
-        if predsets:
+        if predsets and has_reference(profile):  # with the vehicle record and without it
+            out["predsets"].update(reference_sets(model, ds, kind, Masker(profile, ds.channel_names)))
+        elif predsets:
             out["predsets"][kind] = prediction_set(model, ds)
             log(f"  {kind}: prediction set of {len(out['predsets'][kind]['traj'])} evaluation windows in "
                 f"{time.perf_counter() - t0:.1f} s")
@@ -120,8 +124,8 @@ def write_outputs(out: RunDir, ds: Dataset, cfg: Config, result: dict, previous:
                         class_names=class_names(ds.arrays))
         write_npz(out.predictions(kind), {"y_true": test.y, "proba": result["proba"][kind],
                                           "traj": test.traj, "t_end": test.t_end})
-        write_prediction_set(out.root / relative_prediction_path(kind, cfg.sim.seed, cfg.train.seed),
-                             result["predsets"][kind])
+    for name, pred in result["predsets"].items():  # a reference profile's: also <kind>_noref
+        write_prediction_set(out.root / relative_prediction_path(name, cfg.sim.seed, cfg.train.seed), pred)
     old_metrics, old_hist = None if previous is None else previous.metrics, None if previous is None else previous.root / "history.json"
     metrics = read_json(old_metrics, "metrics") if old_metrics is not None and old_metrics.exists() else {}
     metrics.update(result["metrics"])
@@ -153,7 +157,7 @@ def train_run(run: RunDir, cfg: Config, model: str = "both", seed: int | None = 
         write_outputs(RunDir(st.out), ds, cfg, result, previous)
     # The index is not a stage output (the study adds to it too): entries are added once the
     # prediction sets they name are published.
-    add_entries(run.root, [index_entry(k, cfg.sim.seed, cfg.train.seed) for k in kinds])
+    add_entries(run.root, [index_entry(k, cfg.sim.seed, cfg.train.seed) for k in result["predsets"]])
     drop_missing_entries(run.root)
     return result
 

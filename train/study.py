@@ -149,10 +149,11 @@ def _gather(out: RunDir, results, reused: dict, data) -> tuple[dict, dict, list,
         if not r.ok:
             failed.append({"seed": seed, "model": kind, "error": r.error, **({"sim_seed": sim_seed} if len(data) > 1 else {})})
             continue
-        pred, metrics = split_result(read_result(r.job.out))
-        entry = index_entry(kind, sim_seed, seed, rel[sim_seed])
-        write_prediction_set(out.root / entry["predictions"], pred)
-        entries.append(entry)
+        pred, metrics, extra = split_result(read_result(r.job.out))
+        for name, arrays in {kind: pred, **extra}.items():
+            entry = index_entry(name, sim_seed, seed, rel[sim_seed])
+            write_prediction_set(out.root / entry["predictions"], arrays)
+            entries.append(entry)
         mine = per_run.setdefault((sim_seed, seed), {})
         mine[kind] = metrics[kind]
         mine.setdefault("baseline", metrics["baseline"])  # the same fit in every job of a (sim seed, seed)

@@ -70,17 +70,19 @@ def train_network(dataset: str, cfg: Config, kind: str, out: str) -> bytes:
         return path.read_bytes()
 
 
-def apply_network(checkpoint: str, dataset: str, kind: str) -> dict:
+def apply_network(checkpoint: str, dataset: str, kind: str, reference: bool = True) -> dict:
     """The prediction set (formats.predictions format) of the network in ``checkpoint`` on every
-    evaluation window of ``dataset``, with the network's channel profile applied (a job)."""
+    evaluation window of ``dataset``, with the network's channel profile applied (a job); a reference
+    profile's flights with their vehicle records (``reference`` False: without)."""
     from quadfdi.formats.dataset import class_names, load_dataset
     from quadfdi.models.checkpoint import check_dataset_matches, checkpoint_class_names, load_checkpoint
     from quadfdi.train.predsets import prediction_set
-    from quadfdi.models.inputs import profile_of, profiled_dataset
+    from quadfdi.models.inputs import profile_of
+    from quadfdi.train.vehicle_ref import profiled
 
     model, blob = load_checkpoint(checkpoint, kind)
     _threads(blob)
-    ds = profiled_dataset(load_dataset(dataset), profile_of(blob), patterns=False)  # every channel, as train's sets
+    ds = profiled(load_dataset(dataset), profile_of(blob), patterns=False, reference=reference)  # as train's sets
     check_dataset_matches(blob, ds.channel_names, dataset)
     if checkpoint_class_names(blob) != list(class_names(ds.arrays)):
         raise QuadfdiError(f"{dataset}: its classes differ from those of the network in {checkpoint}")
@@ -164,7 +166,8 @@ def reproduces(run: RunDir, cfg: Config, kind: str, seed: int, checkpoint: Path)
     from quadfdi.formats.dataset import load_dataset
     from quadfdi.models.checkpoint import load_checkpoint
     from quadfdi.train.predsets import prediction_set
-    from quadfdi.models.inputs import profile_of, profiled_dataset
+    from quadfdi.models.inputs import profile_of
+    from quadfdi.train.vehicle_ref import profiled
 
     entry = next((e for e in read_index(run.root) if (e["model"], int(e["sim_seed"]), int(e["train_seed"]))
                   == (kind, cfg.sim.seed, seed) and e["dataset"] == "dataset.npz"), None)
@@ -172,7 +175,7 @@ def reproduces(run: RunDir, cfg: Config, kind: str, seed: int, checkpoint: Path)
         return None
     model, blob = load_checkpoint(checkpoint, kind)
     _threads(blob)
-    ds = profiled_dataset(load_dataset(run.dataset), profile_of(blob), patterns=False)
+    ds = profiled(load_dataset(run.dataset), profile_of(blob), patterns=False)
     mine = prediction_set(model, ds, max_flights=CHECK_FLIGHTS)  # the set's first chunk: same batches, same bits
     got = read_npz(run.root / entry["predictions"], "prediction set")
     b = got["proba"][np.isin(got["traj"], np.unique(mine["traj"]))]
@@ -182,14 +185,22 @@ def reproduces(run: RunDir, cfg: Config, kind: str, seed: int, checkpoint: Path)
 def apply_jobs(run: RunDir, nets: dict[tuple[str, int], tuple[Path, str]], data) -> list[tuple[Job, str, int, object]]:
     """(job, kind, train seed, StudyData) per network x other simulator seed, in (sim seed, train
     seed, model) order."""
+    from quadfdi.core.profiles import has_reference
+    from quadfdi.models.checkpoint import load_checkpoint
+    from quadfdi.models.inputs import profile_of
+    from quadfdi.train.predsets import NO_REFERENCE
+
     jobs = []
     for d in data:
         for (kind, seed), (path, _) in sorted(nets.items(), key=lambda kv: (kv[0][1], MODELS.index(kv[0][0]))):
-            key = job_key(APPLY_KIND, {}, {"model": kind}, {"checkpoint": path, "dataset": d.path},
-                          packages=("sim", "train"))
-            jobs.append((Job(APPLY_KIND, key, apply_network, (str(path), str(d.path), kind),
-                             cache_path(run.root, APPLY_KIND, key, "npz"),
-                             label=f"seed {seed} {kind} on sim {d.sim_seed}", torch=True), kind, seed, d))
+            with_ref = has_reference(profile_of(load_checkpoint(path, kind)[1]))
+            for reference in (True, False) if with_ref else (True,):
+                name = kind if reference else kind + NO_REFERENCE
+                key = job_key(APPLY_KIND, {}, {"model": kind, **({} if reference else {"reference": False})},
+                              {"checkpoint": path, "dataset": d.path}, packages=("sim", "train"))
+                jobs.append((Job(APPLY_KIND, key, apply_network, (str(path), str(d.path), kind, reference),
+                                 cache_path(run.root, APPLY_KIND, key, "npz"),
+                                 label=f"seed {seed} {name} on sim {d.sim_seed}", torch=True), name, seed, d))
     return jobs
 
 
@@ -200,7 +211,7 @@ def run_apply(run: RunDir, cfg: Config, seeds: list[int], sim_seeds: list[int], 
     from quadfdi.core.jsonio import write_json
     from quadfdi.formats.predictions import add_entries
     from quadfdi.core.stage import stage
-    from quadfdi.train.predsets import drop_missing_entries, index_entry, write_prediction_set
+    from quadfdi.train.predsets import NO_REFERENCE, drop_missing_entries, index_entry, write_prediction_set
     from quadfdi.train.study_sims import study_datasets
 
     others = [s for s in sim_seeds if s != cfg.sim.seed]
@@ -230,9 +241,10 @@ def run_apply(run: RunDir, cfg: Config, seeds: list[int], sim_seeds: list[int], 
             entry = index_entry(kind, d.sim_seed, seed, d.rel)
             write_prediction_set(st.out / entry["predictions"], read_result(r.job.out))
             entries.append(entry)
+            base = kind.removesuffix(NO_REFERENCE)
             summary["sets"].append({"model": kind, "train_seed": seed, "sim_seed": d.sim_seed,
-                                    "predictions": entry["predictions"], "network": nets[(kind, seed)][1],
-                                    "reproduces_indexed_set": checks.get((kind, seed))})
+                                    "predictions": entry["predictions"], "network": nets[(base, seed)][1],
+                                    "reproduces_indexed_set": checks.get((base, seed))})
         write_json(st.path(SUMMARY), summary, indent=2)
     add_entries(run.root, entries)
     drop_missing_entries(run.root)
@@ -246,14 +258,15 @@ def pattern_network(checkpoint: str, dataset: str, kind: str, split: str) -> dic
     from quadfdi.core.channels import MASK_PATTERNS
     from quadfdi.formats.dataset import load_dataset, split_rows
     from quadfdi.models.checkpoint import check_dataset_matches, load_checkpoint
-    from quadfdi.models.inputs import profile_of, profiled_dataset
+    from quadfdi.models.inputs import profile_of
+    from quadfdi.train.vehicle_ref import profiled
     from quadfdi.train.masks import Masker
     from quadfdi.train.predsets import prediction_sets
 
     model, blob = load_checkpoint(checkpoint, kind)
     _threads(blob)
     profile = profile_of(blob)
-    ds = profiled_dataset(load_dataset(dataset), profile, patterns=False)
+    ds = profiled(load_dataset(dataset), profile, patterns=False)
     check_dataset_matches(blob, ds.channel_names, dataset)
     masker = Masker(profile, ds.channel_names)
     mask = lambda k: lambda x: masker.apply(x.copy(), np.full(len(x), k))  # noqa: E731

@@ -22,6 +22,7 @@ from quadfdi.core.rundir import RunDir
 KIND = "study"
 MODELS = ("cnode", "gru")
 METRICS_KEY = "metrics_json"
+SET_SEP = "__"  # a job's further prediction sets (a reference profile's <kind>_noref): keys <model>__<key>
 
 
 @dataclass(frozen=True)
@@ -35,19 +36,27 @@ class StudyData:
 
 def train_seed_model(dataset: str, cfg: Config, kind: str) -> dict:
     """Train ``kind`` with ``cfg.train.seed`` on ``dataset`` (a job): its prediction set and, as
-    ``metrics_json``, its and the baseline's test metrics."""
+    ``metrics_json``, its and the baseline's test metrics; a reference profile's network also its set
+    without the vehicle record (``<kind>_noref``, keys ``<kind>_noref__<key>``)."""
     from quadfdi.formats.dataset import load_dataset
     from quadfdi.train.run import train_all
 
     result = train_all(load_dataset(dataset), cfg, [kind], log=lambda _: None)
     metrics = json.dumps(to_jsonable(result["metrics"]), sort_keys=True, allow_nan=False)
-    return {**result["predsets"][kind], METRICS_KEY: np.array(metrics)}
+    extra = {f"{name}{SET_SEP}{k}": v for name, arrays in result["predsets"].items() if name != kind
+             for k, v in arrays.items()}
+    return {**result["predsets"][kind], **extra, METRICS_KEY: np.array(metrics)}
 
 
-def split_result(arrays: dict) -> tuple[dict, dict]:
-    """A cached job result -> (prediction set arrays, metrics dict)."""
-    pred = {k: v for k, v in arrays.items() if k != METRICS_KEY}
-    return pred, json.loads(str(arrays[METRICS_KEY]))
+def split_result(arrays: dict) -> tuple[dict, dict, dict]:
+    """A cached job result -> (prediction set arrays, metrics dict, further sets by model name)."""
+    pred = {k: v for k, v in arrays.items() if k != METRICS_KEY and SET_SEP not in k}
+    extra: dict[str, dict] = {}
+    for k, v in arrays.items():
+        if SET_SEP in k:
+            name, key = k.split(SET_SEP, 1)
+            extra.setdefault(name, {})[key] = v
+    return pred, json.loads(str(arrays[METRICS_KEY])), extra
 
 
 def seed_model_jobs(run: RunDir, cfg: Config, seeds: list[int], models: tuple[str, ...] = MODELS,

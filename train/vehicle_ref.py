@@ -19,9 +19,11 @@ from pathlib import Path
 
 import numpy as np
 
+from quadfdi.core import vehicle_record as vr
 from quadfdi.core.errors import QuadfdiError
+from quadfdi.core.profiles import has_reference
 from quadfdi.core.hover import collective
-from quadfdi.formats.dataset import FLEET_KEYS, vehicle_columns
+from quadfdi.formats.dataset import FLEET_KEYS, Dataset, vehicle_columns
 from quadfdi.sim.flight_npz import flight_arrays
 from quadfdi.train.features import VIBRATION_CHANNELS
 from quadfdi.vehicle import quantities as q
@@ -61,6 +63,27 @@ def learn_references(arrays: dict[str, np.ndarray], source: str) -> dict[int, di
         except QuadfdiError as exc:
             raise QuadfdiError(f"{source}: vehicle {v}'s reference: {exc}") from None
     return out
+
+
+def vehicle_records(ds: Dataset) -> np.ndarray:
+    """(F, 24) float32: each flight's vehicle record (core/vehicle_record.py) from its own vehicle's
+    reference; NaN rows for every flight of a dataset without vehicles (the realistic and paper suites)."""
+    n = len(ds["telemetry"])
+    if not has_vehicles(ds.arrays):
+        return np.full((n, vr.SIZE), np.nan, np.float32)
+    refs = learn_references(ds.arrays, str(ds.path))
+    records = {v: vr.from_reference(r) for v, r in refs.items()}
+    vid = vehicle_columns(ds.arrays)["vehicle_id"]
+    return np.stack([records[int(v)] for v in vid]).astype(np.float32)
+
+
+def profiled(ds: Dataset, profile: str, patterns: bool = True, reference: bool = True) -> Dataset:
+    """models.inputs.profiled_dataset with each flight's vehicle record for a reference profile
+    (``reference`` False: no flight gets one, the model's decisions without the reference)."""
+    from quadfdi.models.inputs import profiled_dataset
+
+    records = vehicle_records(ds) if has_reference(profile) and reference else None
+    return profiled_dataset(ds, profile, patterns, records)
 
 
 def vib_channels(channel_names) -> list[str]:

@@ -3,6 +3,7 @@ rules on other flights (docs/vehicle.md).
 
     quadfdi vehicle learn LOG_OR_FLIGHT... --out vehicle.json
     quadfdi vehicle rules --vehicle vehicle.json LOG_OR_FOLDER... --out DIR
+    quadfdi vehicle record vehicle.json --out record.bin   (the on-board record: fwref_stream --vehicle)
 
 Bad input (a refused reference, an unreadable vehicle.json, a path that does not exist, nothing to
 score) is one line on stderr, exit 2, and nothing written.
@@ -23,7 +24,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                        description="A reference of one airframe from its own healthy flights (motor command shares, "
                                    "hover collective, pack, vibration, ESC), and the simple share rules on other "
                                    "flights (docs/vehicle.md).")
-    acts = p.add_subparsers(dest="action", required=True, metavar="{learn,rules}")
+    acts = p.add_subparsers(dest="action", required=True, metavar="{learn,rules,record}")
     pl = acts.add_parser("learn", help="learn vehicle.json from healthy flights of one airframe")
     pl.add_argument("flights", nargs="+", metavar="LOG_OR_FLIGHT",
                     help="healthy flights: PX4 .ulg, ArduPilot .BIN, Crazyflie uSD logs or flight.npz files")
@@ -34,6 +35,25 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     pr.add_argument("--vehicle", required=True, help="the reference (quadfdi vehicle learn)")
     pr.add_argument("--out", required=True, help="folder to write rules.json and rules.md into")
     pr.set_defaults(func=run_rules)
+    pc = acts.add_parser("record", help="write a reference's vehicle record file (24 float32) for fwref_stream")
+    pc.add_argument("vehicle", metavar="VEHICLE_JSON", help="the reference (quadfdi vehicle learn)")
+    pc.add_argument("--profile", default="flightlog-ref", help="the reference profile it is for (flightlog-ref)")
+    pc.add_argument("--out", required=True, help="the record file to write (docs/formats.md \"Vehicle record file\")")
+    pc.set_defaults(func=run_record)
+
+
+def run_record(args: argparse.Namespace) -> int:
+    from quadfdi.formats.vehicle_record_bin import check_profile, record_from_vehicle_json, write_record
+
+    out = Path(args.out)
+    if out.is_dir():
+        raise QuadfdiError(f"--out {out} is a folder; give the record file to write (e.g. {out / 'record.bin'})")
+    check_profile(args.profile)
+    rec = record_from_vehicle_json(args.vehicle)
+    write_record(out, rec, args.profile)
+    held = int(sum(1 for x in rec if x == x))
+    print(f"wrote {out}: the vehicle record of {args.vehicle} for {args.profile} ({held} of {len(rec)} fields held)")
+    return 0
 
 
 def _refuse_folder_output(out: Path) -> None:

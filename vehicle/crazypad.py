@@ -73,8 +73,9 @@ def _cell(rows: list[dict], rule: str, healthy: list[float]) -> dict:
     scores = [r["rules"][rule]["score"] for r in rows]
     alarmed = [r for r in rows if r["rules"][rule]["alarm"]]
     named = {}
-    for r in alarmed:
-        named[r["rules"][rule]["motor"]] = named.get(r["rules"][rule]["motor"], 0) + 1
+    for r in alarmed:  # an alarm that names no motor (a network's class without a motor) counts as "none"
+        motor = r["rules"][rule]["motor"] or "none"
+        named[motor] = named.get(motor, 0) + 1
     top = max(healthy) if healthy else None
     return {"flights": len(rows), "alarmed": len(alarmed),
             "right_motor": sum(r["rules"][rule]["motor"] in r["right_motors"] for r in alarmed),

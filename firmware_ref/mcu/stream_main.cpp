@@ -66,6 +66,12 @@ bool replay(const fwref::StreamModel& sm, const char* model, const char* prec) {
     } else if (g_stream.init(params, fl.cells, sm, fl.carried) != fwref::Status::kOk) {
       return false;
     }
+    // the flight's vehicle record (its stream file's, compiled in), loaded at reset as fwref_stream does
+    if (fl.vehicle == nullptr) {
+      g_stream.clear_vehicle();
+    } else if (g_stream.set_vehicle(*fl.vehicle) != fwref::Status::kOk) {
+      return false;
+    }
     Stat push, decide, other;
     for (int k = 0; k < fl.samples; ++k) {
       Keep keep;

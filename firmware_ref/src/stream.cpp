@@ -72,6 +72,7 @@ Status Stream::init(const StreamParams& p, int cells, const StreamModel& m, std:
   reset();
   carried_ = kAllCarried;
   avail_ = kAllGroups;
+  has_vehicle_ = false;
   return set_carried(carried);
 }
 
@@ -82,6 +83,13 @@ Status Stream::set_carried(std::uint64_t carried) {
   if (battery && !(cells_ >= 1.0f)) return Status::kDimsInvalid;
   carried_ = carried;
   avail_ = avail;
+  return Status::kOk;
+}
+
+Status Stream::set_vehicle(const VehicleRecord& v) {
+  if (profile_spec(p_.profile).ref < 0) return Status::kDimsInvalid;
+  vehicle_ = v;
+  has_vehicle_ = true;
   return Status::kOk;
 }
 
@@ -152,7 +160,7 @@ Status Stream::push_one(const float* sample, double t, StrideSink* sink) {
   const int W = p_.window, C = p_.channels, R = p_.raw_channels;
   const int slot = static_cast<int>(next_ % W);
   float* x = &ring_[slot * C];
-  profile_prep(p_.profile, sample, R, cells_, x, avail_);
+  profile_prep(p_.profile, sample, R, cells_, x, avail_, vehicle());
   bool ok = true;
   const bool hover = p_.profile != Profile::kPaper;
   for (int c = 0; c < (hover ? R - 1 : R); ++c) {  // a column the flight lacks is not read
@@ -193,7 +201,7 @@ void Stream::stride(double t, StrideSink* sink) {
       if (m_.step != nullptr) continue;  // a per-sample model checked each row as it stepped it
       float* row = &win_[j * C];
       for (int c = 0; c < C; ++c) row[c] = ring_[slot * C + c];
-      if (hover) profile_hover(p_.profile, hover_.cmd(), hover_.cur(), row, avail_);
+      if (hover) profile_hover(p_.profile, hover_.cmd(), hover_.cur(), row, avail_, vehicle());
       for (int c = 0; c < C && ok; ++c) ok = std::isfinite(row[c]);
     }
     d.status = ok && run_window(d) == Status::kOk ? StrideStatus::kDecided : StrideStatus::kSkipped;
@@ -235,7 +243,7 @@ bool Stream::step_sample(const float* x, bool ends_stride) {
   if (p_.profile != Profile::kPaper) {
     if (!hover_.frozen()) return false;
     for (int c = 0; c < C; ++c) step_row_[c] = x[c];
-    profile_hover(p_.profile, hover_.cmd(), hover_.cur(), step_row_, avail_);
+    profile_hover(p_.profile, hover_.cmd(), hover_.cur(), step_row_, avail_, vehicle());
     x = step_row_;
   }
   for (int c = 0; c < C; ++c) {

@@ -2,7 +2,7 @@
 // (a contract: outside tools drive it, docs/firmware.md "Streaming"):
 //
 //   fwref_stream --weights <weights.bin> --model cnode|gru|sgru [--int8] --in <stream.bin | -> [--out <lines.txt>]
-//                [--manifest <manifest.json>] [--timings <seconds.f64>]
+//                [--manifest <manifest.json>] [--timings <seconds.f64>] [--vehicle <record.bin>]
 //   fwref_stream --weights <weights.bin> --info [--model cnode|gru|sgru]
 //
 // The alarm policy is the bound model's: its row of the record's alarm.models (one policy per network),
@@ -23,6 +23,11 @@
 // (Stream::set_carried: its minimum always, and a cell count while it carries V_b).
 // --in may be given several times: the flights run in sequence through one Stream, reset() between
 // them (each flight's lines start with its "# fwref_stream flight=<i>" comment).
+// The vehicle record (a reference profile, flightlog-ref; fwref/vehicle_record.hpp): a stream file of version 3
+// carries its own, loaded into the Stream at the flight's reset (set_vehicle); --vehicle <record.bin> (a record
+// file, formats/vehicle_record_bin.py, checked to be for the model's profile) is the record of every flight whose
+// stream carries none, and is refused for a stream that carries one. Neither: no reference (the reference
+// channels at their fills, avail_reference 0). The flight's comment line says vehicle=stream|file|none.
 // Output (stdout, or --out through a temp file renamed at the end): '#' comment lines, then one line per
 // reported stride, at most one per sample (fwref/stream.hpp: the strides inside a timestamp gap are
 // counted, not reported):  index t status logit_1..K proba_1..K vote active raised cleared cls motor wmotor
@@ -49,6 +54,7 @@
 
 #include "fwref/onboard.hpp"
 #include "fwref/stream.hpp"
+#include "fwref/vehicle_record.hpp"
 #include "host_common.hpp"
 #include "host_motor.hpp"
 #include "host_files.hpp"
@@ -60,7 +66,8 @@ namespace {
 const fwref::host::Cli kCli(
     "fwref_stream",
     "usage: fwref_stream --weights <weights.bin> (--info [--model cnode|gru|sgru] | --model cnode|gru|sgru [--int8] "
-    "--in <stream.bin|-> [--out <lines.txt>] [--manifest <manifest.json>] [--timings <seconds.f64>])");
+    "--in <stream.bin|-> [--out <lines.txt>] [--manifest <manifest.json>] [--timings <seconds.f64>] "
+    "[--vehicle <record.bin>])");
 std::uint32_t model_code(const std::string& model) {
   return model == "cnode" ? fwref::kModelCnode : model == "gru" ? fwref::kModelGru : fwref::kModelSgru;
 }
@@ -191,8 +198,25 @@ struct Replay {
   bool int8;
   Lines& lines;
   fwref::host::StreamOutput* seconds;  // per push, or null
+  const fwref::VehicleRecord* vehicle;  // --vehicle's record, or null
   std::uint32_t cells = 0;
 };
+
+// The flight's vehicle record into the stream (after its init / reset): the stream file's own, else --vehicle's,
+// else none; "stream", "file" or "none" in ``*from``.
+bool load_flight_vehicle(const fwref::host::StreamHeader& h, const std::string& name, const Replay& r,
+                         const char** from, std::string* error) {
+  if (h.has_vehicle && r.vehicle != nullptr) {
+    return *error = "stream " + name + " carries its vehicle record: --vehicle is for streams without one", false;
+  }
+  const fwref::VehicleRecord* v = h.has_vehicle ? &h.vehicle : r.vehicle;
+  *from = h.has_vehicle ? "stream" : v != nullptr ? "file" : "none";
+  if (v == nullptr) return g_stream.clear_vehicle(), true;
+  if (g_stream.set_vehicle(*v) != fwref::Status::kOk) {
+    return *error = std::string("profile '") + h.profile + "' reads no vehicle record", false;
+  }
+  return true;
+}
 
 // One stream (flight ``index`` of the replay, opened and checked): the first init()s the stream, the next
 // ones reset() it (a new flight; their cell count must be the first's).
@@ -214,12 +238,14 @@ bool replay_file(fwref::host::StreamInput& in, const std::string& name, std::siz
     g_stream.reset();
     if (g_stream.set_carried(h.carried) != fwref::Status::kOk) return *error = refused, false;
   }
+  const char* vehicle = "none";
+  if (!load_flight_vehicle(h, name, *r, &vehicle, error)) return false;
   char head[512];
   std::snprintf(head, sizeof head, "# fwref_stream flight=%zu source=%s model=%s precision=%s profile=%s window=%d "
-                "stride=%d classes=%d motor_head=%d available=0x%X\n# index t status logits[%d] proba[%d] vote active "
-                "raised cleared cls motor wmotor\n", index, h.source.c_str(), r->model.c_str(), r->int8 ? "int8" : "fp32",
-                h.profile.c_str(), p.window, p.stride, p.classes, int(r->m.has_motor), unsigned(g_stream.available()),
-                p.classes, p.classes);
+                "stride=%d classes=%d motor_head=%d available=0x%X vehicle=%s\n# index t status logits[%d] proba[%d] "
+                "vote active raised cleared cls motor wmotor\n", index, h.source.c_str(), r->model.c_str(),
+                r->int8 ? "int8" : "fp32", h.profile.c_str(), p.window, p.stride, p.classes, int(r->m.has_motor),
+                unsigned(g_stream.available()), vehicle, p.classes, p.classes);
   r->lines.add(head);
   std::vector<unsigned char> buf(h.sample_bytes());
   std::vector<float> sample(h.channels);
@@ -251,12 +277,12 @@ bool replay_file(fwref::host::StreamInput& in, const std::string& name, std::siz
 }  // namespace
 
 int main(int argc, char** argv) try {
-  std::string weights, model, in, out, manifest, timings;
+  std::string weights, model, in, out, manifest, timings, vehicle;
   std::vector<std::string> ins;  // --in, repeatable: flights in sequence, reset() between them
   bool int8 = false, info = false;
   const int parsed = kCli.parse(argc, argv,
                                 {{"--weights", &weights}, {"--model", &model}, {"--in", &in, &ins}, {"--out", &out},
-                                 {"--manifest", &manifest}, {"--timings", &timings}},
+                                 {"--manifest", &manifest}, {"--timings", &timings}, {"--vehicle", &vehicle}},
                                 {{"--int8", &int8}, {"--info", &info}});
   if (parsed >= 0) return parsed;
   if (weights.empty() || (!info && (model.empty() || ins.empty()))) return kCli.usage_error("missing arguments");
@@ -266,8 +292,9 @@ int main(int argc, char** argv) try {
   std::string error;
   for (const std::string* o : {&out, &timings}) {
     for (const std::string& one : ins) {
-      if (!o->empty() && !fwref::host::output_allowed(*o, {weights, one, manifest}, {"--weights file", "--in file",
-                                                                                      "--manifest file"}, &error)) {
+      if (!o->empty() && !fwref::host::output_allowed(*o, {weights, one, manifest, vehicle},
+                                                      {"--weights file", "--in file", "--manifest file", "--vehicle file"},
+                                                      &error)) {
         return kCli.fail(error);
       }
     }
@@ -289,6 +316,10 @@ int main(int argc, char** argv) try {
                 model + " section of " + weights + " " + std::to_string(m.classes));
   }
 
+  static fwref::VehicleRecord vehicle_rec;
+  if (!vehicle.empty() && fwref::load_vehicle_record(vehicle, rec.params.profile, &vehicle_rec, &error) != fwref::Status::kOk) {
+    return kCli.fail(error);
+  }
   std::vector<fwref::host::StreamInput> inputs(ins.size());
   for (std::size_t i = 0; i < ins.size(); ++i) {
     if (!inputs[i].open(ins[i], rec, &error)) return kCli.fail(error);
@@ -296,7 +327,7 @@ int main(int argc, char** argv) try {
   fwref::host::StreamOutput text, seconds;
   if (!text.open(out, &error) || (!timings.empty() && !seconds.open(timings, &error))) return kCli.fail(error);
   Lines lines(m.classes, text);
-  Replay r{rec, m, model, int8, lines, timings.empty() ? nullptr : &seconds};
+  Replay r{rec, m, model, int8, lines, timings.empty() ? nullptr : &seconds, vehicle.empty() ? nullptr : &vehicle_rec};
   for (std::size_t i = 0; i < ins.size(); ++i) {
     if (!replay_file(inputs[i], ins[i], i, &r, &error)) return kCli.fail(error);
     if (text.failed() || seconds.failed()) break;  // a failed write: reported below

@@ -23,6 +23,14 @@
 // model channels take their fills (ProfileSpec::fill), its availability channel 0 (1 when present),
 // an absent pitch enters the hover estimate as 0 (level) and an absent current as NaN
 // (``hover_inputs``). The fills replace whatever the absent columns hold, so those may be NaN.
+//
+// The reference profile (``flightlog-ref``, ProfileSpec::ref >= 0) is the masked one plus ten channels
+// relative to the vehicle record (fwref/vehicle_record.hpp, its arithmetic there) and ``avail_reference``
+// (1 when the record's first share is finite, else 0). ``vehicle`` null: every reference channel at its
+// fill; a field the record does not hold (NaN): that channel at its fill (each channel by its own fields,
+// as core/profiles.py); a group the flight lacks: its reference channels at their fills too. ``prep`` puts
+// each motor's expected share s_k in the m{k}_ref column, ``hover`` divides m{k}_rel by it: the same
+// float32 division as core/vehicle_record.py.
 #pragma once
 
 #include <cmath>
@@ -30,6 +38,7 @@
 #include <cstring>
 
 #include "fwref/channels_gen.hpp"  // Profile, ProfileSpec and the profiles' channel lists, from core/channels.py
+#include "fwref/vehicle_record.hpp"
 
 namespace fwref {
 
@@ -73,9 +82,32 @@ inline HoverInputs hover_inputs(Profile p, const float* raw, std::uint32_t avail
   return h;
 }
 
+// The reference channels of a prepared sample x (before the group fills): s_k in the m{k}_ref columns
+// (profile_hover divides), the vibration excesses, the rpm shares over the record's; a channel the record
+// does not hold at its fill. vx_h and r enter as 0 when the flight lacks vel_h / rates.
+inline void reference_prep(const ProfileSpec& s, const float* raw, std::uint32_t avail, const VehicleRecord* vehicle,
+                           int rpm_rel, float* x) {
+  float* ref = x + s.ref;
+  const bool rec = vehicle != nullptr;
+  if (rec) {
+    const VehicleRecord& v = *vehicle;
+    const float vx = ((avail >> kGroupVelH) & 1u) != 0 ? x[5] : 0.0f;
+    const float r = ((avail >> kGroupRates) & 1u) != 0 ? x[4] : 0.0f;
+    for (int k = 0; k < 4; ++k) ref[k] = expected_share(v, k, vx, r);
+    const float* t = raw + s.thr;
+    const float c = (((t[0] + t[1]) + t[2]) + t[3]) * 0.25f;  // core.hover's collective
+    ref[4] = vibration_excess(v, vehicle::kVibFloor, t[4], c);
+    ref[5] = vibration_excess(v, vehicle::kVibApFloor, raw[s.vib_ap], c);
+    for (int k = 0; k < 4; ++k) ref[6 + k] = x[rpm_rel + k] / v.v[vehicle::kRpmShare + k];
+  }
+  for (int j = 0; j < 10; ++j) {
+    if (!rec || !reference_held(*vehicle, j)) ref[j] = s.fill[s.ref + j];
+  }
+}
+
 // x (C) <- the sample's hover-independent model values; hover columns hold the raw current / commands.
 inline void profile_prep(Profile p, const float* raw, int raw_n, float cells, float* x,
-                         std::uint32_t avail = kAllGroups) {
+                         std::uint32_t avail = kAllGroups, const VehicleRecord* vehicle = nullptr) {
   if (p == Profile::kPaper) {
     std::memcpy(x, raw, sizeof(float) * static_cast<std::size_t>(raw_n));
     return;
@@ -95,6 +127,7 @@ inline void profile_prep(Profile p, const float* raw, int raw_n, float cells, fl
   for (int k = 0; k < 4; ++k) x[j++] = raw[s.thr + k];
   x[j++] = raw[s.thr + 4];  // vib_px4
   if (s.vib_ap >= 0) x[j++] = raw[s.vib_ap];
+  const int rpm_rel = j;  // model column of rpm1_rel (the ESC profiles)
   if (s.rpm >= 0) {  // rpm1..4, then esc_cur1..4: each over the four's collective of this sample
     for (int g = 0; g < 2; ++g) {
       const float* a = raw + s.rpm + 4 * g;
@@ -106,16 +139,20 @@ inline void profile_prep(Profile p, const float* raw, int raw_n, float cells, fl
     for (int k = 0; k < 4; ++k) x[j++] = t[k] - common;
   }
   if (s.groups == 0) return;
+  if (s.ref >= 0) reference_prep(s, raw, avail, vehicle, rpm_rel, x);
   for (int c = 0; c < s.avail; ++c) {  // a lacking group's channels: their fills
     const int g = s.model_group[c];
     if (g >= 0 && ((avail >> g) & 1u) == 0) x[c] = s.fill[c];
   }
   for (int g = 0; g < s.groups; ++g) x[s.avail + g] = ((avail >> g) & 1u) != 0 ? 1.0f : 0.0f;
+  if (s.avail_ref >= 0) x[s.avail_ref] = has_reference(vehicle) ? 1.0f : 0.0f;
 }
 
 // One prepared sample (C) -> the model's values: the hover columns divided by the frozen estimate.
 // A lacking current keeps its fill (no division).
-inline void profile_hover(Profile p, float hover_cmd, float hover_cur, float* x, std::uint32_t avail = kAllGroups) {
+// The reference profile's m{k}_ref: m{k}_rel over the expected share prep left there (a record holding it).
+inline void profile_hover(Profile p, float hover_cmd, float hover_cur, float* x, std::uint32_t avail = kAllGroups,
+                          const VehicleRecord* vehicle = nullptr) {
   if (p == Profile::kPaper) return;
   const ProfileSpec& s = profile_spec(p);
   int j = 9;
@@ -123,7 +160,12 @@ inline void profile_hover(Profile p, float hover_cmd, float hover_cur, float* x,
     if (column_present(s, avail, s.i_b)) x[j] = x[j] / hover_cur;
     ++j;
   }
+  const int m_rel = j;
   for (int k = 0; k < 4; ++k, ++j) x[j] = x[j] / hover_cmd;
+  if (s.ref < 0 || vehicle == nullptr) return;
+  for (int k = 0; k < 4; ++k) {
+    if (reference_held(*vehicle, k)) x[s.ref + k] = x[m_rel + k] / x[s.ref + k];
+  }
 }
 
 }  // namespace fwref

@@ -25,6 +25,10 @@ constexpr std::uint64_t kWindowsFileBytes = 1024 * kMiB;
 // The inputs of the test programs (fwref_activations, fwref_hover, fwref_alarm, fwref_sgru).
 constexpr std::uint64_t kToolInputBytes = 1024 * kMiB;
 
+// A vehicle record file (fwref/vehicle_record.hpp): opened within this bound, then refused unless it is
+// exactly vehicle::kFileBytes (112) long.
+constexpr std::uint64_t kVehicleRecordFileBytes = kMiB;
+
 // A stream file (docs/formats.md "Stream file"), read by fwref_stream sample by sample: its header
 // (header_bytes: 128 fixed bytes and the channel names) and its channel count. The samples are not
 // bounded: a stream is as long as its flight, and fwref_stream's memory does not grow with it.

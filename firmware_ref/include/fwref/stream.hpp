@@ -46,6 +46,11 @@
 // the availability mask follows from them once per flight, a lacking group's model channels take
 // their fills and its columns are not checked for NaN. A profile without a mask needs every column.
 //
+// The vehicle record (a reference profile only, fwref/vehicle_record.hpp): set_vehicle() after init() or
+// reset(), before the flight's first sample, copies the 24 floats into the stream (96 bytes, no pointer
+// kept); reset() keeps it (the record belongs to the vehicle, not the flight), clear_vehicle() drops it.
+// Without one the reference channels take their fills and avail_reference is 0.
+//
 // Timestamps: each sample carries its time t (s); the stream runs on the grid of the record's sample
 // period dt, and a time step counts g = llround((t - t_prev) / dt) periods (fwref/period.hpp's
 // PeriodGate: the same decision for every t, no division on the one-period path). Every push costs at
@@ -83,6 +88,7 @@
 #include "fwref/period.hpp"
 #include "fwref/profile.hpp"
 #include "fwref/status.hpp"
+#include "fwref/vehicle_record.hpp"
 
 // The Cortex-M stream image sets these two through a generated header (quadfdi.runtimes.mcu_stream_src).
 #ifdef FWREF_STREAM_LIMITS_HEADER
@@ -205,6 +211,11 @@ class Stream {
   // a column, the masked profile lacking its minimum, or V_b carried without a cell count.
   Status set_carried(std::uint64_t carried);
   std::uint32_t available() const { return avail_; }  // the availability mask (bit g: group g of kGroupNames)
+  // The vehicle record the reference channels read (copied); kDimsInvalid (nothing changed) for a profile
+  // without them. avail_reference is 1 when its first share is finite (fwref/profile.hpp).
+  Status set_vehicle(const VehicleRecord& v);
+  void clear_vehicle() { has_vehicle_ = false; }
+  const VehicleRecord* vehicle() const { return has_vehicle_ ? &vehicle_ : nullptr; }  // null: none loaded
   // One sample (R raw channels, the record's order) at time t; kBadInput: a refused time (not finite, not
   // advancing by half a period, more than kMaxGapPeriods ahead), the sample dropped. At most one decision.
   Status push(const float* sample, double t, StrideSink* sink = nullptr);
@@ -232,6 +243,8 @@ class Stream {
   float cells_ = 0.0f;
   std::uint64_t carried_ = kAllCarried;  // the raw columns the flight's stream carries
   std::uint32_t avail_ = kAllGroups;     // the availability mask they give (fwref/profile.hpp)
+  VehicleRecord vehicle_{};              // the reference profile's vehicle record (has_vehicle_)
+  bool has_vehicle_ = false;
   StreamModel m_{};
   float ring_[kMaxWindow * kMaxChannels] = {};  // prepared samples, slot = index % W
   bool ok_[kMaxWindow] = {};                    // the sample is usable
