@@ -122,7 +122,9 @@ def test_windows(run: RunDir, export: Export):
     for kind in ("cnode", "gru"):
         if not run.checkpoint(kind).is_file():
             raise QuadfdiError(f"{run.checkpoint(kind)} is missing: run `quadfdi train --run {run.root}` first")
-    test = make_windows(load_dataset(run.dataset), "test")
+    from quadfdi.train.vehicle_ref import profiled
+
+    test = make_windows(profiled(load_dataset(run.dataset), export.profile()), "test")  # the export's inputs
     if len(test) == 0:
         raise QuadfdiError(f"{run.dataset} has no test windows to time")
     want = (export.window, len(export.channel_names))

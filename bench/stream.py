@@ -55,6 +55,7 @@ def stream_section(run_root: Path, export: Export, fwref_infer: str | None, cpus
     from quadfdi.bench.limits import cpu_prefix
     from quadfdi.bench.stream_latency import latency_records
     from quadfdi.bench.stream_memory import stream_memory
+    from quadfdi.parity.stream import vehicle_records
     from quadfdi.formats.stream import from_dataset, write_stream
     from quadfdi.formats import dataset as sim_dataset
 
@@ -71,12 +72,13 @@ def stream_section(run_root: Path, export: Export, fwref_infer: str | None, cpus
     dataset_path = run_root / "dataset.npz"
     ds = sim_dataset.load_dataset(dataset_path)  # one load for every flight
     rows = flights_by_class(ds, flights)
+    vehicles = vehicle_records(ds, record["profile"], rows)  # a reference profile's: each flight's vehicle record
     with tempfile.TemporaryDirectory(prefix="quadfdi-stream-bench-") as d:
         tmp = Path(d)
         paths = []
         for f in rows:
             paths.append(tmp / f"f{f}.bin")
-            write_stream(paths[-1], from_dataset(dataset_path, f, record, ds))
+            write_stream(paths[-1], from_dataset(dataset_path, f, record, ds, vehicles[f]))
         try:
             latency = latency_records(exe, export.weights_path, paths, tmp, cpu_prefix(cpus))
             memory = stream_memory(record, export, exe, cores)

@@ -47,7 +47,11 @@ def _test_windows(run: RunDir, cfg: Config, model_blob: dict | None = None):
     if not run.dataset.is_file():
         raise QuadfdiError(f"{run.dataset} is missing: run `quadfdi sim --out {run.root}` first")
     ds = load_dataset(run.dataset)
-    if model_blob is not None:
+    if model_blob is not None:  # the model's channel profile (paper: the dataset itself), as export's test windows
+        from quadfdi.models.inputs import profile_of
+        from quadfdi.train.vehicle_ref import profiled
+
+        ds = profiled(ds, profile_of(model_blob))
         check_dataset_matches(model_blob, ds.channel_names, str(run.dataset))
     test = make_windows(ds, "test")
     if len(test) == 0:

@@ -194,3 +194,18 @@ def test_detect_cli_reads_a_crazyflie_reference_on_a_held_out_flight(reference_e
     assert res.returncode in (0, 1), res.stderr
     record = json.loads((out / "alarms.json").read_text())
     assert record["model_reference"] == "reads the vehicle record" and record["vehicle_reference"] is not None
+
+
+def test_solver_study_and_bench_time_the_models_own_inputs(reference_export):
+    from quadfdi.bench.run import test_windows
+    from quadfdi.core.rundir import RunDir
+    from quadfdi.formats.export_folder import Export
+    from quadfdi.models.checkpoint import load_checkpoint
+    from quadfdi.solverstudy.run import _test_windows
+
+    run = RunDir(reference_export.parent)
+    cfg = load_config(run.root / "config.toml")
+    _, blob = load_checkpoint(run.checkpoint("cnode"), "cnode")
+    _, test = _test_windows(run, cfg, blob)
+    assert test.x.shape[2] == len(NAMES) and (test.x[..., -1] == 1).all()  # each flight with its vehicle's record
+    assert test_windows(run, Export.open(reference_export)).x.shape[2] == len(NAMES)
