@@ -9,10 +9,12 @@ Writes into ``<run>/export/``:
   stepped one sample at a time from z = 0 carrying its own state: ``telemetry`` (T, C), ``logits``,
   ``z`` (fp32), ``logits_int8``, ``z_int8``, ``traj``;
 - ``scnode_fw.bin`` / ``scnode_fw_i8.bin``: weights and flight for ``fwref_scnode`` (``fw_bytes``: the
-  versioned layout of docs/formats.md "scnode_fw.bin");
+  versioned layout of docs/formats.md "scnode_fw.bin"); ``scnode_weights.bin`` / ``scnode_weights_i8.bin`` the
+  same without a flight (T = 0): what ``fwref_stream --model scnode --step-weights`` runs beside weights.bin;
 - ``scnode_export.json``: ONNX Runtime fp32 against PyTorch's whole-flight stream (``export.verify.parity``
   on the logits of every step, the state's max abs difference), int8 against fp32 on the replay
-  (argmax agreement, macro F1 of both over every sample's label), and the calibration.
+  (argmax agreement, macro F1 of both over every sample's label), the calibration, and ``onboard``: whether
+  weights.bin's on-board record (``quadfdi export``) feeds the streaming CNODE's channels, else why not.
 """
 
 from __future__ import annotations
@@ -78,6 +80,24 @@ def torch_replay(model, tel: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return model.head(zs)[0].numpy(), zs[0].numpy()
 
 
+def onboard_note(out: Path, channels: list[str]) -> dict:
+    """Whether ``out``/weights.bin's on-board record feeds ``channels`` (fwref_stream --model scnode needs it)."""
+    from quadfdi.formats.onboard import onboard_dict
+    from quadfdi.formats.weights_bin import read_weights
+
+    path = out / "weights.bin"
+    if not path.is_file():
+        return {"record": False, "why_not": f"{path.name} is missing: run `quadfdi export` for the on-board record"}
+    rec = read_weights(path).onboard
+    if rec is None:
+        return {"record": False, "why_not": f"{path.name} has no on-board record (re-run `quadfdi export`)"}
+    got = list(onboard_dict(rec)["channels"])
+    if got != list(channels):
+        return {"record": False, "why_not": f"{path.name}'s record feeds {len(got)} channels {got[:3]}..., the "
+                                            f"streaming CNODE reads {len(channels)} {list(channels)[:3]}..."}
+    return {"record": True}
+
+
 def _int8_check(i8: np.ndarray, fp: np.ndarray, y: np.ndarray, n_calib: int) -> dict:
     labels = list(range(fp.shape[1]))
     f1 = {k: float(f1_score(y, v.argmax(1), labels=labels, average="macro", zero_division=0)) for k, v in
@@ -114,19 +134,22 @@ def export_scnode_run(root: str | Path, seed: int = 0, opset: int = 18) -> list[
              "flight_row": row, "steps": len(tel)}
     out = ensure_dir(root / "export")
     paths = [out / n for n in ("scnode_step.onnx", "scnode_step.int8.onnx", "scnode_replay.npz", "scnode_fw.bin",
-                               "scnode_fw_i8.bin", "scnode_export.json")]
+                               "scnode_fw_i8.bin", "scnode_weights.bin", "scnode_weights_i8.bin", "scnode_export.json")]
     write_bytes(paths[0], data)
     write_bytes(paths[1], data8)
     write_npz(paths[2], {"telemetry": tel, "logits": ort_logits, "z": ort_z, "logits_int8": i8_logits, "z_int8": i8_z,
                          "traj": np.asarray(row, np.int64)})
     write_bytes(paths[3], fw_bytes(params, None, tel))
     write_bytes(paths[4], fw_bytes(params, quant, tel))
-    write_json(paths[5], {"onnx": paths[0].name, "int8_onnx": paths[1].name, "ir_version": IR_VERSION, "opset": opset,
+    write_bytes(paths[5], fw_bytes(params, None, tel[:0]))
+    write_bytes(paths[6], fw_bytes(params, quant, tel[:0]))
+    write_json(paths[7], {"onnx": paths[0].name, "int8_onnx": paths[1].name, "ir_version": IR_VERSION, "opset": opset,
                           "train_seed": seed, "profile": profile_of(blob), "inputs": list(INPUTS), "outputs": list(OUTPUTS),
                           "latent": params.latent, "hidden": params.hidden, "dt": params.dt,
                           "fp32_vs_torch": check, "int8_vs_fp32": _int8_check(i8_logits, ort_logits, step_labels(
                               ds, np.array([row]))[0], len(calib)),
-                          "calibration": {"x_norm_max": ranges["x_norm"].tolist(), "z_max": float(ranges["z"])}})
+                          "calibration": {"x_norm_max": ranges["x_norm"].tolist(), "z_max": float(ranges["z"])},
+                          "onboard": onboard_note(out, list(ds.channel_names))})
     if not check["passed"]:
         raise QuadfdiError(f"scnode_step.onnx differs from PyTorch on flight {row}: max |logit diff| "
                            f"{check['max_abs_logit_diff']:.3g} > {check['bound']:.3g}")

@@ -39,6 +39,7 @@ int main(int argc, char** argv) try {
   if (bound == fwref::Status::kBadVersion) return fail("version is not 1: re-run `quadfdi export scnode`");
   if (bound == fwref::Status::kBadSize) return fail("the file size disagrees with its dimensions");
   if (bound != fwref::Status::kOk) return fail((std::string("bad file: ") + fwref::status_name(bound)).c_str());
+  if (file.samples == 0) return fail("the file holds weights only (scnode_weights.bin), no flight to replay");
   const bool i8 = file.int8;
   const long T = file.samples;
   const long C = i8 ? file.i8.dims.channels : file.f32.dims.channels;

@@ -4,7 +4,7 @@
 // nothing allocated; every size is checked against the header before anything is read.
 //
 //   bytes 0-7   "QSCNODE\0"
-//   int32 x 8   version (1), precision (1 fp32, 2 int8), C, L, H, K, T, leak (0 or 1)
+//   int32 x 8   version (1), precision (1 fp32, 2 int8), C, L, H, K, T (0: weights only), leak (0 or 1)
 //   fp32: float32 mean (C), std (C), rk4 (4), lin1_z (H, L), lin1_u (H, C), lin1_b (H), lin2_w (L, H),
 //         lin2_b (L), decay (L, with the leak), head_w (K, L), head_b (K), telemetry (T, C)
 //   int8: float32 mean, std, rk4, s_x (C), s_z (1), s_hidden (1), lin1_u scale (H), lin1_b (H),
@@ -24,7 +24,7 @@ struct ScnodeFile {
   bool int8 = false;
   ScnodeF32 f32{};
   ScnodeI8 i8{};
-  const float* telemetry = nullptr;  // (T, C) raw samples
+  const float* telemetry = nullptr;  // (T, C) raw samples; nullptr in a weights-only file (T = 0)
   long samples = 0;                  // T
 };
 
@@ -43,7 +43,7 @@ inline Status bind_scnode_file(const unsigned char* data, std::size_t n, ScnodeF
     return Status::kBadHeader;
   }
   const long C = h[2], L = h[3], H = h[4], K = h[5], T = h[6];
-  if (C <= 0 || L <= 0 || H <= 0 || K <= 0 || T <= 0) return Status::kDimsInvalid;
+  if (C <= 0 || L <= 0 || H <= 0 || K <= 0 || T < 0) return Status::kDimsInvalid;
   if (C > kMaxChannels || L > kMaxLatent || H > kMaxCnodeHidden || K > kMaxClasses || T > (1L << 24)) {
     return Status::kDimsTooLarge;
   }
@@ -77,7 +77,7 @@ inline Status bind_scnode_file(const unsigned char* data, std::size_t n, ScnodeF
     q.decay = d ? take(L) : nullptr;
     const float* s_h = take(K);
     q.head_b = take(K);
-    out->telemetry = take(T * C);
+    out->telemetry = T ? take(T * C) : nullptr;
     q.lin1_u = {takeq(H * C), s_u, int(H), int(C)};
     q.lin1_z = {takeq(H * L), s_1, int(H), int(L)};
     q.lin2_w = {takeq(L * H), s_2, int(L), int(H)};
@@ -97,7 +97,7 @@ inline Status bind_scnode_file(const unsigned char* data, std::size_t n, ScnodeF
   m.decay = d ? take(L) : nullptr;
   m.head_w = {take(K * L), int(K), int(L)};
   m.head_b = take(K);
-  out->telemetry = take(T * C);
+  out->telemetry = T ? take(T * C) : nullptr;
   return check(m);
 }
 
