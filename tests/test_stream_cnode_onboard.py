@@ -13,7 +13,6 @@ import numpy as np
 import pytest
 
 from quadfdi.core.contracts import FP32_CPP_REL_TOL, SPLIT_TEST
-from tests.conftest import copy_run
 from tests.test_firmware_fixtures import host_build  # noqa: F401 (fixture)
 from tests.test_stream_cnode import _cli
 
@@ -23,9 +22,10 @@ TINY = ["--epochs", "2", "--latent", "6", "--hidden", "8", "--segment", "120", "
 
 @pytest.fixture(scope="module")
 def scnode_onboard(fault_exported, tmp_path_factory) -> Path:
-    """A copy of the session's exported paper run with a tiny streaming CNODE trained and exported."""
-    run = copy_run(fault_exported, tmp_path_factory.mktemp("scnode_onboard") / "run")
-    shutil.copytree(fault_exported / "export", run / "export")
+    """A copy of the session's exported paper run (its published stages: parity reads them) with a tiny streaming
+    CNODE trained and exported."""
+    run = tmp_path_factory.mktemp("scnode_onboard") / "run"
+    shutil.copytree(fault_exported, run, ignore=shutil.ignore_patterns(".lock"))
     assert _cli("train", "scnode", "--run", str(run), *TINY) == 0
     assert _cli("export", "scnode", "--run", str(run)) == 0
     return run
@@ -126,3 +126,23 @@ def test_stream_scnode_refuses_a_missing_or_wrong_step_file(scnode_onboard, flig
                        (["--step-weights", str(export / "weights.bin")], "not a usable streaming CNODE file")):
         res = subprocess.run(base + extra, capture_output=True, text=True, timeout=60, check=False)
         assert res.returncode == 2 and why in res.stderr and res.stderr.count("\n") == 1, res.stderr
+
+
+def test_cortex_m_stream_image_runs_the_scnode_as_the_host(scnode_onboard):
+    """quadfdi parity --mcu: the stream image carries the streaming CNODE beside the other models; every stride on
+    both cores as the host's fwref_stream --model scnode (int8 logits bit-identical), M4 cycles per push traced."""
+    from quadfdi.core.jsonio import read_json
+    from quadfdi.runtimes.mcu import tools_missing
+
+    missing = tools_missing()
+    if missing:
+        pytest.skip(missing)
+    assert _cli("parity", "--run", str(scnode_onboard), "--mcu") == 0
+    r = read_json(scnode_onboard / "parity" / "mcu_stream.json")
+    assert r["passed"], r["problems"]
+    for cpu, core in r["cores"].items():
+        for prec in ("fp32", "int8"):
+            assert core["host_check"][f"scnode_{prec}"]["strides"] > 0, (cpu, prec)
+            m = core["models"][f"scnode_{prec}"]
+            assert m["decisions"] > 0 and m["duty"] < 0.01
+            assert ("cycles" in m) == (cpu == "cortex-m4")
