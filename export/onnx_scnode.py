@@ -113,7 +113,7 @@ def calibrate(model: torch.nn.Module, telemetry: np.ndarray) -> dict[str, np.nda
     def f(t: float, zz: torch.Tensor) -> torch.Tensor:
         nonlocal amax
         amax = torch.maximum(amax, zz.abs().max())
-        return model._f(zz, at[t])
+        return model.vector_field(zz, at[t])
 
     v_prev = v[:, 0]
     for t in range(x.shape[1]):

@@ -88,7 +88,8 @@ class StreamCNODE(nn.Module):
         """(L,) softplus(decay_raw), None without the leak."""
         return nn.functional.softplus(self.decay_raw) if self.leak else None
 
-    def _f(self, z: torch.Tensor, v: torch.Tensor) -> torch.Tensor:
+    def vector_field(self, z: torch.Tensor, v: torch.Tensor) -> torch.Tensor:
+        """f(z, v) (B, L): the field at state z (B, L) with the control's u-part v (B, H)."""
         w1 = self.field.lin1.weight
         k = self.field.lin2(torch.tanh(z @ w1[:, :self.latent].T + v))
         return k if not self.leak else k - z * self.decay()
@@ -97,7 +98,7 @@ class StreamCNODE(nn.Module):
         """One step: z (B, L), the controls' ends (B, H) each -> z' (B, L)."""
         v_mid = (v_prev + v_new) * 0.5
         at = {0.0: v_prev, 0.5 * self.dt: v_mid, self.dt: v_new}
-        return rk4_step(lambda t, zz: self._f(zz, at[t]), 0.0, z, self.dt)
+        return rk4_step(lambda t, zz: self.vector_field(zz, at[t]), 0.0, z, self.dt)
 
     def features(self, x_raw: torch.Tensor, z0: torch.Tensor | None = None,
                  x_prev: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor]:

@@ -33,11 +33,14 @@ from quadfdi.core.contracts import SPLIT_TRAIN, SPLIT_VALIDATION
 from quadfdi.formats.dataset import Dataset, class_names
 from quadfdi.models.stream_cnode import StreamCNODE
 from quadfdi.train.config import StreamCnodeConfig
-from quadfdi.train.data import fit_normalisation
+from quadfdi.models.motor import rotor_side
+from quadfdi.train.data import class_weights, fit_normalisation
 from quadfdi.train.stream_gru_ema import WeightAverage
-from quadfdi.train.stream_gru_fit import StreamHistory, _class_weights, _motor_aux, step_labels, window_end_index
-from quadfdi.train.stream_gru_onset import step_weighted_cross_entropy, step_weights
-from quadfdi.train.stream_gru_segments import draw_segments, first_fault, loss_mask, segment_columns
+from quadfdi.train.stream_gru_fit import StreamHistory, step_labels, window_end_index
+from quadfdi.train.stream_gru_motor import MotorAux, step_motor_targets
+from quadfdi.train.stream_gru_onset import step_weighted_cross_entropy, step_weights, weighted_class_weights
+from quadfdi.train.stream_gru_segments import (draw_segments, first_fault, loss_mask, sampled_class_weights,
+                                               segment_columns)
 
 NOISE_SCALE = 2.0
 MASK_KEY = 0x5C0D
@@ -90,6 +93,16 @@ def _batch_loss(model: StreamCNODE, opt, x: torch.Tensor, y: torch.Tensor, mask:
     return total
 
 
+def _class_weights(lab: np.ndarray, sw: np.ndarray | None, cfg: StreamCnodeConfig, n_classes: int) -> np.ndarray:
+    """Eq. (12)'s class weights as the streaming GRU's: every training step, the onset emphasis's weighted
+    steps, or (``class_mix = "sampled"``) the steps the segment sampler draws."""
+    if sw is not None:
+        return weighted_class_weights(lab, sw, n_classes)
+    if cfg.class_mix == "sampled":
+        return sampled_class_weights(lab, cfg, n_classes)
+    return class_weights(lab.ravel(), n_classes)
+
+
 def _masker(profile: str, ds: Dataset):
     from quadfdi.core.profiles import is_masked
     from quadfdi.train.masks import Masker
@@ -132,9 +145,10 @@ def fit_stream_cnode(ds: Dataset, val_ds: Dataset, cfg: StreamCnodeConfig, profi
     w = torch.as_tensor(_class_weights(lab, sw, cfg, n_classes))
     onset, ends, n_t = first_fault(lab), window_end_index(ds), tel.shape[1]
     seg = min(cfg.segment, n_t)
-    aux = _motor_aux(ds, cfg, lab, train_rows)  # MotorAux(cfg.hidden, ...): re-made below at the state's width
-    if aux is not None:
-        aux = type(aux)(cfg.latent, aux.weight, aux.targets)
+    names = class_names(ds.arrays)
+    aux = None  # the training-only motor head on z (train/stream_gru_motor.py), when there is a rotor-side class
+    if cfg.motor_aux > 0 and rotor_side(names).any():
+        aux = MotorAux(cfg.latent, cfg.motor_aux, step_motor_targets(lab, train_rows, ds["fault_motor"], names))
     params = list(model.parameters()) + ([] if aux is None else list(aux.parameters()))
     opt = torch.optim.AdamW(params, lr=cfg.lr, weight_decay=cfg.weight_decay)
     n_opt = cfg.epochs * (-(-len(train_rows) // cfg.batch)) * (-(-seg // cfg.tbptt))
