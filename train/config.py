@@ -145,8 +145,8 @@ class StreamCnodeConfig(StreamFitConfig):
     latent: int = 24  # L: 4 x 2LH + HC + LK = 10,536 MACs per sample at H = 48, C = 25, K = 5 (models/stream_cnode.py)
     hidden: int = 48  # H: the field's hidden width; L and H sized for 1 % of the M4's 40 ms period (docs/training.md)
     dt: float = 0.0625  # integration time per sample (models.stream_cnode.DT)
-    leak: bool = True  # a learned decay per latent dimension in the field (models/stream_cnode.py); off: 6 points lower
-    epochs: int = 120  # as [sgru]: 120 above 40 on validation, paper and masked profiles (docs/training.md)
+    leak: bool = True  # a learned decay per latent dimension in the field (models/stream_cnode.py): z bounded for int8
+    epochs: int = 120  # as [sgru]; above 40 on validation (docs/training.md)
 
     def validate(self) -> None:
         super().validate()
