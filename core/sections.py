@@ -30,7 +30,7 @@ from quadfdi.core.errors import QuadfdiError
 
 GROUP = "quadfdi.config_sections"
 # The sections in config-file order: the stages' order, then [alarm], [evaluate] and [run] (quadfdi run).
-FILE_ORDER = ("sim", "train", "sgru", "export", "solvers", "bench", "alarm", "evaluate", "run")
+FILE_ORDER = ("sim", "train", "sgru", "scnode", "export", "solvers", "bench", "alarm", "evaluate", "run")
 
 
 @functools.cache

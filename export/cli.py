@@ -23,12 +23,13 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help="each network's alarm policy: the config's [alarm] / [alarm.<net>] (default) or the one "
                         "`quadfdi evaluate` chose on validation (RUN/evaluation/evaluation.json)")
     p.set_defaults(func=run_export)
-    acts = p.add_subparsers(dest="action", metavar="{sgru}")
-    ps = acts.add_parser("sgru", help="the streaming GRU: one-step ONNX graph, checked on a replayed flight")
-    ps.add_argument("--run", required=True, help="run folder holding dataset.npz and sgru_train<seed>.pt")
-    ps.add_argument("--seed", type=int, default=0, help="training seed of the checkpoint (default 0)")
-    add_config_args(ps, config=False)
-    ps.set_defaults(func=run_export_sgru)
+    acts = p.add_subparsers(dest="action", metavar="{sgru,scnode}")
+    for name, what, func in (("sgru", "the streaming GRU", run_export_sgru), ("scnode", "the streaming CNODE", run_export_scnode)):
+        ps = acts.add_parser(name, help=f"{what}: one-step ONNX graphs fp32 and int8, checked on a replayed flight")
+        ps.add_argument("--run", required=True, help=f"run folder holding dataset.npz and {name}_train<seed>.pt")
+        ps.add_argument("--seed", type=int, default=0, help="training seed of the checkpoint (default 0)")
+        add_config_args(ps, config=False)
+        ps.set_defaults(func=func)
 
 
 def run_export_sgru(args: argparse.Namespace) -> int:
@@ -36,6 +37,15 @@ def run_export_sgru(args: argparse.Namespace) -> int:
 
     run, cfg = open_run(args.run, args.overrides, need=("dataset",))
     for path in export_sgru_run(run.root, args.seed, cfg.export.opset):
+        print(f"wrote {path}")
+    return 0
+
+
+def run_export_scnode(args: argparse.Namespace) -> int:
+    from quadfdi.export.scnode_run import export_scnode_run
+
+    run, cfg = open_run(args.run, args.overrides, need=("dataset",))
+    for path in export_scnode_run(run.root, args.seed, cfg.export.opset):
         print(f"wrote {path}")
     return 0
 

@@ -29,6 +29,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     which.add_argument("--mcu", action="store_true",
                        help="only the Cortex-M part: cross-build, QEMU runs, mcu.json and mcu_stream.json "
                             "(updates parity.json/md)")
+    which.add_argument("--scnode", action="store_true",
+                       help="only the streaming CNODE (`quadfdi export scnode`) on the Cortex-M4 under QEMU: every "
+                            "sample of its replay flight against ONNX Runtime, estimated M4 cycles per step, the 1 %% "
+                            "duty-cycle target; writes parity/scnode_mcu.json and scnode_mcu.md")
     p.set_defaults(func=run_parity)
 
 
@@ -36,6 +40,8 @@ def run_parity(args: argparse.Namespace) -> int:
     from quadfdi.parity.run import parity_run
 
     run, cfg = open_run(args.run, args.overrides, need=("export",))
+    if args.scnode:
+        return _run_scnode(run.root, cfg.sim.sample_dt_s)
     command = "quadfdi " + " ".join(shlex.quote(a) for a in sys.argv[1:]) if sys.argv[1:] else None
     report = parity_run(run, cfg, mcu=not args.no_mcu, host=not args.mcu, command=command)
     if "models" in report:
@@ -47,3 +53,16 @@ def run_parity(args: argparse.Namespace) -> int:
                   f"{100 * f['argmax_agreement']:.2f} %; C++ int8 vs ORT {i8}, argmax {100 * q['argmax_agreement']:.2f} %")
     print(f"parity: passed; report {run.root / 'parity' / 'parity.md'}")
     return 0
+
+
+def _run_scnode(root, period_s: float) -> int:
+    from quadfdi.parity.scnode import scnode_parity
+
+    r = scnode_parity(root, period_s)
+    for prec in ("fp32", "int8"):
+        p, c = r["parity"][prec], r["cost"][prec]
+        print(f"parity: scnode {prec}: {p['bit_identical_samples']}/{p['samples']} samples bit-identical to ONNX "
+              f"Runtime, max |diff| {p['max_abs_diff']:.3g}; M4 step {c['cycles_max']:,} cycles (est.), duty "
+              f"{100 * c['duty']:.3f} % ({'meets' if c['meets_target'] else 'misses'} 1 %)")
+    print(f"parity: {'passed' if r['passed'] else 'FAILED'}; report {root / 'parity' / 'scnode_mcu.md'}")
+    return 0 if r["passed"] else 2

@@ -7,7 +7,7 @@ from pathlib import Path
 
 from quadfdi.core.reportmd import demote, not_run, optional_json
 
-STREAM_TITLES = {"cnode": "CNODE", "gru": "GRU", "sgru": "streaming GRU"}
+STREAM_TITLES = {"cnode": "CNODE", "gru": "GRU", "sgru": "streaming GRU", "scnode": "streaming CNODE"}
 PAIR_TITLES = {
     "cpp_fp32_vs_ort_fp32": "C++ fp32 vs ONNX Runtime fp32",
     "cpp_fp32_vs_torch": "C++ fp32 vs PyTorch",

@@ -65,10 +65,11 @@ def _host_build() -> Path:
     return _HOST_BUILDS[home]
 
 
-def fwref_stream(exe: Path, weights: Path, model: str, int8: bool, stream: Path) -> str:
-    """``exe`` (fwref_stream) replaying the stream file ``stream`` through ``model`` (cnode, gru, or
-    sgru with an sgru_weights.bin): its output, one line per stride (``stream_lines`` reads it)."""
+def fwref_stream(exe: Path, weights: Path, model: str, int8: bool, stream: Path, step_weights: Path | None = None) -> str:
+    """``exe`` (fwref_stream) replaying the stream file ``stream`` through ``model`` (cnode, gru, sgru with an
+    sgru_weights.bin, or scnode with its ``step_weights``): its output, one line per stride (``stream_lines``)."""
     cmd = [str(exe), "--weights", str(weights), "--model", model, "--in", str(stream)] + (["--int8"] if int8 else [])
+    cmd += ["--step-weights", str(step_weights)] if step_weights is not None else []
     res = subprocess.run(cmd, capture_output=True, text=True, timeout=CPP_TIMEOUT_S)
     if res.returncode != 0:
         msg = (res.stderr.strip().splitlines() or [f"exit code {res.returncode}"])[-1]

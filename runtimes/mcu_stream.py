@@ -36,7 +36,7 @@ from quadfdi.runtimes.mcu_trace import Trace
 
 STREAM_ELF = "fwref_mcu_stream.elf"
 TRACE_FLAGS = "in_asm,exec,nochain"
-MODELS = ("cnode", "gru", "sgru")  # the image's replay order
+MODELS = ("cnode", "gru", "sgru", "scnode")  # the image's replay order
 TICKS, PUTS = "board::ticks()", "board::puts(char const*)"
 
 
@@ -209,8 +209,9 @@ def check_against_host(run: StreamRun, export: Path, streams: list[Path], host_e
         weights = export / ("sgru_weights.bin" if net == "sgru" else "weights.bin")
         for prec in ("fp32", "int8"):
             flips = strides = heads = 0
+            step = export / f"scnode_weights{'_i8' if prec == 'int8' else ''}.bin" if net == "scnode" else None
             for f, path in enumerate(streams):
-                host = stream_lines(fwref_stream(host_exe, weights, net, prec == "int8", path), run.classes)
+                host = stream_lines(fwref_stream(host_exe, weights, net, prec == "int8", path, step), run.classes)
                 mcu = run.strides.get((net, prec, f), [])
                 where = f"{run.cpu} {net} {prec} flight {f}"
                 strides, heads = strides + len(mcu), heads + sum(m[7] >= 0 for m in mcu)

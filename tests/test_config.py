@@ -31,7 +31,7 @@ def test_override_types():
 
 @pytest.mark.parametrize("override, message", [
     ("sim.n_trajs=3", "unknown key sim.n_trajs; valid keys of [sim]: seed, vehicle, n_traj"),
-    ("simulator.n_traj=3", "unknown section 'simulator'; valid sections: sim, train, sgru, export"),
+    ("simulator.n_traj=3", "unknown section 'simulator'; valid sections: sim, train, sgru, scnode, export"),
     ("sim.duration_s=-1", "sim.duration_s must be positive, found -1.0"),
     ("sim.fault_ratio=1.5", "sim.fault_ratio must be in [0, 1], found 1.5"),
     ("sim.n_traj=ten", "sim.n_traj must be an integer, found 'ten'"),

@@ -23,7 +23,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--seed", type=int, default=None, help="training seed (default: train.seed)")
     add_config_args(p, config=False)
     p.set_defaults(func=run_train)
-    acts = p.add_subparsers(dest="action", metavar="{study,apply,baselines,sgru}")
+    acts = p.add_subparsers(dest="action", metavar="{study,apply,baselines,sgru,scnode}")
     # the two seed sweeps: (name, help, --run, --seeds, --sim-seeds (required?, help), handler)
     for name, what, run_help, seeds_help, (sim_required, sim_help), func in (
             ("study", "train with several seeds: seeds.json and results.md (Tables 3-4)",
@@ -57,9 +57,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                     help="seeded subsample of the training windows; 0 = all (default: train.baselines.MAX_TRAIN_WINDOWS)")
     add_config_args(pb, config=False)
     pb.set_defaults(func=run_baselines_cmd)
+    from quadfdi.train.stream_cnode_cli import add_scnode_parser
     from quadfdi.train.stream_gru_cli import add_sgru_parser
 
     add_sgru_parser(acts)
+    add_scnode_parser(acts)
 
 
 def run_train(args: argparse.Namespace) -> int:

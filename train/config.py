@@ -2,7 +2,9 @@
 
 - [train]: the windowed CNODE and GRU (paper Table 2 and Sections II-D to II-F; docs/training.md).
 - [sgru]: the streaming GRU of ``quadfdi train sgru`` (train/stream_gru_fit.py says what each setting does;
-  docs/training.md "Streaming GRU"). The command's flags (``--hidden 40``) override the run's [sgru]
+  docs/training.md "Streaming GRU").
+- [scnode]: the streaming CNODE of ``quadfdi train scnode`` (train/stream_cnode_fit.py): the [sgru] keys
+  (segments, truncated backpropagation, start states, ...) with its own widths and defaults. The command's flags (``--hidden 40``) override the run's [sgru]
   as ``--set sgru.hidden=40`` does; the settings used are recorded in the checkpoint and in
   predictions/sgru_sim<S>_train<T>.json.
 """
@@ -10,6 +12,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import ClassVar
 
 from quadfdi.core.errors import QuadfdiError
 from quadfdi.core.limits import (FIRMWARE_MAX_STEPS, MAX_BATCH, MAX_CNODE_HIDDEN, MAX_EPOCHS, MAX_GRU_HIDDEN,
@@ -87,6 +90,8 @@ class TrainConfig:
 class StreamFitConfig:
     """The [sgru] section: how the streaming GRU is trained (train/stream_gru_fit.py)."""
 
+    SECTION: ClassVar[str] = "sgru"  # the section's name in this class's messages
+
     hidden: int = 60  # 3H(C+H)+HK = 15 600 MACs per sample at C = 25, K = 5: under 1/6 of the windowed GRU per second
     epochs: int = 120  # with 250-sample segments: the optimiser steps of 30 epochs of 1,000 (docs/training.md)
     batch: int = 32  # flights per batch
@@ -120,12 +125,33 @@ class StreamFitConfig:
         at_most(self, MAX_EPOCHS, "epochs")
         for name in ("zero_start", "noise_start", "onset_segments"):
             if not 0.0 <= getattr(self, name) <= 1.0:
-                raise QuadfdiError(f"sgru.{name} is a probability in [0, 1], found {getattr(self, name)}")
+                raise QuadfdiError(f"{self.SECTION}.{name} is a probability in [0, 1], found {getattr(self, name)}")
         for name in ("head_dropout", "ema_decay"):
             if not 0.0 <= getattr(self, name) < 1.0:
-                raise QuadfdiError(f"sgru.{name} must lie in [0, 1), found {getattr(self, name)}")
+                raise QuadfdiError(f"{self.SECTION}.{name} must lie in [0, 1), found {getattr(self, name)}")
         choice(self, "class_mix", ("steps", "sampled"))
         choice(self, "start_span", ("fit", "any"))
         if self.class_mix == "sampled" and self.onset_weight != 1.0:
-            raise QuadfdiError("sgru.class_mix = 'sampled' and sgru.onset_weight != 1 each set the class weights: "
-                               "choose one")
+            raise QuadfdiError(f"{self.SECTION}.class_mix = 'sampled' and {self.SECTION}.onset_weight != 1 each set "
+                               "the class weights: choose one")
+
+
+@dataclass(frozen=True)
+class StreamCnodeConfig(StreamFitConfig):
+    """The [scnode] section: how the streaming CNODE is trained (train/stream_cnode_fit.py); every [sgru]
+    key means the same here, ``hidden`` is the vector field's width and ``latent`` the state's."""
+
+    SECTION: ClassVar[str] = "scnode"
+    latent: int = 24  # L: 4 x 2LH + HC + LK = 10,536 MACs per sample at H = 48, C = 25, K = 5 (models/stream_cnode.py)
+    hidden: int = 48  # H: the field's hidden width; L and H sized for 1 % of the M4's 40 ms period (docs/training.md)
+    dt: float = 0.0625  # integration time per sample (models.stream_cnode.DT)
+    leak: bool = True  # a learned decay per latent dimension in the field (models/stream_cnode.py): z bounded for int8
+    epochs: int = 120  # as [sgru]; above 40 on validation (docs/training.md)
+
+    def validate(self) -> None:
+        super().validate()
+        positive(self, "latent", "dt")
+        at_most(self, MAX_LATENT, "latent")
+        at_most(self, MAX_CNODE_HIDDEN, "hidden")
+        if self.dt > 1.0:
+            raise QuadfdiError(f"scnode.dt must lie in (0, 1], found {self.dt}")

@@ -1,7 +1,8 @@
 // mcu/stream_main.cpp -- scope: the streaming runtime (fwref/stream.hpp) on the Cortex-M under
 // QEMU: the four compiled-in models (fwref_weights_*.cpp), with their motor heads when the export has
 // them (infer_motor), and the streaming GRU when the export has it (fwref_stream_data.cpp,
-// quadfdi.runtimes.mcu_stream_src: one step per sample), each replay the compiled-in flights sample by sample
+// quadfdi.runtimes.mcu_stream_src: one step per sample) and the streaming CNODE when it has that (its weights files
+// bound in place, fwref/scnode_file.hpp), each replay the compiled-in flights sample by sample
 // with reset() between flights, counting instructions per push (SysTick under -icount). Output over
 // semihosting, parsed by quadfdi.runtimes.mcu_stream (quadfdi parity), which holds the strides against the host's fwref_stream:
 //   STREAM cpu=<cpu> flights=<n> instructions_per_tick=<r>
@@ -18,6 +19,8 @@
 #include <cstring>
 
 #include "board.hpp"
+#include "fwref/cnode_step.hpp"
+#include "fwref/scnode_file.hpp"
 #include "fwref_stream_data.hpp"
 #include "fwref_weights.hpp"
 
@@ -48,6 +51,7 @@ fwref::Stream g_stream;
 fwref::CnodeWorkspace g_cnode_ws;
 fwref::GruWorkspace g_gru_ws;
 fwref::GruStepState g_step;
+fwref::ScnodeStepState g_scnode_step;
 double g_ratio = 0.0;
 
 // Every flight through the stream with model ``sm``: init() for the first flight, reset() between
@@ -56,7 +60,10 @@ double g_ratio = 0.0;
 bool replay(const fwref::StreamModel& sm, const char* model, const char* prec) {
   using namespace fwref_stream_data;
   // the model's own alarm policy (the record's alarm.models row, quadfdi.runtimes.mcu_stream_src), as fwref_stream --model
-  const fwref::StreamParams& params = model[0] == 'c' ? kParamsCnode : model[0] == 'g' ? kParamsGru : kParamsSgru;
+  const fwref::StreamParams& params = std::strcmp(model, "cnode") == 0 ? kParamsCnode
+                                      : std::strcmp(model, "gru") == 0  ? kParamsGru
+                                      : std::strcmp(model, "sgru") == 0 ? kParamsSgru
+                                                                        : kParamsScnode;
   const int R = params.raw_channels, K = params.classes;
   for (int f = 0; f < kFlightCount; ++f) {
     const Flight& fl = kFlights[f];
@@ -138,6 +145,27 @@ bool replay_step(const Model& m, const char* prec) {
   return replay(sm, "sgru", prec);
 }
 
+#if FWREF_STREAM_HAS_SCNODE
+// The streaming CNODE of one precision: its weights file bound in place from flash, one step per sample.
+bool replay_scnode(const fwref_stream_data::Blob& blob, const char* prec) {
+  static fwref::ScnodeFile f;
+  if (fwref::bind_scnode_file(blob.data, blob.size, &f) != fwref::Status::kOk) return false;
+  fwref::StreamModel sm;
+  if (f.int8) {
+    static fwref::StepRunner<fwref::ScnodeI8, fwref::ScnodeStepState> runner{&f.i8, &g_scnode_step};
+    sm.step = &fwref::StepRunner<fwref::ScnodeI8, fwref::ScnodeStepState>::step;
+    sm.reset = &fwref::StepRunner<fwref::ScnodeI8, fwref::ScnodeStepState>::reset;
+    sm.ctx = &runner;
+  } else {
+    static fwref::StepRunner<fwref::ScnodeF32, fwref::ScnodeStepState> runner{&f.f32, &g_scnode_step};
+    sm.step = &fwref::StepRunner<fwref::ScnodeF32, fwref::ScnodeStepState>::step;
+    sm.reset = &fwref::StepRunner<fwref::ScnodeF32, fwref::ScnodeStepState>::reset;
+    sm.ctx = &runner;
+  }
+  return replay(sm, "scnode", prec);
+}
+#endif
+
 bool replay_all() {
   using namespace fwref_data;
   using namespace fwref_stream_data;
@@ -155,6 +183,9 @@ bool replay_all() {
 #endif
 #if FWREF_STREAM_HAS_SGRU
   ok = ok && replay_step(kSgruF32, "fp32") && replay_step(kSgruI8, "int8");
+#endif
+#if FWREF_STREAM_HAS_SCNODE
+  ok = ok && replay_scnode(kScnodeF32, "fp32") && replay_scnode(kScnodeI8, "int8");
 #endif
   return ok;
 }

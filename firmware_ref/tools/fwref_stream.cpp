@@ -3,13 +3,17 @@
 //
 //   fwref_stream --weights <weights.bin> --model cnode|gru|sgru [--int8] --in <stream.bin | -> [--out <lines.txt>]
 //                [--manifest <manifest.json>] [--timings <seconds.f64>] [--vehicle <record.bin>]
+//   fwref_stream --weights <weights.bin> --model scnode --step-weights <scnode_weights[_i8].bin> [--int8] --in ...
 //   fwref_stream --weights <weights.bin> --info [--model cnode|gru|sgru]
 //
 // The alarm policy is the bound model's: its row of the record's alarm.models (one policy per network),
 // else the record's single policy (a record written before the table, or a model it omits).
 // --model sgru: the streaming GRU, one step per usable sample (fwref/gru_step.hpp); --weights is then
 // the export's sgru_weights.bin (formats/sgru_weights.py: the sgru sections and a copy of weights.bin's
-// on-board record). cnode / gru with a motor head (sections cnode_motor / gru_motor in weights.bin)
+// on-board record). --model scnode: the streaming CNODE, one RK4 step per usable sample (fwref/cnode_step.hpp),
+// its weights the export's scnode_weights.bin / scnode_weights_i8.bin (--int8; fwref/scnode_file.hpp, no flight),
+// the record and the alarm policy weights.bin's (the record's single policy: alarm.models has no scnode row).
+// cnode / gru with a motor head (sections cnode_motor / gru_motor in weights.bin)
 // run infer_motor: the motor columns below are then filled.
 //
 // stream.bin (docs/formats.md "Stream file", written by `quadfdi stream-file`): a header (magic,
@@ -52,7 +56,9 @@
 #include <string>
 #include <vector>
 
+#include "fwref/cnode_step.hpp"
 #include "fwref/onboard.hpp"
+#include "fwref/scnode_file.hpp"
 #include "fwref/stream.hpp"
 #include "fwref/vehicle_record.hpp"
 #include "host_common.hpp"
@@ -65,11 +71,14 @@ namespace {
 
 const fwref::host::Cli kCli(
     "fwref_stream",
-    "usage: fwref_stream --weights <weights.bin> (--info [--model cnode|gru|sgru] | --model cnode|gru|sgru [--int8] "
-    "--in <stream.bin|-> [--out <lines.txt>] [--manifest <manifest.json>] [--timings <seconds.f64>] "
-    "[--vehicle <record.bin>])");
+    "usage: fwref_stream --weights <weights.bin> (--info [--model cnode|gru|sgru] | --model cnode|gru|sgru|scnode "
+    "[--step-weights <scnode_weights.bin>] [--int8] --in <stream.bin|-> [--out <lines.txt>] [--manifest <manifest.json>] "
+    "[--timings <seconds.f64>] [--vehicle <record.bin>])");
+// The model's code in the record's alarm.models; the streaming CNODE has none (kModelNone: no row matches it,
+// so it runs the record's single policy).
 std::uint32_t model_code(const std::string& model) {
-  return model == "cnode" ? fwref::kModelCnode : model == "gru" ? fwref::kModelGru : fwref::kModelSgru;
+  return model == "cnode" ? fwref::kModelCnode : model == "gru" ? fwref::kModelGru
+                                                                : model == "scnode" ? fwref::kModelNone : fwref::kModelSgru;
 }
 
 const char* model_name(std::uint32_t code) {
@@ -146,6 +155,11 @@ struct Bound {
   fwref::GruStepState state;
   fwref::StepRunner<fwref::GruF32, fwref::GruStepState> step_f{&sgru_f, &state};
   fwref::StepRunner<fwref::GruI8, fwref::GruStepState> step_q{&sgru_q, &state};
+  std::vector<unsigned char> scnode_bytes;  // the scnode weights file: its views point into it
+  fwref::ScnodeFile scnode;
+  fwref::ScnodeStepState scnode_state;
+  fwref::StepRunner<fwref::ScnodeF32, fwref::ScnodeStepState> scnode_f{&scnode.f32, &scnode_state};
+  fwref::StepRunner<fwref::ScnodeI8, fwref::ScnodeStepState> scnode_q{&scnode.i8, &scnode_state};
   fwref::StreamModel fns;
   int channels = 0, window_len = 0, classes = 0;
   bool has_motor = false;
@@ -164,6 +178,26 @@ bool bind_sgru(fwref::WeightsFile& wf, bool int8, Bound* b, std::string* error) 
   b->fns.step = int8 ? &decltype(b->step_q)::step : &decltype(b->step_f)::step;
   b->fns.reset = int8 ? &decltype(b->step_q)::reset : &decltype(b->step_f)::reset;
   b->fns.ctx = int8 ? static_cast<void*>(&b->step_q) : static_cast<void*>(&b->step_f);
+  return true;
+}
+
+// The streaming CNODE's weights file (--step-weights), of the precision asked for.
+bool bind_scnode(const std::string& path, bool int8, Bound* b, std::string* error) {
+  if (path.empty()) return *error = "--model scnode needs --step-weights <export/scnode_weights[_i8].bin>", false;
+  if (!fwref::host::read_file(path, "--step-weights file", fwref::limits::kWeightsFileBytes, &b->scnode_bytes, error)) {
+    return false;
+  }
+  const fwref::Status s = fwref::bind_scnode_file(b->scnode_bytes.data(), b->scnode_bytes.size(), &b->scnode);
+  if (s != fwref::Status::kOk) return *error = path + ": not a usable streaming CNODE file (" + fwref::status_name(s) + ")", false;
+  if (b->scnode.int8 != int8) {
+    return *error = path + " holds the " + (b->scnode.int8 ? "int8" : "fp32") + " step: " +
+                    (int8 ? "give scnode_weights_i8.bin with --int8" : "add --int8 or give scnode_weights.bin"), false;
+  }
+  const fwref::ScnodeDims& d = int8 ? b->scnode.i8.dims : b->scnode.f32.dims;
+  b->channels = d.channels, b->window_len = 1, b->classes = d.classes;
+  b->fns.step = int8 ? &decltype(b->scnode_q)::step : &decltype(b->scnode_f)::step;
+  b->fns.reset = int8 ? &decltype(b->scnode_q)::reset : &decltype(b->scnode_f)::reset;
+  b->fns.ctx = int8 ? static_cast<void*>(&b->scnode_q) : static_cast<void*>(&b->scnode_f);
   return true;
 }
 
@@ -277,24 +311,26 @@ bool replay_file(fwref::host::StreamInput& in, const std::string& name, std::siz
 }  // namespace
 
 int main(int argc, char** argv) try {
-  std::string weights, model, in, out, manifest, timings, vehicle;
+  std::string weights, model, in, out, manifest, timings, vehicle, step_weights;
   std::vector<std::string> ins;  // --in, repeatable: flights in sequence, reset() between them
   bool int8 = false, info = false;
   const int parsed = kCli.parse(argc, argv,
                                 {{"--weights", &weights}, {"--model", &model}, {"--in", &in, &ins}, {"--out", &out},
-                                 {"--manifest", &manifest}, {"--timings", &timings}, {"--vehicle", &vehicle}},
+                                 {"--manifest", &manifest}, {"--timings", &timings}, {"--vehicle", &vehicle},
+                                 {"--step-weights", &step_weights}},
                                 {{"--int8", &int8}, {"--info", &info}});
   if (parsed >= 0) return parsed;
   if (weights.empty() || (!info && (model.empty() || ins.empty()))) return kCli.usage_error("missing arguments");
-  if ((!info || !model.empty()) && model != "cnode" && model != "gru" && model != "sgru") {
-    return kCli.usage_error("--model must be cnode, gru or sgru");
+  if ((!info || !model.empty()) && model != "cnode" && model != "gru" && model != "sgru" && model != "scnode") {
+    return kCli.usage_error("--model must be cnode, gru, sgru or scnode");
   }
+  if (!step_weights.empty() && model != "scnode") return kCli.usage_error("--step-weights goes with --model scnode");
   std::string error;
   for (const std::string* o : {&out, &timings}) {
     for (const std::string& one : ins) {
-      if (!o->empty() && !fwref::host::output_allowed(*o, {weights, one, manifest, vehicle},
-                                                      {"--weights file", "--in file", "--manifest file", "--vehicle file"},
-                                                      &error)) {
+      if (!o->empty() && !fwref::host::output_allowed(*o, {weights, one, manifest, vehicle, step_weights},
+                                                      {"--weights file", "--in file", "--manifest file",
+                                                       "--vehicle file", "--step-weights file"}, &error)) {
         return kCli.fail(error);
       }
     }
@@ -307,8 +343,10 @@ int main(int argc, char** argv) try {
   if (!model.empty()) rec.params.alarm = fwref::policy_for(rec, model_code(model), &from_table);
   if (info) return print_info(rec, from_table), 0;
   static Bound m;  // the sgru state and the bound structs: not on the stack
-  if (!bind_stream_model(wf, model, int8, &m, &error)) return kCli.fail(error);
-  if ((model != "sgru" && m.window_len != rec.params.window) || m.channels != rec.params.channels) {
+  if (model == "scnode" ? !bind_scnode(step_weights, int8, &m, &error) : !bind_stream_model(wf, model, int8, &m, &error)) {
+    return kCli.fail(error);
+  }
+  if ((model != "sgru" && model != "scnode" && m.window_len != rec.params.window) || m.channels != rec.params.channels) {
     return kCli.fail("the on-board record's window/channels disagree with the " + model + " section of " + weights);
   }
   if (rec.rotor_classes != 0 && rec.rotor_classes != m.classes) {
