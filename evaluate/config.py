@@ -29,7 +29,8 @@ class EvaluateConfig:
     kn: tuple[str, ...] = ("1/1", "2/3", "3/5", "5/8", "8/12")  # ... x k of n windows (0.8 s apart in the suite) ...
     clear_m: tuple[int, ...] = (3, 8)  # ... x consecutive non-voting windows to clear
     target_fa_per_h: float = 1.0  # the policy rule: validation false alarms per flight-hour at most this
-    networks: tuple[str, ...] = ("cnode", "gru", "sgru")  # model-name prefixes of the networks (others: baselines)
+    # model-name prefixes of the networks (others: baselines)
+    networks: tuple[str, ...] = ("cnode", "gru", "sgru", "scnode")
 
     def validate(self) -> None:
         if self.bootstrap < 1000:
