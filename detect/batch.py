@@ -146,25 +146,31 @@ def run_job(job: Job) -> dict:
         return {"refused": True, "log": job.log, "name": job.name, "reason": f"{type(exc).__name__}: {_one_line(exc)}"}
 
 
+def in_workers(fn: Callable, jobs: list[tuple], workers: int):
+    """``fn(*job)`` for every job, in this process (``workers`` <= 1) or in worker processes (results in
+    completion order): one log per job, so a reader's crash or a slow log stays that job's."""
+    if workers <= 1 or len(jobs) <= 1:
+        for job in jobs:
+            yield fn(*job)
+        return
+    import multiprocessing as mp
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+
+    ctx = mp.get_context("forkserver")  # no fork of a parent's threads; the server pre-imports once
+    ctx.set_forkserver_preload(["quadfdi.detect.run", "quadfdi.ingest.flight", "quadfdi.runtimes.ort"])
+    with ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as pool:
+        for fut in as_completed([pool.submit(fn, *job) for job in jobs]):
+            yield fut.result()
+
+
 def _results(jobs: list[Job], workers: int, progress: bool):
     from tqdm import tqdm
 
     bar = tqdm(total=len(jobs), desc="detect", unit="log", disable=None if progress else True)  # None: a terminal only
     try:
-        if workers <= 1 or len(jobs) <= 1:
-            for job in jobs:
-                yield run_job(job)
-                bar.update()
-            return
-        import multiprocessing as mp
-        from concurrent.futures import ProcessPoolExecutor, as_completed
-
-        ctx = mp.get_context("forkserver")  # no fork of a parent's threads; the server pre-imports once
-        ctx.set_forkserver_preload(["quadfdi.detect.run", "quadfdi.ingest.flight", "quadfdi.runtimes.ort"])
-        with ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as pool:
-            for fut in as_completed([pool.submit(run_job, j) for j in jobs]):
-                yield fut.result()
-                bar.update()
+        for result in in_workers(run_job, [(j,) for j in jobs], workers):
+            yield result
+            bar.update()
     finally:
         bar.close()
 

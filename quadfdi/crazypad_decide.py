@@ -80,18 +80,9 @@ def decide_log(export: str, net: str, path: str, name: str, reference: dict, lim
 
 
 def _run(jobs: list[tuple], workers: int):
-    if workers <= 1 or len(jobs) <= 1:
-        for job in jobs:
-            yield decide_log(*job)
-        return
-    import multiprocessing as mp
-    from concurrent.futures import ProcessPoolExecutor, as_completed
+    from quadfdi.detect.batch import in_workers
 
-    ctx = mp.get_context("forkserver")  # as detect.batch: no fork of this process's threads
-    ctx.set_forkserver_preload(["quadfdi.detect.run", "quadfdi.ingest.flight", "quadfdi.runtimes.ort"])
-    with ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as pool:
-        for fut in as_completed([pool.submit(decide_log, *job) for job in jobs]):
-            yield fut.result()
+    yield from in_workers(decide_log, jobs, workers)
 
 
 def decide_all(export: str, net: str, found: list[tuple[Path, str]], reference: dict, workers: int,

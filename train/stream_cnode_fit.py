@@ -34,13 +34,13 @@ from quadfdi.formats.dataset import Dataset, class_names
 from quadfdi.models.stream_cnode import StreamCNODE
 from quadfdi.train.config import StreamCnodeConfig
 from quadfdi.models.motor import rotor_side
-from quadfdi.train.data import class_weights, fit_normalisation
+from quadfdi.train.data import fit_normalisation
 from quadfdi.train.stream_gru_ema import WeightAverage
-from quadfdi.train.stream_gru_fit import StreamHistory, step_labels, window_end_index
+from quadfdi.train.stream_gru_fit import (StreamHistory, chunk_update, step_labels, stream_class_weights,
+                                          window_end_index)
 from quadfdi.train.stream_gru_motor import MotorAux, step_motor_targets
-from quadfdi.train.stream_gru_onset import step_weighted_cross_entropy, step_weights, weighted_class_weights
-from quadfdi.train.stream_gru_segments import (draw_segments, first_fault, loss_mask, sampled_class_weights,
-                                               segment_columns)
+from quadfdi.train.stream_gru_onset import step_weights
+from quadfdi.train.stream_gru_segments import draw_segments, first_fault, loss_mask, segment_columns
 
 NOISE_SCALE = 2.0
 MASK_KEY = 0x5C0D
@@ -72,35 +72,8 @@ def _batch_loss(model: StreamCNODE, opt, x: torch.Tensor, y: torch.Tensor, mask:
         sl = slice(c0, c0 + cfg.tbptt)
         zs, z = model.features(x[:, sl], z, x_prev)
         x_prev, z = x[:, sl][:, -1], z.detach()
-        keep = mask[:, sl].reshape(-1)
-        if not bool(keep.any()):
-            continue
-        logits = model.classify(zs)
-        mk = None if m is None else m[:, sl].reshape(-1)[keep]
-        loss = step_weighted_cross_entropy(logits.reshape(-1, model.n_classes)[keep], y[:, sl].reshape(-1)[keep], w,
-                                           mk, cfg.log_eps)
-        if aux is not None:
-            loss = loss + aux.loss(zs.reshape(-1, zs.shape[-1])[keep], ym[:, sl].reshape(-1)[keep])
-        if not bool(torch.isfinite(loss)):
-            raise ValueError(f"streaming CNODE training diverged (non-finite loss) at lr {cfg.lr:g}: lower it")
-        opt.zero_grad(set_to_none=True)
-        loss.backward()
-        torch.nn.utils.clip_grad_norm_(params, cfg.clip)
-        opt.step()
-        if ema is not None:
-            ema.update()
-        total += loss.item() * int(keep.sum())
+        total += chunk_update(model, zs, sl, y, mask, w, cfg, opt, params, m, ema, aux, ym, "streaming CNODE")
     return total
-
-
-def _class_weights(lab: np.ndarray, sw: np.ndarray | None, cfg: StreamCnodeConfig, n_classes: int) -> np.ndarray:
-    """Eq. (12)'s class weights as the streaming GRU's: every training step, the onset emphasis's weighted
-    steps, or (``class_mix = "sampled"``) the steps the segment sampler draws."""
-    if sw is not None:
-        return weighted_class_weights(lab, sw, n_classes)
-    if cfg.class_mix == "sampled":
-        return sampled_class_weights(lab, cfg, n_classes)
-    return class_weights(lab.ravel(), n_classes)
 
 
 def _masker(profile: str, ds: Dataset):
@@ -142,7 +115,7 @@ def fit_stream_cnode(ds: Dataset, val_ds: Dataset, cfg: StreamCnodeConfig, profi
     tel = ds["telemetry"][train_rows]  # (n, T, C) float32, raw: the model normalises inside
     lab = step_labels(ds, train_rows)
     sw = step_weights(lab, cfg.onset_weight, cfg.onset_span)
-    w = torch.as_tensor(_class_weights(lab, sw, cfg, n_classes))
+    w = torch.as_tensor(stream_class_weights(lab, sw, cfg, n_classes))
     onset, ends, n_t = first_fault(lab), window_end_index(ds), tel.shape[1]
     seg = min(cfg.segment, n_t)
     names = class_names(ds.arrays)

@@ -117,29 +117,41 @@ def _batch_loss(model: StreamGRU, opt, x: torch.Tensor, y: torch.Tensor, mask: t
     for c0 in range(0, x.shape[1], cfg.tbptt):
         sl = slice(c0, c0 + cfg.tbptt)
         hs, h = model.features(x[:, sl], h)
-        logits = model.classify(hs)
+        logits = model.classify(hs)  # before the mask's test: the head's dropout draws as it always has
         h = h.detach()
-        keep = mask[:, sl].reshape(-1)
-        if not bool(keep.any()):
-            continue
-        mk = None if m is None else m[:, sl].reshape(-1)[keep]
-        loss = step_weighted_cross_entropy(logits.reshape(-1, model.n_classes)[keep], y[:, sl].reshape(-1)[keep], w,
-                                           mk, cfg.log_eps)
-        if aux is not None:
-            loss = loss + aux.loss(hs.reshape(-1, hs.shape[-1])[keep], ym[:, sl].reshape(-1)[keep])
-        if not bool(torch.isfinite(loss)):
-            raise ValueError(f"streaming GRU training diverged (non-finite loss) at lr {cfg.lr:g}: lower it")
-        opt.zero_grad(set_to_none=True)
-        loss.backward()
-        torch.nn.utils.clip_grad_norm_(params, cfg.clip)
-        opt.step()
-        if ema is not None:
-            ema.update()
-        total += loss.item() * int(keep.sum())
+        total += chunk_update(model, hs, sl, y, mask, w, cfg, opt, params, m, ema, aux, ym, "streaming GRU", logits)
     return total
 
 
-def _class_weights(lab: np.ndarray, sw: np.ndarray | None, cfg: StreamFitConfig, n_classes: int) -> np.ndarray:
+def chunk_update(model, feats: torch.Tensor, sl: slice, y: torch.Tensor, mask: torch.Tensor, w: torch.Tensor, cfg,
+                 opt, params: list, m: torch.Tensor | None, ema: WeightAverage | None, aux: MotorAux | None,
+                 ym: torch.Tensor | None, what: str, logits: torch.Tensor | None = None) -> float:
+    """One truncated-backpropagation chunk of a streaming network (its features ``feats`` (B, t, F) over the
+    steps ``sl``; ``logits`` its head's, else computed once a step is unmasked): the masked, step-weighted loss
+    (plus the motor head's), one clipped optimiser step, the weight average's update; the chunk's summed loss
+    (0 when every step is masked)."""
+    keep = mask[:, sl].reshape(-1)
+    if not bool(keep.any()):
+        return 0.0
+    if logits is None:
+        logits = model.classify(feats)
+    mk = None if m is None else m[:, sl].reshape(-1)[keep]
+    loss = step_weighted_cross_entropy(logits.reshape(-1, model.n_classes)[keep], y[:, sl].reshape(-1)[keep], w,
+                                       mk, cfg.log_eps)
+    if aux is not None:
+        loss = loss + aux.loss(feats.reshape(-1, feats.shape[-1])[keep], ym[:, sl].reshape(-1)[keep])
+    if not bool(torch.isfinite(loss)):
+        raise ValueError(f"{what} training diverged (non-finite loss) at lr {cfg.lr:g}: lower it")
+    opt.zero_grad(set_to_none=True)
+    loss.backward()
+    torch.nn.utils.clip_grad_norm_(params, cfg.clip)
+    opt.step()
+    if ema is not None:
+        ema.update()
+    return loss.item() * int(keep.sum())
+
+
+def stream_class_weights(lab: np.ndarray, sw: np.ndarray | None, cfg, n_classes: int) -> np.ndarray:
     """Eq. (12)'s class weights: over every training step (default), the onset emphasis's weighted steps,
     or (``class_mix = "sampled"``) the steps the segment sampler draws (train/stream_gru_segments.py)."""
     if sw is not None:
@@ -174,7 +186,7 @@ def fit_stream_gru(ds: Dataset, cfg: StreamFitConfig, log: Callable[[str], None]
     tel = ds["telemetry"][train_rows]  # (n, T, C) float32, raw: the model normalises inside
     lab = step_labels(ds, train_rows)
     sw = step_weights(lab, cfg.onset_weight, cfg.onset_span)  # None: no onset emphasis (the default)
-    w = torch.as_tensor(_class_weights(lab, sw, cfg, n_classes))
+    w = torch.as_tensor(stream_class_weights(lab, sw, cfg, n_classes))
     onset = first_fault(lab)
     ends = window_end_index(ds)
     n_t = tel.shape[1]
