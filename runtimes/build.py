@@ -149,7 +149,7 @@ def _run_logged(cmd: list[str], log_file: Path, what: str) -> None:
         raise QuadfdiError(f"{what} failed (exit {res.returncode}){hint}; full log: {log_file}")
 
 
-def _configure_and_build(source: Path, build_dir: Path, options: dict[str, str], what: str,
+def configure_and_build(source: Path, build_dir: Path, options: dict[str, str], what: str,
                          targets: tuple[str, ...] = ()) -> None:
     """cmake -S source -B build_dir -D... (again only when an option changed), then cmake --build."""
     require("cmake", "it builds firmware_ref")
@@ -191,7 +191,7 @@ def build_host(build_dir: Path | None = None, sanitize: bool = False, log: Calla
     build_dir = Path(build_dir) if build_dir is not None else home / ("build-asan" if sanitize else "build")
     options = {"CMAKE_BUILD_TYPE": "Debug" if sanitize else "Release", "FWREF_SANITIZE": "ON" if sanitize else "OFF"}
     with locked(build_dir):
-        _configure_and_build(home / "src", build_dir, options, f"firmware_ref ({'sanitizer' if sanitize else 'host'})",
+        configure_and_build(home / "src", build_dir, options, f"firmware_ref ({'sanitizer' if sanitize else 'host'})",
                              targets)
     for name in targets or HOST_PROGRAMS:
         if not (build_dir / name).is_file():
@@ -214,7 +214,7 @@ def build_mcu(cpu: str, weights: Path, reference: Path, build_dir: Path | None =
     require("arm-none-eabi-g++", "it cross-compiles the Cortex-M build")
     src = source_dir()
     build_dir = build_dir or mcu_build_dir(cpu)
-    _configure_and_build(src / "mcu", build_dir, mcu_options(src, cpu, weights, reference, streams), f"the {cpu} images")
+    configure_and_build(src / "mcu", build_dir, mcu_options(src, cpu, weights, reference, streams), f"the {cpu} images")
     log(f"parity: {cpu} images built in {build_dir}")
     return build_dir
 

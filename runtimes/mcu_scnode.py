@@ -24,9 +24,9 @@ import numpy as np
 
 from quadfdi.core.errors import QuadfdiError
 from quadfdi.runtimes import mcu_cycles
-from quadfdi.runtimes.build import MCU_CPUS, _configure_and_build, fwref_home, locked, require, source_dir
+from quadfdi.runtimes.build import MCU_CPUS, configure_and_build, fwref_home, locked, require, source_dir
 from quadfdi.runtimes.mcu import QEMU_TIMEOUT_S, qemu_command
-from quadfdi.runtimes.mcu_stream import TICKS, TRACE_FLAGS, _Follow, symbol_address
+from quadfdi.runtimes.mcu_stream import TICKS, TRACE_FLAGS, FollowLog, symbol_address
 from quadfdi.runtimes.mcu_trace import Trace
 
 ELF, TRACE_ELF = "fwref_mcu_scnode.elf", "fwref_mcu_scnode_trace.elf"
@@ -57,7 +57,7 @@ def build_scnode(cpu: str, files: list[Path], build_dir: Path | None = None) -> 
                "FWREF_SCNODE": ";".join(str(Path(f).resolve()) for f in files),
                "FWREF_SCNODE_TRACE_STEPS": str(TRACE_STEPS), "Python3_EXECUTABLE": sys.executable}
     with locked(build_dir):
-        _configure_and_build(src / "mcu" / "scnode", build_dir, options, f"the {cpu} streaming CNODE images")
+        configure_and_build(src / "mcu" / "scnode", build_dir, options, f"the {cpu} streaming CNODE images")
     return build_dir
 
 
@@ -105,7 +105,7 @@ def trace_steps(cpu: str, elf: Path) -> tuple[StepRun, dict[str, dict]]:
         proc = subprocess.Popen(cmd + ["-d", TRACE_FLAGS, "-D", str(log)], stdout=subprocess.DEVNULL,
                                 stderr=subprocess.PIPE, text=True)
         try:
-            tr = Trace.read(_Follow(log, proc))
+            tr = Trace.read(FollowLog(log, proc))
         finally:
             if proc.poll() is None:
                 proc.kill()

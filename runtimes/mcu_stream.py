@@ -118,7 +118,7 @@ def run_image(cpu: str, elf: Path, trace: bool = False) -> StreamRun:
         proc = subprocess.Popen(cmd + ["-d", TRACE_FLAGS, "-D", str(log)], stdout=subprocess.DEVNULL,
                                 stderr=subprocess.PIPE, text=True)
         try:
-            tr = Trace.read(_Follow(log, proc))  # read while QEMU writes it: the two overlap
+            tr = Trace.read(FollowLog(log, proc))  # read while QEMU writes it: the two overlap
         finally:
             if proc.poll() is None:
                 proc.kill()
@@ -132,7 +132,7 @@ def run_image(cpu: str, elf: Path, trace: bool = False) -> StreamRun:
     return run
 
 
-class _Follow:
+class FollowLog:
     """A file that QEMU is still writing, read as it grows (``read`` waits for more while QEMU
     runs; end of file once it has exited and everything was read); QEMU is killed after
     QEMU_TIMEOUT_S."""

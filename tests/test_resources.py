@@ -119,7 +119,7 @@ def test_a_build_folder_configured_from_another_copy_of_the_sources_is_configure
         (src / "CMakeLists.txt").write_text("cmake_minimum_required(VERSION 3.20)\nproject(p NONE)\n"
                                             f"add_custom_target(t ALL COMMAND ${{CMAKE_COMMAND}} -E touch {name}.txt)\n")
         out.mkdir(exist_ok=True)
-        build._configure_and_build(src, out, {"X": "1"}, f"project {name}")
+        build.configure_and_build(src, out, {"X": "1"}, f"project {name}")
         assert (out / f"{name}.txt").is_file()
     assert f"CMAKE_HOME_DIRECTORY:INTERNAL={tmp_path / 'b'}" in (out / "CMakeCache.txt").read_text()
 

@@ -193,7 +193,7 @@ def test_a_nan_or_foreign_sample_period_is_refused(flightlog_export, flight, hos
 @pytest.fixture(scope="module")
 def mcu(flightlog_export, flight, tmp_path_factory) -> dict:
     """The stream image (cortex-m4) with the clean flight and its jumps compiled in, run under QEMU."""
-    from quadfdi.runtimes.build import _configure_and_build, mcu_options, source_dir
+    from quadfdi.runtimes.build import configure_and_build, mcu_options, source_dir
     from quadfdi.runtimes.mcu import qemu_command, tools_missing
     from quadfdi.formats.stream import write_stream
 
@@ -214,7 +214,7 @@ def mcu(flightlog_export, flight, tmp_path_factory) -> dict:
     src = source_dir()
     options = mcu_options(src, "cortex-m4", flightlog_export / "weights.bin", flightlog_export / "reference.bin",
                           tuple(paths))
-    _configure_and_build(src / "mcu", build, options, "the cortex-m4 stream image", ("fwref_mcu_stream",))
+    configure_and_build(src / "mcu", build, options, "the cortex-m4 stream image", ("fwref_mcu_stream",))
     res = subprocess.run(qemu_command("cortex-m4", build / "fwref_mcu_stream.elf"), capture_output=True, text=True,
                          timeout=1200, check=False)
     assert "RESULT DONE" in res.stdout, res.stdout[-2000:] + res.stderr[-2000:]
