@@ -30,12 +30,12 @@ from __future__ import annotations
 
 from typing import Any
 
-import numpy as np
 import torch
 from torch import nn
 
 from quadfdi.core.rk4 import rk4_step
-from quadfdi.models.networks import STD_FLOOR, VectorField
+from quadfdi.models.networks import VectorField
+from quadfdi.models.stream_gru import set_stream_normalisation
 
 KIND = "scnode"
 DT = 0.0625  # integration time per sample (1/16: a power of two, so h/2 and h are exact in float32)
@@ -67,16 +67,7 @@ class StreamCNODE(nn.Module):
         return self.latent
 
     def set_normalisation(self, mean: Any, std: Any) -> None:
-        """The training split's per-channel mean and std (C,); std floored at STD_FLOOR like the windowed models."""
-        m = torch.as_tensor(np.asarray(mean, dtype=np.float32))
-        s = torch.as_tensor(np.asarray(std, dtype=np.float32))
-        if m.shape != (self.n_channels,) or s.shape != (self.n_channels,):
-            raise ValueError(f"normalisation must be ({self.n_channels},) each, found {tuple(m.shape)}, {tuple(s.shape)}")
-        if not (torch.isfinite(m).all() and torch.isfinite(s).all()):
-            raise ValueError("normalisation holds NaN or Inf")
-        with torch.no_grad():
-            self.mean.copy_(m)
-            self.std.copy_(s.clamp_min(STD_FLOOR))
+        set_stream_normalisation(self, mean, std)
 
     def controls(self, x_raw: torch.Tensor) -> torch.Tensor:
         """v = x_norm @ W1u^T + b1 for raw samples (..., C) -> (..., H)."""

@@ -42,16 +42,7 @@ class StreamGRU(nn.Module):
         self.head_dropout = 0.0  # training only (dropout on h before the head): no parameter, no effect in eval
 
     def set_normalisation(self, mean: Any, std: Any) -> None:
-        """The training split's per-channel mean and std (C,); std floored at STD_FLOOR like the windowed models."""
-        m = torch.as_tensor(np.asarray(mean, dtype=np.float32))
-        s = torch.as_tensor(np.asarray(std, dtype=np.float32))
-        if m.shape != (self.n_channels,) or s.shape != (self.n_channels,):
-            raise ValueError(f"normalisation must be ({self.n_channels},) each, found {tuple(m.shape)}, {tuple(s.shape)}")
-        if not (torch.isfinite(m).all() and torch.isfinite(s).all()):
-            raise ValueError("normalisation holds NaN or Inf")
-        with torch.no_grad():
-            self.mean.copy_(m)
-            self.std.copy_(s.clamp_min(STD_FLOOR))
+        set_stream_normalisation(self, mean, std)
 
     def features(self, x_raw: torch.Tensor, h0: torch.Tensor | None = None) -> tuple[torch.Tensor, torch.Tensor]:
         """The hidden state at every step (B, T, H) and h_T (B, H): what the head reads (and, in training
@@ -116,3 +107,17 @@ def stream_from_signature(sig: dict[str, Any]) -> StreamGRU:
     if sig.pop("kind", None) != KIND or set(sig) != {"n_channels", "hidden", "n_classes"}:
         raise ValueError(f"not a streaming GRU signature: {sig}")
     return StreamGRU(**{k: int(v) for k, v in sig.items()})
+
+
+def set_stream_normalisation(model: nn.Module, mean: Any, std: Any) -> None:
+    """A streaming network's training-split per-channel mean and std (C,) into its ``mean`` and ``std`` buffers;
+    std floored at STD_FLOOR like the windowed models."""
+    m = torch.as_tensor(np.asarray(mean, dtype=np.float32))
+    s = torch.as_tensor(np.asarray(std, dtype=np.float32))
+    if m.shape != (model.n_channels,) or s.shape != (model.n_channels,):
+        raise ValueError(f"normalisation must be ({model.n_channels},) each, found {tuple(m.shape)}, {tuple(s.shape)}")
+    if not (torch.isfinite(m).all() and torch.isfinite(s).all()):
+        raise ValueError("normalisation holds NaN or Inf")
+    with torch.no_grad():
+        model.mean.copy_(m)
+        model.std.copy_(s.clamp_min(STD_FLOOR))
