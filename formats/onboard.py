@@ -166,6 +166,10 @@ def check_onboard(s: Section, where: str) -> None:
                               not -1 <= _healthy(s) < len(rotor.array) or len(rotor.array) > 32):
         raise QuadfdiError(f"{where}: the on-board record's alarm.rotor_side {rotor.array.tolist()} is not 2..32 "
                            f"0/1 flags covering the Healthy class")
+    single = _policy_of_columns(s["alarm.policy"], ALARM_POLICY_COLUMNS, _threshold(s["alarm.threshold"]))
+    if int(s["alarm.policy"][ALARM_POLICY_COLUMNS.index("latch")]) not in (0, 1) or not _valid(single):
+        raise QuadfdiError(f"{where}: the on-board record's alarm.policy {s['alarm.policy'].tolist()} (threshold "
+                           f"{single['threshold']}) is not a valid policy")
     if "alarm.models" in s.tensors:
         _check_models(s["alarm.models"], where)
 

@@ -86,6 +86,33 @@ def test_record_table_round_trip_and_an_old_record():
         bad.add("alarm.models", np.array([row], np.int32), np.int32)
         with pytest.raises(QuadfdiError, match=msg):
             check_onboard(bad, "w")
+    from quadfdi.formats.onboard import ALARM_POLICY_COLUMNS
+
+    for key, value in (("k", 4), ("k", 0), ("clear_m", 0), ("latch", 2)):  # the single policy is checked as a row is
+        bad = Section(sec.model, sec.precision, sec.dims, dict(old.tensors))
+        pol = bad.tensors["alarm.policy"].array.copy()
+        pol[ALARM_POLICY_COLUMNS.index(key)] = value
+        bad.add("alarm.policy", pol, np.int32)
+        with pytest.raises(QuadfdiError, match="alarm.policy .* is not a valid policy"):
+            check_onboard(bad, "w")
+
+
+def test_cpp_refuses_an_invalid_single_policy_in_one_line(flightlog_export, host_build, tmp_path):  # noqa: F811
+    """fwref_stream reads the record's single policy as strictly as an alarm.models row: k beyond n, one line, exit 2."""
+    from quadfdi.formats.binfmt import pack, unpack
+    from quadfdi.formats.onboard import ALARM_POLICY_COLUMNS
+    from quadfdi.formats.weights_layout import MAGIC, VERSION
+
+    version, sections = unpack((flightlog_export / "weights.bin").read_bytes(), MAGIC, VERSION, "w")
+    pol = sections[-1].tensors["alarm.policy"].array.copy()
+    pol[ALARM_POLICY_COLUMNS.index("k")] = pol[ALARM_POLICY_COLUMNS.index("n")] + 1
+    sections[-1].add("alarm.policy", pol, np.int32)
+    bad = tmp_path / "weights.bin"
+    bad.write_bytes(pack(MAGIC, version, sections))
+    res = subprocess.run([str(host_build / "fwref_stream"), "--weights", str(bad), "--info"], capture_output=True,
+                         text=True, timeout=60, check=False)
+    assert res.returncode == 2 and "alarm.policy" in res.stderr and "not a valid policy" in res.stderr, res.stderr
+    assert len(res.stderr.strip().splitlines()) == 1
 
 
 def test_export_writes_each_networks_policy_and_cpp_reads_it(flightlog_export, host_build):  # noqa: F811

@@ -31,6 +31,12 @@ double threshold_of(std::int32_t lo, std::int32_t hi) {
   return threshold;
 }
 
+// A policy core.alarm.check_policy accepts: 0 < threshold <= 1, 1 <= k <= n, clear_m >= 1; latch 0 or 1.
+bool valid_policy(const AlarmParams& a, std::int32_t latch) {
+  return latch >= 0 && latch <= 1 && a.k >= 1 && a.k <= a.n && a.clear_m >= 1 && a.threshold > 0.0 &&
+         a.threshold <= 1.0;
+}
+
 // alarm.models (optional): int32 (M, kAlarmModelsWidth) rows in contracts_gen.hpp's column order (model
 // code, k, n, clear_m, latch, threshold lo, hi); each model a network with a policy of its own
 // (policy_network), at most once; each row a valid policy (core.alarm.check_policy).
@@ -57,8 +63,7 @@ Status read_policies(const Container& file, const SectionInfo& sec, const AlarmP
     a.latch = latch != 0;
     bool known = policy_network(model);
     for (const OnboardRecord::ModelPolicy& seen : r->model_policies) known = known && seen.model != model;
-    if (!known || latch < 0 || latch > 1 || a.k < 1 || a.k > a.n || a.clear_m < 1 || !(a.threshold > 0.0) ||
-        !(a.threshold <= 1.0)) {
+    if (!known || !valid_policy(a, latch)) {
       *error = fmt("%s: the on-board record's alarm.models row %d (model %d) is not a valid policy of a distinct "
                    "model", file.where().c_str(), i, int(model));
       return Status::kDimsInvalid;
@@ -143,6 +148,12 @@ Status read_onboard(const WeightsFile& wf, OnboardRecord* out, std::string* erro
   namespace c = contracts;
   AlarmParams alarm{threshold, pol[c::kAlarmPolicyK], pol[c::kAlarmPolicyN], pol[c::kAlarmPolicyClearM],
                     pol[c::kAlarmPolicyLatch] != 0, pol[c::kAlarmPolicyHealthy], 0, mask};
+  if (!valid_policy(alarm, pol[c::kAlarmPolicyLatch])) {
+    *error = fmt("%s: the on-board record's alarm.policy (threshold %g, k %d, n %d, clear_m %d, latch %d) is not a "
+                 "valid policy", file.where().c_str(), threshold, alarm.k, alarm.n, alarm.clear_m,
+                 int(pol[c::kAlarmPolicyLatch]));
+    return Status::kDimsInvalid;
+  }
   r.params = StreamParams{static_cast<Profile>(d[0]), int(d[1]), int(d[2]), int(d[3]), int(d[4]), 0, double(dt), alarm};
   const Status pol_status = read_policies(file, *sec, r.params.alarm, &r, error);
   if (pol_status != Status::kOk) return pol_status;
