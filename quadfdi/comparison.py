@@ -63,7 +63,7 @@ def _iv(m: dict, scale: float, nd: int, compact: bool, sign: bool = False) -> st
     v = m.get("value", m.get("diff"))
     if v is None:
         return None
-    f = (lambda x: f"{x * scale:+.{nd}f}") if sign else (lambda x: f"{x * scale:.{nd}f}")
+    f = (lambda x: f"{round(x * scale, nd) + 0.0:+.{nd}f}") if sign else (lambda x: f"{x * scale:.{nd}f}")  # no -0.0
     if m.get("lo") is None:
         return f(v)
     return f"{f(v)} [{f(m['lo'])},{f(m['hi'])}]" if compact else f"{f(v)} [{f(m['lo'])}, {f(m['hi'])}]"
@@ -110,8 +110,7 @@ def costs(root: Path) -> tuple[dict[str, str], list[str]]:
 
 def _cost_note(used: list[str], compact: bool) -> str:
     if compact:
-        return ("M4 cost per s of flight: M cyc = int8 Cortex-M4 cycles by the TRM cycle table (parity/), "
-                "M MAC = multiply-accumulates where no cycle figure exists")
+        return "M4 cost/s: M cyc = int8 cycles by the TRM table (parity/), else M MAC = multiply-accumulates"
     return ("cost per second of flight: 'M cyc' = millions of int8 Cortex-M4 cycles estimated by the TRM cycle "
             "table (windowed: mean decision + stride − 1 pushes per stride; streaming: mean step per sample), "
             "'M MAC' = millions of multiply-accumulates where no cycle figure exists; read from "
@@ -241,8 +240,10 @@ def comparison_block(root: Path) -> str:
         raise QuadfdiError(f"{root / EVALUATION_JSON} scores no test set: nothing to compare")
     table = rows(root, ev, "test", notes, compact=True)
     flights = next(r["flights"] for r in ev["results"] if r["set"] == "test")
-    lines = [*wrap(f"By `quadfdi readme --run {root} --block comparison` from `{ev['command']}`: test set, "
-                   f"{flights} flights; F1, Δ in points; intervals of the rest in report.md."),
+    lines = [*wrap(f"Networks (windowed, streaming) vs baselines, test set ({flights} flights): `quadfdi readme --run "
+                   f"{root} --block comparison` from `evaluation/evaluation.json` (code "
+                   f"`{(ev.get('git_commit') or '?')[:10]}`); F1, Δ in points (other intervals: report.md); dep.: "
+                   "deployed, chosen on validation."),
              "", *tight_table(HEAD_COMPACT, table), "",
              *wrap("; ".join(notes.lines() + _stale_export_note(root, root / EVALUATION_JSON)) + ".")]
     return "\n".join(lines)
