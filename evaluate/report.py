@@ -11,6 +11,7 @@ from pathlib import Path
 from quadfdi.core.reportmd import demote, not_run, optional_json
 from quadfdi.core.rundir import EVALUATION_JSON
 from quadfdi.core.tables import md_table
+from quadfdi.evaluate import deployment
 from quadfdi.evaluate.figures import SWEEP_PNG
 from quadfdi.evaluate.protocol import OOD_ALL
 
@@ -128,8 +129,8 @@ def markdown(ev: dict) -> str:
                      ",".join(map(str, d["train_seeds"]))])
     lines += md_table(["model", "kind", "chosen policy", "val FA/h", "val detected", "val delay s", "sim seeds",
                        "train seeds"], rows)
-    lines += [f"![alarm sweep]({SWEEP_PNG})", "", f"Best baseline (validation macro F1): {ev['best_baseline'] or '—'}", "",
-              "## Window and flight metrics per test set", ""]
+    lines += [f"![alarm sweep]({SWEEP_PNG})", "", f"Best baseline (validation macro F1): {ev['best_baseline'] or '—'}", ""]
+    lines += deployment.markdown(ev) + ["## Window and flight metrics per test set", ""]
     for name in _set_order(ev):
         lines += _set_table(ev, name)
     lines += ["## False alarms, early alarms, missed faults", ""] + _fa_table(ev)

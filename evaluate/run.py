@@ -19,6 +19,7 @@ from quadfdi.core.resources import source_tree
 from quadfdi.core.atomic import write_text
 from quadfdi.formats.predictions import INDEX_NAME
 from quadfdi.core.stage import stage
+from quadfdi.evaluate.deployment import deployment
 from quadfdi.evaluate.figures import SWEEP_PNG, sweep_figure
 from quadfdi.evaluate.load import load_run
 from quadfdi.evaluate.protocol import evaluate_sets
@@ -73,6 +74,7 @@ def evaluate_run(root: Path, cfg: Config, command: str, log: Callable[[str], Non
                            "train_seeds": "averaged per flight before resampling",
                            "sim_seeds": "flights of every dataset are units of one pool"}}
         ev.update(evaluate_sets(sets, infos, cfg))
+        ev["deployment"] = deployment(ev["results"], ev["paired"], _entries(root), inputs)  # windowed or streaming, on validation
         out = st.path(str(JSON_NAME)).parent
         write_json(out / JSON_NAME.name, ev)
         write_text(out / MD_NAME.name, markdown(ev) + "\n")
@@ -80,7 +82,11 @@ def evaluate_run(root: Path, cfg: Config, command: str, log: Callable[[str], Non
     return [root / JSON_NAME, root / MD_NAME, root / JSON_NAME.parent / SWEEP_PNG]
 
 
-def _prediction_paths(root: Path) -> list[str]:
+def _entries(root: Path) -> list[dict]:
     from quadfdi.formats.predictions import read_index
 
-    return [e["predictions"] for e in read_index(root)]
+    return read_index(root)
+
+
+def _prediction_paths(root: Path) -> list[str]:
+    return [e["predictions"] for e in _entries(root)]

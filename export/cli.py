@@ -53,16 +53,18 @@ def run_export_scnode(args: argparse.Namespace) -> int:
 def run_export(args: argparse.Namespace) -> int:
     from quadfdi.core.errors import QuadfdiError
     from quadfdi.export.alarm_policies import policies_of
+    from quadfdi.export.deployment import deployment_of
 
     if args.run is None:
         raise QuadfdiError("quadfdi export needs --run <run folder>")
     run, cfg = open_run(args.run, args.overrides, need=("dataset",))
     policies = policies_of(run, cfg.alarm, args.alarm_from)  # a refusal before torch and onnx are imported
+    deployment = deployment_of(run)
     from quadfdi.export.run import export_run
 
     if args.steps is not None:
         cfg = replace_section(cfg, "export", steps=args.steps)
-    manifest = export_run(run, cfg, policies=policies)
+    manifest = export_run(run, cfg, policies=policies, deployment=deployment)
     ok = manifest["verification"]["passed"]
     print(f"export: verification {'passed' if ok else 'FAILED'}; manifest {run.export / 'manifest.json'}")
     return 0 if ok else 1

@@ -88,14 +88,15 @@ def build_manifest(*, ds: Any, config: dict, checkpoints: dict[str, dict], windo
                    coverage: dict[str, dict], calib_windows: int, interp_exact: bool, verification: dict,
                    metrics: dict, reference_index: np.ndarray, reference_labels: np.ndarray,
                    encoding: dict | None = None, profile: dict | None = None, alarm: dict | None = None,
-                   motor: dict | None = None, alarm_per_model: dict | None = None) -> dict:
+                   motor: dict | None = None, alarm_per_model: dict | None = None, deployment=None) -> dict:
     """The manifest of one export (the keys listed in this module's docstring, in that order).
 
     ``ds``: the run's ``formats.dataset.Dataset``; ``checkpoints``: "cnode"/"gru" -> checkpoint blob
     (architecture, normalisation); ``coverage``: per model {"fp32", "int8", "summary"} of
     ``export.coverage``; ``files``: every file written beside the manifest, name -> bytes;
     ``encoding``: per model ``encoding_of`` (activation type, weight bits, contrib ops); ``motor``:
-    ``motor_entry`` (None: no key, the manifest of a model without the head is as before).
+    ``motor_entry`` (None: no key, the manifest of a model without the head is as before);
+    ``deployment``: export.deployment.Deployment (``deployment`` and, when null, ``deployment_note``).
     """
     out = {
         "schema_version": SCHEMA_VERSION,
@@ -128,6 +129,10 @@ def build_manifest(*, ds: Any, config: dict, checkpoints: dict[str, dict], windo
     }
     if alarm_per_model is not None:
         out["alarm_per_model"] = alarm_per_model
+    if deployment is not None:
+        out["deployment"] = deployment.entry
+        if deployment.entry is None:
+            out["deployment_note"] = deployment.note
     if motor is not None:
         out["motor_head"] = motor
     return out

@@ -37,6 +37,7 @@ from quadfdi.runtimes.ort import outputs, session
 from quadfdi.runtimes.pytorch import torch_logits
 from quadfdi.formats.onboard import onboard_section
 from quadfdi.export.alarm_policies import Policies, policies_of
+from quadfdi.export.deployment import Deployment, deployment_of
 from quadfdi.formats.weights_bin import weights_bytes
 from quadfdi.formats.dataset import Dataset, class_names, load_dataset, make_windows
 from quadfdi.models.inputs import profile_of
@@ -127,15 +128,17 @@ def coverage_of(graphs: Graphs, log: Callable[[str], None]) -> dict[str, dict]:
 
 
 def export_run(run: RunDir, cfg: Config, log: Callable[[str], None] = print, alarm_from: str = "config",
-               policies: Policies | None = None) -> dict:
+               policies: Policies | None = None, deployment: Deployment | None = None) -> dict:
     """Build, calibrate, verify and publish every export artifact of ``run`` as one stage
     (core.stage: staged, then moved into export/ with the stage record); return the manifest.
     Files of an earlier export the new one does not have (another --steps) are removed.
     ``alarm_from``: each network's alarm policy from the config or evaluation.json (export.alarm_policies;
     refused before anything is written); ``policies``: those policies already read (``quadfdi export``
     reads them before importing torch), else read here. evaluation.json, when they came from it, is an
-    input of the stage."""
+    input of the stage. ``deployment``: the windowed-or-streaming choice (export.deployment), read here
+    when not given; evaluation.json, when the choice came from it, is an input of the stage too."""
     policies = policies or policies_of(run, cfg.alarm, alarm_from)
+    deployment = deployment or deployment_of(run)
     sections = cfg.to_dict()
     with stage(run.root, "export", {"sim": sections["sim"], "export": sections["export"]},
                targets=("export/manifest.json", "export/weights.bin", "export/reference.bin")) as st:
@@ -143,10 +146,12 @@ def export_run(run: RunDir, cfg: Config, log: Callable[[str], None] = print, ala
         for kind in MODEL_KINDS:
             st.consume(f"{kind}.pt", ("sim",))
         policies.consume(st)
-        return _export_into(run, cfg, RunDir(st.out), log, policies)
+        deployment.consume(st)
+        return _export_into(run, cfg, RunDir(st.out), log, policies, deployment)
 
 
-def _export_into(run: RunDir, cfg: Config, dest: RunDir, log: Callable[[str], None], policies: Policies) -> dict:
+def _export_into(run: RunDir, cfg: Config, dest: RunDir, log: Callable[[str], None], policies: Policies,
+                 deployment: Deployment) -> dict:
     t0 = time.perf_counter()
     ecfg = cfg.export
     steps, opset = ecfg.steps, ecfg.opset
@@ -185,7 +190,7 @@ def _export_into(run: RunDir, cfg: Config, dest: RunDir, log: Callable[[str], No
         calib_windows=len(calib_idx), interp_exact=cq.interp_exact, verification=verification,
         metrics=metrics, reference_index=ref_idx, reference_labels=test_w.y[ref_idx],
         profile=profile_entry(profile, cblob, gblob), alarm=policies.default, alarm_per_model=policies.per_model,
-        motor=motor_entry({"cnode": cblob, "gru": gblob}, list(ROTOR_SIDE_CLASSES)),
+        motor=motor_entry({"cnode": cblob, "gru": gblob}, list(ROTOR_SIDE_CLASSES)), deployment=deployment,
         encoding={"cnode": encoding_of(cq.act, weight_qmax(cq.act), graphs.cnode_int8.model),
                   "gru": encoding_of(gq.act, weight_qmax(gq.act), graphs.gru_int8.model)})
     out = ensure_dir(dest.export)

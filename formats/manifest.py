@@ -9,10 +9,15 @@ export folder), ``files`` (name -> sha256, bytes), ``models`` (architecture, MAC
 artifact), ``reference`` (the test windows in reference.bin), ``config``, ``profile`` (the input
 channels, ``profile_entry``), ``alarm`` (the default alarm policy: core.alarm, the [alarm] section's
 keys; what a reader that predates ``alarm_per_model`` runs), ``alarm_per_model`` (network -> {policy,
-source}: export/alarm_policies.py; absent in an export written before it), and
+source}: export/alarm_policies.py; absent in an export written before it), ``deployment`` (the
+windowed-or-streaming member deployed per network family as ``quadfdi evaluate`` chose it on
+validation, with the sha256 of that evaluation.json: export/deployment.py; null with
+``deployment_note`` saying why when there was none to read; absent before it existed), and
 only for models with a motor head (models.motor) ``motor_head`` (``motor_entry``; ``io.outputs``
 then also lists ``motor_logits``).
 A reader must check ``schema_version`` first: ``load_manifest`` refuses any other version.
+``deployed(manifest, evaluation_path)`` is what a reader acting on the deployment calls: it refuses an
+evaluation.json whose sha256 is no longer the one the deployment was read from.
 """
 
 from __future__ import annotations
@@ -61,7 +66,38 @@ def load_manifest(path: str | Path) -> dict:
         if not relative_ok(name) or not isinstance(entry, dict) or not isinstance(entry.get("sha256"), str):
             raise QuadfdiError(f"manifest {p}: files lists {name!r}, not a file inside the export folder with its "
                                "sha256: refused")
+    _check_deployment(data.get("deployment"), p)
     return data
+
+
+def _check_deployment(dep, p: Path) -> None:
+    """``deployment`` is absent, null, or names evaluation.json's sha256 and, per family, a chosen
+    member among its candidates (or null)."""
+    if dep is None:
+        return
+    fams = dep.get("families") if isinstance(dep, dict) else None
+    if not isinstance(fams, dict) or not isinstance(dep.get("evaluation_sha256"), str):
+        raise QuadfdiError(f"manifest {p}: deployment is neither null nor a choice with its evaluation.json sha256")
+    for fam, f in fams.items():
+        if not isinstance(f, dict) or not isinstance(f.get("candidates"), dict) or (
+                f.get("chosen") is not None and f["chosen"] not in f["candidates"]):
+            raise QuadfdiError(f"manifest {p}: deployment.families.{fam} chooses a member that is not a candidate")
+
+
+def deployed(manifest: dict, evaluation_path: str | Path) -> dict[str, str | None]:
+    """Family -> deployed member of ``manifest`` (load_manifest's); a one-line QuadfdiError when it has
+    no deployment or ``evaluation_path`` is not the evaluation.json it was read from."""
+    dep = manifest.get("deployment")
+    if dep is None:
+        why = manifest.get("deployment_note", "exported before the choice existed")
+        raise QuadfdiError(f"the export records no deployed member: {why}")
+    path = Path(evaluation_path)
+    got = hashlib.sha256(path.read_bytes()).hexdigest() if path.is_file() else None
+    if got != dep["evaluation_sha256"]:
+        found = "missing" if got is None else f"sha256 {got[:16]}..."
+        raise QuadfdiError(f"{path} is {found}, the export's deployment was read from sha256 "
+                           f"{dep['evaluation_sha256'][:16]}...: re-run quadfdi export")
+    return {fam: f.get("chosen") for fam, f in dep["families"].items()}
 
 
 def check_files(manifest: dict, folder: str | Path) -> None:

@@ -5,7 +5,8 @@ from the run's own files (export/manifest.json, parity/parity.json, parity/mcu.j
 solvers/solvers.json) and names the machine that measured them (CPU model, vector ISA, date from
 bench.json), because these numbers move with the CPU; ``--block results`` writes the seed study's
 headline tables (quadfdi.readme_study), ``--block realistic`` the realistic suite's
-(quadfdi.readme_realistic). Nothing is typed in by hand; a missing file is a one-line error naming
+(quadfdi.readme_realistic), ``--block comparison`` the networks against the baselines
+(quadfdi.comparison). Nothing is typed in by hand; a missing file is a one-line error naming
 the command that writes it. The deployment and results blocks keep every line within 100
 characters, the README's width.
 """
@@ -24,7 +25,7 @@ from quadfdi.core.tables import md_table
 from quadfdi.readme_text import wrap
 
 BLOCK = "deployment"
-BLOCKS = (BLOCK, "results", "realistic")
+BLOCKS = (BLOCK, "results", "realistic", "comparison")
 MODELS = (("cnode", "CNODE"), ("gru", "GRU"))
 
 
@@ -36,7 +37,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--block", choices=BLOCKS, default=BLOCK,
                    help="deployment: export, parity, bench and Cortex-M tables; results: the seed study's "
                         "Tables 3 and 4 (seeds.json; quadfdi.readme_study); realistic: the evaluation's "
-                        "model x test-set tables (quadfdi.readme_realistic) (default: %(default)s)")
+                        "model x test-set tables (quadfdi.readme_realistic); comparison: windowed and streaming "
+                        "networks against the baselines (quadfdi.comparison) (default: %(default)s)")
     p.set_defaults(func=_cli)
 
 
@@ -45,6 +47,10 @@ def _cli(args: argparse.Namespace) -> int:
         from quadfdi.readme_realistic import realistic_block
 
         text = realistic_block(Path(args.run))
+    elif args.block == "comparison":
+        from quadfdi.comparison import comparison_block
+
+        text = comparison_block(Path(args.run))
     elif args.block == "results":
         from quadfdi.readme_study import results_block
 

@@ -4,7 +4,8 @@
                                                 measuring); with --html also report.html (report_html)
 
 Each stage owns its section and reads only its own files: ``report_section(run_root) -> list[str]``
-in sim.report, train.report, evaluate.report, export.report, parity.report, bench.report, solverstudy.report,
+in sim.report, train.report, evaluate.report, quadfdi.comparison (the networks against the baselines,
+from evaluation.json, the parity outputs and the export manifest), export.report, parity.report, bench.report, solverstudy.report,
 realism.report and quadfdi.crazypad_report (RUN/crazypad, when ``quadfdi crazypad`` wrote there),
 in that order, after a headline made of the bullets of ``headline(run_root)`` (train, export, bench
 and solverstudy). A stage whose files are absent says "Not run" under its
@@ -23,7 +24,8 @@ from quadfdi.core.atomic import write_text
 from quadfdi.core.errors import QuadfdiError
 from quadfdi.core.reportmd import figure_links
 
-SECTIONS = ("quadfdi.sim.report", "quadfdi.train.report", "quadfdi.evaluate.report", "quadfdi.export.report", "quadfdi.parity.report", "quadfdi.bench.report",
+SECTIONS = ("quadfdi.sim.report", "quadfdi.train.report", "quadfdi.evaluate.report", "quadfdi.comparison",
+            "quadfdi.export.report", "quadfdi.parity.report", "quadfdi.bench.report",
             "quadfdi.solverstudy.report", "quadfdi.realism.report", "quadfdi.crazypad_report")
 HEADLINES = ("quadfdi.train.report", "quadfdi.evaluate.report", "quadfdi.export.report", "quadfdi.bench.report", "quadfdi.solverstudy.report")
 
