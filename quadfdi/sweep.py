@@ -51,7 +51,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--out", default=None, help="sweep folder (e.g. runs/sweep)")
     p.add_argument("--dataset-from", default=None, metavar="RUN",
                    help="reuse this run folder's dataset at every point instead of simulating (--stages without sim; "
-                        "every point's [sim] must equal the run's)")
+                        "every point's [sim] must equal the run's but sim.window and sim.stride)")
     add_executor_args(p)
     p.set_defaults(func=run_sweep_cmd)
     acts = p.add_subparsers(dest="action", metavar="{bench}")
@@ -176,12 +176,14 @@ def run_point(point_dir: str, cfg: Config, stages: tuple[str, ...], cache_root: 
 
 
 def point_jobs(out: Path, points: list[tuple[dict, Config]], stages: tuple[str, ...],
-               dataset: Path | None = None) -> list[Job]:
+               datasets: list[Path] | None = None) -> list[Job]:
+    """One job per point; ``datasets``: each point's dataset to reuse (quadfdi.sweep_reuse), or None."""
     packages = tuple(sorted({p for s in stages for p in PACKAGES[s]} | {"quadfdi"}))
-    inputs = {"dataset": dataset} if dataset is not None else None
-    src = str(dataset) if dataset is not None else None
     jobs = []
-    for values, cfg in points:
+    for i, (values, cfg) in enumerate(points):
+        dataset = None if datasets is None else datasets[i]
+        inputs = {"dataset": dataset} if dataset is not None else None
+        src = str(dataset) if dataset is not None else None
         key = job_key(KIND, cfg.to_dict(), {"stages": list(stages)}, inputs=inputs, packages=packages)
         jobs.append(Job(KIND, key, run_point, (str(out / "points" / point_name(values)), cfg, stages, str(out), src),
                         cache_path(out, KIND, key, "json"), label=point_name(values), torch=stages != ("sim",)))
@@ -189,7 +191,7 @@ def point_jobs(out: Path, points: list[tuple[dict, Config]], stages: tuple[str, 
 
 
 def run_sweep(out: Path, points: list[tuple[dict, Config]], stages: tuple[str, ...], settings: ExecSettings,
-              progress: bool = True, dataset: Path | None = None) -> list[JobResult]:
+              progress: bool = True, datasets: list[Path] | None = None) -> list[JobResult]:
     """The datasets' shards (each distinct [sim] section once), then one job per point."""
     from quadfdi.sim.shards import shard_jobs
 
@@ -204,7 +206,7 @@ def run_sweep(out: Path, points: list[tuple[dict, Config]], stages: tuple[str, .
             if bad:
                 raise QuadfdiError(f"{len(bad)} simulation shards failed ({bad[0].job.label}: {bad[0].error}); "
                                    "run the same command again to resume")
-        return run_jobs(point_jobs(out, points, stages, dataset), settings, desc="sweep points", progress=progress)
+        return run_jobs(point_jobs(out, points, stages, datasets), settings, desc="sweep points", progress=progress)
 
 
 def run_sweep_cmd(args: argparse.Namespace) -> int:
@@ -220,14 +222,14 @@ def run_sweep_cmd(args: argparse.Namespace) -> int:
                            "reuses with --dataset-from RUN")
     metrics = [m.strip() for m in args.metrics.split(",") if m.strip()]
     points = grid_points(args.config, args.overrides, grid)
-    dataset = None
-    if args.dataset_from is not None:
-        from quadfdi.sweep_reuse import source_dataset
-
-        dataset = source_dataset(args.dataset_from, points)
     out = Path(args.out)
+    datasets = None
+    if args.dataset_from is not None:
+        from quadfdi.sweep_reuse import source_datasets
+
+        datasets = source_datasets(args.dataset_from, points, out)
     create_run(out, load_config(args.config, args.overrides))  # the sweep's base config, beside its table
-    results = run_sweep(out, points, stages, settings, dataset=dataset)
+    results = run_sweep(out, points, stages, settings, datasets=datasets)
     paths = write_sweep_report(out, grid, points, results, metrics, stages)
     failed = sum(not r.ok for r in results)
     print(f"sweep: {len(results) - failed} of {len(results)} points done" + (f", {failed} failed" if failed else ""))

@@ -103,3 +103,28 @@ def test_the_exported_graph_does_not_depend_on_the_rates():
                 build_gru_fp32(gru_params(gru), 18).model.SerializeToString())
 
     assert graphs([]) == graphs(["train.dropout_in=0.3", "train.dropout_latent=0.5"])
+
+
+def _history(sets: list[str]) -> "loop.History":
+    cfg = load_config(None, ["train.epochs=8", "train.latent=6", "train.hidden=8", "train.steps=2",
+                             "train.batch_size=16", *sets]).train
+    torch.manual_seed(0)
+    model = build_model("cnode", C, cfg, window=W, n_classes=4)
+    return loop.train_model(model, _windows(), _windows(seed=1), cfg, np.ones(4, np.float32), log=lambda s: None)
+
+
+def test_patience_stops_after_that_many_epochs_without_gain():
+    full = _history([])
+    stopped = _history(["train.patience=1"])
+    assert len(full.val_macro_f1) == 8
+    # the same epochs up to the first one that did not beat the best so far, then the stop
+    first_flat = next(e for e in range(1, 8) if full.val_macro_f1[e] <= max(full.val_macro_f1[:e]))
+    assert stopped.val_macro_f1 == full.val_macro_f1[:first_flat + 1]
+    assert stopped.best_epoch == int(np.argmax(stopped.val_macro_f1))
+
+
+def test_outputs_and_patience_bounds_are_refused_in_one_line():
+    res = quadfdi("sim", "--out", "/nonexistent/run", "--set", "train.outputs=some")  # checked before any work
+    assert res.returncode == 2 and "train.outputs" in res.stderr and len(res.stderr.strip().splitlines()) == 1
+    with pytest.raises(QuadfdiError, match="patience"):
+        load_config(None, ["train.patience=-1"])

@@ -21,7 +21,7 @@ The tuning budget is the same for every baseline: ``N_CONFIGS`` hyperparameter c
 non-reference flights, under the same cap) and scored by macro F1 on the VALIDATION windows; the best is kept (the first on a tie). Test and out-of-distribution windows
 are only predicted, never scored for a choice. Training windows are subsampled without replacement
 (seeded, ``MAX_TRAIN_WINDOWS``) so that the five fits of a baseline take about a minute on one
-core; every fit runs on one thread (``threadpool_limits(1)``).
+core at 5 configurations; every fit runs on one thread (``threadpool_limits(1)``).
 
 ``fit_baselines(ds, seed)`` returns, per model, the probabilities on every evaluation window
 (split >= 1) of the dataset and the record of its choice (``BaselineResult``).
@@ -49,22 +49,19 @@ from quadfdi.train.vehicle_ref import VehicleRefs, has_vehicles, vehicle_refs
 
 MODELS = ("logreg_stats", "logreg_physics", "gbt")
 REF_MODELS = ("logreg_physics_ref", "gbt_ref")  # each with its reference-free twin's grid
-N_CONFIGS = 5  # hyperparameter configurations tried per baseline: the same budget for each
+N_CONFIGS = 24  # hyperparameter configurations tried per baseline: the networks' recipe search's budget
 MAX_TRAIN_WINDOWS = 8000  # seeded subsample of the training windows (realistic suite: 31,680 in all)
 MAX_ITER_LR = 3000
 N_BINS = 255  # feature bins of the trees (sklearn's default max_bins), from training quantiles (QuantileBins)
 CHUNK = 4096  # windows per feature batch (bounds the float64 copy to ~65 MB at W = 80, C = 25)
-_LR_C = (0.01, 0.1, 1.0, 10.0, 100.0)
+_LR_C = tuple(float(c) for c in np.logspace(-4.0, 4.0, N_CONFIGS))  # the inverse L2 strength, its only knob
+# the trees: rate x leaves x L2, with the boosting rounds scaled to the rate (about 10 / rate)
+_GBT = [{"learning_rate": lr, "max_iter": it, "max_leaf_nodes": leaves, "l2_regularization": l2}
+        for lr, it in ((0.05, 200), (0.1, 100), (0.2, 50)) for leaves in (7, 15, 31, 63) for l2 in (0.0, 1.0)]
 GRIDS: dict[str, list[dict[str, Any]]] = {
     "logreg_stats": [{"C": c} for c in _LR_C],
     "logreg_physics": [{"C": c} for c in _LR_C],
-    "gbt": [
-        {"learning_rate": 0.1, "max_iter": 100, "max_leaf_nodes": 15, "l2_regularization": 0.0},
-        {"learning_rate": 0.1, "max_iter": 100, "max_leaf_nodes": 31, "l2_regularization": 1.0},
-        {"learning_rate": 0.05, "max_iter": 200, "max_leaf_nodes": 15, "l2_regularization": 1.0},
-        {"learning_rate": 0.2, "max_iter": 60, "max_leaf_nodes": 31, "l2_regularization": 0.0},
-        {"learning_rate": 0.1, "max_iter": 100, "max_leaf_nodes": 7, "min_samples_leaf": 100},
-    ],
+    "gbt": _GBT,
 }
 GRIDS.update({m: GRIDS[m[:-len("_ref")]] for m in REF_MODELS})
 assert all(len(g) == N_CONFIGS for g in GRIDS.values()), "every baseline gets the same tuning budget"

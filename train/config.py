@@ -60,10 +60,17 @@ class TrainConfig:
     weight_decay: float = 0.0  # AdamW's decoupled weight decay on every parameter (0: plain Adam)
     dropout_in: float = 0.0  # training only: each normalised input channel of a window zeroed with this probability
     dropout_latent: float = 0.0  # training only: dropout on the CNODE's z1 / the GRU's h_W before the heads
+    # Early stopping: end training once validation macro F1 has not risen for this many epochs (0: every epoch);
+    # the learning-rate schedule still spans `epochs`, and the best epoch's weights are kept either way.
+    patience: int = 0
+    # "all": every output; "fit": the checkpoints, history and test metrics only, no prediction sets or
+    # mask-pattern scores (a recipe search's points, `quadfdi sweep --stages train`: later stages need "all").
+    outputs: str = "all"
 
     def validate(self) -> None:
         positive(self, "epochs", "batch_size", "lr", "latent", "hidden", "gru_hidden", "steps", "rtol", "atol", "threads", "gru_lr")
-        not_negative(self, "seed", "max_train_windows")
+        not_negative(self, "seed", "max_train_windows", "patience")
+        choice(self, "outputs", ("all", "fit"))
         if min(self.seeds, default=0) < 0:
             raise QuadfdiError(f"train.seeds must not be negative, found {list(self.seeds)}")
         at_most(self, MAX_THREADS, "threads")

@@ -86,7 +86,8 @@ def _stop_if_diverged(value: torch.Tensor, model: torch.nn.Module, cfg: TrainCon
 def train_model(model: torch.nn.Module, train: Windows, val: Windows, cfg: TrainConfig, weights: np.ndarray,
                 log: Callable[[str], None] = print, motor: np.ndarray | None = None,
                 augment: Callable[[torch.Tensor, int, int], torch.Tensor] | None = None) -> History:
-    """Train ``model`` in place for ``cfg.epochs`` epochs; keep the best-validation weights.
+    """Train ``model`` in place for ``cfg.epochs`` epochs (fewer with ``cfg.patience``: early stopping
+    on validation flights); keep the best-validation weights.
 
     A model with a motor head (models.motor) needs ``motor``, (n,) the target motor of each training
     window (-1: no motor loss); its loss is the class loss + cfg.motor_loss_weight x the motor
@@ -143,6 +144,9 @@ def train_model(model: torch.nn.Module, train: Windows, val: Windows, cfg: Train
         nfe_txt = f", {hist.nfe_per_forward[-1]:.0f} NFE/forward" if nfes else ""
         log(f"  epoch {epoch + 1:2d}/{cfg.epochs}: loss {hist.loss[-1]:.4f}, val macro F1 {f1:.4f}, "
             f"{hist.epoch_s[-1]:.1f} s{nfe_txt}")
+        if cfg.patience and epoch - hist.best_epoch >= cfg.patience:
+            log(f"  early stop: no gain in validation macro F1 for {cfg.patience} epochs")
+            break
     if best_state is not None:
         model.load_state_dict(best_state)
     model.eval()

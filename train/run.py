@@ -61,6 +61,7 @@ def train_all(ds: Dataset, cfg: Config, kinds: list[str], log: Callable[[str], N
     profile, masked = cfg.train.profile, is_masked(cfg.train.profile)
     # the models' input channels (paper: ds itself); a masked profile: every channel, masks per window (train.masks)
     ds = profiled(ds, profile, patterns=False)
+    predsets = predsets and cfg.train.outputs == "all"
     k = len(class_names(ds.arrays))
     splits = split_windows(ds, cfg.train.max_train_windows, cfg.train.seed)
     for name in SPLITS:
@@ -101,7 +102,7 @@ def train_all(ds: Dataset, cfg: Config, kinds: list[str], log: Callable[[str], N
             log(f"  {kind}: prediction set of {len(out['predsets'][kind]['traj'])} evaluation windows in "
                 f"{time.perf_counter() - t0:.1f} s")
         out["metrics"][kind] = evaluate(ds, splits.test, proba)
-        if masked:
+        if masked and predsets:
             out["mask_patterns"][kind] = {name: pattern_scores(lambda x: predict_proba(model, x), w, profile,
                                                                ds.channel_names, k)
                                           for name, w in (("validation", val_all), ("test", splits.test))}
