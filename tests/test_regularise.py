@@ -45,12 +45,15 @@ def test_defaults_change_nothing():
 
 @pytest.mark.parametrize("kind", ["cnode", "gru"])
 def test_weight_decay_zero_is_the_adam_of_before_bit_for_bit(kind, monkeypatch):
-    now = _trained(kind, ["train.weight_decay=0"])
-    decayed = _trained(kind, ["train.weight_decay=0.1"])
+    key = "train.gru_weight_decay" if kind == "gru" else "train.weight_decay"
+    now = _trained(kind, [f"{key}=0"])
+    decayed = _trained(kind, [f"{key}=0.1"])
+    other = _trained(kind, ["train.weight_decay=0.1" if kind == "gru" else "train.gru_weight_decay=0.1"])
     monkeypatch.setattr(loop, "make_optimizer",  # the optimiser line as it was before weight decay existed
                         lambda m, cfg: torch.optim.Adam(m.parameters(), lr=loop.learning_rate(m, cfg)))
     before = _trained(kind, [])
     assert all(torch.equal(now[k], before[k]) for k in before)
+    assert all(torch.equal(other[k], before[k]) for k in before)  # the other network's key leaves this one alone
     assert any(not torch.equal(decayed[k], before[k]) for k in before)
 
 

@@ -57,7 +57,8 @@ class TrainConfig:
     # reference (train/features_ref.py; datasets whose vehicles have reference flights, others skip them).
     baselines_reference: bool = False
     # Regularisation (docs/training.md "Recipe search"); the defaults change nothing.
-    weight_decay: float = 0.0  # AdamW's decoupled weight decay on every parameter (0: plain Adam)
+    weight_decay: float = 0.0  # the CNODE's AdamW decoupled weight decay on every parameter (0: plain Adam)
+    gru_weight_decay: float = 0.0  # the GRU's (each network's recipe is searched on its own, as lr and gru_lr)
     dropout_in: float = 0.0  # training only: each normalised input channel of a window zeroed with this probability
     dropout_latent: float = 0.0  # training only: dropout on the CNODE's z1 / the GRU's h_W before the heads
     # Early stopping: end training once validation macro F1 has not risen for this many epochs (0: every epoch);
@@ -87,7 +88,7 @@ class TrainConfig:
         choice(self, "motor_head", ("auto", "off"))
         not_negative(self, "motor_loss_weight", "share_wander")
         positive(self, "share_wander_tau_s")
-        not_negative(self, "weight_decay")
+        not_negative(self, "weight_decay", "gru_weight_decay")
         for name in ("dropout_in", "dropout_latent"):
             if not 0.0 <= getattr(self, name) < 1.0:
                 raise QuadfdiError(f"train.{name} must lie in [0, 1), found {getattr(self, name)}")

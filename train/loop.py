@@ -66,11 +66,17 @@ def learning_rate(model: torch.nn.Module, cfg: TrainConfig) -> float:
     return cfg.gru_lr if isinstance(model, GRUClassifier) else cfg.lr
 
 
+def weight_decay(model: torch.nn.Module, cfg: TrainConfig) -> float:
+    """The decoupled weight decay of ``model``'s kind (each network's recipe is searched on its own)."""
+    return cfg.gru_weight_decay if isinstance(model, GRUClassifier) else cfg.weight_decay
+
+
 def make_optimizer(model: torch.nn.Module, cfg: TrainConfig) -> torch.optim.Optimizer:
-    """Adam at ``learning_rate``; with ``cfg.weight_decay`` > 0, AdamW (decay decoupled from the
-    gradient's moments, scaled by the scheduled rate). 0 builds plain Adam."""
-    if cfg.weight_decay > 0:
-        return torch.optim.AdamW(model.parameters(), lr=learning_rate(model, cfg), weight_decay=cfg.weight_decay)
+    """Adam at ``learning_rate``; with a ``weight_decay`` > 0 for the model's kind, AdamW (decay
+    decoupled from the gradient's moments, scaled by the scheduled rate). 0 builds plain Adam."""
+    decay = weight_decay(model, cfg)
+    if decay > 0:
+        return torch.optim.AdamW(model.parameters(), lr=learning_rate(model, cfg), weight_decay=decay)
     return torch.optim.Adam(model.parameters(), lr=learning_rate(model, cfg))
 
 
