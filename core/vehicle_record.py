@@ -110,6 +110,22 @@ def _per(x: np.ndarray) -> np.ndarray:
     return x[..., None]
 
 
+def expected_shares(values: dict[str, np.ndarray], record: np.ndarray, rates: np.ndarray,
+                    vel_h: np.ndarray) -> list[np.ndarray]:
+    """Each motor's expected share ``s_k`` (module docstring), (..., T) float32, from the profile's ``vx_h`` and
+    ``r`` and ``record`` (..., 24); ``rates``, ``vel_h`` (...,) bool: the flight has body rates, heading-frame
+    velocity (0 before clipping without)."""
+    rec = np.asarray(record, np.float32)
+    f = lambda i: _per(rec[..., i])  # noqa: E731
+    zero = np.float32(0.0)
+    vx = np.where(_per(np.asarray(vel_h, bool)), values["vx_h"], zero)
+    r = np.where(_per(np.asarray(rates, bool)), values["r"], zero)
+    vf = np.minimum(np.maximum(vx, f(12)), f(13)).astype(np.float32)
+    yr = np.minimum(np.maximum(r, f(14)), f(15)).astype(np.float32)
+    with np.errstate(invalid="ignore"):
+        return [((f(k) + f(4 + k) * vf) + f(8 + k) * yr).astype(np.float32) for k in range(4)]
+
+
 def reference_values(values: dict[str, np.ndarray], record: np.ndarray, rates: np.ndarray,
                      vel_h: np.ndarray) -> dict[str, np.ndarray]:
     """The reference channels (module docstring) from the profile's ``values`` (core.profiles: ``m{k}_rel``,
@@ -118,15 +134,9 @@ def reference_values(values: dict[str, np.ndarray], record: np.ndarray, rates: n
     NaN where the record holds nothing for a channel (the caller puts its fill there)."""
     rec = np.asarray(record, np.float32)
     f = lambda i: _per(rec[..., i])  # noqa: E731
-    zero = np.float32(0.0)
-    vx = np.where(_per(np.asarray(vel_h, bool)), values["vx_h"], zero)
-    r = np.where(_per(np.asarray(rates, bool)), values["r"], zero)
-    vf = np.minimum(np.maximum(vx, f(12)), f(13)).astype(np.float32)
-    yr = np.minimum(np.maximum(r, f(14)), f(15)).astype(np.float32)
     out = {}
     with np.errstate(invalid="ignore", divide="ignore"):
-        for k in range(4):
-            s = (f(k) + f(4 + k) * vf) + f(8 + k) * yr
+        for k, s in enumerate(expected_shares(values, record, rates, vel_h)):
             out[f"m{k + 1}_ref"] = (values[f"m{k + 1}_rel"] / s).astype(np.float32)
         c = values["collective"]
         for name, (raw, lo) in (("vib_ref", ("vib", 16)), ("vib_ap_ref", ("vib_ap", 18))):
