@@ -7,8 +7,9 @@ operations, no fused multiply-add.
 One time constant ``TAU_S`` for every recursion, one per-sample coefficient ``ALPHA = 1 - exp(-dt / TAU_S)``
 at the grid period dt (core.resample.GRID_DT, 25 Hz). Why 4 s: exponential weights hold about
 ``2 TAU_S / dt`` = 200 samples (8 s, 2.5 of the baselines' 3.2 s windows), enough throttle changes for the
-current to move in a hover; short against the minutes over which the pack's open-circuit voltage falls;
-at most the fault ramps the simulator draws (paper suite: 0.30-0.62 of 16 s, 4.8-9.9 s).
+current to move in a hover; short against the minutes over which the pack's open-circuit voltage falls,
+and shorter than the fault ramps the simulator draws (fleet and realistic suites 0.10-0.30 of 75 s, 7.5-22.5 s;
+paper 0.30-0.62 of 16 s, 4.8-9.9 s), so the channels follow a fault as it grows.
 
 - ``sag_per_ampere`` (``r_cell``): the pack's voltage sag per ampere per cell, the causal twin of the
   baselines' ``r_int`` (train/features.py ``internal_resistance``): R = -cov(v_cell, I) / (var(I) + I_FLOOR_A^2)

@@ -24,6 +24,10 @@ on-board record.
   them (both vibration metrics, ``vib`` PX4's and ``vib_ap`` ArduPilot's, each its own channel) and
   one availability channel per group; a group the flight lacks gives its model channels their fill
   (``apply_profile``'s ``available``). Only the minimum (roll, vz, thr1..4) is required.
+- ``flightlog-ref``: the masked profile and deviations from the vehicle record (core/vehicle_record.py).
+- ``flightlog-phys``: ``flightlog-ref`` and the physics channels computed by recursions over the flight so far
+  (core/causal.py): the pack's sag per ampere per cell and the smoothed reference deviations. ``apply_profile``
+  takes whole flights from their first sample (``raw`` (..., T)), as the stream computes them sample by sample.
 
 Raw names are the channel table's (core/channels.py), the same in a simulated dataset and in an
 ingested flight.npz: ``vib_px4`` is PX4's metric only, so a log of another autopilot lacks it.

@@ -349,3 +349,60 @@ def test_cpp_profile_is_python_bit_for_bit_on_a_px4_log_with_and_without_its_cur
     assert (y[:, COL["r_cell"]] == 0).all() and (y[:, COL["avail_current"]] == 0).all()
     keep = [COL[n] for n in PHYSICS[1:]]
     np.testing.assert_array_equal(y[live][:, keep], x[live][:, keep])
+
+
+# ------------------------------------------------------------------------------ train, export, detect
+
+
+def test_a_physics_run_trains_exports_and_records_its_profile(physics_export):
+    """`quadfdi train --set train.profile=flightlog-phys` then export (tests/conftest.py): the manifest's 56
+    channels with r_cell's formula, weights.bin's on-board record profile id 6, both networks with and without
+    the record in the prediction index."""
+    import json
+
+    from tests.test_stream import _record
+
+    manifest = json.loads((physics_export / "manifest.json").read_text())
+    assert manifest["profile"]["name"] == PHYS and len(NAMES) == 56
+    assert "r_cell" in json.dumps(manifest["profile"]) and "EW tau 4 s" in json.dumps(manifest["profile"])
+    assert _record(physics_export)["profile"] == PHYS
+    index = json.loads((physics_export.parent / "predictions" / "index.json").read_text())["entries"]
+    assert {"cnode", "cnode_noref", "gru", "gru_noref"} <= {e["model"] for e in index}
+
+
+def test_a_dataset_on_another_grid_is_refused(tiny_fleet):
+    """The recursions' coefficient belongs to the 25 Hz grid: a dataset sampled otherwise, one line."""
+    from quadfdi.core.errors import QuadfdiError
+    from quadfdi.formats.dataset import load_dataset
+    from quadfdi.models.inputs import profiled_dataset
+
+    ds = load_dataset(tiny_fleet / "dataset.npz")
+    cfg = ds.config
+    other = dataclasses.replace(ds, config=dataclasses.replace(cfg, sim=dataclasses.replace(cfg.sim, sample_dt_s=0.02)))
+    with pytest.raises(QuadfdiError, match="its recursions step every 0.04 s"):
+        profiled_dataset(other, PHYS)
+    assert profiled_dataset(ds, PHYS, records=None)["telemetry"].shape[-1] == 56
+
+
+def test_detect_runs_a_physics_model_on_a_fleet_flight_with_its_reference(physics_export):
+    """quadfdi.detect on a held-out fleet flight: the inputs are the dataset path's (the recursions over the
+    whole flight), the record read, r_cell moving."""
+    from quadfdi.detect.run import detect
+    from quadfdi.formats.dataset import load_dataset
+    from quadfdi.train.vehicle_ref import dataset_flight, learn_references
+
+    ds = load_dataset(physics_export.parent / "dataset.npz")
+    refs = learn_references(ds.arrays, "d")
+    row = int(np.flatnonzero(~ds["reference_flight"])[0])
+    flight, ref = dataset_flight(ds.arrays, row, "d").arrays, refs[int(ds["vehicle_id"][row])]
+    out = detect(physics_export, flight, "cnode", "int8", "cpp", ref)
+    assert out["record"]["model_reference"] == "reads the vehicle record"
+    x = out["inputs"].x
+    assert (x[:, COL["avail_reference"]] == 1).all() and np.ptp(x[:, COL["r_cell"]]) > 0
+    from quadfdi.models.inputs import profiled_dataset
+    from quadfdi.core import vehicle_record as record
+
+    records = np.stack([record.from_reference(refs[int(v)]) for v in ds["vehicle_id"]])
+    want = profiled_dataset(ds, PHYS, patterns=False, records=records)["telemetry"][row]
+    cols = [COL[n] for n in PHYSICS]
+    np.testing.assert_array_equal(x[:, cols].view(np.uint32), want[:, cols].view(np.uint32))
