@@ -99,7 +99,8 @@ def physics_values(f32: dict[str, np.ndarray], values: dict[str, np.ndarray], re
     ``values`` (``v_cell`` and the reference channels, before any fill), the vehicle ``record`` (..., 24),
     ``rates``/``vel_h`` as core.vehicle_record.expected_shares and the hover command (...,):
 
-    - ``r_cell`` = ``sag_per_ampere(v_cell, I_b)``;
+    - ``r_cell`` = ``sag_per_ampere(v_cell, I_b)``; ``r_cell_ref`` = ``r_cell - sag``, the record's healthy sag
+      per ampere per cell (core/vehicle_record.py ``sag``);
     - ``m{k}_ref_lp`` = ``ewma(thr{k} / s_k) / hover_cmd``: the smoothed ``m{k}_ref``, divided by the hover
       estimate last (on board it freezes after the flight's start; the recursion runs before it does);
     - ``vib_ref_lp``, ``vib_ap_ref_lp`` = ``ewma`` of ``vib_ref``, ``vib_ap_ref``.
@@ -111,6 +112,8 @@ def physics_values(f32: dict[str, np.ndarray], values: dict[str, np.ndarray], re
         cmd = np.asarray(hover_cmd, np.float32)[..., None]
         out = {f"m{k + 1}_ref_lp": (lp[k] / cmd).astype(np.float32) for k in range(4)}
     out.update(vib_ref_lp=lp[4], vib_ap_ref_lp=lp[5], r_cell=sag_per_ampere(values["v_cell"], f32["I_b"]))
+    with np.errstate(invalid="ignore"):
+        out["r_cell_ref"] = (out["r_cell"] - np.asarray(record, np.float32)[..., 24:25]).astype(np.float32)
     return out
 
 

@@ -136,8 +136,8 @@ MODEL_CHANNELS: tuple[ModelChannel, ...] = (
                    1.0, True) for k in _ROTORS),
     # the physics channels (core/causal.py), recursions from the flight's first sample; r_cell's fill 0 is what a
     # steady current gives (no evidence of sag); the smoothed deviations keep their deviations' fills
-    ModelChannel("r_cell", "ohm", ("V_b", "I_b"), "-cov(v_cell, I_b) / (var(I_b) + 0.25^2), EW tau 4 s",
-                 0.0, physics=True),
+    ModelChannel("r_cell", "ohm", ("V_b", "I_b"), "-cov(v_cell, I_b) / (var(I_b) + 0.0625), tau 4 s", 0.0, False, True),
+    ModelChannel("r_cell_ref", "ohm", ("V_b", "I_b"), "r_cell - the reference's sag per A per cell", 0.0, True, True),
     *(ModelChannel(f"m{k}_ref_lp", "-", (f"thr{k}",), f"ewma(thr{k} / reference share, tau 4 s) / hover command",
                    1.0, True, True) for k in _ROTORS),
     ModelChannel("vib_ref_lp", "m/s^2", ("vib_px4",), "ewma(vib_ref, tau 4 s)", 0.0, True, True),
@@ -373,7 +373,7 @@ struct ProfileSpec {{
   int avail;        // model column of the first availability channel (one per group, in group order; -1: none)
   int ref;          // model column of m1_ref (m1..4_ref vib_ref vib_ap_ref rpm1..4_ref follow; -1: no vehicle record)
   int avail_ref;    // model column of avail_reference (-1: none)
-  int phys;         // model column of r_cell (m1..4_ref_lp vib_ref_lp vib_ap_ref_lp follow; -1: none)
+  int phys;         // model column of r_cell (r_cell_ref m1..4_ref_lp vib_ref_lp vib_ap_ref_lp follow; -1: none)
 }};
 
 // The availability groups (core/channels.py AVAILABILITY_GROUPS): bit g of an availability mask.

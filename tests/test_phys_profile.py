@@ -1,11 +1,12 @@
-"""The physics profile ``flightlog-phys`` (core/causal.py): flightlog-ref's channels and seven channels computed
-by recursions from the flight's first sample (``r_cell``, the smoothed reference deviations). The sag recursion
-against float64 exponentially weighted moments and a known resistance, the time constant against the closed
-form, causality and the state held over an unusable sample, the fills without current, battery or record, the
-training masker's reference drop, and the C++ mirror (fwref/causal.hpp through fwref/profile.hpp, its state
-carried sample by sample as the stream carries it) bit for bit on the tiny fleet's flights and on the shared
-PX4 mission with its own record, with and without its current. The stream runtime and the Cortex-M4 on a
-trained flightlog-phys export: tests/test_vehicle_record_stream.py, tests/test_vehicle_record_mcu.py."""
+"""The physics profile ``flightlog-phys`` (core/causal.py): flightlog-ref's channels and eight channels computed
+by recursions from the flight's first sample (``r_cell``, ``r_cell_ref``, the smoothed reference deviations). The
+sag recursion against float64 exponentially weighted moments and a known resistance, the time constant against
+the closed form, causality and the state held over an unusable sample, the fills without current, battery or
+record, the training masker's reference drop, and the C++ mirror (fwref/causal.hpp through fwref/profile.hpp,
+its state carried sample by sample as the stream carries it) bit for bit on the tiny fleet's flights and on the
+shared PX4 mission with its own record, with and without its current; a trained and exported flightlog-phys run
+and detect on it. The stream runtime and the Cortex-M4 on that export: tests/test_vehicle_record_stream.py,
+tests/test_vehicle_record_mcu.py."""
 
 from __future__ import annotations
 
@@ -25,7 +26,7 @@ from tests.conftest import ROOT, SHARED_DATA, quadfdi
 
 PHYS, REF = "flightlog-phys", "flightlog-ref"
 NAMES = channel_names(PHYS, [])
-PHYSICS = ["r_cell", "m1_ref_lp", "m2_ref_lp", "m3_ref_lp", "m4_ref_lp", "vib_ref_lp", "vib_ap_ref_lp"]
+PHYSICS = ["r_cell", "r_cell_ref", "m1_ref_lp", "m2_ref_lp", "m3_ref_lp", "m4_ref_lp", "vib_ref_lp", "vib_ap_ref_lp"]
 COL = {n: NAMES.index(n) for n in NAMES}
 PX4 = SHARED_DATA / "flightlogs" / "px4_quad_6s_uavcan_mission.ulg"
 STREAM_RECORD = {"profile": PHYS, "raw_channels": list(stream_raw(PROFILE_BY_NAME[PHYS])), "cells_from_stream": True,
@@ -39,6 +40,7 @@ def _record() -> np.ndarray:
     rec[12:16] = [-0.5, 1.0, -0.25, 0.25]
     rec[16:20] = [2.0, 4.0, 1.5, 3.0]
     rec[20:24] = 1.0
+    rec[24] = 0.008  # the healthy sag, ohm per cell
     return rec
 
 
@@ -60,7 +62,7 @@ def _apply(raw, available=None, record=None) -> np.ndarray:
 # ------------------------------------------------------------------------------ the table
 
 
-def test_profile_is_flightlog_ref_with_seven_physics_channels_before_the_availability():
+def test_profile_is_flightlog_ref_with_eight_physics_channels_before_the_availability():
     ref = channel_names(REF, [])
     assert PROFILE_BY_NAME[PHYS].id == 6 and PROFILE_BY_NAME[PHYS].raw == PROFILE_BY_NAME[REF].raw
     assert NAMES == ref[:38] + PHYSICS + ref[38:]
@@ -70,7 +72,8 @@ def test_profile_is_flightlog_ref_with_seven_physics_channels_before_the_availab
     assert COL["r_cell"] in cols["battery"] and COL["r_cell"] in cols["current"]
     assert COL["r_cell"] not in cols[REFERENCE_GROUP] and all(COL[n] in cols[REFERENCE_GROUP] for n in PHYSICS[1:])
     assert COL["vib_ref_lp"] in cols["vib_px4"] and COL["vib_ap_ref_lp"] in cols["vib_ap"]
-    assert fill[[COL[n] for n in PHYSICS]].tolist() == [0, 1, 1, 1, 1, 0, 0]
+    assert groups_of_model(PROFILE_BY_NAME[PHYS].model[COL["r_cell_ref"]]) == ("battery", "current")
+    assert fill[[COL[n] for n in PHYSICS]].tolist() == [0, 0, 1, 1, 1, 1, 0, 0]
 
 
 # ------------------------------------------------------------------------------ the recursions
@@ -159,7 +162,7 @@ def test_recursions_are_causal_and_hold_their_state_over_an_unusable_sample():
     y = _apply(later)
     cols = [COL[n] for n in PHYSICS]
     np.testing.assert_array_equal(x[:, :250, cols].view(np.uint32), y[:, :250, cols].view(np.uint32))
-    moved = [COL[n] for n in ("r_cell", "m2_ref_lp", "vib_ref_lp", "vib_ap_ref_lp")]
+    moved = [COL[n] for n in ("r_cell", "r_cell_ref", "m2_ref_lp", "vib_ref_lp", "vib_ap_ref_lp")]
     assert (x[:, 250:, moved] != y[:, 250:, moved]).all()  # and the change carries on
     gap = {k: v.copy() for k, v in raw.items()}
     gap["I_b"][:, 100] = np.nan
@@ -171,13 +174,14 @@ def test_recursions_are_causal_and_hold_their_state_over_an_unusable_sample():
 
 def test_without_current_battery_or_record_the_physics_channels_take_their_fills():
     raw = _flight(n=2)
-    fills = np.array([0, 1, 1, 1, 1, 0, 0], np.float32)
+    fills = np.array([0, 0, 1, 1, 1, 1, 0, 0], np.float32)
     cols = [COL[n] for n in PHYSICS]
     full = _apply(raw)
     assert (np.abs(full[:, 50:, cols] - fills) > 0).all()
     for lacking, name in (("current", "I_b"), ("battery", "V_b")):
         x = _apply(raw, {lacking: np.array([False, True])})  # training's masks: the values there, not read
         assert (x[0, :, COL["r_cell"]] == 0).all() and (x[0, :, COL[f"avail_{lacking}"]] == 0).all()
+        assert (x[0, :, COL["r_cell_ref"]] == 0).all()
         np.testing.assert_array_equal(x[1], full[1])  # the other flight keeps everything
         y = _apply({k: v for k, v in raw.items() if k != name}, {lacking: False})  # a log without the channel
         np.testing.assert_array_equal(y[0], x[0])
@@ -185,9 +189,10 @@ def test_without_current_battery_or_record_the_physics_channels_take_their_fills
     assert (none[..., cols[1:]] == fills[1:]).all() and (none[..., COL["avail_reference"]] == 0).all()
     np.testing.assert_array_equal(none[..., COL["r_cell"]], full[..., COL["r_cell"]])  # the sag needs no record
     rec = _record()
-    rec[[1, 16]] = np.nan  # no share for motor 2, no PX4 vibration floor
+    rec[[1, 16, 24]] = np.nan  # no share for motor 2, no PX4 vibration floor, no sag (a version 1 record)
     part = _apply(raw, record=rec)
-    assert (part[..., [COL["m2_ref_lp"], COL["vib_ref_lp"]]] == [1, 0]).all()
+    assert (part[..., [COL["m2_ref_lp"], COL["vib_ref_lp"], COL["r_cell_ref"]]] == [1, 0, 0]).all()
+    np.testing.assert_array_equal(full[..., COL["r_cell_ref"]], full[..., COL["r_cell"]] - np.float32(0.008))
     np.testing.assert_array_equal(part[..., COL["m1_ref_lp"]], full[..., COL["m1_ref_lp"]])
 
 
@@ -329,8 +334,8 @@ def mission(tmp_path_factory):
 
 def test_cpp_profile_is_python_bit_for_bit_on_a_px4_log_with_and_without_its_current(mirror, mission, tmp_path):
     """The mission (current, PX4 vibration, ESC telemetry) with its own record: r_cell a per-cell sag of a few
-    milliohm, every smoothed deviation but vib_ap_ref_lp (no ArduPilot metric) live; without its current the
-    sag at its fill and avail_current 0, the other channels unchanged."""
+    milliohm, r_cell_ref near 0 (the flight is its own reference), every smoothed deviation but vib_ap_ref_lp (no
+    ArduPilot metric) live; without its current both sags at their fill and avail_current 0, the rest unchanged."""
     rs, record = mission
     x = _same_bits(mirror, tmp_path, rs, record)
     live = np.isfinite(x).all(axis=1)
@@ -339,15 +344,19 @@ def test_cpp_profile_is_python_bit_for_bit_on_a_px4_log_with_and_without_its_cur
           f"{np.percentile(r, 5) * 1e3:.2f}-{np.percentile(r, 95) * 1e3:.2f}")
     assert live.sum() > 500 and 0 < np.median(r) < 0.05
     assert (x[live][:, COL["vib_ap_ref_lp"]] == 0).all()
-    assert all((x[live][:, COL[n]] != 1).mean() > 0.9 for n in PHYSICS[1:5])
+    assert all((x[live][:, COL[n]] != 1).mean() > 0.9 for n in PHYSICS[2:6])
+    beyond = x[live][:, COL["r_cell_ref"]]
+    print(f"mission r_cell_ref: median {np.median(beyond) * 1e3:.2f} mohm per cell (its own reference's sag "
+          f"{record[24] * 1e3:.2f})")
+    assert np.isfinite(record[24]) and abs(np.median(beyond)) < 0.5 * record[24]
     i_b = rs.names.index("I_b")
     values = rs.values.copy()
     values[:, i_b] = np.nan
     flags = rs.carried_flags.copy()
     flags[i_b] = False
     y = _same_bits(mirror, tmp_path, dataclasses.replace(rs, values=values, carried=flags), record)
-    assert (y[:, COL["r_cell"]] == 0).all() and (y[:, COL["avail_current"]] == 0).all()
-    keep = [COL[n] for n in PHYSICS[1:]]
+    assert (y[:, [COL["r_cell"], COL["r_cell_ref"]]] == 0).all() and (y[:, COL["avail_current"]] == 0).all()
+    keep = [COL[n] for n in PHYSICS[2:]]
     np.testing.assert_array_equal(y[live][:, keep], x[live][:, keep])
 
 
@@ -355,7 +364,7 @@ def test_cpp_profile_is_python_bit_for_bit_on_a_px4_log_with_and_without_its_cur
 
 
 def test_a_physics_run_trains_exports_and_records_its_profile(physics_export):
-    """`quadfdi train --set train.profile=flightlog-phys` then export (tests/conftest.py): the manifest's 56
+    """`quadfdi train --set train.profile=flightlog-phys` then export (tests/conftest.py): the manifest's 57
     channels with r_cell's formula, weights.bin's on-board record profile id 6, both networks with and without
     the record in the prediction index."""
     import json
@@ -363,8 +372,8 @@ def test_a_physics_run_trains_exports_and_records_its_profile(physics_export):
     from tests.test_stream import _record
 
     manifest = json.loads((physics_export / "manifest.json").read_text())
-    assert manifest["profile"]["name"] == PHYS and len(NAMES) == 56
-    assert "r_cell" in json.dumps(manifest["profile"]) and "EW tau 4 s" in json.dumps(manifest["profile"])
+    assert manifest["profile"]["name"] == PHYS and len(NAMES) == 57
+    assert "r_cell" in json.dumps(manifest["profile"]) and "tau 4 s" in json.dumps(manifest["profile"])
     assert _record(physics_export)["profile"] == PHYS
     index = json.loads((physics_export.parent / "predictions" / "index.json").read_text())["entries"]
     assert {"cnode", "cnode_noref", "gru", "gru_noref"} <= {e["model"] for e in index}
@@ -381,7 +390,7 @@ def test_a_dataset_on_another_grid_is_refused(tiny_fleet):
     other = dataclasses.replace(ds, config=dataclasses.replace(cfg, sim=dataclasses.replace(cfg.sim, sample_dt_s=0.02)))
     with pytest.raises(QuadfdiError, match="its recursions step every 0.04 s"):
         profiled_dataset(other, PHYS)
-    assert profiled_dataset(ds, PHYS, records=None)["telemetry"].shape[-1] == 56
+    assert profiled_dataset(ds, PHYS, records=None)["telemetry"].shape[-1] == 57
 
 
 def test_detect_runs_a_physics_model_on_a_fleet_flight_with_its_reference(physics_export):

@@ -32,12 +32,13 @@
 // each motor's expected share s_k in the m{k}_ref column, ``hover`` divides m{k}_rel by it: the same
 // float32 division as core/vehicle_record.py.
 //
-// The physics profile (``flightlog-phys``, ProfileSpec::phys >= 0) is the reference one plus seven channels
+// The physics profile (``flightlog-phys``, ProfileSpec::phys >= 0) is the reference one plus eight channels
 // computed by recursions over the flight so far (fwref/causal.hpp; core/causal.py): ``r_cell`` =
-// sag(v_cell, I_b), ``m{k}_ref_lp`` = ewma(thr_k / s_k) / hover_cmd (``prep`` steps the recursion, ``hover``
-// divides), ``vib_ref_lp``, ``vib_ap_ref_lp`` = ewma of the vibration excesses. They need the flight's
-// PhysState (``phys``; null: NaN, the samples undecided); a smoothed deviation whose record field is not held
-// takes its fill (its input NaN: the state does not move), r_cell needs the battery and the current groups.
+// sag(v_cell, I_b), ``r_cell_ref`` = r_cell - the record's sag, ``m{k}_ref_lp`` = ewma(thr_k / s_k) / hover_cmd
+// (``prep`` steps the recursion, ``hover`` divides), ``vib_ref_lp``, ``vib_ap_ref_lp`` = ewma of the vibration
+// excesses. They need the flight's PhysState (``phys``; null: NaN, the samples undecided); a channel whose
+// record field is not held takes its fill (a smoothed deviation's input is then NaN: the state does not move);
+// r_cell and r_cell_ref need the battery and the current groups.
 #pragma once
 
 #include <cmath>
@@ -120,20 +121,21 @@ inline void physics_prep(const ProfileSpec& s, const float* raw, const VehicleRe
                          float* x) {
   float* ph = x + s.phys;
   if (st == nullptr) {
-    for (int j = 0; j < 7; ++j) ph[j] = NAN;
+    for (int j = 0; j < 8; ++j) ph[j] = NAN;
     return;
   }
   ph[0] = sag_step(st->sag, x[8], s.i_b >= 0 ? raw[s.i_b] : NAN);  // v_cell, I_b
   const bool rec = vehicle != nullptr;
+  const bool sag = rec && std::isfinite(vehicle->v[vehicle::kSag]);
+  ph[1] = sag ? ph[0] - vehicle->v[vehicle::kSag] : s.fill[s.phys + 1];  // r_cell_ref
+  float* lp = ph + 2;  // m1..4_ref_lp, vib_ref_lp, vib_ap_ref_lp: lp[j] smooths reference channel j
   for (int k = 0; k < 4; ++k) {
     const float q = rec && reference_held(*vehicle, k) ? raw[s.thr + k] / x[s.ref + k] : NAN;
-    ph[1 + k] = ewma_step(st->lp[k], q);
+    lp[k] = ewma_step(st->lp[k], q);
   }
-  for (int j = 4; j < 6; ++j) {  // vib_ref, vib_ap_ref
-    ph[1 + j] = ewma_step(st->lp[j], rec && reference_held(*vehicle, j) ? x[s.ref + j] : NAN);
-  }
-  for (int j = 0; j < 6; ++j) {  // ph[1 + j] smooths reference channel j
-    if (!rec || !reference_held(*vehicle, j)) ph[1 + j] = s.fill[s.phys + 1 + j];
+  for (int j = 4; j < 6; ++j) lp[j] = ewma_step(st->lp[j], rec && reference_held(*vehicle, j) ? x[s.ref + j] : NAN);
+  for (int j = 0; j < 6; ++j) {
+    if (!rec || !reference_held(*vehicle, j)) lp[j] = s.fill[s.phys + 2 + j];
   }
 }
 
@@ -200,7 +202,7 @@ inline void profile_hover(Profile p, float hover_cmd, float hover_cur, float* x,
   for (int k = 0; k < 4; ++k) {
     if (!reference_held(*vehicle, k)) continue;
     x[s.ref + k] = x[m_rel + k] / x[s.ref + k];
-    if (s.phys >= 0) x[s.phys + 1 + k] = x[s.phys + 1 + k] / hover_cmd;  // m{k}_ref_lp
+    if (s.phys >= 0) x[s.phys + 2 + k] = x[s.phys + 2 + k] / hover_cmd;  // m{k}_ref_lp
   }
 }
 
