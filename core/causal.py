@@ -18,6 +18,7 @@ paper 0.30-0.62 of 16 s, 4.8-9.9 s), so the channels follow a fault as it grows.
   ``C <- (1 - a) (C + a dv di)`` with dv, di the deviations from the previous means), because float32 raw
   moments of 4 V and 20 A cancel: at a 0.3 A swing around 20 A they are 13 % off the float64 value where the
   centred form is within 0.01 % (tests/test_phys_profile.py ``test_centred_form_is_the_ew_moments``).
+  ``r_cell_ref`` is r_cell minus the vehicle record's healthy sag (core/vehicle_record.py ``sag``).
 - ``ewma``: an exponentially weighted mean started at the first finite sample (the smoothed deviations).
 
 A sample whose input is not finite (a gap, a NaN in the log, a channel the flight lacks) leaves the state
@@ -96,7 +97,7 @@ def sag_per_ampere(v: np.ndarray, i: np.ndarray) -> np.ndarray:
 def physics_values(f32: dict[str, np.ndarray], values: dict[str, np.ndarray], record: np.ndarray, rates, vel_h,
                    hover_cmd) -> dict[str, np.ndarray]:
     """The physics channels (core/channels.py), (..., T) float32, from the raw channels ``f32``, the profile's
-    ``values`` (``v_cell`` and the reference channels, before any fill), the vehicle ``record`` (..., 24),
+    ``values`` (``v_cell`` and the reference channels, before any fill), the vehicle ``record`` (..., 25),
     ``rates``/``vel_h`` as core.vehicle_record.expected_shares and the hover command (...,):
 
     - ``r_cell`` = ``sag_per_ampere(v_cell, I_b)``; ``r_cell_ref`` = ``r_cell - sag``, the record's healthy sag
