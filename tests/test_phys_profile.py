@@ -329,14 +329,14 @@ def mission(tmp_path_factory):
     out = tmp_path_factory.mktemp("mission_phys")
     res = quadfdi("vehicle", "learn", str(PX4), "--out", str(out / "v.json"))
     assert res.returncode == 0, res.stderr
-    return from_flight(PX4, STREAM_RECORD), record_from_vehicle_json(out / "v.json")
+    return from_flight(PX4, STREAM_RECORD), record_from_vehicle_json(out / "v.json"), out / "v.json"
 
 
 def test_cpp_profile_is_python_bit_for_bit_on_a_px4_log_with_and_without_its_current(mirror, mission, tmp_path):
     """The mission (current, PX4 vibration, ESC telemetry) with its own record: r_cell a per-cell sag of a few
     milliohm, r_cell_ref near 0 (the flight is its own reference), every smoothed deviation but vib_ap_ref_lp (no
     ArduPilot metric) live; without its current both sags at their fill and avail_current 0, the rest unchanged."""
-    rs, record = mission
+    rs, record, _ = mission
     x = _same_bits(mirror, tmp_path, rs, record)
     live = np.isfinite(x).all(axis=1)
     r = x[live][:, COL["r_cell"]]
@@ -358,6 +358,24 @@ def test_cpp_profile_is_python_bit_for_bit_on_a_px4_log_with_and_without_its_cur
     assert (y[:, [COL["r_cell"], COL["r_cell_ref"]]] == 0).all() and (y[:, COL["avail_current"]] == 0).all()
     keep = [COL[n] for n in PHYSICS[2:]]
     np.testing.assert_array_equal(y[live][:, keep], x[live][:, keep])
+
+
+def test_the_record_of_a_reference_holds_its_sag_and_the_cli_writes_it_for_the_physics_profile(mission, tmp_path):
+    """`quadfdi vehicle record --profile flightlog-phys`: field 24 the reference's sag per ampere per cell
+    (vehicle.json battery.sag_v_per_a, with its sign turned: ohm), the file for profile 6 and refused for 5."""
+    import json
+
+    from quadfdi.core.errors import QuadfdiError
+    from quadfdi.formats.vehicle_record_bin import read_record
+
+    _, record, vehicle_json = mission
+    res = quadfdi("vehicle", "record", str(vehicle_json), "--profile", PHYS, "--out", str(tmp_path / "r.bin"))
+    assert res.returncode == 0, res.stderr
+    sag = json.loads(vehicle_json.read_text())["battery"]["sag_v_per_a"]["mean"]
+    assert record[24] == np.float32(-sag) and 0 < record[24] < 0.05
+    np.testing.assert_array_equal(read_record(tmp_path / "r.bin", PHYS).view(np.uint32), record.view(np.uint32))
+    with pytest.raises(QuadfdiError, match="is for profile 'flightlog-phys', the model's is 'flightlog-ref'"):
+        read_record(tmp_path / "r.bin", REF)
 
 
 # ------------------------------------------------------------------------------ train, export, detect

@@ -47,7 +47,7 @@
 // their fills and its columns are not checked for NaN. A profile without a mask needs every column.
 //
 // The vehicle record (a reference profile only, fwref/vehicle_record.hpp): set_vehicle() after init() or
-// reset(), before the flight's first sample, copies the 24 floats into the stream (96 bytes, no pointer
+// reset(), before the flight's first sample, copies the record's floats into the stream (100 bytes, no pointer
 // kept); reset() keeps it (the record belongs to the vehicle, not the flight), clear_vehicle() drops it.
 // Without one the reference channels take their fills and avail_reference is 0.
 //
