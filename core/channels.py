@@ -1,35 +1,27 @@
 """The channel table: every channel quadfdi knows, with its unit and a stable id, written once; and
-the channel profiles as named lists over it.
+the channel profiles as named lists over it. Each table is the one place of its contract (the C++ gets
+them from ``firmware_ref/include/fwref/channels_gen.hpp``: ``python -m quadfdi.core.channels --header``;
+a test checks that the committed header is what this module generates):
 
-Three tables, each the one place of its contract (the C++ gets them from the generated header
-``firmware_ref/include/fwref/channels_gen.hpp``: ``python -m quadfdi.core.channels --header``; a test
-checks that the committed header is what this module generates):
-
-- ``CHANNELS``: the raw channels, each with an id that never changes and is never reused (a channel
-  added later takes the next free id; a profile, an availability mask and the C++ name a channel by
-  it). The simulator's 23 telemetry channels come first, in the order of the paper's dataset (so a
-  model trained on the simulator reads the same columns as one reading an ingested flight), then the
-  channels only richer logs (and the realistic suite) carry: together flight.npz's columns, in id
-  order. Each autopilot's vibration metric is its own channel, as the simulator computes it from its
-  accelerometer: ``vib_px4`` is PX4's ``accel_vibration_metric`` (m/s^2), ``vib_ap`` ArduPilot's
-  VIBE as the in-plane mean (VibeX + VibeY) / 2 (the simulator has no vertical vibration model, so
-  VibeZ is not used). Last ``airborne`` (0/1), which only a stream carries.
-- ``MODEL_CHANNELS``: what a profile gives a model, each computed from named raw channels with the
-  formula docs/profiles.md shows (core/profiles.py computes them; fwref/profile.hpp in float32).
-- ``PROFILE_TABLE``: each profile as the raw channels a vehicle must log for it (in the order a
-  stream delivers them), with the id weights.bin's on-board record stores. Its model channels are
-  derived: every model channel whose raw channels the profile has, in ``MODEL_CHANNELS`` order.
-  ``paper`` (id 0) is the identity over the dataset's own channels.
-- ``AVAILABILITY_GROUPS``, ``MINIMUM_RAW`` and ``MASK_PATTERNS``: the masked profile
-  (``flightlog-mask``) takes whatever channels a log has. A group is a set of raw channels a log has
-  or lacks together; the minimum is never masked (the hover estimate and the airborne rule need it);
-  the masked profile's model channels are every model channel over its raw channels, then one
-  availability channel per group (``avail_<group>``: 1 when the flight has the group, else 0,
-  constant over a flight). A model channel whose group a flight lacks takes its ``fill`` (what a
-  level, healthy hover gives), so it stays inside the range the int8 calibration saw and the
-  network learns from the availability channel that it carries nothing. The fills, like the
-  formulas, belong to the profile: changing one is a new profile id. ``MASK_PATTERNS`` names the
-  patterns real logs show; training draws one per window (docs/profiles.md "The masked profile").
+- ``CHANNELS``: the raw channels, each with an id never renumbered nor reused (a profile, an availability
+  mask and the C++ name a channel by it). The simulator's 23 telemetry channels first, in the paper
+  dataset's order (a model trained on the simulator reads the same columns as one reading an ingested
+  flight), then those only richer logs (and the realistic suite) carry: together flight.npz's columns.
+  Each autopilot's vibration metric is its own channel: ``vib_px4`` PX4's ``accel_vibration_metric``
+  (m/s^2), ``vib_ap`` ArduPilot's VIBE in-plane mean (VibeX + VibeY) / 2 (the simulator has no vertical
+  vibration model). Last ``airborne`` (0/1), which only a stream carries.
+- ``MODEL_CHANNELS``: what a profile gives a model, each from named raw channels by the formula
+  docs/profiles.md shows (core/profiles.py computes them; fwref/profile.hpp in float32).
+- ``PROFILE_TABLE``: each profile as the raw channels a vehicle must log for it (in stream order), with
+  the id weights.bin's on-board record stores. Its model channels are derived: every model channel whose
+  raw channels it has, in ``MODEL_CHANNELS`` order. ``paper`` (id 0) is the identity.
+- ``AVAILABILITY_GROUPS``, ``MINIMUM_RAW`` and ``MASK_PATTERNS``: a masked profile takes whatever channels
+  a log has. A group is a set of raw channels a log has or lacks together; the minimum is never masked
+  (the hover estimate and the airborne rule need it); after the model channels come one availability
+  channel per group (``avail_<group>``: 1 when the flight has the group, constant over a flight). A model
+  channel needing a group the flight lacks takes its ``fill`` (what a level, healthy hover gives), inside
+  the range the int8 calibration saw. Fills, like formulas, belong to the profile: changing one is a new
+  profile id. ``MASK_PATTERNS`` names the patterns real logs show (docs/profiles.md "The masked profile").
 
 Everything that names a channel (the simulator's sensors, ``flight.npz``, profiles, the on-board
 record, stream files and the C++) takes names, units and ids from here.
@@ -101,15 +93,15 @@ class ModelChannel:
     formula: str  # what docs/profiles.md shows
     fill: float  # the masked profile's value when the flight lacks the channel's group (float32-exact)
     reference: bool = False  # relative to the vehicle record (core/vehicle_record.py): a reference profile's only
+    physics: bool = False  # a recursion over the flight so far (core/causal.py): a physics profile's only
 
 
-# The fills: what a level, healthy hover gives. Attitude, rates and velocities 0 (level, at rest); every
-# share and ratio 1 (by definition at hover: a motor at the collective, the current at the hover
-# current, each ESC at the four's mean); temperature differences 0 (the ESCs alike); ``v_cell`` 3.7 V,
-# a LiPo's nominal cell voltage and the healthy realistic suite's median under load (3.72 V; 5-95 %
-# 3.52-3.98 V: the percentiles of V_b / pack_cells over its healthy flights); vibration 5.5 m/s^2, the
-# geometric middle of the simulator's healthy floor (2-15 m/s^2, log-uniform: sim.realistic_params
-# VIB_FLOOR; the healthy suite's median 6.1 (vib_px4) and 5.5 (vib_ap)).
+# The fills: what a level, healthy hover gives. Attitude, rates, velocities 0; every share and ratio 1 (by
+# definition at hover: a motor at the collective, the current at the hover current, each ESC at the four's
+# mean); temperature differences 0; ``v_cell`` 3.7 V, a LiPo's nominal cell voltage and the healthy realistic
+# suite's median under load (3.72 V; 5-95 % 3.52-3.98 V: percentiles of V_b / pack_cells over its healthy
+# flights); vibration 5.5 m/s^2, the geometric middle of the simulator's healthy floor (2-15 m/s^2,
+# log-uniform: sim.realistic_params VIB_FLOOR; the healthy suite's median 6.1 (vib_px4), 5.5 (vib_ap)).
 V_CELL_FILL = 3.7  # V
 VIB_FILL = 5.5  # m/s^2
 _ROTORS = range(1, 5)
@@ -142,6 +134,14 @@ MODEL_CHANNELS: tuple[ModelChannel, ...] = (
                  0.0, True),
     *(ModelChannel(f"rpm{k}_ref", "-", ("rpm1", "rpm2", "rpm3", "rpm4"), f"rpm{k}_rel / the reference's rpm{k} share",
                    1.0, True) for k in _ROTORS),
+    # the physics channels (core/causal.py), recursions from the flight's first sample; r_cell's fill 0 is what a
+    # steady current gives (no evidence of sag); the smoothed deviations keep their deviations' fills
+    ModelChannel("r_cell", "ohm", ("V_b", "I_b"), "-cov(v_cell, I_b) / (var(I_b) + 0.0625), tau 4 s", 0.0, False, True),
+    ModelChannel("r_cell_ref", "ohm", ("V_b", "I_b"), "r_cell - the reference's sag per A per cell", 0.0, True, True),
+    *(ModelChannel(f"m{k}_ref_lp", "-", (f"thr{k}",), f"ewma(thr{k} / reference share, tau 4 s) / hover command",
+                   1.0, True, True) for k in _ROTORS),
+    ModelChannel("vib_ref_lp", "m/s^2", ("vib_px4",), "ewma(vib_ref, tau 4 s)", 0.0, True, True),
+    ModelChannel("vib_ap_ref_lp", "m/s^2", ("vib_ap",), "ewma(vib_ap_ref, tau 4 s)", 0.0, True, True),
 )
 
 
@@ -215,6 +215,7 @@ class Profile:
     vibration: str | None  # which vibration quantity its ``vib`` is ("any": both, each its own channel)
     masked: bool = False  # takes whatever channels a log has: groups may be absent (AVAILABILITY_GROUPS)
     reference: bool = False  # also reads the vehicle record (core/vehicle_record.py); masked profiles only
+    physics: bool = False  # also the causal physics channels (core/causal.py); reference profiles only
 
     @property
     def model(self) -> tuple[ModelChannel, ...] | None:
@@ -223,27 +224,26 @@ class Profile:
         per group, and a reference profile ``avail_reference`` last."""
         if self.raw is None:
             return None
-        derived = tuple(c for c in MODEL_CHANNELS
-                        if set(c.raw) <= set(self.raw) and (self.reference or not c.reference))
+        derived = tuple(c for c in MODEL_CHANNELS if set(c.raw) <= set(self.raw)
+                        and (self.reference or not c.reference) and (self.physics or not c.physics))
         tail = (REFERENCE_AVAILABILITY,) if self.reference else ()
         return derived + (AVAILABILITY_CHANNELS if self.masked else ()) + tail
 
 
 AVAILABILITY_CHANNELS = tuple(ModelChannel(AVAIL_PREFIX + g, "-", (), f"1 if the flight has {', '.join(r)}, else 0",
                                            1.0) for g, r in ((g.name, g.raw) for g in AVAILABILITY_GROUPS))
-
-
 REFERENCE_AVAILABILITY = ModelChannel(AVAIL_PREFIX + REFERENCE_GROUP, "-", (),
                                       "1 if the vehicle record is loaded, else 0", 1.0)
 
 
+def groups_of_model(c: ModelChannel) -> tuple[str, ...]:
+    """The availability groups a model channel needs, in group order (``r_cell``: battery and current)."""
+    return tuple(g for g in GROUP_NAMES if g in {GROUP_OF_RAW.get(r) for r in c.raw})
+
+
 def group_of_model(c: ModelChannel) -> str | None:
-    """The availability group a model channel's raw channels lie in (None: the minimum, or an
-    availability channel itself)."""
-    groups = {GROUP_OF_RAW.get(r) for r in c.raw}
-    if len(groups) > 1:
-        raise ValueError(f"model channel {c.name} mixes availability groups {sorted(map(str, groups))}")
-    return next(iter(groups), None)
+    """A model channel's first availability group (None: the minimum, or an availability channel)."""
+    return next(iter(groups_of_model(c)), None)
 
 
 _MIN_RAW = ("roll", "pitch", "p", "q", "r", "vx", "vy", "yaw", "vz", "V_b", "I_b", "thr1", "thr2", "thr3", "thr4",
@@ -257,8 +257,9 @@ PROFILE_TABLE: tuple[Profile, ...] = (
     Profile(3, "flightlog-esc", _MIN_RAW + ESC_RAW, "px4"),
     # every raw channel a group or the minimum names, in the order fwref/profile.hpp reads
     Profile(4, "flightlog-mask", _MIN_RAW + ESC_RAW + ("vib_ap",), "any", masked=True),
-    # flightlog-mask's channels, then the reference channels (deviations from the vehicle record)
+    # flightlog-mask's channels, the reference ones (deviations from the vehicle record), the physics ones (causal.py)
     Profile(5, "flightlog-ref", _MIN_RAW + ESC_RAW + ("vib_ap",), "any", masked=True, reference=True),
+    Profile(6, "flightlog-phys", _MIN_RAW + ESC_RAW + ("vib_ap",), "any", masked=True, reference=True, physics=True),
 )
 PROFILE_BY_NAME = {p.name: p for p in PROFILE_TABLE}
 PROFILE_NAMES = tuple(p.name for p in PROFILE_TABLE)  # in id order
@@ -282,7 +283,8 @@ def _cpp_names(names) -> str:
 def _cpp_spec(p: Profile) -> str:
     """One fwref::ProfileSpec initializer; the columns fwref/profile.hpp reads by name (-1: absent)."""
     if p.raw is None:
-        return f'    {{"{p.name}", 0, 0, nullptr, nullptr, -1, -1, -1, -1, 0, nullptr, nullptr, nullptr, -1, -1, -1}},'
+        return f'    {{"{p.name}", 0, 0, nullptr, nullptr, -1, -1, -1, -1, 0, nullptr, nullptr, nullptr, ' + \
+            "-1, -1, -1, -1},"
     raw = stream_raw(p)
     if raw[:len(CPP_FIXED_PREFIX)] != CPP_FIXED_PREFIX or raw[raw.index("thr1"):raw.index("thr1") + 5] != \
             ("thr1", "thr2", "thr3", "thr4", "vib_px4") or ("rpm1" in raw and raw[raw.index("rpm1"):][:12] != ESC_RAW):
@@ -293,27 +295,30 @@ def _cpp_spec(p: Profile) -> str:
     head = (f'    {{"{p.name}", {len(raw)}, {len(p.model)}, k{tag}Raw, k{tag}Model, {col["I_b"]}, {col["thr1"]}, '
             f'{col["rpm1"]}, {col["vib_ap"]}, ')
     if not p.masked:
-        return head + "0, nullptr, nullptr, nullptr, -1, -1, -1},"
+        return head + "0, nullptr, nullptr, nullptr, -1, -1, -1, -1},"
     names = [c.name for c in p.model]
     ref = (names.index("m1_ref"), names.index(REFERENCE_AVAILABILITY.name)) if p.reference else (-1, -1)
-    if p.reference and names[ref[0]:ref[0] + 10] != [c.name for c in MODEL_CHANNELS if c.reference]:
-        raise ValueError(f"profile {p.name}: fwref/profile.hpp reads the ten reference channels in table order")
-    return head + (f"{len(AVAILABILITY_GROUPS)}, k{tag}RawGroup, k{tag}ModelGroup, k{tag}Fill, "
-                   f"{p.model.index(AVAILABILITY_CHANNELS[0])}, {ref[0]}, {ref[1]}}},")
+    phys = names.index("r_cell") if p.physics else -1
+    for at, kind, block in ((ref[0], "reference", [c.name for c in MODEL_CHANNELS if c.reference and not c.physics]),
+                            (phys, "physics", [c.name for c in MODEL_CHANNELS if c.physics])):
+        if at >= 0 and names[at:at + len(block)] != block:
+            raise ValueError(f"profile {p.name}: fwref/profile.hpp reads the {kind} channels in table order")
+    return head + (f"{len(AVAILABILITY_GROUPS)}, k{tag}RawGroup, k{tag}ModelGroups, k{tag}Fill, "
+                   f"{p.model.index(AVAILABILITY_CHANNELS[0])}, {ref[0]}, {ref[1]}, {phys}}},")
 
 
 def _mask_tables(p: Profile) -> str:
-    """A masked profile's per-column group indices and fills (fwref::ProfileSpec raw_group, model_group, fill)."""
+    """A masked profile's per-column group indices and fills (fwref::ProfileSpec raw_group, model_groups, fill)."""
     raw = stream_raw(p)
     outside = [r for r in raw if r not in GROUP_OF_RAW and r not in MINIMUM_RAW + (AIRBORNE,)]
     if outside:
         raise ValueError(f"profile {p.name}: raw channels {outside} are in no availability group nor the minimum")
     index = {g: i for i, g in enumerate(GROUP_NAMES)}
     raw_group = [index.get(GROUP_OF_RAW.get(r), -1) for r in raw]
-    model_group = [-1 if c in AVAILABILITY_CHANNELS else index.get(group_of_model(c), -1) for c in p.model]
+    model_groups = [sum(1 << index[g] for g in groups_of_model(c)) for c in p.model]
     tag = _camel(p.name)
     return (f"constexpr signed char k{tag}RawGroup[] = {{{', '.join(map(str, raw_group))}}};\n"
-            f"constexpr signed char k{tag}ModelGroup[] = {{{', '.join(map(str, model_group))}}};\n"
+            f"constexpr unsigned short k{tag}ModelGroups[] = {{{', '.join(map(str, model_groups))}}};\n"
             f"constexpr float k{tag}Fill[] = {{{', '.join(f'{c.fill!r}f' for c in p.model)}}};")
 
 
@@ -363,11 +368,12 @@ struct ProfileSpec {{
   int vib_ap;       // raw column of vib_ap (-1: none)
   int groups;       // availability groups a flight may lack (0: a profile without a mask)
   const signed char* raw_group;    // (raw) each stream column's group; -1: never absent (the minimum, airborne)
-  const signed char* model_group;  // (channels) each model channel's group; -1: the minimum or an availability channel
+  const unsigned short* model_groups;  // (channels) bit g: needs group g (0: the minimum, an availability channel)
   const float* fill;               // (channels) a model channel's value when the flight lacks its group
   int avail;        // model column of the first availability channel (one per group, in group order; -1: none)
   int ref;          // model column of m1_ref (m1..4_ref vib_ref vib_ap_ref rpm1..4_ref follow; -1: no vehicle record)
   int avail_ref;    // model column of avail_reference (-1: none)
+  int phys;         // model column of r_cell (r_cell_ref m1..4_ref_lp vib_ref_lp vib_ap_ref_lp follow; -1: none)
 }};
 
 // The availability groups (core/channels.py AVAILABILITY_GROUPS): bit g of an availability mask.

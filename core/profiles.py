@@ -24,6 +24,10 @@ on-board record.
   them (both vibration metrics, ``vib`` PX4's and ``vib_ap`` ArduPilot's, each its own channel) and
   one availability channel per group; a group the flight lacks gives its model channels their fill
   (``apply_profile``'s ``available``). Only the minimum (roll, vz, thr1..4) is required.
+- ``flightlog-ref``: the masked profile and deviations from the vehicle record (core/vehicle_record.py).
+- ``flightlog-phys``: ``flightlog-ref`` and the physics channels computed by recursions over the flight so far
+  (core/causal.py): the pack's sag per ampere per cell and the smoothed reference deviations. ``apply_profile``
+  takes whole flights from their first sample (``raw`` (..., T)), as the stream computes them sample by sample.
 
 Raw names are the channel table's (core/channels.py), the same in a simulated dataset and in an
 ingested flight.npz: ``vib_px4`` is PX4's metric only, so a log of another autopilot lacks it.
@@ -33,9 +37,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from quadfdi.core import vehicle_record as vr
+from quadfdi.core import causal, vehicle_record as vr
 from quadfdi.core.channels import (AVAIL_PREFIX, AVAILABILITY_GROUPS, GROUP_NAMES, MASK_PATTERNS, PROFILE_BY_NAME,
-                                   PROFILE_NAMES, REFERENCE_GROUP, MaskPattern, group_of_model)
+                                   PROFILE_NAMES, REFERENCE_GROUP, MaskPattern, groups_of_model)
 from quadfdi.core.errors import QuadfdiError
 from quadfdi.core.hover import INPUTS as HOVER_INPUTS
 
@@ -123,7 +127,7 @@ def mask_layout(name: str) -> tuple[dict[str, list[int]], np.ndarray, dict[str, 
     for j, c in enumerate(spec):
         if c.name.startswith(AVAIL_PREFIX) and not c.raw:
             avail[c.name[len(AVAIL_PREFIX):]] = j
-        elif (g := group_of_model(c)) is not None:
+        for g in groups_of_model(c):
             cols[g].append(j)
     return cols, np.array([c.fill for c in spec], np.float32), avail
 
@@ -155,6 +159,9 @@ def apply_profile(name: str, raw: dict[str, np.ndarray], cells, hover_cmd, hover
                                   shape[:-1] + (vr.SIZE,))
             have = available or {}
             values |= vr.reference_values(values, rec, have.get("rates", True), have.get("vel_h", True))
+            if PROFILE_BY_NAME[name].physics:
+                values |= causal.physics_values(f32, values, rec, have.get("rates", True), have.get("vel_h", True),
+                                                hover_cmd)
         return _masked(spec, values, available or {}, shape, rec)
     values = _values(f32, cells, hover_cmd, hover_cur)
     return np.stack([values[ch.name] for ch in spec], axis=-1).astype(np.float32)
@@ -174,14 +181,16 @@ def _masked(spec, values: dict[str, np.ndarray], available: dict, shape: tuple[i
     if record is not None:
         have[REFERENCE_GROUP] = per_sample(vr.has_record(record))
         held = {k: per_sample(v) for k, v in vr.held(record).items()}
+        held |= {lp: held[of] for lp, of in causal.LOW_PASSED.items()}  # a smoothed deviation: as its deviation
     cols = []
     for c in spec:
         if c.name.startswith(AVAIL_PREFIX) and not c.raw:
             cols.append(have[c.name[len(AVAIL_PREFIX):]].astype(np.float32))
             continue
-        g = group_of_model(c)
         v = values[c.name]
-        keep = None if g is None else have[g]
+        keep = None
+        for g in groups_of_model(c):  # every group the channel needs (r_cell: battery and current)
+            keep = have[g] if keep is None else keep & have[g]
         if c.reference:
             keep = held[c.name] if keep is None else keep & held[c.name]
         cols.append(v if keep is None else np.where(keep, v, np.float32(c.fill)).astype(np.float32))

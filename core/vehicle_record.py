@@ -1,5 +1,5 @@
 """The vehicle record: what a reference profile (``flightlog-ref``, core/channels.py) reads of the vehicle's
-own healthy flights, as 24 float32 numbers. Written once here; the C++ reads the same layout
+own healthy flights, as 25 float32 numbers. Written once here; the C++ reads the same layout
 (fwref/vehicle_record.hpp, loaded at reset) and computes the same deviations.
 
 The record comes from a vehicle reference (``quadfdi vehicle learn``'s vehicle.json, docs/formats.md);
@@ -16,6 +16,8 @@ field                 index  meaning
 ``vib_floor``         16-17  PX4 vibration metric = floor + slope x collective (NaN: the reference has none)
 ``vib_ap_floor``      18-19  the same for ArduPilot's VIBE in-plane mean (NaN: none)
 ``rpm_share``         20-23  each ESC's rpm over the four's mean (NaN: the reference logs no ESC rpm)
+``sag``               24     the healthy sag per ampere per cell, ohm (-battery.sag_v_per_a; NaN: no current
+                             that moves in its flights, or a version 1 record)
 ====================  =====  ==============================================================================
 
 A share is the motor's command over the four's mean (vehicle/quantities.py). Where the reference holds no
@@ -29,15 +31,17 @@ gives per sample (``reference_values``, float32, this order of operations, no fu
   (1 for the vehicle as its reference flew, whatever its own asymmetry);
 - ``vib_ref = vib - (vib_floor[0] + vib_floor[1] * c)`` with ``c`` the sample's collective command
   (core.hover.collective): the vibration above the vehicle's own floor at that thrust; ``vib_ap_ref`` alike;
-- ``rpm{k}_ref = rpm{k}_rel / rpm_share[k]``.
+- ``rpm{k}_ref = rpm{k}_rel / rpm_share[k]``;
+- ``r_cell_ref = r_cell - sag`` (``flightlog-phys``, core/causal.py): the sag beyond the vehicle's own.
 
 A channel whose record field is NaN takes its fill (the reference holds nothing for it), as one whose raw
 channels the flight lacks; a flight without a record (all NaN) has every reference channel at its fill and
 ``avail_reference`` 0.
 
 The record file (formats/vehicle_record_bin.py, what ``fwref_stream --vehicle`` loads) is a 16-byte header,
-then the 24 float32 little-endian: ``char[8]`` magic ``FILE_MAGIC``, ``u32`` ``FILE_VERSION``, ``u32`` the id
-of the profile it is for (core/channels.py), then the record. The C++ takes these constants and the field
+then the 25 float32 little-endian: ``char[8]`` magic ``FILE_MAGIC``, ``u32`` ``FILE_VERSION``, ``u32`` the id
+of the profile it is for (core/channels.py), then the record. Version 1 (112 bytes, the first ``SIZE_V1``
+fields, before ``sag``) is still read: its ``sag`` NaN. The C++ takes these constants and the field
 offsets from ``firmware_ref/include/fwref/vehicle_record_gen.hpp`` (``python -m quadfdi.core.vehicle_record
 --header``; a test checks the committed header is what this module generates).
 """
@@ -50,14 +54,16 @@ import numpy as np
 
 from quadfdi.core.resources import firmware_sources
 
-SIZE = 24
+SIZE = 25
+SIZE_V1 = 24  # a version 1 record: every field before ``sag``
 FIELDS = {"share_a": (0, 4), "share_v": (4, 8), "share_r": (8, 12), "v_range": (12, 14), "r_range": (14, 16),
-          "vib_floor": (16, 18), "vib_ap_floor": (18, 20), "rpm_share": (20, 24)}
+          "vib_floor": (16, 18), "vib_ap_floor": (18, 20), "rpm_share": (20, 24), "sag": (24, 25)}
 VIBRATION_FIELDS = {"vib_px4": "vib_floor", "vib_ap": "vib_ap_floor"}  # raw metric -> its record field
 FILE_MAGIC = b"QFDIVEH\0"
-FILE_VERSION = 1
+FILE_VERSION = 2
 FILE_HEADER_BYTES = 16  # magic, version, profile id
 FILE_BYTES = FILE_HEADER_BYTES + 4 * SIZE
+FILE_BYTES_V1 = FILE_HEADER_BYTES + 4 * SIZE_V1
 HEADER_PATH = firmware_sources() / "include" / "fwref" / "vehicle_record_gen.hpp"
 
 
@@ -102,12 +108,36 @@ def from_reference(ref: dict) -> np.ndarray:
     rpm = (ref.get("esc") or {}).get("rpm_share")
     if rpm:
         rec[20:24] = [m["mean"] if m.get("mean") is not None else np.nan for m in rpm["motors"]]
+    bat = ref.get("battery") or {}
+    if bat.get("mode") == "sag" and (bat.get("sag_v_per_a") or {}).get("mean") is not None:
+        rec[24] = -bat["sag_v_per_a"]["mean"]  # vehicle/fits.py's slope dV/dI is negative: the sag is its opposite
     return rec
+
+
+def from_v1(fields: np.ndarray) -> np.ndarray:
+    """A version 1 record's 24 fields as a record: ``sag`` NaN (it holds none)."""
+    return np.concatenate([np.asarray(fields, np.float32), np.full(SIZE - SIZE_V1, np.nan, np.float32)])
 
 
 def _per(x: np.ndarray) -> np.ndarray:
     """A per-flight (..., ) field -> (..., 1): broadcast over samples."""
     return x[..., None]
+
+
+def expected_shares(values: dict[str, np.ndarray], record: np.ndarray, rates: np.ndarray,
+                    vel_h: np.ndarray) -> list[np.ndarray]:
+    """Each motor's expected share ``s_k`` (module docstring), (..., T) float32, from the profile's ``vx_h`` and
+    ``r`` and ``record`` (..., 24); ``rates``, ``vel_h`` (...,) bool: the flight has body rates, heading-frame
+    velocity (0 before clipping without)."""
+    rec = np.asarray(record, np.float32)
+    f = lambda i: _per(rec[..., i])  # noqa: E731
+    zero = np.float32(0.0)
+    vx = np.where(_per(np.asarray(vel_h, bool)), values["vx_h"], zero)
+    r = np.where(_per(np.asarray(rates, bool)), values["r"], zero)
+    vf = np.minimum(np.maximum(vx, f(12)), f(13)).astype(np.float32)
+    yr = np.minimum(np.maximum(r, f(14)), f(15)).astype(np.float32)
+    with np.errstate(invalid="ignore"):
+        return [((f(k) + f(4 + k) * vf) + f(8 + k) * yr).astype(np.float32) for k in range(4)]
 
 
 def reference_values(values: dict[str, np.ndarray], record: np.ndarray, rates: np.ndarray,
@@ -118,15 +148,9 @@ def reference_values(values: dict[str, np.ndarray], record: np.ndarray, rates: n
     NaN where the record holds nothing for a channel (the caller puts its fill there)."""
     rec = np.asarray(record, np.float32)
     f = lambda i: _per(rec[..., i])  # noqa: E731
-    zero = np.float32(0.0)
-    vx = np.where(_per(np.asarray(vel_h, bool)), values["vx_h"], zero)
-    r = np.where(_per(np.asarray(rates, bool)), values["r"], zero)
-    vf = np.minimum(np.maximum(vx, f(12)), f(13)).astype(np.float32)
-    yr = np.minimum(np.maximum(r, f(14)), f(15)).astype(np.float32)
     out = {}
     with np.errstate(invalid="ignore", divide="ignore"):
-        for k in range(4):
-            s = (f(k) + f(4 + k) * vf) + f(8 + k) * yr
+        for k, s in enumerate(expected_shares(values, record, rates, vel_h)):
             out[f"m{k + 1}_ref"] = (values[f"m{k + 1}_rel"] / s).astype(np.float32)
         c = values["collective"]
         for name, (raw, lo) in (("vib_ref", ("vib", 16)), ("vib_ap_ref", ("vib_ap", 18))):
@@ -146,6 +170,7 @@ def held(record: np.ndarray) -> dict[str, np.ndarray]:
     out = {f"m{k + 1}_ref": ok(k) for k in range(4)}
     out.update(vib_ref=ok(16) & ok(17), vib_ap_ref=ok(18) & ok(19))
     out.update({f"rpm{k + 1}_ref": ok(20 + k) for k in range(4)})
+    out["r_cell_ref"] = ok(24)
     return out
 
 
@@ -155,7 +180,7 @@ def cpp_header() -> str:
                        for name, (lo, hi) in FIELDS.items())
     magic = FILE_MAGIC.rstrip(b"\0").decode("ascii")
     return f"""// GENERATED by `python -m quadfdi.core.vehicle_record --header` from core/vehicle_record.py; do not edit.
-// The vehicle record's layout (24 float32) and its file's (formats/vehicle_record_bin.py), as
+// The vehicle record's layout ({SIZE} float32) and its file's (formats/vehicle_record_bin.py), as
 // fwref/vehicle_record.hpp reads them.
 #pragma once
 
@@ -165,6 +190,7 @@ namespace fwref {{
 namespace vehicle {{
 
 constexpr int kSize = {SIZE};  // floats in a record
+constexpr int kSizeV1 = {SIZE_V1};  // floats in a version 1 record (every field before kSag)
 // Each field's first index in the record (core/vehicle_record.py FIELDS).
 {fields}
 
@@ -173,6 +199,8 @@ constexpr char kFileMagic[9] = "{magic}";  // + NUL: 8 bytes
 constexpr std::uint32_t kFileVersion = {FILE_VERSION};
 constexpr int kFileHeaderBytes = {FILE_HEADER_BYTES};
 constexpr int kFileBytes = {FILE_BYTES};
+constexpr std::uint32_t kFileVersionV1 = 1;  // still read: kSizeV1 floats, kSag NaN
+constexpr int kFileBytesV1 = {FILE_BYTES_V1};
 
 }}  // namespace vehicle
 }}  // namespace fwref

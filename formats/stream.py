@@ -4,7 +4,8 @@ controller would deliver, for ``fwref_stream`` (firmware_ref's streaming runtime
 Little-endian; a 128-byte fixed header, the channel names, then the samples:
 
     0   char[8]   magic          b"QFDISTR\\0"
-    8   u32       version        3 with a vehicle record, else 2 (1: no carried flags, every channel carried)
+    8   u32       version        4 with a vehicle record, else 2 (1: no carried flags, every channel carried; 3:
+                                 a version 1 vehicle record, f32[24], still read)
     12  u32       header_bytes   where the samples begin (128 + names + flags, padded to a multiple of 8)
     16  u32       n_channels     R
     20  u32       cells          the pack's cell count (0: unknown / not needed)
@@ -14,8 +15,9 @@ Little-endian; a 128-byte fixed header, the channel names, then the samples:
     128 names     R channel names, each NUL-terminated ASCII
         carried   u8[R] (version 2): 1 the stream carries the channel, 0 the flight lacks it (its column
                   is NaN throughout)
-        vehicle   f32[24] (version 3): the vehicle record the stream replays with (core/vehicle_record.py,
-                  a reference profile only; unaligned, read by copying); then zero padding
+        vehicle   f32[25] (version 4; f32[24] version 3, its ``sag`` NaN): the vehicle record the stream
+                  replays with (core/vehicle_record.py, a reference profile only; unaligned, read by copying);
+                  then zero padding
     SAMPLES       f64 t (s), f32 values[R]   (8 + 4R bytes each; NaN = no data for that channel)
 
 The columns are always the on-board record's, so the C++ reads every profile by position; a flight
@@ -23,7 +25,7 @@ lacking channels says which with the carried flags. Only the masked profile (cor
 ``flightlog-mask``) accepts a stream that does not carry every channel (its minimum always), and
 takes each availability group as present when every channel of it is carried (fwref/stream.hpp
 ``Stream::set_carried``); a NaN sample in a carried channel is a gap, as in version 1. A reference
-profile's stream (``flightlog-ref``) may carry the vehicle record (version 3): ``fwref_stream`` then loads
+profile's stream (``flightlog-ref``) may carry the vehicle record (version 4): ``fwref_stream`` then loads
 it at reset, as ``streamref.windows_of`` applies it; a version 2 stream of it replays without a reference
 (or with ``fwref_stream --vehicle RECORD.bin``).
 
@@ -47,8 +49,8 @@ from quadfdi.core.errors import QuadfdiError
 
 MAGIC = b"QFDISTR\0"
 VERSION = 2  # without a vehicle record (VEHICLE_VERSION with one)
-VEHICLE_VERSION = 3
-READS = (1, 2, 3)  # version 1: every channel carried
+VEHICLE_VERSION = 4
+READS = (1, 2, 3, 4)  # version 1: every channel carried; 3: a version 1 vehicle record (24 floats)
 FIXED = struct.Struct("<8sIIIId32s64s")  # 128 bytes
 
 
@@ -141,17 +143,19 @@ def read_stream(path: str | Path) -> RawStream:
     names = [n.decode("ascii", "replace") for n in head.split(b"\0")[:r]]
     end = sum(len(n.encode("ascii", "replace")) + 1 for n in names)
     carried = np.frombuffer(head[end:end + r], np.uint8) if version >= 2 else np.ones(r, np.uint8)
-    vehicle = head[end + r:end + r + 4 * vr.SIZE] if version >= 3 else None
+    size = vr.SIZE if version >= 4 else vr.SIZE_V1
+    vehicle = head[end + r:end + r + 4 * size] if version >= 3 else None
     body = data[header_bytes:]
     rec = np.dtype([("t", "<f8"), ("v", "<f4", (r,))])
     if len(names) != r or len(carried) != r or not np.isin(carried, (0, 1)).all() or len(body) % rec.itemsize or \
-            (vehicle is not None and len(vehicle) != 4 * vr.SIZE):
+            (vehicle is not None and len(vehicle) != 4 * size):
         raise QuadfdiError(f"{path} is truncated or has a bad header")
     profile = profile.rstrip(b"\0").decode("ascii", "replace")
     if vehicle is not None:
         from quadfdi.formats.vehicle_record_bin import check_record
 
-        vehicle = check_record(np.frombuffer(vehicle, "<f4"), f"{path}'s vehicle record")
+        fields = np.frombuffer(vehicle, "<f4")
+        vehicle = check_record(fields if version >= 4 else vr.from_v1(fields), f"{path}'s vehicle record")
         if not getattr(PROFILE_BY_NAME.get(profile), "reference", False):
             raise QuadfdiError(f"{path} carries a vehicle record, but its profile {profile!r} reads none")
     arr = np.frombuffer(body, rec)

@@ -1,13 +1,13 @@
-"""The vehicle record file: a reference profile's vehicle record (core/vehicle_record.py, 24 float32) as
+"""The vehicle record file: a reference profile's vehicle record (core/vehicle_record.py, 25 float32) as
 the C++ loads it at reset (``fwref_stream --vehicle RECORD.bin``, fwref/vehicle_record.hpp).
 
-Little-endian, 112 bytes (the constants are core/vehicle_record.py's, generated into
+Little-endian, 116 bytes (the constants are core/vehicle_record.py's, generated into
 fwref/vehicle_record_gen.hpp):
 
     0   char[8]   magic       b"QFDIVEH\\0"
-    8   u32       version     1
-    12  u32       profile     the id of the reference profile it is for (core/channels.py: 5, flightlog-ref)
-    16  f32[24]   record      core/vehicle_record.py's layout; NaN: the reference holds nothing there
+    8   u32       version     2 (1, still read: 112 bytes, f32[24], every field before ``sag``, which is NaN)
+    12  u32       profile     the id of the reference profile it is for (core/channels.py: 5 flightlog-ref, 6 flightlog-phys)
+    16  f32[25]   record      core/vehicle_record.py's layout; NaN: the reference holds nothing there
 
 A record with NaN in its first share is "no reference"; an infinite field is refused (by both readers).
 """
@@ -39,7 +39,7 @@ def check_profile(profile: str) -> int:
 
 
 def check_record(record, where: str) -> np.ndarray:
-    """``record`` as (24,) float32; a one-line QuadfdiError when it has another size or an infinite field."""
+    """``record`` as (25,) float32; a one-line QuadfdiError when it has another size or an infinite field."""
     rec = np.asarray(record, np.float32)
     if rec.shape != (vr.SIZE,):
         raise QuadfdiError(f"{where}: a vehicle record is {vr.SIZE} numbers, not shape {rec.shape}")
@@ -49,7 +49,7 @@ def check_record(record, where: str) -> np.ndarray:
 
 
 def record_bytes(record, profile: str) -> bytes:
-    """The 112 bytes of ``record`` for reference profile ``profile``."""
+    """The 116 bytes of ``record`` for reference profile ``profile``."""
     rec = check_record(record, "vehicle record")
     return HEADER.pack(vr.FILE_MAGIC, vr.FILE_VERSION, check_profile(profile)) + rec.astype("<f4").tobytes()
 
@@ -61,21 +61,24 @@ def write_record(path: str | Path, record, profile: str) -> None:
 
 
 def parse_record(data: bytes, profile: str, where: str) -> np.ndarray:
-    """The (24,) float32 record of a record file's bytes, for reference profile ``profile``; one-line
-    QuadfdiError on a foreign, truncated or longer file, another version or another profile."""
+    """The (25,) float32 record of a record file's bytes (version 1: ``sag`` NaN), for reference profile
+    ``profile``; one-line QuadfdiError on a foreign, truncated or longer file, another version or profile."""
     want = check_profile(profile)
     if len(data) < 8 or data[:8] != vr.FILE_MAGIC:
         raise QuadfdiError(f"{where} is not a quadfdi vehicle record")
-    if len(data) != vr.FILE_BYTES:
-        raise QuadfdiError(f"{where} holds {len(data)} bytes, a vehicle record {vr.FILE_BYTES} (truncated or not a "
+    version = HEADER.unpack_from(data)[1] if len(data) >= HEADER.size else None
+    size = {1: vr.FILE_BYTES_V1, vr.FILE_VERSION: vr.FILE_BYTES}.get(version, vr.FILE_BYTES)
+    if len(data) != size:
+        raise QuadfdiError(f"{where} holds {len(data)} bytes, a vehicle record {size} (truncated or not a "
                            "vehicle record)")
     _, version, pid = HEADER.unpack_from(data)
-    if version != vr.FILE_VERSION:
-        raise QuadfdiError(f"{where} has vehicle record version {version}, this reader reads {vr.FILE_VERSION}")
+    if version not in (1, vr.FILE_VERSION):
+        raise QuadfdiError(f"{where} has vehicle record version {version}, this reader reads 1 and {vr.FILE_VERSION}")
     if pid != want:
         name = PROFILE_TABLE[pid].name if pid < len(PROFILE_TABLE) else f"id {pid}"
         raise QuadfdiError(f"{where} is for profile {name!r}, the model's is {profile!r}")
-    return check_record(np.frombuffer(data, "<f4", vr.SIZE, HEADER.size), where)
+    fields = np.frombuffer(data, "<f4", (len(data) - HEADER.size) // 4, HEADER.size)
+    return check_record(vr.from_v1(fields) if version == 1 else fields, where)
 
 
 def read_record(path: str | Path, profile: str) -> np.ndarray:
@@ -94,7 +97,7 @@ def read_record(path: str | Path, profile: str) -> np.ndarray:
 
 
 def record_from_vehicle_json(path: str | Path) -> np.ndarray:
-    """The vehicle record (24,) float32 of a vehicle reference (``quadfdi vehicle learn``'s vehicle.json,
+    """The vehicle record (25,) float32 of a vehicle reference (``quadfdi vehicle learn``'s vehicle.json,
     checked by formats.vehicle.load_vehicle); one-line QuadfdiError when it holds no motor shares."""
     from quadfdi.formats.vehicle import load_vehicle
 

@@ -32,7 +32,8 @@ import dataclasses
 import numpy as np
 
 from quadfdi.core.errors import QuadfdiError
-from quadfdi.core.channels import MASK_PATTERNS
+from quadfdi.core import causal
+from quadfdi.core.channels import MASK_PATTERNS, PROFILE_BY_NAME
 from quadfdi.core.hover import INPUTS as HOVER_INPUTS, collective, estimate_many
 from quadfdi.core import vehicle_record as vr
 from quadfdi.core.profiles import (apply_profile, channel_names, channel_units, flight_pattern, has_reference,
@@ -80,6 +81,9 @@ def profiled_dataset(ds: Dataset, profile: str, patterns: bool = True, records: 
         raise QuadfdiError(f"profile {profile!r} needs raw channels {', '.join(missing)}, absent from {ds.path}")
     if "pack_cells" not in ds.arrays:
         raise QuadfdiError(f"profile {profile!r} needs each flight's cell count (pack_cells), absent from {ds.path}")
+    if PROFILE_BY_NAME[profile].physics and abs(ds.config.sim.sample_dt_s - causal.SAMPLE_DT_S) > 1e-9:
+        raise QuadfdiError(f"profile {profile!r}: its recursions step every {causal.SAMPLE_DT_S} s (core/causal.py); "
+                           f"{ds.path} is sampled every {ds.config.sim.sample_dt_s} s")
     hover_cols = tel[:, :, [names.index(c) for c in HOVER_INPUTS]]  # the dataset has I_b
     masked = is_masked(profile)
     pattern = flight_patterns(ds, patterns) if masked else None

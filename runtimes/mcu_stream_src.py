@@ -11,7 +11,7 @@ unit of the image), DIR/fwref_stream_data.hpp (the record as ``kParams``, its al
 ``kParamsGru`` / ``kParamsSgru`` the same with each network's policy of the record's alarm.models,
 what the image runs each model with, as fwref_stream --model does) and
 DIR/fwref_stream_data.cpp (per flight: cells, the columns its stream carries, its vehicle record when the
-stream carries one (a reference profile: embedded in flash, 96 bytes, loaded into the Stream at the flight's
+stream carries one (a reference profile: embedded in flash, 100 bytes, loaded into the Stream at the flight's
 reset), times, samples). Exit 2 and
 one line on a file it cannot use. Used by firmware_ref/mcu (FWREF_STREAMS) for mcu/stream_main.cpp.
 

@@ -138,13 +138,32 @@ REFERENCE_TRAIN = [v if not v.startswith("train.profile=") else "train.profile=f
 
 
 @pytest.fixture(scope="session")
-def reference_export(tmp_path_factory) -> Path:
-    """RUN/export of a tiny fleet run trained with the flightlog-ref profile through the CLI."""
+def tiny_fleet(tmp_path_factory) -> Path:
+    """A simulated tiny fleet run folder (FLEET_TINY), made once."""
     sim = tmp_path_factory.mktemp("fleet_ref") / "tiny"
     res = quadfdi("sim", "--config", str(ROOT / "configs/fleet.toml"), "--out", str(sim), "--workers", "1",
                   *[a for v in FLEET_TINY for a in ("--set", v)])
     assert res.returncode == 0, res.stderr
-    return trained_export_run(sim, tmp_path_factory.mktemp("fleet_ref_run") / "run", *REFERENCE_TRAIN,
+    return sim
+
+
+@pytest.fixture(scope="session")
+def reference_export(tiny_fleet, tmp_path_factory) -> Path:
+    """RUN/export of a tiny fleet run trained with the flightlog-ref profile through the CLI."""
+    return trained_export_run(tiny_fleet, tmp_path_factory.mktemp("fleet_ref_run") / "run", *REFERENCE_TRAIN,
+                              export_sets=tuple(FLIGHTLOG_ALARM)) / "export"
+
+
+# ---- a flightlog-phys model (flightlog-ref's channels and the causal physics channels, core/causal.py) on the
+# same tiny fleet: tests/test_phys_profile.py and the reference profiles' stream tests
+
+PHYSICS_TRAIN = [v if not v.startswith("train.profile=") else "train.profile=flightlog-phys" for v in FLIGHTLOG_TRAIN]
+
+
+@pytest.fixture(scope="session")
+def physics_export(tiny_fleet, tmp_path_factory) -> Path:
+    """RUN/export of the tiny fleet trained with the flightlog-phys profile through the CLI."""
+    return trained_export_run(tiny_fleet, tmp_path_factory.mktemp("fleet_phys_run") / "run", *PHYSICS_TRAIN,
                               export_sets=tuple(FLIGHTLOG_ALARM)) / "export"
 
 

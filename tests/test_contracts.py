@@ -49,9 +49,10 @@ def test_profiles_are_channel_lists_over_the_table_and_their_model_channels_deri
 
     assert [(p.id, p.name) for p in PROFILE_TABLE] == [(0, "paper"), (1, "flightlog-min"), (2, "flightlog-nocur"),
                                                         (3, "flightlog-esc"), (4, "flightlog-mask"),
-                                                        (5, "flightlog-ref")]
+                                                        (5, "flightlog-ref"), (6, "flightlog-phys")]
     assert [profile_enum(p.name) for p in PROFILE_TABLE] == ["kPaper", "kFlightlogMin", "kFlightlogNocur",
-                                                             "kFlightlogEsc", "kFlightlogMask", "kFlightlogRef"]
+                                                             "kFlightlogEsc", "kFlightlogMask", "kFlightlogRef",
+                                                             "kFlightlogPhys"]
     assert channel_names("flightlog-min", []) == MIN_MODEL and channel_names("flightlog-esc", []) == ESC_MODEL
     assert channel_names("flightlog-nocur", []) == [c for c in MIN_MODEL if c != "i_rel"]
     assert PROFILES["paper"] is None and channel_names("paper", ["a", "b"]) == ["a", "b"]

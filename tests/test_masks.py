@@ -42,7 +42,7 @@ def test_table_groups_minimum_fills_and_patterns():
     assert sorted(p.raw) == sorted(grouped + list(MINIMUM_RAW))  # every channel a group or the minimum names
     names = channel_names(MASK, [])
     assert names[-len(GROUP_NAMES):] == [f"avail_{g}" for g in GROUP_NAMES] and "vib_ap" in names and "vib" in names
-    derived = [c.name for c in MODEL_CHANNELS if set(c.raw) <= set(p.raw) and not c.reference]
+    derived = [c.name for c in MODEL_CHANNELS if set(c.raw) <= set(p.raw) and not (c.reference or c.physics)]
     assert names[:-len(GROUP_NAMES)] == derived and len(names) == 38
     fills = {c.name: c.fill for c in MODEL_CHANNELS}
     assert fills["v_cell"] == 3.7 and fills["vib"] == fills["vib_ap"] == 5.5 and fills["esc1_t_rel"] == 0.0

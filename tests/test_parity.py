@@ -196,11 +196,12 @@ def check_stream_table(out: Path, parity_json: dict) -> None:
 def test_generated_headers_are_current(tmp_path):
     """Every committed generated C++ header is what its Python table generates now (regenerate:
     `python -m quadfdi.core.contracts --header`, `python -m quadfdi.core.channels --header` and
-    `python -m quadfdi.formats.weights_layout --header`, `python -m quadfdi.core.vehicle_record --header`)."""
-    from quadfdi.core import channels, contracts, vehicle_record
+    `python -m quadfdi.formats.weights_layout --header`, `python -m quadfdi.core.vehicle_record --header`,
+    `python -m quadfdi.core.causal --header`)."""
+    from quadfdi.core import causal, channels, contracts, vehicle_record
     from quadfdi.formats import weights_layout
 
-    modules = (contracts, channels, weights_layout, vehicle_record)
+    modules = (contracts, channels, weights_layout, vehicle_record, causal)
     generated = sorted(p.name for p in contracts.HEADER_PATH.parent.glob("*_gen.hpp"))
     assert generated == sorted(m.HEADER_PATH.name for m in modules), "a *_gen.hpp without its generator here"
     for module in modules:

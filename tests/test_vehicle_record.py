@@ -53,13 +53,17 @@ def test_record_file_round_trips_and_refuses_in_one_line(tmp_path):
     rec[[16, 17, 22]] = np.nan  # no PX4 vibration floor, no rpm share of ESC 3: NaN survives the round trip
     write_record(tmp_path / "r.bin", rec, REF)
     data = (tmp_path / "r.bin").read_bytes()
-    assert len(data) == vr.FILE_BYTES == 112 and data[:8] == b"QFDIVEH\0"
+    assert len(data) == vr.FILE_BYTES == 116 and data[:8] == b"QFDIVEH\0"
     np.testing.assert_array_equal(read_record(tmp_path / "r.bin", REF).view(np.uint32), rec.view(np.uint32))
+    v1 = data[:8] + (1).to_bytes(4, "little") + data[12:16 + 4 * vr.SIZE_V1]  # before the sag field: still read
+    np.testing.assert_array_equal(parse_record(v1, REF, "v1").view(np.uint32), vr.from_v1(rec[:24]).view(np.uint32))
+    assert np.isnan(parse_record(v1, REF, "v1")[24]) and vr.FILE_BYTES_V1 == len(v1) == 112
     mask_id = (PROFILE_BY_NAME["flightlog-mask"].id).to_bytes(4, "little")
-    bad = {"truncated": (data[:100], "holds 100 bytes, a vehicle record 112"),
-           "longer": (data + b"\0", "holds 113 bytes"),
+    bad = {"truncated": (data[:100], "holds 100 bytes, a vehicle record 116"),
+           "longer": (data + b"\0", "holds 117 bytes"),
+           "v1 longer": (v1 + b"\0", "holds 113 bytes, a vehicle record 112"),
            "magic": (b"QFDISTR\0" + data[8:], "is not a quadfdi vehicle record"),
-           "version": (data[:8] + (2).to_bytes(4, "little") + data[12:], "version 2, this reader reads 1"),
+           "version": (data[:8] + (3).to_bytes(4, "little") + data[12:], "version 3, this reader reads 1 and 2"),
            "profile": (data[:12] + mask_id + data[16:], "is for profile 'flightlog-mask', the model's is 'flightlog-ref'"),
            "infinite": (data[:16] + np.float32(np.inf).tobytes() + data[20:], "field 0 is infinite")}
     for name, (blob, why) in bad.items():
@@ -170,9 +174,14 @@ def test_cpp_loader_reads_the_same_bits_and_refuses_the_same_files(mirror, tmp_p
     assert [int(v) for v in res.stdout.split()] == rec.view(np.uint32).tolist()
     data = (tmp_path / "r.bin").read_bytes()
     mask_id = (PROFILE_BY_NAME["flightlog-mask"].id).to_bytes(4, "little")
-    for name, blob, why in (("trunc", data[:100], "holds 100 bytes, a vehicle record 112"),
+    v1 = data[:8] + (1).to_bytes(4, "little") + data[12:16 + 4 * vr.SIZE_V1]
+    (tmp_path / "v1.bin").write_bytes(v1)
+    res = subprocess.run([str(mirror), "load", str(tmp_path / "v1.bin")], capture_output=True, text=True, check=True)
+    assert [int(v) for v in res.stdout.split()] == vr.from_v1(rec[:24]).view(np.uint32).tolist()  # sag NaN
+    for name, blob, why in (("trunc", data[:100], "holds 100 bytes, a vehicle record 116"),
                             ("magic", b"QFDISTR\0" + data[8:], "is not a quadfdi vehicle record"),
-                            ("version", data[:8] + (2).to_bytes(4, "little") + data[12:], "format version"),
+                            ("version", data[:8] + (3).to_bytes(4, "little") + data[12:], "format version"),
+                            ("v1 longer", v1 + b"\0\0\0\0", "a version 1 record"),
                             ("profile", data[:12] + mask_id + data[16:], "is for profile 'flightlog-mask', the model's "
                                                                          "is 'flightlog-ref'"),
                             ("inf", data[:20] + np.float32(-np.inf).tobytes() + data[24:], "infinite field")):
@@ -339,7 +348,7 @@ def test_stream_files_carry_the_record_and_old_versions_still_read(tmp_path, fle
     rs = from_dataset(fleet_run / "dataset.npz", 5, STREAM_RECORD, vehicle=records[int(vid[5])])
     write_stream(tmp_path / "v3.bin", rs)
     back = read_stream(tmp_path / "v3.bin")
-    assert int.from_bytes((tmp_path / "v3.bin").read_bytes()[8:12], "little") == 3
+    assert int.from_bytes((tmp_path / "v3.bin").read_bytes()[8:12], "little") == 4  # the record's 25 floats
     np.testing.assert_array_equal(back.vehicle.view(np.uint32), rs.vehicle.view(np.uint32))
     np.testing.assert_array_equal(back.values.view(np.uint32), rs.values.view(np.uint32))
     without = stream_bytes(dataclasses.replace(rs, vehicle=None))
@@ -352,5 +361,11 @@ def test_stream_files_carry_the_record_and_old_versions_still_read(tmp_path, fle
     (tmp_path / "inf.bin").write_bytes(bytes(data))
     with pytest.raises(QuadfdiError, match="vehicle record field 0 is infinite"):
         read_stream(tmp_path / "inf.bin")
+    old = bytearray((tmp_path / "v3.bin").read_bytes())  # version 3: a version 1 record (24 floats), still read
+    old[8:12] = (3).to_bytes(4, "little")
+    old[at + 4 * vr.SIZE_V1:at + 4 * vr.SIZE] = bytes(4)
+    (tmp_path / "old.bin").write_bytes(bytes(old))
+    np.testing.assert_array_equal(read_stream(tmp_path / "old.bin").vehicle.view(np.uint32),
+                                  vr.from_v1(rs.vehicle[:24]).view(np.uint32))
     with pytest.raises(QuadfdiError, match="profile 'flightlog-mask' reads no vehicle record"):
         stream_bytes(dataclasses.replace(rs, profile="flightlog-mask"))

@@ -1,7 +1,8 @@
-"""The stream runtime with a vehicle record: the flightlog-ref export of tests/conftest.py (a tiny fleet trained
-through the CLI, each flight with its vehicle's record) replaying streams written by `quadfdi stream-file
---vehicle` through fwref_stream as the Python window path decides them (int8 bit-identical to ONNX Runtime),
-`--vehicle RECORD.bin` against the stream's own record, and the refusals."""
+"""The stream runtime with a vehicle record: the flightlog-ref and flightlog-phys exports of tests/conftest.py (a
+tiny fleet trained through the CLI, each flight with its vehicle's record; flightlog-phys adds the channels its
+recursions carry from the flight's first sample) replaying streams written by `quadfdi stream-file --vehicle`
+through fwref_stream as the Python window path decides them (int8 bit-identical to ONNX Runtime), `--vehicle
+RECORD.bin` against the stream's own record, and the refusals."""
 
 from __future__ import annotations
 
@@ -15,20 +16,21 @@ import pytest
 
 from quadfdi.core.channels import PROFILE_BY_NAME
 from quadfdi.formats.vehicle_record_bin import write_record
+from quadfdi.models.inputs import profile_of
 from tests.conftest import quadfdi
 from tests.test_firmware_fixtures import host_build  # noqa: F401 (fixture)
-from tests.test_vehicle_record import REF
 
 
-@pytest.fixture(scope="module")
-def ref_streams(reference_export, tmp_path_factory) -> dict[str, Path]:
-    """Three test flights after their vehicle's reference flights (a fault among them) written by `quadfdi
-    stream-file --vehicle` with their vehicle's reference."""
+@pytest.fixture(scope="module", params=["reference_export", "physics_export"])
+def ref_case(request, tmp_path_factory) -> tuple[Path, dict[str, Path]]:
+    """A reference profile's export and three test flights after their vehicle's reference flights (a fault
+    among them) written by `quadfdi stream-file --vehicle` with their vehicle's reference."""
     from quadfdi.core.contracts import SPLIT_TEST
     from quadfdi.formats.dataset import load_dataset, vehicle_columns
     from quadfdi.formats.vehicle import write_vehicle
     from quadfdi.train.vehicle_ref import learn_references
 
+    reference_export = request.getfixturevalue(request.param)
     run, out = reference_export.parent, tmp_path_factory.mktemp("ref_streams")
     ds = load_dataset(run / "dataset.npz")
     cols = vehicle_columns(ds.arrays)
@@ -42,17 +44,17 @@ def ref_streams(reference_export, tmp_path_factory) -> dict[str, Path]:
         res = quadfdi("stream-file", "--model", str(reference_export), "--dataset", str(run / "dataset.npz"), "--flight",
                       str(row), "--vehicle", str(out / f"v{row}.json"), "--out", str(paths[f"sim{row}"]))
         assert res.returncode == 0 and "vehicle record" in res.stdout, res.stderr
-    return paths
+    return reference_export, paths
 
 
 @pytest.mark.parametrize("net, precision", [("cnode", "int8"), ("gru", "int8"), ("cnode", "fp32")])
-def test_stream_with_a_record_gives_the_window_path(reference_export, ref_streams, host_build, tmp_path,  # noqa: F811
-                                                    net, precision):
+def test_stream_with_a_record_gives_the_window_path(ref_case, host_build, tmp_path, net, precision):  # noqa: F811
     """fwref_stream loads each stream's record at reset: the Python window path's status, logits (int8: the same
     bits, fp32: within the parity tolerance) and alarm at every stride (tests/test_stream.py's check)."""
     from quadfdi.formats.stream import read_stream
     from tests.test_stream import _check_replay
 
+    reference_export, ref_streams = ref_case
     for name, path in ref_streams.items():
         assert read_stream(path).vehicle is not None
         print(name, _check_replay(reference_export, {"sim": path}, host_build, tmp_path, net, precision))
@@ -63,17 +65,19 @@ def _fwref_stream(exe: Path, export: Path, *args: str) -> subprocess.CompletedPr
                            "--int8", *args], capture_output=True, text=True)
 
 
-def test_vehicle_flag_is_the_streams_own_record_and_refusals(reference_export, ref_streams, host_build, tmp_path):  # noqa: F811
+def test_vehicle_flag_is_the_streams_own_record_and_refusals(ref_case, host_build, tmp_path):  # noqa: F811
     """A version 2 stream with --vehicle gives the version 3 stream's lines; without a record the decisions
     differ (the reference channels at their fills); a record for another profile, a truncated one, or
     --vehicle beside a stream carrying its own: one line, exit 2."""
     from quadfdi.formats.stream import read_stream, write_stream
     from quadfdi.runtimes.fwref import stream_lines
 
+    reference_export, ref_streams = ref_case
+    profile = profile_of(json.loads((reference_export / "manifest.json").read_text()))
     path = next(iter(ref_streams.values()))
     rs = read_stream(path)
     write_stream(tmp_path / "v2.bin", dataclasses.replace(rs, vehicle=None))
-    write_record(tmp_path / "r.bin", rs.vehicle, REF)
+    write_record(tmp_path / "r.bin", rs.vehicle, profile)
     own, flag, none = (_fwref_stream(host_build, reference_export, *a) for a in
                        (("--in", str(path)), ("--in", str(tmp_path / "v2.bin"), "--vehicle", str(tmp_path / "r.bin")),
                         ("--in", str(tmp_path / "v2.bin"))))

@@ -35,9 +35,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     pr.add_argument("--vehicle", required=True, help="the reference (quadfdi vehicle learn)")
     pr.add_argument("--out", required=True, help="folder to write rules.json and rules.md into")
     pr.set_defaults(func=run_rules)
-    pc = acts.add_parser("record", help="write a reference's vehicle record file (24 float32) for fwref_stream")
+    pc = acts.add_parser("record", help="write a reference's vehicle record file (25 float32) for fwref_stream")
     pc.add_argument("vehicle", metavar="VEHICLE_JSON", help="the reference (quadfdi vehicle learn)")
-    pc.add_argument("--profile", default="flightlog-ref", help="the reference profile it is for (flightlog-ref)")
+    pc.add_argument("--profile", default="flightlog-ref", help="the reference profile it is for (flightlog-ref or flightlog-phys)")
     pc.add_argument("--out", required=True, help="the record file to write (docs/formats.md \"Vehicle record file\")")
     pc.set_defaults(func=run_record)
 

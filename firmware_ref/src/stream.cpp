@@ -55,6 +55,8 @@ Status Stream::init(const StreamParams& p, int cells, const StreamModel& m, std:
   }
   const ProfileSpec& spec = profile_spec(p.profile);
   const bool hover = p.profile != Profile::kPaper;
+  // the physics channels' recursions step on the grid their coefficient was computed for (fwref/causal.hpp)
+  if (spec.phys >= 0 && std::fabs(p.sample_dt_s - causal::kSampleDtS) > 1e-6) return Status::kDimsInvalid;
   // the masked profile may run without a cell count: set_carried() refuses V_b then
   if (hover ? (p.raw_channels != spec.raw || p.channels != spec.channels || (cells < 1 && spec.groups == 0))
             : p.raw_channels != p.channels) {
@@ -96,6 +98,7 @@ Status Stream::set_vehicle(const VehicleRecord& v) {
 void Stream::reset() {
   hover_.reset();
   alarm_.reset();
+  phys_.reset();
   last_ = Decision();
   next_ = decided_ = skipped_ = steps_ = gap_strides_ = resyncs_ = 0;
   refused_ = 0;
@@ -160,7 +163,7 @@ Status Stream::push_one(const float* sample, double t, StrideSink* sink) {
   const int W = p_.window, C = p_.channels, R = p_.raw_channels;
   const int slot = static_cast<int>(next_ % W);
   float* x = &ring_[slot * C];
-  profile_prep(p_.profile, sample, R, cells_, x, avail_, vehicle());
+  profile_prep(p_.profile, sample, R, cells_, x, avail_, vehicle(), &phys_);
   bool ok = true;
   const bool hover = p_.profile != Profile::kPaper;
   for (int c = 0; c < (hover ? R - 1 : R); ++c) {  // a column the flight lacks is not read

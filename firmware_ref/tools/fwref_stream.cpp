@@ -28,7 +28,7 @@
 // --in may be given several times: the flights run in sequence through one Stream, reset() between
 // them (each flight's lines start with its "# fwref_stream flight=<i>" comment).
 // The vehicle record (a reference profile, flightlog-ref; fwref/vehicle_record.hpp): a stream file of version 3
-// carries its own, loaded into the Stream at the flight's reset (set_vehicle); --vehicle <record.bin> (a record
+// or 4 carries its own, loaded into the Stream at the flight's reset (set_vehicle); --vehicle <record.bin> (a record
 // file, formats/vehicle_record_bin.py, checked to be for the model's profile) is the record of every flight whose
 // stream carries none, and is refused for a stream that carries one. Neither: no reference (the reference
 // channels at their fills, avail_reference 0). The flight's comment line says vehicle=stream|file|none.

@@ -3,10 +3,11 @@
 // fwref_stream reads before the first sample, and what fuzz/fuzz_stream.cpp feeds hostile bytes to.
 // Every size is bounded (fwref/read_limits.hpp) before anything is allocated; every failure is one line.
 //
-//   0  char[8] magic "QFDISTR\0" | 8 u32 version 3, 2 or 1 | 12 u32 header_bytes | 16 u32 n_channels R
+//   0  char[8] magic "QFDISTR\0" | 8 u32 version 4, 3, 2 or 1 | 12 u32 header_bytes | 16 u32 n_channels R
 //   20 u32 cells | 24 f64 sample_dt_s | 32 char[32] profile | 64 char[64] source | 128 R NUL-terminated
 //   names, then (version >= 2) R carried flags u8 (1: the stream carries the channel, 0: the flight lacks it),
-//   then (version 3) the vehicle record, 24 f32 (fwref/vehicle_record.hpp; a reference profile only),
+//   then (version 4) the vehicle record, 25 f32 (version 3: 24, kSag NaN; fwref/vehicle_record.hpp; a reference
+//   profile only),
 //   padding; then samples of 8 + 4R bytes: f64 t, f32 values[R]. Version 1 carries every channel.
 #pragma once
 
@@ -25,7 +26,7 @@ namespace fwref {
 namespace host {
 
 constexpr char kStreamMagic[9] = "QFDISTR";  // + NUL: 8 bytes
-constexpr std::uint32_t kStreamVersion = 3;  // 2 (no vehicle record) and 1 (every channel carried) are read too
+constexpr std::uint32_t kStreamVersion = 4;  // 3 (a version 1 record), 2 (no record), 1 (every channel carried) too
 constexpr std::size_t kStreamFixedHeader = 128;  // magic .. source; the channel names follow
 
 struct StreamHeader {
@@ -35,7 +36,7 @@ struct StreamHeader {
   std::vector<std::string> names;
   std::uint32_t version = 0;
   std::uint64_t carried = kAllCarried;  // bit c: the stream carries channel c (version 2's flags; c < 64)
-  bool has_vehicle = false;             // version 3: the stream carries its vehicle record
+  bool has_vehicle = false;             // version >= 3: the stream carries its vehicle record
   VehicleRecord vehicle{};
   std::size_t sample_bytes() const { return 8 + 4 * std::size_t(channels); }
 };
@@ -51,7 +52,8 @@ inline bool parse_stream_fixed(const unsigned char* fixed, const std::string& wh
   std::memcpy(&h->cells, fixed + 20, 4);
   std::memcpy(&h->dt, fixed + 24, 8);
   if (version < 1 || version > kStreamVersion) {
-    return *error = "stream " + where + " has version " + std::to_string(version) + ", this reader reads 1 to 3", false;
+    return *error = "stream " + where + " has version " + std::to_string(version) + ", this reader reads 1 to " +
+                    std::to_string(kStreamVersion), false;
   }
   if (h->bytes < kStreamFixedHeader || h->bytes > limits::kStreamHeaderBytes || h->channels == 0 ||
       h->channels > limits::kStreamChannels || h->bytes - kStreamFixedHeader < std::size_t(h->channels)) {
@@ -92,8 +94,10 @@ inline bool parse_stream_names(const char* rest, std::size_t n, const std::strin
   h->has_vehicle = false;
   if (h->version < 3) return true;
   pos += h->channels;
-  if (n - pos < sizeof h->vehicle.v) return *error = "stream " + where + " has no room for its vehicle record", false;
-  std::memcpy(h->vehicle.v, rest + pos, sizeof h->vehicle.v);
+  const std::size_t floats = h->version >= 4 ? vehicle::kSize : vehicle::kSizeV1;
+  if (n - pos < 4 * floats) return *error = "stream " + where + " has no room for its vehicle record", false;
+  h->vehicle = no_vehicle();  // version 3: the fields a version 1 record lacks stay NaN
+  std::memcpy(h->vehicle.v, rest + pos, 4 * floats);
   for (float x : h->vehicle.v) {
     if (std::isinf(x)) return *error = "stream " + where + " has an infinite field in its vehicle record", false;
   }

@@ -47,8 +47,8 @@ constexpr int kChannelVibAp = 36;  // m/s^2, log
 constexpr int kChannelAirborne = 37;  // -, stream
 
 // The profiles, by the id weights.bin's on-board record stores (dims[0]).
-enum class Profile : int { kPaper = 0, kFlightlogMin = 1, kFlightlogNocur = 2, kFlightlogEsc = 3, kFlightlogMask = 4, kFlightlogRef = 5 };
-constexpr int kProfileCount = 6;
+enum class Profile : int { kPaper = 0, kFlightlogMin = 1, kFlightlogNocur = 2, kFlightlogEsc = 3, kFlightlogMask = 4, kFlightlogRef = 5, kFlightlogPhys = 6 };
+constexpr int kProfileCount = 7;
 
 struct ProfileSpec {
   const char* name;
@@ -62,11 +62,12 @@ struct ProfileSpec {
   int vib_ap;       // raw column of vib_ap (-1: none)
   int groups;       // availability groups a flight may lack (0: a profile without a mask)
   const signed char* raw_group;    // (raw) each stream column's group; -1: never absent (the minimum, airborne)
-  const signed char* model_group;  // (channels) each model channel's group; -1: the minimum or an availability channel
+  const unsigned short* model_groups;  // (channels) bit g: needs group g (0: the minimum, an availability channel)
   const float* fill;               // (channels) a model channel's value when the flight lacks its group
   int avail;        // model column of the first availability channel (one per group, in group order; -1: none)
   int ref;          // model column of m1_ref (m1..4_ref vib_ref vib_ap_ref rpm1..4_ref follow; -1: no vehicle record)
   int avail_ref;    // model column of avail_reference (-1: none)
+  int phys;         // model column of r_cell (r_cell_ref m1..4_ref_lp vib_ref_lp vib_ap_ref_lp follow; -1: none)
 };
 
 // The availability groups (core/channels.py AVAILABILITY_GROUPS): bit g of an availability mask.
@@ -95,19 +96,25 @@ constexpr const char* kFlightlogMaskRaw[] = {"roll", "pitch", "p", "q", "r", "vx
 constexpr const char* kFlightlogMaskModel[] = {"roll", "pitch", "p", "q", "r", "vx_h", "vy_h", "vz", "v_cell", "i_rel", "m1_rel", "m2_rel", "m3_rel", "m4_rel", "vib", "vib_ap", "rpm1_rel", "rpm2_rel", "rpm3_rel", "rpm4_rel", "esc1_i_rel", "esc2_i_rel", "esc3_i_rel", "esc4_i_rel", "esc1_t_rel", "esc2_t_rel", "esc3_t_rel", "esc4_t_rel", "avail_pitch", "avail_rates", "avail_vel_h", "avail_battery", "avail_current", "avail_vib_px4", "avail_vib_ap", "avail_esc_rpm", "avail_esc_cur", "avail_esc_temp"};
 constexpr const char* kFlightlogRefRaw[] = {"roll", "pitch", "p", "q", "r", "vx", "vy", "yaw", "vz", "V_b", "I_b", "thr1", "thr2", "thr3", "thr4", "vib_px4", "rpm1", "rpm2", "rpm3", "rpm4", "esc_cur1", "esc_cur2", "esc_cur3", "esc_cur4", "esc_temp1", "esc_temp2", "esc_temp3", "esc_temp4", "vib_ap", "airborne"};
 constexpr const char* kFlightlogRefModel[] = {"roll", "pitch", "p", "q", "r", "vx_h", "vy_h", "vz", "v_cell", "i_rel", "m1_rel", "m2_rel", "m3_rel", "m4_rel", "vib", "vib_ap", "rpm1_rel", "rpm2_rel", "rpm3_rel", "rpm4_rel", "esc1_i_rel", "esc2_i_rel", "esc3_i_rel", "esc4_i_rel", "esc1_t_rel", "esc2_t_rel", "esc3_t_rel", "esc4_t_rel", "m1_ref", "m2_ref", "m3_ref", "m4_ref", "vib_ref", "vib_ap_ref", "rpm1_ref", "rpm2_ref", "rpm3_ref", "rpm4_ref", "avail_pitch", "avail_rates", "avail_vel_h", "avail_battery", "avail_current", "avail_vib_px4", "avail_vib_ap", "avail_esc_rpm", "avail_esc_cur", "avail_esc_temp", "avail_reference"};
+constexpr const char* kFlightlogPhysRaw[] = {"roll", "pitch", "p", "q", "r", "vx", "vy", "yaw", "vz", "V_b", "I_b", "thr1", "thr2", "thr3", "thr4", "vib_px4", "rpm1", "rpm2", "rpm3", "rpm4", "esc_cur1", "esc_cur2", "esc_cur3", "esc_cur4", "esc_temp1", "esc_temp2", "esc_temp3", "esc_temp4", "vib_ap", "airborne"};
+constexpr const char* kFlightlogPhysModel[] = {"roll", "pitch", "p", "q", "r", "vx_h", "vy_h", "vz", "v_cell", "i_rel", "m1_rel", "m2_rel", "m3_rel", "m4_rel", "vib", "vib_ap", "rpm1_rel", "rpm2_rel", "rpm3_rel", "rpm4_rel", "esc1_i_rel", "esc2_i_rel", "esc3_i_rel", "esc4_i_rel", "esc1_t_rel", "esc2_t_rel", "esc3_t_rel", "esc4_t_rel", "m1_ref", "m2_ref", "m3_ref", "m4_ref", "vib_ref", "vib_ap_ref", "rpm1_ref", "rpm2_ref", "rpm3_ref", "rpm4_ref", "r_cell", "r_cell_ref", "m1_ref_lp", "m2_ref_lp", "m3_ref_lp", "m4_ref_lp", "vib_ref_lp", "vib_ap_ref_lp", "avail_pitch", "avail_rates", "avail_vel_h", "avail_battery", "avail_current", "avail_vib_px4", "avail_vib_ap", "avail_esc_rpm", "avail_esc_cur", "avail_esc_temp", "avail_reference"};
 constexpr signed char kFlightlogMaskRawGroup[] = {-1, 0, 1, 1, 1, 2, 2, 2, -1, 3, 4, -1, -1, -1, -1, 5, 7, 7, 7, 7, 8, 8, 8, 8, 9, 9, 9, 9, 6, -1};
-constexpr signed char kFlightlogMaskModelGroup[] = {-1, 0, 1, 1, 1, 2, 2, -1, 3, 4, -1, -1, -1, -1, 5, 6, 7, 7, 7, 7, 8, 8, 8, 8, 9, 9, 9, 9, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1};
+constexpr unsigned short kFlightlogMaskModelGroups[] = {0, 1, 2, 2, 2, 4, 4, 0, 8, 16, 0, 0, 0, 0, 32, 64, 128, 128, 128, 128, 256, 256, 256, 256, 512, 512, 512, 512, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0};
 constexpr float kFlightlogMaskFill[] = {0.0f, 0.0f, 0.0f, 0.0f, 0.0f, 0.0f, 0.0f, 0.0f, 3.7f, 1.0f, 1.0f, 1.0f, 1.0f, 1.0f, 5.5f, 5.5f, 1.0f, 1.0f, 1.0f, 1.0f, 1.0f, 1.0f, 1.0f, 1.0f, 0.0f, 0.0f, 0.0f, 0.0f, 1.0f, 1.0f, 1.0f, 1.0f, 1.0f, 1.0f, 1.0f, 1.0f, 1.0f, 1.0f};
 constexpr signed char kFlightlogRefRawGroup[] = {-1, 0, 1, 1, 1, 2, 2, 2, -1, 3, 4, -1, -1, -1, -1, 5, 7, 7, 7, 7, 8, 8, 8, 8, 9, 9, 9, 9, 6, -1};
-constexpr signed char kFlightlogRefModelGroup[] = {-1, 0, 1, 1, 1, 2, 2, -1, 3, 4, -1, -1, -1, -1, 5, 6, 7, 7, 7, 7, 8, 8, 8, 8, 9, 9, 9, 9, -1, -1, -1, -1, 5, 6, 7, 7, 7, 7, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1};
+constexpr unsigned short kFlightlogRefModelGroups[] = {0, 1, 2, 2, 2, 4, 4, 0, 8, 16, 0, 0, 0, 0, 32, 64, 128, 128, 128, 128, 256, 256, 256, 256, 512, 512, 512, 512, 0, 0, 0, 0, 32, 64, 128, 128, 128, 128, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0};
 constexpr float kFlightlogRefFill[] = {0.0f, 0.0f, 0.0f, 0.0f, 0.0f, 0.0f, 0.0f, 0.0f, 3.7f, 1.0f, 1.0f, 1.0f, 1.0f, 1.0f, 5.5f, 5.5f, 1.0f, 1.0f, 1.0f, 1.0f, 1.0f, 1.0f, 1.0f, 1.0f, 0.0f, 0.0f, 0.0f, 0.0f, 1.0f, 1.0f, 1.0f, 1.0f, 0.0f, 0.0f, 1.0f, 1.0f, 1.0f, 1.0f, 1.0f, 1.0f, 1.0f, 1.0f, 1.0f, 1.0f, 1.0f, 1.0f, 1.0f, 1.0f, 1.0f};
+constexpr signed char kFlightlogPhysRawGroup[] = {-1, 0, 1, 1, 1, 2, 2, 2, -1, 3, 4, -1, -1, -1, -1, 5, 7, 7, 7, 7, 8, 8, 8, 8, 9, 9, 9, 9, 6, -1};
+constexpr unsigned short kFlightlogPhysModelGroups[] = {0, 1, 2, 2, 2, 4, 4, 0, 8, 16, 0, 0, 0, 0, 32, 64, 128, 128, 128, 128, 256, 256, 256, 256, 512, 512, 512, 512, 0, 0, 0, 0, 32, 64, 128, 128, 128, 128, 24, 24, 0, 0, 0, 0, 32, 64, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0};
+constexpr float kFlightlogPhysFill[] = {0.0f, 0.0f, 0.0f, 0.0f, 0.0f, 0.0f, 0.0f, 0.0f, 3.7f, 1.0f, 1.0f, 1.0f, 1.0f, 1.0f, 5.5f, 5.5f, 1.0f, 1.0f, 1.0f, 1.0f, 1.0f, 1.0f, 1.0f, 1.0f, 0.0f, 0.0f, 0.0f, 0.0f, 1.0f, 1.0f, 1.0f, 1.0f, 0.0f, 0.0f, 1.0f, 1.0f, 1.0f, 1.0f, 0.0f, 0.0f, 1.0f, 1.0f, 1.0f, 1.0f, 0.0f, 0.0f, 1.0f, 1.0f, 1.0f, 1.0f, 1.0f, 1.0f, 1.0f, 1.0f, 1.0f, 1.0f, 1.0f};
 constexpr ProfileSpec kSpecs[kProfileCount] = {
-    {"paper", 0, 0, nullptr, nullptr, -1, -1, -1, -1, 0, nullptr, nullptr, nullptr, -1, -1, -1},
-    {"flightlog-min", 17, 15, kFlightlogMinRaw, kFlightlogMinModel, 10, 11, -1, -1, 0, nullptr, nullptr, nullptr, -1, -1, -1},
-    {"flightlog-nocur", 16, 14, kFlightlogNocurRaw, kFlightlogNocurModel, -1, 10, -1, -1, 0, nullptr, nullptr, nullptr, -1, -1, -1},
-    {"flightlog-esc", 29, 27, kFlightlogEscRaw, kFlightlogEscModel, 10, 11, 16, -1, 0, nullptr, nullptr, nullptr, -1, -1, -1},
-    {"flightlog-mask", 30, 38, kFlightlogMaskRaw, kFlightlogMaskModel, 10, 11, 16, 28, 10, kFlightlogMaskRawGroup, kFlightlogMaskModelGroup, kFlightlogMaskFill, 28, -1, -1},
-    {"flightlog-ref", 30, 49, kFlightlogRefRaw, kFlightlogRefModel, 10, 11, 16, 28, 10, kFlightlogRefRawGroup, kFlightlogRefModelGroup, kFlightlogRefFill, 38, 28, 48},
+    {"paper", 0, 0, nullptr, nullptr, -1, -1, -1, -1, 0, nullptr, nullptr, nullptr, -1, -1, -1, -1},
+    {"flightlog-min", 17, 15, kFlightlogMinRaw, kFlightlogMinModel, 10, 11, -1, -1, 0, nullptr, nullptr, nullptr, -1, -1, -1, -1},
+    {"flightlog-nocur", 16, 14, kFlightlogNocurRaw, kFlightlogNocurModel, -1, 10, -1, -1, 0, nullptr, nullptr, nullptr, -1, -1, -1, -1},
+    {"flightlog-esc", 29, 27, kFlightlogEscRaw, kFlightlogEscModel, 10, 11, 16, -1, 0, nullptr, nullptr, nullptr, -1, -1, -1, -1},
+    {"flightlog-mask", 30, 38, kFlightlogMaskRaw, kFlightlogMaskModel, 10, 11, 16, 28, 10, kFlightlogMaskRawGroup, kFlightlogMaskModelGroups, kFlightlogMaskFill, 28, -1, -1, -1},
+    {"flightlog-ref", 30, 49, kFlightlogRefRaw, kFlightlogRefModel, 10, 11, 16, 28, 10, kFlightlogRefRawGroup, kFlightlogRefModelGroups, kFlightlogRefFill, 38, 28, 48, -1},
+    {"flightlog-phys", 30, 57, kFlightlogPhysRaw, kFlightlogPhysModel, 10, 11, 16, 28, 10, kFlightlogPhysRawGroup, kFlightlogPhysModelGroups, kFlightlogPhysFill, 46, 28, 56, 38},
 };
 }  // namespace profile_tables
 

@@ -31,12 +31,21 @@
 // as core/profiles.py); a group the flight lacks: its reference channels at their fills too. ``prep`` puts
 // each motor's expected share s_k in the m{k}_ref column, ``hover`` divides m{k}_rel by it: the same
 // float32 division as core/vehicle_record.py.
+//
+// The physics profile (``flightlog-phys``, ProfileSpec::phys >= 0) is the reference one plus eight channels
+// computed by recursions over the flight so far (fwref/causal.hpp; core/causal.py): ``r_cell`` =
+// sag(v_cell, I_b), ``r_cell_ref`` = r_cell - the record's sag, ``m{k}_ref_lp`` = ewma(thr_k / s_k) / hover_cmd
+// (``prep`` steps the recursion, ``hover`` divides), ``vib_ref_lp``, ``vib_ap_ref_lp`` = ewma of the vibration
+// excesses. They need the flight's PhysState (``phys``; null: NaN, the samples undecided); a channel whose
+// record field is not held takes its fill (a smoothed deviation's input is then NaN: the state does not move);
+// r_cell and r_cell_ref need the battery and the current groups.
 #pragma once
 
 #include <cmath>
 #include <cstdint>
 #include <cstring>
 
+#include "fwref/causal.hpp"
 #include "fwref/channels_gen.hpp"  // Profile, ProfileSpec and the profiles' channel lists, from core/channels.py
 #include "fwref/vehicle_record.hpp"
 
@@ -105,9 +114,36 @@ inline void reference_prep(const ProfileSpec& s, const float* raw, std::uint32_t
   }
 }
 
+// The physics channels of a prepared sample x (after reference_prep, before the group fills): one step of
+// each recursion of the flight's state ``st`` (null: NaN); m{k}_ref_lp holds ewma(thr_k / s_k) until
+// profile_hover divides it.
+inline void physics_prep(const ProfileSpec& s, const float* raw, const VehicleRecord* vehicle, PhysState* st,
+                         float* x) {
+  float* ph = x + s.phys;
+  if (st == nullptr) {
+    for (int j = 0; j < 8; ++j) ph[j] = NAN;
+    return;
+  }
+  ph[0] = sag_step(st->sag, x[8], s.i_b >= 0 ? raw[s.i_b] : NAN);  // v_cell, I_b
+  const bool rec = vehicle != nullptr;
+  const bool sag = rec && std::isfinite(vehicle->v[vehicle::kSag]);
+  ph[1] = sag ? ph[0] - vehicle->v[vehicle::kSag] : s.fill[s.phys + 1];  // r_cell_ref
+  float* lp = ph + 2;  // m1..4_ref_lp, vib_ref_lp, vib_ap_ref_lp: lp[j] smooths reference channel j
+  for (int k = 0; k < 4; ++k) {
+    const float q = rec && reference_held(*vehicle, k) ? raw[s.thr + k] / x[s.ref + k] : NAN;
+    lp[k] = ewma_step(st->lp[k], q);
+  }
+  for (int j = 4; j < 6; ++j) lp[j] = ewma_step(st->lp[j], rec && reference_held(*vehicle, j) ? x[s.ref + j] : NAN);
+  for (int j = 0; j < 6; ++j) {
+    if (!rec || !reference_held(*vehicle, j)) lp[j] = s.fill[s.phys + 2 + j];
+  }
+}
+
 // x (C) <- the sample's hover-independent model values; hover columns hold the raw current / commands.
+// ``phys``: the flight's recursion state (the physics profile; stepped once per call).
 inline void profile_prep(Profile p, const float* raw, int raw_n, float cells, float* x,
-                         std::uint32_t avail = kAllGroups, const VehicleRecord* vehicle = nullptr) {
+                         std::uint32_t avail = kAllGroups, const VehicleRecord* vehicle = nullptr,
+                         PhysState* phys = nullptr) {
   if (p == Profile::kPaper) {
     std::memcpy(x, raw, sizeof(float) * static_cast<std::size_t>(raw_n));
     return;
@@ -140,9 +176,9 @@ inline void profile_prep(Profile p, const float* raw, int raw_n, float cells, fl
   }
   if (s.groups == 0) return;
   if (s.ref >= 0) reference_prep(s, raw, avail, vehicle, rpm_rel, x);
-  for (int c = 0; c < s.avail; ++c) {  // a lacking group's channels: their fills
-    const int g = s.model_group[c];
-    if (g >= 0 && ((avail >> g) & 1u) == 0) x[c] = s.fill[c];
+  if (s.phys >= 0) physics_prep(s, raw, vehicle, phys, x);
+  for (int c = 0; c < s.avail; ++c) {  // a channel needing a group the flight lacks: its fill
+    if ((s.model_groups[c] & ~avail) != 0u) x[c] = s.fill[c];
   }
   for (int g = 0; g < s.groups; ++g) x[s.avail + g] = ((avail >> g) & 1u) != 0 ? 1.0f : 0.0f;
   if (s.avail_ref >= 0) x[s.avail_ref] = has_reference(vehicle) ? 1.0f : 0.0f;
@@ -164,7 +200,9 @@ inline void profile_hover(Profile p, float hover_cmd, float hover_cur, float* x,
   for (int k = 0; k < 4; ++k, ++j) x[j] = x[j] / hover_cmd;
   if (s.ref < 0 || vehicle == nullptr) return;
   for (int k = 0; k < 4; ++k) {
-    if (reference_held(*vehicle, k)) x[s.ref + k] = x[m_rel + k] / x[s.ref + k];
+    if (!reference_held(*vehicle, k)) continue;
+    x[s.ref + k] = x[m_rel + k] / x[s.ref + k];
+    if (s.phys >= 0) x[s.phys + 2 + k] = x[s.phys + 2 + k] / hover_cmd;  // m{k}_ref_lp
   }
 }
 

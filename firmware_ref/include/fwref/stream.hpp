@@ -47,9 +47,14 @@
 // their fills and its columns are not checked for NaN. A profile without a mask needs every column.
 //
 // The vehicle record (a reference profile only, fwref/vehicle_record.hpp): set_vehicle() after init() or
-// reset(), before the flight's first sample, copies the 24 floats into the stream (96 bytes, no pointer
+// reset(), before the flight's first sample, copies the record's floats into the stream (100 bytes, no pointer
 // kept); reset() keeps it (the record belongs to the vehicle, not the flight), clear_vehicle() drops it.
 // Without one the reference channels take their fills and avail_reference is 0.
+//
+// The physics profile (fwref/profile.hpp, fwref/causal.hpp): its recursions step on every pushed sample from
+// the flight's first (reset() starts them again), hold their state across an unusable sample and across a
+// gap's missing samples (as pushing NaN would); init() refuses (kDimsInvalid) a sample period other than
+// the one their coefficient was computed for (causal::kSampleDtS).
 //
 // Timestamps: each sample carries its time t (s); the stream runs on the grid of the record's sample
 // period dt, and a time step counts g = llround((t - t_prev) / dt) periods (fwref/period.hpp's
@@ -253,6 +258,7 @@ class Stream {
   float step_logits_[kMaxClasses] = {};  // the latest step's (per-sample model)
   double motor_proba_[kMaxClasses > kMotors ? kMaxClasses : kMotors] = {};
   HoverEstimator<kHoverSteady> hover_;
+  PhysState phys_;  // the physics profile's recursions over the flight (fwref/causal.hpp)
   AlarmPolicy<kMaxAlarmN, kMaxClasses> alarm_;
   Decision last_;
   std::int64_t next_ = 0, decided_ = 0, skipped_ = 0, steps_ = 0, gap_strides_ = 0, resyncs_ = 0;

@@ -1,4 +1,4 @@
-// fwref/vehicle_record.hpp -- scope: the vehicle record (core/vehicle_record.py: 24 float32 learned from
+// fwref/vehicle_record.hpp -- scope: the vehicle record (core/vehicle_record.py: 25 float32 learned from
 // the vehicle's own healthy flights) that a reference profile (``flightlog-ref``) reads beside the stream,
 // and the per-sample arithmetic of its reference channels. Header-only POD and math, no heap; the host
 // loader of a record file (formats/vehicle_record_bin.py) is src/vehicle_record.cpp.
@@ -13,6 +13,7 @@
 //   s_k = (share_a[k] + share_v[k] * vf) + share_r[k] * yr;    m{k}_ref = m{k}_rel / s_k
 //   vib_ref = vib - (floor + slope * c), c = ((((thr1 + thr2) + thr3) + thr4) * 0.25f)
 //   rpm{k}_ref = rpm{k}_rel / rpm_share[k]
+//   r_cell_ref = r_cell - sag           (flightlog-phys: fwref/profile.hpp's physics_prep)
 // min / max as numpy's minimum / maximum: NaN in either operand gives NaN (std::fmin would drop it).
 #pragma once
 
@@ -30,7 +31,7 @@ namespace fwref {
 struct VehicleRecord {
   float v[vehicle::kSize];
 };
-static_assert(sizeof(VehicleRecord) == 4 * vehicle::kSize, "the record is its 24 floats, 96 bytes, and nothing else");
+static_assert(sizeof(VehicleRecord) == 4 * vehicle::kSize, "the record is its kSize floats and nothing else");
 
 // Every field NaN: no reference.
 inline VehicleRecord no_vehicle() {
@@ -67,20 +68,26 @@ inline bool reference_held(const VehicleRecord& rec, int j) {
   return std::isfinite(f[vehicle::kRpmShare + (j - 6)]);
 }
 
-// A record file's bytes (vehicle::kFileBytes: magic, version, profile id, 24 float32 LE) for profile
-// ``expect``; kOk, or a Status with ``*why`` the reason (no heap: the Cortex-M may parse one too).
-// An infinite field is refused (NaN is "holds nothing").
+// A record file's bytes (vehicle::kFileBytes: magic, version, profile id, kSize float32 LE; version 1:
+// kFileBytesV1, kSizeV1 floats, kSag NaN) for profile ``expect``; kOk, or a Status with ``*why`` the reason
+// (no heap: the Cortex-M may parse one too). An infinite field is refused (NaN is "holds nothing").
 inline Status parse_vehicle_record(const unsigned char* bytes, std::size_t n, Profile expect, VehicleRecord* out,
                                    const char** why) {
   std::uint32_t version = 0, profile = 0;
   if (n < 8 || std::memcmp(bytes, vehicle::kFileMagic, 8) != 0) return *why = "is not a quadfdi vehicle record", Status::kBadMagic;
-  if (n != std::size_t(vehicle::kFileBytes)) return *why = "is not 112 bytes long (truncated or with trailing bytes)", Status::kBadSize;
-  std::memcpy(&version, bytes + 8, 4);
+  if (n >= 12) std::memcpy(&version, bytes + 8, 4);
+  const bool v1 = version == vehicle::kFileVersionV1;
+  if (n != std::size_t(v1 ? vehicle::kFileBytesV1 : vehicle::kFileBytes)) {
+    return *why = v1 ? "is not 112 bytes long (a version 1 record: truncated or with trailing bytes)"
+                     : "is not 116 bytes long (truncated or with trailing bytes)", Status::kBadSize;
+  }
   std::memcpy(&profile, bytes + 12, 4);
-  if (version != vehicle::kFileVersion) return *why = "has a format version this reader does not read (it reads 1)", Status::kBadVersion;
+  if (!v1 && version != vehicle::kFileVersion) {
+    return *why = "has a format version this reader does not read (it reads 1 and 2)", Status::kBadVersion;
+  }
   if (profile != static_cast<std::uint32_t>(expect)) return *why = "is for another profile than the model's", Status::kDimsInvalid;
-  VehicleRecord r;
-  std::memcpy(r.v, bytes + vehicle::kFileHeaderBytes, sizeof r.v);
+  VehicleRecord r = no_vehicle();  // a version 1 record: the fields after kSizeV1 NaN (it holds none)
+  std::memcpy(r.v, bytes + vehicle::kFileHeaderBytes, 4 * std::size_t(v1 ? vehicle::kSizeV1 : vehicle::kSize));
   for (float x : r.v) {
     if (std::isinf(x)) return *why = "holds an infinite field", Status::kBadInput;
   }
