@@ -1,11 +1,11 @@
 """The README's results block (``quadfdi readme --run R --block results``), from the seed study's files.
 
 Rewrites ``<!-- results:start -->`` ... ``<!-- results:end -->`` with the headline of the paper's
-Tables 3 and 4 beside ours, narrow enough for the README's 100-character lines: from ``seeds.json``
+Table 3 beside ours, narrow enough for the README's 100-character lines: from ``seeds.json``
 (``quadfdi train study``) macro F1, any-fault F1, mean detection delay and false-alarm rate per model
-(mean ± std over the seeds, three digits), missed faults in one sentence, and per-class F1; the
-study's own first line of ``results.md`` (its command, seeds and machine) heads it. The full tables
-are ``results.md`` itself. Nothing is typed in by hand.
+(mean ± std over the seeds, three digits) and missed faults in one sentence; the study's own first
+line of ``results.md`` (its command, seeds and machine) heads it. The full tables, Table 4's per-class
+F1 too, are ``results.md`` itself. Nothing is typed in by hand.
 """
 
 from __future__ import annotations
@@ -19,8 +19,7 @@ from quadfdi.core.errors import QuadfdiError
 from quadfdi.core.jsonio import read_json
 from quadfdi.core.tables import md_table
 from quadfdi.readme_text import wrap
-from quadfdi.train.figures import short_names
-from quadfdi.train.study import PAPER_TABLE3, PAPER_TABLE4
+from quadfdi.train.study import PAPER_TABLE3
 
 OURS = (("cnode", "CNODE"), ("gru", "GRU"), ("baseline", "LogReg"))
 PAPER = {"Neural ODE (paper)": "CNODE (paper)", "GRU (paper)": "GRU (paper)"}
@@ -44,12 +43,6 @@ def table3(seeds: dict, paper: bool) -> list[str]:
     return md_table(["Model"] + [h for _, h in COLUMNS], rows)
 
 
-def table4(seeds: dict, names: tuple[str, ...], paper: bool) -> list[str]:
-    rows = [[PAPER[name]] + [f"{v:.3f}" for v in row] for name, row in (PAPER_TABLE4.items() if paper else ())]
-    rows += [[label] + [_ms(seeds[m]["per_class"][c]["f1"]) for c in names] for m, label in OURS if m in seeds]
-    return md_table(["Model"] + list(short_names(names)), rows)
-
-
 def results_block(root: Path) -> str:
     path, table = root / "seeds.json", root / "results.md"
     if not path.is_file() or not table.is_file():
@@ -57,10 +50,9 @@ def results_block(root: Path) -> str:
     seeds = read_json(path, "seeds.json")
     made = table.read_text().splitlines()[0]
     names = next((tuple(seeds[m]["per_class"]) for m, _ in OURS if m in seeds), CLASS_NAMES)
-    paper = names == CLASS_NAMES
+    paper = names == CLASS_NAMES  # the paper's four classes: its rows beside ours
     missed = ", ".join(f"{label} {np.mean(seeds[m]['missed_faults']):.2f}" for m, label in OURS if m in seeds)
     lines = [*wrap(f"Headline of `results.md`, by `quadfdi readme --run {root} --block results`. {made}"), "",
              "**Table 3 (test split)**", "", *table3(seeds, paper),
-             *wrap(f"Missed fault trajectories, mean over seeds: {missed}" + ("; paper: 0 and 0." if paper else ".")),
-             "", "**Table 4 (per-class F1, test split)**", "", *table4(seeds, names, paper)]
+             *wrap(f"Missed fault trajectories, mean over seeds: {missed}" + ("; paper: 0 and 0." if paper else "."))]
     return "\n".join(lines)
