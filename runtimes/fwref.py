@@ -13,13 +13,29 @@ import numpy as np
 from quadfdi.core.errors import QuadfdiError
 
 CPP_TIMEOUT_S = 1800
+# Windows per fwref_infer call are cut so that its input file stays at most this size: the C++ reader
+# refuses a file above 1024 MiB (fwref/read_limits.hpp), a fleet test split at 120 samples x 57 channels
+# is 1.2 GB, and windows are independent, so chunks give the same logits as one call.
+MAX_INPUT_BYTES = 512 * 2**20
 
 
 def fwref_infer(exe: Path, weights: Path, model: str, int8: bool, x: np.ndarray,
-                motor: bool = False) -> tuple[np.ndarray, np.ndarray | None]:
+                motor: bool = False, max_bytes: int = MAX_INPUT_BYTES) -> tuple[np.ndarray, np.ndarray | None]:
     """``exe`` (fwref_infer) on windows ``x`` (n, W, C) -> (logits (n, K), motor logits (n, 4) with
-    ``motor``, else None): the class and motor heads of one inference. The C++ side checks weights.bin
-    against the manifest's sha256 when the export folder has one."""
+    ``motor``, else None): the class and motor heads of one inference, in calls of at most ``max_bytes``
+    of input each. The C++ side checks weights.bin against the manifest's sha256 when the export folder
+    has one."""
+    per = max(1, int(max_bytes) // max(1, int(np.prod(x.shape[1:], dtype=np.int64)) * 4))
+    if len(x) > per:
+        parts = [_infer_once(exe, weights, model, int8, x[i:i + per], motor) for i in range(0, len(x), per)]
+        return (np.concatenate([p[0] for p in parts]),
+                np.concatenate([p[1] for p in parts]) if motor else None)
+    return _infer_once(exe, weights, model, int8, x, motor)
+
+
+def _infer_once(exe: Path, weights: Path, model: str, int8: bool, x: np.ndarray,
+                motor: bool) -> tuple[np.ndarray, np.ndarray | None]:
+    """One ``fwref_infer`` call on all of ``x``."""
     with tempfile.TemporaryDirectory(prefix="quadfdi-fwref-") as tmp:
         src, dst, mdst = Path(tmp) / "windows.f32", Path(tmp) / "logits.f32", Path(tmp) / "motor.f32"
         np.ascontiguousarray(x, dtype="<f4").tofile(src)

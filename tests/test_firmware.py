@@ -552,3 +552,16 @@ def test_cortex_m_parity_under_qemu(fw_run, cpu):
     # 13 row counts x the listed column counts up to min(41, the widest product): 234 with the default dims
     assert int(res.stdout.split("KERNELS PASS cases=")[1].split()[0]) >= 13 * 12, res.stdout
     assert "cortex-m-dsp-4row cortex-m-vfp-4row" in res.stdout  # the assembly kernels ran, not the fallbacks
+
+
+def test_fwref_infer_in_chunks_gives_the_logits_of_one_call(fw_run, host_build):
+    """A split too large for the C++ reader's 1024 MiB input limit is fed in chunks: windows are
+    independent, so the chunked logits (and motor logits) are the single call's, bit for bit."""
+    export, x = fw_run / "export", test_windows(fw_run)[:50]
+    exe, weights = host_build / "fwref_infer", export / "weights.bin"
+    for model in ("cnode", "gru"):
+        for int8 in (False, True):
+            whole = fwref.fwref_infer(exe, weights, model, int8, x)
+            per_window = x[0].size * 4
+            chunked = fwref.fwref_infer(exe, weights, model, int8, x, max_bytes=7 * per_window + 3)  # 8 calls
+            assert np.array_equal(whole[0], chunked[0]), (model, int8)
