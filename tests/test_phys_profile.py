@@ -11,8 +11,6 @@ tests/test_vehicle_record_mcu.py."""
 from __future__ import annotations
 
 import dataclasses
-import shutil
-import subprocess
 from pathlib import Path
 
 import numpy as np
@@ -21,8 +19,9 @@ import pytest
 from quadfdi.core import causal, vehicle_record as vr
 from quadfdi.core.channels import PROFILE_BY_NAME, REFERENCE_GROUP, groups_of_model, stream_raw
 from quadfdi.core.profiles import apply_profile, channel_names, mask_layout, required_raw
-from quadfdi.formats.vehicle_record_bin import record_from_vehicle_json, write_record
-from tests.conftest import ROOT, SHARED_DATA, quadfdi
+from quadfdi.formats.vehicle_record_bin import record_from_vehicle_json
+from tests.conftest import SHARED_DATA, quadfdi
+from tests.profile_mirror import build_mirror, cpp_inputs
 
 PHYS, REF = "flightlog-phys", "flightlog-ref"
 NAMES = channel_names(PHYS, [])
@@ -217,61 +216,10 @@ def test_training_drops_the_record_from_the_smoothed_deviations_as_no_record_doe
 
 # ------------------------------------------------------------------------------ the C++ mirror, bit for bit
 
-MIRROR = r"""
-#include <cstdint>
-#include <cstdio>
-#include <cstdlib>
-#include <string>
-#include <vector>
-#include "fwref/profile.hpp"
-#include "fwref/vehicle_record.hpp"
-// <raw.f32 (n x R)> <out.f32 (n x C)> cells hover_cmd hover_cur carried [record.bin]: one flight, its physics
-// state carried from the first sample to the last as the stream carries it
-int main(int argc, char** argv) {
-  const fwref::Profile p = fwref::Profile::kFlightlogPhys;
-  const fwref::ProfileSpec& s = fwref::profile_spec(p);
-  fwref::VehicleRecord rec;
-  const fwref::VehicleRecord* vehicle = nullptr;
-  if (argc > 7) {
-    std::string error;
-    if (fwref::load_vehicle_record(argv[7], p, &rec, &error) != fwref::Status::kOk) {
-      std::fprintf(stderr, "%s\n", error.c_str());
-      return 2;
-    }
-    vehicle = &rec;
-  }
-  const float cells = std::strtof(argv[3], nullptr), cmd = std::strtof(argv[4], nullptr), cur = std::strtof(argv[5], nullptr);
-  std::uint32_t avail = 0;
-  if (!fwref::profile_available(p, s.raw, std::strtoull(argv[6], nullptr, 10), &avail)) return 3;
-  FILE* f = std::fopen(argv[1], "rb");
-  FILE* o = std::fopen(argv[2], "wb");
-  std::vector<float> raw(s.raw), x(s.channels);
-  fwref::PhysState state;
-  while (std::fread(raw.data(), 4, s.raw, f) == static_cast<size_t>(s.raw)) {
-    fwref::profile_prep(p, raw.data(), s.raw, cells, x.data(), avail, vehicle, &state);
-    fwref::profile_hover(p, cmd, cur, x.data(), avail, vehicle);
-    std::fwrite(x.data(), 4, x.size(), o);
-  }
-  std::fclose(f);
-  std::fclose(o);
-  return 0;
-}
-"""
-
-
 @pytest.fixture(scope="module")
 def mirror(tmp_path_factory) -> Path:
-    """fwref/profile.hpp's flightlog-phys, compiled as the firmware build compiles it (-ffp-contract=off)."""
-    if shutil.which("c++") is None:
-        pytest.skip("no C++ compiler")
-    out = tmp_path_factory.mktemp("phys_mirror")
-    fw = ROOT / "firmware_ref"
-    (out / "m.cpp").write_text(MIRROR)
-    subprocess.run(["c++", "-std=c++17", "-O2", "-ffp-contract=off", "-fno-fast-math", "-Wall", "-Wextra",
-                    f"-I{fw / 'include'}", str(out / "m.cpp"),
-                    *(str(fw / "src" / f) for f in ("vehicle_record.cpp", "file_read.cpp", "container.cpp", "status.cpp")),
-                    "-o", str(out / "m")], check=True)
-    return out / "m"
+    """fwref/profile.hpp's flightlog-phys (tests/profile_mirror.py)."""
+    return build_mirror(tmp_path_factory.mktemp("phys_mirror"), PHYS)
 
 
 def _same_bits(mirror: Path, tmp: Path, rs, record: np.ndarray | None) -> np.ndarray:
@@ -281,15 +229,7 @@ def _same_bits(mirror: Path, tmp: Path, rs, record: np.ndarray | None) -> np.nda
 
     rs = dataclasses.replace(rs, vehicle=record)
     sw = windows_of(rs, STREAM_RECORD)
-    rs.values.astype("<f4").tofile(tmp / "raw.f32")
-    carried = sum(1 << i for i, c in enumerate(rs.carried_flags) if c)
-    args = [str(mirror), str(tmp / "raw.f32"), str(tmp / "x.f32"), str(rs.cells), repr(float(sw.hover.cmd)),
-            repr(float(sw.hover.cur)), str(carried)]
-    if record is not None:
-        write_record(tmp / "rec.bin", record, PHYS)
-        args.append(str(tmp / "rec.bin"))
-    subprocess.run(args, check=True)
-    got = np.fromfile(tmp / "x.f32", "<f4").reshape(len(rs.time), -1)
+    got = cpp_inputs(mirror, tmp, rs, sw.hover, record, PHYS)
     fin = np.isfinite(sw.x)
     assert (np.isfinite(got) == fin).all()
     np.testing.assert_array_equal(got.view(np.uint32)[fin], sw.x.view(np.uint32)[fin])

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import shutil
 import subprocess
 from pathlib import Path
 
@@ -23,6 +22,7 @@ from quadfdi.core.errors import QuadfdiError
 from quadfdi.formats.vehicle_record_bin import (parse_record, read_record, record_bytes, record_from_vehicle_json,
                                                 write_record)
 from tests.conftest import ROOT, SHARED_DATA, quadfdi
+from tests.profile_mirror import build_mirror, cpp_inputs
 
 REF = "flightlog-ref"
 PAD = SHARED_DATA / "crazypad" / "motor_data"
@@ -98,72 +98,10 @@ def test_vehicle_record_cli_writes_the_record_of_a_reference(tmp_path, fleet_ref
         assert not (tmp_path / "new.bin").exists()
 
 
-MIRROR = r"""
-#include <cstdint>
-#include <cstdio>
-#include <cstdlib>
-#include <cstring>
-#include <string>
-#include <vector>
-#include "fwref/profile.hpp"
-#include "fwref/vehicle_record.hpp"
-// load <record.bin>: the 24 floats' bits, one per line (exit 2 and the loader's line on a bad file);
-// else <raw.f32 (n x R)> <out.f32 (n x C)> cells hover_cmd hover_cur carried [record.bin]
-int main(int argc, char** argv) {
-  const fwref::Profile p = fwref::Profile::kFlightlogRef;
-  const fwref::ProfileSpec& s = fwref::profile_spec(p);
-  fwref::VehicleRecord rec;
-  const fwref::VehicleRecord* vehicle = nullptr;
-  const bool load = std::strcmp(argv[1], "load") == 0;
-  const char* path = load ? argv[2] : argc > 7 ? argv[7] : nullptr;
-  if (path != nullptr) {
-    std::string error;
-    if (fwref::load_vehicle_record(path, p, &rec, &error) != fwref::Status::kOk) {
-      std::fprintf(stderr, "%s\n", error.c_str());
-      return 2;
-    }
-    vehicle = &rec;
-  }
-  if (load) {
-    for (float v : rec.v) {
-      std::uint32_t bits;
-      std::memcpy(&bits, &v, 4);
-      std::printf("%u\n", bits);
-    }
-    return 0;
-  }
-  const float cells = std::strtof(argv[3], nullptr), cmd = std::strtof(argv[4], nullptr), cur = std::strtof(argv[5], nullptr);
-  std::uint32_t avail = 0;
-  if (!fwref::profile_available(p, s.raw, std::strtoull(argv[6], nullptr, 10), &avail)) return 3;
-  FILE* f = std::fopen(argv[1], "rb");
-  FILE* o = std::fopen(argv[2], "wb");
-  std::vector<float> raw(s.raw), x(s.channels);
-  while (std::fread(raw.data(), 4, s.raw, f) == static_cast<size_t>(s.raw)) {
-    fwref::profile_prep(p, raw.data(), s.raw, cells, x.data(), avail, vehicle);
-    fwref::profile_hover(p, cmd, cur, x.data(), avail, vehicle);
-    std::fwrite(x.data(), 4, x.size(), o);
-  }
-  std::fclose(f);
-  std::fclose(o);
-  return 0;
-}
-"""
-
-
 @pytest.fixture(scope="module")
 def mirror(tmp_path_factory) -> Path:
-    """fwref/profile.hpp's flightlog-ref and the record loader, compiled as the firmware build compiles them
-    (-ffp-contract=off: no fused multiply-add)."""
-    if shutil.which("c++") is None:
-        pytest.skip("no C++ compiler")
-    out = tmp_path_factory.mktemp("ref_mirror")
-    fw = ROOT / "firmware_ref"
-    (out / "m.cpp").write_text(MIRROR)
-    subprocess.run(["c++", "-std=c++17", "-O2", "-ffp-contract=off", "-fno-fast-math", "-Wall", "-Wextra",
-                    f"-I{fw / 'include'}", str(out / "m.cpp"),
-                    *(str(fw / "src" / f) for f in ("vehicle_record.cpp", "file_read.cpp", "container.cpp", "status.cpp")),
-                    "-o", str(out / "m")], check=True)
-    return out / "m"
+    """fwref/profile.hpp's flightlog-ref and the record loader (tests/profile_mirror.py)."""
+    return build_mirror(tmp_path_factory.mktemp("ref_mirror"), REF)
 
 
 def test_cpp_loader_reads_the_same_bits_and_refuses_the_same_files(mirror, tmp_path):
@@ -195,18 +133,6 @@ def test_cpp_loader_reads_the_same_bits_and_refuses_the_same_files(mirror, tmp_p
 # ------------------------------------------------------------------------------ the profile, bit for bit
 
 
-def _cpp_inputs(mirror: Path, tmp: Path, rs, hover_est, record: np.ndarray | None) -> np.ndarray:
-    rs.values.astype("<f4").tofile(tmp / "raw.f32")
-    carried = sum(1 << i for i, c in enumerate(rs.carried_flags) if c)
-    args = [str(mirror), str(tmp / "raw.f32"), str(tmp / "x.f32"), str(rs.cells), repr(float(hover_est.cmd)),
-            repr(float(hover_est.cur)), str(carried)]
-    if record is not None:
-        write_record(tmp / "rec.bin", record, REF)
-        args.append(str(tmp / "rec.bin"))
-    subprocess.run(args, check=True)
-    return np.fromfile(tmp / "x.f32", "<f4").reshape(len(rs.time), -1)
-
-
 def _same_bits(mirror: Path, tmp: Path, rs, record: np.ndarray | None) -> np.ndarray:
     """The C++ inputs of stream ``rs`` with ``record`` are apply_profile's (through streamref.windows_of, the
     Python stream path) bit for bit, NaN where Python has NaN; returns them."""
@@ -214,7 +140,7 @@ def _same_bits(mirror: Path, tmp: Path, rs, record: np.ndarray | None) -> np.nda
 
     rs = dataclasses.replace(rs, vehicle=record)
     sw = windows_of(rs, STREAM_RECORD)
-    got = _cpp_inputs(mirror, tmp, rs, sw.hover, record)
+    got = cpp_inputs(mirror, tmp, rs, sw.hover, record, REF)
     fin = np.isfinite(sw.x)
     assert (np.isfinite(got) == fin).all()
     np.testing.assert_array_equal(got.view(np.uint32)[fin], sw.x.view(np.uint32)[fin])
