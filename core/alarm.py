@@ -213,6 +213,19 @@ def run_alarm(proba: np.ndarray, threshold, k, n, clear_m, latch=False, *, healt
                       motor=motor)
 
 
+def reach(valid: np.ndarray, k: int, n: int, window: int, stride: int, dt: float) -> dict:
+    """Whether the policy could raise at all on one flight whose decided windows are ``valid`` (W,):
+    rule 2 needs ``k`` votes among ``n`` consecutive windows and only decided windows vote, so a
+    flight whose decided windows never number ``k`` within ``n`` cannot alarm whatever the network
+    says ("no alarm" there is no verdict). ``most_votes``: the largest count of decided windows among
+    any ``n`` consecutive ones; ``needs_s``: the shortest decided stretch that holds ``k`` windows,
+    ``(window + (k - 1) * stride) * dt`` seconds."""
+    v = np.asarray(valid, bool)[None]
+    most = int(_window_sums(v.astype(np.int64), np.array([int(n)])).max()) if v.size else 0
+    return {"possible": most >= int(k), "most_votes": most, "k": int(k), "n": int(n),
+            "needs_s": round((int(window) + (int(k) - 1) * int(stride)) * float(dt), 3)}
+
+
 def reported_motor(cls: np.ndarray, motor: np.ndarray, rotor: np.ndarray | None) -> np.ndarray:
     """Rule 5: ``motor`` (0..3, AlarmTrace.motor) where the alarm's class ``cls`` is a rotor-side
     column of ``rotor`` (K,) bool, else -1 (inactive, no motor_proba, a battery alarm, or no

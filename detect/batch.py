@@ -82,7 +82,7 @@ def summary_row(result: dict, flight: dict, date: str | None, name: str, log: st
             "channels_absent": list(rec.get("channels_absent") or []),
             "alarms": [{k: a.get(k) for k in ("class", "motor", "start_s", "end_s", "peak_p_fault")}
                        for a in rec["alarms"]],
-            "worst_p_fault": round(worst, 4), "threshold": float(rec["policy"]["threshold"]),
+            "worst_p_fault": round(worst, 4), "alarm_possible": rec["alarm_reach"]["possible"], "threshold": float(rec["policy"]["threshold"]),
             "t0": float(time[0]), "t1": float(time[-1]), "spark": spark(arr),
             "vehicle_reference": reference_summary(rec.get("vehicle_reference")),
             "reference_note": result.get("reference_note")}
@@ -222,6 +222,10 @@ def detect_many(model: str | Path, logs: list[str | Path], out: str | Path, net:
     n_alarm = sum(1 for r in rows if r["alarms"])
     log(f"detect: {len(jobs)} log(s): {len(rows)} decided ({n_alarm} with alarms), {len(refused)} refused; "
         f"wrote {folder / 'index.html'}")
+    blind = [r for r in rows if not r["alarm_possible"]]
+    if blind:
+        log(f"detect: {len(blind)} of {len(rows)} decided flight(s) too short in decided windows for the policy to "
+            "raise any alarm (alarms.json alarm_reach): their 'no alarm' is no verdict")
     without = [r for r in rows if r["vehicle_reference"] is None]
     if without:
         log(f"detect: {len(without)} of {len(rows)} decided flight(s) with no vehicle reference: the model judges "

@@ -58,16 +58,21 @@ def sparkline(row: dict, width: int = 160, height: int = 28) -> str:
     return "".join(parts) + "</svg>"
 
 
+def _alarm_class(r: dict) -> str:
+    """alarm; ok; refused (amber) where the policy could raise no alarm on the flight's decided windows."""
+    return "alarm" if r["alarms"] else "ok" if r.get("alarm_possible", True) else "refused"
+
+
 def _row(r: dict, with_reference: bool) -> str:
     veh = r["vehicle"]
     vehicle = f"{veh['autopilot']}, {veh['frame']}, {veh['cells'] or '?'}S"
     alarms = "; ".join(f"{a['class']}{' m' + str(a['motor']) if a.get('motor') else ''} at {a['start_s']:.1f} s"
-                       for a in r["alarms"]) or "none"
+                       for a in r["alarms"]) or ("none" if r.get("alarm_possible", True) else "none possible")
     absent = ", ".join(r["channels_absent"]) or "\u2014"
     cells = [(r["name"], f'<a href="{esc(r["href"])}">{esc(r["name"])}</a>'), (vehicle, esc(vehicle)),
              (r["date"] or "", esc(r["date"] or "\u2014")), (f"{r['duration_s']:.2f}", fmt(r["duration_s"])),
              (f"{r['decided_s']:.2f}", fmt(r["decided_s"])), (absent, esc(absent)),
-             (str(len(r["alarms"])), f'<span class="{"alarm" if r["alarms"] else "ok"}">{esc(alarms)}</span>'),
+             (str(len(r["alarms"])), f'<span class="{_alarm_class(r)}">{esc(alarms)}</span>'),
              (f"{r['worst_p_fault']:.4f}", fmt(r["worst_p_fault"], 3)), (f"{r['worst_p_fault']:.4f}", sparkline(r))]
     cells += index_cells(r) if with_reference else []
     tds = "".join(f'<td data-v="{esc(v)}"{" class=num" if i in (3, 4, 7) or i > 9 else ""}>{h}</td>'

@@ -18,6 +18,7 @@ import numpy as np
 from quadfdi.detect.flightplot import UNDECIDED, figure
 from quadfdi.detect.html import esc, fmt, json_script, page
 from quadfdi.detect.reference_html import evidence_table, section
+from quadfdi.detect.run import unreachable_note
 
 SCRIPT = """
 const q = window.quadfdi = {figure: JSON.parse(document.getElementById('figure-data').textContent),
@@ -73,7 +74,8 @@ def _facts(rec: dict, flight: dict, date: str | None, duration: float) -> str:
 
 def _alarm_table(rec: dict, t_last: float) -> str:
     if not rec["alarms"]:
-        return "<p class=\"ok\">No alarm.</p>"
+        note = unreachable_note(rec)
+        return f"<p class=\"refused\">{esc(note[0].upper() + note[1:])}.</p>" if note else "<p class=\"ok\">No alarm.</p>"
     rows = []
     for i, a in enumerate(rec["alarms"], 1):
         end = a["end_s"] if a["end_s"] is not None else t_last

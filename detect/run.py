@@ -5,7 +5,8 @@ Writes into OUT (only once everything is computed; a refusal writes nothing):
 - ``alarms.json``: the flight, model, precision, runtime, profile, the net's policy and where it came
   from (``policy_source``: the manifest's ``alarm_per_model`` source, or "manifest alarm"), hover estimate,
   exposure (flight-seconds covered by decided windows) and the alarms (start_s, end_s, class,
-  motor, peak_p_fault); a masked-profile model adds ``channels``: the raw channels ``used``, the
+  motor, peak_p_fault); ``alarm_reach`` (core.alarm.reach): whether the policy could raise at all on
+  the flight's decided windows (``possible`` false: "no alarm" is then no verdict); a masked-profile model adds ``channels``: the raw channels ``used``, the
   ``absent`` ones with why (ingest's status) and the availability ``groups`` (detect/inputs.py);
   ``vehicle_reference``: null here, filled by detect.reference when a reference is given;
   ``model_reference``: whether the model read the vehicle record (a ``flightlog-ref`` model given a
@@ -23,7 +24,7 @@ from typing import Callable
 
 import numpy as np
 
-from quadfdi.core.alarm import alarm_records, run_alarm
+from quadfdi.core.alarm import alarm_records, reach, run_alarm
 from quadfdi.core.errors import QuadfdiError
 from quadfdi.core import vehicle_record as vr
 from quadfdi.core.profiles import has_reference, required_raw
@@ -113,6 +114,7 @@ def detect(model: str | Path, flight: str | Path | dict, net: str = "cnode", pre
                         "freeze_s": float(fi.time[fi.hover.freeze]), "cells": fi.cells},
               "airborne_s": round(fi.airborne_s, 2), "windows": int(n), "decided_windows": int(fi.decided.sum()),
               "exposure_s": round(exposure_s(fi, window, dt), 2), "alarms": alarms,
+              "alarm_reach": reach(fi.decided, pol["k"], pol["n"], window, stride, dt),
               "vehicle_reference": None,  # detect.reference: what the vehicle's own healthy flights say
               "model_reference": ("reads the vehicle record" if record is not None else
                                   "no vehicle reference: the model decides without one" if reads else
@@ -126,6 +128,15 @@ def detect(model: str | Path, flight: str | Path | dict, net: str = "cnode", pre
     if motor_p is not None:
         arrays["motor_proba"] = motor_p.astype(np.float32)
     return {"record": record, "arrays": arrays, "inputs": fi, "window": window}
+
+
+def unreachable_note(record: dict) -> str | None:
+    """One line when the policy could raise no alarm on the flight (core.alarm.reach), else None."""
+    r = record.get("alarm_reach")
+    if r is None or r["possible"]:
+        return None
+    return (f"no alarm was possible: the policy needs {r['k']} votes among {r['n']} windows ({r['needs_s']:g} s of "
+            f"decided flight in a row) and this flight has at most {r['most_votes']} decided windows among {r['n']}")
 
 
 def write_detect(out: str | Path, result: dict, log: Callable[[str], None] = print) -> None:

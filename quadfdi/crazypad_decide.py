@@ -7,7 +7,8 @@ A flight's network result in each mode (``net_ref``, ``net_noref``) has the same
 alarm under the policy; ``motor``: the first alarm's motor that names one, as the log names it, the
 project rotor traced back through ingest's ``motor_map``), so vehicle.crazypad.table scores networks and
 rules alike; beside it the alarms (class, log motor, start), the mean p(fault) over the decided windows
-and their count. A log ingest or detect refuses, or without a decided window, is a refusal line.
+and their count, the windows that voted, and whether the policy could raise at all on the flight's decided
+windows (``alarm_possible``, ``most_votes``: core.alarm.reach). A log ingest or detect refuses, or without a decided window, is a refusal line.
 """
 
 from __future__ import annotations
@@ -43,7 +44,10 @@ def network_result(result: dict, names: list[str]) -> dict:
     alarms = [{"class": a["class"], "motor": None if a["motor"] is None else names[a["motor"] - 1],
                "start_s": a["start_s"], "peak_p_fault": a["peak_p_fault"]} for a in rec["alarms"]]
     named = next((a["motor"] for a in alarms if a["motor"] is not None), None)
+    votes = int((pf >= float(rec["policy"]["threshold"])).sum())
     return {"score": float(pf.max()), "alarm": bool(alarms), "motor": named, "alarms": alarms,
+            "alarm_possible": bool(rec["alarm_reach"]["possible"]), "most_votes": rec["alarm_reach"]["most_votes"],
+            "votes": votes,
             "p_fault_sum": float(pf.sum()), "mean_p_fault": float(pf.mean()), "decided_windows": int(decided.sum()),
             "windows": int(rec["windows"]), "exposure_s": rec["exposure_s"]}
 

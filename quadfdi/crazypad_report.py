@@ -77,15 +77,15 @@ def _network_md(cells: list[dict]) -> list[str]:
     lines = []
     for mode in NETS:
         lines += [f"### The network {MODES[mode]}", "", "| group | session | flights | alarmed | classes (flights) | "
-                  "right motor (of alarmed) | motors named | max p(fault) | mean p(fault) | AUROC |",
-                  "|---|---|---|---|---|---|---|---|---|---|"]
+                  "right motor (of alarmed) | motors named | max p(fault) | mean p(fault) | AUROC | could alarm | "
+                  "with a vote |", "|---|---|---|---|---|---|---|---|---|---|---|---|"]
         for c in (c for c in cells if c["rule"] == mode):
             classes = ", ".join(f"{k} x{v}" for k, v in c["classes"].items()) or "—"
             named = ", ".join(f"{m} x{n}" for m, n in c["named"].items() if m) or "—"
             right = "—" if c["group"] == GROUPS[0] else str(c["right_motor"])
             lines.append(f"| {c['group']} | {c['session']} | {c['flights']} | {c['alarmed']} | {classes} | {right} | "
                          f"{named} | {_f(c['max_score'], 3)} | {_f(c['pooled_mean_p_fault'], 3)} | "
-                         f"{_f(c['auroc'], 3)} |")
+                         f"{_f(c['auroc'], 3)} | {c['could_alarm']} | {c['voted']} |")
         lines.append("")
     return lines
 
@@ -150,7 +150,9 @@ def markdown(result: dict) -> str:
     lines += _gates_md(result["gates"])
     lines += ["## Per group, all sessions", ""] + _summary_md(result["table"], ("all",))
     lines += ["## Per group and session", ""] + _summary_md(result["table"], SESSIONS[1:])
-    lines += ["## The network per group and session", ""] + _network_md(result["table"])
+    lines += ["## The network per group and session", "", "`could alarm`: flights on which the policy could raise at "
+              "all (k votes among n windows need k decided windows among n: core.alarm.reach); `with a vote`: "
+              "flights with a decided window at or above the policy's threshold.", ""] + _network_md(result["table"])
     lines += ["## The shared healthy PX4 flights", ""] + _px4_md(result["px4"])
     lines += ["## Every CrazyPAD flight", ""] + _flights_md(dec)
     return "\n".join(lines)

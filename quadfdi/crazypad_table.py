@@ -2,7 +2,8 @@
 and the four share rules per CrazyPAD protocol group and session (vehicle.crazypad.table: flights,
 alarmed, right motor named among the alarmed, motors named, max and mean score, AUROC of the session's
 healthy test flights against the group on each flight's score), each network cell with the classes its
-alarms named and p(fault) pooled over the group's decided windows; then the "Done when" gates (CrazyPAD
+alarms named, p(fault) pooled over the group's decided windows, the flights on which the policy could
+raise at all (core.alarm.reach) and those with a window at or above its threshold; then the "Done when" gates (CrazyPAD
 and the shared PX4 flights), each met or missed by how much.
 """
 
@@ -27,6 +28,8 @@ def _net_extra(rows: list[dict], key: str) -> dict:
             classes[c] = classes.get(c, 0) + 1
     windows = sum(r["rules"][key]["decided_windows"] for r in rows)
     return {"classes": dict(sorted(classes.items())), "decided_windows": windows,
+            "could_alarm": sum(1 for r in rows if r["rules"][key].get("alarm_possible", True)),
+            "voted": sum(1 for r in rows if r["rules"][key].get("votes", 0) > 0),
             "pooled_mean_p_fault": sum(r["rules"][key]["p_fault_sum"] for r in rows) / windows if windows else None}
 
 
@@ -78,7 +81,9 @@ def crazypad_gates(cells: list[dict]) -> list[dict]:
     else:
         need = math.ceil(SHARE_ALARMED * d["flights"] - 1e-9)
         out.append(_gate(f"{DEEP} alarmed", f"{d['alarmed']} of {d['flights']}", f">= {need} ({SHARE_ALARMED:.0%})",
-                         d["alarmed"] >= need, f"{need - d['alarmed']} flight(s)"))
+                         d["alarmed"] >= need, f"{need - d['alarmed']} flight(s) (the policy could raise on "
+                         f"{d['could_alarm']} of the {d['flights']}; {d['voted']} had a window at or above its "
+                         "threshold)"))
         need_m = math.ceil(SHARE_NAMED * d["alarmed"] - 1e-9)
         out.append(_gate(f"{DEEP}: cut motor (M3) named among the alarmed", f"{d['right_motor']} of {d['alarmed']}",
                          f">= {need_m} ({SHARE_NAMED:.0%})", d["alarmed"] > 0 and d["right_motor"] >= need_m,

@@ -103,3 +103,22 @@ def test_episodes_start_end_class_and_peak():
     assert [(e["start_s"], e["end_s"]) for e in eps] == [(3.0, 5.0), (8.0, None)]
     assert eps[0]["cls"] == 1 and eps[0]["peak_p_fault"] == pytest.approx(0.8)  # 0.9 (cls 1) > 0.8 (cls 2)
     assert eps[1]["cls"] == 2 and eps[1]["peak_p_fault"] == pytest.approx(0.7) and eps[1]["motor"] == -1
+
+
+def test_reach_says_exactly_when_a_certain_fault_can_raise():
+    """core.alarm.reach against the policy itself: with every decided window voting p_fault = 1, the
+    policy raises somewhere iff reach calls the flight possible (random masks, k, n)."""
+    from quadfdi.core.alarm import reach
+
+    rng = np.random.default_rng(7)
+    seen = set()
+    for _ in range(400):
+        w, n = int(rng.integers(1, 30)), int(rng.integers(1, 13))
+        k = int(rng.integers(1, n + 1))
+        valid = rng.random(w) < rng.uniform(0.2, 0.9)
+        tr = run_alarm(_proba(np.ones(w)), threshold=0.99, k=k, n=n, clear_m=3, valid=valid[None])
+        r = reach(valid, k, n, window=120, stride=20, dt=0.04)
+        assert r["possible"] == bool(tr.raised.any()), (valid, k, n, r)
+        seen.add(r["possible"])
+    assert seen == {True, False}  # both outcomes drawn
+    assert reach(np.ones(5, bool), 2, 3, window=120, stride=20, dt=0.04)["needs_s"] == pytest.approx(5.6)

@@ -111,19 +111,25 @@ def test_motors_are_traced_to_the_log_names(scored):
     ref = load_vehicle(out / "vehicle.json")
     assert names == [m["log_motor"] for m in ref["motor_share"]]  # project rotor k is the same log motor
     # a rotor-side alarm on project rotor 1 names the log motor that rotor is: not "M1" on the Crazyflie
-    fake = {"record": {"flight": "f", "windows": 2, "exposure_s": 3.2,
+    fake = {"record": {"flight": "f", "windows": 2, "exposure_s": 3.2, "policy": {"threshold": 0.7},
+                       "alarm_reach": {"possible": True, "most_votes": 2},
                        "alarms": [{"class": "PropellerFault", "motor": 1, "start_s": 1.0, "peak_p_fault": 0.9}]},
             "arrays": {"decided": np.array([True, True]), "class_names": np.array(["Healthy", "PropellerFault"]),
                        "proba": np.array([[0.2, 0.8], [0.6, 0.4]])}}
     got = network_result(fake, names)
     assert got["motor"] == names[0] == "M4" and got["alarm"]
     assert got["score"] == pytest.approx(0.8) and got["mean_p_fault"] == pytest.approx(0.6)
+    assert got["votes"] == 1 and got["alarm_possible"]
     for r in result["decided"]["rows"]:
         for mode in ("net_ref", "net_noref"):
             for a in r["rules"][mode]["alarms"]:
                 assert a["motor"] in (None, "M1", "M2", "M3", "M4")
             n = r["rules"][mode]
             assert n["motor"] == next((a["motor"] for a in n["alarms"] if a["motor"]), None)
+            k = result["choice"]["policy"]["k"]  # an alarm needs k decided windows within n (core.alarm.reach)
+            assert n["alarm_possible"] == (n["most_votes"] >= k) and n["most_votes"] <= n["decided_windows"]
+            assert n["alarm_possible"] or not n["alarm"]
+            assert 0 <= n["votes"] <= n["decided_windows"] and (n["votes"] > 0 or not n["alarm"])
             right = r["right_motors"]
             assert (r["group"] != "two cuts (M1, M2)") or right == ["M1", "M2"]
 

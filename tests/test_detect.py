@@ -65,6 +65,10 @@ def test_detect_writes_alarms_windows_and_figure(export, mission_npz, tmp_path):
     w = np.load(tmp_path / "log" / "windows.npz")
     assert np.isnan(w["proba"][~w["decided"]]).all() and np.allclose(w["proba"][w["decided"]].sum(axis=1), 1, atol=1e-5)
     assert not w["votes"][~w["decided"]].any()
+    pol, r = rec["policy"], rec["alarm_reach"]  # the most decided windows among any n consecutive ones
+    most = max(int(w["decided"][max(0, i + 1 - pol["n"]):i + 1].sum()) for i in range(len(w["decided"])))
+    assert (r["most_votes"], r["possible"], r["k"], r["n"]) == (most, most >= pol["k"], pol["k"], pol["n"])
+    assert r["possible"] or not rec["alarms"]
     # the motor head: probabilities on decided windows, a motor 1..4 only on rotor-side windows
     assert np.isnan(w["motor_proba"][~w["decided"]]).all() and np.allclose(w["motor_proba"][w["decided"]].sum(1), 1, atol=1e-5)
     names = [str(c) for c in w["class_names"]]
