@@ -82,7 +82,8 @@ def summary_row(result: dict, flight: dict, date: str | None, name: str, log: st
             "channels_absent": list(rec.get("channels_absent") or []),
             "alarms": [{k: a.get(k) for k in ("class", "motor", "start_s", "end_s", "peak_p_fault")}
                        for a in rec["alarms"]],
-            "worst_p_fault": round(worst, 4), "alarm_possible": rec["alarm_reach"]["possible"], "threshold": float(rec["policy"]["threshold"]),
+            "worst_p_fault": round(worst, 4), "alarm_possible": rec["alarm_reach"]["possible"],
+            "threshold": float(rec["policy"]["threshold"]),
             "t0": float(time[0]), "t1": float(time[-1]), "spark": spark(arr),
             "vehicle_reference": reference_summary(rec.get("vehicle_reference")),
             "reference_note": result.get("reference_note")}

@@ -75,7 +75,9 @@ def _facts(rec: dict, flight: dict, date: str | None, duration: float) -> str:
 def _alarm_table(rec: dict, t_last: float) -> str:
     if not rec["alarms"]:
         note = unreachable_note(rec)
-        return f"<p class=\"refused\">{esc(note[0].upper() + note[1:])}.</p>" if note else "<p class=\"ok\">No alarm.</p>"
+        if note:
+            return f"<p class=\"refused\">{esc(note[0].upper() + note[1:])}.</p>"
+        return "<p class=\"ok\">No alarm.</p>"
     rows = []
     for i, a in enumerate(rec["alarms"], 1):
         end = a["end_s"] if a["end_s"] is not None else t_last

@@ -6,8 +6,9 @@ Writes into OUT (only once everything is computed; a refusal writes nothing):
   from (``policy_source``: the manifest's ``alarm_per_model`` source, or "manifest alarm"), hover estimate,
   exposure (flight-seconds covered by decided windows) and the alarms (start_s, end_s, class,
   motor, peak_p_fault); ``alarm_reach`` (core.alarm.reach): whether the policy could raise at all on
-  the flight's decided windows (``possible`` false: "no alarm" is then no verdict); a masked-profile model adds ``channels``: the raw channels ``used``, the
-  ``absent`` ones with why (ingest's status) and the availability ``groups`` (detect/inputs.py);
+  the flight's decided windows (``possible`` false: "no alarm" is then no verdict); a masked-profile
+  model adds ``channels``: the raw channels ``used``, the ``absent`` ones with why (ingest's status)
+  and the availability ``groups`` (detect/inputs.py);
   ``vehicle_reference``: null here, filled by detect.reference when a reference is given;
   ``model_reference``: whether the model read the vehicle record (a ``flightlog-ref`` model given a
   reference), decided without one, or reads none (another profile);

@@ -8,7 +8,8 @@ alarm under the policy; ``motor``: the first alarm's motor that names one, as th
 project rotor traced back through ingest's ``motor_map``), so vehicle.crazypad.table scores networks and
 rules alike; beside it the alarms (class, log motor, start), the mean p(fault) over the decided windows
 and their count, the windows that voted, and whether the policy could raise at all on the flight's decided
-windows (``alarm_possible``, ``most_votes``: core.alarm.reach). A log ingest or detect refuses, or without a decided window, is a refusal line.
+windows (``alarm_possible``, ``most_votes``: core.alarm.reach). A log ingest or detect refuses, or without a
+decided window, is a refusal line.
 """
 
 from __future__ import annotations

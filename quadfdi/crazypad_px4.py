@@ -5,6 +5,9 @@ sample where ``REFERENCE_FRACTION`` of its airborne samples lie before it: the f
 with the reference and without it, and scored by the four share rules against it. Both parts keep the
 flight's own time axis.
 
+The UAVCAN mission, whose logger dropped messages, is read with its gaps bridged at
+``MISSION_GAP_FACTOR`` x the median interval, as ``quadfdi real-flights`` reads it (docs/ingest.md, "Gaps").
+
 A flight whose first part cannot give vehicle.learn's minimum (``MIN_AIRBORNE_S`` airborne) is refused in
 one line as too short to split, as is one that ingest, learn or detect refuses; each is a line of the
 table, not an error of the command.
@@ -77,10 +80,14 @@ def one_flight(export: str, net: str, path: Path, fraction: float = REFERENCE_FR
     from quadfdi.vehicle.learn import learn
     from quadfdi.vehicle.rules import score_flight, thresholds
 
+    from quadfdi.real_flights_detect import MISSION, MISSION_GAP_FACTOR
+
     name = path.stem
+    gap = MISSION_GAP_FACTOR if path.name == MISSION else None
     try:
-        fl = read_flight(path, name)
+        fl = read_flight(path, name, gap)
         head, tail, info = split(fl.arrays, name, fraction)
+        info["gap_factor"] = gap
         ref = learn([Flight(f"{name} (first {fraction:.0%})", path, fl.sha256, head)])
         test = Flight(f"{name} (rest)", path, fl.sha256, tail)
         row = score_flight(test, ref, thresholds(ref))

@@ -114,7 +114,8 @@ def _px4_md(px4: dict | None) -> list[str]:
             continue
         s, r = f["split"], f["rules"]
         rules = ", ".join(_rule(r[k]) for k in ("abs_ref", "pos_ref"))
-        lines.append(f"| {f['flight']} | {s['cut_s']:.1f} | {s['reference_airborne_s']:.1f} / "
+        bridged = f" (gaps bridged at {s['gap_factor']:g} x)" if s.get("gap_factor") else ""
+        lines.append(f"| {f['flight']}{bridged} | {s['cut_s']:.1f} | {s['reference_airborne_s']:.1f} / "
                      f"{s['test_airborne_s']:.1f} | {_alarms(f['net_ref'])} | {_alarms(f['net_noref'])} | "
                      f"{f['net_ref']['score']:.3f} | {f['net_ref']['decided_windows']} | {rules} |")
     if px4["absent"]:

@@ -69,7 +69,7 @@ def _motor_names(flight: dict) -> list[str] | None:
         return None
 
 
-def decide_log(export: str, log: str, rel: str, out: str) -> list[dict]:
+def decide_log(export: str, log: str, rel: str, out: str, profile: str = PROFILE) -> list[dict]:
     """The eight cases of one log (a job of a worker process): each with ``record`` (trimmed) or
     ``refused`` (the one-line reason; a log that cannot be read refuses every case)."""
     from quadfdi.core.atomic import ensure_dir
@@ -78,7 +78,7 @@ def decide_log(export: str, log: str, rel: str, out: str) -> list[dict]:
     from quadfdi.detect.run import detect
 
     folder = Path(rel).parts[0] if len(Path(rel).parts) > 1 else ""
-    base = {"profile": PROFILE, "flight": rel, "group": group_of(folder), "session": Path(rel).name.split("_")[0]}
+    base = {"profile": profile, "flight": rel, "group": group_of(folder), "session": Path(rel).name.split("_")[0]}
     try:
         flight, why = read_flight(log), None
     except QuadfdiError as exc:
@@ -108,9 +108,9 @@ def _run(jobs: list[tuple], workers: int):
     yield from in_workers(decide_log, jobs, workers)
 
 
-def detect_crazypad(out: Path, export: Path, root: Path, workers: int) -> dict:
-    """Every log under ``root`` (module docstring): ``cases`` (flat, in log order), the wall time and
-    the worker processes."""
+def detect_crazypad(out: Path, export: Path, root: Path, workers: int, profile: str = PROFILE) -> dict:
+    """Every log under ``root`` (module docstring; ``profile``: the export's, as the cases name it):
+    ``cases`` (flat, in log order), the wall time and the worker processes."""
     import shutil
 
     from quadfdi.detect.logfiles import find_logs
@@ -121,7 +121,7 @@ def detect_crazypad(out: Path, export: Path, root: Path, workers: int) -> dict:
     if not found:
         raise QuadfdiError(f"--crazypad {root}: no Crazyflie log in it")
     shutil.rmtree(out, ignore_errors=True)
-    jobs = [(str(export), str(f), f.relative_to(root).as_posix(), str(out)) for f in found]
+    jobs = [(str(export), str(f), f.relative_to(root).as_posix(), str(out), profile) for f in found]
     workers = max(1, min(int(workers), len(jobs)))
     print(f"real-flights: {len(jobs)} CrazyPAD logs x {len(CASES)} cases in {workers} worker process(es)", flush=True)
     t0, cases = time.monotonic(), []

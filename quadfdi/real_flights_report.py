@@ -116,7 +116,8 @@ def crazypad_summary(cp: dict) -> list[str]:
     rows = [("logs", count(lambda c: True)), ("decided", count(lambda c: c["net"] == "cnode" and "record" in c))]
     rows += [(f"{n.upper()} alarmed", count(lambda c, n=n: c["net"] == n and "record" in c and c["record"]["alarms"]))
              for n in NETS]
-    return [f"CrazyPAD, flightlog-mask: {cp['logs']} logs x 8 cases in {cp['wall_s']:.0f} s ({cp['workers']} "
+    profile = fp32[0]["profile"] if fp32 else "?"
+    return [f"CrazyPAD, {profile}: {cp['logs']} logs x 8 cases in {cp['wall_s']:.0f} s ({cp['workers']} "
             "workers); ONNX Runtime fp32, logs E8 / E9:", "",
             "| | " + " | ".join(groups) + " |", "|---" * (len(groups) + 1) + "|"] + \
         [f"| {name} | " + " | ".join(cells) + " |" for name, cells in rows]

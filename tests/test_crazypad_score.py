@@ -47,7 +47,7 @@ def _pad(root: Path, drop: str | None = None) -> Path:
 
 def _logs(root: Path) -> Path:
     root.mkdir(parents=True)
-    for name in ("px4_quad_6s_gps_interference.ulg", "px4_fmuv5_quad_real_short.ulg"):
+    for name in ("px4_quad_6s_gps_interference.ulg", "px4_fmuv5_quad_real_short.ulg", "px4_quad_6s_uavcan_mission.ulg"):
         shutil.copyfile(LOGS / name, root / name)
     return root
 
@@ -143,6 +143,11 @@ def test_the_px4_split(scored, mission_npz):
     assert gps["split"]["reference_airborne_s"] == pytest.approx(REFERENCE_FRACTION * gps["split"]["airborne_s"],
                                                                  abs=GRID_DT)
     assert {"net_ref", "net_noref"} <= set(gps) and (out / "crazypad.md").read_text().count("px4_quad_6s_gps") >= 1
+    assert gps["split"]["gap_factor"] is None
+    # the mission's logger dropped messages: read with its gaps bridged (as real-flights reads it), so split
+    mission = px4["px4_quad_6s_uavcan_mission"]
+    assert "refused" not in mission, mission.get("refused")
+    assert mission["split"]["gap_factor"] == 7 and mission["net_ref"]["decided_windows"] > 0
     arrays = load_flight(mission_npz)
     head, tail, info = split(arrays, "mission")
     assert len(head["time"]) + len(tail["time"]) == len(arrays["time"])

@@ -83,9 +83,9 @@ def find_flights(paths: list[str | Path]) -> list[tuple[Path, str]]:
     return [(f, "/".join(parts) if parts else f"{f.resolve().parent.name}/{f.name}") for f, parts in walk_logs(paths)]
 
 
-def read_flight(path: str | Path, name: str | None = None) -> Flight:
-    """One flight from a log (ingested with ingest's defaults) or a flight.npz; a refused log raises the
-    one-line QuadfdiError ingest gives."""
+def read_flight(path: str | Path, name: str | None = None, gap_factor: float | None = None) -> Flight:
+    """One flight from a log (ingested with ingest's defaults, or bridging gaps up to ``gap_factor`` x a
+    channel's median interval) or a flight.npz; a refused log raises the one-line QuadfdiError ingest gives."""
     p = Path(path)
     if not p.is_file():
         raise QuadfdiError(f"{p} does not exist or is not a regular file")
@@ -94,5 +94,5 @@ def read_flight(path: str | Path, name: str | None = None) -> Flight:
     else:
         from quadfdi.ingest.flight import ingest
 
-        arrays = ingest(p)[1]
+        arrays = ingest(p)[1] if gap_factor is None else ingest(p, gap_factor=gap_factor)[1]
     return Flight(name or p.name, p, file_sha256(p), arrays)
