@@ -26,6 +26,8 @@ every CrazyPAD log then goes through ``quadfdi detect``.
    (quadfdi/real_flights_crazypad.py; the fixed profiles need pitch, which no Crazyflie log has);
 5. ``OUT/real_flights.md`` (quadfdi/real_flights_report.py) and ``OUT/real_flights.json``.
 
+``--export DIR`` runs steps 4 and 5 only, with a finished export (quadfdi/real_flights_export.py).
+
 It is an app-layer command because it runs seven stages (sim, train, evaluate, export, parity,
 ingest, detect) that no stage may import side by side. A stage that fails stops it with its
 one-line error, but for export and parity: a profile whose networks they refuse keeps its suite rows
@@ -98,6 +100,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--crazypad", default=None, help="the CrazyPAD folder of condition folders of Crazyflie logs "
                                                     "(default: ../shared/data/crazypad/motor_data beside the "
                                                     "checkout; skipped when absent)")
+    p.add_argument("--export", default=None, metavar="DIR",
+                   help="decide the logs with this finished export (RUN/export) instead: nothing simulated or "
+                        "trained, no suite table (quadfdi/real_flights_export.py)")
     p.set_defaults(func=run_real_flights)
 
 
@@ -127,15 +132,19 @@ def _checked_args(args: argparse.Namespace) -> tuple[list[str], Path, list[str],
 
 
 def run_real_flights(args: argparse.Namespace) -> int:
-    from quadfdi.core.atomic import write_text
     from quadfdi.core.config import load_config
-    from quadfdi.core.jsonio import write_json
     from quadfdi.real_flights_crazypad import detect_crazypad
     from quadfdi.real_flights_detect import detect_shared
     from quadfdi.real_flights_suite import suite
-    from quadfdi.real_flights_report import markdown
 
-    profs, logs, names, crazypad = _checked_args(args)
+    checked = _checked_args(args)
+    if args.export is not None:
+        from quadfdi.real_flights_export import run_export_only
+
+        if args.overrides or args.profiles != DEFAULT_PROFILES:
+            raise QuadfdiError("--export decides the logs with a finished export: --profiles and --set do not apply")
+        return _write(Path(args.out), run_export_only(args, checked, _command(args)))
+    profs, logs, names, crazypad = checked
     cfg = load_config(args.config, args.overrides)
     trains = {p: {"profile": PROFILES[p]} for p in profs}
     if "mask" in profs:
@@ -164,6 +173,15 @@ def run_real_flights(args: argparse.Namespace) -> int:
         result["crazypad"] = detect_crazypad(out / "crazypad", exports["mask"], crazypad, args.workers or os.cpu_count())
     times["total_s"] = time.monotonic() - t0
     result["times"] = {k: round(v, 1) for k, v in times.items()}
+    return _write(out, result)
+
+
+def _write(out: Path, result: dict) -> int:
+    """OUT/real_flights.json and .md (quadfdi/real_flights_report.py), the summary printed."""
+    from quadfdi.core.atomic import write_text
+    from quadfdi.core.jsonio import write_json
+    from quadfdi.real_flights_report import markdown
+
     text = markdown(result)
     write_json(out / "real_flights.json", result, indent=1)
     write_text(out / "real_flights.md", text)
@@ -177,7 +195,9 @@ def _fields(section) -> dict:
 
 def _command(args: argparse.Namespace) -> str:
     parts = ["quadfdi real-flights", str(args.out)]
-    for opt in ("profiles", "logs", "flights", "crazypad", "workers", "config", "mask_config"):
+    opts = ("export", "logs", "flights", "crazypad", "workers") if args.export else \
+        ("profiles", "logs", "flights", "crazypad", "workers", "config", "mask_config")
+    for opt in opts:
         value = getattr(args, opt)
         if value is not None and not (opt == "profiles" and value == DEFAULT_PROFILES):
             parts += [f"--{opt.replace('_', '-')}", str(value)]

@@ -127,7 +127,7 @@ def summary(r: dict) -> str:
     """The summary (module docstring) of ``run_real_flights``' result."""
     bridged = [dict(c, flight=f"{c['flight']} (gaps bridged)") for c in r["flights_gap7"]]
     cp = r["crazypad"]
-    text = suite_summary(r["suite"]) + [""]
+    text = suite_summary(r["suite"]) + [""] if r["suite"] is not None else []
     text += [f"{p}: no export, no log decided: {why}." for p, why in r.get("export_refused", {}).items()]
     text += shared_summary(r)
     text += agreement_summary(r["flights"] + bridged + (cp["cases"] if cp else []))
@@ -155,9 +155,11 @@ def markdown(r: dict) -> str:
     """real_flights.md from ``run_real_flights``' result."""
     t = r["times"]
     text = [f"# Real flights\n\n`{r['command']}` on {machine()}: {t['total_s'] / 60:.1f} min.\n",
-            "## Summary\n", summary(r) + "\n",
-            f"## The realistic suite: {r['suite']['set']} flights, sim seeds 0 and 1, train seed 0\n",
-            suite_table(r["suite"]) + "\n", "## The shared real quad logs\n", "Default gap rule:\n", table(r["flights"]) + "\n"]
+            "## Summary\n", summary(r) + "\n"]
+    if r["suite"] is not None:
+        text += [f"## The realistic suite: {r['suite']['set']} flights, sim seeds 0 and 1, train seed 0\n",
+                 suite_table(r["suite"]) + "\n"]
+    text += ["## The shared real quad logs\n", "Default gap rule:\n", table(r["flights"]) + "\n"]
     if r["flights_gap7"]:
         text += [f"The UAVCAN mission with logging gaps bridged up to {r['gap_factor']:g} x the median interval "
                  f"(`quadfdi ingest --gap-factor {r['gap_factor']:g}`):\n", table(r["flights_gap7"]) + "\n"]
@@ -170,7 +172,8 @@ def markdown(r: dict) -> str:
              "\n".join(agreement_lines(disagreements(cases))) + "\n"]
     if cp:
         groups, per_log = crazypad_tables(cp)
-        text += [f"## CrazyPAD (flightlog-mask)\n\n{cp['logs']} logs of {cp['root']} x 8 cases in {cp['wall_s']:.0f} s "
+        profile = cp["cases"][0]["profile"] if cp["cases"] else "?"
+        text += [f"## CrazyPAD ({profile})\n\n{cp['logs']} logs of {cp['root']} x 8 cases in {cp['wall_s']:.0f} s "
                  f"({cp['workers']} worker process{'es' if cp['workers'] > 1 else ''}). Decided and alarmed: ONNX Runtime fp32.\n", groups + "\n",
                  per_log + "\n"]
     return "\n".join(text)

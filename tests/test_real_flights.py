@@ -181,6 +181,9 @@ def test_crazypad_logs_every_case_and_group(rf):
     (["--logs", str(LOGS), "--flights", "nope.ulg"], "no log nope.ulg"),
     (["--profiles", "min,mask,min"], "--profiles takes comma-separated names of min, esc, nocur, mask"),
     (["--logs", str(LOGS), "--crazypad", "/nonexistent/crazypad"], "--crazypad /nonexistent/crazypad: no such folder"),
+    (["--logs", str(LOGS), "--export", "/nonexistent/export"], "--export /nonexistent/export: no manifest.json"),
+    (["--logs", str(LOGS), "--export", "/nonexistent/export", "--set", "train.epochs=1"],
+     "--export decides the logs with a finished export: --profiles and --set do not apply"),
 ])
 def test_refusals_are_one_line_and_write_nothing(tmp_path, capsys, argv, message):
     out = tmp_path / "rf"
@@ -301,3 +304,28 @@ def test_disagreements_healthy_lines_and_crazypad_tables():
 
     assert _healthy_alarms(shared, ["mission"]) == {"flightlog-min": ["CNODE on mission: PropellerFault m3 at 9.3 s "
                                                                       "(cpp fp32, cpp int8)"]}
+
+
+def test_a_finished_export_decides_the_logs_alone(masked_export, tmp_path):
+    """--export: no sim, no training, no suite section; the mission (and bridged), a refused ground log
+    and two CrazyPAD logs, every case, the CrazyPAD pass under the export's own profile."""
+    if not (LOGS / MISSION).is_file() or not (CRAZYPAD / "motor_data" / CP_LOGS[0]).is_file():
+        pytest.skip("the shared real flight logs are not here")
+    cp = tmp_path / "crazypad"
+    for rel in CP_LOGS[:2]:
+        (cp / rel).parent.mkdir(parents=True, exist_ok=True)
+        shutil.copy(CRAZYPAD / "motor_data" / rel, cp / rel)
+    out = tmp_path / "rf"
+    res = quadfdi("real-flights", str(out), "--export", str(masked_export), "--logs", str(LOGS), "--flights",
+                  f"{MISSION},{GROUND}", "--crazypad", str(cp), "--workers", "1")
+    assert res.returncode == 0, res.stderr[-3000:]
+    r = json.loads((out / "real_flights.json").read_text())
+    md = (out / "real_flights.md").read_text()
+    assert r["suite"] is None and "realistic suite" not in md and not (out / "base").exists()
+    assert f"--export {masked_export}" in r["command"] and r["profile"] == "flightlog-mask"
+    assert len(r["flights"]) == 2 * 8 and len(r["flights_gap7"]) == 8 and len(r["crazypad"]["cases"]) == 2 * 8
+    assert all("refused" in c for c in r["flights"] if c["flight"] == GROUND.split(".")[0])
+    assert all("record" in c for c in r["flights_gap7"] + r["crazypad"]["cases"])
+    assert {c["profile"] for c in r["crazypad"]["cases"]} == {"flightlog-mask"} and "## CrazyPAD (flightlog-mask)" in md
+    d = disagreements(r["flights"] + r["flights_gap7"] + r["crazypad"]["cases"])
+    assert d["cpp_vs_ort_fp32"]["differ"] == [] and d["cpp_vs_ort_int8"]["differ"] == []
