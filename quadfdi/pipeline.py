@@ -62,10 +62,12 @@ def _study(run: RunDir, cfg: Config, settings: ExecSettings = SERIAL) -> None:
 
 
 def _baselines(run: RunDir, cfg: Config) -> None:
+    from quadfdi.core.profiles import uses_hover
     from quadfdi.train.baselines_run import run_baselines
 
     # every dataset the index lists (the study's sim seeds); the reference models where [train] asks for them
-    _, lines = run_baselines(run.root, cfg.train.seed, reference=cfg.train.baselines_reference)
+    _, lines = run_baselines(run.root, cfg.train.seed, reference=cfg.train.baselines_reference,
+                             logged=uses_hover(cfg.train.profile))
     print("\n".join(lines))
 
 

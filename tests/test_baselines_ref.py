@@ -114,6 +114,17 @@ def test_run_writes_the_reference_sets_and_evaluation_leaves_reference_flights_o
         assert s.motor is not None
 
 
+def test_the_record_says_which_temperatures_the_baselines_read(run, tmp_path):
+    root, _ = run
+    (tmp_path / "dataset.npz").symlink_to(root / "dataset.npz")
+    written, lines = run_baselines(tmp_path, seed=0, which="run", cap=200, models=("logreg_physics",), logged=True)
+    record = json.loads(next(p for p in written if p.suffix == ".json" and "baselines" in p.name).read_text())
+    assert record["models"]["logreg_physics"]["temperatures"] == "esc_temp1..4 (ESC boards)"
+    assert "temperatures esc_temp1..4 (ESC boards)" in lines[0]
+    assert "esc_temp1_mean" not in record["models"]["logreg_physics"]["features"]  # physics only: dT from ESCs
+    assert "dT1" in record["models"]["logreg_physics"]["features"]
+
+
 def test_configs_and_datasets_without_vehicles_are_unchanged(tmp_path):
     assert not load_config("paper").train.baselines_reference
     assert not load_config("realistic").train.baselines_reference
@@ -132,3 +143,41 @@ def test_configs_and_datasets_without_vehicles_are_unchanged(tmp_path):
     assert plain == ref and set(plain) == {f"{m}_sim0_train0.npz" for m in MODELS}
     assert ref_lines == [f"sim 0: {', '.join(REF_MODELS)} skipped: dataset.npz has no vehicles with reference "
                          "flights"] + plain_lines
+
+
+def test_a_run_for_real_logs_reads_esc_temperatures_not_the_windings(run):
+    """logged_view: T1..T4 (the simulator's windings) replaced column for column by esc_temp1..4; the
+    physics and reference features then read the ESCs' offsets; a dataset without ESC telemetry unchanged."""
+    from quadfdi.train.baselines_channels import logged_view
+
+    _, ds = run
+    view, temps = logged_view(ds)
+    assert temps == "esc_temp" and "T1" not in view.channel_names and "T1" in ds.channel_names
+    names, esc = view.channel_names, [str(n) for n in ds["esc_channel_names"]]
+    for k in range(1, 5):
+        col = names.index(f"esc_temp{k}")
+        assert col == ds.channel_names.index(f"T{k}")
+        assert np.array_equal(view["telemetry"][:, :, col], ds["esc_telemetry"][:, :, esc.index(f"esc_temp{k}")])
+    w = make_windows(view, "train")
+    phys = physics_features(w.x[:50], names)
+    esc_t = w.x[:50][:, :, [names.index(f"esc_temp{k}") for k in range(1, 5)]].astype(np.float64)
+    dt = (esc_t - esc_t.mean(axis=2, keepdims=True)).mean(axis=1)
+    pn = physics_feature_names(names)
+    assert np.allclose(phys[:, [pn.index(f"dT{k}") for k in range(1, 5)]], dt)
+    refs = vehicle_refs(view.arrays, "view")  # the references' temperature offsets: the ESCs'
+    base = learn_references(view.arrays, "view")
+    vid = int(view["vehicle_id"][0])
+    assert base[vid]["motor_temp"] is None
+    assert np.allclose(refs.const[0, :4], [m["mean"] for m in base[vid]["esc"]["temp_offset"]["motors"]])
+    assert not np.allclose(refs.const[0, :4], 0.0)
+    from tests.test_baselines_suite import _arrays, _config  # no ESC telemetry: nothing to read instead
+
+    plain = load_dataset_from(_arrays(0), _config(0))
+    same, temps = logged_view(plain)
+    assert same is plain and temps == "T"
+
+
+def load_dataset_from(arrays, cfg):
+    from quadfdi.formats.dataset import Dataset
+
+    return Dataset(path=None, arrays=dataset_arrays(arrays, cfg.sim), config=cfg)

@@ -73,17 +73,24 @@ def check_run(run_root: str | Path, which: str = "all") -> list[tuple[str, int]]
 
 
 def fit_run(run_root: str | Path, seed: int, which: str = "all", models: Sequence[str] = MODELS,
-            cap: int = MAX_TRAIN_WINDOWS) -> list[dict[str, Any]]:
-    """Fit the baselines on every dataset of the run (in memory; nothing is written)."""
+            cap: int = MAX_TRAIN_WINDOWS, logged: bool = False) -> list[dict[str, Any]]:
+    """Fit the baselines on every dataset of the run (in memory; nothing is written); ``logged``: on the
+    channels a log carries (train/baselines_channels.py), for a run whose networks read a flight-log profile."""
+    from quadfdi.train.baselines_channels import logged_view
+
     root = Path(run_root)
     done: list[dict[str, Any]] = []
     for rel, sim_seed in check_run(root, which):
-        ds = load_dataset(root / rel)  # one dataset in memory at a time
+        ds, temps = load_dataset(root / rel), "T"  # one dataset in memory at a time
+        if logged:
+            ds, temps = logged_view(ds)
         use = usable_models(ds, models)
         try:
             evals, results = fit_baselines(ds, seed, use, cap)
         except ValueError as exc:
             raise QuadfdiError(f"{root / rel}: {exc}") from None
+        for res in results.values():
+            res.record["temperatures"] = "esc_temp1..4 (ESC boards)" if temps == "esc_temp" else "T1..T4 (windings)"
         done.append({"dataset": rel, "sim_seed": sim_seed, "evals": evals, "results": results,
                      "class_names": list(class_names(ds.arrays)), "split_names": list(split_names(ds.arrays)),
                      "motor_proba": suspected_motor(evals, ds.channel_names),
@@ -143,11 +150,12 @@ def write_run(run_root: str | Path, done: list[dict[str, Any]], seed: int, cap: 
 
 
 def run_baselines(run_root: str | Path, seed: int, which: str = "all", models: Sequence[str] = MODELS,
-                  cap: int = MAX_TRAIN_WINDOWS, reference: bool = False) -> tuple[list[Path], list[str]]:
+                  cap: int = MAX_TRAIN_WINDOWS, reference: bool = False,
+                  logged: bool = False) -> tuple[list[Path], list[str]]:
     """Fit, then write: the files written (prediction sets, records, the index) and a summary line per
     dataset x model (chosen configuration, macro F1 per split, tuning CPU time); with ``reference``, the
     reference models too (one line per dataset that has no vehicle references: skipped)."""
-    done = fit_run(run_root, seed, which, tuple(models) + (REF_MODELS if reference else ()), cap)
+    done = fit_run(run_root, seed, which, tuple(models) + (REF_MODELS if reference else ()), cap, logged)
     written = write_run(run_root, done, seed, cap)
     lines = []
     for d in done:
@@ -158,5 +166,5 @@ def run_baselines(run_root: str | Path, seed: int, which: str = "all", models: S
             r = res.record
             f1 = " ".join(f"{k}={v:.3f}" for k, v in r["macro_f1_by_split"].items())
             lines.append(f"sim {d['sim_seed']} {model}: config {r['chosen']} {r['params']}; macro F1 {f1}; "
-                         f"tuning {r['tuning_cpu_seconds']:.1f} s CPU")
+                         f"tuning {r['tuning_cpu_seconds']:.1f} s CPU; temperatures {r['temperatures']}")
     return written, lines

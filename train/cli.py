@@ -123,6 +123,7 @@ def _seed_list(flag: str, text: str | None, default: list[int]) -> list[int]:
 
 def run_baselines_cmd(args: argparse.Namespace) -> int:
     from quadfdi.train.baselines import MAX_TRAIN_WINDOWS
+    from quadfdi.core.profiles import uses_hover
     from quadfdi.train.baselines_run import run_baselines
 
     run, cfg = open_run(args.run, args.overrides, need=("dataset",))
@@ -130,7 +131,8 @@ def run_baselines_cmd(args: argparse.Namespace) -> int:
     cap = MAX_TRAIN_WINDOWS if args.max_train_windows is None else args.max_train_windows
     if seed < 0 or cap < 0:
         raise QuadfdiError(f"--seed and --max-train-windows must not be negative, found {seed} and {cap}")
-    written, lines = run_baselines(run.root, seed, args.datasets, cap=cap, reference=cfg.train.baselines_reference)
+    written, lines = run_baselines(run.root, seed, args.datasets, cap=cap, reference=cfg.train.baselines_reference,
+                                   logged=uses_hover(cfg.train.profile))
     print("\n".join(lines))
     print(f"wrote {len(written)} files into {run.root / 'predictions'}")
     return 0

@@ -22,7 +22,9 @@ Physics features (``physics_features``), each one an observable a fault moves on
   mean commands (1 on a symmetric healthy hover); ``thr_ratio_max``: the largest ratio minus 1
   (max minus mean, in units of the mean).
 - ``dT{i}``, ``dT{i}_slope``: motor i's temperature minus the mean of the four (K), its window mean
-  and slope; ``dT_max``, ``dT_slope_max``: the largest of each.
+  and slope; ``dT_max``, ``dT_slope_max``: the largest of each. The temperature is the motor winding's
+  (``T1..T4``, the simulator's) where the windows carry it, else motor i's ESC board's (``esc_temp1..4``,
+  what a log carries: train/baselines_channels.py).
 - ``{vib}_mean``, ``{vib}_max`` for every vibration channel present (``vib_px4``, ``vib_ap``).
 - ``soc_slope``: the slope of the logged SoC.
 
@@ -38,7 +40,16 @@ import numpy as np
 I_FLOOR_A = 0.25  # A: current std below which the resistance estimate is shrunk towards 0
 MOTORS = (1, 2, 3, 4)
 VIBRATION_CHANNELS = ("vib_px4", "vib_ap")
-PHYSICS_CHANNELS = ("V_b", "I_b", "SoC", *(f"T{i}" for i in MOTORS), *(f"thr{i}" for i in MOTORS))
+PHYSICS_CHANNELS = ("V_b", "I_b", "SoC", *(f"thr{i}" for i in MOTORS))  # and one TEMPERATURES set
+TEMPERATURES = (tuple(f"T{i}" for i in MOTORS), tuple(f"esc_temp{i}" for i in MOTORS))  # windings, else ESCs
+
+
+def temperature_channels(channel_names: Sequence[str]) -> tuple[str, ...]:
+    """The four temperatures the ``dT`` features read: the windings' where present, else the ESCs'."""
+    found = next((t for t in TEMPERATURES if all(c in channel_names for c in t)), None)
+    if found is None:
+        raise ValueError(f"physics features need T1..T4 or esc_temp1..4; the windows have {', '.join(channel_names)}")
+    return found
 
 
 def check_windows(x: Any, channel_names: Sequence[str]) -> np.ndarray:
@@ -99,6 +110,7 @@ def physics_features(x: Any, channel_names: Sequence[str], cells: Any = None) ->
     missing = [c for c in PHYSICS_CHANNELS if c not in names]
     if missing:
         raise ValueError(f"physics features need channels {', '.join(missing)}; the windows have {', '.join(names)}")
+    temps = temperature_channels(names)
     n = a.shape[0]
     ch = {c: a[:, :, names.index(c)] for c in names}  # name -> (n, W)
     v = ch["V_b"]
@@ -110,7 +122,7 @@ def physics_features(x: Any, channel_names: Sequence[str], cells: Any = None) ->
     thr = np.stack([ch[f"thr{i}"].mean(axis=1) for i in MOTORS], axis=1)  # (n, 4)
     mean_thr = thr.mean(axis=1, keepdims=True)
     ratio = thr / np.where(np.abs(mean_thr) > 1e-9, mean_thr, 1e-9)  # a window at zero command: huge, not inf
-    temp = np.stack([ch[f"T{i}"] for i in MOTORS], axis=2)  # (n, W, 4)
+    temp = np.stack([ch[c] for c in temps], axis=2)  # (n, W, 4)
     dtemp = temp - temp.mean(axis=2, keepdims=True)
     dt_mean, dt_slope = dtemp.mean(axis=1), slope(dtemp)  # (n, 4) each
     cols = [internal_resistance(ch["V_b"], ch["I_b"])[:, None], v.mean(axis=1)[:, None], slope(v)[:, None],

@@ -107,9 +107,10 @@ def expected_series(fl: Flight, reference: dict, vibs: list[str]) -> np.ndarray:
 
 
 def constants(reference: dict) -> np.ndarray:
-    """(5,) the reference's motor temperature offsets (K; 0 without them) and its sag per ampere per cell
-    (V/A; 0 when its flights log no current that moves)."""
-    temp = reference.get("motor_temp")
+    """(5,) the reference's motor temperature offsets (K; the windings', else the ESC boards' where its
+    flights log them, else 0) and its sag per ampere per cell (V/A; 0 when its flights log no current
+    that moves). Which temperatures: those the baselines' windows carry (train/baselines_channels.py)."""
+    temp = reference.get("motor_temp") or (reference.get("esc") or {}).get("temp_offset", {}).get("motors")
     dt = [float(m["mean"]) for m in temp] if temp else [0.0] * 4
     bat = reference.get("battery")
     sag = float(bat["sag_v_per_a"]["mean"]) if bat and bat["mode"] == "sag" else 0.0
