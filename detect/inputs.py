@@ -175,6 +175,22 @@ def flight_raw(arrays: dict, profile: str) -> FlightRaw:
     return FlightRaw(raw, used, cells, est, available, absent)
 
 
+def _gaps_hint(arrays: dict, raw: dict, airborne: np.ndarray, est: hover.Hover) -> str:
+    """When logging gaps, not the airborne time, leave no window: the channels with gaps after the freeze
+    (their share of those airborne samples unbacked) and the ingest option that bridges longer gaps."""
+    after = airborne & (np.arange(len(airborne)) >= max(est.freeze, 0))
+    if after.sum() < 1:
+        return ""
+    names = [str(n) for n in arrays["channel_names"]]
+    mask = np.asarray(arrays["mask"], bool)
+    holes = {r: 1.0 - mask[after, names.index(r)].mean() for r in raw if r in names}
+    worst = sorted(((v, r) for r, v in holes.items() if v > 0), reverse=True)[:3]
+    if not worst:
+        return ""
+    return ("; logging gaps leave " + ", ".join(f"{v:.0%} of {r}" for v, r in worst) + " unbacked in the airborne "
+            "samples after it (`quadfdi ingest LOG --gap-factor F` bridges gaps up to F x a channel's median interval)")
+
+
 def _backed(arrays: dict, raw: dict) -> np.ndarray:
     """(T,) bool: every channel of ``raw`` backed by logged data (flight.npz ``mask``)."""
     names = [str(n) for n in arrays["channel_names"]]
@@ -200,7 +216,7 @@ def flight_inputs(arrays: dict, profile: str, window: int, stride: int,
     if not decided.any():
         raise QuadfdiError(f"{where}: too short: no window of {window} samples ({window * 0.04:.1f} s) with every "
                            f"channel backed after the hover estimate froze at {arrays['time'][est.freeze]:.1f} s "
-                           f"({float(airborne.sum()) * 0.04:.1f} s airborne)")
+                           f"({float(airborne.sum()) * 0.04:.1f} s airborne){_gaps_hint(arrays, fr.raw, airborne, est)}")
     return FlightInputs(name=Path(where).name, time=np.asarray(arrays["time"], np.float64), x=x, used=ok,
                         starts=starts, decided=decided, hover=est, cells=fr.cells,
                         channel_names=channel_names(profile, []), airborne_s=float(airborne.sum()) * 0.04,

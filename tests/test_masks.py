@@ -241,6 +241,20 @@ def test_detect_refuses_a_flight_that_never_hovers_or_is_too_short(masked_export
     assert not (tmp_path / "d").exists()
 
 
+def test_a_window_lost_to_logging_gaps_says_which_channels_and_how_to_bridge(mission_npz):
+    """The UAVCAN mission at 4.8 s windows: its airborne time suffices, its vibration log's gaps do not; the
+    refusal names the channels with gaps (the most unbacked first) and ingest's --gap-factor."""
+    from quadfdi.detect.inputs import flight_inputs
+    from quadfdi.formats.flight import load_flight
+
+    arrays = load_flight(mission_npz)
+    with pytest.raises(QuadfdiError) as exc:
+        flight_inputs(arrays, "flightlog-mask", 120, 20)
+    msg = str(exc.value)
+    assert "too short" in msg and "36.4 s airborne" in msg and "\n" not in msg
+    assert "logging gaps leave" in msg and msg.index("of vib_px4") < msg.index("of vz") and "--gap-factor F" in msg
+
+
 def test_detect_refuses_a_flight_without_the_minimum(masked_export, flights):
     from quadfdi.detect.run import detect
 
