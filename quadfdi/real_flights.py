@@ -141,8 +141,10 @@ def run_real_flights(args: argparse.Namespace) -> int:
     if args.export is not None:
         from quadfdi.real_flights_export import run_export_only
 
-        if args.overrides or args.profiles != DEFAULT_PROFILES:
-            raise QuadfdiError("--export decides the logs with a finished export: --profiles and --set do not apply")
+        if args.overrides or args.profiles != DEFAULT_PROFILES or args.config != "realistic" or \
+                args.mask_config != "realistic-mask":
+            raise QuadfdiError("--export decides the logs with a finished export: --profiles, --set, --config and "
+                               "--mask-config do not apply")
         return _write(Path(args.out), run_export_only(args, checked, _command(args)))
     profs, logs, names, crazypad = checked
     cfg = load_config(args.config, args.overrides)

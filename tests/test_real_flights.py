@@ -183,7 +183,9 @@ def test_crazypad_logs_every_case_and_group(rf):
     (["--logs", str(LOGS), "--crazypad", "/nonexistent/crazypad"], "--crazypad /nonexistent/crazypad: no such folder"),
     (["--logs", str(LOGS), "--export", "/nonexistent/export"], "--export /nonexistent/export: no manifest.json"),
     (["--logs", str(LOGS), "--export", "/nonexistent/export", "--set", "train.epochs=1"],
-     "--export decides the logs with a finished export: --profiles and --set do not apply"),
+     "--export decides the logs with a finished export: --profiles, --set, --config and --mask-config do not apply"),
+    (["--logs", str(LOGS), "--export", "/nonexistent/export", "--config", "fleet"],
+     "--export decides the logs with a finished export: --profiles, --set, --config and --mask-config do not apply"),
 ])
 def test_refusals_are_one_line_and_write_nothing(tmp_path, capsys, argv, message):
     out = tmp_path / "rf"
