@@ -403,3 +403,37 @@ def test_a_current_without_hover_seconds_or_a_pack_without_cell_count_is_a_lacki
     np.testing.assert_array_equal(fi.x[:, channel_names(MASK, []).index("i_rel")], 1.0)
     with pytest.raises(QuadfdiError, match="cell count is unknown"):
         flight_inputs(arrays, "flightlog-min", 40, 20)
+
+
+@pytest.mark.parametrize("profile", [MASK, "flightlog-phys"])
+def test_pattern_scores_mask_in_chunks_as_over_the_whole_set(profile):
+    """pattern_scores masks and predicts a chunk at a time in one reused buffer: every pattern (and, for a
+    reference profile, the windows without their record) gets what one masked copy of the whole set gets."""
+    from quadfdi.formats.dataset import Windows
+    from quadfdi.train import masks
+
+    names = channel_names(profile, [])
+    n = masks.PATTERN_CHUNK * 2 + 37  # two full chunks and a short one
+    rng = np.random.default_rng(3)
+    w = Windows(x=rng.normal(size=(n, 6, len(names))).astype(np.float32), y=rng.integers(0, 3, n),
+                traj=np.arange(n), start=np.zeros(n, np.int64), t_end=np.zeros(n))
+    weights = rng.normal(size=(len(names), 3))
+    calls = []
+
+    def predict(x):  # a class score from every value of every channel: a masked value shows
+        calls.append(len(x))
+        return x.astype(np.float64).sum(axis=1) @ weights
+
+    got = masks.pattern_scores(predict, w, profile, names, 3)
+    masker = masks.Masker(profile, names)
+    from sklearn.metrics import f1_score
+    for k, pat in enumerate(MASK_PATTERNS):
+        pred = predict(masker.apply(w.x.copy(), np.full(n, k))).argmax(axis=1)
+        assert got[pat.name] == {"macro_f1": round(float(f1_score(w.y, pred, labels=[0, 1, 2], average="macro",
+                                                                  zero_division=0)), 6), "windows": n}
+    assert ("no_reference" in got) == masker.reference
+    if masker.reference:
+        pred = predict(masker.drop_reference(w.x.copy(), np.arange(n))).argmax(axis=1)
+        assert got["no_reference"]["macro_f1"] == round(float(f1_score(w.y, pred, labels=[0, 1, 2], average="macro",
+                                                                        zero_division=0)), 6)
+    assert calls[:3] == [masks.PATTERN_CHUNK, masks.PATTERN_CHUNK, 37]

@@ -161,6 +161,24 @@ def test_check_windows_on_numpy():
         check_windows(np.zeros((2, 80, 24)), 23, 80)
 
 
+@pytest.mark.parametrize("as_tensor", [False, True])
+def test_check_windows_is_exact_where_the_sum_overflows_or_cancels(as_tensor):
+    """The check reads the sum first: finite values whose sum overflows pass, and an Inf beside a -Inf (a
+    NaN sum) or a lone NaN among huge values is still found, at its place."""
+    wrap = (lambda a: torch.from_numpy(a)) if as_tensor else (lambda a: a)
+    big = np.full((2, 80, 23), 3e38, dtype=np.float32)  # every value finite, the float32 sum is Inf
+    check_windows(wrap(big), 23, 80)
+    x = big.copy()
+    x[1, 2, 3], x[1, 4, 5] = np.inf, -np.inf
+    with pytest.raises(ValueError, match="2 NaN or Inf value.*window 1, sample 2, channel 3"):
+        check_windows(wrap(x), 23, 80)
+    x = np.zeros((2, 80, 23), dtype=np.float32)
+    x[0, 9, 1] = np.nan
+    with pytest.raises(ValueError, match="1 NaN or Inf value.*window 0, sample 9, channel 1"):
+        check_windows(wrap(x), 23, 80)
+    check_windows(np.zeros((2, 80, 23), dtype=np.int64), 23, 80)  # integers: always finite
+
+
 # ---------------------------------------------------------------------------------------------
 # CNODE numerics against torchdiffeq
 # ---------------------------------------------------------------------------------------------

@@ -143,20 +143,34 @@ def fixed_availability(profile: str, mean: np.ndarray, std: np.ndarray) -> tuple
     return mean, std
 
 
+# pattern_scores masks and predicts this many windows at a time, in one reused buffer: a fresh copy of every
+# window per pattern cost more than the predictions (page faults of a new allocation the size of the set). A
+# multiple of predict_proba's batch of 512, so the batches and their probabilities stay those of one call.
+PATTERN_CHUNK = 4096
+
+
 def pattern_scores(predict: Callable[[np.ndarray], np.ndarray], windows: Windows, profile: str,
                    channel_names: Sequence[str], n_classes: int) -> dict[str, dict]:
     """pattern -> {"macro_f1", "windows"}: ``predict`` ((n, W, C) -> (n, K) probabilities) on every
     window under that pattern."""
     masker = Masker(profile, channel_names)
-    out = {}
-    for k, pat in enumerate(MASK_PATTERNS):
-        x = masker.apply(windows.x.copy(), np.full(len(windows), k))
-        pred = predict(x).argmax(axis=1)
-        f1 = f1_score(windows.y, pred, labels=list(range(n_classes)), average="macro", zero_division=0)
-        out[pat.name] = {"macro_f1": round(float(f1), 6), "windows": int(len(windows))}
+    buf = np.empty((min(PATTERN_CHUNK, len(windows)),) + windows.x.shape[1:], windows.x.dtype)
+    labels = list(range(n_classes))
+
+    def score(mask: Callable[[np.ndarray], np.ndarray]) -> dict:
+        pred = np.concatenate([predict(mask(_chunk(buf, windows.x, i))).argmax(axis=1)
+                               for i in range(0, len(windows), PATTERN_CHUNK)])
+        f1 = f1_score(windows.y, pred, labels=labels, average="macro", zero_division=0)
+        return {"macro_f1": round(float(f1), 6), "windows": int(len(windows))}
+
+    out = {pat.name: score(lambda x, k=k: masker.apply(x, np.full(len(x), k))) for k, pat in enumerate(MASK_PATTERNS)}
     if masker.reference:
-        x = masker.drop_reference(windows.x.copy(), np.arange(len(windows)))
-        f1 = f1_score(windows.y, predict(x).argmax(axis=1), labels=list(range(n_classes)), average="macro",
-                      zero_division=0)
-        out["no_reference"] = {"macro_f1": round(float(f1), 6), "windows": int(len(windows))}
+        out["no_reference"] = score(lambda x: masker.drop_reference(x, np.arange(len(x))))
     return out
+
+
+def _chunk(buf: np.ndarray, x: np.ndarray, start: int) -> np.ndarray:
+    """Windows ``start:start + len(buf)`` of ``x`` copied into ``buf`` (its first rows), which is returned."""
+    part = x[start:start + len(buf)]
+    np.copyto(buf[:len(part)], part)
+    return buf[:len(part)]
