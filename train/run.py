@@ -53,10 +53,12 @@ def evaluate(ds: Dataset, test: Windows, proba: np.ndarray) -> dict:
 
 
 def train_all(ds: Dataset, cfg: Config, kinds: list[str], log: Callable[[str], None] = print,
-              predsets: bool = True) -> dict:
+              predsets: bool = True, patterns: bool = True) -> dict:
     """Train ``kinds`` and the baseline on ``ds``; return models, histories, test probabilities,
     metrics and each network's prediction set (every evaluation window, ``train.predsets``; not
-    made when ``predsets`` is False: train.study_apply keeps only the network)."""
+    made when ``predsets`` is False: train.study_apply keeps only the network). A masked profile's
+    scores per mask pattern (``mask_patterns``: 13 patterns x the validation and test windows, about
+    a third of a job's time) only when ``patterns``: the seed study's jobs keep none of them."""
     torch.set_num_threads(cfg.train.threads)
     profile, masked = cfg.train.profile, is_masked(cfg.train.profile)
     # the models' input channels (paper: ds itself); a masked profile: every channel, masks per window (train.masks)
@@ -102,7 +104,7 @@ def train_all(ds: Dataset, cfg: Config, kinds: list[str], log: Callable[[str], N
             log(f"  {kind}: prediction set of {len(out['predsets'][kind]['traj'])} evaluation windows in "
                 f"{time.perf_counter() - t0:.1f} s")
         out["metrics"][kind] = evaluate(ds, splits.test, proba)
-        if masked and predsets:
+        if masked and predsets and patterns:
             out["mask_patterns"][kind] = {name: pattern_scores(lambda x: predict_proba(model, x), w, profile,
                                                                ds.channel_names, k)
                                           for name, w in (("validation", val_all), ("test", splits.test))}

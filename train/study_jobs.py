@@ -41,7 +41,7 @@ def train_seed_model(dataset: str, cfg: Config, kind: str) -> dict:
     from quadfdi.formats.dataset import load_dataset
     from quadfdi.train.run import train_all
 
-    result = train_all(load_dataset(dataset), cfg, [kind], log=lambda _: None)
+    result = train_all(load_dataset(dataset), cfg, [kind], log=lambda _: None, patterns=False)  # metrics.json's alone
     metrics = json.dumps(to_jsonable(result["metrics"]), sort_keys=True, allow_nan=False)
     extra = {f"{name}{SET_SEP}{k}": v for name, arrays in result["predsets"].items() if name != kind
              for k, v in arrays.items()}
