@@ -4,7 +4,7 @@ On the windows of one split whose label is a rotor-side class (models.motor.ROTO
 by name) of a flight with a known motor (dataset ``fault_motor`` >= 0): the share whose argmax
 of ``motor_proba`` is that motor, independent of the class decision and of any alarm (the alarm-
 level figure is evaluation.md's "motor right"). A network's motor_proba is its motor head's; the
-baselines' is the physics rule of train.baselines_run.suspected_motor (the rotor with the highest
+baselines' is the physics rule of train.baselines_jobs.suspected_motor (the rotor with the highest
 window-mean command over the mean of the four). Interval: percentile bootstrap over flights
 (evaluate.bootstrap.draw_weights, same replicates for every set). Chance is 0.25.
 

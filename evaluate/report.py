@@ -37,7 +37,7 @@ def _policy(p: dict) -> str:
 
 def _motor(ev: dict, r: dict) -> str:
     """The localisation cell, tagged with where the motor comes from: a network's motor head, or a
-    baseline's physics rule (train.baselines_run.suspected_motor)."""
+    baseline's physics rule (train.baselines_jobs.suspected_motor)."""
     cell = _ci(r["metrics"]["motor_acc"])
     if cell == "—":
         return cell

@@ -61,13 +61,13 @@ def _study(run: RunDir, cfg: Config, settings: ExecSettings = SERIAL) -> None:
     run_study(run, cfg, seeds, command, settings=settings, sim_seeds=sims)
 
 
-def _baselines(run: RunDir, cfg: Config) -> None:
+def _baselines(run: RunDir, cfg: Config, settings: ExecSettings = SERIAL) -> None:
     from quadfdi.core.profiles import uses_hover
     from quadfdi.train.baselines_run import run_baselines
 
     # every dataset the index lists (the study's sim seeds); the reference models where [train] asks for them
     _, lines = run_baselines(run.root, cfg.train.seed, reference=cfg.train.baselines_reference,
-                             logged=uses_hover(cfg.train.profile))
+                             logged=uses_hover(cfg.train.profile), settings=settings)
     print("\n".join(lines))
 
 
@@ -126,7 +126,7 @@ STAGES: tuple[tuple[str, Callable[..., None]], ...] = (
     ("sim", _sim), ("plots", _plots), ("train", _train), ("study", _study), ("baselines", _baselines),
     ("evaluate", _evaluate), ("export", _export), ("parity", _parity), ("solvers", _solvers), ("bench", _bench),
     ("realism", _realism), ("report", _report))
-PARALLEL = ("sim", "study")  # the stages whose jobs run on the executor
+PARALLEL = ("sim", "study", "baselines")  # the stages whose jobs run on the executor
 
 
 def run_stages(run: RunDir, cfg: Config, stages=STAGES, log: Callable[[str], None] = print,

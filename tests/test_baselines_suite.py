@@ -223,6 +223,44 @@ def test_run_writes_prediction_sets_and_index(tmp_path):
     assert rec["models"]["logreg_physics"]["chosen"] == int(np.argmax(rec["models"]["logreg_physics"]["validation_macro_f1"]))
 
 
+def _two_seed_run(root):
+    run = _run(root, _arrays(0, 30))
+    (run / "sims" / "seed1").mkdir(parents=True)
+    write_npz(run / "sims" / "seed1" / "dataset.npz", dataset_arrays(_arrays(1, 30), _config(1).sim))
+    add_entries(run, [{"model": "cnode", "sim_seed": 1, "train_seed": 0, "dataset": "sims/seed1/dataset.npz",
+                       "predictions": "predictions/cnode_sim1_train0.npz"}])
+    return run
+
+
+def test_two_workers_write_the_serial_bytes_and_a_rerun_reads_the_cache(tmp_path):
+    """One job per dataset: on a local cluster of two workers the prediction sets are the serial bytes and the
+    records the serial ones but for the fit times; a second run reads each dataset's fits from the cache (the
+    fit times it reports are the first run's to the digit)."""
+    import json
+
+    from quadfdi.core.executor import ExecSettings
+
+    (tmp_path / "s").mkdir()
+    (tmp_path / "p").mkdir()
+    serial, parallel = _two_seed_run(tmp_path / "s"), _two_seed_run(tmp_path / "p")
+    run_baselines(serial, seed=2, models=("logreg_stats",), cap=200)
+    two = ExecSettings(workers=2)
+    run_baselines(parallel, seed=2, models=("logreg_stats",), cap=200, settings=two)
+    for name in ("logreg_stats_sim0_train2.npz", "logreg_stats_sim1_train2.npz"):
+        assert (serial / "predictions" / name).read_bytes() == (parallel / "predictions" / name).read_bytes()
+    timing = ("fit_seconds", "fit_cpu_seconds", "tuning_seconds", "tuning_cpu_seconds")
+
+    def record(run):
+        rec = json.loads(record_path(run, 1, 2).read_text())["models"]["logreg_stats"]
+        return {k: v for k, v in rec.items() if k not in timing}, {k: rec[k] for k in timing}
+
+    assert record(serial)[0] == record(parallel)[0]
+    assert len(list((parallel / "cache" / "baselines").glob("*.npz"))) == 2
+    first = record(parallel)[1]
+    run_baselines(parallel, seed=2, models=("logreg_stats",), cap=200, settings=two)
+    assert record(parallel)[1] == first
+
+
 def test_cli_errors_write_nothing(tmp_path):
     bad = _arrays(0, 30)
     bad["split"] = np.where(bad["split"] == 1, 2, bad["split"]).astype(np.int8)  # no validation flights

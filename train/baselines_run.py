@@ -28,8 +28,8 @@ from quadfdi.core.errors import QuadfdiError
 from quadfdi.core.jsonio import write_json
 from quadfdi.core.npzio import write_npz
 from quadfdi.formats.predictions import add_entries, check_prediction_set, prediction_path, read_index
-from quadfdi.formats.dataset import class_names, load_dataset, split_names
-from quadfdi.train.baselines import MAX_TRAIN_WINDOWS, MODELS, N_CONFIGS, REF_MODELS, fit_baselines, usable_models
+from quadfdi.formats.dataset import load_dataset
+from quadfdi.train.baselines import MAX_TRAIN_WINDOWS, MODELS, N_CONFIGS, REF_MODELS
 
 DATASET = "dataset.npz"  # the run's own dataset, relative to the run folder
 
@@ -73,48 +73,22 @@ def check_run(run_root: str | Path, which: str = "all") -> list[tuple[str, int]]
 
 
 def fit_run(run_root: str | Path, seed: int, which: str = "all", models: Sequence[str] = MODELS,
-            cap: int = MAX_TRAIN_WINDOWS, logged: bool = False) -> list[dict[str, Any]]:
-    """Fit the baselines on every dataset of the run (in memory; nothing is written); ``logged``: on the
-    channels a log carries (train/baselines_channels.py), for a run whose networks read a flight-log profile."""
-    from quadfdi.train.baselines_channels import logged_view
+            cap: int = MAX_TRAIN_WINDOWS, logged: bool = False, settings=None) -> list[dict[str, Any]]:
+    """Fit the baselines on every dataset of the run (nothing is written but the jobs' cache): one job per
+    dataset on ``settings``' executor (train.baselines_jobs; default: in this process, one dataset in memory
+    at a time). ``logged``: on the channels a log carries (train/baselines_channels.py), for a run whose
+    networks read a flight-log profile. A dataset whose fit fails stops the command in one line."""
+    from quadfdi.core.executor import SERIAL, run_jobs
+    from quadfdi.core.jobcache import read_result
+    from quadfdi.train.baselines_jobs import dataset_jobs, done_entry
 
     root = Path(run_root)
-    done: list[dict[str, Any]] = []
-    for rel, sim_seed in check_run(root, which):
-        ds, temps = load_dataset(root / rel), "T"  # one dataset in memory at a time
-        if logged:
-            ds, temps = logged_view(ds)
-        use = usable_models(ds, models)
-        try:
-            evals, results = fit_baselines(ds, seed, use, cap)
-        except ValueError as exc:
-            raise QuadfdiError(f"{root / rel}: {exc}") from None
-        for res in results.values():
-            res.record["temperatures"] = "esc_temp1..4 (ESC boards)" if temps == "esc_temp" else "T1..T4 (windings)"
-        done.append({"dataset": rel, "sim_seed": sim_seed, "evals": evals, "results": results,
-                     "class_names": list(class_names(ds.arrays)), "split_names": list(split_names(ds.arrays)),
-                     "motor_proba": suspected_motor(evals, ds.channel_names),
-                     "motor_proba_ref": suspected_motor(evals, ds.channel_names, reference=True),
-                     "skipped": [m for m in models if m not in use]})
-    return done
-
-
-def suspected_motor(evals, channel_names, reference: bool = False) -> np.ndarray | None:
-    """(n, 4) one-hot: the rotor whose window-mean command is highest over the mean of the four (the
-    physics feature ``thr_ratio<i>``: a weak motor or a damaged propeller needs more command for its
-    share of thrust); with ``reference``, highest over its reference share (``share_dev<i>``; None
-    without reference features). A fixed physics rule, not learned; shared by the baselines of each
-    kind, so the evaluation can score their localisation. None when the dataset has no motor commands."""
-    from quadfdi.train.features import physics_feature_names
-    from quadfdi.train.features_ref import ref_feature_names
-
-    names = (ref_feature_names if reference else physics_feature_names)(channel_names)
-    feats = evals.ref_phys if reference else evals.physics
-    cols = [names.index(f"{'share_dev' if reference else 'thr_ratio'}{i}") for i in range(1, 5)
-            if f"{'share_dev' if reference else 'thr_ratio'}{i}" in names]
-    if len(cols) != 4 or feats.shape[1] != len(names):
-        return None
-    return np.eye(4, dtype=np.float32)[np.argmax(feats[:, cols], axis=1)]
+    jobs = dataset_jobs(root, check_run(root, which), seed, tuple(models), cap, logged)
+    results = run_jobs(jobs, settings or SERIAL, desc="baselines", progress=len(jobs) > 1)
+    for r in results:
+        if not r.ok:
+            raise QuadfdiError(f"baselines on {r.job.args[1]}: {r.error}")
+    return [done_entry(read_result(r.job.out)) for r in results]
 
 
 def write_run(run_root: str | Path, done: list[dict[str, Any]], seed: int, cap: int = MAX_TRAIN_WINDOWS) -> list[Path]:
@@ -151,11 +125,12 @@ def write_run(run_root: str | Path, done: list[dict[str, Any]], seed: int, cap: 
 
 def run_baselines(run_root: str | Path, seed: int, which: str = "all", models: Sequence[str] = MODELS,
                   cap: int = MAX_TRAIN_WINDOWS, reference: bool = False,
-                  logged: bool = False) -> tuple[list[Path], list[str]]:
+                  logged: bool = False, settings=None) -> tuple[list[Path], list[str]]:
     """Fit, then write: the files written (prediction sets, records, the index) and a summary line per
     dataset x model (chosen configuration, macro F1 per split, tuning CPU time); with ``reference``, the
-    reference models too (one line per dataset that has no vehicle references: skipped)."""
-    done = fit_run(run_root, seed, which, tuple(models) + (REF_MODELS if reference else ()), cap, logged)
+    reference models too (one line per dataset that has no vehicle references: skipped). ``settings``:
+    the executor of the fits (``fit_run``)."""
+    done = fit_run(run_root, seed, which, tuple(models) + (REF_MODELS if reference else ()), cap, logged, settings)
     written = write_run(run_root, done, seed, cap)
     lines = []
     for d in done:

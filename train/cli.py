@@ -56,6 +56,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     pb.add_argument("--max-train-windows", type=int, default=None,
                     help="seeded subsample of the training windows; 0 = all (default: train.baselines.MAX_TRAIN_WINDOWS)")
     add_config_args(pb, config=False)
+    add_executor_args(pb)  # one job per dataset (simulator seed)
     pb.set_defaults(func=run_baselines_cmd)
     from quadfdi.train.stream_cnode_cli import add_scnode_parser
     from quadfdi.train.stream_gru_cli import add_sgru_parser
@@ -132,7 +133,7 @@ def run_baselines_cmd(args: argparse.Namespace) -> int:
     if seed < 0 or cap < 0:
         raise QuadfdiError(f"--seed and --max-train-windows must not be negative, found {seed} and {cap}")
     written, lines = run_baselines(run.root, seed, args.datasets, cap=cap, reference=cfg.train.baselines_reference,
-                                   logged=uses_hover(cfg.train.profile))
+                                   logged=uses_hover(cfg.train.profile), settings=ExecSettings.from_args(args))
     print("\n".join(lines))
     print(f"wrote {len(written)} files into {run.root / 'predictions'}")
     return 0
