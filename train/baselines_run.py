@@ -11,9 +11,11 @@ last. The reference models (``train.baselines.REF_MODELS``, asked for with ``ref
 [train] key ``baselines_reference``) are fitted on the datasets whose vehicles have reference flights;
 on any other dataset they are skipped, and the summary says so in one line.
 
-Nothing is written until every dataset has been fitted: a bad dataset (missing, foreign, without
-validation flights, two datasets with one simulator seed) stops the command with a one-line
-``QuadfdiError`` before any file changes.
+Each dataset's fits are one job of ``core.executor`` (train/baselines_jobs.py: two simulator seeds fit on
+two cores at once; a rerun reads finished fits from ``<run>/cache/baselines/``). Nothing else is written
+until every dataset has been fitted: a bad dataset (missing, foreign, without validation flights, two
+datasets with one simulator seed) stops the command with a one-line ``QuadfdiError`` before any
+prediction set, record or index entry changes.
 """
 
 from __future__ import annotations
