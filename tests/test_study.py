@@ -59,6 +59,21 @@ def test_study_writes_seeds_json(study):
     assert seeds["seeds"] == [0, 1] and len(seeds["seconds_per_seed"]) == 2
     assert set(seeds) >= {"cnode", "gru", "baseline"}
     assert len(seeds["cnode"]["macro_f1"]) == 2
+    assert len(seeds["baseline"]["macro_f1"]) == 2  # seed 0's from the train stage, seed 1's from its cnode job
+
+
+def test_one_job_per_seed_fits_the_baseline(small_run):
+    """Every network of a seed would fit the same baseline: the first job of the seed does, the others
+    skip it; a seed whose other network the train stage holds takes the baseline from there."""
+    from quadfdi.core.config import load_config
+    from quadfdi.core.rundir import RunDir
+    from quadfdi.train.study_jobs import seed_model_jobs
+
+    cfg = load_config(small_run / "config.toml")
+    jobs = seed_model_jobs(RunDir(small_run), cfg, [0, 1], cache_root=small_run / "nowhere",
+                           skip={("cnode", cfg.sim.seed, 0)})
+    got = {(j.args[1].train.seed, j.args[2]): j.args[3] for j in jobs}
+    assert got == {(0, "gru"): False, (1, "cnode"): True, (1, "gru"): False}
 
 
 @pytest.mark.parametrize("content", ["# A README without the results markers\n", None])

@@ -53,12 +53,14 @@ def evaluate(ds: Dataset, test: Windows, proba: np.ndarray) -> dict:
 
 
 def train_all(ds: Dataset, cfg: Config, kinds: list[str], log: Callable[[str], None] = print,
-              predsets: bool = True, patterns: bool = True) -> dict:
+              predsets: bool = True, patterns: bool = True, baseline: bool = True) -> dict:
     """Train ``kinds`` and the baseline on ``ds``; return models, histories, test probabilities,
     metrics and each network's prediction set (every evaluation window, ``train.predsets``; not
     made when ``predsets`` is False: train.study_apply keeps only the network). A masked profile's
     scores per mask pattern (``mask_patterns``: 13 patterns x the validation and test windows, about
-    a third of a job's time) only when ``patterns``: the seed study's jobs keep none of them."""
+    a third of a job's time) only when ``patterns``: the seed study's jobs keep none of them. The
+    paper's logistic-regression baseline (its test metrics, ``metrics["baseline"]``) only when
+    ``baseline``: one study job per seed fits it."""
     torch.set_num_threads(cfg.train.threads)
     profile, masked = cfg.train.profile, is_masked(cfg.train.profile)
     # the models' input channels (paper: ds itself); a masked profile: every channel, masks per window (train.masks)
@@ -108,9 +110,10 @@ def train_all(ds: Dataset, cfg: Config, kinds: list[str], log: Callable[[str], N
             out["mask_patterns"][kind] = {name: pattern_scores(lambda x: predict_proba(model, x), w, profile,
                                                                ds.channel_names, k)
                                           for name, w in (("validation", val_all), ("test", splits.test))}
-    base = fit_baseline(splits.train.x, splits.train.y, cfg.train.seed, k)
-    out["proba"]["baseline"] = predict_proba_baseline(base, splits.test.x)
-    out["metrics"]["baseline"] = evaluate(ds, splits.test, out["proba"]["baseline"])
+    if baseline:
+        base = fit_baseline(splits.train.x, splits.train.y, cfg.train.seed, k)
+        out["proba"]["baseline"] = predict_proba_baseline(base, splits.test.x)
+        out["metrics"]["baseline"] = evaluate(ds, splits.test, out["proba"]["baseline"])
     return out
 
 

@@ -156,7 +156,8 @@ def _gather(out: RunDir, results, reused: dict, data) -> tuple[dict, dict, list,
             entries.append(entry)
         mine = per_run.setdefault((sim_seed, seed), {})
         mine[kind] = metrics[kind]
-        mine.setdefault("baseline", metrics["baseline"])  # the same fit in every job of a (sim seed, seed)
+        if "baseline" in metrics:  # one job of a (sim seed, seed) fits it (train.study_jobs.seed_model_jobs)
+            mine.setdefault("baseline", metrics["baseline"])
     return per_run, seconds, failed, entries
 
 

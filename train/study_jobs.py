@@ -34,14 +34,16 @@ class StudyData:
     rel: str
 
 
-def train_seed_model(dataset: str, cfg: Config, kind: str) -> dict:
+def train_seed_model(dataset: str, cfg: Config, kind: str, baseline: bool = True) -> dict:
     """Train ``kind`` with ``cfg.train.seed`` on ``dataset`` (a job): its prediction set and, as
-    ``metrics_json``, its and the baseline's test metrics; a reference profile's network also its set
-    without the vehicle record (``<kind>_noref``, keys ``<kind>_noref__<key>``)."""
+    ``metrics_json``, its test metrics and, with ``baseline``, the baseline's (the same fit for every
+    network of one seed: ``seed_model_jobs`` asks the first job of a seed for it); a reference profile's
+    network also its set without the vehicle record (``<kind>_noref``, keys ``<kind>_noref__<key>``)."""
     from quadfdi.formats.dataset import load_dataset
     from quadfdi.train.run import train_all
 
-    result = train_all(load_dataset(dataset), cfg, [kind], log=lambda _: None, patterns=False)  # metrics.json's alone
+    result = train_all(load_dataset(dataset), cfg, [kind], log=lambda _: None, patterns=False,  # metrics.json's alone
+                       baseline=baseline)
     metrics = json.dumps(to_jsonable(result["metrics"]), sort_keys=True, allow_nan=False)
     extra = {f"{name}{SET_SEP}{k}": v for name, arrays in result["predsets"].items() if name != kind
              for k, v in arrays.items()}
@@ -71,10 +73,12 @@ def seed_model_jobs(run: RunDir, cfg: Config, seeds: list[int], models: tuple[st
     for d in data:
         for seed in seeds:
             c = replace_section(replace_section(cfg, "sim", seed=d.sim_seed), "train", seed=seed)
-            for kind in models:
-                if (kind, d.sim_seed, seed) in skip:
-                    continue
-                key = job_key(KIND, c.to_dict(), {"model": kind}, {"dataset": d.path}, packages=("sim", "train"))
-                jobs.append(Job(KIND, key, train_seed_model, (str(d.path), c, kind), cache_path(root, KIND, key, "npz"),
-                                label=f"sim {d.sim_seed} seed {seed} {kind}", torch=True))
+            todo = [kind for kind in models if (kind, d.sim_seed, seed) not in skip]
+            for kind in todo:
+                base = kind == todo[0] and len(todo) == len(models)  # a reused network brings the baseline's metrics
+                key = job_key(KIND, c.to_dict(), {"model": kind, "baseline": base}, {"dataset": d.path},
+                              packages=("sim", "train"))
+                jobs.append(Job(KIND, key, train_seed_model, (str(d.path), c, kind, base),
+                                cache_path(root, KIND, key, "npz"), label=f"sim {d.sim_seed} seed {seed} {kind}",
+                                torch=True))
     return jobs
