@@ -60,6 +60,17 @@ def serial_bytes(cfg, tmp_path_factory) -> bytes:
     return p.read_bytes()
 
 
+def test_local_workers_and_this_process_keep_glibc_memory_trimming_off(cluster):
+    """Dask's nannies would export MALLOC_TRIM_THRESHOLD_=65536 to the workers and to this process (then
+    to every later subprocess): the local cluster unsets it (core.executor_dask.NO_MALLOC_TRIM)."""
+    import os
+
+    _, client = cluster
+    got = client.run(lambda: __import__("os").environ.get("MALLOC_TRIM_THRESHOLD_"))
+    assert len(got) == 2 and set(got.values()) == {None}
+    assert "MALLOC_TRIM_THRESHOLD_" not in os.environ
+
+
 def _tmp_files(root: Path) -> list[str]:
     return sorted(p.name for p in root.rglob("*.tmp"))
 
