@@ -2,8 +2,8 @@
 
 sim, plots, train, study, baselines, evaluate, export, parity, solvers (the solver study,
 ``solverstudy.run.study_run``), bench, realism, report: each a library call with the run folder, its
-config and the executor settings (``--workers``/``--scheduler``: sim shards and study jobs); no
-command lines are built. ``study`` (simulator seeds x training seeds) runs when ``[run]
+config and the executor settings (``--workers``/``--scheduler``: the jobs of sim, study, baselines
+and solvers); no command lines are built. ``study`` (simulator seeds x training seeds) runs when ``[run]
 study_sim_seeds`` lists seeds and ``realism`` when ``[run] realism_logs`` lists logs; otherwise
 they say so and take no time. The solver study's settings are ``[solvers]``, bench's ``[bench]``.
 """
@@ -91,10 +91,10 @@ def _parity(run: RunDir, cfg: Config) -> None:
     parity_run(run, cfg)
 
 
-def _solvers(run: RunDir, cfg: Config) -> None:
+def _solvers(run: RunDir, cfg: Config, settings: ExecSettings = SERIAL) -> None:
     from quadfdi.solverstudy.run import study_run
 
-    study_run(run, cfg)
+    study_run(run, cfg, settings=settings)
 
 
 def _bench(run: RunDir, cfg: Config) -> None:
@@ -126,7 +126,7 @@ STAGES: tuple[tuple[str, Callable[..., None]], ...] = (
     ("sim", _sim), ("plots", _plots), ("train", _train), ("study", _study), ("baselines", _baselines),
     ("evaluate", _evaluate), ("export", _export), ("parity", _parity), ("solvers", _solvers), ("bench", _bench),
     ("realism", _realism), ("report", _report))
-PARALLEL = ("sim", "study", "baselines")  # the stages whose jobs run on the executor
+PARALLEL = ("sim", "study", "baselines", "solvers")  # the stages whose jobs run on the executor
 
 
 def run_stages(run: RunDir, cfg: Config, stages=STAGES, log: Callable[[str], None] = print,

@@ -1,6 +1,7 @@
 """``quadfdi solvers study|matrix|render --run R [--set solvers.key=value ...]``: the solver study.
 
     quadfdi solvers study --run runs/<name> [--checkpoint P]   fixed vs adaptive solvers on one trained CNODE
+                                                               (one job per setting: --scheduler/--workers)
     quadfdi solvers matrix --run runs/<name> [--reuse]         train-solver by deploy-solver matrix, controls
     quadfdi solvers render --run runs/<name>                   redraw figures and markdown from the JSON
 
@@ -25,6 +26,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     acts = p.add_subparsers(dest="action", required=True, metavar="{study,matrix,render}")
     ps = acts.add_parser("study", help="fixed against adaptive solvers on one trained CNODE (solvers/solvers.json)")
     ps.add_argument("--checkpoint", default=None, help="CNODE checkpoint (default: <run>/cnode.pt)")
+    add_executor_args(ps)
     pm = acts.add_parser("matrix", help="train with several solvers, deploy each with each (solvers/solver_matrix.json)")
     pm.add_argument("--reuse", action="store_true",
                     help="in this process, reuse models in <run>/solvers/matrix_models/ trained with the same solver, "
@@ -50,11 +52,14 @@ def _command(args: argparse.Namespace) -> str:
 
 
 def run_study_cmd(args: argparse.Namespace) -> int:
+    from quadfdi.core.executor import ExecSettings
     from quadfdi.core.rundir import open_run
     from quadfdi.solverstudy.run import study_run
 
+    settings = ExecSettings.from_args(args)
     run, cfg = open_run(args.run, args.overrides, need=("dataset",))
-    study_run(run, cfg, checkpoint=args.checkpoint, command=_command(args))
+    # one job per setting on --scheduler/--workers, each cached by its key (a rerun resumes)
+    study_run(run, cfg, checkpoint=args.checkpoint, command=_command(args), settings=settings)
     return 0
 
 

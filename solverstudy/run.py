@@ -73,8 +73,10 @@ def _trained_with(blob: dict) -> str:
 
 
 def study_run(run: RunDir, cfg: Config, log: Log = print, checkpoint: str | Path | None = None,
-              command: str | None = None) -> dict:
-    """The fixed-vs-adaptive study of the run's CNODE (or ``checkpoint``); returns solvers.json's dict."""
+              command: str | None = None, settings=None) -> dict:
+    """The fixed-vs-adaptive study of the run's CNODE (or ``checkpoint``); returns solvers.json's dict.
+    With ``settings`` (a ``core.executor.ExecSettings``), one job per setting on that executor
+    (``solverstudy.study_jobs``, cached in ``<run>/cache/solvers-task/``); without, in this process."""
     from quadfdi.solverstudy.plots import draw_study
     from quadfdi.solverstudy.study import run_study
     from quadfdi.models.checkpoint import load_checkpoint
@@ -88,8 +90,13 @@ def study_run(run: RunDir, cfg: Config, log: Log = print, checkpoint: str | Path
         ckpt = Path(checkpoint) if checkpoint else run.checkpoint("cnode")
         model, blob = load_checkpoint(ckpt, "cnode")
         _, test = _test_windows(run, cfg, blob)
+        run_tasks, where = None, "this process"
+        if settings is not None:
+            from quadfdi.solverstudy.study_jobs import executor_tasks
+
+            run_tasks, where = executor_tasks(run, cfg, ckpt, settings, log), executor_where(settings)
         with torch_threads(cfg.solvers.threads):
-            study = run_study(model, test.x, test.y, cfg.solvers, log=log)
+            study = run_study(model, test.x, test.y, cfg.solvers, log=log, run_tasks=run_tasks, where=where)
         study["meta"].update(checkpoint=str(ckpt), trained_with=_trained_with(blob),
                              command=command or f"quadfdi solvers study --run {run.root}")
         staged = SolverFiles(st.out)
@@ -101,6 +108,15 @@ def study_run(run: RunDir, cfg: Config, log: Log = print, checkpoint: str | Path
     log(f"wrote {files.study_json}, {files.study_md} and {', '.join(str(f) for f in figs)} "
         f"in {study['meta']['seconds']:.0f} s")
     return study
+
+
+def executor_where(settings) -> str:
+    """Where the executor's jobs time their solves, for the study's latency note."""
+    if settings.scheduler != "local":
+        return f"the workers of the cluster at {settings.scheduler}, one setting per job"
+    if settings.n_local == 1:
+        return "this process, one setting per job"
+    return f"{settings.n_local} single-threaded worker processes of a local cluster, one setting per job"
 
 
 def _sha256(path: Path) -> str:

@@ -148,28 +148,8 @@ def _sample(x: np.ndarray, y: np.ndarray, size: int, seed: int) -> tuple[np.ndar
     return idx, note
 
 
-def _reference(model: CNODE, x: np.ndarray, y: np.ndarray, idx: np.ndarray, note: str, cfg: SolversConfig,
-               split_f1: bool, check_windows: int, log: Callable[[str], None]) -> tuple[dict, np.ndarray, dict | None]:
-    """The reference's record, its logits on the sample and its check against an independent solve."""
-    ref_setting = reference_setting(cfg.ref_rtol)
-    t0 = time.perf_counter()
-    ref_solves = solve_each(model, ref_setting, x[idx])
-    ref = ref_solves.logits
-    ref_rec = record(ref_setting, ref_solves, ref, y[idx], note, model)
-    log(f"  {ref_setting.label}: {ref_rec['nfe_per_window']:.0f} NFE/window, {time.perf_counter() - t0:.1f} s")
-    check = reference_check(model, x[idx][:check_windows], ref[:check_windows]) if check_windows > 0 else None
-    if check:
-        log(f"  reference vs {check['against']}: max logit difference {check['max_abs_logit_diff']:.1e} "
-            f"on {check['n_windows']} windows")
-    if split_f1:
-        ref_split, _ = solve_batched(model, ref_setting, x)
-        ref_rec["split_macro_f1"] = macro_f1(y, ref_split)
-        ref_rec["split_n_windows"] = int(len(y))
-    return ref_rec, ref, check
-
-
 def _meta(model: CNODE, cfg: SolversConfig, y: np.ndarray, idx: np.ndarray, note: str, check: dict | None,
-          t_start: float) -> dict:
+          t_start: float, where: str) -> dict:
     threads = torch.get_num_threads()
     return {
         "reference_check": check,
@@ -184,22 +164,71 @@ def _meta(model: CNODE, cfg: SolversConfig, y: np.ndarray, idx: np.ndarray, note
         "control": getattr(model, "control", "point"),
         "threads": int(threads),
         "latency_note": ("PyTorch eager, batch 1, median over the sample's one-window solves, measured in "
-                         f"this process with {threads} intra-op thread(s); a solver's cost "
+                         f"{where} with {threads} intra-op thread(s); a solver's cost "
                          "here, not a deployed runtime's (see the latency table for those)"),
         "versions": _versions(),
         "seconds": time.perf_counter() - t_start,
     }
 
 
+@dataclass(frozen=True)
+class Task:
+    """One unit of the study: ``setting`` solved on the sample's windows one by one (the first
+    ``windows`` of them; 0: all), and, with ``split``, batched over the whole split for its macro F1.
+    ``warmup``: untimed solves first (the reference check times nothing it reports)."""
+
+    setting: Setting
+    split: bool = False
+    windows: int = 0
+    warmup: int = 1
+
+
+def run_task(model: CNODE, task: Task, x: np.ndarray, y: np.ndarray, idx: np.ndarray) -> tuple[Solves, float | None]:
+    """``task`` on windows x (n, W, C) with labels y: its one-by-one solves of x[idx] and its split macro F1."""
+    xs = x[idx] if task.windows <= 0 else x[idx[:task.windows]]
+    solves = solve_each(model, task.setting, xs, warmup=task.warmup)
+    return solves, (macro_f1(y, solve_batched(model, task.setting, x)[0]) if task.split else None)
+
+
+def study_tasks(model: CNODE, settings: Sequence[Setting], cfg: SolversConfig, split_f1: bool,
+                check_windows: int) -> list[Task]:
+    """The study's tasks in order: the reference, its check (when ``check_windows``), then every setting."""
+    tasks = [Task(reference_setting(cfg.ref_rtol), split=split_f1)]
+    if check_windows > 0:
+        tasks.append(Task(check_setting(model), windows=check_windows, warmup=0))
+    # fixed steps: batching changes nothing, so the whole split is cheap; adaptive steps depend on the batch
+    return tasks + [Task(s, split=split_f1 and s.is_fixed) for s in settings]
+
+
+# (tasks, sample indices, windows x, labels y) -> each task's solves and split macro F1, in order
+RunTasks = Callable[[list[Task], np.ndarray, np.ndarray, np.ndarray], list[tuple[Solves, float | None]]]
+
+
+def run_here(model: CNODE, log: Callable[[str], None]) -> RunTasks:
+    """The study's tasks one after the other in this process (what ``run_study`` does by default)."""
+    def run_all(tasks: list[Task], idx: np.ndarray, x: np.ndarray, y: np.ndarray) -> list[tuple[Solves, float | None]]:
+        out = []
+        for t in tasks:
+            t0 = time.perf_counter()
+            out.append(run_task(model, t, x, y, idx))
+            log(f"  {t.setting.label:28s} solved in {time.perf_counter() - t0:.1f} s")
+        return out
+    return run_all
+
+
 def run_study(model: CNODE, x: np.ndarray, y: np.ndarray, cfg: SolversConfig | None = None,
               settings: Sequence[Setting] | None = None, split_f1: bool = True, check_windows: int = 8,
-              log: Callable[[str], None] = print) -> dict:
+              log: Callable[[str], None] = print, run_tasks: RunTasks | None = None,
+              where: str = "this process") -> dict:
     """The solver study of one CNODE on test windows x (n, W, C) raw with labels y (n,).
 
     ``cfg`` ([solvers], default its defaults) gives the sample, the reference tolerance and the
-    matching rule, and the grid unless ``settings`` is given. Returns ``{"solvers": [record, ...],
-    "matched": [...], "matched_any_control": [...] or None, "reference": record, "meta": {...}}``;
-    the reference's own record comes first in ``solvers`` (error 0 by definition).
+    matching rule, and the grid unless ``settings`` is given. ``run_tasks`` solves ``study_tasks``
+    (default: ``run_here``; ``solverstudy.study_jobs``: as executor jobs, the same numbers; ``where``
+    says where they were timed). Returns
+    ``{"solvers": [record, ...], "matched": [...], "matched_any_control": [...] or None,
+    "reference": record, "meta": {...}}``; the reference's own record comes first in ``solvers``
+    (error 0 by definition).
     """
     cfg = SolversConfig() if cfg is None else cfg
     x, y = np.asarray(x), np.asarray(y)
@@ -209,38 +238,47 @@ def run_study(model: CNODE, x: np.ndarray, y: np.ndarray, cfg: SolversConfig | N
     t_start = time.perf_counter()
     idx, note = _sample(x, y, cfg.sample, cfg.sample_seed)
     log(f"solver study: {len(settings)} settings on {note}")
-    ref_rec, ref, check = _reference(model, x, y, idx, note, cfg, split_f1, check_windows, log)
-    records = [ref_rec]
-    for s in settings:
-        t0 = time.perf_counter()
-        rec = record(s, solve_each(model, s, x[idx]), ref, y[idx], note, model)
-        if split_f1 and s.is_fixed:  # fixed steps: batching changes nothing, so the whole split is cheap
-            logits, _ = solve_batched(model, s, x)
-            rec["split_macro_f1"] = macro_f1(y, logits)
-            rec["split_n_windows"] = int(len(y))
+    tasks = study_tasks(model, settings, cfg, split_f1, check_windows)
+    results = (run_tasks or run_here(model, log))(tasks, idx, x, y)
+    (ref_solves, ref_split), rest = results[0], results[1:]
+    ref = ref_solves.logits
+    records = [_with_split(record(tasks[0].setting, ref_solves, ref, y[idx], note, model), ref_split, y)]
+    log(f"  {tasks[0].setting.label}: {records[0]['nfe_per_window']:.0f} NFE/window")
+    check = None
+    if check_windows > 0:
+        (check_solves, _), rest = rest[0], rest[1:]
+        check = {"against": tasks[1].setting.label, "n_windows": int(len(check_solves.logits)),
+                 "max_abs_logit_diff": float(np.abs(check_solves.logits - ref[:check_windows]).max())}
+        log(f"  reference vs {check['against']}: max logit difference {check['max_abs_logit_diff']:.1e} "
+            f"on {check['n_windows']} windows")
+    for s, (solves, split) in zip(settings, rest):
+        rec = _with_split(record(s, solves, ref, y[idx], note, model), split, y)
         records.append(rec)
         log(f"  {s.label:28s} F1 {rec['macro_f1']:.4f}  max err {rec['max_logit_err']:.2e}  "
-            f"{rec['nfe_per_window']:7.1f} NFE  {rec['latency_us'] / 1e3:8.2f} ms  ({time.perf_counter() - t0:.1f} s)")
+            f"{rec['nfe_per_window']:7.1f} NFE  {rec['latency_us'] / 1e3:8.2f} ms")
     return {
         "solvers": records,
         **matched_tables(records, cfg.f1_tol, cfg.f1_two_sided),
-        "reference": ref_rec,
-        "meta": _meta(model, cfg, y, idx, note, check, t_start),
+        "reference": records[0],
+        "meta": _meta(model, cfg, y, idx, note, check, t_start, where),
     }
 
 
-def reference_check(model: CNODE, x: np.ndarray, ref: np.ndarray) -> dict:
-    """How far the reference is from an independent one: float64 classic RK4 with 8 steps per segment.
+def _with_split(rec: dict, split: float | None, y: np.ndarray) -> dict:
+    if split is not None:
+        rec["split_macro_f1"] = split
+        rec["split_n_windows"] = int(len(y))
+    return rec
+
+
+def check_setting(model: CNODE) -> Setting:
+    """The reference's independent check: float64 classic RK4 with 8 steps per segment.
 
     RK4 at N = 8 (W - 1) puts its stage times on the knots, so on each linear piece of the path
     it is a plain 4th-order solve of a smooth ODE (error ~1e-10 here), with no step control
     and no torchdiffeq involved. The study's errors are only meaningful well above this value.
     """
-    window = model.window
-    s = Setting("rk4", steps=8 * (window - 1), dtype="float64")
-    logits = solve_each(model, s, x, warmup=0).logits
-    return {"against": s.label, "n_windows": int(len(x)),
-            "max_abs_logit_diff": float(np.abs(logits - ref).max()) if len(x) else 0.0}
+    return Setting("rk4", steps=8 * (model.window - 1), dtype="float64")
 
 
 def _versions() -> dict:

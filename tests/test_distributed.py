@@ -260,11 +260,11 @@ MATRIX = [*STUDY, 'solvers.matrix_train=["rk4:1", "rk4:2:avg"]', 'solvers.matrix
 TIMING = {"seconds", "train_seconds", "epoch_seconds", "reused", "command"}
 
 
-def _no_timing(d):
+def _no_timing(d, also=frozenset()):
     if isinstance(d, dict):
-        return {k: _no_timing(v) for k, v in d.items() if k not in TIMING}
+        return {k: _no_timing(v, also) for k, v in d.items() if k not in TIMING and k not in also}
     if isinstance(d, list):
-        return [_no_timing(v) for v in d]
+        return [_no_timing(v, also) for v in d]
     return d
 
 
@@ -283,6 +283,32 @@ def test_solver_matrix_cells_on_two_workers_equal_in_process(cluster, small_run,
     assert [len(list((cache / k).iterdir())) for k in ("matrix-train", "matrix-ref", "matrix-cell")] == [2, 2, 6]
     assert sorted(p.name for p in (tmp_path / "dask" / "solvers" / "matrix_models").iterdir()) == \
         sorted(p.name for p in (tmp_path / "here" / "solvers" / "matrix_models").iterdir())
+
+
+SOLVERS = ["solvers.sample=3", "solvers.steps=[1, 4]", 'solvers.fixed_methods=["euler", "rk4"]',
+           'solvers.adaptive_methods=["dopri5"]', "solvers.rtols=[1e-2]", 'solvers.jump="on"']
+
+
+def test_solver_study_on_two_workers_equals_in_process(cluster, small_run, tmp_path):
+    """One job per setting (and the reference, and its check) on the cluster: the in-process study's
+    logits-derived numbers; only timings and the latency note differ; the windows file is removed."""
+    from quadfdi.core.config import load_config
+    from quadfdi.core.rundir import open_run
+    from quadfdi.solverstudy.run import study_run
+    from tests.conftest import random_weight_run
+
+    out = {}
+    for name, settings in (("here", None), ("dask", ExecSettings(cluster[0]))):  # the same seed-0 weights
+        src = random_weight_run(small_run, tmp_path / name, ("cnode",), load_config(small_run / "config.toml").to_dict())
+        run, cfg = open_run(src, SOLVERS)
+        out[name] = study_run(run, cfg, log=lambda _: None, settings=settings)
+    assert "cluster at tcp://" in out["dask"]["meta"]["latency_note"]
+    untimed = lambda d: _no_timing(d, {"latency_us", "latency_note", "checkpoint"})  # noqa: E731
+    assert untimed(out["here"]) == untimed(out["dask"])
+    assert len(out["dask"]["solvers"]) == 1 + 2 * 2 * 2 + 1  # reference, fixed x (point, average), dopri5
+    cache = tmp_path / "dask" / "cache"
+    assert len(list((cache / "solvers-task").glob("*.npz"))) == 2 + 2 * 2 * 2 + 1  # + the reference's check
+    assert not list((cache / "solvers-windows").iterdir())
 
 
 def test_sweep_bench_measures_three_ways_and_the_cluster_cpu(tmp_path):

@@ -306,11 +306,14 @@ def _set(**kw) -> list[str]:
 
 
 def test_solvers_command_writes_every_field(tiny_run):
-    rc = quadfdi_main(["solvers", "study", "--run", str(tiny_run),
-                       *_set(sample=3, steps=(1, 2), fixed_methods=("euler", "rk4"),
-                             adaptive_methods=("dopri5", "bosh3"), rtols=(1e-2,), jump="both")])
-    assert rc == 0
+    argv = ["solvers", "study", "--run", str(tiny_run), "--workers", "1",  # jobs in this process, cached
+            *_set(sample=3, steps=(1, 2), fixed_methods=("euler", "rk4"), adaptive_methods=("dopri5", "bosh3"),
+                  rtols=(1e-2,), jump="both")]
+    assert quadfdi_main(argv) == 0
     out = json.loads((tiny_run / "solvers" / "solvers.json").read_text())
+    assert "this process, one setting per job" in out["meta"]["latency_note"]
+    assert quadfdi_main(argv) == 0  # every setting from the cache: the same records, timings included
+    assert json.loads((tiny_run / "solvers" / "solvers.json").read_text())["solvers"] == out["solvers"]
     assert set(out) == {"solvers", "matched", "matched_any_control", "reference", "meta"}
     assert len(out["solvers"]) == 1 + 2 * 4 + 4  # reference, fixed x (point, average), adaptive
     assert "rk4 N=2 avg" in {r["label"] for r in out["solvers"]}
