@@ -30,7 +30,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--dataset", help="a simulated dataset.npz instead of logs (the realistic suite's)")
     p.add_argument("--flight", dest="index", type=int, help="with --dataset: the flight's index")
     p.add_argument("--model", required=True, help="the export folder (RUN/export) holding manifest.json")
-    p.add_argument("--net", choices=("cnode", "gru"), default="cnode", help="which network (default: %(default)s)")
+    p.add_argument("--net", choices=("cnode", "gru"), default=None,
+                   help="which network (default: the one with the higher validation macro F1 the export records; "
+                        "the CNODE when it records none)")
     p.add_argument("--precision", choices=("fp32", "int8"), default="fp32")
     p.add_argument("--runtime", choices=("ort", "cpp"), default="ort",
                    help="ONNX Runtime on the exported graph, or the C++ reference on weights.bin")
@@ -54,6 +56,11 @@ def run(args: argparse.Namespace) -> int:
     if args.workers is not None and args.workers < 1:
         raise QuadfdiError(f"--workers must be at least 1, not {args.workers}")
     refs = references(args.vehicle, args.vehicles)  # every reference file checked before any flight is read
+    if args.net is None:
+        from quadfdi.formats.manifest import better_network, load_manifest
+
+        args.net, why = better_network(load_manifest(Path(args.model) / "manifest.json"))
+        print(f"detect: --net {args.net}: {why}")
     if args.dataset is not None or args.index is not None:
         if args.dataset is None or args.index is None or args.logs:
             raise QuadfdiError("detect needs either logs or --dataset DATASET.npz --flight N")

@@ -100,6 +100,29 @@ def deployed(manifest: dict, evaluation_path: str | Path) -> dict[str, str | Non
     return {fam: f.get("chosen") for fam, f in dep["families"].items()}
 
 
+WINDOWED_NETS = ("cnode", "gru")  # the windowed networks every export holds; ties go to the first
+
+
+def better_network(manifest: dict) -> tuple[str, str]:
+    """The windowed network ``quadfdi detect`` runs unless told: the one with the higher window macro F1
+    on the validation flights in the manifest's ``deployment`` (the scores ``quadfdi evaluate`` chose
+    the deployed members by), ties to the CNODE; the CNODE when the export records no such scores.
+    Returns (network, why in words)."""
+    dep = manifest.get("deployment")
+    cands = {}
+    for net in WINDOWED_NETS:
+        c = (((dep or {}).get("families") or {}).get(net) or {}).get("candidates", {}).get(net)
+        value = (c or {}).get("macro_f1", {}).get("value") if isinstance(c, dict) else None
+        if isinstance(value, (int, float)):
+            cands[net] = float(value)
+    if len(cands) < len(WINDOWED_NETS):
+        why = manifest.get("deployment_note") or "no validation score for both windowed networks"
+        return WINDOWED_NETS[0], f"the export records no validation scores to choose by ({why})"
+    best = max(WINDOWED_NETS, key=lambda n: (cands[n], -WINDOWED_NETS.index(n)))
+    scores = ", ".join(f"{n} {cands[n]:.4f}" for n in WINDOWED_NETS)
+    return best, f"higher window macro F1 on the validation flights in the export's deployment ({scores})"
+
+
 def check_files(manifest: dict, folder: str | Path) -> None:
     """Every file the manifest lists exists in ``folder`` with its sha256 (one-line error otherwise)."""
     root = Path(folder)

@@ -11,7 +11,7 @@ import shutil
 import pytest
 
 from quadfdi.core.errors import QuadfdiError
-from quadfdi.formats.manifest import deployed, load_manifest
+from quadfdi.formats.manifest import better_network, deployed, load_manifest
 from tests.conftest import quadfdi
 
 FAST = ["--set", "evaluate.bootstrap=1000", "--set", "evaluate.thresholds=[0.5, 0.9]",
@@ -85,3 +85,18 @@ def test_the_manifest_reader_refuses_a_deployment_outside_its_candidates(evaluat
     (tmp_path / "manifest.json").write_text(json.dumps(bad))
     with pytest.raises(QuadfdiError, match="deployment.families.gru chooses a member that is not a candidate"):
         load_manifest(tmp_path / "manifest.json")
+
+
+def test_detect_runs_the_network_with_the_higher_validation_score_unless_told(evaluated_export):
+    _, manifest = evaluated_export
+    cands = {n: manifest["deployment"]["families"][n]["candidates"][n]["macro_f1"]["value"] for n in ("cnode", "gru")}
+    net, why = better_network(manifest)
+    assert net == ("gru" if cands["gru"] > cands["cnode"] else "cnode")
+    assert f"cnode {cands['cnode']:.4f}, gru {cands['gru']:.4f}" in why
+    edited = json.loads(json.dumps(manifest))
+    for value, expected in ((cands["cnode"] + 0.01, "gru"), (cands["cnode"] - 0.01, "cnode"), (cands["cnode"], "cnode")):
+        edited["deployment"]["families"]["gru"]["candidates"]["gru"]["macro_f1"]["value"] = value
+        assert better_network(edited)[0] == expected  # a tie goes to the CNODE
+    del edited["deployment"]["families"]["gru"]
+    assert better_network(edited) == ("cnode", "the export records no validation scores to choose by "
+                                               "(no validation score for both windowed networks)")

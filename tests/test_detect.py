@@ -58,6 +58,9 @@ def test_detect_writes_alarms_windows_and_figure(export, mission_npz, tmp_path):
     res = _detect(export, MISSION, tmp_path / "log")  # the .ulg, ingested on the fly
     assert res.returncode == 0, res.stderr
     rec = json.loads((tmp_path / "log" / "alarms.json").read_text())
+    # no evaluation behind this export: the CNODE, and why
+    assert "detect: --net cnode: the export records no validation scores to choose by (no evaluation" in res.stdout
+    assert rec["net"] == "cnode"
     assert rec["profile"] == "flightlog-min" and rec["hover"]["cells"] == 6 and 0.2 < rec["hover"]["cmd"] < 0.9
     assert 0 < rec["decided_windows"] <= rec["windows"] and 0 < rec["exposure_s"] <= rec["airborne_s"] + 1.6
     for a in rec["alarms"]:
