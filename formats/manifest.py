@@ -103,24 +103,30 @@ def deployed(manifest: dict, evaluation_path: str | Path) -> dict[str, str | Non
 WINDOWED_NETS = ("cnode", "gru")  # the windowed networks every export holds; ties go to the first
 
 
-def better_network(manifest: dict) -> tuple[str, str]:
-    """The windowed network ``quadfdi detect`` runs unless told: the one with the higher window macro F1
-    on the validation flights in the manifest's ``deployment`` (the scores ``quadfdi evaluate`` chose
-    the deployed members by), ties to the CNODE; the CNODE when the export records no such scores.
-    Returns (network, why in words)."""
-    dep = manifest.get("deployment")
-    cands = {}
+def validation_scores(manifest: dict) -> dict[str, float]:
+    """Each windowed network's window macro F1 on the validation flights as the manifest's ``deployment``
+    records it (what ``quadfdi evaluate`` chose the deployed members by); {} without a deployment."""
+    fams = ((manifest.get("deployment") or {}).get("families") or {})
+    out = {}
     for net in WINDOWED_NETS:
-        c = (((dep or {}).get("families") or {}).get(net) or {}).get("candidates", {}).get(net)
-        value = (c or {}).get("macro_f1", {}).get("value") if isinstance(c, dict) else None
+        c = ((fams.get(net) or {}).get("candidates") or {}).get(net)
+        value = (c.get("macro_f1") or {}).get("value") if isinstance(c, dict) else None
         if isinstance(value, (int, float)):
-            cands[net] = float(value)
-    if len(cands) < len(WINDOWED_NETS):
+            out[net] = float(value)
+    return out
+
+
+def better_network(manifest: dict) -> tuple[str, str]:
+    """The windowed network ``quadfdi detect`` runs unless told: the one with the higher validation
+    score (``validation_scores``), ties to the CNODE; the CNODE when the export records no score for
+    both. Returns (network, why in words)."""
+    scores = validation_scores(manifest)
+    if len(scores) < len(WINDOWED_NETS):
         why = manifest.get("deployment_note") or "no validation score for both windowed networks"
         return WINDOWED_NETS[0], f"the export records no validation scores to choose by ({why})"
-    best = max(WINDOWED_NETS, key=lambda n: (cands[n], -WINDOWED_NETS.index(n)))
-    scores = ", ".join(f"{n} {cands[n]:.4f}" for n in WINDOWED_NETS)
-    return best, f"higher window macro F1 on the validation flights in the export's deployment ({scores})"
+    best = max(WINDOWED_NETS, key=lambda n: (scores[n], -WINDOWED_NETS.index(n)))
+    text = ", ".join(f"{n} {scores[n]:.4f}" for n in WINDOWED_NETS)
+    return best, f"higher window macro F1 on the validation flights in the export's deployment ({text})"
 
 
 def check_files(manifest: dict, folder: str | Path) -> None:

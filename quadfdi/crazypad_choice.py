@@ -1,10 +1,13 @@
 """The one network ``quadfdi crazypad`` scores, and its alarm policy, chosen from a run's simulated
 validation flights only (no CrazyPAD flight enters the choice).
 
-- The network: of the export's networks (cnode, gru), the one whose training kept the higher
-  validation macro F1 (``RUN/history.json`` ``<net>.val_macro_f1``: one value per epoch; training keeps
-  the weights of the best epoch, train/loop.py, so the figure is the list's largest). A tie keeps the
-  first in ``NETWORKS`` order.
+- The network: of the export's networks (cnode, gru), the one with the higher window macro F1 on the
+  validation flights that ``quadfdi evaluate`` measured (the manifest's ``deployment``:
+  ``formats.manifest.validation_scores``, every simulator seed's validation flights pooled), as
+  ``quadfdi detect`` picks it; when the export records no such scores, the one whose training kept the
+  higher validation macro F1 (``RUN/history.json`` ``<net>.val_macro_f1``: one value per epoch; training
+  keeps the weights of the best epoch, train/loop.py, so the figure is the list's largest). A tie keeps
+  the first in ``NETWORKS`` order.
 - Its policy: the one the export runs for it (``formats.export_folder.Export.policy``). When the export
   took it from ``quadfdi evaluate`` (source ``evaluation.json sha256 ...``: chosen on validation flights
   by the rule of evaluate/policy.py), ``RUN/evaluation/evaluation.json`` must be those bytes, and its
@@ -25,6 +28,7 @@ from pathlib import Path
 from quadfdi.core.errors import QuadfdiError
 from quadfdi.core.profiles import is_masked
 from quadfdi.core.rundir import EVALUATION_JSON
+from quadfdi.formats.manifest import validation_scores
 
 NETWORKS = ("cnode", "gru")
 HISTORY = "history.json"
@@ -91,14 +95,19 @@ def scored_network(run: str | Path) -> dict:
         raise QuadfdiError(f"--run {run}: not a folder")
     ex = _open_export(run)
     nets = [n for n in NETWORKS if f"{n}_fp32" in ex.manifest.get("artifacts", {})]
-    f1 = _validation_f1(run, nets)
+    f1 = {n: v for n, v in validation_scores(ex.manifest).items() if n in nets}
+    chosen_by = {"file": str(ex.root / "manifest.json"),
+                 "figure": "window macro F1 on the validation flights, quadfdi evaluate", "val_macro_f1": f1}
+    if len(f1) < len(nets):  # no evaluation behind the export: training's own validation score
+        f1 = _validation_f1(run, nets)
+        chosen_by = {"file": str(run / HISTORY), "figure": "best validation macro F1 over the epochs",
+                     "val_macro_f1": f1}
     net = max(f1, key=lambda n: (f1[n], -NETWORKS.index(n)))
     policy, source = ex.policy(net)
     return {"run": str(run), "export": str(ex.root), "profile": ex.profile(), "net": net, "policy": policy,
             "policy_source": source, "policy_chosen_on_validation": source.startswith(EVAL_SOURCE),
             "policy_validation": _validation_row(run, net, policy, source),
-            "chosen_by": {"file": str(run / HISTORY), "figure": "best validation macro F1 over the epochs",
-                          "val_macro_f1": f1}}
+            "chosen_by": chosen_by}
 
 
 def policy_text(p: dict) -> str:

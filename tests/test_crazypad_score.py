@@ -73,6 +73,26 @@ def test_the_network_and_policy_come_from_validation(scored):
     assert ch["policy_source"] == "config" and ch["policy_chosen_on_validation"] is False  # said so, not hidden
 
 
+def test_the_network_comes_from_evaluates_validation_scores_when_the_export_records_them(masked_export, tmp_path):
+    """An export made after `quadfdi evaluate` records each network's pooled validation macro F1: crazypad
+    scores the network `quadfdi detect` would run, whatever training's own figure says."""
+    from quadfdi.crazypad_choice import scored_network
+
+    run = tmp_path / "run"
+    shutil.copytree(masked_export.parent, run)
+    hist = json.loads((run / "history.json").read_text())
+    loser = min(("cnode", "gru"), key=lambda n: (max(hist[n]["val_macro_f1"]), n == "cnode"))
+    scores = {n: 0.6 if n == loser else 0.5 for n in ("cnode", "gru")}  # the reverse of training's ranking
+    path = run / "export" / "manifest.json"
+    m = json.loads(path.read_text())
+    m["deployment"] = {"evaluation_sha256": "0" * 64, "families": {
+        n: {"chosen": n, "candidates": {n: {"macro_f1": {"value": v}, "flights": 10}}} for n, v in scores.items()}}
+    path.write_text(json.dumps(m))
+    ch = scored_network(run)
+    assert ch["net"] == loser and ch["chosen_by"]["val_macro_f1"] == scores
+    assert ch["chosen_by"]["file"] == str(path)
+
+
 def test_groups_and_the_reference_flights_in_none(scored):
     _, out, result = scored
     ref = load_vehicle(out / "vehicle.json")
