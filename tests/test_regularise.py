@@ -131,3 +131,28 @@ def test_outputs_and_patience_bounds_are_refused_in_one_line():
     assert res.returncode == 2 and "train.outputs" in res.stderr and len(res.stderr.strip().splitlines()) == 1
     with pytest.raises(QuadfdiError, match="patience"):
         load_config(None, ["train.patience=-1"])
+
+
+def _fit(kind: str, sets: list[str]) -> tuple[torch.nn.Module, "loop.History", Windows]:
+    cfg = load_config(None, ["train.epochs=3", "train.gru_hidden=8", "train.latent=6", "train.hidden=8",
+                             "train.steps=2", "train.batch_size=16", *sets]).train
+    torch.manual_seed(0)
+    model, val = build_model(kind, C, cfg, window=W, n_classes=4), _windows(seed=1)
+    return model, loop.train_model(model, _windows(), val, cfg, np.ones(4, np.float32), log=lambda s: None), val
+
+
+@pytest.mark.parametrize("kind", ["cnode", "gru"])
+def test_the_weight_average_is_validated_kept_and_off_by_default(kind):
+    """``train.ema_decay``: the kept weights are the average's at the best epoch (its validation macro F1 is
+    what the history says); 0 changes nothing."""
+    from sklearn.metrics import f1_score
+
+    model, hist, val = _fit(kind, ["train.ema_decay=0.9"])
+    pred = loop.predict_proba(model, val.x).argmax(1)
+    assert f1_score(val.y, pred, labels=list(range(4)), average="macro", zero_division=0) == \
+        hist.val_macro_f1[hist.best_epoch]
+    plain, off = _fit(kind, [])[0].state_dict(), _fit(kind, ["train.ema_decay=0"])[0].state_dict()
+    assert any(not torch.equal(model.state_dict()[k], plain[k]) for k in plain)
+    assert all(torch.equal(off[k], plain[k]) for k in plain)
+    with pytest.raises(QuadfdiError, match="train.ema_decay must be in"):
+        load_config(None, ["train.ema_decay=1.0"])

@@ -64,6 +64,9 @@ class TrainConfig:
     # Early stopping: end training once validation macro F1 has not risen for this many epochs (0: every epoch);
     # the learning-rate schedule still spans `epochs`, and the best epoch's weights are kept either way.
     patience: int = 0
+    # A moving average of the weights per optimiser step (0: off; train/stream_gru_ema.py, as [sgru] ema_decay):
+    # validation, the epoch kept and every output use the averaged weights.
+    ema_decay: float = 0.0
     # "all": every output; "fit": the checkpoints, history and test metrics only, no prediction sets or
     # mask-pattern scores (a recipe search's points, `quadfdi sweep --stages train`: later stages need "all").
     outputs: str = "all"
@@ -71,6 +74,8 @@ class TrainConfig:
     def validate(self) -> None:
         positive(self, "epochs", "batch_size", "lr", "latent", "hidden", "gru_hidden", "steps", "rtol", "atol", "threads", "gru_lr")
         not_negative(self, "seed", "max_train_windows", "patience")
+        if not 0.0 <= self.ema_decay < 1.0:
+            raise QuadfdiError(f"train.ema_decay must be in [0, 1), found {self.ema_decay}")
         choice(self, "outputs", ("all", "fit"))
         if min(self.seeds, default=0) < 0:
             raise QuadfdiError(f"train.seeds must not be negative, found {list(self.seeds)}")

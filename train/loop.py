@@ -7,6 +7,7 @@ split exists for that choice; the test split is never looked at here).
 
 from __future__ import annotations
 
+import contextlib
 import copy
 import time
 from dataclasses import dataclass, field
@@ -20,6 +21,7 @@ from quadfdi.train.config import TrainConfig
 from quadfdi.core.errors import QuadfdiError
 from quadfdi.formats.dataset import Windows
 from quadfdi.train.data import batch_order
+from quadfdi.train.stream_gru_ema import WeightAverage
 from quadfdi.models.networks import GRUClassifier
 from quadfdi.models.motor import has_motor_head, motor_loss
 
@@ -115,6 +117,7 @@ def train_model(model: torch.nn.Module, train: Windows, val: Windows, cfg: Train
     m_all = torch.from_numpy(np.asarray(motor, dtype=np.int64)) if has_motor_head(model) else None
     hist = History()
     best_f1, best_state = -1.0, None
+    ema = WeightAverage(model, cfg.ema_decay) if cfg.ema_decay > 0 else None
     for epoch in range(cfg.epochs):
         model.train()
         t0 = time.perf_counter()
@@ -133,6 +136,8 @@ def train_model(model: torch.nn.Module, train: Windows, val: Windows, cfg: Train
             opt.zero_grad(set_to_none=True)
             loss.backward()
             opt.step()
+            if ema is not None:
+                ema.update()
             if sched is not None:
                 sched.step()
             losses.append(loss.item() * len(idx))
@@ -140,13 +145,14 @@ def train_model(model: torch.nn.Module, train: Windows, val: Windows, cfg: Train
         hist.loss.append(float(sum(losses) / len(train)))
         if nfes:
             hist.nfe_per_forward.append(float(np.mean(nfes)))
-        val_proba = predict_proba(model, val.x)
-        _stop_if_diverged(torch.as_tensor(val_proba), model, cfg, epoch)
-        val_pred = val_proba.argmax(1)
-        f1 = float(f1_score(val.y, val_pred, labels=list(range(model.n_classes)), average="macro", zero_division=0))
-        hist.val_macro_f1.append(f1)
-        if f1 > best_f1:
-            best_f1, best_state, hist.best_epoch = f1, copy.deepcopy(model.state_dict()), epoch
+        with (ema.swapped() if ema is not None else contextlib.nullcontext()):  # validate, keep the average
+            val_proba = predict_proba(model, val.x)
+            _stop_if_diverged(torch.as_tensor(val_proba), model, cfg, epoch)
+            val_pred = val_proba.argmax(1)
+            f1 = float(f1_score(val.y, val_pred, labels=list(range(model.n_classes)), average="macro", zero_division=0))
+            hist.val_macro_f1.append(f1)
+            if f1 > best_f1:
+                best_f1, best_state, hist.best_epoch = f1, copy.deepcopy(model.state_dict()), epoch
         nfe_txt = f", {hist.nfe_per_forward[-1]:.0f} NFE/forward" if nfes else ""
         log(f"  epoch {epoch + 1:2d}/{cfg.epochs}: loss {hist.loss[-1]:.4f}, val macro F1 {f1:.4f}, "
             f"{hist.epoch_s[-1]:.1f} s{nfe_txt}")
