@@ -171,6 +171,9 @@ def _meta(model: CNODE, cfg: SolversConfig, y: np.ndarray, idx: np.ndarray, note
     }
 
 
+SPLIT_BATCH = 256  # windows per batched solve of the whole split (an adaptive solver's steps are shared within one)
+
+
 @dataclass(frozen=True)
 class Task:
     """One unit of the study: ``setting`` solved on the sample's windows one by one (the first
@@ -183,11 +186,15 @@ class Task:
     warmup: int = 1
 
 
-def run_task(model: CNODE, task: Task, x: np.ndarray, y: np.ndarray, idx: np.ndarray) -> tuple[Solves, float | None]:
-    """``task`` on windows x (n, W, C) with labels y: its one-by-one solves of x[idx] and its split macro F1."""
+def run_task(model: CNODE, task: Task, x: np.ndarray, y: np.ndarray, idx: np.ndarray,
+             batch: int | None = None) -> tuple[Solves, float | None]:
+    """``task`` on windows x (n, W, C) with labels y: its one-by-one solves of x[idx] and its split macro F1
+    (solved ``batch`` windows at a time, default ``SPLIT_BATCH``)."""
     xs = x[idx] if task.windows <= 0 else x[idx[:task.windows]]
     solves = solve_each(model, task.setting, xs, warmup=task.warmup)
-    return solves, (macro_f1(y, solve_batched(model, task.setting, x)[0]) if task.split else None)
+    if not task.split:
+        return solves, None
+    return solves, macro_f1(y, solve_batched(model, task.setting, x, batch=batch or SPLIT_BATCH)[0])
 
 
 def study_tasks(model: CNODE, settings: Sequence[Setting], cfg: SolversConfig, split_f1: bool,

@@ -289,14 +289,18 @@ SOLVERS = ["solvers.sample=3", "solvers.steps=[1, 4]", 'solvers.fixed_methods=["
            'solvers.adaptive_methods=["dopri5"]', "solvers.rtols=[1e-2]", 'solvers.jump="on"']
 
 
-def test_solver_study_on_two_workers_equals_in_process(cluster, small_run, tmp_path):
-    """One job per setting (and the reference, and its check) on the cluster: the in-process study's
-    logits-derived numbers; only timings and the latency note differ; the windows file is removed."""
+def test_solver_study_on_two_workers_equals_in_process(cluster, small_run, tmp_path, monkeypatch):
+    """One job per setting (and the reference, and its check, the reference's split solve in parts) on the
+    cluster: the in-process study's logits-derived numbers; only timings and the latency note differ; the
+    windows file is removed."""
     from quadfdi.core.config import load_config
     from quadfdi.core.rundir import open_run
+    from quadfdi.solverstudy import study, study_jobs
     from quadfdi.solverstudy.run import study_run
     from tests.conftest import random_weight_run
 
+    monkeypatch.setattr(study, "SPLIT_BATCH", 4)  # small batches and parts: the reference in several jobs
+    monkeypatch.setattr(study_jobs, "PART_BATCHES", 2)
     out = {}
     for name, settings in (("here", None), ("dask", ExecSettings(cluster[0]))):  # the same seed-0 weights
         src = random_weight_run(small_run, tmp_path / name, ("cnode",), load_config(small_run / "config.toml").to_dict())
@@ -308,6 +312,8 @@ def test_solver_study_on_two_workers_equals_in_process(cluster, small_run, tmp_p
     assert len(out["dask"]["solvers"]) == 1 + 2 * 2 * 2 + 1  # reference, fixed x (point, average), dopri5
     cache = tmp_path / "dask" / "cache"
     assert len(list((cache / "solvers-task").glob("*.npz"))) == 2 + 2 * 2 * 2 + 1  # + the reference's check
+    n = out["dask"]["reference"]["split_n_windows"]
+    assert n > 8 and len(list((cache / "solvers-split").glob("*.npz"))) == -(-n // 8)
     assert not list((cache / "solvers-windows").iterdir())
 
 
