@@ -94,7 +94,8 @@ def test_detect_runs_the_network_with_the_higher_validation_score_unless_told(ev
     assert net == ("gru" if cands["gru"] > cands["cnode"] else "cnode")
     assert f"cnode {cands['cnode']:.4f}, gru {cands['gru']:.4f}" in why
     edited = json.loads(json.dumps(manifest))
-    for value, expected in ((cands["cnode"] + 0.01, "gru"), (cands["cnode"] - 0.01, "cnode"), (cands["cnode"], "cnode")):
+    c = cands["cnode"]
+    for value, expected in ((c + 0.01, "gru"), (c - 0.01, "cnode"), (c, "cnode")):
         edited["deployment"]["families"]["gru"]["candidates"]["gru"]["macro_f1"]["value"] = value
         assert better_network(edited)[0] == expected  # a tie goes to the CNODE
     del edited["deployment"]["families"]["gru"]

@@ -285,8 +285,9 @@ def test_solver_matrix_cells_on_two_workers_equal_in_process(cluster, small_run,
         sorted(p.name for p in (tmp_path / "here" / "solvers" / "matrix_models").iterdir())
 
 
-SOLVERS = ["solvers.sample=3", "solvers.steps=[1, 4]", 'solvers.fixed_methods=["euler", "rk4"]',
-           'solvers.adaptive_methods=["dopri5"]', "solvers.rtols=[1e-2]", 'solvers.jump="on"']
+SOLVERS = ["solvers.sample=2", "solvers.ref_rtol=1e-6", "solvers.steps=[1, 4]",
+           'solvers.fixed_methods=["euler", "rk4"]', 'solvers.adaptive_methods=["dopri5"]', "solvers.rtols=[1e-2]",
+           'solvers.jump="on"']
 
 
 def test_solver_study_on_two_workers_equals_in_process(cluster, small_run, tmp_path, monkeypatch):
@@ -299,11 +300,12 @@ def test_solver_study_on_two_workers_equals_in_process(cluster, small_run, tmp_p
     from quadfdi.solverstudy.run import study_run
     from tests.conftest import random_weight_run
 
-    monkeypatch.setattr(study, "SPLIT_BATCH", 4)  # small batches and parts: the reference in several jobs
+    monkeypatch.setattr(study, "SPLIT_BATCH", 16)  # small batches and parts: the reference in several jobs
     monkeypatch.setattr(study_jobs, "PART_BATCHES", 2)
     out = {}
     for name, settings in (("here", None), ("dask", ExecSettings(cluster[0]))):  # the same seed-0 weights
-        src = random_weight_run(small_run, tmp_path / name, ("cnode",), load_config(small_run / "config.toml").to_dict())
+        cfg = load_config(small_run / "config.toml").to_dict()
+        src = random_weight_run(small_run, tmp_path / name, ("cnode",), cfg)
         run, cfg = open_run(src, SOLVERS)
         out[name] = study_run(run, cfg, log=lambda _: None, settings=settings)
     assert "cluster at tcp://" in out["dask"]["meta"]["latency_note"]
@@ -313,7 +315,7 @@ def test_solver_study_on_two_workers_equals_in_process(cluster, small_run, tmp_p
     cache = tmp_path / "dask" / "cache"
     assert len(list((cache / "solvers-task").glob("*.npz"))) == 2 + 2 * 2 * 2 + 1  # + the reference's check
     n = out["dask"]["reference"]["split_n_windows"]
-    assert n > 8 and len(list((cache / "solvers-split").glob("*.npz"))) == -(-n // 8)
+    assert n > 32 and len(list((cache / "solvers-split").glob("*.npz"))) == -(-n // 32)
     assert not list((cache / "solvers-windows").iterdir())
 
 
