@@ -79,12 +79,14 @@ def start_local_cluster(n_workers: int, coarse: bool = True) -> LocalCluster:
     ``NO_MALLOC_TRIM``, which is about our jobs' memory, not the cluster's cost."""
     # Ctrl-C reaches every process of the terminal's group: the workers start with SIGINT ignored (the
     # disposition survives their exec), so only this process handles it, closes the cluster and says
-    # so in one line, instead of each worker printing its own traceback.
+    # so in one line, instead of each worker printing its own traceback. Their logs show CRITICAL only:
+    # a worker whose scheduler closed first logs its failed heartbeat as an ERROR with a traceback; a
+    # job's own failure reaches the caller as its JobResult's one-line error, not through these logs.
     previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
     try:
         with dask.config.set({**NO_MALLOC_TRIM, **(COARSE_JOBS if coarse else {})}):
             return LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True, dashboard_address=":0",
-                                silence_logs=logging.ERROR, env=_worker_env())
+                                silence_logs=logging.CRITICAL, env=_worker_env())
     finally:
         signal.signal(signal.SIGINT, previous)
 
