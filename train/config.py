@@ -74,8 +74,6 @@ class TrainConfig:
     def validate(self) -> None:
         positive(self, "epochs", "batch_size", "lr", "latent", "hidden", "gru_hidden", "steps", "rtol", "atol", "threads", "gru_lr")
         not_negative(self, "seed", "max_train_windows", "patience")
-        if not 0.0 <= self.ema_decay < 1.0:
-            raise QuadfdiError(f"train.ema_decay must be in [0, 1), found {self.ema_decay}")
         choice(self, "outputs", ("all", "fit"))
         if min(self.seeds, default=0) < 0:
             raise QuadfdiError(f"train.seeds must not be negative, found {list(self.seeds)}")
@@ -94,7 +92,7 @@ class TrainConfig:
         not_negative(self, "motor_loss_weight", "share_wander")
         positive(self, "share_wander_tau_s")
         not_negative(self, "weight_decay", "gru_weight_decay")
-        for name in ("dropout_in", "dropout_latent"):
+        for name in ("dropout_in", "dropout_latent", "ema_decay"):
             if not 0.0 <= getattr(self, name) < 1.0:
                 raise QuadfdiError(f"train.{name} must lie in [0, 1), found {getattr(self, name)}")
 
