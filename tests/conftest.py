@@ -85,6 +85,18 @@ def trained_export_run(src: Path, out: Path, *train_sets: str, export_sets: tupl
     return out
 
 
+def few_baseline_configs():
+    """Every baseline's grid cut to its 1st, 9th and 17th configuration (cheap trees: 7 leaves) while the
+    fixture lives: the tuning logic under test is the same for 3 configurations as for the 24 of a run
+    (train.baselines.N_CONFIGS, checked in tests/test_baselines_suite.py), at an eighth of the fits."""
+    from quadfdi.train.baselines import GRIDS
+
+    with pytest.MonkeyPatch.context() as mp:
+        for model, grid in list(GRIDS.items()):
+            mp.setitem(GRIDS, model, grid[::8])
+        yield
+
+
 @pytest.fixture(scope="session")
 def small_run(tmp_path_factory) -> Path:
     out = tmp_path_factory.mktemp("run") / "small"

@@ -19,12 +19,16 @@ from quadfdi.train.baselines_run import run_baselines
 from quadfdi.train.features import physics_feature_names, physics_features
 from quadfdi.train.features_ref import ref_feature_names, ref_features
 from quadfdi.train.vehicle_ref import learn_references, vehicle_refs
+from tests.conftest import few_baseline_configs
 
 # Flights long enough for a reference (vehicle.learn: 10 s airborne), two reference flights per vehicle,
 # half of the later flights with a propeller fault.
 TINY = ["sim.n_traj=16", "sim.ood_traj=4", "sim.flights_per_vehicle=4", "sim.reference_flights=2",
         "sim.duration_s=14.0", "sim.chunk=48", "sim.window=40", "sim.stride=20", "sim.onset_frac=[0.05, 0.2]",
         "sim.ramp_frac=[0.05, 0.1]", 'sim.classes=["Healthy", "PropellerFault"]', "sim.fault_ratio=0.5"]
+
+
+_few_configs = pytest.fixture(scope="module", autouse=True)(few_baseline_configs)
 
 
 @pytest.fixture(scope="module")

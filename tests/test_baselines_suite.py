@@ -11,7 +11,7 @@ from quadfdi.formats.predictions import add_entries, check_prediction_set, read_
 from quadfdi.core.tomlio import dumps_toml
 from quadfdi.formats.dataset import Dataset, dataset_arrays
 from quadfdi.sim.telemetry import CHANNEL_NAMES
-from tests.conftest import quadfdi
+from tests.conftest import few_baseline_configs, quadfdi
 from quadfdi.train.baselines import GRIDS, MODELS, N_CONFIGS, fit_baselines, train_subsample
 from quadfdi.train.baselines_run import record_path, run_baselines
 from quadfdi.train.features import (I_FLOOR_A, internal_resistance, physics_feature_names, physics_features,
@@ -138,6 +138,15 @@ def _dataset(arrays, seed: int = 0) -> Dataset:
     return Dataset(path=None, arrays=arrays, config=_config(seed))
 
 
+FULL_GRIDS = {m: list(g) for m, g in GRIDS.items()}  # before the fixture below cuts them
+_few_configs = pytest.fixture(scope="module", autouse=True)(few_baseline_configs)
+
+
+def test_every_baseline_gets_the_networks_tuning_budget():
+    assert N_CONFIGS == 24 and all(len(g) == N_CONFIGS for g in FULL_GRIDS.values())
+    assert FULL_GRIDS["logreg_stats"] == FULL_GRIDS["logreg_physics"]
+
+
 @pytest.fixture(scope="module")
 def fitted():
     ds = _dataset(_arrays(0))
@@ -152,7 +161,7 @@ def test_tuning_reads_validation_only(fitted):
     tel[arrays["split"] >= 2] = rng.normal(0, 5, tel[arrays["split"] >= 2].shape)  # scramble test + OOD
     _, res2 = fit_baselines(_dataset({**arrays, "telemetry": tel}), seed=3)
     for m in MODELS:
-        assert len(res[m].record["validation_macro_f1"]) == N_CONFIGS == len(GRIDS[m])
+        assert len(res[m].record["validation_macro_f1"]) == len(GRIDS[m]) == 3
         assert res2[m].record["chosen"] == res[m].record["chosen"]
         assert res2[m].record["validation_macro_f1"] == res[m].record["validation_macro_f1"]
         assert res2[m].record["macro_f1_by_split"]["test"] != res[m].record["macro_f1_by_split"]["test"]
@@ -232,7 +241,7 @@ def _two_seed_run(root):
     return run
 
 
-def test_two_workers_write_the_serial_bytes_and_a_rerun_reads_the_cache(tmp_path):
+def test_two_workers_write_the_serial_bytes_and_a_rerun_reads_the_cache(tmp_path, monkeypatch):
     """One job per dataset: on a local cluster of two workers the prediction sets are the serial bytes and the
     records the serial ones but for the fit times; a second run reads each dataset's fits from the cache (the
     fit times it reports are the first run's to the digit)."""
@@ -243,6 +252,7 @@ def test_two_workers_write_the_serial_bytes_and_a_rerun_reads_the_cache(tmp_path
     (tmp_path / "s").mkdir()
     (tmp_path / "p").mkdir()
     serial, parallel = _two_seed_run(tmp_path / "s"), _two_seed_run(tmp_path / "p")
+    monkeypatch.setitem(GRIDS, "logreg_stats", FULL_GRIDS["logreg_stats"])  # the grid the Dask workers import
     run_baselines(serial, seed=2, models=("logreg_stats",), cap=200)
     two = ExecSettings(workers=2)
     run_baselines(parallel, seed=2, models=("logreg_stats",), cap=200, settings=two)
