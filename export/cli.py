@@ -58,12 +58,17 @@ def run_export(args: argparse.Namespace) -> int:
     if args.run is None:
         raise QuadfdiError("quadfdi export needs --run <run folder>")
     run, cfg = open_run(args.run, args.overrides, need=("dataset",))
-    policies = policies_of(run, cfg.alarm, args.alarm_from)  # a refusal before torch and onnx are imported
+    if args.steps is not None:
+        cfg = replace_section(cfg, "export", steps=args.steps)
+    from quadfdi.core.records import verify_input
+    from quadfdi.export.manifest import MODEL_KINDS
+
+    for kind in MODEL_KINDS:  # as the stage consumes them, so that refusals come before torch and onnx load
+        verify_input(run.root, f"{kind}.pt", {"sim": cfg.to_dict()["sim"]}, ("sim",))
+    policies = policies_of(run, cfg.alarm, args.alarm_from)
     deployment = deployment_of(run)
     from quadfdi.export.run import export_run
 
-    if args.steps is not None:
-        cfg = replace_section(cfg, "export", steps=args.steps)
     manifest = export_run(run, cfg, policies=policies, deployment=deployment)
     ok = manifest["verification"]["passed"]
     print(f"export: verification {'passed' if ok else 'FAILED'}; manifest {run.export / 'manifest.json'}")
