@@ -66,11 +66,11 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 
 def run_train(args: argparse.Namespace) -> int:
-    from quadfdi.train.run import train_run
-
     if args.run is None:
         raise QuadfdiError("quadfdi train needs --run <run folder>")
     run, cfg = open_run(args.run, args.overrides, need=("dataset",))
+    from quadfdi.train.run import train_run  # torch: after the refusals of the run folder and the config
+
     model = args.model or cfg.train.model
     train_run(run, cfg, model, args.seed)
     print(f"wrote checkpoints, predictions, metrics.json and figures into {run.root}")
@@ -123,15 +123,17 @@ def _seed_list(flag: str, text: str | None, default: list[int]) -> list[int]:
 
 
 def run_baselines_cmd(args: argparse.Namespace) -> int:
-    from quadfdi.train.baselines import MAX_TRAIN_WINDOWS
     from quadfdi.core.profiles import uses_hover
-    from quadfdi.train.baselines_run import run_baselines
 
     run, cfg = open_run(args.run, args.overrides, need=("dataset",))
     seed = cfg.train.seed if args.seed is None else args.seed
+    if seed < 0 or (args.max_train_windows or 0) < 0:
+        raise QuadfdiError(f"--seed and --max-train-windows must not be negative, found {seed} and "
+                           f"{args.max_train_windows}")
+    from quadfdi.train.baselines import MAX_TRAIN_WINDOWS  # scikit-learn: after the refusals above
+    from quadfdi.train.baselines_run import run_baselines
+
     cap = MAX_TRAIN_WINDOWS if args.max_train_windows is None else args.max_train_windows
-    if seed < 0 or cap < 0:
-        raise QuadfdiError(f"--seed and --max-train-windows must not be negative, found {seed} and {cap}")
     written, lines = run_baselines(run.root, seed, args.datasets, cap=cap, reference=cfg.train.baselines_reference,
                                    logged=uses_hover(cfg.train.profile), settings=ExecSettings.from_args(args))
     print("\n".join(lines))
