@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import fcntl
 import os
 import shutil
 import subprocess
 import sys
 from pathlib import Path
+from typing import Callable
 
 import pytest
 
@@ -85,6 +87,27 @@ def trained_export_run(src: Path, out: Path, *train_sets: str, export_sets: tupl
     return out
 
 
+def built_once(tmp_path_factory, name: str, make: Callable[[Path], Path]) -> Path:
+    """What ``make(folder)`` builds in ``folder`` (it returns a path inside it), built once per test session:
+    under pytest-xdist the first worker to ask builds it in the session's shared temporary folder under a file
+    lock (the other waits instead of building it again) and each worker gets its own copy, so that a test
+    writing beside a fixture's files touches only its worker's; without xdist, built in place."""
+    mine = tmp_path_factory.mktemp(name)
+    if "PYTEST_XDIST_WORKER" not in os.environ:
+        return make(mine)
+    shared = tmp_path_factory.getbasetemp().parent / "built-once"
+    shared.mkdir(exist_ok=True)
+    with open(shared / f"{name}.lock", "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        done = shared / f"{name}.path"
+        if not done.is_file():
+            shutil.rmtree(shared / name, ignore_errors=True)
+            (shared / name).mkdir()
+            done.write_text(str(make(shared / name).relative_to(shared / name)))
+        shutil.copytree(shared / name, mine, symlinks=True, dirs_exist_ok=True)
+        return mine / done.read_text()
+
+
 def few_baseline_configs():
     """Every baseline's grid cut to its 1st, 9th and 17th configuration (cheap trees: 7 leaves) while the
     fixture lives: the tuning logic under test is the same for 3 configurations as for the 24 of a run
@@ -119,12 +142,14 @@ FLIGHTLOG_ALARM = ["alarm.gru.threshold=0.4", "alarm.gru.k=1", "alarm.gru.n=2", 
 @pytest.fixture(scope="session")
 def flightlog_export(tmp_path_factory) -> Path:
     """RUN/export of a tiny realistic run trained with the flightlog-min profile through the CLI."""
-    sim = tmp_path_factory.mktemp("flightlog") / "tiny"
-    res = quadfdi("sim", "--config", str(ROOT / "configs/realistic.toml"), "--out", str(sim), "--workers", "1",
-                  *[a for v in FLIGHTLOG_TINY for a in ("--set", v)])
-    assert res.returncode == 0, res.stderr
-    return trained_export_run(sim, tmp_path_factory.mktemp("flightlog_run") / "run", *FLIGHTLOG_TRAIN,
-                              export_sets=tuple(FLIGHTLOG_ALARM)) / "export"
+    def make(folder: Path) -> Path:
+        sim = folder / "tiny"
+        res = quadfdi("sim", "--config", str(ROOT / "configs/realistic.toml"), "--out", str(sim), "--workers", "1",
+                      *[a for v in FLIGHTLOG_TINY for a in ("--set", v)])
+        assert res.returncode == 0, res.stderr
+        return trained_export_run(sim, folder / "run", *FLIGHTLOG_TRAIN, export_sets=tuple(FLIGHTLOG_ALARM)) / "export"
+
+    return built_once(tmp_path_factory, "flightlog", make)
 
 
 @pytest.fixture(scope="session")
@@ -133,10 +158,13 @@ def mission_npz(tmp_path_factory) -> Path:
     log = SHARED_DATA / "flightlogs" / "px4_quad_6s_uavcan_mission.ulg"
     if not log.is_file():
         pytest.skip(f"the shared real flight logs are not at {log.parent}")
-    out = tmp_path_factory.mktemp("mission")
-    res = quadfdi("ingest", str(log), "--out", str(out))
-    assert res.returncode == 0, res.stderr
-    return out / "flight.npz"
+
+    def make(folder: Path) -> Path:
+        res = quadfdi("ingest", str(log), "--out", str(folder / "mission"))
+        assert res.returncode == 0, res.stderr
+        return folder / "mission" / "flight.npz"
+
+    return built_once(tmp_path_factory, "mission", make)
 
 
 # ---- a flightlog-ref model (the masked profile plus deviations from the vehicle's own reference flights) on a
@@ -152,18 +180,20 @@ REFERENCE_TRAIN = [v if not v.startswith("train.profile=") else "train.profile=f
 @pytest.fixture(scope="session")
 def tiny_fleet(tmp_path_factory) -> Path:
     """A simulated tiny fleet run folder (FLEET_TINY), made once."""
-    sim = tmp_path_factory.mktemp("fleet_ref") / "tiny"
-    res = quadfdi("sim", "--config", str(ROOT / "configs/fleet.toml"), "--out", str(sim), "--workers", "1",
-                  *[a for v in FLEET_TINY for a in ("--set", v)])
-    assert res.returncode == 0, res.stderr
-    return sim
+    def make(folder: Path) -> Path:
+        res = quadfdi("sim", "--config", str(ROOT / "configs/fleet.toml"), "--out", str(folder / "tiny"), "--workers",
+                      "1", *[a for v in FLEET_TINY for a in ("--set", v)])
+        assert res.returncode == 0, res.stderr
+        return folder / "tiny"
+
+    return built_once(tmp_path_factory, "fleet_ref", make)
 
 
 @pytest.fixture(scope="session")
 def reference_export(tiny_fleet, tmp_path_factory) -> Path:
     """RUN/export of a tiny fleet run trained with the flightlog-ref profile through the CLI."""
-    return trained_export_run(tiny_fleet, tmp_path_factory.mktemp("fleet_ref_run") / "run", *REFERENCE_TRAIN,
-                              export_sets=tuple(FLIGHTLOG_ALARM)) / "export"
+    return built_once(tmp_path_factory, "fleet_ref_run", lambda folder: trained_export_run(
+        tiny_fleet, folder / "run", *REFERENCE_TRAIN, export_sets=tuple(FLIGHTLOG_ALARM)) / "export")
 
 
 # ---- a flightlog-phys model (flightlog-ref's channels and the causal physics channels, core/causal.py) on the
@@ -175,8 +205,8 @@ PHYSICS_TRAIN = [v if not v.startswith("train.profile=") else "train.profile=fli
 @pytest.fixture(scope="session")
 def physics_export(tiny_fleet, tmp_path_factory) -> Path:
     """RUN/export of the tiny fleet trained with the flightlog-phys profile through the CLI."""
-    return trained_export_run(tiny_fleet, tmp_path_factory.mktemp("fleet_phys_run") / "run", *PHYSICS_TRAIN,
-                              export_sets=tuple(FLIGHTLOG_ALARM)) / "export"
+    return built_once(tmp_path_factory, "fleet_phys_run", lambda folder: trained_export_run(
+        tiny_fleet, folder / "run", *PHYSICS_TRAIN, export_sets=tuple(FLIGHTLOG_ALARM)) / "export")
 
 
 # ---- a flightlog-mask model (the masked profile: whatever channels a log has) on the same tiny dataset:
@@ -188,8 +218,8 @@ MASKED_TRAIN = [v if not v.startswith("train.profile=") else "train.profile=flig
 @pytest.fixture(scope="session")
 def masked_export(flightlog_export, tmp_path_factory) -> Path:
     """RUN/export of the flightlog-min fixture's dataset trained with the masked profile through the CLI."""
-    return trained_export_run(flightlog_export.parent, tmp_path_factory.mktemp("masked_run") / "run", *MASKED_TRAIN,
-                              export_sets=tuple(FLIGHTLOG_ALARM)) / "export"
+    return built_once(tmp_path_factory, "masked_run", lambda folder: trained_export_run(
+        flightlog_export.parent, folder / "run", *MASKED_TRAIN, export_sets=tuple(FLIGHTLOG_ALARM)) / "export")
 
 
 # ---- the fault-injection suite's runs (tests/test_faults*.py)
@@ -217,14 +247,17 @@ def fault_exported(small_run, tmp_path_factory) -> Path:
     from quadfdi.export.run import export_run
     from quadfdi.train.run import train_run
 
-    run_dir = faultkit.copy_run(small_run, tmp_path_factory.mktemp("faults_train") / "run")
-    with pytest.MonkeyPatch.context() as mp:
-        mp.setattr(train_figures, "draw_all", lambda run, ds, result: [])
-        run, cfg = open_run(run_dir, ["train.epochs=1", "train.latent=8", "train.hidden=16", "train.gru_hidden=8",
-                                      "export.steps=2", "export.calib_windows=64"])
-        train_run(run, cfg, "both", log=lambda s: None)
-        export_run(run, cfg, log=lambda s: None)
-    return run_dir
+    def make(folder: Path) -> Path:
+        run_dir = faultkit.copy_run(small_run, folder / "run")
+        with pytest.MonkeyPatch.context() as mp:
+            mp.setattr(train_figures, "draw_all", lambda run, ds, result: [])
+            run, cfg = open_run(run_dir, ["train.epochs=1", "train.latent=8", "train.hidden=16", "train.gru_hidden=8",
+                                          "export.steps=2", "export.calib_windows=64"])
+            train_run(run, cfg, "both", log=lambda s: None)
+            export_run(run, cfg, log=lambda s: None)
+        return run_dir
+
+    return built_once(tmp_path_factory, "faults_train", make)
 
 
 # The longest files first: `make test` hands whole files to two workers (pytest-xdist --dist

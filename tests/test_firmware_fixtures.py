@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 
 from quadfdi.runtimes.build import build_host
-from tests.conftest import trained_export_run
+from tests.conftest import built_once, trained_export_run
 
 _CACHE: dict[str, object] = {}
 
@@ -22,8 +22,8 @@ _CACHE: dict[str, object] = {}
 def fw_run(small_run, tmp_path_factory) -> Path:
     """A small run (24 trajectories, 8 s), trained one epoch, exported with N = 8."""
     if "run" not in _CACHE:
-        _CACHE["run"] = trained_export_run(small_run, tmp_path_factory.mktemp("fwrun") / "run", "train.epochs=1",
-                                           "train.threads=1")
+        _CACHE["run"] = built_once(tmp_path_factory, "fwrun", lambda folder: trained_export_run(
+            small_run, folder / "run", "train.epochs=1", "train.threads=1"))
     return _CACHE["run"]  # type: ignore[return-value]
 
 
