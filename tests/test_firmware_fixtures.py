@@ -38,8 +38,8 @@ def host_build() -> Path:
 @pytest.fixture(scope="session")
 def asan_build() -> Path:
     """The cached sanitizer build (-fsanitize=address,undefined, assertions on) of the programs the sanitizer
-    tests run: the other twelve programs would add half again to its build."""
+    tests run (infer, parity, stream, kernels): the other twelve would add about half again to its build."""
     if "asan" not in _CACHE:
         _CACHE["asan"] = build_host(sanitize=True, log=lambda _: None,
-                                    targets=("fwref_infer", "fwref_parity", "fwref_stream"))
+                                    targets=("fwref_infer", "fwref_parity", "fwref_stream", "fwref_kernels"))
     return _CACHE["asan"]  # type: ignore[return-value]
