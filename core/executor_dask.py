@@ -174,6 +174,12 @@ def run_on_dask(todo: Sequence[Job], settings: "ExecSettings", done: Callable[[J
         # loops and failed with "Event ... bound to a different event loop".
         for fut in as_completed(futures, loop=client.loop):
             job = job_of[fut.key]
+            if fut.status == "lost":
+                # finished, then its worker died holding the (small) result before this loop read it: the
+                # scheduler runs the job again, which finds its output cached and returns at once. Waited for
+                # through the future (its own client's loop; distributed.wait would take the default client's)
+                with contextlib.suppress(Exception):  # an error of the run again is read from the future below
+                    fut.result()
             if fut.status != "finished":
                 exc = fut.exception() if fut.status == "error" else None
                 done(JobResult(job, "failed", error=one_line(exc) if exc else f"job {fut.status}"))

@@ -112,6 +112,46 @@ def test_worker_killed_mid_sweep(cluster, cfg, serial_bytes, tmp_path):
     client.wait_for_workers(2, timeout=60)
 
 
+def worker_pid(i: int, slow: str) -> dict:
+    if Path(slow).exists():  # the run again after a loss: slow, so that the loop reads the future while it is lost
+        time.sleep(3.0)
+    return {"job": i, "pid": os.getpid()}
+
+
+def test_a_result_lost_with_its_worker_after_the_job_ran_is_not_a_failure(cluster, tmp_path):
+    """A job finishes, then its worker dies holding the result before the loop reads it (the future turns
+    "lost"): the scheduler runs it again and it is a row that ran. (Its output is removed and the run again
+    made slow here, so that the loop surely reads the future while it is lost.)"""
+    from quadfdi.core.executor_dask import run_on_dask
+
+    address, client = cluster
+    slow = tmp_path / "slow"
+    jobs = [Job("t", job_key("t", {"i": i}), worker_pid, (i, str(slow)),
+                cache_path(tmp_path / "run", "t", job_key("t", {"i": i}), "json")) for i in range(2)]
+    results = []
+
+    def done(res) -> None:
+        if not results:  # the first result read: kill the worker that holds the other's before it is read
+            other = next(j for j in jobs if j is not res.job)
+            deadline = time.time() + 60
+            while not other.out.is_file() and time.time() < deadline:
+                time.sleep(0.02)
+            time.sleep(0.5)  # its future finishes on this client
+            victim = json.loads(other.out.read_text())["pid"]
+            slow.write_text("")
+            other.out.unlink()
+            os.kill(victim, signal.SIGKILL)
+            deadline = time.time() + 30
+            while victim in client.run(os.getpid, on_error="ignore").values() and time.time() < deadline:
+                time.sleep(0.1)
+            time.sleep(1.0)  # the scheduler has told this client the result is lost
+        results.append(res)
+
+    run_on_dask(jobs, ExecSettings(address), done, log=lambda s: None)
+    assert [r.status for r in results] == ["ran", "ran"], [r.error for r in results]
+    client.wait_for_workers(2, timeout=60)
+
+
 def always_fails(counter: str) -> dict:
     with open(counter, "a") as fh:
         fh.write("x\n")
