@@ -63,8 +63,9 @@ def run_export(args: argparse.Namespace) -> int:
     from quadfdi.core.records import verify_input
     from quadfdi.export.manifest import MODEL_KINDS
 
+    sim = {"sim": cfg.to_dict()["sim"]}
     for kind in MODEL_KINDS:  # as the stage consumes them, so that refusals come before torch and onnx load
-        verify_input(run.root, f"{kind}.pt", {"sim": cfg.to_dict()["sim"]}, ("sim",))
+        verify_input(run.root, f"{kind}.pt", sim, ("sim",))
     policies = policies_of(run, cfg.alarm, args.alarm_from)
     deployment = deployment_of(run)
     from quadfdi.export.run import export_run

@@ -162,13 +162,16 @@ def test_installed_quadfdi_is_the_wheel_and_names_configs(venv, place):
     assert not (cwd / "x").exists()
 
 
-def test_a_pipeline_from_an_empty_folder_builds_the_cpp_into_the_cache(venv, place):
-    """A flightlog-min model (a profile a real log can feed; tests/conftest.py's tiny realistic run)."""
+@pytest.fixture(scope="module")
+def pipeline(venv, place) -> Path:
+    """A flightlog-min model (a profile a real log can feed; tests/conftest.py's tiny realistic run) made by the
+    installed command from the empty folder: sim, train, export and parity, whose first C++ use builds the
+    sources into the empty cache. The realism refusal in between: the shipped configs' real logs lie beside a
+    checkout (../shared); from a wheel, the user names them."""
     cwd, cache = place
     assert not cache.exists()
     _quadfdi(venv, cwd, cache, "sim", "--config", "realistic", "--out", "flightlog", "--workers", "1",
              *_sets(FLIGHTLOG_TINY))
-    # the shipped configs' real logs lie beside a checkout (../shared): from a wheel, the user names them
     res = subprocess.run([str(venv / "bin" / "quadfdi"), "realism", "--run", "flightlog"], cwd=cwd, env=_env(cache),
                          capture_output=True, text=True, timeout=300)
     assert res.returncode == 2 and len(res.stderr.strip().splitlines()) == 1, res.stderr
@@ -177,24 +180,29 @@ def test_a_pipeline_from_an_empty_folder_builds_the_cpp_into_the_cache(venv, pla
     _quadfdi(venv, cwd, cache, "train", "--run", "flightlog", *_sets(FLIGHTLOG_TRAIN))
     _quadfdi(venv, cwd, cache, "export", "--run", "flightlog")
     _quadfdi(venv, cwd, cache, "parity", "--run", "flightlog", "--no-mcu")
+    return cwd / "flightlog"
+
+
+def test_a_pipeline_from_an_empty_folder_builds_the_cpp_into_the_cache(venv, place, pipeline):
+    cwd, cache = place
     # the first C++ use built the sources the wheel ships, in the folder their hash names
     home = cache / f"fwref-{firmware_digest(firmware_files(ROOT / 'firmware_ref'))[:16]}"
     assert [p.name for p in cache.iterdir()] == [home.name]
     assert (home / "build" / "fwref_infer").is_file() and (home / "build" / "fwref_parity").is_file()
     assert firmware_files(home / "src") == firmware_files(ROOT / "firmware_ref")
-    parity = json.loads((cwd / "flightlog" / "parity" / "parity.json").read_text())
+    parity = json.loads((pipeline / "parity" / "parity.json").read_text())
     assert parity["passed"] and Path(parity["firmware"]["build_dir"]).resolve() == (home / "build").resolve()
-    # nothing beside the run folder in the working folder, no build inside the installed package
-    assert [p.name for p in cwd.iterdir()] == ["flightlog"]
+    # nothing beside the run folder in the working folder (detect below writes later), no build inside the package
+    assert [p.name for p in cwd.iterdir()] == [pipeline.name]
     package = next((venv / "lib").glob("python3*/site-packages/quadfdi"))
     assert not list((package / "firmware_ref").glob("build*"))
 
 
 @pytest.mark.skipif(not MISSION.is_file(), reason=f"the shared real flight logs are not here ({MISSION})")
-def test_detect_with_the_cpp_runtime_on_a_real_flight(venv, place):
-    """The model the pipeline above exported, on a real flight through the same cached build."""
+def test_detect_with_the_cpp_runtime_on_a_real_flight(venv, place, pipeline):
+    """The pipeline's model, on a real flight through the same cached build."""
     cwd, cache = place
-    _quadfdi(venv, cwd, cache, "detect", "--model", "flightlog/export", str(MISSION), "--runtime", "cpp",
+    _quadfdi(venv, cwd, cache, "detect", "--model", str(pipeline / "export"), str(MISSION), "--runtime", "cpp",
              "--out", "detect")
     rec = json.loads((cwd / "detect" / "alarms.json").read_text())
     assert rec["profile"] == "flightlog-min" and 0 < rec["decided_windows"] <= rec["windows"]
