@@ -138,11 +138,29 @@ def locked(folder: Path) -> Iterator[None]:
         fh.close()
 
 
-def _run_logged(cmd: list[str], log_file: Path, what: str) -> None:
+def compiler_launcher() -> dict[str, str]:
+    """The CMake options that run every compile through ccache when it is on PATH (``QUADFDI_CCACHE=0``:
+    never): a build of sources already compiled with the same flags (another checkout's or a wheel's
+    copy of the same sources, a Cortex-M image rebuilt for a model of dimensions seen before) reads the
+    objects back instead of compiling them. ccache hashes the preprocessed source, the compiler and its
+    flags, so an object it returns is the one the compiler would write."""
+    ccache = shutil.which("ccache")
+    if os.environ.get("QUADFDI_CCACHE", "1") == "0":
+        ccache = None
+    # "" when there is none, so that a folder configured with it is configured again without it
+    return {"CMAKE_C_COMPILER_LAUNCHER": ccache or "", "CMAKE_CXX_COMPILER_LAUNCHER": ccache or ""}
+
+
+def _run_logged(cmd: list[str], log_file: Path, what: str, base_dir: Path | None = None) -> None:
+    env = dict(os.environ, LC_ALL="C")
+    if base_dir is not None:
+        # ccache rewrites the paths under base_dir relative to the build folder, so that copies of the
+        # sources and builds at another place with the same layout share its cache
+        env["CCACHE_BASEDIR"] = str(base_dir)
     with open(log_file, "a") as log:
         log.write("$ " + " ".join(cmd) + "\n")
         log.flush()
-        res = subprocess.run(cmd, stdout=log, stderr=subprocess.STDOUT, env=dict(os.environ, LC_ALL="C"))
+        res = subprocess.run(cmd, stdout=log, stderr=subprocess.STDOUT, env=env)
     if res.returncode != 0:
         tail = [ln for ln in log_file.read_text(errors="replace").splitlines() if "error" in ln.lower()]
         hint = f": {tail[0].strip()[:200]}" if tail else ""
@@ -151,8 +169,12 @@ def _run_logged(cmd: list[str], log_file: Path, what: str) -> None:
 
 def configure_and_build(source: Path, build_dir: Path, options: dict[str, str], what: str,
                          targets: tuple[str, ...] = ()) -> None:
-    """cmake -S source -B build_dir -D... (again only when an option changed), then cmake --build."""
+    """cmake -S source -B build_dir -D... (again only when an option changed), then cmake --build; through
+    ccache when there is one (``compiler_launcher``)."""
     require("cmake", "it builds firmware_ref")
+    options = {**compiler_launcher(), **options}
+    common = Path(os.path.commonpath([Path(source).resolve(), Path(build_dir).resolve()]))
+    base_dir = common if len(common.parts) > 2 else None  # not / or a top-level folder such as /tmp
     log_file = build_dir / "quadfdi-build.log"
     log_file.write_text("")
     cache = build_dir / "CMakeCache.txt"
@@ -167,11 +189,11 @@ def configure_and_build(source: Path, build_dir: Path, options: dict[str, str], 
     stale = not cached or any(f"{k}:" not in cached or f"={v}\n" not in _cache_line(cached, k) for k, v in options.items())
     if stale:
         _run_logged(["cmake", "-S", str(source), "-B", str(build_dir)] + [f"-D{k}={v}" for k, v in options.items()],
-                    log_file, f"configuring {what}")
+                    log_file, f"configuring {what}", base_dir)
     cmd = ["cmake", "--build", str(build_dir), "-j", str(JOBS)]
     for t in targets:
         cmd += ["--target", t]
-    _run_logged(cmd, log_file, f"building {what}")
+    _run_logged(cmd, log_file, f"building {what}", base_dir)
 
 
 def _cache_line(cache: str, key: str) -> str:

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Sets up everything quadfdi needs on a fresh Debian machine, idempotently:
-#   1. Debian packages (Eigen, CMake, g++, the arm-none-eabi toolchain, QEMU) if missing;
+#   1. Debian packages (Eigen, CMake, g++, ccache, the arm-none-eabi toolchain, QEMU) if missing;
 #   2. a virtualenv in .venv with torch==2.13.0 installed FIRST (the CPU build on this disk;
 #      otherwise pip resolves a multi-GB CUDA build), then the project and its test deps.
 set -euo pipefail
@@ -8,7 +8,7 @@ cd "$(dirname "$0")/.."
 
 DEB_PKGS=(cmake g++ make libeigen3-dev gcc-arm-none-eabi libnewlib-arm-none-eabi
           libstdc++-arm-none-eabi-newlib qemu-system-arm binutils-arm-none-eabi
-          time valgrind util-linux clang-14 libfuzzer-14-dev libclang-rt-14-dev chromium chromium-driver)
+          ccache time valgrind util-linux clang-14 libfuzzer-14-dev libclang-rt-14-dev chromium chromium-driver)
 missing=()
 for p in "${DEB_PKGS[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
