@@ -31,7 +31,7 @@ from quadfdi.core.jsonio import write_json
 from quadfdi.core.npzio import write_npz
 from quadfdi.formats.predictions import add_entries, check_prediction_set, prediction_path, read_index
 from quadfdi.formats.dataset import load_dataset
-from quadfdi.train.baselines import MAX_TRAIN_WINDOWS, MODELS, N_CONFIGS, REF_MODELS
+from quadfdi.train.baselines import MAX_TRAIN_WINDOWS, MODELS, REF_MODELS
 
 DATASET = "dataset.npz"  # the run's own dataset, relative to the run folder
 
@@ -99,7 +99,10 @@ def write_run(run_root: str | Path, done: list[dict[str, Any]], seed: int, cap: 
     entries, written = [], []
     for d in done:
         ev, s = d["evals"], d["sim_seed"]
-        record = {"dataset": d["dataset"], "sim_seed": s, "train_seed": int(seed), "n_configs": N_CONFIGS,
+        tried = sorted({len(res.record["validation_macro_f1"]) for res in d["results"].values()})
+        # the configurations each baseline fitted (one number: every grid has the same length)
+        record = {"dataset": d["dataset"], "sim_seed": s, "train_seed": int(seed),
+                  "n_configs": tried[0] if len(tried) == 1 else tried,
                   "max_train_windows": int(cap), "class_names": d["class_names"],
                   "split_names": d["split_names"], "selection": "validation macro F1 (split 1) only",
                   "models": {}}
