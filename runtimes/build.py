@@ -157,6 +157,9 @@ def _run_logged(cmd: list[str], log_file: Path, what: str, base_dir: Path | None
         # ccache rewrites the paths under base_dir relative to the build folder, so that copies of the
         # sources and builds at another place with the same layout share its cache
         env["CCACHE_BASEDIR"] = str(base_dir)
+    # the host build's precompiled Eigen/Core (firmware_ref/CMakeLists.txt) is cacheable only so: ccache
+    # then hashes the .gch itself rather than the macros and __TIME__ it was made with
+    env.setdefault("CCACHE_SLOPPINESS", "pch_defines,time_macros")
     with open(log_file, "a") as log:
         log.write("$ " + " ".join(cmd) + "\n")
         log.flush()
