@@ -260,13 +260,17 @@ def fault_exported(small_run, tmp_path_factory) -> Path:
     return built_once(tmp_path_factory, "faults_train", make)
 
 
-# The longest files first: `make test` hands whole files to two workers (pytest-xdist --dist
-# loadfile) in collection order, and a long file picked up last leaves the other worker idle at the
-# end. The longest by --durations: the pipeline run (~2 min), the firmware builds and QEMU parity,
-# the streaming runtime's and detect's exports, the bench, the tanhq proof.
-LONG_FILES = ("test_wheel.py", "test_pipeline.py", "test_firmware.py", "test_stream.py", "test_firmware_tanhq.py",
-              "test_masks_mcu.py", "test_masks.py", "test_detect_vehicle.py", "test_detect.py", "test_bench_report.py", "test_real_flights.py",
-              "test_fuzz.py", "test_stream_gaps.py", "test_distributed.py")
+# The longest files first, longest first: `make test` hands whole files to two workers (pytest-xdist
+# --dist loadfile) in collection order, and a long file picked up last leaves the other worker idle at
+# the end. The files of 20 worker-seconds or more in a fresh-clone `make test` (junit times, setup
+# included), by time: the pipeline run, the host and sanitizer builds, the fleet detect, the real
+# flights, the Dask sweeps, ...; the other 77 files (about 330 s) fill in after them.
+LONG_FILES = ("test_pipeline.py", "test_stream.py", "test_detect_vehicle.py", "test_real_flights.py",
+              "test_distributed.py", "test_solverstudy.py", "test_faults.py", "test_stream_cnode_onboard.py",
+              "test_firmware.py", "test_fuzz.py", "test_vehicle_record_mcu.py", "test_wheel.py",
+              "test_bench_report.py", "test_train_realistic.py", "test_masks_mcu.py", "test_sweep_reuse.py",
+              "test_parity.py", "test_phys_profile.py", "test_models.py", "test_firmware_tanhq.py",
+              "test_reference_profile.py", "test_export_trained.py", "test_detect.py", "test_baselines_suite.py")
 
 
 def pytest_collection_modifyitems(config, items):
