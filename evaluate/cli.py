@@ -22,9 +22,10 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from quadfdi.core.rundir import open_run
+
+    run_dir, cfg = open_run(args.run, args.overrides)  # a missing run or a bad override: refused before scipy loads
     from quadfdi.evaluate.run import evaluate_run
 
-    run_dir, cfg = open_run(args.run, args.overrides)
     argv = sys.argv[2:] if sys.argv[1:2] == ["evaluate"] else ["--run", args.run]
     for path in evaluate_run(run_dir.root, cfg, "quadfdi evaluate " + shlex.join(argv)):
         print(f"wrote {path}")
