@@ -7,6 +7,7 @@ from __future__ import annotations
 import fcntl
 import shutil
 import os
+import subprocess
 import time
 from pathlib import Path
 
@@ -122,6 +123,37 @@ def test_a_build_folder_configured_from_another_copy_of_the_sources_is_configure
         build.configure_and_build(src, out, {"X": "1"}, f"project {name}")
         assert (out / f"{name}.txt").is_file()
     assert f"CMAKE_HOME_DIRECTORY:INTERNAL={tmp_path / 'b'}" in (out / "CMakeCache.txt").read_text()
+
+
+def _ccache_hits(ccache_dir: Path) -> int:
+    out = subprocess.run(["ccache", "--print-stats"], env=dict(os.environ, CCACHE_DIR=str(ccache_dir)),
+                         capture_output=True, text=True, check=True).stdout
+    stats = dict(line.split("\t", 1) for line in out.splitlines() if "\t" in line)
+    return int(stats.get("direct_cache_hit", 0)) + int(stats.get("preprocessed_cache_hit", 0))
+
+
+def test_a_copy_of_the_sources_elsewhere_reads_its_objects_back_from_ccache(tmp_path, monkeypatch):
+    """Two cache folders of the same sources at different depths (a checkout's and a wheel's): the second
+    build compiles nothing (ccache, paths relative to each folder); QUADFDI_CCACHE=0 configures without it."""
+    if shutil.which("cmake") is None or shutil.which("c++") is None or shutil.which("ccache") is None:
+        pytest.skip("cmake, c++ or ccache not installed")
+    monkeypatch.setenv("CCACHE_DIR", str(tmp_path / "ccache"))
+    monkeypatch.delenv("QUADFDI_CCACHE", raising=False)
+    for i, home in enumerate((tmp_path / "a" / "fwref-x", tmp_path / "b" / "deeper" / "fwref-x")):
+        (home / "src").mkdir(parents=True)
+        (home / "build").mkdir()
+        (home / "src" / "CMakeLists.txt").write_text("cmake_minimum_required(VERSION 3.20)\nproject(p CXX)\n"
+                                                     "add_executable(prog prog.cpp)\n")
+        (home / "src" / "prog.cpp").write_text('#include "prog.hpp"\nint main() { return answer() - 42; }\n')
+        (home / "src" / "prog.hpp").write_text("inline int answer() { return 42; }\n")
+        build.configure_and_build(home / "src", home / "build", {}, "project p")
+        assert subprocess.run([str(home / "build" / "prog")]).returncode == 0
+        assert _ccache_hits(tmp_path / "ccache") == i  # the first compiles, the second reads back
+    assert f"CMAKE_CXX_COMPILER_LAUNCHER:UNINITIALIZED={shutil.which('ccache')}" in \
+        (home / "build" / "CMakeCache.txt").read_text()
+    monkeypatch.setenv("QUADFDI_CCACHE", "0")
+    build.configure_and_build(home / "src", home / "build", {}, "project p")  # configured again, without it
+    assert "CMAKE_CXX_COMPILER_LAUNCHER:UNINITIALIZED=\n" in (home / "build" / "CMakeCache.txt").read_text()
 
 
 def test_the_pipeline_skips_realism_with_one_line_from_a_wheel(monkeypatch, capsys, tmp_path):
