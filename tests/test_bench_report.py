@@ -12,10 +12,9 @@ from pathlib import Path
 
 import pytest
 
-from quadfdi.runtimes.build import host_build_dir
 from tests.conftest import ROOT, copy_run, quadfdi, random_weight_run
+from tests.test_firmware_fixtures import host_build  # noqa: F401 (fixture)
 
-FWREF = host_build_dir() / "fwref_infer"  # the C++ rows are measured when the cached host build exists
 LATENCY_KEYS = {"model", "runtime", "precision", "solver", "threads", "spinning", "batch", "p50_us", "p90_us",
                 "p99_us", "throughput_wps"}
 MEMORY_KEYS = {"model", "runtime", "precision", "solver", "item", "value", "unit", "source"}
@@ -48,12 +47,11 @@ def exported_run(small_run, tmp_path_factory) -> Path:
 
 
 @pytest.fixture(scope="module")
-def benched(exported_run) -> Path:
+def benched(exported_run, host_build) -> Path:  # noqa: F811 (the C++ rows: the cached host build made first)
     # timings on a test machine are not under test (test_pipeline does the same): with the other test
     # worker on the second core the peak probe reads low, the floors come out too high, and a floor
     # violation (reported in bench.json either way) must not fail the stage here
-    args = ["--run", str(exported_run), "--quick", "--set", "bench.fail_below_floor=false"] + \
-        ([] if FWREF.is_file() else ["--skip-cpp"])
+    args = ["--run", str(exported_run), "--quick", "--set", "bench.fail_below_floor=false"]
     res = quadfdi_bench(*args)
     assert res.returncode == 0, res.stderr[-3000:]
     assert "bench: wrote" in res.stdout
@@ -79,9 +77,7 @@ def test_bench_json_holds_every_field(benched):
     expected = {("torch", "cnode", "fp32", "rk4-2"), ("torch", "cnode", "fp32", "dopri5-1e-3"),
                 ("torch", "gru", "fp32", "gru")}
     expected |= {("ort", m, p, "rk4-2" if m == "cnode" else "gru") for m in ("cnode", "gru") for p in ("fp32", "int8")}
-    if FWREF.is_file():
-        expected |= {("cpp", m, p, "rk4-2" if m == "cnode" else "gru")
-                     for m in ("cnode", "gru") for p in ("fp32", "int8")}
+    expected |= {("cpp", m, p, "rk4-2" if m == "cnode" else "gru") for m in ("cnode", "gru") for p in ("fp32", "int8")}
     assert settings == expected
     assert all(r.get("spinning") is False for r in recs if r["runtime"] == "ort")
     assert all(r.get("spinning") is None for r in recs if r["runtime"] != "ort")
@@ -103,7 +99,7 @@ def test_bench_json_holds_every_field(benched):
     assert ("peak_rss_above_baseline_batch1_bytes", "torch") in items
     assert bench["solvers"] == [] and "no solver study" in bench["solvers_meta"]["note"]  # no solvers/solvers.json
     stream = bench["stream"]  # bench/stream.py: measured with the C++ reference, else skipped with a reason
-    assert (len(stream["latency"]) == 4 and len(stream["flights"]) == 1) if FWREF.is_file() else stream["skipped"]
+    assert len(stream["latency"]) == 4 and len(stream["flights"]) == 1
     pairs = bench["ort_pairs"]  # bench/ort_pairs.py: fp32 and int8 interleaved in one process, per model
     assert set(pairs) == {"cnode", "gru"} and all([p["batch"] for p in v] == [1, 96] for v in pairs.values())
     for p in (p for v in pairs.values() for p in v):
@@ -112,17 +108,13 @@ def test_bench_json_holds_every_field(benched):
     ort_rows = [t for t in bench["targets"] if t["target"].startswith("ORT int8")]
     assert len(ort_rows) == 4 and all("interleaved in one process" in t["detail"] for t in ort_rows)
     cpp_pairs = bench["cpp_pairs"]  # bench/cpp_pairs.py: fwref_pair, or skipped with the reason
-    if FWREF.is_file() and (FWREF.parent / "fwref_pair").is_file():
-        assert set(cpp_pairs) == {"cnode", "gru"} and all(v[0]["batch"] == 1 for v in cpp_pairs.values())
-        assert all(v[0]["rounds"] == quick.n // 4 and v[0]["int8_over_fp32_median"] > 0 for v in cpp_pairs.values())
-        cpp_rows = [t for t in bench["targets"] if "as fast as fp32" in t["target"]]
-        assert len(cpp_rows) == 2 and all("in one process (fwref_pair)" in t["detail"] for t in cpp_rows)
-    else:
-        assert set(cpp_pairs) == {"skipped"}
-    if FWREF.is_file():
-        assert ("static_ram_bytes", "cpp") in items
-        assert {t["model"] for t in bench["targets"]} == {"cnode", "gru"}
-        assert all({"target", "measured", "threshold", "met"} <= set(t) for t in bench["targets"])
+    assert set(cpp_pairs) == {"cnode", "gru"} and all(v[0]["batch"] == 1 for v in cpp_pairs.values())
+    assert all(v[0]["rounds"] == quick.n // 4 and v[0]["int8_over_fp32_median"] > 0 for v in cpp_pairs.values())
+    cpp_rows = [t for t in bench["targets"] if "as fast as fp32" in t["target"]]
+    assert len(cpp_rows) == 2 and all("in one process (fwref_pair)" in t["detail"] for t in cpp_rows)
+    assert ("static_ram_bytes", "cpp") in items
+    assert {t["model"] for t in bench["targets"]} == {"cnode", "gru"}
+    assert all({"target", "measured", "threshold", "met"} <= set(t) for t in bench["targets"])
 
 
 def test_report_assembles_every_stage_present(benched):
