@@ -117,6 +117,27 @@ def test_bench_json_holds_every_field(benched):
     assert all({"target", "measured", "threshold", "met"} <= set(t) for t in bench["targets"])
 
 
+def test_skip_cpp_measures_python_and_ort_only_and_says_why(exported_run, tmp_path):
+    """``--skip-cpp`` (a machine without the C++ toolchain, or a quicker pass): no C++ row, pair or stream, each
+    part that needs the C++ reference skipped with the reason; the report still assembles and says so."""
+    run = tmp_path / "skipcpp"
+    shutil.copytree(exported_run, run, ignore=shutil.ignore_patterns("bench.json", "report.md", "figures"))
+    res = quadfdi_bench("--run", str(run), "--quick", "--skip-cpp", "--set", "bench.fail_below_floor=false")
+    assert res.returncode == 0, res.stderr[-3000:]
+    bench = json.loads((run / "bench.json").read_text())
+    assert " --quick --skip-cpp" in bench["command"]
+    assert {r["runtime"] for r in bench["latency"]} == {"torch", "ort"}
+    # weights.bin's size is a file's, read without the C++; the sizes of a built binary are not there
+    assert {m["item"] for m in bench["memory"] if m["runtime"] == "cpp"} == {"file_bytes"}
+    assert any("--skip-cpp" in s for s in bench["skipped"])
+    for part in ("cpp_pairs", "stream"):
+        assert set(bench[part]) == {"skipped"} and "--skip-cpp" in bench[part]["skipped"], part
+    assert not any("as fast as fp32" in t["target"] for t in bench["targets"])  # the C++ int8 targets need fwref_pair
+    res = quadfdi_report(run)
+    assert res.returncode == 0, res.stderr[-3000:]
+    assert "C++ reference not measured: --skip-cpp" in (run / "report.md").read_text()
+
+
 def test_report_assembles_every_stage_present(benched):
     text = (benched / "report.md").read_text()
     for heading in ("# quadfdi run report", "## Simulation", "## Export", "## Bench: latency, memory, limits",
