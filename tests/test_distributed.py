@@ -35,6 +35,11 @@ cloudpickle.register_pickle_by_value(sys.modules[__name__])
 TINY = ["sim.n_traj=12", "sim.duration_s=2.0", "sim.onset_frac=[0.1, 0.3]", "sim.ramp_frac=[0.2, 0.4]",
         "sim.window=40", "sim.stride=5", "sim.chunk=2"]
 CLI_TINY = [a for kv in TINY for a in ("--set", kv)]
+# The interrupt tests' sweep: 48 one-trajectory shards, so that after the first shard lands the others still take
+# seconds of the cluster's per-job round trips (with TINY's six shards a fast machine finished the whole sweep
+# before the SIGINT was handled, and there was nothing to resume).
+LONG = [kv for kv in TINY if not kv.startswith(("sim.n_traj=", "sim.chunk="))] + ["sim.n_traj=48", "sim.chunk=1"]
+CLI_LONG = [a for kv in LONG for a in ("--set", kv)]
 
 
 @pytest.fixture(scope="module")
@@ -56,6 +61,15 @@ def cfg():
 def serial_bytes(cfg, tmp_path_factory) -> bytes:
     """The dataset as the serial simulator writes it in one go (no shards, no executor)."""
     p = tmp_path_factory.mktemp("serial") / "dataset.npz"
+    write_npz(p, dataset_arrays(generate(cfg.sim), cfg.sim))
+    return p.read_bytes()
+
+
+@pytest.fixture(scope="module")
+def long_serial_bytes(tmp_path_factory) -> bytes:
+    """LONG's dataset as the serial simulator writes it."""
+    cfg = load_config(ROOT / "configs/paper.toml", LONG)
+    p = tmp_path_factory.mktemp("serial_long") / "dataset.npz"
     write_npz(p, dataset_arrays(generate(cfg.sim), cfg.sim))
     return p.read_bytes()
 
@@ -181,20 +195,18 @@ def test_resume_runs_only_what_is_missing(cluster, cfg, serial_bytes, tmp_path):
     assert run.dataset.read_bytes() == serial_bytes
 
 
-def test_interrupted_cli_sweep_resumes(cluster, serial_bytes, tmp_path):
+def test_interrupted_cli_sweep_resumes(cluster, long_serial_bytes, tmp_path):
     """SIGINT to `quadfdi sim` mid-sweep: exit 130, no dataset; the rerun keeps the finished shards."""
     out = tmp_path / "r"
     cache = out / "cache" / KIND
     env = dict(os.environ)
-    args = [sys.executable, "-m", "quadfdi.cli", "sim", "--out", str(out), "--scheduler", cluster[0], *CLI_TINY]
+    args = [sys.executable, "-m", "quadfdi.cli", "sim", "--out", str(out), "--scheduler", cluster[0], *CLI_LONG]
     proc = subprocess.Popen(args, cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     deadline = time.time() + 300
     while time.time() < deadline and not list(cache.glob("*.npz")) and proc.poll() is None:
         time.sleep(0.02)
     proc.send_signal(signal.SIGINT)
     _, err = proc.communicate(timeout=120)
-    if proc.returncode == 0:
-        pytest.skip("the sweep finished before the interrupt landed")  # a fast machine; nothing to resume
     assert proc.returncode == 130, err
     assert not (out / "dataset.npz").exists()
     # The cluster outlives the interrupted client: a worker already running a shard finishes it and
@@ -207,10 +219,11 @@ def test_interrupted_cli_sweep_resumes(cluster, serial_bytes, tmp_path):
     assert _tmp_files(out) == []
     done = {p: (p.stat().st_ino, p.stat().st_mtime_ns) for p in cache.glob("*.npz")}
     assert 1 <= len(done)
-    res = quadfdi("sim", "--out", str(out), "--scheduler", cluster[0], *CLI_TINY)
+    assert len(done) < 48  # interrupted: shards were left to run
+    res = quadfdi("sim", "--out", str(out), "--scheduler", cluster[0], *CLI_LONG)
     assert res.returncode == 0, res.stderr
     assert all((p.stat().st_ino, p.stat().st_mtime_ns) == s for p, s in done.items())
-    assert (out / "dataset.npz").read_bytes() == serial_bytes
+    assert (out / "dataset.npz").read_bytes() == long_serial_bytes
 
 
 @pytest.mark.slow
@@ -376,7 +389,7 @@ def test_ctrl_c_on_a_local_cluster_sweep_is_one_line(tmp_path):
     """Ctrl-C reaches the whole process group (the CLI and its local Dask workers): one line, exit 130,
     no worker traceback."""
     out = tmp_path / "r"
-    args = [sys.executable, "-m", "quadfdi.cli", "sim", "--out", str(out), "--workers", "2", *CLI_TINY]
+    args = [sys.executable, "-m", "quadfdi.cli", "sim", "--out", str(out), "--workers", "2", *CLI_LONG]
     proc = subprocess.Popen(args, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             start_new_session=True)
     cache = out / "cache" / KIND
@@ -385,8 +398,6 @@ def test_ctrl_c_on_a_local_cluster_sweep_is_one_line(tmp_path):
         time.sleep(0.02)
     os.killpg(proc.pid, signal.SIGINT)
     _, err = proc.communicate(timeout=120)
-    if proc.returncode == 0:
-        pytest.skip("the sweep finished before the interrupt landed")
     assert proc.returncode == 130, err
     assert "Traceback" not in err, err[-3000:]
     lines = [ln for ln in err.splitlines() if ln.strip() and "shards" not in ln and "dask:" not in ln]
