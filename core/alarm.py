@@ -226,6 +226,15 @@ def reach(valid: np.ndarray, k: int, n: int, window: int, stride: int, dt: float
             "needs_s": round((int(window) + (int(k) - 1) * int(stride)) * float(dt), 3)}
 
 
+def reach_note(r: dict | None) -> str | None:
+    """One line when the policy could raise no alarm on a flight (``r``: reach's dict, or None when not
+    computed), else None."""
+    if r is None or r["possible"]:
+        return None
+    return (f"no alarm was possible: the policy needs {r['k']} votes among {r['n']} windows ({r['needs_s']:g} s of "
+            f"decided flight in a row) and this flight has at most {r['most_votes']} decided windows among {r['n']}")
+
+
 def reported_motor(cls: np.ndarray, motor: np.ndarray, rotor: np.ndarray | None) -> np.ndarray:
     """Rule 5: ``motor`` (0..3, AlarmTrace.motor) where the alarm's class ``cls`` is a rotor-side
     column of ``rotor`` (K,) bool, else -1 (inactive, no motor_proba, a battery alarm, or no

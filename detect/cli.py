@@ -81,10 +81,11 @@ def run(args: argparse.Namespace) -> int:
 
 def single(args: argparse.Namespace, flight, reference=None, note: str | None = None) -> int:
     """One flight into DIR (alarms.json, windows.npz, detect.png, evidence.json, index.html, plotly.min.js)."""
+    from quadfdi.core.alarm import reach_note
     from quadfdi.detect.batch import decide_flight, write_flight_folder
     from quadfdi.detect.html import write_plotly_js
     from quadfdi.detect.reference import said
-    from quadfdi.detect.run import unreachable_note, write_detect
+    from quadfdi.detect.run import write_detect
 
     result, arrays, evidence, date = decide_flight(flight, args.model, args.net, args.precision,
                                                    args.runtime, reference, note)  # refusals raise here
@@ -92,7 +93,7 @@ def single(args: argparse.Namespace, flight, reference=None, note: str | None = 
     write_plotly_js(Path(args.out))
     write_flight_folder(Path(args.out), result, arrays, evidence, date, "plotly.min.js", None)
     print(f"detect: {said(result['record']['vehicle_reference'], result['reference_note'])}")
-    note = unreachable_note(result["record"])
+    note = reach_note(result["record"].get("alarm_reach"))
     if note:
         print(f"detect: {note}")
     return 0

@@ -15,10 +15,10 @@ import json
 
 import numpy as np
 
+from quadfdi.core.alarm import reach_note
 from quadfdi.detect.flightplot import UNDECIDED, figure
 from quadfdi.detect.html import esc, fmt, json_script, page
 from quadfdi.detect.reference_html import evidence_table, section
-from quadfdi.detect.run import unreachable_note
 
 SCRIPT = """
 const q = window.quadfdi = {figure: JSON.parse(document.getElementById('figure-data').textContent),
@@ -74,7 +74,7 @@ def _facts(rec: dict, flight: dict, date: str | None, duration: float) -> str:
 
 def _alarm_table(rec: dict, t_last: float) -> str:
     if not rec["alarms"]:
-        note = unreachable_note(rec)
+        note = reach_note(rec.get("alarm_reach"))
         if note:
             return f"<p class=\"refused\">{esc(note[0].upper() + note[1:])}.</p>"
         return "<p class=\"ok\">No alarm.</p>"

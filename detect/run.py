@@ -131,15 +131,6 @@ def detect(model: str | Path, flight: str | Path | dict, net: str = "cnode", pre
     return {"record": record, "arrays": arrays, "inputs": fi, "window": window}
 
 
-def unreachable_note(record: dict) -> str | None:
-    """One line when the policy could raise no alarm on the flight (core.alarm.reach), else None."""
-    r = record.get("alarm_reach")
-    if r is None or r["possible"]:
-        return None
-    return (f"no alarm was possible: the policy needs {r['k']} votes among {r['n']} windows ({r['needs_s']:g} s of "
-            f"decided flight in a row) and this flight has at most {r['most_votes']} decided windows among {r['n']}")
-
-
 def write_detect(out: str | Path, result: dict, log: Callable[[str], None] = print) -> None:
     from quadfdi.core.atomic import ensure_dir
     from quadfdi.core.jsonio import write_json

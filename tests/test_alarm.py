@@ -122,3 +122,13 @@ def test_reach_says_exactly_when_a_certain_fault_can_raise():
         seen.add(r["possible"])
     assert seen == {True, False}  # both outcomes drawn
     assert reach(np.ones(5, bool), 2, 3, window=120, stride=20, dt=0.04)["needs_s"] == pytest.approx(5.6)
+
+
+def test_reach_note_is_one_line_only_when_no_alarm_was_possible():
+    from quadfdi.core.alarm import reach, reach_note
+
+    short = reach(np.array([True, False, False, True]), 3, 4, window=120, stride=20, dt=0.04)
+    assert reach_note(short) == ("no alarm was possible: the policy needs 3 votes among 4 windows (6.4 s of decided "
+                                 "flight in a row) and this flight has at most 2 decided windows among 4")
+    assert reach_note(reach(np.ones(4, bool), 3, 4, window=120, stride=20, dt=0.04)) is None
+    assert reach_note(None) is None  # a record written before reach was computed
