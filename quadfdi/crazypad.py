@@ -113,7 +113,7 @@ def score(run: str, pad: Path, logs: Path | None, workers: int, log=print) -> di
     px4 = None if logs is None else px4_part(choice["export"], choice["net"], logs, tuple(f"{h}.ulg" for h in HEALTHY),
                                             log=log)
     return {"choice": choice, "reference": reference, "crazypad": str(pad), "decided": decided, "table": cells,
-            "gates": crazypad_gates(cells) + [px4_gate(px4)], "px4": px4}
+            "gates": crazypad_gates(cells, decided["rows"]) + [px4_gate(px4)], "px4": px4}
 
 
 def write_outputs(out: Path, result: dict) -> None:

@@ -66,8 +66,22 @@ def _auroc_gate(cells: list[dict], group: str) -> dict:
                  f">= {known[best] - slack:.3f}", gap <= 1e-12, f"{gap:.3f} AUROC")
 
 
-def crazypad_gates(cells: list[dict]) -> list[dict]:
-    """The CrazyPAD gates, all sessions, the network with the reference."""
+def separable(rows: list[dict], key: str = "net_ref") -> dict | None:
+    """The bound the network's ranking puts on any threshold: the healthy test flights' largest score
+    (``healthy_max``) and how many >= 3 mm cuts score above it (``above``), i.e. what a 1-of-1 policy with
+    a threshold just above every healthy test flight would alarm. A diagnostic of ranking against
+    calibration, read off the test flights: never a policy (None without both groups)."""
+    healthy = [r["rules"][key]["score"] for r in rows if r.get("group") == HEALTHY and key in r.get("rules", {})]
+    deep = [r["rules"][key]["score"] for r in rows if r.get("group") == DEEP and key in r.get("rules", {})]
+    if not healthy or not deep:
+        return None
+    top = max(healthy)
+    return {"healthy_max": top, "above": sum(1 for v in deep if v > top), "flights": len(deep)}
+
+
+def crazypad_gates(cells: list[dict], rows: list[dict] | None = None) -> list[dict]:
+    """The CrazyPAD gates, all sessions, the network with the reference (``rows``: the decided logs, for
+    the ranking bound in the >= 3 mm gate's note)."""
     out = []
     h = cell(cells, "net_ref", HEALTHY)
     out.append(_gate("healthy test flights alarmed", None if h is None else f"{h['alarmed']} of {h['flights']}",
@@ -80,10 +94,14 @@ def crazypad_gates(cells: list[dict]) -> list[dict]:
                          "(no such flight)"))
     else:
         need = math.ceil(SHARE_ALARMED * d["flights"] - 1e-9)
+        bound = separable(rows or [])
+        bound_text = "" if bound is None else (
+            f"; a threshold just above every healthy test flight's largest p(fault) ({bound['healthy_max']:.3f}), "
+            f"1 of 1, would alarm {bound['above']}")
         out.append(_gate(f"{DEEP} alarmed", f"{d['alarmed']} of {d['flights']}", f">= {need} ({SHARE_ALARMED:.0%})",
                          d["alarmed"] >= need, f"{need - d['alarmed']} flight(s) (the policy could raise on "
                          f"{d['could_alarm']} of the {d['flights']}; {d['voted']} had a window at or above its "
-                         "threshold)"))
+                         f"threshold{bound_text})"))
         need_m = math.ceil(SHARE_NAMED * d["alarmed"] - 1e-9)
         out.append(_gate(f"{DEEP}: cut motor (M3) named among the alarmed", f"{d['right_motor']} of {d['alarmed']}",
                          f">= {need_m} ({SHARE_NAMED:.0%})", d["alarmed"] > 0 and d["right_motor"] >= need_m,

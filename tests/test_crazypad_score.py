@@ -120,6 +120,22 @@ def test_groups_and_the_reference_flights_in_none(scored):
     auroc = next(c for c in cells if (c["rule"], c["group"], c["session"]) == ("net_ref", "M3 cut >= 3 mm", "all"))
     expect = np.mean([(d > h) + 0.5 * (d == h) for d in deep for h in healthy_max])
     assert auroc["auroc"] == pytest.approx(expect)
+    deep_gate = next(g for g in result["gates"] if g["gate"] == "M3 cut >= 3 mm alarmed")
+    if not deep_gate["met"]:  # the ranking bound in the note, from the same scores
+        above = sum(d > max(healthy_max) for d in deep)
+        assert f"({max(healthy_max):.3f}), 1 of 1, would alarm {above})" in deep_gate["missed_by"]
+
+
+def test_the_ranking_bound_counts_deep_cuts_above_every_healthy_test_flight():
+    from quadfdi.crazypad_table import separable
+
+    def row(group, score):
+        return {"group": group, "rules": {"net_ref": {"score": score}}}
+
+    rows = [row("healthy test", 0.90), row("healthy test", 0.97), row("M3 cut >= 3 mm", 0.97),
+            row("M3 cut >= 3 mm", 0.985), row("M3 cut >= 3 mm", 0.999), row(None, 1.0), row("debris", 0.99)]
+    assert separable(rows) == {"healthy_max": 0.97, "above": 2, "flights": 3}  # a tie with a healthy flight is not
+    assert separable([r for r in rows if r["group"] != "healthy test"]) is None
 
 
 def test_motors_are_traced_to_the_log_names(scored):
