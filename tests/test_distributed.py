@@ -85,6 +85,16 @@ def test_local_workers_and_this_process_keep_glibc_memory_trimming_off(cluster):
     assert "MALLOC_TRIM_THRESHOLD_" not in os.environ
 
 
+def _sigint_default() -> None:
+    """In the child before exec: SIGINT handled by default and not blocked, as in a terminal. Both the
+    disposition and the signal mask are inherited through exec: a test process that ignores or blocks SIGINT
+    (a shell's background job without job control, a library's thread state) makes a child Python that never
+    raises KeyboardInterrupt, and these tests would see the sweep finish instead of the interrupt they are
+    about (tests/faultkit.py does the same for its fault points)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+
+
 def _tmp_files(root: Path) -> list[str]:
     return sorted(p.name for p in root.rglob("*.tmp"))
 
@@ -201,7 +211,8 @@ def test_interrupted_cli_sweep_resumes(cluster, long_serial_bytes, tmp_path):
     cache = out / "cache" / KIND
     env = dict(os.environ)
     args = [sys.executable, "-m", "quadfdi.cli", "sim", "--out", str(out), "--scheduler", cluster[0], *CLI_LONG]
-    proc = subprocess.Popen(args, cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc = subprocess.Popen(args, cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=_sigint_default)
     deadline = time.time() + 300
     while time.time() < deadline and not list(cache.glob("*.npz")) and proc.poll() is None:
         time.sleep(0.02)
@@ -391,7 +402,7 @@ def test_ctrl_c_on_a_local_cluster_sweep_is_one_line(tmp_path):
     out = tmp_path / "r"
     args = [sys.executable, "-m", "quadfdi.cli", "sim", "--out", str(out), "--workers", "2", *CLI_LONG]
     proc = subprocess.Popen(args, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            start_new_session=True)
+                            start_new_session=True, preexec_fn=_sigint_default)
     cache = out / "cache" / KIND
     deadline = time.time() + 300
     while time.time() < deadline and not list(cache.glob("*.npz")) and proc.poll() is None:
