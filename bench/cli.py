@@ -105,8 +105,10 @@ def run_kernels(args: argparse.Namespace) -> int:
         raise QuadfdiError(f"no fwref_infer to count: {how}")
     records = kernel_counts(fwref, str(export.weights_path), test_windows(run, export).x, export.manifest)
     kernels = Path(fwref).parent / "fwref_kernels"  # absent when find_fwref built fwref_infer alone
-    info = subprocess.run([str(kernels), "--info"], capture_output=True, text=True) if kernels.is_file() else \
-        subprocess.CompletedProcess([], 1, "", "")
+    # --info under valgrind, as the counts ran: valgrind hides AVX-512 from cpuid, so on an AVX-512 CPU the int8
+    # kernel the counts saw is the AVX2 one, not the one this CPU picks natively
+    info = subprocess.run(["valgrind", "--tool=none", "-q", str(kernels), "--info"], capture_output=True, text=True) \
+        if kernels.is_file() else subprocess.CompletedProcess([], 1, "", "")
     print(f"fwref_infer: {fwref}")
     print(info.stdout.strip() or "(fwref_kernels --info not available)")
     print("\n".join(kernels_table(records)))
