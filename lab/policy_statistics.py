@@ -4,7 +4,10 @@ left out, as evaluate leaves them), three statistics of a decided window's class
 ``fault`` = 1 - p(Healthy) (what the alarm policy reads), ``rotor`` = p(MotorFault) + p(PropellerFault)
 (the classes a damaged propeller belongs to), ``top`` = the largest fault class. For each, the threshold of
 a 1-of-1 rule that alarms 0, 2 or 5 healthy validation flights (their flight maxima, in order), and the
-faulty flights it detects (a decided window after onset above it), per class.
+faulty flights it detects (a decided window after onset above it), per class. Then the healthy validation
+flights whose largest 1 - p(Healthy) sets those thresholds (the top 8 over the sets): their vehicle, mission type
+(sim/mission.py: 0 hover, 1 survey, 2 aggressive), vibration floor, and the class of their top window, beside the
+mean mission type and vibration floor of all healthy validation flights.
 
     python lab/policy_statistics.py RUN MODEL       # e.g. a fleet run and gru
 """
@@ -55,6 +58,34 @@ def flight_maxima(run: Path, model: str) -> tuple[dict, dict, tuple[str, ...]]:
     return healthy, faulty, names
 
 
+def top_healthy(run: Path, model: str, n: int = 8) -> list[str]:
+    """The ``n`` healthy validation flights (over the model's sets) with the largest 1 - p(Healthy)."""
+    sets, infos = load_run(run)
+    found, every = [], {"mission_type": [], "vib_floor_ms2": []}
+    for fl in (s for s in sets if s.model == model):
+        info = infos[fl.dataset]
+        with np.load(run / fl.dataset) as z:
+            arrays = {k: z[k] for k in ("mission_type", "vib_floor_ms2", "vehicle_id", "fault_class")}
+        val = fl.subset(fl.split == info.split_names.index("validation"))
+        h = fl.class_names.index("Healthy")
+        decided = val.decided if val.decided is not None else val.valid
+        pf = np.where(decided, 1.0 - val.proba[..., h], -1.0)
+        for i, row in enumerate(val.rows):
+            if arrays["fault_class"][row] != h:
+                continue
+            for k in every:
+                every[k].append(float(arrays[k][row]))
+            w = int(pf[i].argmax())
+            found.append((float(pf[i, w]), f"sim {fl.sim_seed} train {fl.train_seed} row {row}: vehicle "
+                                           f"{arrays['vehicle_id'][row]}, mission {arrays['mission_type'][row]}, "
+                                           f"vibration floor {arrays['vib_floor_ms2'][row]:.1f} m/s2, top window "
+                                           f"{fl.class_names[int(val.proba[i, w].argmax())]}"))
+    found.sort(key=lambda t: -t[0])
+    return ([f"all healthy validation flights: mission type mean {np.mean(every['mission_type']):.2f}, vibration "
+             f"floor mean {np.mean(every['vib_floor_ms2']):.1f} m/s2"]
+            + [f"{p:.4f} {text}" for p, text in found[:n]])
+
+
 def main(run: Path, model: str) -> None:
     healthy, faulty, _ = flight_maxima(run, model)
     print(f"{model}: {len(healthy['fault'])} healthy and {len(faulty['fault'])} faulty validation flights "
@@ -69,6 +100,7 @@ def main(run: Path, model: str) -> None:
             print(f"{key:6s} healthy flights alarmed {n_fa}: threshold {t:.4f}, faulty detected "
                   f"{sum(found.values())}/{len(faulty[key])} "
                   + ", ".join(f"{c} {found[c]}/{total[c]}" for c in classes))
+    print("\n".join(top_healthy(run, model)))
 
 
 if __name__ == "__main__":
