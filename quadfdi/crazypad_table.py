@@ -4,7 +4,8 @@ alarmed, right motor named among the alarmed, motors named, max and mean score, 
 healthy test flights against the group on each flight's score), each network cell with the classes its
 alarms named, p(fault) pooled over the group's decided windows, the flights on which the policy could
 raise at all (core.alarm.reach) and those with a window at or above its threshold; then the "Done when" gates (CrazyPAD
-and the shared PX4 flights), each met or missed by how much.
+and the shared PX4 flights), each met or missed by how much, the >= 3 mm gate's note with the ranking bound
+(``separable``).
 """
 
 from __future__ import annotations
