@@ -31,9 +31,8 @@ def statistics(proba: np.ndarray, names: tuple[str, ...]) -> dict[str, np.ndarra
             "top": np.max(np.delete(proba, h, axis=-1), axis=-1)}
 
 
-def flight_maxima(run: Path, model: str) -> tuple[dict, dict, tuple[str, ...]]:
+def flight_maxima(sets: list, infos: dict, model: str) -> tuple[dict, dict, tuple[str, ...]]:
     """Per statistic: healthy validation flights' maxima; faulty flights' (maximum after onset, class)."""
-    sets, infos = load_run(run)
     healthy: dict[str, list] = {}
     faulty: dict[str, list] = {}
     names: tuple[str, ...] = ()
@@ -58,9 +57,8 @@ def flight_maxima(run: Path, model: str) -> tuple[dict, dict, tuple[str, ...]]:
     return healthy, faulty, names
 
 
-def top_healthy(run: Path, model: str, n: int = 8) -> list[str]:
+def top_healthy(sets: list, infos: dict, run: Path, model: str, n: int = 8) -> list[str]:
     """The ``n`` healthy validation flights (over the model's sets) with the largest 1 - p(Healthy)."""
-    sets, infos = load_run(run)
     found, every = [], {"mission_type": [], "vib_floor_ms2": []}
     for fl in (s for s in sets if s.model == model):
         info = infos[fl.dataset]
@@ -87,7 +85,8 @@ def top_healthy(run: Path, model: str, n: int = 8) -> list[str]:
 
 
 def main(run: Path, model: str) -> None:
-    healthy, faulty, _ = flight_maxima(run, model)
+    sets, infos = load_run(run)
+    healthy, faulty, _ = flight_maxima(sets, infos, model)
     print(f"{model}: {len(healthy['fault'])} healthy and {len(faulty['fault'])} faulty validation flights "
           "(every prediction set of the model)")
     for key in healthy:
@@ -100,7 +99,7 @@ def main(run: Path, model: str) -> None:
             print(f"{key:6s} healthy flights alarmed {n_fa}: threshold {t:.4f}, faulty detected "
                   f"{sum(found.values())}/{len(faulty[key])} "
                   + ", ".join(f"{c} {found[c]}/{total[c]}" for c in classes))
-    print("\n".join(top_healthy(run, model)))
+    print("\n".join(top_healthy(sets, infos, run, model)))
 
 
 if __name__ == "__main__":

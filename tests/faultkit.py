@@ -41,10 +41,7 @@ def cli(*args: str, fault: str | None = None, fsize: int | None = None, env: dic
         full_env["QUADFDI_FAULT_POINT"] = fault
 
     def limit() -> None:
-        # A child inherits an ignored SIGINT (an earlier test in this pytest process, e.g. the
-        # distributed sweep's interrupt, can leave SIGINT ignored), and Python then keeps it ignored:
-        # the fault point's SIGINT would be lost. Restore the default so Python installs its handler.
-        signal.signal(signal.SIGINT, signal.SIG_DFL)
+        sigint_as_in_a_terminal()  # else the fault point's SIGINT could be lost
         if fsize is not None:
             resource.setrlimit(resource.RLIMIT_FSIZE, (fsize, fsize))
 
@@ -54,6 +51,15 @@ def cli(*args: str, fault: str | None = None, fsize: int | None = None, env: dic
                                 env=full_env, preexec_fn=limit)
     return subprocess.run(cmd, capture_output=True, text=True, cwd=ROOT, env=full_env, preexec_fn=limit,
                           timeout=900)
+
+
+def sigint_as_in_a_terminal() -> None:
+    """A subprocess's ``preexec_fn``: SIGINT handled by default and not blocked, as in a terminal. Both the
+    disposition and the signal mask survive exec: a test process that ignores or blocks SIGINT (a shell's
+    background job without job control ignores it all the way down) makes a child Python that never raises
+    KeyboardInterrupt, and a test of an interrupt would see the command finish instead."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
 
 
 def sha(path: Path) -> str:

@@ -26,6 +26,7 @@ from quadfdi.sim.publish import generate_sharded
 from quadfdi.sim.shards import KIND, shard_jobs
 from quadfdi.sim.simulate import generate
 from tests.conftest import ROOT, copy_run, quadfdi
+from tests.faultkit import sigint_as_in_a_terminal
 
 pytest.importorskip("distributed")
 # Jobs defined in this file travel by value: the workers cannot import a test module by name.
@@ -57,21 +58,21 @@ def cfg():
     return load_config(ROOT / "configs/paper.toml", TINY)
 
 
-@pytest.fixture(scope="module")
-def serial_bytes(cfg, tmp_path_factory) -> bytes:
+def _serial(overrides: list[str], folder: Path) -> bytes:
     """The dataset as the serial simulator writes it in one go (no shards, no executor)."""
-    p = tmp_path_factory.mktemp("serial") / "dataset.npz"
-    write_npz(p, dataset_arrays(generate(cfg.sim), cfg.sim))
-    return p.read_bytes()
+    cfg = load_config(ROOT / "configs/paper.toml", overrides)
+    write_npz(folder / "dataset.npz", dataset_arrays(generate(cfg.sim), cfg.sim))
+    return (folder / "dataset.npz").read_bytes()
+
+
+@pytest.fixture(scope="module")
+def serial_bytes(tmp_path_factory) -> bytes:
+    return _serial(TINY, tmp_path_factory.mktemp("serial"))
 
 
 @pytest.fixture(scope="module")
 def long_serial_bytes(tmp_path_factory) -> bytes:
-    """LONG's dataset as the serial simulator writes it."""
-    cfg = load_config(ROOT / "configs/paper.toml", LONG)
-    p = tmp_path_factory.mktemp("serial_long") / "dataset.npz"
-    write_npz(p, dataset_arrays(generate(cfg.sim), cfg.sim))
-    return p.read_bytes()
+    return _serial(LONG, tmp_path_factory.mktemp("serial_long"))
 
 
 def test_local_workers_and_this_process_keep_glibc_memory_trimming_off(cluster):
@@ -83,16 +84,6 @@ def test_local_workers_and_this_process_keep_glibc_memory_trimming_off(cluster):
     got = client.run(lambda: __import__("os").environ.get("MALLOC_TRIM_THRESHOLD_"))
     assert len(got) == 2 and set(got.values()) == {None}
     assert "MALLOC_TRIM_THRESHOLD_" not in os.environ
-
-
-def _sigint_default() -> None:
-    """In the child before exec: SIGINT handled by default and not blocked, as in a terminal. Both the
-    disposition and the signal mask are inherited through exec: a test process that ignores or blocks SIGINT
-    (a shell's background job without job control, a library's thread state) makes a child Python that never
-    raises KeyboardInterrupt, and these tests would see the sweep finish instead of the interrupt they are
-    about (tests/faultkit.py does the same for its fault points)."""
-    signal.signal(signal.SIGINT, signal.SIG_DFL)
-    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
 
 
 def _tmp_files(root: Path) -> list[str]:
@@ -212,7 +203,7 @@ def test_interrupted_cli_sweep_resumes(cluster, long_serial_bytes, tmp_path):
     env = dict(os.environ)
     args = [sys.executable, "-m", "quadfdi.cli", "sim", "--out", str(out), "--scheduler", cluster[0], *CLI_LONG]
     proc = subprocess.Popen(args, cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            preexec_fn=_sigint_default)
+                            preexec_fn=sigint_as_in_a_terminal)
     deadline = time.time() + 300
     while time.time() < deadline and not list(cache.glob("*.npz")) and proc.poll() is None:
         time.sleep(0.02)
@@ -402,7 +393,7 @@ def test_ctrl_c_on_a_local_cluster_sweep_is_one_line(tmp_path):
     out = tmp_path / "r"
     args = [sys.executable, "-m", "quadfdi.cli", "sim", "--out", str(out), "--workers", "2", *CLI_LONG]
     proc = subprocess.Popen(args, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            start_new_session=True, preexec_fn=_sigint_default)
+                            start_new_session=True, preexec_fn=sigint_as_in_a_terminal)
     cache = out / "cache" / KIND
     deadline = time.time() + 300
     while time.time() < deadline and not list(cache.glob("*.npz")) and proc.poll() is None:
