@@ -30,8 +30,9 @@ from pathlib import Path
 import numpy as np
 
 from quadfdi.core.errors import QuadfdiError
+from quadfdi.vehicle.coverage import said as coverage_said
 
-VERSION = 1
+VERSION = 2
 NO_REFERENCE = "no vehicle reference: the model judges the flight against the simulated vehicles"
 
 
@@ -167,7 +168,7 @@ def summary(record: dict | None) -> dict | None:
             "shares": [{k: m[k] for k in ("rotor", "log_motor", "deviation", "z")} for m in record["motor_share"]],
             "hover": record["hover_collective"]["deviation"], "sag": record["sag_v_per_a_cell"]["deviation"],
             "vibration": next(iter(vib.values())) if vib else None, "vibration_metric": next(iter(vib), None),
-            "largest": record["largest_deviation"],
+            "largest": record["largest_deviation"], "outside": (record.get("coverage") or {}).get("outside"),
             "rules": {k: {"score": r["score"], "motor": r["motor"], "alarm": r["alarm"], "threshold": r["threshold"]}
                       for k, r in record["rules"].items()}}
 
@@ -180,6 +181,7 @@ def said(record: dict | None, note: str | None) -> str:
     if big is None:
         return f"vehicle reference {record['file']}: no motor share to compare"
     z = "" if big["z"] is None else f", {big['z']:+.1f} x the between-flight spread"
+    beyond = coverage_said(record.get("coverage"))
     return (f"vehicle reference {record['file']}: largest motor share deviation {big['log_motor']} "
             f"{big['deviation']:+.3f}{z}; rule abs_ref {r['score']:.3f} against {r['threshold']:.3f}"
-            f"{' (alarm)' if r['alarm'] else ''}")
+            f"{' (alarm)' if r['alarm'] else ''}{'; ' + beyond if beyond else ''}")

@@ -44,8 +44,29 @@ def section(record: dict | None, note: str | None) -> str:
             "spreads.</p>"
             "<table id=\"reference-quantities\"><tr><th>quantity</th><th>this flight</th><th>reference</th>"
             "<th>deviation</th><th>between-flight spread</th><th>z</th><th>unit</th></tr>" + "".join(rows)
-            + "</table><table id=\"reference-rules\"><tr><th>share rule</th><th>score</th><th>motor</th>"
+            + "</table>" + coverage_paragraph(record.get("coverage"))
+            + "<table id=\"reference-rules\"><tr><th>share rule</th><th>score</th><th>motor</th>"
               "<th>threshold</th><th></th></tr>" + rules + "</table>")
+
+
+def coverage_paragraph(cov: dict | None) -> str:
+    """How much of the flight flies outside the reference flights' forward speed and yaw rate ranges."""
+    if not cov:
+        return ("<p id=\"reference-coverage\" class=\"muted\">The reference holds no share model (too few steady "
+                "samples): shares are compared with its airborne mean.</p>")
+    parts = [f"{p['what']} {p['range_5_95'][0]:.2f} to {p['range_5_95'][1]:.2f} {esc(p['unit'])}: "
+             f"{fmt_share(p['outside'])} of this flight outside ({p['seconds_outside']:.1f} s)"
+             for p in cov["regressors"].values()]
+    cls = "alarm" if cov["beyond"] else "muted"
+    more = (f" More than {cov['limit']:.0%}: this flight flies unlike the reference flights, and its shares are "
+            "compared with the share model held at the edge of what they flew; learn the reference from flights "
+            "that fly like this one." if cov["beyond"] else "")
+    return (f"<p id=\"reference-coverage\" class=\"{cls}\" data-outside=\"{cov['outside']}\">What the reference "
+            f"flights flew (5-95 %): {esc('; '.join(parts))}.{esc(more)}</p>")
+
+
+def fmt_share(x) -> str:
+    return "\u2014" if x is None else f"{x:.0%}"
 
 
 def evidence_table(ev: dict) -> str:

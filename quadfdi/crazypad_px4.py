@@ -2,8 +2,9 @@
 of them come from one vehicle, so each flight is its own reference. A flight is cut in time at the
 sample where ``REFERENCE_FRACTION`` of its airborne samples lie before it: the first part (its
 ``flight.npz`` arrays up to the cut) is the reference's only flight (vehicle.learn), the rest is decided
-with the reference and without it, and scored by the four share rules against it. Both parts keep the
-flight's own time axis.
+with the reference and without it, scored by the four share rules against it, and its coverage by the
+reference (vehicle/coverage.py: a first part that only took off and hovered does not cover a forward flight
+after it). Both parts keep the flight's own time axis.
 
 The UAVCAN mission, whose logger dropped messages, is read with its gaps bridged at
 ``MISSION_GAP_FACTOR`` x the median interval, as ``quadfdi real-flights`` reads it (docs/ingest.md, "Gaps").
@@ -76,6 +77,7 @@ def one_flight(export: str, net: str, path: Path, fraction: float = REFERENCE_FR
     """One shared log: split, reference learned from its first part, the rest decided with and without it
     and scored by the rules; ``refused`` (one line) instead when any step refuses."""
     from quadfdi.crazypad_decide import decide_one
+    from quadfdi.vehicle.coverage import coverage
     from quadfdi.vehicle.flights import Flight, read_flight
     from quadfdi.vehicle.learn import learn
     from quadfdi.vehicle.rules import score_flight, thresholds
@@ -93,7 +95,7 @@ def one_flight(export: str, net: str, path: Path, fraction: float = REFERENCE_FR
         row = score_flight(test, ref, thresholds(ref))
         shares = {m["log_motor"]: m["mean"] for m in ref["motor_share"]}
         out = {"flight": name, "split": info, "reference_shares": shares, "test_shares": row["shares"],
-               "rules": row["rules"]}
+               "rules": row["rules"], "coverage": coverage(test, ref)}
         for mode, r in (("net_ref", ref), ("net_noref", None)):
             out[mode] = decide_one(export, net, test, r)
         return out

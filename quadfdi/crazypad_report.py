@@ -100,6 +100,15 @@ def _rule(r: dict) -> str:
     return f"{r['score']:.3f} {r['motor']}{' !' if r['alarm'] else ''}"
 
 
+def _outside(cov: dict | None) -> str:
+    """The held-out part's coverage by its reference (vehicle/coverage.py): the largest share outside, and
+    on what; "no share model" when the reference holds none."""
+    if not cov:
+        return "no share model"
+    worst = max(cov["regressors"].values(), key=lambda p: p["outside"] or 0.0)
+    return f"{cov['outside']:.0%} ({worst['what']}){' !' if cov['beyond'] else ''}"
+
+
 def _px4_md(px4: dict | None) -> list[str]:
     if px4 is None:
         return ["Not run: no shared flight log folder (`--logs`).", ""]
@@ -107,17 +116,19 @@ def _px4_md(px4: dict | None) -> list[str]:
              "the cut: the first part is the reference's only flight, the rest is decided (its own hover estimate) "
              "and scored against it.", "",
              "| flight | cut at (s) | airborne: reference / test (s) | alarms, reference | alarms, no reference | "
-             "max p(fault) | decided windows | `abs_ref`, `pos_ref`: score, motor (! alarm) |", "|---|---|---|---|---|---|---|---|"]
+             "max p(fault) | decided windows | `abs_ref`, `pos_ref`: score, motor (! alarm) | outside the reference's "
+             "range |", "|---|---|---|---|---|---|---|---|---|"]
     for f in px4["flights"]:
         if "refused" in f:
-            lines.append(f"| {f['flight']} | refused: {f['refused']} | | | | | | |")
+            lines.append(f"| {f['flight']} | refused: {f['refused']} | | | | | | | |")
             continue
         s, r = f["split"], f["rules"]
         rules = ", ".join(_rule(r[k]) for k in ("abs_ref", "pos_ref"))
         bridged = f" (gaps bridged at {s['gap_factor']:g} x)" if s.get("gap_factor") else ""
         lines.append(f"| {f['flight']}{bridged} | {s['cut_s']:.1f} | {s['reference_airborne_s']:.1f} / "
                      f"{s['test_airborne_s']:.1f} | {_alarms(f['net_ref'])} | {_alarms(f['net_noref'])} | "
-                     f"{f['net_ref']['score']:.3f} | {f['net_ref']['decided_windows']} | {rules} |")
+                     f"{f['net_ref']['score']:.3f} | {f['net_ref']['decided_windows']} | {rules} | "
+                     f"{_outside(f.get('coverage'))} |")
     if px4["absent"]:
         lines += ["", "Not in the folder: " + ", ".join(px4["absent"]) + "."]
     return lines + [""]

@@ -184,6 +184,9 @@ def test_the_px4_split(scored, mission_npz):
     mission = px4["px4_quad_6s_uavcan_mission"]
     assert "refused" not in mission, mission.get("refused")
     assert mission["split"]["gap_factor"] == 7 and mission["net_ref"]["decided_windows"] > 0
+    # both first parts cover their rest (the mission's first part already flies its 0-5 m/s legs)
+    assert all(not f["coverage"]["beyond"] for f in (gps, mission))
+    assert "outside the reference's range" in (out / "crazypad.md").read_text()
     arrays = load_flight(mission_npz)
     head, tail, info = split(arrays, "mission")
     assert len(head["time"]) + len(tail["time"]) == len(arrays["time"])

@@ -88,7 +88,7 @@ def test_the_map_gives_each_flight_its_reference_refuses_another_vehicle_and_say
     assert "1 of 3 decided flight(s) with no vehicle reference: the model judges them against the simulated" in \
         res.stdout
     rec = _alarms_json(fleet, DAMAGED_KEY)["vehicle_reference"]
-    assert rec["version"] == 1 and rec["file"] == "cf.json" and rec["sha256"] == file_sha256(refs["cf"])
+    assert rec["version"] == 2 and rec["file"] == "cf.json" and rec["sha256"] == file_sha256(refs["cf"])
     assert rec["chosen_by"] == "--vehicles vehicles.toml" and not rec["reference_flight"]
 
 

@@ -77,7 +77,18 @@ def run_learn(args: argparse.Namespace) -> int:
         print(f"quadfdi vehicle: warning: {w}", file=sys.stderr)
     shares = ", ".join(f"{m['log_motor']} {m['mean']:.3f}" for m in ref["motor_share"])
     print(f"wrote {out}: {len(found)} flights, {ref['motor_share'][0]['seconds']:.1f} s airborne; motor shares "
-          f"{shares}; hover collective {ref['hover']['cmd']['mean']:.3f}; {len(ref['warnings'])} warnings")
+          f"{shares}; hover collective {ref['hover']['cmd']['mean']:.3f}; {flown(ref)}; {len(ref['warnings'])} warnings")
+
+
+def flown(ref: dict) -> str:
+    """What the share model was fitted on: the 5-95 % range of each regressor (what a flight is covered by)."""
+    from quadfdi.vehicle.coverage import WHAT
+
+    model = ref["share_model"]
+    if not model.get("motors") or not model.get("regressors"):
+        return "no share model (too few steady samples)"
+    return "flown " + ", ".join(f"{WHAT[n][0]} {model['range_5_95'][n][0]:.2f} to {model['range_5_95'][n][1]:.2f} "
+                                f"{WHAT[n][1]}" for n in model["regressors"])
     return 0
 
 

@@ -22,6 +22,8 @@ changes the flight is away; null without a spread).
   this flight's mean collective over the same samples; spread: the std of that prediction over the
   reference flights' own fits.
 - ``esc``, per ESC quantity both log: per motor, the airborne mean against the reference's mean.
+- ``coverage`` (coverage.py): how much of the flight flies a forward speed or yaw rate outside what the
+  reference flights flew, where the share model is held at its edge.
 """
 
 from __future__ import annotations
@@ -31,12 +33,13 @@ import numpy as np
 from quadfdi.core.hover import collective
 from quadfdi.core.resample import GRID_DT
 from quadfdi.vehicle import fits
+from quadfdi.vehicle.coverage import coverage
 from quadfdi.vehicle import quantities as q
 from quadfdi.vehicle.flights import Flight
 from quadfdi.vehicle.rules import check_same_vehicle, score_flight, thresholds
 from quadfdi.vehicle.stats import flight_stat
 
-VERSION = 1
+VERSION = 2
 
 
 def entry(value: float | None, reference: float | None, spread: float | None, unit: str, **extra) -> dict:
@@ -146,7 +149,7 @@ def compare(fl: Flight, reference: dict) -> tuple[dict, tuple[np.ndarray, np.nda
     out = {"version": VERSION, "learned_from": [f["file"] for f in reference["flights"]],
            "reference_flight": str(fl.arrays["log_sha256"]) in own,
            "share_model": bool(reference["share_model"].get("motors")),
-           "motor_share": motor, "largest_deviation": largest_deviation(motor),
+           "coverage": coverage(fl, reference), "motor_share": motor, "largest_deviation": largest_deviation(motor),
            "hover_collective": _hover(fl, reference),
            "sag_v_per_a_cell": _sag(fl, reference), "vibration": _vibration(fl, reference), "esc": _esc(fl, reference),
            "rules": {name: dict(r, threshold=limits[name]["threshold"]) for name, r in rules.items()}}
