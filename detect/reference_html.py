@@ -54,6 +54,8 @@ def coverage_paragraph(cov: dict | None) -> str:
     if not cov:
         return ("<p id=\"reference-coverage\" class=\"muted\">The reference holds no share model (too few steady "
                 "samples): shares are compared with its airborne mean.</p>")
+    if cov["outside"] is None:
+        return f"<p id=\"reference-coverage\" class=\"muted\">Coverage by the reference: {esc(cov['why'])}.</p>"
     parts = [f"{p['what']} {p['range_5_95'][0]:.2f} to {p['range_5_95'][1]:.2f} {esc(p['unit'])}: "
              f"{fmt_share(p['outside'])} of this flight outside ({p['seconds_outside']:.1f} s)"
              for p in cov["regressors"].values()]
@@ -88,7 +90,7 @@ def index_columns(rows: list[dict]) -> list[tuple[str, str]]:
         return []
     return ([("reference", "text")] + [(f"\u0394 share m{k}", "num") for k in range(1, 5)]
             + [("\u0394 hover", "num"), ("\u0394 sag, V/A/cell", "num"), ("\u0394 vibration", "num"),
-               ("abs_ref score", "num")])
+               ("abs_ref score", "num"), ("outside reference", "num")])
 
 
 def index_cells(row: dict) -> list[tuple[str, str]]:
@@ -96,7 +98,7 @@ def index_cells(row: dict) -> list[tuple[str, str]]:
     ref = row.get("vehicle_reference")
     if ref is None:
         return [("", f"<span class=\"muted\" title=\"{esc(row.get('reference_note'))}\">none</span>")] + \
-            [("", "\u2014")] * 8
+            [("", "\u2014")] * 9
 
     def num(x, nd=3, extra=""):
         return ("" if x is None else f"{x:.6g}", f"<span style=\"white-space:nowrap\">{_signed(x, nd)}{extra}</span>")
@@ -108,5 +110,16 @@ def index_cells(row: dict) -> list[tuple[str, str]]:
     r = ref["rules"]["abs_ref"]
     flag = f" <small class=\"{'alarm' if r['alarm'] else 'muted'}\">{esc(r['motor'])}</small>"
     cells += [num(ref["hover"]), num(ref["sag"], 4), num(ref["vibration"], 2),
-              (f"{r['score']:.6g}", f"<span style=\"white-space:nowrap\">{r['score']:.3f}{flag}</span>")]
+              (f"{r['score']:.6g}", f"<span style=\"white-space:nowrap\">{r['score']:.3f}{flag}</span>"),
+              _outside_cell(ref.get("outside"))]
     return cells
+
+
+def _outside_cell(outside) -> tuple[str, str]:
+    """The share of the flight past the reference's flown ranges (vehicle/coverage.py); flagged beyond LIMIT."""
+    from quadfdi.vehicle.coverage import LIMIT
+
+    if outside is None:
+        return "", "\u2014"
+    cls = "alarm" if outside > LIMIT else "muted"
+    return f"{outside:.6g}", f"<span class=\"{cls}\">{outside:.0%}</span>"

@@ -150,7 +150,8 @@ def test_index_in_chromium_shows_the_reference_columns_and_sorts_them(fleet, bro
     _check_clean(browser, out)
     head = [h.text.strip() for h in browser.find_elements("css selector", "#flights th.sortable")]
     assert head[9:] == ["reference", "\u0394 share m1", "\u0394 share m2", "\u0394 share m3", "\u0394 share m4",
-                        "\u0394 hover", "\u0394 sag, V/A/cell", "\u0394 vibration", "abs_ref score"]
+                        "\u0394 hover", "\u0394 sag, V/A/cell", "\u0394 vibration", "abs_ref score",
+                        "outside reference"]
     row = fleet["rows"][DAMAGED_KEY]
     cells = browser.find_elements("css selector", f'tr[data-name="{row["name"]}"] td')
     rec = _alarms_json(fleet, DAMAGED_KEY)["vehicle_reference"]
@@ -159,6 +160,9 @@ def test_index_in_chromium_shows_the_reference_columns_and_sorts_them(fleet, bro
     assert "M3" in cell.text and float(cell.get_attribute("data-v")) == pytest.approx(m3["deviation"], rel=1e-5)
     unmapped = browser.find_elements("css selector", f'tr[data-name="{fleet["rows"][UNMAPPED_KEY]["name"]}"] td')
     assert unmapped[9].text == "none" and unmapped[10].get_attribute("data-v") == ""
+    # this E8 log holds no velocity or yaw estimate: its coverage cannot be read, and the index says so
+    assert rec["coverage"]["outside"] is None and "logs no forward speed or yaw rate" in rec["coverage"]["why"]
+    assert cells[18].get_attribute("data-v") == "" and cells[18].text == "\u2014"
     browser.find_elements("css selector", "#flights th.sortable")[17].click()  # abs_ref score, ascending
     names = [tr.get_attribute("data-name").split("__", 1)[1] for tr in
              browser.find_elements("css selector", "#flights tbody tr")]

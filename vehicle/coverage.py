@@ -42,8 +42,9 @@ def matters(model: dict, name: str, excess: np.ndarray) -> np.ndarray:
 def coverage(fl: Flight, reference: dict) -> dict | None:
     """Per regressor of the reference's share model: its 5-95 % range, the share of this flight's airborne
     samples with all four motor commands (quantities.share_samples) outside it, and those seconds;
-    ``outside`` the largest of those shares, ``beyond`` whether it passes ``LIMIT``. None when the
-    reference holds no share model (too few steady samples, or neither regressor logged)."""
+    ``outside`` the largest of those shares, ``beyond`` whether it passes ``LIMIT`` (``outside`` null and
+    ``why`` when the flight logs none of the regressors). None when the reference holds no share model
+    (too few steady samples, or neither regressor logged)."""
     model = reference["share_model"]
     if not model.get("motors") or not model.get("regressors"):
         return None
@@ -60,8 +61,10 @@ def coverage(fl: Flight, reference: dict) -> dict | None:
                      "seconds_outside": round(out * GRID_DT, 2), "seconds": round(len(x) * GRID_DT, 2)}
     fractions = [p["outside"] for p in per.values() if p["outside"] is not None]
     outside = max(fractions) if fractions else None
-    return {"regressors": per, "outside": outside, "limit": LIMIT,
-            "beyond": outside is not None and outside > LIMIT}
+    out = {"regressors": per, "outside": outside, "limit": LIMIT, "beyond": outside is not None and outside > LIMIT}
+    if outside is None:
+        out["why"] = f"the flight logs no {' or '.join(WHAT[n][0] for n in per)} on its airborne samples"
+    return out
 
 
 def said(cov: dict | None) -> str | None:
