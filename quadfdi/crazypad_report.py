@@ -105,6 +105,8 @@ def _outside(cov: dict | None) -> str:
     on what; "no share model" when the reference holds none."""
     if not cov:
         return "no share model"
+    if cov["outside"] is None:
+        return f"unknown: {cov['why']}"
     worst = max(cov["regressors"].values(), key=lambda p: p["outside"] or 0.0)
     return f"{cov['outside']:.0%} ({worst['what']}){' !' if cov['beyond'] else ''}"
 

@@ -95,3 +95,14 @@ def test_detect_prints_and_draws_a_flight_its_reference_does_not_cover(tipover, 
     assert rec["version"] == 2 and rec["coverage"]["beyond"]
     page = (out / "index.html").read_text()
     assert 'id="reference-coverage" class="alarm"' in page and "learn the reference from flights" in page
+
+
+def test_the_crazypad_px4_column_reads_every_coverage():
+    from quadfdi.crazypad_report import _outside
+
+    per = {"v_forward": {"what": "forward speed", "outside": 0.88}, "yaw_rate": {"what": "yaw rate", "outside": 0.1}}
+    assert _outside({"regressors": per, "outside": 0.88, "beyond": True}) == "88% (forward speed) !"
+    assert _outside(None) == "no share model"
+    none = {"regressors": {"v_forward": {"what": "forward speed", "outside": None}}, "outside": None, "beyond": False,
+            "why": "the flight logs no forward speed on its airborne samples"}
+    assert _outside(none) == "unknown: the flight logs no forward speed on its airborne samples"
