@@ -109,3 +109,22 @@ def test_rows_regenerate_alone_and_older_datasets_read_as_one_vehicle_per_flight
 def test_bad_fleet_settings_are_one_line_errors(override, message):
     with pytest.raises(QuadfdiError, match=message):
         load_config("fleet", TINY + override).sim.validate()
+
+
+def test_the_report_counts_vehicles_reference_flights_and_the_healthy_hours_after_them(ds, cfg):
+    """report.md's simulation section of a fleet: per split, vehicles, reference flights and the healthy
+    flights after them with their hours (what false alarms are scored on), beside the classes."""
+    from quadfdi.sim.report import report_section
+
+    lines = report_section(ds.path.parent)
+    assert "vehicles drawn once, each flying 3 flights, the first 1 healthy reference flights" in lines[2]
+    head = next(line for line in lines if line.startswith("| split"))
+    assert head.startswith("| split | trajectories | vehicles | reference flights | healthy after them | Healthy |")
+    v = vehicle_columns(ds.arrays)
+    for code, name in enumerate(SPLIT_NAMES):
+        m = ds["split"] == code
+        healthy = int((m & ~v["reference_flight"] & (ds["fault_class"] == 0)).sum())
+        hours = healthy * cfg.sim.duration_s / 3600
+        row = next(line for line in lines if line.startswith(f"| {name} |"))
+        assert row.startswith(f"| {name} | {int(m.sum())} | {len(np.unique(v['vehicle_id'][m]))} | "
+                              f"{int((m & v['reference_flight']).sum())} | {healthy} ({hours:.2f} h) |"), row
