@@ -17,6 +17,7 @@ from quadfdi.vehicle import stats
 from quadfdi.vehicle.flights import read_flight
 from quadfdi.vehicle.learn import MIN_AIRBORNE_S, learn
 from quadfdi.vehicle.rules import RULES, score_flight, thresholds
+from quadfdi.vehicle.show import show
 from tests.conftest import SHARED_DATA, quadfdi
 
 PAD = SHARED_DATA / "crazypad" / "motor_data"
@@ -74,6 +75,31 @@ def test_the_four_crazypad_reference_flights_make_a_reference(pad_reference):
     assert ref["hover"]["cmd"]["mean"] > 0.5 and ref["battery"]["mode"] == "level" and ref["battery"]["cells"] == 1
     assert ref["vibration"] == {} and ref["esc"] == {}  # a Crazyflie logs neither
     assert ref["share_model"]["yaw_rate_source"] == ["d(yaw)/dt (no body rates logged)"]
+
+
+@needs_pad
+def test_show_prints_what_the_reference_holds(pad_reference):
+    """`quadfdi vehicle show`: the flights, each motor's share with its spreads in the log's names, the share
+    model with the range it was fitted on, the hover, the pack, and every warning; a bad file is one line."""
+    path, res = pad_reference
+    ref = load_vehicle(path)
+    shown = quadfdi("vehicle", "show", str(path))
+    assert shown.returncode == 0, shown.stderr
+    out = shown.stdout
+    assert "crazyflie, frame quadrotor, 1 cell(s), motor map [3, 2, 1, 0]" in out
+    assert "learned from 4 healthy flight(s)" in out and "normal_flight/E9_log01 (15.9 s)" in out
+    for m in ref["motor_share"]:
+        assert (f"rotor {m['rotor']} ({m['log_motor']}): {m['mean']:.3f}; between flights {m['between_std']:.3f}, "
+                f"within a flight {m['within_std']:.3f}") in out
+    lo, hi = ref["share_model"]["range_5_95"]["v_forward"]
+    assert f"flown (5-95 %): forward speed {lo:.2f} to {hi:.2f} m/s" in out  # what `vehicle learn` printed too
+    assert f"forward speed {lo:.2f} to {hi:.2f} m/s" in res.stdout
+    assert f"hover collective {ref['hover']['cmd']['mean']:.3f}" in out and "no sag per ampere" in out
+    assert f"warnings ({len(ref['warnings'])}):" in out and all(w in out for w in ref["warnings"])
+    bad = path.parent / "not_a_reference.json"
+    bad.write_text("{}")
+    res = quadfdi("vehicle", "show", str(bad))
+    assert res.returncode == 2 and len(res.stderr.strip().splitlines()) == 1 and "not a quadfdi vehicle" in res.stderr
 
 
 @needs_pad
@@ -177,6 +203,10 @@ def test_a_reference_from_the_missions_first_half_scores_its_rest_healthy(tmp_pa
     assert ref["battery"]["mode"] == "sag" and ref["battery"]["sag_v_per_a"]["mean"] < 0  # 6S pack, current logged
     assert set(ref["vibration"]) == {"vib_px4"} and set(ref["esc"]) == {"rpm_share", "current_share", "temp_offset"}
     assert ref["share_model"]["yaw_rate_source"] == ["r"] and ref["warnings"] == []
+    text = show(ref, "first.json")  # one flight of a 6S quad logging current, vibration and ESCs
+    assert "one flight: no between-flight spread" in text and "yaw rate from r" in text
+    assert f"sag {ref['battery']['sag_v_per_a']['mean']:.4f} V/A" in text and "vibration vib_px4: floor" in text
+    assert all(f"ESC {k} " in text for k in ref["esc"]) and text.endswith("warnings: none")
     limits = thresholds(ref)
     assert limits["pos_ref"]["largest_reference_score"] == 0.0
     assert limits["pos_ref"]["threshold"] == limits["pos_ref"]["noise_floor"] > 0

@@ -4,6 +4,7 @@ rules on other flights (docs/vehicle.md).
     quadfdi vehicle learn LOG_OR_FLIGHT... --out vehicle.json
     quadfdi vehicle rules --vehicle vehicle.json LOG_OR_FOLDER... --out DIR
     quadfdi vehicle record vehicle.json --out record.bin   (the on-board record: fwref_stream --vehicle)
+    quadfdi vehicle show vehicle.json                     (what the reference holds, as text)
 
 Bad input (a refused reference, an unreadable vehicle.json, a path that does not exist, nothing to
 score) is one line on stderr, exit 2, and nothing written.
@@ -24,7 +25,7 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                        description="A reference of one airframe from its own healthy flights (motor command shares, "
                                    "hover collective, pack, vibration, ESC), and the simple share rules on other "
                                    "flights (docs/vehicle.md).")
-    acts = p.add_subparsers(dest="action", required=True, metavar="{learn,rules,record}")
+    acts = p.add_subparsers(dest="action", required=True, metavar="{learn,rules,record,show}")
     pl = acts.add_parser("learn", help="learn vehicle.json from healthy flights of one airframe")
     pl.add_argument("flights", nargs="+", metavar="LOG_OR_FLIGHT",
                     help="healthy flights: PX4 .ulg, ArduPilot .BIN, Crazyflie uSD logs or flight.npz files")
@@ -40,6 +41,17 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     pc.add_argument("--profile", default="flightlog-ref", help="the reference profile it is for (flightlog-ref or flightlog-phys)")
     pc.add_argument("--out", required=True, help="the record file to write (docs/formats.md \"Vehicle record file\")")
     pc.set_defaults(func=run_record)
+    ps = acts.add_parser("show", help="print what a reference holds: flights, shares, share model and its range, ...")
+    ps.add_argument("vehicle", metavar="VEHICLE_JSON", help="the reference (quadfdi vehicle learn)")
+    ps.set_defaults(func=run_show)
+
+
+def run_show(args: argparse.Namespace) -> int:
+    from quadfdi.formats.vehicle import load_vehicle
+    from quadfdi.vehicle.show import show
+
+    print(show(load_vehicle(args.vehicle), Path(args.vehicle).name))
+    return 0
 
 
 def run_record(args: argparse.Namespace) -> int:
