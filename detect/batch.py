@@ -22,6 +22,7 @@ from typing import Callable
 import numpy as np
 
 from quadfdi.core.errors import QuadfdiError
+from quadfdi.vehicle.coverage import LIMIT
 
 EXIT = {0: "no alarm on any decided flight", 1: "an alarm raised", 3: "some logs refused, no alarm",
         4: "an alarm raised and some logs refused"}
@@ -231,4 +232,10 @@ def detect_many(model: str | Path, logs: list[str | Path], out: str | Path, net:
     if without:
         log(f"detect: {len(without)} of {len(rows)} decided flight(s) with no vehicle reference: the model judges "
             "them against the simulated vehicles")
+    beyond = [r for r in rows if (r["vehicle_reference"] or {}).get("outside") is not None
+              and r["vehicle_reference"]["outside"] > LIMIT]
+    if beyond:
+        log(f"detect: {len(beyond)} of {len(rows)} decided flight(s) fly a forward speed or yaw rate past their "
+            f"reference flights' on more than {LIMIT:.0%} of their airborne samples (the index's 'outside "
+            "reference'): their share deviations are partly the reference's extrapolation")
     return summary

@@ -95,6 +95,13 @@ def test_detect_prints_and_draws_a_flight_its_reference_does_not_cover(tipover, 
     assert rec["version"] == 2 and rec["coverage"]["beyond"]
     page = (out / "index.html").read_text()
     assert 'id="reference-coverage" class="alarm"' in page and "learn the reference from flights" in page
+    folder = tmp_path / "folder"  # a folder of flights: the summary counts those beyond their reference
+    res = quadfdi("detect", "--model", str(masked_export), str(tipover["whole"].parent), "--vehicle",
+                  str(tipover["reference"]), "--out", str(folder))
+    assert res.returncode in (0, 1), res.stderr
+    assert "detect: 1 of 1 decided flight(s) fly a forward speed or yaw rate past their reference flights'" in res.stdout
+    row = json.loads((folder / "summary.json").read_text())["flights"][0]
+    assert row["vehicle_reference"]["outside"] == rec["coverage"]["outside"]
 
 
 def test_the_crazypad_px4_column_reads_every_coverage():
