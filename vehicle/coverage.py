@@ -41,7 +41,8 @@ def matters(model: dict, name: str, excess: np.ndarray) -> np.ndarray:
 
 def coverage(fl: Flight, reference: dict) -> dict | None:
     """Per regressor of the reference's share model: its 5-95 % range, the share of this flight's airborne
-    samples with all four motor commands (quantities.share_samples) outside it, and those seconds;
+    samples with all four motor commands (quantities.share_samples) past it by enough to matter
+    (``matters``), and those seconds;
     ``outside`` the largest of those shares, ``beyond`` whether it passes ``LIMIT`` (``outside`` null and
     ``why`` when the flight logs none of the regressors). None when the reference holds no share model
     (too few steady samples, or neither regressor logged)."""
