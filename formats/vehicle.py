@@ -33,6 +33,7 @@ FORMAT_VERSION = 1
 KIND = "quadfdi vehicle reference"
 VEHICLE_KEYS = ("autopilot", "frame", "cells", "motor_map", "log_motor_names")
 STAT_KEYS = ("mean", "between_std", "within_std", "window_std", "se", "seconds", "flights")
+REGRESSORS = ("v_forward", "yaw_rate")  # the share model's (vehicle/fits.share_model)
 
 
 def write_vehicle(path: str | Path, reference: dict) -> None:
@@ -86,6 +87,120 @@ def check_vehicle(data, where: str) -> None:
         raise QuadfdiError(f"{where}: motor_share must hold four entries (project rotors 1..4)")
     for k, entry in enumerate(shares):
         check_stat(entry, len(flights), f"{where}: motor_share[{k}]")
+        _motor_entry(entry, k, f"{where}: motor_share[{k}]")
+    n = len(flights)
+    _check_share_model(data.get("share_model"), f"{where}: share_model")
+    _check_hover(data.get("hover"), n, f"{where}: hover")
+    _check_battery(data.get("battery"), n, f"{where}: battery")
+    _check_sections(data, n, where)
+
+
+def _fail(where: str, what: str) -> None:
+    raise QuadfdiError(f"{where}: {what} (the file is not as `quadfdi vehicle learn` writes it; learn it again)")
+
+
+def _optional_number(x) -> bool:
+    return x is None or _number(x)
+
+
+def _motor_entry(entry: dict, k: int, where: str) -> None:
+    if entry.get("rotor") != k + 1 or not isinstance(entry.get("log_motor"), str):
+        _fail(where, f"expected rotor {k + 1} and the log's motor name, found rotor {entry.get('rotor')!r}, "
+                     f"log_motor {entry.get('log_motor')!r}")
+
+
+def _check_summary(x, n: int, where: str, mean_required: bool = False) -> None:
+    """A per-flight coefficient (vehicle/fits.summary): mean, between_std (numbers or null), one value per flight."""
+    if not isinstance(x, dict) or any(k not in x for k in ("mean", "between_std", "flights")):
+        _fail(where, "expected mean, between_std and flights")
+    if not (_number(x["mean"]) if mean_required else _optional_number(x["mean"])) or \
+            not _optional_number(x["between_std"]):
+        _fail(where, f"mean {x['mean']!r} and between_std {x['between_std']!r} must be numbers"
+                     + ("" if mean_required else " or null"))
+    if not isinstance(x["flights"], list) or len(x["flights"]) != n or not all(map(_optional_number, x["flights"])):
+        _fail(where, f"flights must hold one number (or null) per flight ({n})")
+
+
+def _check_stat_any(x, n: int, where: str) -> None:
+    """A statistic whose mean may be null (a quantity no flight could estimate)."""
+    if isinstance(x, dict) and x.get("mean") is None and all(k in x for k in STAT_KEYS):
+        if not isinstance(x["flights"], list) or len(x["flights"]) != n:
+            _fail(where, f"flights must hold one entry per flight ({n})")
+        return
+    check_stat(x, n, where)
+
+
+def _check_share_model(m, where: str) -> None:
+    if not isinstance(m, dict) or not isinstance(m.get("regressors"), list) or \
+            not set(m["regressors"]) <= set(REGRESSORS) or not isinstance(m.get("range_5_95"), dict):
+        _fail(where, f"expected regressors (some of {', '.join(REGRESSORS)}) and range_5_95")
+    for name in m["regressors"]:
+        r = m["range_5_95"].get(name)
+        if not isinstance(r, list) or len(r) != 2 or not all(map(_number, r)) or r[0] > r[1]:
+            _fail(f"{where}.range_5_95", f"{name} must be [low, high], found {r!r}")
+    if "yaw_rate" in m["regressors"] and not isinstance(m.get("yaw_rate_source"), list):
+        _fail(where, "yaw_rate_source must list where the yaw rate came from")
+    motors = m.get("motors")
+    if motors is None:
+        return
+    keys = ("intercept", "residual_std", "seconds", *(f"per_{r}" for r in m["regressors"]))
+    if not isinstance(motors, list) or len(motors) != 4 or \
+            not all(isinstance(x, dict) and all(_number(x.get(k)) for k in keys) for x in motors):
+        _fail(f"{where}.motors", f"expected null or four lines, each with the numbers {', '.join(keys)}")
+    for k, x in enumerate(motors):
+        _motor_entry(x, k, f"{where}.motors[{k}]")
+
+
+def _check_hover(h, n: int, where: str) -> None:
+    if not isinstance(h, dict) or any(k not in h for k in ("cmd", "cur_a", "freeze_s", "collective")):
+        _fail(where, "expected cmd, cur_a, freeze_s and collective")
+    _check_summary(h["cmd"], n, f"{where}.cmd", mean_required=True)
+    _check_summary(h["cur_a"], n, f"{where}.cur_a")
+    if not isinstance(h["freeze_s"], list) or len(h["freeze_s"]) != n:
+        _fail(f"{where}.freeze_s", f"expected one value per flight ({n})")
+    _check_stat_any(h["collective"], n, f"{where}.collective")
+
+
+def _check_battery(b, n: int, where: str) -> None:
+    if b is None:
+        return
+    if not isinstance(b, dict) or b.get("mode") not in ("sag", "level") or not isinstance(b.get("cells"), int) \
+            or b["cells"] < 1:
+        _fail(where, "expected null or a pack model with mode 'sag' or 'level' and a cell count")
+    for key in ("v0", "drift_v_per_min", "level", "residual_std") + (("sag_v_per_a",) if b["mode"] == "sag" else ()):
+        _check_summary(b.get(key), n, f"{where}.{key}")
+
+
+def _check_sections(data: dict, n: int, where: str) -> None:
+    """vibration, esc, motor_temp and warnings."""
+    vib = data.get("vibration")
+    if not isinstance(vib, dict):
+        _fail(where, "vibration must be an object (empty when no flight logs it)")
+    for name, v in vib.items():
+        if not isinstance(v, dict) or not isinstance(v.get("unit"), str):
+            _fail(f"{where}: vibration.{name}", "expected unit, level, floor, per_collective, residual_std")
+        _check_stat_any(v.get("level"), n, f"{where}: vibration.{name}.level")
+        for key in ("floor", "per_collective", "residual_std"):
+            _check_summary(v.get(key), n, f"{where}: vibration.{name}.{key}")
+    esc = data.get("esc")
+    if not isinstance(esc, dict):
+        _fail(where, "esc must be an object (empty when no flight logs ESC telemetry)")
+    for key, v in esc.items():
+        motors = v.get("motors") if isinstance(v, dict) else None
+        if not isinstance(motors, list) or len(motors) != 4 or not isinstance(v.get("unit"), str):
+            _fail(f"{where}: esc.{key}", "expected unit and four motors")
+        for k, m in enumerate(motors):
+            _check_stat_any(m, n, f"{where}: esc.{key}.motors[{k}]")
+            _motor_entry(m, k, f"{where}: esc.{key}.motors[{k}]")
+    temp = data.get("motor_temp")
+    if temp is not None:
+        if not isinstance(temp, list) or len(temp) != 4:
+            _fail(where, "motor_temp must be null or four entries")
+        for k, m in enumerate(temp):
+            _check_stat_any(m, n, f"{where}: motor_temp[{k}]")
+    warnings = data.get("warnings")
+    if not isinstance(warnings, list) or not all(isinstance(w, str) for w in warnings):
+        _fail(where, "warnings must be a list of lines")
 
 
 def read_vehicle_map(path: str | Path) -> list[tuple[str, Path]]:

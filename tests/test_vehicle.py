@@ -239,3 +239,62 @@ def test_disagreement_needs_more_than_three_noise_spreads():
     found = stats.disagreements(loud)
     assert [d["flight"] for d in found] == [3]
     assert found[0]["z"] == pytest.approx(0.04 / np.sqrt(0.005 ** 2 + 3 * 0.005 ** 2 / 9))
+
+
+@pytest.fixture(scope="module")
+def mission_reference(mission_npz, tmp_path_factory) -> dict:
+    """A reference holding every section (share model, hover current, sag, vibration, ESC) as plain JSON."""
+    from quadfdi.formats.vehicle import write_vehicle
+
+    path = tmp_path_factory.mktemp("mission_ref") / "mission.json"
+    write_vehicle(path, learn([read_flight(mission_npz)]))
+    return json.loads(path.read_text())
+
+
+def _set(data: dict, dotted: str, value) -> None:
+    *head, last = dotted.split(".")
+    for key in head:
+        data = data[int(key)] if isinstance(data, list) else data[key]
+    if value is DELETE:
+        del data[last]
+    elif isinstance(data, list):
+        data[int(last)] = value
+    else:
+        data[last] = value
+
+
+DELETE = object()
+
+
+@pytest.mark.parametrize("dotted, value, says", [
+    ("share_model", DELETE, "share_model: expected regressors"),
+    ("share_model.range_5_95.v_forward", [1.0, 0.0], "share_model.range_5_95: v_forward must be [low, high]"),
+    ("share_model.motors.2.residual_std", DELETE, "share_model.motors: expected null or four lines"),
+    ("share_model.motors.1.rotor", 3, "share_model.motors[1]: expected rotor 2"),
+    ("motor_share.0.log_motor", 7, "motor_share[0]: expected rotor 1 and the log's motor name"),
+    ("hover.cmd", None, "hover.cmd: expected mean, between_std and flights"),
+    ("hover.cmd.mean", None, "hover.cmd: mean None and between_std None must be numbers"),
+    ("battery.mode", "volts", "battery: expected null or a pack model"),
+    ("battery.sag_v_per_a", DELETE, "battery.sag_v_per_a: expected mean"),
+    ("vibration.vib_px4.floor.flights", [], "vibration.vib_px4.floor: flights must hold one number"),
+    ("esc.rpm_share.motors", [], "esc.rpm_share: expected unit and four motors"),
+    ("motor_temp", [1.0], "motor_temp must be null or four entries"),
+    ("warnings", "none", "warnings must be a list of lines"),
+])
+def test_a_reference_not_as_learn_writes_it_is_one_line(mission_reference, tmp_path, dotted, value, says):
+    """Every section a reader uses is checked on load (formats/vehicle.py), so a hand-edited or truncated
+    reference is refused in one line naming the field, not a traceback in detect, rules, record or show."""
+    from quadfdi.formats.vehicle import write_vehicle
+
+    data = json.loads(json.dumps(mission_reference))
+    _set(data, dotted, value)
+    path = tmp_path / "edited.json"
+    path.write_text(json.dumps(data))
+    with pytest.raises(QuadfdiError) as exc:
+        load_vehicle(path)
+    assert says in str(exc.value) and len(str(exc.value).splitlines()) == 1, str(exc.value)
+    with pytest.raises(QuadfdiError):  # nor can it be written
+        write_vehicle(tmp_path / "again.json", data)
+    assert not (tmp_path / "again.json").exists()
+    res = quadfdi("vehicle", "show", str(path))
+    assert res.returncode == 2 and says in res.stderr and len(res.stderr.strip().splitlines()) == 1, res.stderr
