@@ -63,6 +63,10 @@ def check_stat(stat, n_flights: int, where: str) -> None:
     if not isinstance(per, list) or len(per) != n_flights:
         raise QuadfdiError(f"{where}.flights holds {len(per) if isinstance(per, list) else per!r} entries, "
                            f"expected one per flight ({n_flights})")
+    if not all(isinstance(f, dict) and _number(f.get("mean")) for f in per):
+        raise QuadfdiError(f"{where}.flights: each flight's entry needs its mean (a number)")
+    if not all(_optional_number(stat[k]) for k in ("between_std", "within_std", "window_std", "se", "seconds")):
+        raise QuadfdiError(f"{where}: between_std, within_std, window_std, se and seconds must be numbers or null")
 
 
 def check_vehicle(data, where: str) -> None:
@@ -80,8 +84,11 @@ def check_vehicle(data, where: str) -> None:
         raise QuadfdiError(f"{where}: vehicle.motor_map {veh['motor_map']!r} is not a permutation of the four "
                            f"motors, or log_motor_names {veh['log_motor_names']!r} does not name four")
     flights = data.get("flights")
-    if not isinstance(flights, list) or not flights or not all(isinstance(f, dict) and "sha256" in f for f in flights):
-        raise QuadfdiError(f"{where}: flights must list the flights it was learned from, each with its sha256")
+    if not isinstance(flights, list) or not flights or not all(
+            isinstance(f, dict) and all(isinstance(f.get(k), str) for k in ("file", "sha256", "log_sha256"))
+            and _number(f.get("airborne_s")) for f in flights):
+        raise QuadfdiError(f"{where}: flights must list the flights it was learned from, each with its file, sha256, "
+                           "log_sha256 and airborne_s")
     shares = data.get("motor_share")
     if not isinstance(shares, list) or len(shares) != 4:
         raise QuadfdiError(f"{where}: motor_share must hold four entries (project rotors 1..4)")
@@ -122,12 +129,14 @@ def _check_summary(x, n: int, where: str, mean_required: bool = False) -> None:
 
 
 def _check_stat_any(x, n: int, where: str) -> None:
-    """A statistic whose mean may be null (a quantity no flight could estimate)."""
-    if isinstance(x, dict) and x.get("mean") is None and all(k in x for k in STAT_KEYS):
-        if not isinstance(x["flights"], list) or len(x["flights"]) != n:
-            _fail(where, f"flights must hold one entry per flight ({n})")
-        return
-    check_stat(x, n, where)
+    """A statistic whose mean, and any flight's, may be null (a quantity a flight could not estimate)."""
+    if not isinstance(x, dict) or any(k not in x for k in STAT_KEYS):
+        _fail(where, f"expected the keys {', '.join(STAT_KEYS)}")
+    if not all(_optional_number(x[k]) for k in STAT_KEYS if k != "flights"):
+        _fail(where, f"{', '.join(k for k in STAT_KEYS if k != 'flights')} must be numbers or null")
+    if not isinstance(x["flights"], list) or len(x["flights"]) != n or \
+            not all(isinstance(f, dict) and _optional_number(f.get("mean")) for f in x["flights"]):
+        _fail(where, f"flights must hold one entry per flight ({n}), each with its mean")
 
 
 def _check_share_model(m, where: str) -> None:

@@ -280,6 +280,10 @@ DELETE = object()
     ("esc.rpm_share.motors", [], "esc.rpm_share: expected unit and four motors"),
     ("motor_temp", [1.0], "motor_temp must be null or four entries"),
     ("warnings", "none", "warnings must be a list of lines"),
+    ("flights.0.airborne_s", DELETE, "each with its file, sha256, log_sha256 and airborne_s"),
+    ("motor_share.2.flights.0.mean", None, "motor_share[2].flights: each flight's entry needs its mean"),
+    ("motor_share.1.se", "small", "motor_share[1]: between_std, within_std, window_std, se and seconds must be"),
+    ("vibration.vib_px4.level.flights.0", 3.0, "vibration.vib_px4.level: flights must hold one entry per flight"),
 ])
 def test_a_reference_not_as_learn_writes_it_is_one_line(mission_reference, tmp_path, dotted, value, says):
     """Every section a reader uses is checked on load (formats/vehicle.py), so a hand-edited or truncated
