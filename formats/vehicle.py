@@ -13,7 +13,8 @@ Strict JSON (no NaN: a quantity that cannot be estimated is ``null``), top-level
 - ``motor_share``: four entries in project rotor order, each a *statistic* (below) plus ``rotor``
   (1..4) and ``log_motor`` (the log's name).
 - ``share_model``, ``hover``, ``battery``, ``vibration``, ``esc``, ``motor_temp`` (per motor, T_k minus
-  the four's mean: simulated flights only): the other quantities (null or empty when not logged); ``warnings``: the disagreements found (kept, not refused).
+  the four's mean: simulated flights only): the other quantities (null or empty when not logged);
+  ``warnings``: the disagreements found (kept, not refused).
 
 A *statistic* is ``mean`` (over the flights' means), ``between_std`` (std of the flights' means, ddof 1;
 null with one flight), ``within_std`` (RMS over flights of the std over a flight's samples),

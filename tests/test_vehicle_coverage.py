@@ -87,8 +87,8 @@ def test_detect_prints_and_draws_a_flight_its_reference_does_not_cover(tipover, 
     """The whole flight (its hover gives detect its estimate) against the reference of its first part: the
     forward flight after the cut is more than LIMIT of it."""
     out = tmp_path / "out"
-    res = quadfdi("detect", "--model", str(masked_export), str(tipover["whole"]), "--vehicle", str(tipover["reference"]),
-                  "--out", str(out))
+    res = quadfdi("detect", "--model", str(masked_export), str(tipover["whole"]), "--vehicle",
+                  str(tipover["reference"]), "--out", str(out))
     assert res.returncode == 0, res.stderr
     assert "of its airborne samples fly a forward speed outside the reference flights'" in res.stdout
     rec = json.loads((out / "alarms.json").read_text())["vehicle_reference"]
@@ -99,7 +99,7 @@ def test_detect_prints_and_draws_a_flight_its_reference_does_not_cover(tipover, 
     res = quadfdi("detect", "--model", str(masked_export), str(tipover["whole"].parent), "--vehicle",
                   str(tipover["reference"]), "--out", str(folder))
     assert res.returncode in (0, 1), res.stderr
-    assert "detect: 1 of 1 decided flight(s) fly a forward speed or yaw rate past their reference flights'" in res.stdout
+    assert "detect: 1 of 1 decided flight(s) fly a forward speed or yaw rate past their reference" in res.stdout
     row = json.loads((folder / "summary.json").read_text())["flights"][0]
     assert row["vehicle_reference"]["outside"] == rec["coverage"]["outside"]
 

@@ -38,7 +38,8 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     pr.set_defaults(func=run_rules)
     pc = acts.add_parser("record", help="write a reference's vehicle record file (25 float32) for fwref_stream")
     pc.add_argument("vehicle", metavar="VEHICLE_JSON", help="the reference (quadfdi vehicle learn)")
-    pc.add_argument("--profile", default="flightlog-ref", help="the reference profile it is for (flightlog-ref or flightlog-phys)")
+    pc.add_argument("--profile", default="flightlog-ref",
+                    help="the reference profile it is for (flightlog-ref or flightlog-phys)")
     pc.add_argument("--out", required=True, help="the record file to write (docs/formats.md \"Vehicle record file\")")
     pc.set_defaults(func=run_record)
     ps = acts.add_parser("show", help="print what a reference holds: flights, shares, share model and its range, ...")
@@ -89,7 +90,8 @@ def run_learn(args: argparse.Namespace) -> int:
         print(f"quadfdi vehicle: warning: {w}", file=sys.stderr)
     shares = ", ".join(f"{m['log_motor']} {m['mean']:.3f}" for m in ref["motor_share"])
     print(f"wrote {out}: {len(found)} flights, {ref['motor_share'][0]['seconds']:.1f} s airborne; motor shares "
-          f"{shares}; hover collective {ref['hover']['cmd']['mean']:.3f}; {flown(ref)}; {len(ref['warnings'])} warnings")
+          f"{shares}; hover collective {ref['hover']['cmd']['mean']:.3f}; {flown(ref)}; "
+          f"{len(ref['warnings'])} warnings")
 
 
 def flown(ref: dict) -> str:

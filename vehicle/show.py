@@ -81,8 +81,9 @@ def _battery(ref: dict) -> list[str]:
 def _others(ref: dict) -> list[str]:
     out = []
     for name, v in ref["vibration"].items():
-        out.append(f"vibration {name}: floor {_num(v['floor']['mean'], '.2f')} + {_num(v['per_collective']['mean'], '.2f')}"
-                   f" x collective {v['unit']} (level {_num(v['level']['mean'], '.2f')}; {_spread(v['level'])})")
+        out.append(f"vibration {name}: floor {_num(v['floor']['mean'], '.2f')} + "
+                   f"{_num(v['per_collective']['mean'], '.2f')} x collective {v['unit']} (level "
+                   f"{_num(v['level']['mean'], '.2f')}; {_spread(v['level'])})")
     for key, v in ref["esc"].items():
         out.append(f"ESC {key} ({v['unit']}): " + ", ".join(f"{m['log_motor']} {_num(m['mean'])}" for m in v["motors"]))
     if ref.get("motor_temp"):
