@@ -54,18 +54,21 @@ def _number(x) -> bool:
     return isinstance(x, (int, float)) and not isinstance(x, bool)
 
 
-def check_stat(stat, n_flights: int, where: str) -> None:
-    """A statistic's keys, a finite mean and one per-flight entry per flight."""
+def check_stat(stat, n_flights: int, where: str, nullable: bool = False) -> None:
+    """A statistic's keys, its numbers and one per-flight entry (with its mean) per flight; the means must
+    be numbers, or, ``nullable``, may be null (a quantity a flight could not estimate)."""
+    ok = _optional_number if nullable else _number
     if not isinstance(stat, dict) or any(k not in stat for k in STAT_KEYS):
         raise QuadfdiError(f"{where}: expected the keys {', '.join(STAT_KEYS)}")
-    if not _number(stat["mean"]):
-        raise QuadfdiError(f"{where}.mean is {stat['mean']!r}, expected a number")
+    if not ok(stat["mean"]):
+        raise QuadfdiError(f"{where}.mean is {stat['mean']!r}, expected a number{' or null' if nullable else ''}")
     per = stat["flights"]
     if not isinstance(per, list) or len(per) != n_flights:
         raise QuadfdiError(f"{where}.flights holds {len(per) if isinstance(per, list) else per!r} entries, "
                            f"expected one per flight ({n_flights})")
-    if not all(isinstance(f, dict) and _number(f.get("mean")) for f in per):
-        raise QuadfdiError(f"{where}.flights: each flight's entry needs its mean (a number)")
+    if not all(isinstance(f, dict) and ok(f.get("mean")) for f in per):
+        raise QuadfdiError(f"{where}.flights: each flight's entry needs its mean (a number"
+                           f"{' or null' if nullable else ''})")
     if not all(_optional_number(stat[k]) for k in ("between_std", "within_std", "window_std", "se", "seconds")):
         raise QuadfdiError(f"{where}: between_std, within_std, window_std, se and seconds must be numbers or null")
 
@@ -129,17 +132,6 @@ def _check_summary(x, n: int, where: str, mean_required: bool = False) -> None:
         _fail(where, f"flights must hold one number (or null) per flight ({n})")
 
 
-def _check_stat_any(x, n: int, where: str) -> None:
-    """A statistic whose mean, and any flight's, may be null (a quantity a flight could not estimate)."""
-    if not isinstance(x, dict) or any(k not in x for k in STAT_KEYS):
-        _fail(where, f"expected the keys {', '.join(STAT_KEYS)}")
-    if not all(_optional_number(x[k]) for k in STAT_KEYS if k != "flights"):
-        _fail(where, f"{', '.join(k for k in STAT_KEYS if k != 'flights')} must be numbers or null")
-    if not isinstance(x["flights"], list) or len(x["flights"]) != n or \
-            not all(isinstance(f, dict) and _optional_number(f.get("mean")) for f in x["flights"]):
-        _fail(where, f"flights must hold one entry per flight ({n}), each with its mean")
-
-
 def _check_share_model(m, where: str) -> None:
     if not isinstance(m, dict) or not isinstance(m.get("regressors"), list) or \
             not set(m["regressors"]) <= set(REGRESSORS) or not isinstance(m.get("range_5_95"), dict):
@@ -168,7 +160,7 @@ def _check_hover(h, n: int, where: str) -> None:
     _check_summary(h["cur_a"], n, f"{where}.cur_a")
     if not isinstance(h["freeze_s"], list) or len(h["freeze_s"]) != n:
         _fail(f"{where}.freeze_s", f"expected one value per flight ({n})")
-    _check_stat_any(h["collective"], n, f"{where}.collective")
+    check_stat(h["collective"], n, f"{where}.collective", nullable=True)
 
 
 def _check_battery(b, n: int, where: str) -> None:
@@ -189,7 +181,7 @@ def _check_sections(data: dict, n: int, where: str) -> None:
     for name, v in vib.items():
         if not isinstance(v, dict) or not isinstance(v.get("unit"), str):
             _fail(f"{where}: vibration.{name}", "expected unit, level, floor, per_collective, residual_std")
-        _check_stat_any(v.get("level"), n, f"{where}: vibration.{name}.level")
+        check_stat(v.get("level"), n, f"{where}: vibration.{name}.level", nullable=True)
         for key in ("floor", "per_collective", "residual_std"):
             _check_summary(v.get(key), n, f"{where}: vibration.{name}.{key}")
     esc = data.get("esc")
@@ -200,14 +192,14 @@ def _check_sections(data: dict, n: int, where: str) -> None:
         if not isinstance(motors, list) or len(motors) != 4 or not isinstance(v.get("unit"), str):
             _fail(f"{where}: esc.{key}", "expected unit and four motors")
         for k, m in enumerate(motors):
-            _check_stat_any(m, n, f"{where}: esc.{key}.motors[{k}]")
+            check_stat(m, n, f"{where}: esc.{key}.motors[{k}]", nullable=True)
             _motor_entry(m, k, f"{where}: esc.{key}.motors[{k}]")
     temp = data.get("motor_temp")
     if temp is not None:
         if not isinstance(temp, list) or len(temp) != 4:
             _fail(where, "motor_temp must be null or four entries")
         for k, m in enumerate(temp):
-            _check_stat_any(m, n, f"{where}: motor_temp[{k}]")
+            check_stat(m, n, f"{where}: motor_temp[{k}]", nullable=True)
     warnings = data.get("warnings")
     if not isinstance(warnings, list) or not all(isinstance(w, str) for w in warnings):
         _fail(where, "warnings must be a list of lines")

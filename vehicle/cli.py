@@ -76,6 +76,7 @@ def _refuse_folder_output(out: Path) -> None:
 
 def run_learn(args: argparse.Namespace) -> int:
     from quadfdi.formats.vehicle import write_vehicle
+    from quadfdi.vehicle.coverage import flown_text
     from quadfdi.vehicle.flights import find_flights, read_flight
     from quadfdi.vehicle.learn import learn
 
@@ -90,19 +91,8 @@ def run_learn(args: argparse.Namespace) -> int:
         print(f"quadfdi vehicle: warning: {w}", file=sys.stderr)
     shares = ", ".join(f"{m['log_motor']} {m['mean']:.3f}" for m in ref["motor_share"])
     print(f"wrote {out}: {len(found)} flights, {ref['motor_share'][0]['seconds']:.1f} s airborne; motor shares "
-          f"{shares}; hover collective {ref['hover']['cmd']['mean']:.3f}; {flown(ref)}; "
+          f"{shares}; hover collective {ref['hover']['cmd']['mean']:.3f}; {flown_text(ref['share_model'])}; "
           f"{len(ref['warnings'])} warnings")
-
-
-def flown(ref: dict) -> str:
-    """What the share model was fitted on: the 5-95 % range of each regressor (what a flight is covered by)."""
-    from quadfdi.vehicle.coverage import WHAT
-
-    model = ref["share_model"]
-    if not model.get("motors") or not model.get("regressors"):
-        return "no share model (too few steady samples)"
-    return "flown " + ", ".join(f"{WHAT[n][0]} {model['range_5_95'][n][0]:.2f} to {model['range_5_95'][n][1]:.2f} "
-                                f"{WHAT[n][1]}" for n in model["regressors"])
     return 0
 
 

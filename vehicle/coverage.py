@@ -23,6 +23,14 @@ LIMIT = 0.25
 WHAT = {"v_forward": ("forward speed", "m/s"), "yaw_rate": ("yaw rate", "rad/s")}
 
 
+def flown_text(model: dict) -> str:
+    """What a share model was fitted on, as text: each regressor's 5-95 % range ("flown forward speed ...")."""
+    if not model.get("motors") or not model.get("regressors"):
+        return "no share model (too few steady samples)"
+    return "flown " + ", ".join(f"{WHAT[n][0]} {model['range_5_95'][n][0]:.2f} to {model['range_5_95'][n][1]:.2f} "
+                                f"{WHAT[n][1]}" for n in model["regressors"])
+
+
 def regressor_values(fl: Flight) -> dict[str, np.ndarray]:
     """(T,) each share-model regressor of the flight, NaN where it is not logged."""
     return {"v_forward": q.forward_speed(fl), "yaw_rate": q.yaw_rate(fl)[0]}

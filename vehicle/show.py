@@ -6,7 +6,7 @@ collective, the pack, vibration, ESC and motor temperature quantities, and the w
 
 from __future__ import annotations
 
-from quadfdi.vehicle.coverage import WHAT
+from quadfdi.vehicle.coverage import WHAT, flown_text
 
 
 def _num(x, fmt: str = ".3f", none: str = "-") -> str:
@@ -41,11 +41,9 @@ def _shares(ref: dict) -> list[str]:
     if not model.get("motors"):
         return out + [f"share model: none ({model.get('why', 'no steady samples')})"]
     names = model["regressors"]
-    flown = ", ".join(f"{WHAT[n][0]} {model['range_5_95'][n][0]:.2f} to {model['range_5_95'][n][1]:.2f} {WHAT[n][1]}"
-                      for n in names)
-    out.append(f"share model over {model['motors'][0]['seconds']:.1f} s of steady samples; flown (5-95 %): "
-               f"{flown or 'no regressor logged'}" + (f"; yaw rate from {', '.join(model['yaw_rate_source'])}"
-                                                       if "yaw_rate" in names else ""))
+    flown = flown_text(model) if names else "no regressor logged"
+    out.append(f"share model over {model['motors'][0]['seconds']:.1f} s of steady samples; 5-95 % {flown}"
+               + (f"; yaw rate from {', '.join(model['yaw_rate_source'])}" if "yaw_rate" in names else ""))
     for m in model["motors"]:
         terms = "".join(f" {m[f'per_{n}']:+.3f} per {WHAT[n][1]}" for n in names)
         out.append(f"  rotor {m['rotor']} ({m['log_motor']}): {m['intercept']:.3f}{terms}, scatter "
