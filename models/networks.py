@@ -15,7 +15,6 @@ from typing import Any, Mapping
 import numpy as np
 import torch
 from torch import nn
-from torchdiffeq import odeint
 
 from quadfdi.models.control import LinearPath, interp_matrix, knots
 from quadfdi.models.regularise import drop_channels, drop_latent
@@ -150,6 +149,10 @@ class CNODE(_Normalised):
         return integrate_fixed(f, z0, self.solver.method, self.solver.steps, trace=trace)
 
     def _integrate_adaptive(self, z0: torch.Tensor, x_norm: torch.Tensor) -> torch.Tensor:
+        # imported here: torchdiffeq loads scipy.integrate (about half a second), which the fixed-step
+        # path every training, export and benchmark process of the RK4 models takes never needs
+        from torchdiffeq import odeint
+
         path = LinearPath(x_norm)
         options = {}
         if self.solver.jump_t:
