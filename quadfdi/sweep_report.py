@@ -41,8 +41,50 @@ def sweep_markdown(grid, rows: list[dict], metrics: list[str], stages: tuple[str
              r["status"] if r["error"] is None else f"failed: {r['error']}"] for r in rows]
     over = " x ".join(f"{k} in {{{', '.join(v)}}}" for k, v in grid)
     lines = [f"Sweep over {over}; stages "
-             f"{', '.join(stages)}; one run folder per point in points/.", "", *md_table(head, body)]
+             f"{', '.join(stages)}; one run folder per point in points/.", "", *md_table(head, body),
+             *seed_means_markdown(grid, seed_means(grid, rows, metrics), metrics)]
     return "\n".join(lines)
+
+
+SEED_KEY = "train.seed"
+
+
+def seed_means(grid, rows: list[dict], metrics: list[str]) -> list[dict]:
+    """With ``train.seed`` a grid key of two or more values: one entry per configuration of the other keys (in grid
+    order), the seeds whose point is done, and each numeric metric's mean, min and max over them (None where no seed
+    has a number). Empty otherwise: a seed-replicated search is chosen on these means, not on one seed's score."""
+    seeds = dict(grid).get(SEED_KEY, [])
+    if len(seeds) < 2:
+        return []
+    others = [k for k, _ in grid if k != SEED_KEY]
+    configs: dict[tuple, list[dict]] = {}
+    for r in rows:
+        configs.setdefault(tuple(r["values"][k] for k in others), []).append(r)
+    out = []
+    for combo, group in configs.items():
+        done = [r for r in group if r["status"] == "done"]
+        stats = {}
+        for m in metrics:
+            xs = [float(r["metrics"][m]) for r in done
+                  if isinstance(r["metrics"][m], (int, float)) and not isinstance(r["metrics"][m], bool)]
+            stats[m] = {"mean": sum(xs) / len(xs), "min": min(xs), "max": max(xs), "n": len(xs)} if xs else None
+        out.append({"values": dict(zip(others, combo)), "seeds_done": sorted(r["values"][SEED_KEY] for r in done),
+                    "seeds": len(group), "metrics": stats})
+    return out
+
+
+def seed_means_markdown(grid, means: list[dict], metrics: list[str]) -> list[str]:
+    """The table of ``seed_means``: each metric as mean [min, max] over the seeds done."""
+    if not means:
+        return []
+    others = [k for k, _ in grid if k != SEED_KEY]
+    seeds = ", ".join(dict(grid)[SEED_KEY])
+    head = [*others, "seeds done", *(f"{m} mean [min, max]" for m in metrics)]
+    body = [[*(e["values"][k] for k in others), f"{len(e['seeds_done'])} of {e['seeds']}",
+             *("n/a" if e["metrics"][m] is None else
+               f"{_fmt(e['metrics'][m]['mean'])} [{_fmt(e['metrics'][m]['min'])}, {_fmt(e['metrics'][m]['max'])}]"
+               for m in metrics)] for e in means]
+    return [f"Per configuration over {SEED_KEY} in {{{seeds}}}, in grid order:", "", *md_table(head, body)]
 
 
 def sweep_figure(grid, rows: list[dict], metric: str, path: Path) -> Path:
@@ -74,6 +116,7 @@ def write_sweep_report(out: Path, grid, points, results: list[JobResult], metric
     rows = sweep_rows(grid, points, results, metrics)
     md, js, png = out / "sweep.md", out / "sweep.json", out / "figures" / "sweep.png"
     write_text(md, sweep_markdown(grid, rows, metrics, stages))
-    write_json(js, {"grid": {k: v for k, v in grid}, "stages": list(stages), "metrics": metrics, "rows": rows})
+    write_json(js, {"grid": {k: v for k, v in grid}, "stages": list(stages), "metrics": metrics, "rows": rows,
+                    "over_seeds": seed_means(grid, rows, metrics)})
     sweep_figure(grid, rows, metrics[0], png)
     return [md, js, png]
