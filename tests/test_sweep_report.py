@@ -25,8 +25,8 @@ def test_each_configuration_is_summarised_over_the_seeds_done():
     first, second = means
     assert first["seeds_done"] == ["0", "1"] and first["seeds"] == 3
     assert abs(first["metrics"][METRICS[0]]["mean"] - 0.32) < 1e-12
-    assert (first["metrics"][METRICS[0]]["min"], first["metrics"][METRICS[0]]["max"], first["metrics"][METRICS[0]]["n"]) \
-        == (0.30, 0.34, 2)
+    val = first["metrics"][METRICS[0]]
+    assert (val["min"], val["max"], val["n"]) == (0.30, 0.34, 2)
     assert abs(second["metrics"][METRICS[0]]["mean"] - 0.38) < 1e-12 and second["metrics"][METRICS[1]] is None
     md = sweep_markdown(GRID, ROWS, METRICS, ("train",))
     assert "Per configuration over train.seed in {0, 1, 2}, in grid order:" in md
