@@ -149,7 +149,7 @@ class CNODE(_Normalised):
         return integrate_fixed(f, z0, self.solver.method, self.solver.steps, trace=trace)
 
     def _integrate_adaptive(self, z0: torch.Tensor, x_norm: torch.Tensor) -> torch.Tensor:
-        # imported here: torchdiffeq loads scipy.integrate (about half a second), which the fixed-step
+        # imported here: torchdiffeq loads scipy.integrate (0.3 s of a process's start), which the fixed-step
         # path every training, export and benchmark process of the RK4 models takes never needs
         from torchdiffeq import odeint
 

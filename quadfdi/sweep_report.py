@@ -12,6 +12,8 @@ from quadfdi.core.jsonio import write_json
 from quadfdi.core.plotting import pyplot, save_png
 from quadfdi.core.tables import md_table
 
+SEED_KEY = "train.seed"  # a grid key whose values are replicates of one configuration, not configurations
+
 
 def sweep_rows(grid: list[tuple[str, list[str]]], points: list[tuple[dict, Config]], results: list[JobResult],
                metrics: list[str]) -> list[dict]:
@@ -46,13 +48,10 @@ def sweep_markdown(grid, rows: list[dict], metrics: list[str], stages: tuple[str
     return "\n".join(lines)
 
 
-SEED_KEY = "train.seed"
-
-
 def seed_means(grid, rows: list[dict], metrics: list[str]) -> list[dict]:
     """With ``train.seed`` a grid key of two or more values: one entry per configuration of the other keys (in grid
     order), the seeds whose point is done, and each numeric metric's mean, min and max over them (None where no seed
-    has a number). Empty otherwise: a seed-replicated search is chosen on these means, not on one seed's score."""
+    has a number); empty otherwise. A seed-replicated search chooses on these means, not on one seed's score."""
     seeds = dict(grid).get(SEED_KEY, [])
     if len(seeds) < 2:
         return []
