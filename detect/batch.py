@@ -232,8 +232,7 @@ def detect_many(model: str | Path, logs: list[str | Path], out: str | Path, net:
     if without:
         log(f"detect: {len(without)} of {len(rows)} decided flight(s) with no vehicle reference: the model judges "
             "them against the simulated vehicles")
-    beyond = [r for r in rows if (r["vehicle_reference"] or {}).get("outside") is not None
-              and r["vehicle_reference"]["outside"] > LIMIT]
+    beyond = [r for r in rows if (r["vehicle_reference"] or {}).get("beyond")]
     if beyond:
         log(f"detect: {len(beyond)} of {len(rows)} decided flight(s) fly a forward speed or yaw rate past their "
             f"reference flights' on more than {LIMIT:.0%} of their airborne samples (the index's 'outside "

@@ -169,6 +169,7 @@ def summary(record: dict | None) -> dict | None:
             "hover": record["hover_collective"]["deviation"], "sag": record["sag_v_per_a_cell"]["deviation"],
             "vibration": next(iter(vib.values())) if vib else None, "vibration_metric": next(iter(vib), None),
             "largest": record["largest_deviation"], "outside": (record.get("coverage") or {}).get("outside"),
+            "beyond": bool((record.get("coverage") or {}).get("beyond")),
             "rules": {k: {"score": r["score"], "motor": r["motor"], "alarm": r["alarm"], "threshold": r["threshold"]}
                       for k, r in record["rules"].items()}}
 

@@ -111,15 +111,14 @@ def index_cells(row: dict) -> list[tuple[str, str]]:
     flag = f" <small class=\"{'alarm' if r['alarm'] else 'muted'}\">{esc(r['motor'])}</small>"
     cells += [num(ref["hover"]), num(ref["sag"], 4), num(ref["vibration"], 2),
               (f"{r['score']:.6g}", f"<span style=\"white-space:nowrap\">{r['score']:.3f}{flag}</span>"),
-              _outside_cell(ref.get("outside"))]
+              _outside_cell(ref.get("outside"), ref.get("beyond", False))]
     return cells
 
 
-def _outside_cell(outside) -> tuple[str, str]:
-    """The share of the flight past the reference's flown ranges (vehicle/coverage.py); flagged beyond LIMIT."""
-    from quadfdi.vehicle.coverage import LIMIT
-
+def _outside_cell(outside, beyond: bool) -> tuple[str, str]:
+    """The share of the flight past the reference's flown ranges (vehicle/coverage.py); flagged when beyond its
+    LIMIT."""
     if outside is None:
         return "", "\u2014"
-    cls = "alarm" if outside > LIMIT else "muted"
+    cls = "alarm" if beyond else "muted"
     return f"{outside:.6g}", f"<span class=\"{cls}\">{outside:.0%}</span>"
