@@ -23,13 +23,24 @@ def headline(run_root: Path) -> list[str]:
     return [f"- int8 macro F1 drop in points (export manifest): {', '.join(drops)}."] if drops else []
 
 
+def _over_bound_cell(check: dict) -> str:
+    """How many windows were over the fp32 bound and, when judged, their largest multiple of float32
+    rounding (export.verify.judged_parity); "-" for a manifest without the count."""
+    n = check.get("windows_over_bound")
+    if n is None:
+        return "-"
+    ratio = check.get("over_bound_rounding_ratio")
+    return f"{n}" + (f" ({ratio:.2g} x, at most {check['rounding_factor']:g})" if ratio is not None else "")
+
+
 def _checks(v: dict) -> list[str]:
     out = []
     rows = [[key, f"{v[key].get('max_abs_logit_diff', float('nan')):.2e}", f"{v[key].get('bound', float('nan')):.1e}",
-             "pass" if v[key].get("passed") else "FAIL"]
+             _over_bound_cell(v[key]), "pass" if v[key].get("passed") else "FAIL"]
             for key in ("cnode_fp32_vs_pytorch", "gru_fp32_vs_pytorch") if key in v]
     if rows:
-        out += md_table(["check", "max abs logit diff", "bound", "result"], rows)
+        out += md_table(["check", "max abs logit diff", "bound", "windows over it (x float32 rounding)", "result"],
+                        rows)
     rows = [[key, pct(x.get("argmax_agreement")), num(x.get("macro_f1_fp32_points"), 2),
              num(x.get("macro_f1_int8_points"), 2), num(x.get("macro_f1_drop_points"), 2),
              "met" if x.get("meets_target") else "missed"]

@@ -32,7 +32,7 @@ from quadfdi.export.onnx_cnode import CnodeParams, CnodeQuant, build_cnode, cali
 from quadfdi.export.onnx_gru import (CALIBRATION_PROBES, GruParams, GruQuant, build_gru_fp32, build_gru_int8, gru_params,
                              quantize_gru)
 from quadfdi.export.reference_bin import pick_windows, reference_bytes
-from quadfdi.export.verify import batch_independence, int8_vs_fp32, motor_verification, parity
+from quadfdi.export.verify import batch_independence, int8_vs_fp32, judged_parity, motor_verification
 from quadfdi.runtimes.ort import outputs, session
 from quadfdi.runtimes.pytorch import torch_logits
 from quadfdi.formats.onboard import onboard_section
@@ -98,13 +98,24 @@ def build_graphs(cnode: torch.nn.Module, gru: torch.nn.Module, calib: np.ndarray
 _FP32_CHECKS = ("cnode_fp32_vs_pytorch", "gru_fp32_vs_pytorch", "cnode_motor_fp32_vs_pytorch", "gru_motor_fp32_vs_pytorch")
 
 
+def _over_bound(v: dict) -> str:
+    """The clause of a failed fp32 check: how many windows were over the bound, and why they fail."""
+    n, allowed = v.get("windows_over_bound"), v.get("over_bound_allowed")
+    if n is None:
+        return ""
+    if n > allowed:
+        return f" on {n} of {v['windows']} windows (at most {allowed} may be, each within float32 rounding)"
+    return (f" on {n} of {v['windows']} windows, {v['over_bound_rounding_ratio']:.3g} x their float32 rounding "
+            f"spread (at most {v['rounding_factor']:g})")
+
+
 def _require_parity(verification: dict, log: Callable[[str], None]) -> None:
     """Stop on an fp32 graph that disagrees with PyTorch; report int8 against fp32 (a target only)."""
     for key in (k for k in _FP32_CHECKS if k in verification):
         v = verification[key]
         if not v["passed"]:
             raise QuadfdiError(f"verification failed, nothing written: {key} max abs logit difference "
-                               f"{v['max_abs_logit_diff']:.3g} > {v['bound']:.3g}")
+                               f"{v['max_abs_logit_diff']:.3g} > {v['bound']:.3g}{_over_bound(v)}")
     for key in ("cnode_int8_vs_fp32", "gru_int8_vs_fp32"):
         v = verification[key]
         log(f"export: {key}: argmax agreement {100 * v['argmax_agreement']:.2f} %, macro F1 "
@@ -212,8 +223,8 @@ def verify_all(blobs: dict[str, bytes], cnode: torch.nn.Module, gru: torch.nn.Mo
         indep[key] = batch_independence(sess, x, logits[key])
     verification = {
         "test_windows": int(len(x)),
-        "cnode_fp32_vs_pytorch": parity(logits["cnode_fp32"], ref["cnode"]),
-        "gru_fp32_vs_pytorch": parity(logits["gru_fp32"], ref["gru"]),
+        "cnode_fp32_vs_pytorch": judged_parity(logits["cnode_fp32"], ref["cnode"], cnode, x),
+        "gru_fp32_vs_pytorch": judged_parity(logits["gru_fp32"], ref["gru"], gru, x),
         "cnode_int8_vs_fp32": int8_vs_fp32(logits["cnode_int8"], logits["cnode_fp32"], test.y),
         "gru_int8_vs_fp32": int8_vs_fp32(logits["gru_int8"], logits["gru_fp32"], test.y),
         "batch_independence": indep,

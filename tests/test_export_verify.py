@@ -1,0 +1,98 @@
+"""The export's fp32 self-check where float32 rounding is amplified (export.verify.judged_parity).
+
+Random GRUs whose recurrent weights are scaled to the edge of chaos: on a few windows the 80-step
+recurrence amplifies float32 rounding until ONNX Runtime and PyTorch, both correct, part by more than
+the fp32 bound. Those windows are judged against the spread that float32 rounding gives the float64
+result; a graph with the wrong GRU variant (linear_before_reset=0) stays far outside it.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import torch
+
+from quadfdi.export.onnx_gru import build_gru_fp32, gru_params
+from quadfdi.export.verify import ROUNDING_FACTOR, judged_parity, parity, rounding_spread
+from quadfdi.models.motor import attach_motor_head
+from quadfdi.models.networks import CNODE, GRUClassifier, SolverSpec
+from quadfdi.runtimes.pytorch import torch_logits, torch_motor_logits
+from tests.test_export_graphs import OPSET, C, W, run, synthetic_windows
+
+# (seed, hidden, recurrent weight scale): each puts some of 256 windows over the fp32 bound
+EDGE = [(seed, hidden, scale) for seed in (0, 1) for hidden, scale in ((6, 7.5), (6, 8.5), (16, 7.5), (16, 8))]
+
+
+def edge_gru(seed: int, hidden: int, scale: float) -> tuple[GRUClassifier, np.ndarray]:
+    torch.manual_seed(seed)
+    rng = np.random.default_rng(seed)
+    mean, std = rng.normal(0, 5, C).astype(np.float32), rng.uniform(0.5, 3, C).astype(np.float32)
+    gru = GRUClassifier(C, hidden=hidden, window=W)
+    gru.set_normalisation(mean, std)
+    with torch.no_grad():
+        for name, p in gru.named_parameters():
+            p.mul_(scale if "weight_hh" in name else (3.0 if "weight" in name else 1.0))
+    gru.eval()
+    return gru, synthetic_windows(256, seed + 2, mean, std)
+
+
+def test_float32_rounding_tells_a_correct_graph_from_a_wrong_one():
+    """Over the windows past the bound, ONNX Runtime's distance from the float64 result in units of the
+    rounding spread: every correct graph's within ROUNDING_FACTOR, every wrong graph's beyond it."""
+    ratios: dict[int, list[float]] = {1: [], 0: []}
+    for seed, hidden, scale in EDGE:
+        gru, x = edge_gru(seed, hidden, scale)
+        ref = torch_logits(gru, x)
+        for lbr in ratios:
+            ort = run(build_gru_fp32(gru_params(gru), OPSET, linear_before_reset=lbr), x)
+            over = np.flatnonzero(np.abs(ort - ref).max(1) > parity(ort, ref)["bound"])[:16]
+            if len(over):
+                exact, spread = rounding_spread(gru, x[over])
+                ratios[lbr] += list(np.abs(ort[over] - exact).max(1) / spread)
+    assert len(ratios[1]) >= 10, "the fixtures no longer reach the edge of chaos"
+    assert len(ratios[0]) == 16 * len(EDGE)
+    assert max(ratios[1]) <= ROUNDING_FACTOR < min(ratios[0]), (max(ratios[1]), min(ratios[0]))
+
+
+def test_one_ill_conditioned_window_passes_within_rounding_and_fails_beyond_it():
+    """ONNX Runtime's logits stood in by the float64 result moved on one window: by half its rounding
+    spread away from PyTorch (over the bound, within rounding: passes; plain parity does not), then by
+    ten spreads (fails, saying by how much)."""
+    gru, x = edge_gru(0, 16, 8.0)
+    ref = torch_logits(gru, x)
+    exact, spread = rounding_spread(gru, x)
+    bound = parity(ref, ref)["bound"]
+    i = int(np.argmax(spread))
+    assert spread[i] > 4 * bound  # an ill-conditioned window
+    away = np.sign(exact[i] - ref[i]) + (exact[i] == ref[i])
+    for moved, passes in ((0.5, True), (10.0, False)):
+        logits = ref.copy()
+        logits[i] = (exact[i] + moved * spread[i] * away).astype(np.float32)
+        v = judged_parity(logits, ref, gru, x)
+        assert not parity(logits, ref)["passed"]
+        assert v["windows_over_bound"] == 1 and v["passed"] is passes, v
+        assert (v["over_bound_rounding_ratio"] <= ROUNDING_FACTOR) is passes
+
+
+def test_a_graph_wrong_on_every_window_fails_before_any_rounding_is_weighed():
+    gru, x = edge_gru(0, 6, 7.5)
+    v = judged_parity(run(build_gru_fp32(gru_params(gru), OPSET, linear_before_reset=0), x), torch_logits(gru, x),
+                      gru, x)
+    assert not v["passed"] and v["windows_over_bound"] > v["over_bound_allowed"] == 1
+    assert "over_bound_rounding_ratio" not in v
+
+
+def test_the_rounding_spread_of_a_cnode_motor_head():
+    """The motor head's float64 result agrees with PyTorch's float32 within the fp32 bound on a
+    well-conditioned model, and rounding moves it by about a float32 ulp of its size."""
+    torch.manual_seed(3)
+    rng = np.random.default_rng(3)
+    mean, std = rng.normal(0, 5, C).astype(np.float32), rng.uniform(0.5, 3, C).astype(np.float32)
+    cnode = attach_motor_head(CNODE(C, window=W, latent=6, hidden=8, solver=SolverSpec("rk4", 2)))
+    cnode.set_normalisation(mean, std)
+    cnode.eval()
+    x = synthetic_windows(16, 5, mean, std)
+    ref = torch_motor_logits(cnode, x)
+    exact, spread = rounding_spread(cnode, x, head="motor")
+    assert parity(exact.astype(np.float32), ref)["passed"]
+    scale = np.abs(exact).max(1)
+    assert np.all(spread > 0) and np.all(spread < 1e-5 * np.maximum(1, scale))
