@@ -34,7 +34,7 @@ from quadfdi.export.onnx_gru import (CALIBRATION_PROBES, GruParams, GruQuant, bu
 from quadfdi.export.reference_bin import pick_windows, reference_bytes
 from quadfdi.export.verify import batch_independence, int8_vs_fp32, judged_parity, motor_verification
 from quadfdi.runtimes.ort import outputs, session
-from quadfdi.runtimes.pytorch import torch_logits
+from quadfdi.runtimes.pytorch import over_bound_clause, torch_logits
 from quadfdi.formats.onboard import onboard_section
 from quadfdi.export.alarm_policies import Policies, policies_of
 from quadfdi.export.deployment import Deployment, deployment_of
@@ -98,24 +98,13 @@ def build_graphs(cnode: torch.nn.Module, gru: torch.nn.Module, calib: np.ndarray
 _FP32_CHECKS = ("cnode_fp32_vs_pytorch", "gru_fp32_vs_pytorch", "cnode_motor_fp32_vs_pytorch", "gru_motor_fp32_vs_pytorch")
 
 
-def _over_bound(v: dict) -> str:
-    """The clause of a failed fp32 check: how many windows were over the bound, and why they fail."""
-    n, allowed = v.get("windows_over_bound"), v.get("over_bound_allowed")
-    if n is None:
-        return ""
-    if n > allowed:
-        return f" on {n} of {v['windows']} windows (at most {allowed} may be, each within float32 rounding)"
-    return (f" on {n} of {v['windows']} windows, {v['over_bound_rounding_ratio']:.3g} x their float32 rounding "
-            f"spread (at most {v['rounding_factor']:g})")
-
-
 def _require_parity(verification: dict, log: Callable[[str], None]) -> None:
     """Stop on an fp32 graph that disagrees with PyTorch; report int8 against fp32 (a target only)."""
     for key in (k for k in _FP32_CHECKS if k in verification):
         v = verification[key]
         if not v["passed"]:
             raise QuadfdiError(f"verification failed, nothing written: {key} max abs logit difference "
-                               f"{v['max_abs_logit_diff']:.3g} > {v['bound']:.3g}{_over_bound(v)}")
+                               f"{v['max_abs_logit_diff']:.3g} > {v['bound']:.3g}{over_bound_clause(v)}")
     for key in ("cnode_int8_vs_fp32", "gru_int8_vs_fp32"):
         v = verification[key]
         log(f"export: {key}: argmax agreement {100 * v['argmax_agreement']:.2f} %, macro F1 "

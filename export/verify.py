@@ -13,31 +13,17 @@
 
 from __future__ import annotations
 
-import copy
-
 import numpy as np
 import onnxruntime as ort
 import torch
 from sklearn.metrics import f1_score
 
 from quadfdi.core.contracts import FP32_ORT_VS_TORCH_REL_TOL
-from quadfdi.models.threads import torch_threads
-from quadfdi.runtimes.ort import THREADS, outputs
-from quadfdi.runtimes.pytorch import torch_motor_logits
+from quadfdi.runtimes.ort import outputs
+from quadfdi.runtimes.pytorch import rounding_judgement, torch_motor_logits
 
 FP32_REL_TOL = FP32_ORT_VS_TORCH_REL_TOL  # ONNX Runtime against PyTorch (core/contracts.py)
 F1_DROP_TARGET_POINTS = 0.5
-# Windows over the fp32 bound are judged against float32 rounding (``judged_parity``): at most this share
-# of the windows (and at least one) may be over it, each within ROUNDING_FACTOR times the spread of
-# ROUNDING_SAMPLES float64 evaluations with weights and inputs moved by up to one float32 ulp. On random
-# GRUs driven to the edge of chaos (`PYTHONPATH=. python lab/export_rounding.py`, seeds 0-7: 239 windows
-# over the bound, the spread drawn four times) a correct graph measured at most 2.8 times that spread, a
-# graph with linear_before_reset=0 at least 10.4 (its first 64 windows of each of seeds 0-1); the factor
-# lies between. Such a wrong graph puts every window over the bound and is stopped by the share first.
-MAX_OVER_BOUND_SHARE = 0.001
-ROUNDING_SAMPLES = 16
-ROUNDING_FACTOR = 6.0
-FLOAT32_ULP = 2.0 ** -23  # relative spacing of float32 numbers in [1, 2)
 
 
 def parity(logits: np.ndarray, reference: np.ndarray, rel: float = FP32_REL_TOL) -> dict:
@@ -52,49 +38,14 @@ def parity(logits: np.ndarray, reference: np.ndarray, rel: float = FP32_REL_TOL)
 def judged_parity(logits: np.ndarray, reference: np.ndarray, model: torch.nn.Module, x: np.ndarray,
                   head: str = "logits") -> dict:
     """``parity`` of ONNX Runtime's fp32 ``logits`` against PyTorch's ``reference`` of ``model`` on
-    windows ``x``, where the windows over its bound are judged against float32 rounding instead: a
-    recurrence or ODE that amplifies rounding (a window near a switch of the hidden state) lets two
-    correct float32 programs with other summation orders part by more than the bound. Such a window
-    passes when ONNX Runtime lies within ROUNDING_FACTOR x the rounding spread of the float64 result
-    (``rounding_spread``); a wrong graph misses both on (nearly) every window. ``head``: "logits" or
-    "motor" (the motor head's logits)."""
+    windows ``x``, the windows over its bound judged against float32 rounding instead
+    (runtimes/pytorch.py ``rounding_judgement``): a recurrence or ODE that amplifies rounding (a window
+    near a switch of the hidden state) lets two correct float32 programs with other summation orders
+    part by more than the bound; a wrong graph misses on (nearly) every window. ``head``: "logits" or
+    "motor"."""
     res = parity(logits, reference)
-    over = np.flatnonzero(np.abs(logits.astype(np.float64) - reference).max(1) > res["bound"])
-    allowed = max(1, int(MAX_OVER_BOUND_SHARE * len(logits)))
-    res.update(windows_over_bound=int(len(over)), over_bound_allowed=allowed)
-    if len(over) == 0 or len(over) > allowed:
-        return res
-    exact, spread = rounding_spread(model, x[over], head)
-    ratio = np.abs(logits[over].astype(np.float64) - exact).max(1) / np.maximum(spread, np.finfo(np.float64).tiny)
-    res.update(over_bound_rounding_ratio=float(ratio.max()), rounding_factor=ROUNDING_FACTOR,
-               passed=bool(np.all(ratio <= ROUNDING_FACTOR)))
-    return res
-
-
-@torch.no_grad()
-def rounding_spread(model: torch.nn.Module, x: np.ndarray, head: str = "logits",
-                    seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
-    """(exact, spread): ``model``'s outputs on windows ``x`` in float64 and, per window, the largest
-    distance from them over ROUNDING_SAMPLES float64 evaluations with every weight and input scaled by
-    1 + u * FLOAT32_ULP, u uniform in [-1, 1]: how far float32 rounding can move this window's result
-    (a float32 program computes the exact result of slightly perturbed data)."""
-    gen = torch.Generator().manual_seed(seed)
-
-    def jitter(t: torch.Tensor) -> torch.Tensor:
-        return t * (1 + FLOAT32_ULP * (2 * torch.rand(t.shape, generator=gen, dtype=torch.float64) - 1))
-
-    def out(m: torch.nn.Module, xt: torch.Tensor) -> np.ndarray:
-        return (m(xt) if head == "logits" else m.motor_head(m.features(xt))).numpy()
-
-    exact_model, xt = copy.deepcopy(model).double(), torch.from_numpy(x).double()
-    with torch_threads(THREADS):
-        exact, spread = out(exact_model, xt), np.zeros(len(x))
-        for _ in range(ROUNDING_SAMPLES):
-            moved = copy.deepcopy(exact_model)
-            for p in moved.parameters():
-                p.copy_(jitter(p))
-            spread = np.maximum(spread, np.abs(out(moved, jitter(xt)) - exact).max(1))
-    return exact, spread
+    outside = np.abs(logits.astype(np.float64) - reference).max(1) > res["bound"]
+    return {**res, **rounding_judgement(logits, outside, model, x, head)}
 
 
 def int8_vs_fp32(int8_logits: np.ndarray, fp32_logits: np.ndarray, y: np.ndarray) -> dict:

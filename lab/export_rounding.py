@@ -1,5 +1,5 @@
 """How far float32 rounding moves a GRU's logits at the edge of chaos, against how far a wrong graph lies
-(export/verify.py's ROUNDING_FACTOR): random GRUs (5 channels, 80 steps, the recurrent weights scaled by
+(core/contracts.py's ROUNDING_FACTOR): random GRUs (5 channels, 80 steps, the recurrent weights scaled by
 7.5 or 8.5 at 6 units, 7.5 or 8 at 16), 256 random-walk windows each, seeds 0-7. For the windows where
 ONNX Runtime's fp32 graph and PyTorch part by more than the fp32 bound: ONNX Runtime's distance from the
 float64 result over ``rounding_spread`` (the spread drawn with four seeds), for the correct graph and,
@@ -13,13 +13,14 @@ from __future__ import annotations
 import numpy as np
 
 from quadfdi.export.onnx_gru import build_gru_fp32, gru_params
-from quadfdi.export.verify import ROUNDING_FACTOR, parity, rounding_spread
+from quadfdi.core.contracts import ROUNDING_FACTOR
+from quadfdi.export.verify import parity
 from quadfdi.models.networks import GRUClassifier
 from quadfdi.runtimes.ort import outputs, session
-from quadfdi.runtimes.pytorch import torch_logits
-from tests.test_export_verify import OPSET, edge_gru
+from quadfdi.runtimes.pytorch import rounding_spread, torch_logits
+from tests.test_fp32_rounding import OPSET, edge_gru
 
-SHAPES = ((6, 7.5), (6, 8.5), (16, 7.5), (16, 8.0))  # (units, recurrent scale): tests/test_export_verify.py's EDGE
+SHAPES = ((6, 7.5), (6, 8.5), (16, 7.5), (16, 8.0))  # (units, recurrent scale): tests/test_fp32_rounding.py's EDGE
 
 
 def ratios(gru: GRUClassifier, x: np.ndarray, lbr: int, limit: int | None, seeds: range) -> list[float]:

@@ -3,11 +3,13 @@ Runtime and the C++ are checked against (the CNODE with the export's classic RK4
 
 from __future__ import annotations
 
+import copy
 from pathlib import Path
 
 import numpy as np
 import torch
 
+from quadfdi.core.contracts import FP32_OVER_BOUND_SHARE, ROUNDING_FACTOR, ROUNDING_SAMPLES
 from quadfdi.models.checkpoint import load_checkpoint
 from quadfdi.models.networks import SolverSpec
 from quadfdi.models.threads import torch_threads
@@ -28,6 +30,65 @@ def torch_motor_logits(model: torch.nn.Module, x: np.ndarray) -> np.ndarray:
     with torch_threads(THREADS):
         return np.concatenate([model.motor_head(model.features(torch.from_numpy(x[i:i + CHUNK]))).numpy()
                                for i in range(0, len(x), CHUNK)]).astype(np.float32)
+
+
+FLOAT32_ULP = 2.0 ** -23  # relative spacing of float32 numbers in [1, 2)
+
+
+@torch.no_grad()
+def rounding_spread(model: torch.nn.Module, x: np.ndarray, head: str = "logits",
+                    seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """(exact, spread): ``model``'s outputs on windows ``x`` in float64 and, per window, the largest
+    distance from them over ROUNDING_SAMPLES float64 evaluations with every weight and input scaled by
+    1 + u * FLOAT32_ULP, u uniform in [-1, 1]: how far float32 rounding can move this window's result
+    (a float32 program computes the exact result of slightly perturbed data). ``head``: "logits" or
+    "motor" (the motor head's logits)."""
+    gen = torch.Generator().manual_seed(seed)
+
+    def jitter(t: torch.Tensor) -> torch.Tensor:
+        return t * (1 + FLOAT32_ULP * (2 * torch.rand(t.shape, generator=gen, dtype=torch.float64) - 1))
+
+    def out(m: torch.nn.Module, xt: torch.Tensor) -> np.ndarray:
+        return (m(xt) if head == "logits" else m.motor_head(m.features(xt))).numpy()
+
+    exact_model, xt = copy.deepcopy(model).double(), torch.from_numpy(x).double()
+    with torch_threads(THREADS):
+        exact, spread = out(exact_model, xt), np.zeros(len(x))
+        for _ in range(ROUNDING_SAMPLES):
+            moved = copy.deepcopy(exact_model)
+            for p in moved.parameters():
+                p.copy_(jitter(p))
+            spread = np.maximum(spread, np.abs(out(moved, jitter(xt)) - exact).max(1))
+    return exact, spread
+
+
+def rounding_judgement(out: np.ndarray, outside: np.ndarray, model: torch.nn.Module, x: np.ndarray,
+                       head: str = "logits") -> dict:
+    """A float32 runtime's outputs ``out`` of ``model`` on windows ``x`` where ``outside`` (per window)
+    marks those past a parity bound: at most FP32_OVER_BOUND_SHARE of them (at least one) may be, each
+    within ROUNDING_FACTOR x its ``rounding_spread`` of the float64 result (core/contracts.py)."""
+    over = np.flatnonzero(outside)
+    allowed = max(1, int(FP32_OVER_BOUND_SHARE * len(out)))
+    res = {"windows_over_bound": int(len(over)), "over_bound_allowed": allowed, "passed": len(over) == 0}
+    if 0 < len(over) <= allowed:
+        exact, spread = rounding_spread(model, x[over], head)
+        ratio = np.abs(out[over].astype(np.float64) - exact).max(1) / np.maximum(spread, np.finfo(np.float64).tiny)
+        res.update(over_bound_rounding_ratio=float(ratio.max()), rounding_factor=ROUNDING_FACTOR,
+                   passed=bool(np.all(ratio <= ROUNDING_FACTOR)))
+    return res
+
+
+def over_bound_clause(v: dict) -> str:
+    """The clause of a failed fp32 check judged by ``rounding_judgement``: how many windows were past
+    the bound, and why they fail ("" for a check without the count)."""
+    n, allowed = v.get("windows_over_bound"), v.get("over_bound_allowed")
+    if not n:
+        return ""
+    if n > allowed:
+        return f" on {n} windows (at most {allowed} may be, each within float32 rounding)"
+    ratio = format(v["over_bound_rounding_ratio"], ".3g")
+    which = f"1 window, {ratio} x its" if n == 1 else f"{n} windows, {ratio} x their"
+    return f" on {which} float32 rounding spread (at most {v['rounding_factor']:g})"
 
 
 def load_models(checkpoints: dict[str, Path], steps: int) -> dict[str, torch.nn.Module]:

@@ -1,4 +1,6 @@
-"""The export's fp32 self-check where float32 rounding is amplified (export.verify.judged_parity).
+"""fp32 parity where float32 rounding is amplified: the export's self-check (export.verify.judged_parity)
+and parity's C++ against ONNX Runtime target (parity.run.judge_fp32), both by
+runtimes.pytorch.rounding_judgement.
 
 Random GRUs whose recurrent weights are scaled to the edge of chaos: on a few windows the 80-step
 recurrence amplifies float32 rounding until ONNX Runtime and PyTorch, both correct, part by more than
@@ -12,10 +14,13 @@ import numpy as np
 import torch
 
 from quadfdi.export.onnx_gru import build_gru_fp32, gru_params
-from quadfdi.export.verify import ROUNDING_FACTOR, judged_parity, parity, rounding_spread
+from quadfdi.core.contracts import ROUNDING_FACTOR
+from quadfdi.export.verify import judged_parity, parity
 from quadfdi.models.motor import attach_motor_head
 from quadfdi.models.networks import CNODE, GRUClassifier, SolverSpec
-from quadfdi.runtimes.pytorch import torch_logits, torch_motor_logits
+from quadfdi.parity import compare
+from quadfdi.parity.run import judge_fp32
+from quadfdi.runtimes.pytorch import over_bound_clause, rounding_spread, torch_logits, torch_motor_logits
 from tests.test_export_graphs import OPSET, C, W, run, synthetic_windows
 
 # (seed, hidden, recurrent weight scale): each puts some of 256 windows over the fp32 bound
@@ -71,6 +76,29 @@ def test_one_ill_conditioned_window_passes_within_rounding_and_fails_beyond_it()
         assert not parity(logits, ref)["passed"]
         assert v["windows_over_bound"] == 1 and v["passed"] is passes, v
         assert (v["over_bound_rounding_ratio"] <= ROUNDING_FACTOR) is passes
+
+
+def test_parity_judges_the_cpp_target_the_same_way():
+    """C++ fp32 against ONNX Runtime fp32 (stood in by PyTorch's float32), the C++ logits moved on one
+    ill-conditioned window as above: the target (1e-4 and argmax 100 %) missed, then judged."""
+    gru, x = edge_gru(0, 16, 8.0)
+    ort = torch_logits(gru, x)
+    exact, spread = rounding_spread(gru, x)
+    i = int(np.argmax(spread))
+    away = np.sign(exact[i] - ort[i]) + (exact[i] == ort[i])
+    for moved, passes in ((0.5, True), (10.0, False)):
+        cpp = ort.copy()
+        cpp[i] = (exact[i] + moved * spread[i] * away).astype(np.float32)
+        pair = compare.pair_metrics(cpp, ort)
+        pair["target"] = compare.fp32_target(pair)
+        assert not pair["target"]["passed"]
+        judge_fp32(pair, {"cpp_fp32": cpp, "ort_fp32": ort}, gru, x)
+        t = pair["target"]
+        assert t["windows_over_bound"] == 1 and t["passed"] is passes, t
+        if not passes:
+            assert t["over_bound_rounding_ratio"] > ROUNDING_FACTOR
+            assert over_bound_clause(t) == (f" on 1 window, {t['over_bound_rounding_ratio']:.3g} x its float32 "
+                                            f"rounding spread (at most {ROUNDING_FACTOR:g})")
 
 
 def test_a_graph_wrong_on_every_window_fails_before_any_rounding_is_weighed():
