@@ -21,6 +21,19 @@ def pct(x: float | None, nd: int = 2) -> str:
     return "—" if x is None else f"{100 * x:.{nd}f} %"
 
 
+def over_bound_clause(check: dict) -> str:
+    """How many windows an fp32 check had past its bound and how they were judged against float32 rounding
+    (runtimes.pytorch.rounding_judgement), as a clause for a message or a report ("" when none or not counted)."""
+    n, allowed = check.get("windows_over_bound"), check.get("over_bound_allowed")
+    if not n:
+        return ""
+    if n > allowed:
+        return f"; on {n} windows (at most {allowed} may be, each within float32 rounding)"
+    ratio = format(check["over_bound_rounding_ratio"], ".3g")
+    which = f"1 window, {ratio} x its" if n == 1 else f"{n} windows, {ratio} x their"
+    return f"; on {which} float32 rounding spread (at most {check['rounding_factor']:g})"
+
+
 def demote(markdown: str, levels: int = 1) -> list[str]:
     """Headings ``levels`` down (outside code fences), so an included report nests under a section."""
     out = []

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from quadfdi.core.reportmd import demote, not_run, num, optional_json, pct
+from quadfdi.core.reportmd import demote, not_run, num, optional_json, over_bound_clause, pct
 from quadfdi.core.tables import md_table
 
 HEADING = "## Export"
@@ -24,13 +24,10 @@ def headline(run_root: Path) -> list[str]:
 
 
 def _over_bound_cell(check: dict) -> str:
-    """How many windows were over the fp32 bound and, when judged, their largest multiple of float32
-    rounding (export.verify.judged_parity); "-" for a manifest without the count."""
+    """The windows past the fp32 bound and their judgement (``over_bound_clause``); "-" for a manifest without
+    the count."""
     n = check.get("windows_over_bound")
-    if n is None:
-        return "-"
-    ratio = check.get("over_bound_rounding_ratio")
-    return f"{n}" + (f" ({ratio:.2g} x, at most {check['rounding_factor']:g})" if ratio is not None else "")
+    return "-" if n is None else over_bound_clause(check).removeprefix("; ") or "0"
 
 
 def _checks(v: dict) -> list[str]:
@@ -39,7 +36,7 @@ def _checks(v: dict) -> list[str]:
              _over_bound_cell(v[key]), "pass" if v[key].get("passed") else "FAIL"]
             for key in ("cnode_fp32_vs_pytorch", "gru_fp32_vs_pytorch") if key in v]
     if rows:
-        out += md_table(["check", "max abs logit diff", "bound", "windows over it (x float32 rounding)", "result"],
+        out += md_table(["check", "max abs logit diff", "bound", "windows past the bound", "result"],
                         rows)
     rows = [[key, pct(x.get("argmax_agreement")), num(x.get("macro_f1_fp32_points"), 2),
              num(x.get("macro_f1_int8_points"), 2), num(x.get("macro_f1_drop_points"), 2),

@@ -34,7 +34,8 @@ from quadfdi.export.onnx_gru import (CALIBRATION_PROBES, GruParams, GruQuant, bu
 from quadfdi.export.reference_bin import pick_windows, reference_bytes
 from quadfdi.export.verify import batch_independence, int8_vs_fp32, judged_parity, motor_verification
 from quadfdi.runtimes.ort import outputs, session
-from quadfdi.runtimes.pytorch import over_bound_clause, torch_logits
+from quadfdi.core.reportmd import over_bound_clause
+from quadfdi.runtimes.pytorch import torch_logits
 from quadfdi.formats.onboard import onboard_section
 from quadfdi.export.alarm_policies import Policies, policies_of
 from quadfdi.export.deployment import Deployment, deployment_of

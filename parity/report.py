@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from quadfdi.core.reportmd import demote, not_run, optional_json
+from quadfdi.core.reportmd import demote, not_run, optional_json, over_bound_clause
 
 STREAM_TITLES = {"cnode": "CNODE", "gru": "GRU", "sgru": "streaming GRU", "scnode": "streaming CNODE"}
 PAIR_TITLES = {
@@ -22,15 +22,6 @@ def _g(v: float) -> str:
     return f"{v:.3g}" if isinstance(v, float) else str(v)
 
 
-def _rounding(t: dict) -> str:
-    """An fp32 target judged against float32 rounding on the windows past it (parity.run.judge_fp32)."""
-    if not t.get("windows_over_bound"):
-        return ""
-    ratio = t.get("over_bound_rounding_ratio")
-    judged = f", {ratio:.2g} x their float32 rounding (at most {t['rounding_factor']:g})" if ratio is not None else ""
-    return f"; {t['windows_over_bound']} windows past it (at most {t['over_bound_allowed']}){judged}"
-
-
 def _pairs_table(model: str, pairs: dict) -> list[str]:
     title = {"cnode": "CNODE", "gru": "GRU", "cnode_motor": "CNODE motor head", "gru_motor": "GRU motor head"}
     rows = [f"### {title.get(model, model)}", "",
@@ -42,7 +33,7 @@ def _pairs_table(model: str, pairs: dict) -> list[str]:
             verdict = "(information)"
         else:
             extra = (f", {t['max_diff_steps']:.3g} logit steps" if "max_diff_steps" in t
-                     else "" if t.get("bitwise") else f", bound {t['bound']:.2g}" + _rounding(t))
+                     else "" if t.get("bitwise") else f", bound {t['bound']:.2g}" + over_bound_clause(t))
             verdict = f"{'**pass**' if t['passed'] else '**FAIL**'}: {t['rule']}{extra}"
         rows.append(f"| {PAIR_TITLES.get(key, key)} | {_g(m['max_abs_diff'])} | {_g(m['rmse'])} | {_g(m['rel_l2'])} | "
                     f"{m['cosine']:.9f} | {100 * m['argmax_agreement']:.2f} % ({m['argmax_disagreements']} differ) | "

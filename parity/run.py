@@ -36,6 +36,7 @@ from quadfdi.core.rundir import RunDir
 from quadfdi.formats.dataset import load_dataset, make_windows
 from quadfdi.train.vehicle_ref import profiled
 from quadfdi.core.jsonio import write_json
+from quadfdi.core.reportmd import over_bound_clause
 
 SCHEMA_VERSION = 1
 
@@ -208,7 +209,7 @@ def _parity_host(run: RunDir, out_dir: Path, log: Callable[[str], None], mcu: bo
                           else f"{m['windows'] - m['bitwise_identical_windows']} windows not bit-identical"
                           if "bitwise" in t
                           else f"max |diff| {m['max_abs_diff']:.3g} (bound {t['bound']:.3g})"
-                          + pytorch.over_bound_clause(t))
+                          + over_bound_clause(t))
                 problems.append(f"{model} {key}: {detail}, argmax {100 * m['argmax_agreement']:.2f} %")
     problems += mcu_report.get("problems", [])
     report = {

@@ -78,19 +78,6 @@ def rounding_judgement(out: np.ndarray, outside: np.ndarray, model: torch.nn.Mod
     return res
 
 
-def over_bound_clause(v: dict) -> str:
-    """The clause of a failed fp32 check judged by ``rounding_judgement``: how many windows were past
-    the bound, and why they fail ("" for a check without the count)."""
-    n, allowed = v.get("windows_over_bound"), v.get("over_bound_allowed")
-    if not n:
-        return ""
-    if n > allowed:
-        return f" on {n} windows (at most {allowed} may be, each within float32 rounding)"
-    ratio = format(v["over_bound_rounding_ratio"], ".3g")
-    which = f"1 window, {ratio} x its" if n == 1 else f"{n} windows, {ratio} x their"
-    return f" on {which} float32 rounding spread (at most {v['rounding_factor']:g})"
-
-
 def load_models(checkpoints: dict[str, Path], steps: int) -> dict[str, torch.nn.Module]:
     """The trained models of ``checkpoints`` ({kind: path}), in eval mode; the CNODE with classic RK4
     over ``steps`` steps (the export's N)."""

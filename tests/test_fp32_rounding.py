@@ -20,7 +20,8 @@ from quadfdi.models.motor import attach_motor_head
 from quadfdi.models.networks import CNODE, GRUClassifier, SolverSpec
 from quadfdi.parity import compare
 from quadfdi.parity.run import judge_fp32
-from quadfdi.runtimes.pytorch import over_bound_clause, rounding_spread, torch_logits, torch_motor_logits
+from quadfdi.core.reportmd import over_bound_clause
+from quadfdi.runtimes.pytorch import rounding_spread, torch_logits, torch_motor_logits
 from tests.test_export_graphs import OPSET, C, W, run, synthetic_windows
 
 # (seed, hidden, recurrent weight scale): each puts some of 256 windows over the fp32 bound
@@ -97,7 +98,7 @@ def test_parity_judges_the_cpp_target_the_same_way():
         assert t["windows_over_bound"] == 1 and t["passed"] is passes, t
         if not passes:
             assert t["over_bound_rounding_ratio"] > ROUNDING_FACTOR
-            assert over_bound_clause(t) == (f" on 1 window, {t['over_bound_rounding_ratio']:.3g} x its float32 "
+            assert over_bound_clause(t) == (f"; on 1 window, {t['over_bound_rounding_ratio']:.3g} x its float32 "
                                             f"rounding spread (at most {ROUNDING_FACTOR:g})")
 
 
