@@ -12,10 +12,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from tests.conftest import quadfdi
+from tests.conftest import SHARED_DATA, quadfdi
 from tests.test_firmware_fixtures import host_build  # noqa: F401 (fixture)
 
-REAL = Path("/work/shared/data/flightlogs")
+REAL = SHARED_DATA / "flightlogs"
 MISSION = REAL / "px4_quad_6s_uavcan_mission.ulg"
 
 pytestmark = pytest.mark.skipif(not MISSION.is_file(), reason="the shared real flight logs are not here")

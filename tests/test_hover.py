@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 
 from quadfdi.core import hover
+from tests.conftest import SHARED_DATA
 from tests.test_firmware_fixtures import host_build  # noqa: F401 (fixture)
 
-REAL = Path("/work/shared/data/flightlogs")
-REALISTIC = Path("/work/data/realistic/dataset.npz")
+REAL = SHARED_DATA / "flightlogs"
 
 
 def _flight(t=200, cmd=0.45, cur=9.0, seed=0) -> np.ndarray:
@@ -101,13 +101,13 @@ def _cpp(build: Path, flights: list[tuple[np.ndarray, np.ndarray]], tmp: Path) -
     return np.fromfile(tmp / "out.bin", dtype=np.dtype([("cmd", "<f4"), ("cur", "<f4"), ("freeze", "<i4")]))
 
 
-def test_cpp_estimate_is_bit_identical_on_simulated_and_real_flights(host_build, tmp_path):  # noqa: F811
+def test_cpp_estimate_is_bit_identical_on_simulated_and_real_flights(host_build, flightlog_export,  # noqa: F811
+                                                                    tmp_path):
     flights = [(_flight(seed=s), np.ones(200, bool)) for s in range(3)]
-    if REALISTIC.is_file():
-        with np.load(REALISTIC) as d:
-            names = [str(n) for n in d["channel_names"]]
-            tel = d["telemetry"][:12]
-        flights += [(f[:, [names.index(c) for c in hover.INPUTS]], np.ones(len(f), bool)) for f in tel]
+    with np.load(flightlog_export.parent / "dataset.npz") as d:  # a tiny realistic-suite run's flights
+        names = [str(n) for n in d["channel_names"]]
+        tel = d["telemetry"][:12]
+    flights += [(f[:, [names.index(c) for c in hover.INPUTS]], np.ones(len(f), bool)) for f in tel]
     real = _real_columns()
     flights += real
     got = _cpp(host_build, flights, tmp_path)
@@ -119,6 +119,8 @@ def test_cpp_estimate_is_bit_identical_on_simulated_and_real_flights(host_build,
         assert np.float32(g["cmd"]).tobytes() == py.cmd.tobytes()
         assert np.float32(g["cur"]).tobytes() == py.cur.tobytes() or (np.isnan(g["cur"]) and np.isnan(py.cur))
         frozen += py.freeze >= 0
-    assert frozen >= len(flights) - 1  # the comparison is on real estimates, not on NaN = NaN
+    # the comparison is on real estimates, not on NaN = NaN: all but two flights freeze (one real log and one
+    # aggressive 12 s simulated flight never hold the steady test's 50 samples)
+    assert frozen >= len(flights) - 2
     if real:
         assert any(hover.estimate(c, a).freeze >= 0 for c, a in real)

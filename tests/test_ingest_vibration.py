@@ -5,15 +5,14 @@ logs, read once."""
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 
 from quadfdi.ingest import px4_vibration
 from quadfdi.ingest.model import LogRead
+from tests.conftest import SHARED_DATA
 
-REAL = Path("/work/shared/data/flightlogs")
+REAL = SHARED_DATA / "flightlogs"
 pytestmark = pytest.mark.skipif(not (REAL / "px4_quad_6s_uavcan_mission.ulg").is_file(), reason="no shared logs")
 
 

@@ -21,13 +21,12 @@ import pytest
 
 from quadfdi.core.alarm import reported_motor, rotor_columns, run_alarm
 from quadfdi.core.contracts import FP32_CPP_REL_TOL, SPLIT_TEST
-from tests.conftest import copy_run, quadfdi
+from tests.conftest import SHARED_DATA, copy_run, quadfdi
 from tests.test_firmware_fixtures import asan_build, host_build  # noqa: F401 (fixtures)
 from tests.test_stream_gru import TINY, _cli
 
-REAL = Path("/work/shared/data/flightlogs")
+REAL = SHARED_DATA / "flightlogs"
 MISSION = REAL / "px4_quad_6s_uavcan_mission.ulg"
-PREDICTIONS = Path("/work/main/runs/realistic/predictions/cnode_sim0_train0.npz")
 SANITIZER_MARKERS = ("AddressSanitizer", "runtime error", "LeakSanitizer", "UndefinedBehaviorSanitizer")
 POLICIES = [(0.5, 2, 3, 3, False), (0.3, 1, 1, 1, False), (0.7, 3, 5, 2, True), (0.45, 4, 8, 6, False)]
 
@@ -76,9 +75,9 @@ def test_alarm_mirror_on_random_sequences(host_build, tmp_path, policy):  # noqa
     assert ((trace.cls == 3) & (trace.motor >= 0)).any() and (gated[..., 5] >= 0).any()  # both sides of the gate
 
 
-@pytest.mark.skipif(not PREDICTIONS.is_file(), reason="the realistic run's prediction sets are not here")
-def test_alarm_mirror_on_a_prediction_set(host_build, tmp_path):  # noqa: F811
-    z = np.load(PREDICTIONS)
+def test_alarm_mirror_on_a_prediction_set(flightlog_export, host_build, tmp_path):  # noqa: F811
+    """The C++ alarm against core.alarm on a trained network's own prediction set (`quadfdi train`'s)."""
+    z = np.load(flightlog_export.parent / "predictions" / "cnode_sim0_train0.npz")
     test = z["split"] == z["split"].max()  # one split's flights: enough, and cheap
     traj, t_end, proba = z["traj"][test], z["t_end"][test], z["proba"][test].astype(np.float64)
     flights = np.unique(traj)[:60]

@@ -24,11 +24,11 @@ import pytest
 
 from quadfdi.core.jobcache import code_version
 from quadfdi.core.resources import firmware_digest, firmware_files
-from tests.conftest import FLIGHTLOG_TINY, FLIGHTLOG_TRAIN, ROOT
+from tests.conftest import FLIGHTLOG_TINY, FLIGHTLOG_TRAIN, ROOT, SHARED_DATA
 
 pytestmark = pytest.mark.slow
 
-MISSION = Path("/work/shared/data/flightlogs/px4_quad_6s_uavcan_mission.ulg")
+MISSION = SHARED_DATA / "flightlogs" / "px4_quad_6s_uavcan_mission.ulg"
 # build folders a checkout may hold beside the sources: planted in the copy, they must stay out of the wheel
 PACKAGES = ("quadfdi", "sim", "train", "bench")  # a sweep's job: the app layer, two stages, the C++ sources
 PLANTED = ("firmware_ref/build/CMakeCache.txt", "firmware_ref/build-mcu-m4/fwref_mcu_parity.elf",
