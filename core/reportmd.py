@@ -21,16 +21,17 @@ def pct(x: float | None, nd: int = 2) -> str:
     return "—" if x is None else f"{100 * x:.{nd}f} %"
 
 
-def over_bound_clause(check: dict) -> str:
-    """How many windows an fp32 check had past its bound and how they were judged against float32 rounding
-    (runtimes.pytorch.rounding_judgement), as a clause for a message or a report ("" when none or not counted)."""
+def over_bound_clause(check: dict, unit: str = "window") -> str:
+    """How many windows (or other ``unit``s: a replayed flight's steps) an fp32 check had past its bound and
+    how they were judged against float32 rounding (runtimes.pytorch.rounding_judgement), as a clause for a
+    message or a report ("" when none or not counted)."""
     n, allowed = check.get("windows_over_bound"), check.get("over_bound_allowed")
     if not n:
         return ""
     if n > allowed:
-        return f"; on {n} windows (at most {allowed} may be, each within float32 rounding)"
+        return f"; on {n} {unit}s (at most {allowed} may be, each within float32 rounding)"
     ratio = format(check["over_bound_rounding_ratio"], ".3g")
-    which = f"1 window, {ratio} x its" if n == 1 else f"{n} windows, {ratio} x their"
+    which = f"1 {unit}, {ratio} x its" if n == 1 else f"{n} {unit}s, {ratio} x their"
     return f"; on {which} float32 rounding spread (at most {check['rounding_factor']:g})"
 
 

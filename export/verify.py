@@ -3,7 +3,8 @@
 - fp32 parity: max |logit_ORT - logit_PyTorch| over the windows must be at most
   ``FP32_REL_TOL * max(1, max |logit_PyTorch|)`` (the CNODE with the same classic RK4 N), except on
   windows where the float32 program itself is ill-conditioned (``judged_parity``). A failure stops the
-  export: nothing is written.
+  export: nothing is written. The streaming exports check the steps of one replayed flight the same way
+  (``stream_check``).
 - int8 against fp32: argmax agreement, max |logit| difference, and the change of macro F1 in
   points (100 x); target: a drop of at most ``F1_DROP_TARGET_POINTS``. Reported, not enforced
   (a target, and meaningless for an untrained model).
@@ -19,6 +20,8 @@ import torch
 from sklearn.metrics import f1_score
 
 from quadfdi.core.contracts import FP32_ORT_VS_TORCH_REL_TOL
+from quadfdi.core.errors import QuadfdiError
+from quadfdi.core.reportmd import over_bound_clause
 from quadfdi.runtimes.ort import outputs
 from quadfdi.runtimes.pytorch import rounding_judgement, torch_motor_logits
 
@@ -42,10 +45,25 @@ def judged_parity(logits: np.ndarray, reference: np.ndarray, model: torch.nn.Mod
     (runtimes/pytorch.py ``rounding_judgement``): a recurrence or ODE that amplifies rounding (a window
     near a switch of the hidden state) lets two correct float32 programs with other summation orders
     part by more than the bound; a wrong graph misses on (nearly) every window. ``head``: "logits" or
-    "motor"."""
+    "motor"; "stream": ``logits`` are a streaming network's at every step of the one flight ``x`` (1, T, C)
+    replayed step by step, ``reference`` PyTorch's over the whole flight."""
     res = parity(logits, reference)
     outside = np.abs(logits.astype(np.float64) - reference).max(1) > res["bound"]
     return {**res, **rounding_judgement(logits, outside, model, x, head)}
+
+
+def stream_check(graph: str, logits: np.ndarray, reference: np.ndarray, model: torch.nn.Module, tel: np.ndarray,
+                 row: int, state_diff: float) -> dict:
+    """A streaming export's self-check: ``judged_parity`` (head "stream") of ONNX Runtime's step-by-step
+    replay ``logits`` of flight ``tel`` (dataset row ``row``) against PyTorch's ``reference``, with the
+    state's max abs difference; a failure raises, naming ``graph``, before the export writes anything."""
+    check = {**judged_parity(logits, reference.astype(np.float64), model, tel[None], head="stream"),
+             "max_abs_state_diff": float(state_diff), "flight_row": int(row), "steps": len(tel)}
+    if not check["passed"]:
+        raise QuadfdiError(f"{graph} differs from PyTorch on flight {row}: max |logit diff| "
+                           f"{check['max_abs_logit_diff']:.3g} > {check['bound']:.3g}"
+                           + over_bound_clause(check, "step"))
+    return check
 
 
 def int8_vs_fp32(int8_logits: np.ndarray, fp32_logits: np.ndarray, y: np.ndarray) -> dict:

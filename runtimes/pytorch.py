@@ -5,11 +5,12 @@ from __future__ import annotations
 
 import copy
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 import torch
 
-from quadfdi.core.contracts import FP32_OVER_BOUND_SHARE, ROUNDING_FACTOR, ROUNDING_SAMPLES
+from quadfdi.core.contracts import FP32_OVER_BOUND_SHARE, ROUNDING_FACTOR, ROUNDING_SAMPLES, STREAM_OVER_BOUND_SHARE
 from quadfdi.models.checkpoint import load_checkpoint
 from quadfdi.models.networks import SolverSpec
 from quadfdi.models.threads import torch_threads
@@ -34,44 +35,56 @@ def torch_motor_logits(model: torch.nn.Module, x: np.ndarray) -> np.ndarray:
 
 FLOAT32_ULP = 2.0 ** -23  # relative spacing of float32 numbers in [1, 2)
 
+Forward = Callable[[torch.nn.Module, torch.Tensor], torch.Tensor]
+HEADS: dict[str, Forward] = {
+    "logits": lambda m, x: m(x),  # a windowed network's class logits (n, K)
+    "motor": lambda m, x: m.motor_head(m.features(x)),  # its motor head's logits (n, 4)
+    "stream": lambda m, x: m(x)[0][0],  # a streaming network over one flight (1, T, C): logits at every step (T, K)
+}
+
 
 @torch.no_grad()
 def rounding_spread(model: torch.nn.Module, x: np.ndarray, head: str = "logits",
                     seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
-    """(exact, spread): ``model``'s outputs on windows ``x`` in float64 and, per window, the largest
-    distance from them over ROUNDING_SAMPLES float64 evaluations with every weight and input scaled by
-    1 + u * FLOAT32_ULP, u uniform in [-1, 1]: how far float32 rounding can move this window's result
-    (a float32 program computes the exact result of slightly perturbed data). ``head``: "logits" or
-    "motor" (the motor head's logits)."""
+    """(exact, spread): ``model``'s outputs on ``x`` in float64 and, per output row (a window; a step of a
+    stream), the largest distance from them over ROUNDING_SAMPLES float64 evaluations with every weight
+    and input scaled by 1 + u * FLOAT32_ULP, u uniform in [-1, 1]: how far float32 rounding can move
+    that row's result (a float32 program computes the exact result of slightly perturbed data).
+    ``head``: a key of HEADS (what ``x`` is and which outputs are compared)."""
     gen = torch.Generator().manual_seed(seed)
+    out_of = HEADS[head]
 
     def jitter(t: torch.Tensor) -> torch.Tensor:
         return t * (1 + FLOAT32_ULP * (2 * torch.rand(t.shape, generator=gen, dtype=torch.float64) - 1))
 
-    def out(m: torch.nn.Module, xt: torch.Tensor) -> np.ndarray:
-        return (m(xt) if head == "logits" else m.motor_head(m.features(xt))).numpy()
-
     exact_model, xt = copy.deepcopy(model).double(), torch.from_numpy(x).double()
     with torch_threads(THREADS):
-        exact, spread = out(exact_model, xt), np.zeros(len(x))
+        exact = out_of(exact_model, xt).numpy()
+        spread = np.zeros(len(exact))
         for _ in range(ROUNDING_SAMPLES):
             moved = copy.deepcopy(exact_model)
             for p in moved.parameters():
                 p.copy_(jitter(p))
-            spread = np.maximum(spread, np.abs(out(moved, jitter(xt)) - exact).max(1))
+            spread = np.maximum(spread, np.abs(out_of(moved, jitter(xt)).numpy() - exact).max(1))
     return exact, spread
 
 
 def rounding_judgement(out: np.ndarray, outside: np.ndarray, model: torch.nn.Module, x: np.ndarray,
                        head: str = "logits") -> dict:
-    """A float32 runtime's outputs ``out`` of ``model`` on windows ``x`` where ``outside`` (per window)
-    marks those past a parity bound: at most FP32_OVER_BOUND_SHARE of them (at least one) may be, each
-    within ROUNDING_FACTOR x its ``rounding_spread`` of the float64 result (core/contracts.py)."""
+    """A float32 runtime's outputs ``out`` of ``model`` on ``x`` where ``outside`` (per output row) marks
+    those past a parity bound: each within ROUNDING_FACTOR x its ``rounding_spread`` of the float64
+    result, and at most FP32_OVER_BOUND_SHARE of the rows (at least one) past the bound: windows
+    (core/contracts.py), or steps of one replayed flight with ``head`` "stream" (STREAM_OVER_BOUND_SHARE:
+    a carried state takes the steps after an ill-conditioned one with it)."""
     over = np.flatnonzero(outside)
-    allowed = max(1, int(FP32_OVER_BOUND_SHARE * len(out)))
+    share = STREAM_OVER_BOUND_SHARE if head == "stream" else FP32_OVER_BOUND_SHARE
+    allowed = max(1, int(share * len(out)))
     res = {"windows_over_bound": int(len(over)), "over_bound_allowed": allowed, "passed": len(over) == 0}
     if 0 < len(over) <= allowed:
-        exact, spread = rounding_spread(model, x[over], head)
+        if head == "stream":  # the whole flight replayed, its steps over the bound read
+            exact, spread = (a[over] for a in rounding_spread(model, x, head))
+        else:
+            exact, spread = rounding_spread(model, x[over], head)
         ratio = np.abs(out[over].astype(np.float64) - exact).max(1) / np.maximum(spread, np.finfo(np.float64).tiny)
         res.update(over_bound_rounding_ratio=float(ratio.max()), rounding_factor=ROUNDING_FACTOR,
                    passed=bool(np.all(ratio <= ROUNDING_FACTOR)))

@@ -148,6 +148,29 @@ def test_export_sgru_one_step_onnx_matches_pytorch_on_a_replayed_flight(sgru_run
     assert np.allclose(memoryless[0], rep["logits"][0], atol=1e-5)  # step 0 starts from h = 0 in both
 
 
+def test_export_sgru_refuses_a_wrong_step_graph_and_writes_nothing(sgru_run, tmp_path, monkeypatch):
+    """A one-step graph of the other GRU variant (linear_before_reset=0) parts from PyTorch on the replayed
+    flight beyond float32 rounding: one line, naming the steps, and no export file written."""
+    from quadfdi.core.errors import QuadfdiError
+    from quadfdi.export import sgru_run as export_sgru
+
+    run = copy_run(sgru_run, tmp_path / "run", ("config.toml", "dataset.npz", ".stages/sim.json", "sgru_train0.pt"))
+    built = export_sgru.build_sgru_fp32
+
+    def wrong(params, opset):
+        b = built(params, opset)
+        for node in b.model.graph.node:
+            for a in node.attribute:
+                if node.op_type == "GRU" and a.name == "linear_before_reset":
+                    a.i = 0
+        return b
+
+    monkeypatch.setattr(export_sgru, "build_sgru_fp32", wrong)
+    with pytest.raises(QuadfdiError, match=r"sgru_step\.onnx differs from PyTorch on flight \d+: .* on \d+ step"):
+        _cli("export", "sgru", "--run", str(run))
+    assert not (run / "export").exists() or not any((run / "export").iterdir())
+
+
 def test_fwref_sgru_one_step_matches_onnx_runtime_on_the_replayed_flight(sgru_run, host_build):  # noqa: F811 (the fixture)
     import subprocess
 
