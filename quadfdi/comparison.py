@@ -231,8 +231,9 @@ def report_section(root: Path) -> list[str]:
     return out + _stale_export_note(root, root / EVALUATION_JSON) + [""]
 
 
-def comparison_block(root: Path) -> str:
-    """The README block: the test set, compact cells (points, no interval on the flight figures)."""
+def comparison_block(root: Path, marker: str | None = None) -> str:
+    """The README block: the test set, compact cells (points, no interval on the flight figures); ``marker``:
+    the file's block it is written into when not "comparison" (named in the command it quotes)."""
     root = Path(root)
     ev = _evaluation(root)
     notes = Notes(compact=True)
@@ -241,7 +242,8 @@ def comparison_block(root: Path) -> str:
     table = rows(root, ev, "test", notes, compact=True)
     flights = next(r["flights"] for r in ev["results"] if r["set"] == "test")
     lines = [*wrap(f"Networks (windowed, streaming) vs baselines, test set ({flights} flights): `quadfdi readme --run "
-                   f"{root} --block comparison` from `evaluation/evaluation.json` (code "
+                   f"{root} --block comparison{f' --marker {marker}' if marker else ''}` from "
+                   "`evaluation/evaluation.json` (code "
                    f"`{(ev.get('git_commit') or '?')[:10]}`); F1, Δ in points (other intervals: report.md); dep.: "
                    "deployed, chosen on validation."),
              "", *tight_table(HEAD_COMPACT, table), "",

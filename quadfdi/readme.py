@@ -6,7 +6,8 @@ solvers/solvers.json) and names the machine that measured them (CPU model, vecto
 bench.json), because these numbers move with the CPU; ``--block results`` writes the seed study's
 headline tables (quadfdi.readme_study), ``--block realistic`` the realistic suite's
 (quadfdi.readme_realistic), ``--block comparison`` the networks against the baselines
-(quadfdi.comparison). Nothing is typed in by hand; a missing file is a one-line error naming
+(quadfdi.comparison); ``--marker`` names another block of the file for it (a second comparison, another
+run). Nothing is typed in by hand; a missing file is a one-line error naming
 the command that writes it. The deployment and results blocks keep every line within 100
 characters, the README's width.
 """
@@ -39,6 +40,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                         "Tables 3 and 4 (seeds.json; quadfdi.readme_study); realistic: the evaluation's "
                         "model x test-set tables (quadfdi.readme_realistic); comparison: windowed and streaming "
                         "networks against the baselines (quadfdi.comparison) (default: %(default)s)")
+    p.add_argument("--marker", default=None,
+                   help="the block of the file to rewrite, <!-- MARKER:start --> ... <!-- MARKER:end --> (default: the "
+                        "--block's own name), e.g. a second comparison block for another run")
     p.set_defaults(func=_cli)
 
 
@@ -50,15 +54,16 @@ def _cli(args: argparse.Namespace) -> int:
     elif args.block == "comparison":
         from quadfdi.comparison import comparison_block
 
-        text = comparison_block(Path(args.run))
+        text = comparison_block(Path(args.run), args.marker)
     elif args.block == "results":
         from quadfdi.readme_study import results_block
 
         text = results_block(Path(args.run))
     else:
         text = deployment_block(Path(args.run))
-    path = rewrite_file_block(args.readme, args.block, text)
-    print(f"wrote the {args.block} block of {path}")
+    marker = args.marker or args.block
+    path = rewrite_file_block(args.readme, marker, text)
+    print(f"wrote the {marker} block of {path}")
     return 0
 
 

@@ -167,6 +167,24 @@ def test_comparison_block_reads_every_figure_from_the_evaluation(both, tmp_path)
     assert rows["windowed GRU"][1].startswith(f"{100 * sign * p['diff']['macro_f1']['diff']:+.1f} [")
 
 
+def test_comparison_into_a_named_block_leaves_the_other_alone(both, tmp_path):
+    """``--marker`` writes the comparison into another block of the file (a second run's table) and quotes
+    the command with it; the file's ``comparison`` block is left as it was."""
+    root, _ = both
+    readme = tmp_path / "README.md"
+    first = "<!-- comparison:start -->\nthe fleet's table\n<!-- comparison:end -->\n"
+    readme.write_text(first + "<!-- comparison-paper:start -->\n<!-- comparison-paper:end -->\n")
+    res = quadfdi("readme", "--run", str(root), "--block", "comparison", "--marker", "comparison-paper",
+                  "--readme", str(readme))
+    assert res.returncode == 0, res.stderr
+    assert res.stdout.strip() == f"wrote the comparison-paper block of {readme}"
+    text = readme.read_text()
+    assert text.startswith(first)
+    assert "--block comparison --marker comparison-paper` from" in " ".join(text.split())
+    res = quadfdi("readme", "--run", str(root), "--block", "comparison", "--marker", "absent", "--readme", str(readme))
+    assert res.returncode != 0 and len(res.stderr.strip().splitlines()) == 1 and readme.read_text() == text
+
+
 def test_comparison_costs_cycles_first_then_macs(both, tmp_path):
     """The M4 cycle figure of parity's outputs wins over a MAC count; a record's MACs fill in otherwise."""
     from quadfdi.comparison import costs
