@@ -153,13 +153,18 @@ def edge_stream(seed: int, hidden: int, scale: float, steps: int = STREAM_STEPS)
     return model, (mean + std * walk).astype(np.float32)
 
 
-def stream_graph(model: StreamGRU, linear_before_reset: int = 1) -> bytes:
-    """The export's one-step graph of ``model`` (export/onnx_sgru.py), its GRU variant set."""
-    g = build_sgru_fp32(sgru_params(model), OPSET).model
-    for node in g.graph.node:
+def set_gru_variant(graph, linear_before_reset: int) -> None:
+    """Set the GRU nodes' ``linear_before_reset`` of the ONNX model ``graph`` in place."""
+    for node in graph.graph.node:
         for a in node.attribute:
             if node.op_type == "GRU" and a.name == "linear_before_reset":
                 a.i = linear_before_reset
+
+
+def stream_graph(model: StreamGRU, linear_before_reset: int = 1) -> bytes:
+    """The export's one-step graph of ``model`` (export/onnx_sgru.py), its GRU variant set."""
+    g = build_sgru_fp32(sgru_params(model), OPSET).model
+    set_gru_variant(g, linear_before_reset)
     return g.SerializeToString()
 
 

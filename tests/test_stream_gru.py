@@ -153,16 +153,14 @@ def test_export_sgru_refuses_a_wrong_step_graph_and_writes_nothing(sgru_run, tmp
     flight beyond float32 rounding: one line, naming the steps, and no export file written."""
     from quadfdi.core.errors import QuadfdiError
     from quadfdi.export import sgru_run as export_sgru
+    from tests.test_fp32_rounding import set_gru_variant
 
     run = copy_run(sgru_run, tmp_path / "run", ("config.toml", "dataset.npz", ".stages/sim.json", "sgru_train0.pt"))
     built = export_sgru.build_sgru_fp32
 
     def wrong(params, opset):
         b = built(params, opset)
-        for node in b.model.graph.node:
-            for a in node.attribute:
-                if node.op_type == "GRU" and a.name == "linear_before_reset":
-                    a.i = 0
+        set_gru_variant(b.model, 0)
         return b
 
     monkeypatch.setattr(export_sgru, "build_sgru_fp32", wrong)
