@@ -61,11 +61,28 @@ def parse_harness(text: str) -> dict:
 
 def run_cpu(cpu: str, weights: Path, reference: Path, log: Callable[[str], None] = print,
             stream: stream_mod.StreamInputs | None = None) -> dict:
-    """Build, run and measure one core; raises QuadfdiError only when it cannot be measured."""
+    """Build, run and measure one core; raises QuadfdiError only when it cannot be measured. The CNODE's
+    stage weights are int16 copies in RAM (faster) when the int8 CNODE then meets its static-RAM target,
+    else they stay int8 in flash: measured, the build with the copies first."""
+    r = _run_build(cpu, weights, reference, log, stream, cnode_w_int16=True)
+    ram, bound = r["models"]["cnode_int8"]["static_ram_bytes"], TARGETS["cnode_int8"]["static_ram_bytes"]
+    if ram > bound:
+        log(f"parity: {cpu}: the int8 CNODE takes {ram} B of static RAM with its int16 weight copies "
+            f"(target {bound} B): rebuilt without them")
+        first = r["models"]["cnode_int8"]
+        r = _run_build(cpu, weights, reference, log, stream, cnode_w_int16=False)
+        r["models"]["cnode_int8"]["with_int16_copies"] = {
+            k: first[k] for k in ("static_ram_bytes", "stack_peak_bytes", "instructions_per_inference")}
+    r["models"]["cnode_int8"]["int16_weight_copies"] = ram <= bound
+    return r
+
+
+def _run_build(cpu: str, weights: Path, reference: Path, log: Callable[[str], None],
+               stream: stream_mod.StreamInputs | None, cnode_w_int16: bool) -> dict:
     build_dir = mcu_build_dir(cpu)
     with locked(build_dir):
         paths = stream_mod.write_streams(build_dir, stream) if stream is not None else ()
-        build_mcu(cpu, weights, reference, build_dir, log, streams=paths)
+        build_mcu(cpu, weights, reference, build_dir, log, streams=paths, cnode_w_int16=cnode_w_int16)
         cmd = qemu_command(cpu, build_dir / "fwref_mcu_parity.elf")
         try:
             res = subprocess.run(cmd, capture_output=True, text=True, timeout=QEMU_TIMEOUT_S)
@@ -143,6 +160,10 @@ def mcu_run(weights: Path, reference: Path, cpus: tuple[str, ...] = tuple(MCU_CP
                      "weights_bytes": "bytes linked from the generated weight arrays (map file)",
                      "library_bytes": "bytes linked from the model library cnode.cpp/gru.cpp/status.cpp (map file)",
                      "stack_peak_bytes": "peak stack of one inference call (stack painting under QEMU)",
+                     "int16_weight_copies": "int8 CNODE: lin1_z and lin2 sign-extended to int16 in RAM (faster); "
+                                            "false when the static-RAM target is missed with them, so the images "
+                                            "were built without (FWREF_CNODE_W_INT16=OFF); with_int16_copies: "
+                                            "that build's measures",
                      "instructions_per_inference": "median over the reference windows; SysTick under -icount "
                                                    "shift=0, calibrated against a loop of known length",
                      "cycles_estimate": "ESTIMATE, not a measurement: QEMU counts instructions, not cycles; this is "

@@ -66,6 +66,11 @@ def _mcu_section(mcu: dict) -> list[str]:
                        f"{m['instructions_per_inference']:,} | {verdict} |")
     out += ["", "Targets: int8 CNODE flash <= 64 KiB and static RAM <= 16 KiB: "
             + ("**met**" if not [p for p in mcu["problems"] if "cnode_int8" in p] else "**MISSED**") + ".", ""]
+    copies = {cpu: r["models"]["cnode_int8"].get("int16_weight_copies", True) for cpu, r in mcu["cpus"].items()}
+    if not all(copies.values()):
+        out += ["The int8 CNODE's stage weights (lin1_z, lin2) stay int8 in flash on "
+                + ", ".join(cpu for cpu, c in copies.items() if not c)
+                + ": with their int16 copies in RAM (the faster kernel) it missed the static-RAM target.", ""]
     for cpu, r in mcu["cpus"].items():
         out += [f"`{r['qemu_command']}` exited {r['exit_code']} ({r['exit_meaning']}).", ""]
     if mcu["problems"]:

@@ -226,9 +226,11 @@ def build_host(build_dir: Path | None = None, sanitize: bool = False, log: Calla
 
 
 def build_mcu(cpu: str, weights: Path, reference: Path, build_dir: Path | None = None,
-              log: Callable[[str], None] = print, streams: tuple[Path, ...] = ()) -> Path:
+              log: Callable[[str], None] = print, streams: tuple[Path, ...] = (),
+              cnode_w_int16: bool = True) -> Path:
     """Cross-build the Cortex-M images for ``cpu`` with ``weights`` and ``reference`` compiled in;
     with ``streams`` (stream files) also the stream image fwref_mcu_stream.elf, which replays them.
+    ``cnode_w_int16``: the CNODE's stage weights as int16 copies in RAM (FWREF_CNODE_W_INT16).
 
     The caller holds ``locked(build_dir)`` while it also runs the images, so that another process
     cannot rebuild them with other weights in between. CMake runs the weights generator with this
@@ -239,7 +241,9 @@ def build_mcu(cpu: str, weights: Path, reference: Path, build_dir: Path | None =
     require("arm-none-eabi-g++", "it cross-compiles the Cortex-M build")
     src = source_dir()
     build_dir = build_dir or mcu_build_dir(cpu)
-    configure_and_build(src / "mcu", build_dir, mcu_options(src, cpu, weights, reference, streams), f"the {cpu} images")
+    options = mcu_options(src, cpu, weights, reference, streams)
+    options["FWREF_CNODE_W_INT16"] = "ON" if cnode_w_int16 else "OFF"
+    configure_and_build(src / "mcu", build_dir, options, f"the {cpu} images")
     log(f"parity: {cpu} images built in {build_dir}")
     return build_dir
 

@@ -14,6 +14,7 @@
 #include "cnode_copies16.hpp"
 #include "cnode_f32_t.hpp"
 #include "cnode_field16.hpp"
+#include "cnode_vrows.hpp"
 #include "model_common.hpp"
 #if defined(FWREF_HAS_W8_VNNI)
 #include "cnode_w8.hpp"
@@ -51,6 +52,7 @@ Status check_common(const Model& m) {
   for (int e = 0; e < d.evals(); ++e) {
     if (m.stage_index[e] < 0 || m.stage_index[e] >= d.stage_times) return Status::kBadWeights;
   }
+  if (!v_rows_serve(m.stage_index, d.evals(), d.stage_times)) return Status::kBadWeights;
   return Status::kOk;
 }
 
@@ -193,29 +195,29 @@ Status check_any(const Model& m) {
                              [&] { return scales_ok(m) ? check_common(m) : Status::kBadWeights; });
 }
 
-// V[s] = B(uq[s], lin1_u) + b1 for every row s of U: linear_i8_folded's operations. With the int8 kernel
-// avx2field, all S rows in one call on lin1_u's int16 copy (fwref/linear_w16_avx2.hpp). On Cortex-M
-// (without an int16 copy of lin1_u) two rows of U per pass over the weights (fwref/kernels_i8_x2.hpp),
-// then the same rescale, f32(acc) * s_w' + b, row by row.
-void lin1_u_rows(const CnodeI8& m, const std::int16_t* lin1u16, CnodeWorkspace& ws) {
+// V[s] = B(uq[s], lin1_u) + b1 for the rows s in [s0, s1) of U: linear_i8_folded's operations. With the
+// int8 kernel avx2field, all S rows in one call on lin1_u's int16 copy (fwref/linear_w16_avx2.hpp). On
+// Cortex-M (without an int16 copy of lin1_u) two rows of U per pass over the weights
+// (fwref/kernels_i8_x2.hpp), then the same rescale, f32(acc) * s_w' + b, row by row.
+void lin1_u_rows(const CnodeI8& m, const std::int16_t* lin1u16, CnodeWorkspace& ws, int s0, int s1) {
   const CnodeDims& d = m.dims;
-  const int C = d.channels, S = d.stage_times, H = d.hidden;
+  const int C = d.channels, H = d.hidden;
 #if defined(FWREF_HAS_LINEAR_W16_AVX2)
   // avx2field: the S rows in one call on the int16 copy (fwref/linear_w16_avx2.hpp: the same bits)
-  if (lin1u16 != nullptr && field_w16_avx2_active() &&
-      linear_folded_w16_avx2(lin1u16, H, C, ws.uq, S, m.lin1_u.scale, m.lin1_b, ws.v)) {
+  if (s0 == 0 && s1 == d.stage_times && lin1u16 != nullptr && field_w16_avx2_active() &&
+      linear_folded_w16_avx2(lin1u16, H, C, ws.uq, s1, m.lin1_u.scale, m.lin1_b, ws.v)) {
     return;
   }
 #endif
-  int s = 0;
+  int s = s0;
 #if defined(FWREF_HAS_I8_X2)
   if (lin1u16 == nullptr) {
     std::int32_t acc_a[kMaxCnodeHidden], acc_b[kMaxCnodeHidden];
     const float* s_w = m.lin1_u.scale;
-    for (; s + 2 <= S; s += 2) {
+    for (; s + 2 <= s1; s += 2) {
       gemv_i8_x2(m.lin1_u.q, H, C, ws.uq + s * C, ws.uq + (s + 1) * C, acc_a, acc_b);
-      float* va = ws.v + s * H;
-      float* vb = va + H;
+      float* va = ws.v + v_slot(s) * H;
+      float* vb = ws.v + v_slot(s + 1) * H;
       for (int o = 0; o < H; ++o) {
         va[o] = (static_cast<float>(acc_a[o]) * s_w[o]) + m.lin1_b[o];
         vb[o] = (static_cast<float>(acc_b[o]) * s_w[o]) + m.lin1_b[o];
@@ -223,14 +225,14 @@ void lin1_u_rows(const CnodeI8& m, const std::int16_t* lin1u16, CnodeWorkspace& 
     }
   }
 #endif
-  for (; s < S; ++s) {
-    linear_i8_folded(m.lin1_u.q, m.lin1_u.scale, H, C, ws.uq + s * C, m.lin1_b, ws.v + s * H, lin1u16);
+  for (; s < s1; ++s) {
+    linear_i8_folded(m.lin1_u.q, m.lin1_u.scale, H, C, ws.uq + s * C, m.lin1_b, ws.v + v_slot(s) * H, lin1u16);
   }
 }
 
 // The control path: U = interp_q @ quantize(x_norm, s_x[c]) in int32, u = f32(acc) * f32(s_P[s] *
-// s_x[c]), quantized per channel with s_u[c] into ws.uq; z0 = tanh(B(uq[0], encoder) + b); V[s] =
-// B(uq[s], lin1_u) + b1 (pattern B: s_u folded in). x_norm is requantized where a sample feeds two
+// s_x[c]), quantized per channel with s_u[c] into ws.uq; z0 = tanh(B(uq[0], encoder) + b) (V's rows
+// from uq: lin1_u_rows, as VRows asks). x_norm is requantized where a sample feeds two
 // rows (the same numbers both times), so no (W, C) buffer is needed. The per-channel work and the
 // search for a row's nonzero weights run on AVX2 vectors on the host (fwref/vmath_i8.hpp).
 void control_path_i8(const CnodeI8& m, const float* x, const StageWeights16& w16, CnodeWorkspace& ws,
@@ -248,18 +250,20 @@ void control_path_i8(const CnodeI8& m, const float* x, const StageWeights16& w16
   if (!encoded) linear_i8_folded(m.encoder_w.q, m.encoder_w.scale, L, C, ws.uq, m.encoder_b, ws.z.data());
   tanh_inplace(ws.z);
   if (tr != nullptr) copy_out(ws.z, tr->z0);
-  lin1_u_rows(m, w16.lin1u, ws);
 }
 
-// The fp32 control path: U row by row, each row straight into V = lin1_u U + b1 (MatMul, then Add); row 0
-// also feeds the encoder (interp's row 0 is sample 0 alone), z0 = tanh(encoder U[0] + b) in ws.z. lin1u_t:
-// lin1_u's column-major copy where the fp32 choice is AVX-512F (src/cnode_f32_t.hpp), else null.
-void control_path_f32(const CnodeF32& m, const float* x, const float* lin1u_t, CnodeWorkspace& ws, CnodeTrace* tr) {
+// The fp32 control path, rows [s0, s1): U row by row, each row straight into V = lin1_u U + b1 (MatMul,
+// then Add); row 0 also feeds the encoder (interp's row 0 is sample 0 alone), z0 = tanh(encoder U[0] + b)
+// in ws.z. lin1u_t: lin1_u's column-major copy where the fp32 choice is AVX-512F (src/cnode_f32_t.hpp),
+// else null.
+void control_rows_f32(const CnodeF32& m, const float* x, const float* lin1u_t, CnodeWorkspace& ws, CnodeTrace* tr,
+                      int s0, int s1) {
   const CnodeDims& d = m.dims;
-  const int C = d.channels, W = d.window, S = d.stage_times, H = d.hidden;
+  const int C = d.channels, W = d.window, H = d.hidden;
   ws.a.resize(CnodeWorkspace::kURowInA ? C : 0);
   float* const u_row = CnodeWorkspace::kURowInA ? ws.a.data() : ws.u_row;
-  for (int s = 0; s < S; ++s) {
+  for (int s = s0; s < s1; ++s) {
+    float* const v = ws.v + v_slot(s) * H;
     interp_row_f32(m.interp.data + s * W, x, m.mean, m.std, W, C, u_row);
     if (tr != nullptr && tr->u != nullptr) {
       for (int c = 0; c < C; ++c) tr->u[s * C + c] = u_row[c];
@@ -267,10 +271,10 @@ void control_path_f32(const CnodeF32& m, const float* x, const float* lin1u_t, C
     const ConstMapVec u(u_row, C);
 #if defined(FWREF_HAS_F32_AVX512)
     if (lin1u_t != nullptr) {
-      gemv_f32_t_avx512(lin1u_t, H, C, u_row, m.lin1_b, ws.v + s * H);
+      gemv_f32_t_avx512(lin1u_t, H, C, u_row, m.lin1_b, v);
     } else
 #endif
-      matvec_bias_f32(m.lin1_u, u, m.lin1_b, MapVec(ws.v + s * H, H));
+      matvec_bias_f32(m.lin1_u, u, m.lin1_b, MapVec(v, H));
     if (s == 0) {
       matvec_bias_f32(m.encoder_w, u, m.encoder_b, ws.z);
       tanh_inplace(ws.z);
@@ -291,20 +295,26 @@ Status infer(const CnodeF32& m, const float* x, float* logits, CnodeWorkspace& w
   if (!all_finite_n(x, W * C)) return Status::kNonFiniteInput;
   if (tr != nullptr && tr->x_norm != nullptr) trace_x_norm(x, m.mean, m.std, W, C, tr->x_norm);
 
+  int made = 0;  // rows of V made by the AVX-512 path
 #if defined(FWREF_HAS_F32_AVX512)
   const detail::F32Copies tc = detail::f32_copies(m, ws);
   // avx2field: the same steps on U's rows in registers and on zero-padded copies (src/cnode_f32_t.hpp)
-  if (!detail::control_path_avx2(m, tc, x, ws, tr)) control_path_f32(m, x, tc.lin1u, ws, tr);
+  if (detail::control_path_avx2(m, tc, x, ws, tr)) made = d.stage_times;
+  const float* const lin1u_t = tc.lin1u;
 #else
-  control_path_f32(m, x, nullptr, ws, tr);
+  const float* const lin1u_t = nullptr;
 #endif
+  VRows rows(ws.v, H, d.stage_times, made,
+             [&](int s0, int s1) { control_rows_f32(m, x, lin1u_t, ws, tr, s0, s1); });
+  rows.row(0);  // z0 (and, without the ring, every row of V)
   if (tr != nullptr) copy_out(ws.z, tr->z0);
 
   auto field = [&](int e, const CnodeWorkspace::Lat& z, CnodeWorkspace::Lat& k) {
+    const float* const v = rows.row(m.stage_index[e]);  // V[stage_index[e]]
 #if defined(FWREF_HAS_F32_AVX512)
-    if (tc.lin1z != nullptr) return detail::field_t(m, tc, ws.v + m.stage_index[e] * H, z, ws.a, k);
+    if (tc.lin1z != nullptr) return detail::field_t(m, tc, v, z, ws.a, k);
 #endif
-    matvec_bias_f32(m.lin1_z, z, ws.v + m.stage_index[e] * H, ws.a);  // + V[stage_index[e]]
+    matvec_bias_f32(m.lin1_z, z, v, ws.a);  // + V[stage_index[e]]
     tanh_inplace(ws.a);
     matvec_bias_f32(m.lin2_w, ws.a, m.lin2_b, k);
   };
@@ -330,7 +340,10 @@ Status infer(const CnodeI8& m, const float* x, float* logits, CnodeWorkspace& ws
 
   const StageWeights16 w16 = int16_copies(m, ws);
   control_path_i8(m, x, w16, ws, tr);
-  // The stage codes: int8, or int16 in uq's RAM (free now) with zero padding for the int16 kernel.
+  VRows rows(ws.v, H, d.stage_times, 0, [&](int s0, int s1) { lin1_u_rows(m, w16.lin1u, ws, s0, s1); });
+  rows.row(0);  // without the ring, every row of V
+  // The stage codes: int8, or int16 in uq's RAM (free now, but for the ring's own) with zero padding for
+  // the int16 kernel.
 #if defined(FWREF_CNODE_W_INT16) && defined(FWREF_HAS_W16_KERNEL)
   std::int16_t* const zq = ws.x16.lat;
   std::int16_t* const hq = ws.x16.hid;
@@ -347,9 +360,10 @@ Status infer(const CnodeI8& m, const float* x, float* logits, CnodeWorkspace& ws
   auto field = [&](int e, const CnodeWorkspace::Lat& z, CnodeWorkspace::Lat& k) {
     const float s_z = m.s_stage[e];
     k.resize(L);
-    if (one_call(z.data(), s_z, ws.v + m.stage_index[e] * H, k.data())) return;  // the same steps in one call
+    const float* const v = rows.row(m.stage_index[e]);
+    if (one_call(z.data(), s_z, v, k.data())) return;  // the same steps in one call
     quantize_all(z.data(), L, s_z, zq);
-    lin1_tanh_quantize(m, w16.lin1z, zq, s_z, ws.v + m.stage_index[e] * H, hq);
+    lin1_tanh_quantize(m, w16.lin1z, zq, s_z, v, hq);
     stage_lin2(m, w16.lin2, hq, lin2_mult, k.data());
   };
   detail::rk4_integrate(m.rk4, d.steps, ws.z, ws.k1, ws.k2, ws.k3, ws.k4, ws.state, field,

@@ -90,27 +90,52 @@ struct CnodeTrace {
   float* z1;      // (L)
 };
 
+// The rows of V a workspace holds. By default all S, made before the integration. With
+// FWREF_CNODE_V_RING (the Cortex-M build) a ring of the newest three, made as the RK4 stages reach
+// them (step k evaluates stage times 2k, 2k+1, 2k+1, 2k+2), which takes (S - 3) H floats off static
+// RAM: 13.6 KiB at H = 256, N = 8. The same products on the same operands, so the same bits.
+#if defined(FWREF_CNODE_V_RING)
+constexpr bool kVRing = true;
+constexpr int kVRows = kMaxStageTimes < 3 ? kMaxStageTimes : 3;
+#else
+constexpr bool kVRing = false;
+constexpr int kVRows = kMaxStageTimes;
+#endif
+// Where row s of V lives in the workspace's ``v``.
+constexpr int v_slot(int s) { return kVRing ? s % kVRows : s; }
+// The end of the rows made when stage time s is asked for with rows [0, next) made: the rest at once,
+// or (ring) up to s and at least two rows, so that the Cortex-M kernel runs two rows of U per pass.
+constexpr int v_fill_end(int next, int s, int stage_times) {
+  return !kVRing ? stage_times : (s + 1 > next + 2 ? s + 1 : (next + 2 < stage_times ? next + 2 : stage_times));
+}
+
 // Scratch for one inference; place it where RAM is cheap (static on a microcontroller).
 struct CnodeWorkspace {
   using Lat = VecN<kMaxLatent>;
   using Hid = VecN<kMaxCnodeHidden>;
-  float v[kMaxStageTimes * kMaxCnodeHidden];  // V, (S, H)
-  // One row of U (fp32 only): held in ``a`` (free while V is computed) when it is long enough,
+  float v[kVRows * kMaxCnodeHidden];  // V's rows: (S, H), or the ring's (3, H)
+  // One row of U (fp32 only): held in ``a`` (free while a row of V is computed) when it is long enough,
   // which saves its RAM; else in u_row.
   static constexpr bool kURowInA = kMaxChannels <= kMaxCnodeHidden;
   float u_row[kURowInA ? 1 : kMaxChannels];
 #if defined(FWREF_CNODE_W_INT16)
   // With the int16 stage weights (below), the stage products' inputs are quantized straight into
-  // int16 (no widening pass per product); they share uq's RAM, which is free once V is computed.
+  // int16 (no widening pass per product); they share uq's RAM, which is free once V is computed
+  // (with the ring, V is computed during the integration: then they have their own).
   struct StageX16 {
     // word-aligned, as LDRD needs (4 bytes, not 8: the union then adds no padding to the workspace)
     alignas(4) std::int16_t lat[(kMaxLatent + 7) & ~7];  // quantize(z, s_stage[e]), zero-padded
     alignas(4) std::int16_t hid[(kMaxCnodeHidden + 7) & ~7];  // the hidden codes, zero-padded
   };
+#if defined(FWREF_CNODE_V_RING)
+  std::int8_t uq[kMaxStageTimes * kMaxChannels];  // quantized U (int8), (S, C)
+  StageX16 x16;
+#else
   union {
     std::int8_t uq[kMaxStageTimes * kMaxChannels];  // quantized U (int8), (S, C)
     StageX16 x16;
   };
+#endif
 #else
   std::int8_t uq[kMaxStageTimes * kMaxChannels];  // quantized U (int8), (S, C)
 #endif
