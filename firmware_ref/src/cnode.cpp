@@ -243,6 +243,7 @@ void control_path_i8(const CnodeI8& m, const float* x, const StageWeights16& w16
   detail::quantize_stage_controls(m, x, acc, ws, tr);
   ws.z.resize(L);
   bool encoded = false;
+  static_cast<void>(w16);  // read only by the host's AVX2 encoder below
 #if defined(FWREF_HAS_LINEAR_W16_AVX2)
   encoded = w16.enc != nullptr && field_w16_avx2_active() &&  // avx2field: on the int16 copy, the same bits
             linear_folded_w16_avx2(w16.enc, L, C, ws.uq, 1, m.encoder_w.scale, m.encoder_b, ws.z.data());
