@@ -1,8 +1,9 @@
-"""The vehicle record on the Cortex-M4 under QEMU: the stream image replays flightlog-ref and flightlog-phys
-test flights of the tiny fleet (tests/conftest.py reference_export, physics_export), each with its vehicle's
-record compiled in beside its samples and loaded at the flight's reset (parity/stream.py), every stride held
-against the host's fwref_stream on the same stream files (int8 bit-identical, fp32 within the parity
-tolerance); the worst decision of each model by the M4 cycle table stays within one 40 ms sample period."""
+"""The vehicle record on the Cortex-M4 under QEMU: the stream image replays flightlog-phys test flights of the
+tiny fleet (tests/conftest.py physics_export), each with its vehicle's record compiled in beside its samples and
+loaded at the flight's reset (parity/stream.py), every stride held against the host's fwref_stream on the same
+stream files (int8 bit-identical, fp32 within the parity tolerance); the worst decision of each model by the M4
+cycle table stays within one 40 ms sample period. flightlog-phys holds every channel of flightlog-ref (the
+deviations from the record) and adds the causal physics channels, so one export covers both on-board paths."""
 
 from __future__ import annotations
 
@@ -12,19 +13,17 @@ from quadfdi.runtimes.mcu import tools_missing
 from tests.test_firmware_fixtures import host_build  # noqa: F401 (fixture)
 
 
-@pytest.mark.parametrize("export", ["reference_export", "physics_export"])
-def test_cortex_m4_stream_with_the_vehicle_record(export, request, host_build):  # noqa: F811
+def test_cortex_m4_stream_with_the_vehicle_record(physics_export, host_build):  # noqa: F811
     missing = tools_missing()
     if missing:
         pytest.skip(f"Cortex-M toolchain or QEMU missing: {missing}")
-    reference_export = request.getfixturevalue(export)
     from quadfdi.parity import stream as parity_stream
     from quadfdi.parity.mcu import run_cpu
 
-    inputs = parity_stream.stream_inputs(reference_export.parent, host_build)
+    inputs = parity_stream.stream_inputs(physics_export.parent, host_build)
     assert not isinstance(inputs, str), inputs
     assert inputs.streams and all(rs.vehicle is not None for rs in inputs.streams.values())
-    out = run_cpu("cortex-m4", reference_export / "weights.bin", reference_export / "reference.bin", log=lambda _: None,
+    out = run_cpu("cortex-m4", physics_export / "weights.bin", physics_export / "reference.bin", log=lambda _: None,
                   stream=inputs)
     assert out["passed"] and out["tensors"], out["exit_meaning"]
     s = out["stream"]
